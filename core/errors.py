@@ -1,0 +1,17 @@
+"""Exceptions the core raises for bad input; messages name the file, field or parameter."""
+
+
+class PushbroomError(Exception):
+    """Base class: a problem the user can fix, described in plain words."""
+
+
+class MetadataError(PushbroomError):
+    """A metadata or scene file is unreadable, truncated or lacks a required field."""
+
+
+class InputError(PushbroomError):
+    """A parameter or data value is outside what the algorithm accepts (NaN, CRS, coverage...)."""
+
+
+class ConvergenceError(PushbroomError):
+    """An iterative solution did not converge; the message says what was tried."""

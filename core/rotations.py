@@ -1,0 +1,78 @@
+"""Rotation helpers. Quaternions are scalar first (w, x, y, z); matrices act on column
+vectors (v_out = R @ v_in). Arrays are vectorised over leading axes: (..., 4) <-> (..., 3, 3).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def quat_to_matrix(q) -> np.ndarray:
+    """Unit-normalised quaternion(s) (..., 4), scalar first -> rotation matrices (..., 3, 3)."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    r = np.empty(q.shape[:-1] + (3, 3))
+    r[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    r[..., 0, 1] = 2 * (x * y - z * w)
+    r[..., 0, 2] = 2 * (x * z + y * w)
+    r[..., 1, 0] = 2 * (x * y + z * w)
+    r[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    r[..., 1, 2] = 2 * (y * z - x * w)
+    r[..., 2, 0] = 2 * (x * z - y * w)
+    r[..., 2, 1] = 2 * (y * z + x * w)
+    r[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return r
+
+
+def matrix_to_quat(r) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) -> quaternions (..., 4), scalar first, w >= 0."""
+    r = np.asarray(r, dtype=float)
+    tr = r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2]
+    cand = np.stack([
+        np.stack([1 + tr, r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], -1),
+        np.stack([r[..., 2, 1] - r[..., 1, 2], 1 + 2 * r[..., 0, 0] - tr, r[..., 0, 1] + r[..., 1, 0], r[..., 0, 2] + r[..., 2, 0]], -1),
+        np.stack([r[..., 0, 2] - r[..., 2, 0], r[..., 0, 1] + r[..., 1, 0], 1 + 2 * r[..., 1, 1] - tr, r[..., 1, 2] + r[..., 2, 1]], -1),
+        np.stack([r[..., 1, 0] - r[..., 0, 1], r[..., 0, 2] + r[..., 2, 0], r[..., 1, 2] + r[..., 2, 1], 1 + 2 * r[..., 2, 2] - tr], -1),
+    ], axis=-2)
+    # The candidate built on the largest diagonal term is the numerically stable one.
+    diag = np.stack([tr, r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]], -1)
+    best = np.take_along_axis(cand, np.argmax(diag, -1)[..., None, None], axis=-2)[..., 0, :]
+    q = best / np.linalg.norm(best, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def rot_x(a) -> np.ndarray:
+    """Active rotation by angle a (rad) about x, (..., 3, 3)."""
+    return _axis_rotation(a, 0)
+
+
+def rot_y(a) -> np.ndarray:
+    """Active rotation by angle a (rad) about y, (..., 3, 3)."""
+    return _axis_rotation(a, 1)
+
+
+def rot_z(a) -> np.ndarray:
+    """Active rotation by angle a (rad) about z, (..., 3, 3)."""
+    return _axis_rotation(a, 2)
+
+
+def _axis_rotation(a, axis: int) -> np.ndarray:
+    a = np.asarray(a, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    r = np.zeros(a.shape + (3, 3))
+    r[..., axis, axis] = 1.0
+    r[..., i, i] = c
+    r[..., j, j] = c
+    r[..., i, j] = -s
+    r[..., j, i] = s
+    return r
+
+
+def rotation_from_angles(roll, pitch, yaw) -> np.ndarray:
+    """R = Rz(yaw) @ Ry(pitch) @ Rx(roll); angles in radians, (..., 3, 3).
+
+    Used for installation (boresight) angles and small attitude corrections: for small
+    angles it is the identity plus the skew matrix of (roll, pitch, yaw).
+    """
+    return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
