@@ -87,7 +87,7 @@ class Dem:
         self.gt = gt
         self.shape = z.shape
         self._to_dem = None if self.crs.equals(CRS.from_epsg(4326), ignore_axis_order=True) else \
-            Transformer.from_crs(CRS.from_epsg(4326), self.crs.to_2d(), always_xy=True)
+            Transformer.from_crs(CRS.from_epsg(4326), self.crs, always_xy=True)
         if datum != "ellipsoid":
             lon, lat = self._node_lonlat()
             z = to_ellipsoidal(lon, lat, z, datum)
@@ -104,7 +104,7 @@ class Dem:
         y = self.gt[3] + (rows + 0.5) * self.gt[5]
         if self._to_dem is None:
             return x, y
-        back = Transformer.from_crs(self.crs.to_2d(), CRS.from_epsg(4326), always_xy=True)
+        back = Transformer.from_crs(self.crs, CRS.from_epsg(4326), always_xy=True)
         return back.transform(x, y)
 
     @property

@@ -81,12 +81,13 @@ def ecef_to_enu(xyz, lon0_deg: float, lat0_deg: float, h0: float = 0.0) -> np.nd
     return (np.asarray(xyz, dtype=float) - origin) @ enu_rotation(lon0_deg, lat0_deg).T
 
 
-def ray_height_intersection(origin, direction, h) -> np.ndarray:
+def ray_height_intersection(origin, direction, h, newton_steps: int = 2) -> np.ndarray:
     """Distance s along unit rays ``origin + s*direction`` (ECEF, (n,3)) to the surface of
     ellipsoidal height h (m, (n,) or scalar), nearest intersection in front of the origin.
 
-    Uses the ellipsoid inflated by h as first guess and two Newton steps on the true
-    geodetic height. Rays that miss return NaN.
+    Intersects the ellipsoid inflated by h (exact for h = 0, metres off otherwise), then
+    refines with ``newton_steps`` Newton steps on the true geodetic height. Rays that miss
+    return NaN.
     """
     origin = np.asarray(origin, dtype=float)
     d = np.asarray(direction, dtype=float)
@@ -100,7 +101,7 @@ def ray_height_intersection(origin, direction, h) -> np.ndarray:
     disc = qb * qb - 4.0 * qa * qc
     with np.errstate(invalid="ignore"):
         s = (-qb - np.sqrt(disc)) / (2.0 * qa)
-    for _ in range(2):
+    for _ in range(newton_steps):
         p = origin + s[..., None] * d
         lon, lat, hp = ecef_to_geodetic(p)
         rate = np.einsum("...i,...i->...", d, up_vector(lon, lat))

@@ -71,7 +71,8 @@ class Ephemeris:
             start, w = _lagrange_weights(self.times, self.order, t)
             idx = start[:, None] + np.arange(self.order)
             return np.einsum("nk,nki->ni", w, self.velocities[idx])
-        h = 1e-3
+        # Central difference: 0.05 s balances truncation (~h^2 r omega^3 / 6) and round-off.
+        h = 0.05
         return (self.position(t + h) - self.position(t - h)) / (2 * h)
 
     def to_dict(self) -> dict:
@@ -188,20 +189,28 @@ class Platform:
         grid = t0 + self.cache_step * np.arange(n)
         table = np.concatenate([self.ephemeris.position(grid), self.ephemeris.velocity(grid),
                                 self.attitude.rotation(grid).reshape(n, 9)], axis=1)
-        self._cache = (t0, n, table)
+        # Each row holds a sample and the step to the next, so interpolation is one gather.
+        self._cache = (t0, n, np.hstack([table[:-1], np.diff(table, axis=0)]))
 
     def state(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position (n,3) m, velocity (n,3) m/s, rotation body->ECEF (n,3,3)) at times t (n,) s."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        if self._cache is not None:
-            t0, n, table = self._cache
-            f = (t - t0) / self.cache_step
-            inside = (f >= 0) & (f <= n - 1)
-            if inside.all():
-                i = np.minimum(f.astype(np.int64), n - 2)
-                w = (f - i)[:, None]
-                row = table[i] * (1.0 - w) + table[i + 1] * w
-                return row[:, 0:3], row[:, 3:6], row[:, 6:15].reshape(-1, 3, 3)
+        if self._cache is None:
+            return self._exact_state(t)
+        t0, n, table = self._cache
+        f = (t - t0) / self.cache_step
+        inside = (f >= 0) & (f <= n - 1)
+        f = np.where(inside, f, 0.0)
+        i = np.minimum(f.astype(np.int64), n - 2)
+        pair = table[i]
+        row = pair[:, :15] + (f - i)[:, None] * pair[:, 15:]
+        if not inside.all():
+            out = ~inside
+            pos, vel, rot = self._exact_state(t[out])
+            row[out] = np.concatenate([pos, vel, rot.reshape(-1, 9)], axis=1)
+        return row[:, 0:3], row[:, 3:6], row[:, 6:15].reshape(-1, 3, 3)
+
+    def _exact_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self.ephemeris.position(t), self.ephemeris.velocity(t), self.attitude.rotation(t)
 
     def to_dict(self) -> dict:
