@@ -15,8 +15,8 @@ from .errors import ConvergenceError, MetadataError
 
 
 def rpc_terms(x, y, z) -> np.ndarray:
-    """The 20 RPC00B monomials (n, 20) of normalised (x = lon, y = lat, z = height)."""
-    x, y, z = (np.asarray(a, dtype=float) for a in (x, y, z))
+    """The 20 RPC00B monomials (n, 20) of normalised (x = lon, y = lat, z = height), broadcast."""
+    x, y, z = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (x, y, z)))
     one = np.ones_like(x)
     return np.stack([one, x, y, z, x * y, x * z, y * z, x * x, y * y, z * z, x * y * z, x ** 3, x * y * y,
                      x * z * z, x * x * y, y ** 3, y * z * z, x * x * z, y * y * z, z ** 3], axis=-1)
@@ -82,3 +82,46 @@ class RpcModel:
             if np.nanmax(np.abs(dlon) / self.lon_scale) < tol and np.nanmax(np.abs(dlat) / self.lat_scale) < tol:
                 return lon, lat
         raise ConvergenceError("RPC inversion did not converge in %d iterations" % max_iter)
+
+
+@dataclass
+class RationalDirectModel:
+    """Rational functions image -> ground (the DIMAP ``Direct_Model``): lon and lat (deg)
+    as ratios of 20-term cubics in normalised (x = sample, y = line, z = height), with the
+    RPC00B monomial order of :func:`rpc_terms`.
+
+    Offsets/scales: samp, line (model pixels), height (m), lon, lat (deg). ``origin`` is the
+    model coordinate of the centre of the upper-left pixel, as in :class:`RpcModel`.
+    """
+    lon_num: np.ndarray
+    lon_den: np.ndarray
+    lat_num: np.ndarray
+    lat_den: np.ndarray
+    samp_off: float
+    samp_scale: float
+    line_off: float
+    line_scale: float
+    height_off: float
+    height_scale: float
+    lon_off: float
+    lon_scale: float
+    lat_off: float
+    lat_scale: float
+    origin: float = 0.0
+
+    def __post_init__(self):
+        for k in ("lon_num", "lon_den", "lat_num", "lat_den"):
+            v = np.asarray(getattr(self, k), dtype=float).ravel()
+            if v.size != 20 or not np.all(np.isfinite(v)):
+                raise MetadataError(f"direct rational coefficient list {k} must hold 20 finite numbers "
+                                    f"(got {v.size})")
+            setattr(self, k, v)
+
+    def image_to_ground(self, col, row, h) -> tuple[np.ndarray, np.ndarray]:
+        """(lon, lat) degrees of GDAL image points (col, row) at ellipsoidal heights h (m)."""
+        t = rpc_terms((np.asarray(col, dtype=float) + self.origin - 0.5 - self.samp_off) / self.samp_scale,
+                      (np.asarray(row, dtype=float) + self.origin - 0.5 - self.line_off) / self.line_scale,
+                      (np.asarray(h, dtype=float) - self.height_off) / self.height_scale)
+        lon = (t @ self.lon_num) / (t @ self.lon_den) * self.lon_scale + self.lon_off
+        lat = (t @ self.lat_num) / (t @ self.lat_den) * self.lat_scale + self.lat_off
+        return lon, lat

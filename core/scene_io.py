@@ -64,7 +64,8 @@ def load_scene(path: str | Path) -> SceneModel:
     path = Path(path)
     if not path.is_file():
         raise MetadataError(f"{path}: no such file")
-    head = path.open("rb").read(4096).lstrip()
+    with path.open("rb") as f:
+        head = f.read(4096).lstrip()
     if head.startswith(b"{"):
         try:
             d = json.loads(path.read_text())

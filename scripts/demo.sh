@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# The main job on the command line: simulate the default CBERS-02B HRC scene, import its GCPs,
+# trace its footprint and project the GCPs into the image, all through qgis_process, into ./out/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+
+OUT="$PWD/out"
+mkdir -p "$OUT/logs"
+WORK="$(mktemp -d)"
+trap 'rm -rf "$WORK"' EXIT
+# QGIS finds plugins by folder name: show it this checkout as 'pushbroom_adjust', in a private profile.
+mkdir -p "$WORK/plugins" "$WORK/profile" "$WORK/runtime"
+ln -s "$PWD" "$WORK/plugins/pushbroom_adjust"
+export QGIS_PLUGINPATH="$WORK/plugins" QGIS_CUSTOM_CONFIG_PATH="$WORK/profile" QT_QPA_PLATFORM=offscreen
+export XDG_RUNTIME_DIR="$WORK/runtime"
+QGIS_PROCESS=/usr/bin/qgis_process.bin  # Debian's qgis_process wrapper script is broken; the binary works
+
+"$QGIS_PROCESS" plugins enable pushbroom_adjust >"$OUT/logs/plugins.log" 2>&1 </dev/null
+
+run() {  # run ALGORITHM PARAM=VALUE... ; full log in out/logs/ALGORITHM.log
+    local alg="$1"; shift
+    echo "== pushbroom:$alg"
+    if ! "$QGIS_PROCESS" run "pushbroom:$alg" -- "$@" >"$OUT/logs/$alg.log" 2>&1 </dev/null; then
+        cat "$OUT/logs/$alg.log"
+        echo "demo: pushbroom:$alg failed (log: out/logs/$alg.log)" >&2
+        exit 1
+    fi
+    grep -E "^(WARNING|[a-z].*residuals|[0-9]+ points)" "$OUT/logs/$alg.log" || true
+}
+
+SIM="$OUT/simulation"
+run simulatescene SEED=0 N_GCPS=60 OUTPUT_FOLDER="$SIM"
+run importgcps SCENE="$SIM/onboard_scene.json" INPUT_FILE="$SIM/gcps.csv" X_FIELD=lon Y_FIELD=lat Z_FIELD=h \
+    DEM_DATUM=1 OUTPUT="$OUT/gcps.gpkg"
+run footprint SCENE="$SIM/onboard_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=0 OUTPUT="$OUT/footprint.gpkg"
+run groundtoimage SCENE="$SIM/onboard_scene.json" INPUT="$OUT/gcps.gpkg" OUTPUT="$OUT/gcps_in_image.gpkg"
+
+cat <<END
+
+Results in $OUT:
+  simulation/         simulated scene: onboard_scene.json, true_scene.json, gcps.csv, dem.tif
+  gcps.gpkg           the GCPs checked against the onboard model (a-priori residuals res_col, res_row, res_m)
+  footprint.gpkg      ground outline of each camera (open in QGIS over the DEM)
+  gcps_in_image.gpkg  the GCPs projected into the image by the onboard model (fields col_2, row_2)
+  logs/               full qgis_process output of each step
+END

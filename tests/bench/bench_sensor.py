@@ -1,0 +1,65 @@
+"""Speed of the rigorous sensor model, printed (no assertions).
+
+Run:  PYTHONPATH=. /usr/bin/python3 tests/bench/bench_sensor.py [--points N]
+
+Measures, after a warm-up call (trajectory tables and first-guess rasters built), on
+the simulated default CBERS-02B HRC scene (three staggered CCDs, aberration and refraction
+on) with its DEM, and on the real Pleiades 1B scene with its DEM:
+  - ground -> image, points/s
+  - image -> ground on the DEM, points/s
+  - round-trip error image -> ground(DEM) -> image, px
+and the peak resident memory of the process.
+"""
+from __future__ import annotations
+
+import argparse
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+
+from core.dem import Dem  # noqa: E402
+from core.scene_io import load_scene  # noqa: E402
+from core.simulator import simulate  # noqa: E402
+
+PLEIADES = REPO.parent / "shared" / "data" / "pleiades"
+
+
+def bench(name: str, scene, dem, n: int, seed: int = 0) -> None:
+    cam = scene.cameras[0]
+    rng = np.random.default_rng(seed)
+    col = rng.uniform(0, cam.cols, n)
+    row = rng.uniform(0, cam.rows, n)
+    scene.ground_to_image(scene.image_to_ground_dem(col[:1000], row[:1000], dem))  # warm-up
+    t0 = time.perf_counter()
+    ground = scene.image_to_ground_dem(col, row, dem)
+    t1 = time.perf_counter()
+    col2, row2 = scene.ground_to_image(ground)
+    t2 = time.perf_counter()
+    err = np.hypot(col2 - col, row2 - row)
+    print(f"{name}: {n} points, image->ground(DEM) {n / (t1 - t0):,.0f} pts/s, "
+          f"ground->image {n / (t2 - t1):,.0f} pts/s, round trip max {np.nanmax(err):.2e} px, "
+          f"unsolved {int(np.isnan(err).sum())}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--points", type=int, default=1_000_000)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        simulate("cbers02b_hrc", tmp, seed=1, n_gcps=10)
+        scene = load_scene(Path(tmp) / "true_scene.json")
+        bench("CBERS-02B HRC (simulated)", scene, Dem(Path(tmp) / "dem.tif", datum="geoid"), args.points)
+    pleiades = load_scene(next(PLEIADES.glob("PHRDIMAP_*.XML")))
+    bench("Pleiades 1B (real)", pleiades, Dem(next(PLEIADES.glob("MNT_*.tif")), datum="geoid"), args.points)
+    print(f"peak resident memory {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:,.0f} MiB")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,62 @@
+"""Fixtures for tests in real QGIS (pytest-qgis 2.x): the plugin as a package, its provider
+registered once per session, and one small simulated scene shared by all tests.
+
+The repository folder's name is not fixed (CI clones it anywhere), so the plugin is reached
+through a symlink ``pushbroom_adjust`` -> repository root in a temporary plugin folder; the
+same folder is QGIS_PLUGINPATH for the qgis_process tests.
+"""
+import importlib
+import sys
+from pathlib import Path
+
+import pytest
+from qgis.core import QgsApplication
+
+REPO = Path(__file__).resolve().parents[2]
+PLUGIN = "pushbroom_adjust"
+
+
+@pytest.fixture(scope="session")
+def plugin_path(tmp_path_factory) -> Path:
+    """A folder holding only the plugin (as a symlink named PLUGIN), on sys.path."""
+    folder = tmp_path_factory.mktemp("plugins")
+    (folder / PLUGIN).symlink_to(REPO, target_is_directory=True)
+    sys.path.insert(0, str(folder))
+    return folder
+
+
+@pytest.fixture(scope="session")
+def plugin(plugin_path):
+    """The plugin package, imported as QGIS imports it."""
+    return importlib.import_module(PLUGIN)
+
+
+@pytest.fixture(scope="session")
+def plugin_instance(qgis_iface, qgis_processing, plugin):
+    """The plugin as QGIS starts it: classFactory, then initProcessing (which registers the
+    provider). The fixture keeps the Python references alive: without them the provider would
+    be garbage-collected under the registry. Unloading at the end removes the provider."""
+    instance = plugin.classFactory(qgis_iface)
+    instance.initProcessing()
+    yield instance
+    instance.unload()
+    assert QgsApplication.processingRegistry().providerById("pushbroom") is None
+
+
+@pytest.fixture(scope="session")
+def provider(plugin_instance):
+    """The registered 'pushbroom' provider."""
+    return plugin_instance.provider
+
+
+@pytest.fixture(scope="session")
+def simulated(provider, tmp_path_factory) -> dict:
+    """A small simulated CBERS-02B scene (few GCPs), made once through pushbroom:simulatescene.
+
+    Returns the algorithm's results: ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM paths and OUTPUT_FOLDER.
+    """
+    import processing
+    out = tmp_path_factory.mktemp("sim")
+    return processing.run("pushbroom:simulatescene", {"PRESET": 0, "SEED": 3, "N_SCENES": 1, "N_GCPS": 12,
+                                                      "IMAGE_NOISE": 0.0, "RENDER": False,
+                                                      "OUTPUT_FOLDER": str(out)})

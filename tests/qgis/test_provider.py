@@ -1,0 +1,41 @@
+"""The plugin loads in QGIS and its provider lists the five algorithms with complete help."""
+import importlib
+
+from qgis.core import QgsApplication
+
+from .conftest import PLUGIN
+
+ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:groundtoimage",
+              "pushbroom:imagetoground", "pushbroom:footprint"]
+
+
+def test_provider_lists_the_five_algorithms(provider):
+    assert provider.id() == "pushbroom" and provider.name() == "Pushbroom Adjust"
+    assert not provider.icon().isNull() and provider.svgIconPath().endswith("icon.svg")
+    assert sorted(a.id() for a in provider.algorithms()) == sorted(ALGORITHMS)
+    registry = QgsApplication.processingRegistry()
+    for alg_id in ALGORITHMS:
+        assert registry.algorithmById(alg_id) is not None, alg_id
+
+
+def test_every_parameter_has_help_and_an_uppercase_name(provider):
+    for alg in provider.algorithms():
+        for p in alg.parameterDefinitions():
+            assert p.name() == p.name().upper(), f"{alg.id()}: {p.name()}"
+            assert len(p.help()) > 20, f"{alg.id()}: parameter {p.name()} has no help text"
+            assert p.name() in alg.shortHelpString(), f"{alg.id()}: {p.name()} missing from the help"
+
+
+def test_the_plugin_registers_its_provider_once(provider, plugin_instance):
+    registry = QgsApplication.processingRegistry()
+    assert registry.providerById("pushbroom") is provider is plugin_instance.provider
+    assert [p.id() for p in registry.providers()].count("pushbroom") == 1
+
+
+def test_metadata_declares_a_processing_provider():
+    from configparser import ConfigParser
+    meta = ConfigParser()
+    meta.read(importlib.import_module(PLUGIN).__file__.replace("__init__.py", "metadata.txt"))
+    general = meta["general"]
+    assert general["name"] == "Pushbroom Adjust" and general["hasProcessingProvider"] == "yes"
+    assert general["qgisMinimumVersion"] == "3.22" and general["icon"].endswith(".svg")

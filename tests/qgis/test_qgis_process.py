@@ -1,0 +1,121 @@
+"""End to end on the command line: qgis_process loads the plugin, lists its algorithms and runs
+them on files. (Debian's /usr/bin/qgis_process wrapper is broken here; the binary is used.)"""
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from osgeo import ogr, osr
+
+from core.dem import Dem
+from core.geodesy import ecef_to_geodetic
+from core.products import footprints
+from core.scene_io import load_scene
+
+from .conftest import PLUGIN
+from .test_provider import ALGORITHMS
+
+QGIS_PROCESS = "/usr/bin/qgis_process.bin"
+
+
+@pytest.fixture(scope="module")
+def qgis_process(plugin_path, tmp_path_factory):
+    """Run qgis_process with the plugin enabled in a throw-away profile; returns a function
+    (*args) -> CompletedProcess."""
+    env = dict(os.environ, QGIS_PLUGINPATH=str(plugin_path), QT_QPA_PLATFORM="offscreen",
+               QGIS_CUSTOM_CONFIG_PATH=str(tmp_path_factory.mktemp("profile")))
+
+    def run(*args):
+        return subprocess.run([QGIS_PROCESS, *args], env=env, capture_output=True, text=True, timeout=600,
+                              stdin=subprocess.DEVNULL)
+
+    enabled = run("plugins", "enable", PLUGIN)
+    assert enabled.returncode == 0, enabled.stdout + enabled.stderr
+    return run
+
+
+def _run_json(qgis_process, alg, **params) -> dict:
+    done = qgis_process("--json", "run", alg, "--", *(f"{k}={v}" for k, v in params.items()))
+    assert done.returncode == 0, done.stdout + done.stderr
+    return json.loads(done.stdout)["results"]
+
+
+def _read_layer(path, *fields):
+    """(attributes (n, len(fields)), geometries as WKT) of the first layer of a vector file."""
+    ds = ogr.Open(str(path))
+    layer = ds.GetLayer(0)
+    values, wkts = [], []
+    for f in layer:
+        values.append([f.GetField(n) for n in fields])
+        wkts.append(f.GetGeometryRef().ExportToWkt())
+    return np.array(values, dtype=object), wkts
+
+
+def test_list_shows_the_five_algorithms(qgis_process):
+    done = qgis_process("list")
+    assert done.returncode == 0, done.stderr
+    for alg_id in ALGORITHMS:
+        assert alg_id in done.stdout, alg_id
+
+
+def test_help_shows_parameter_help(qgis_process):
+    done = qgis_process("help", "pushbroom:groundtoimage")
+    assert done.returncode == 0, done.stderr
+    assert "Z_DATUM" in done.stdout and "GDAL convention" in done.stdout
+
+
+def test_run_footprint_from_the_command_line(qgis_process, simulated, tmp_path):
+    out = tmp_path / "footprint.gpkg"
+    results = _run_json(qgis_process, "pushbroom:footprint", SCENE=simulated["TRUE_SCENE"], DEM=simulated["DEM"],
+                        DEM_DATUM=0, SAMPLES=16, OUTPUT=out)
+    assert Path(results["OUTPUT"].split("|")[0]) == out
+    values, _ = _read_layer(out, "camera", "area_km2")
+    truth = footprints(load_scene(simulated["TRUE_SCENE"]), Dem(simulated["DEM"], "geoid"), samples_per_edge=16)
+    assert list(values[:, 0]) == [fp.camera for fp in truth]
+    assert np.allclose(values[:, 1].astype(float), [fp.area_km2 for fp in truth], rtol=1e-9)
+
+
+def test_run_groundtoimage_from_the_command_line(qgis_process, simulated, tmp_path):
+    scene = load_scene(simulated["TRUE_SCENE"])
+    dem = Dem(simulated["DEM"], "geoid")
+    cam = scene.cameras[0]
+    col = np.linspace(0.5, cam.cols - 0.5, 7)
+    row = np.linspace(cam.rows - 0.5, 0.5, 7)
+    lon, lat, h = ecef_to_geodetic(scene.image_to_ground_dem(col, row, dem))
+    points = _write_points(tmp_path / "points.gpkg", lon, lat, h)
+    out = tmp_path / "image_points.gpkg"
+    _run_json(qgis_process, "pushbroom:groundtoimage", SCENE=simulated["TRUE_SCENE"], INPUT=points, OUTPUT=out)
+    values, _ = _read_layer(out, "name", "col", "row", "in_image")
+    assert list(values[:, 0]) == [f"p{i}" for i in range(7)]
+    assert np.abs(values[:, 1].astype(float) - col).max() < 1e-4
+    assert np.abs(values[:, 2].astype(float) - row).max() < 1e-4
+    assert set(values[:, 3]) == {1}
+
+
+def test_a_failing_run_exits_non_zero_with_the_message(qgis_process, tmp_path):
+    bad = tmp_path / "broken.json"
+    bad.write_text('{"format": "pushbroom-scene", "version": 1')
+    done = qgis_process("run", "pushbroom:footprint", "--", f"SCENE={bad}", f"OUTPUT={tmp_path / 'x.gpkg'}")
+    assert done.returncode != 0
+    assert "SCENE:" in done.stdout + done.stderr and "invalid JSON" in done.stdout + done.stderr
+
+
+def _write_points(path, lon, lat, h) -> Path:
+    """A GeoPackage of 3D points in EPSG:4979 with a 'name' field, written with OGR."""
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(4979)
+    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
+    layer = ds.CreateLayer("points", srs, ogr.wkbPoint25D)
+    layer.CreateField(ogr.FieldDefn("name", ogr.OFTString))
+    for i, (x, y, z) in enumerate(zip(lon, lat, h)):
+        f = ogr.Feature(layer.GetLayerDefn())
+        f.SetField("name", f"p{i}")
+        g = ogr.Geometry(ogr.wkbPoint25D)
+        g.AddPoint(float(x), float(y), float(z))
+        f.SetGeometry(g)
+        layer.CreateFeature(f)
+    ds = None
+    return path

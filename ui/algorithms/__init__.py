@@ -1,0 +1,1 @@
+"""Processing algorithms: each translates parameters into one core call and its results into outputs."""

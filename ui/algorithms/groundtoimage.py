@@ -1,0 +1,121 @@
+"""pushbroom:groundtoimage — image coordinates (col, row) of ground points in a scene."""
+import numpy as np
+from qgis.core import (QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFeatureSink,
+                       QgsProcessingParameterFeatureSource, QgsProcessingUtils)
+from qgis.PyQt.QtCore import QVariant
+
+from ...core.dem import to_ellipsoidal
+from ...core.geodesy import geodetic_to_ecef
+from ..common import (CAMERA, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
+                      add_scene_parameters, camera_for, check_cancelled, core_call, dem_from_parameters,
+                      load_scene_for, lonlat_of, nonfinite_message, style_output_on_load)
+
+Z_DATUMS = ("ellipsoid", "geoid")
+Z_DATUM_LABELS = ("Ellipsoid (WGS84)", "Geoid (EGM96)")
+
+
+class GroundToImageAlgorithm(PushbroomAlgorithm):
+    ID = "groundtoimage"
+    NAME = "Ground to image"
+    HELP = ("Projects ground points into a scene with its rigorous sensor model and adds their image "
+            "coordinates: fields <b>col</b>, <b>row</b> (GDAL convention: (0, 0) is the upper-left corner "
+            "of the upper-left pixel, pixel centres at half-integers) and <b>in_image</b> (1 when the point "
+            "falls inside the image). Points outside the image are kept, flagged and counted in a warning. "
+            "When the input already has fields named col/row, the new ones are named col_2/row_2.")
+    INPUT, USE_Z, Z_DATUM, OUTPUT = "INPUT", "USE_Z", "Z_DATUM", "OUTPUT"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
+        add_scene_parameters(self)
+        source = QgsProcessingParameterFeatureSource(self.INPUT, "Ground points", [QgsProcessing.TypeVectorPoint])
+        source.setHelp("Point layer in any CRS. Heights come from the points' Z values (see USE_Z), "
+                       "else from the DEM, else from the constant HEIGHT.")
+        self.addParameter(source)
+        use_z = QgsProcessingParameterBoolean(self.USE_Z, "Use the points' Z values as heights", defaultValue=True)
+        use_z.setHelp("When checked, points that have a Z value use it as their height (see Z_DATUM); points "
+                      "without Z fall back to the DEM or HEIGHT.")
+        self.addParameter(use_z)
+        z_datum = QgsProcessingParameterEnum(self.Z_DATUM, "Datum of the Z values", options=list(Z_DATUM_LABELS),
+                                             defaultValue=0)
+        z_datum.setHelp("What the points' Z values are measured from: the WGS84 ellipsoid (GNSS surveys, "
+                        "EPSG:4979 layers such as the output of 'Image to ground') or the EGM96 geoid (mean "
+                        "sea level, heights read from maps).")
+        self.addParameter(z_datum)
+        add_dem_parameters(self)
+        out = QgsProcessingParameterFeatureSink(self.OUTPUT, "Image points", QgsProcessing.TypeVectorPoint)
+        out.setHelp("The input features with all their attributes plus col, row (float pixels) and in_image.")
+        self.addParameter(out)
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context))
+        camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
+        source = self.parameterAsSource(parameters, self.INPUT, context)
+        if source is None:
+            raise QgsProcessingException(self.invalidSourceError(parameters, self.INPUT))
+        features = list(source.getFeatures())
+        lon, lat, h = self._ground(parameters, context, source, features)
+        check_cancelled(feedback)
+        feedback.setProgressText(f"projecting {len(features)} points into camera {scene.cameras[camera].name}")
+        col, row = core_call(scene.ground_to_image, geodetic_to_ecef(lon, lat, h), camera)
+        cam = scene.cameras[camera]
+        inside = np.isfinite(col) & (col >= 0) & (col <= cam.cols) & (row >= 0) & (row <= cam.rows)
+
+        new = QgsFields()
+        for name in ("col", "row"):
+            new.append(QgsField(name, QVariant.Double))
+        new.append(QgsField("in_image", QVariant.Int))
+        fields = QgsProcessingUtils.combineFields(source.fields(), new)
+        sink, dest = self.parameterAsSink(parameters, self.OUTPUT, context, fields, source.wkbType(),
+                                          source.sourceCrs())
+        if sink is None:
+            raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT))
+        for i, f in enumerate(features):
+            out = QgsFeature(fields)
+            out.setGeometry(f.geometry())
+            out.setAttributes(f.attributes() + [_number(col[i]), _number(row[i]), int(inside[i])])
+            sink.addFeature(out, QgsFeatureSink.FastInsert)
+        if (~inside).any():
+            feedback.pushWarning(f"{int((~inside).sum())} of {len(features)} points fall outside the image of "
+                                 f"camera {cam.name} ({cam.cols} x {cam.rows} px); they are kept with in_image = 0")
+        feedback.setProgress(100)
+        style_output_on_load(context, dest, STYLES / "image_points.qml")
+        return {self.OUTPUT: dest}
+
+    def _ground(self, parameters, context, source, features):
+        """(lon, lat, ellipsoidal height) of the features' points, checked for NaN and coverage."""
+        n = len(features)
+        ids = np.array([f.id() for f in features], dtype=np.int64)
+        xyz = np.full((n, 3), np.nan)
+        for i, f in enumerate(features):
+            g = f.geometry()
+            if g.isNull() or g.isEmpty():
+                continue
+            if g.isMultipart() and g.constGet().numGeometries() != 1:
+                raise QgsProcessingException(f"{self.INPUT}: feature {f.id()} holds several points; split it with "
+                                             f"'Multipart to singleparts' first")
+            p = g.vertexAt(0)
+            xyz[i] = p.x(), p.y(), p.z()
+        bad = ~np.all(np.isfinite(xyz[:, :2]), axis=1)
+        if n == 0:
+            raise QgsProcessingException(f"{self.INPUT}: the layer has no features")
+        if bad.any():
+            raise QgsProcessingException(nonfinite_message(self.INPUT, "point coordinates", ids, bad))
+        lon, lat = lonlat_of(self.INPUT, source.sourceCrs(), xyz[:, 0], xyz[:, 1])
+        use_z = self.parameterAsBool(parameters, self.USE_Z, context) & np.isfinite(xyz[:, 2])
+        h = np.empty(n)
+        datum = Z_DATUMS[self.parameterAsEnum(parameters, self.Z_DATUM, context)]
+        if use_z.any():
+            h[use_z] = core_call(to_ellipsoidal, lon[use_z], lat[use_z], xyz[use_z, 2], datum)
+        if (~use_z).any():
+            surface = dem_from_parameters(self, parameters, context)
+            h[~use_z] = surface.height(lon[~use_z], lat[~use_z])
+            off = ~use_z & ~np.isfinite(h)
+            if off.any():
+                raise QgsProcessingException(nonfinite_message(self.INPUT, "DEM heights (points off the DEM or "
+                                                               "on its nodata)", ids, off))
+        return lon, lat, h
+
+
+def _number(v: float):
+    """A float attribute, or NULL for NaN."""
+    return float(v) if np.isfinite(v) else None

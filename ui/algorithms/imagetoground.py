@@ -1,0 +1,120 @@
+"""pushbroom:imagetoground — ground points (lon, lat, ellipsoidal h) seen at image coordinates."""
+import numpy as np
+from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry,
+                       QgsPoint, QgsProcessing, QgsProcessingException, QgsProcessingParameterFeatureSink,
+                       QgsProcessingParameterFeatureSource, QgsProcessingParameterField, QgsProcessingUtils,
+                       QgsWkbTypes)
+from qgis.PyQt.QtCore import QVariant
+
+from ...core.dem import ConstantHeight
+from ...core.geodesy import ecef_to_geodetic
+from ..common import (CAMERA, DEM, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters,
+                      camera_for, check_cancelled, core_call, dem_from_parameters, load_scene_for, nonfinite_message,
+                      style_output_on_load)
+
+OUTPUT_CRS = "EPSG:4979"  # WGS84 longitude, latitude (deg) and ellipsoidal height (m)
+
+
+class ImageToGroundAlgorithm(PushbroomAlgorithm):
+    ID = "imagetoground"
+    NAME = "Image to ground"
+    HELP = ("Intersects the lines of sight of image points with the terrain (a DEM, or a constant height) "
+            "using the scene's rigorous sensor model. Image coordinates follow GDAL: (0, 0) is the upper-left "
+            "corner of the upper-left pixel, pixel centres at half-integers. The output points are in "
+            "EPSG:4979 (WGS84 longitude/latitude with ellipsoidal Z) and carry the input attributes plus "
+            "lon, lat, h_ellipsoid.")
+    INPUT, COL_FIELD, ROW_FIELD, OUTPUT = "INPUT", "COL_FIELD", "ROW_FIELD", "OUTPUT"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
+        add_scene_parameters(self)
+        source = QgsProcessingParameterFeatureSource(self.INPUT, "Image points (table or layer)",
+                                                     [QgsProcessing.TypeVector])
+        source.setHelp("Any table or layer (CSV, GeoPackage, ...) with numeric column and row fields; its "
+                       "geometry, if any, is ignored.")
+        self.addParameter(source)
+        for name, label, default in ((self.COL_FIELD, "Column field", "col"), (self.ROW_FIELD, "Row field", "row")):
+            field = QgsProcessingParameterField(name, label, defaultValue=default, parentLayerParameterName=self.INPUT,
+                                                type=QgsProcessingParameterField.Numeric, optional=True)
+            field.setHelp(f"Numeric field holding the image {label.split()[0].lower()} coordinate in pixels "
+                          f"(GDAL convention). Default (also when left empty): '{default}'.")
+            self.addParameter(field)
+        add_dem_parameters(self)
+        out = QgsProcessingParameterFeatureSink(self.OUTPUT, "Ground points", QgsProcessing.TypeVectorPoint)
+        out.setHelp("Points in EPSG:4979 with the input attributes plus lon, lat (degrees) and h_ellipsoid (m).")
+        self.addParameter(out)
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context))
+        camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
+        source = self.parameterAsSource(parameters, self.INPUT, context)
+        if source is None:
+            raise QgsProcessingException(self.invalidSourceError(parameters, self.INPUT))
+        features = list(source.getFeatures())
+        if not features:
+            raise QgsProcessingException(f"{self.INPUT}: the table has no features")
+        col, row = self._image_points(parameters, context, source, features)
+        surface = dem_from_parameters(self, parameters, context)
+        check_cancelled(feedback)
+        cam = scene.cameras[camera]
+        outside = (col < 0) | (col > cam.cols) | (row < 0) | (row > cam.rows)
+        if outside.any():
+            feedback.pushWarning(f"{int(outside.sum())} points lie outside the image of camera {cam.name} "
+                                 f"({cam.cols} x {cam.rows} px); their lines of sight are extrapolated")
+        feedback.setProgressText(f"intersecting {len(features)} lines of sight with the terrain")
+        if isinstance(surface, ConstantHeight):
+            xyz = core_call(scene.image_to_ground, col, row, surface.value, camera)
+        else:
+            xyz = core_call(scene.image_to_ground_dem, col, row, surface, camera)
+        missed = ~np.all(np.isfinite(xyz), axis=1)
+        if missed.any():
+            where = "miss the Earth" if isinstance(surface, ConstantHeight) else \
+                "leave the DEM (it does not cover them)"
+            ids = np.array([f.id() for f in features])
+            raise QgsProcessingException(f"{DEM}: the lines of sight of {int(missed.sum())} points {where}; "
+                                         f"feature ids {', '.join(str(i) for i in ids[missed][:5])}")
+        lon, lat, h = ecef_to_geodetic(xyz)
+        dest = self._write(parameters, context, source, features, lon, lat, h)
+        feedback.setProgress(100)
+        return {self.OUTPUT: dest}
+
+    def _image_points(self, parameters, context, source, features):
+        names = [self.parameterAsString(parameters, p, context) or default
+                 for p, default in ((self.COL_FIELD, "col"), (self.ROW_FIELD, "row"))]
+        idx = []
+        for param, name in zip((self.COL_FIELD, self.ROW_FIELD), names):
+            i = source.fields().lookupField(name)
+            if i < 0:
+                raise QgsProcessingException(f"{param}: the input has no field {name!r} "
+                                             f"(fields: {', '.join(source.fields().names())})")
+            idx.append(i)
+        values = np.array([[_float(f.attribute(i)) for i in idx] for f in features])
+        bad = ~np.all(np.isfinite(values), axis=1)
+        if bad.any():
+            ids = np.array([f.id() for f in features])
+            raise QgsProcessingException(nonfinite_message(self.INPUT, f"{names[0]}/{names[1]} values", ids, bad))
+        return values[:, 0], values[:, 1]
+
+    def _write(self, parameters, context, source, features, lon, lat, h):
+        new = QgsFields()
+        for name in ("lon", "lat", "h_ellipsoid"):
+            new.append(QgsField(name, QVariant.Double))
+        fields = QgsProcessingUtils.combineFields(source.fields(), new)
+        sink, dest = self.parameterAsSink(parameters, self.OUTPUT, context, fields, QgsWkbTypes.PointZ,
+                                                QgsCoordinateReferenceSystem(OUTPUT_CRS))
+        if sink is None:
+            raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT))
+        for f, x, y, z in zip(features, lon, lat, h):
+            out = QgsFeature(fields)
+            out.setGeometry(QgsGeometry(QgsPoint(float(x), float(y), float(z))))
+            out.setAttributes(f.attributes() + [float(x), float(y), float(z)])
+            sink.addFeature(out, QgsFeatureSink.FastInsert)
+        style_output_on_load(context, dest, STYLES / "ground_points.qml")
+        return dest
+
+
+def _float(value) -> float:
+    """A numeric attribute as float; NaN for NULL or non-numeric values."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return float("nan")

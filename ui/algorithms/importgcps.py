@@ -1,0 +1,247 @@
+"""pushbroom:importgcps — ground control points from CSV, QGIS .points or a point layer,
+checked against a scene and written as the GeoPackage GCP layer the adjustment reads."""
+import logging
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessingException,
+                       QgsProcessingParameterCrs, QgsProcessingParameterEnum, QgsProcessingParameterFeatureSource,
+                       QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterString,
+                       QgsProcessingParameterVectorDestination, QgsWkbTypes)
+
+from ...core import gcps
+from ..common import (DEM_DATUM, DEM_DATUMS, HEIGHT, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
+                      add_scene_parameters, check_cancelled, core_call, dem_from_parameters, load_scene_for,
+                      style_output_on_load)
+
+HEIGHT_SOURCES = ("z", "dem", "constant")  # core.gcps.Heights.source, in the order of the enum
+HEIGHT_SOURCE_LABELS = ("Z values (Z_FIELD, or the layer's point Z)", "DEM", "Constant height (HEIGHT)")
+
+
+class ImportGcpsAlgorithm(PushbroomAlgorithm):
+    ID = "importgcps"
+    NAME = "Import ground control points"
+    GROUP = "Control"
+    HELP = ("Reads ground control points (image col/row + ground coordinates) from a CSV file, a QGIS "
+            "Georeferencer <i>.points</i> file or a point layer, converts the ground coordinates to WGS84 and "
+            "the heights to ellipsoidal, and checks every point against the scene's sensor model: the "
+            "a-priori residual is the model's projection of the ground point minus the measured image "
+            "position (px, and metres on the ground). Points outside the image are kept and flagged "
+            "(inside = 0), never dropped. Image coordinates follow GDAL: (0, 0) is the upper-left corner "
+            "of the upper-left pixel. In .points files the pixel y is negative downwards (QGIS shows raw "
+            "images so) and is converted; disabled .points entries become check points. The output is a "
+            "GeoPackage point layer in EPSG:4979 (lon, lat, ellipsoidal height) with fields id, role, "
+            "camera, col, row, h, sigma_px, sigma_xy, sigma_z, res_col, res_row, res_px, res_m, inside.")
+    CAMERA = "CAMERA"
+    INPUT_FILE, INPUT = "INPUT_FILE", "INPUT"
+    ID_FIELD, COL_FIELD, ROW_FIELD, X_FIELD, Y_FIELD = "ID_FIELD", "COL_FIELD", "ROW_FIELD", "X_FIELD", "Y_FIELD"
+    Z_FIELD, ROLE_FIELD, CAMERA_FIELD = "Z_FIELD", "ROLE_FIELD", "CAMERA_FIELD"
+    GROUND_CRS, HEIGHT_SOURCE, CHECK_FRACTION = "GROUND_CRS", "HEIGHT_SOURCE", "CHECK_FRACTION"
+    SIGMA_PX, SIGMA_XY, SIGMA_Z, OUTPUT = "SIGMA_PX", "SIGMA_XY", "SIGMA_Z", "OUTPUT"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
+        add_scene_parameters(self, with_camera=False)
+        self._add(QgsProcessingParameterString(self.CAMERA, "Camera of all points (name or index)", optional=True,
+                                               defaultValue=""),
+                  "Camera in which every point was measured, by name (e.g. NAD) or 0-based index. Empty: "
+                  "each point's CAMERA_FIELD value, or the scene's only camera.")
+        self._add(QgsProcessingParameterFile(self.INPUT_FILE, "GCP file (CSV or QGIS .points)", optional=True,
+                                             fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"),
+                  "Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas accepted "
+                  "with ; TAB |), or a QGIS Georeferencer .points file. Give this or INPUT, not both.")
+        self._add(QgsProcessingParameterFeatureSource(self.INPUT, "GCP point layer", [QgsProcessing.TypeVectorPoint],
+                                                      optional=True),
+                  "Point layer whose geometry is the ground position (its own CRS) and whose fields hold the "
+                  "image position (COL_FIELD, ROW_FIELD). Give this or INPUT_FILE, not both.")
+        fields = ((self.ID_FIELD, "Point id field", "id", "Unique point id. Empty: line number (CSV) or "
+                   "feature id (layer)."),
+                  (self.COL_FIELD, "Image column field", "col", "Image column in GDAL pixels (0 = left edge)."),
+                  (self.ROW_FIELD, "Image row field", "row", "Image row in GDAL pixels (0 = top edge)."),
+                  (self.X_FIELD, "Ground X / longitude field (CSV)", "lon", "Easting or longitude in GROUND_CRS."),
+                  (self.Y_FIELD, "Ground Y / latitude field (CSV)", "lat", "Northing or latitude in GROUND_CRS."),
+                  (self.Z_FIELD, "Height field", "", "Height in metres (datum: DEM_DATUM), used when "
+                   "HEIGHT_SOURCE is 'Z values'. Empty: the layer's point Z."),
+                  (self.ROLE_FIELD, "Role field", "", "Values control/gcp or check/cp/checkpoint (empty cell = "
+                   "control). Empty: all points are control points (see CHECK_FRACTION)."),
+                  (self.CAMERA_FIELD, "Camera field", "", "Camera name (or index) of each point, for scenes "
+                   "with several cameras. Ignored when CAMERA is set."))
+        for name, label, default, help_text in fields:
+            self._add(QgsProcessingParameterString(name, label, optional=True, defaultValue=default), help_text)
+        self._add(QgsProcessingParameterCrs(self.GROUND_CRS, "Ground CRS (CSV and .points)", optional=True,
+                                            defaultValue="EPSG:4326"),
+                  "CRS of the ground coordinates in a CSV, or of a .points file without a '#CRS:' line (the "
+                  "file's own line wins). A layer brings its own CRS.")
+        self._add(QgsProcessingParameterEnum(self.HEIGHT_SOURCE, "Heights from", options=list(HEIGHT_SOURCE_LABELS),
+                                             defaultValue=0),
+                  "Where the GCP heights come from: the Z values (Z_FIELD or point Z), the DEM sampled at "
+                  "each point, or the constant HEIGHT. .points files hold no heights.")
+        add_dem_parameters(self, datum_help="What the DEM's heights and the GCPs' Z values are measured from: "
+                           "the EGM96 geoid (mean sea level, as most surveys and DEMs) or the WGS84 ellipsoid "
+                           "(GNSS heights). Geoid heights are converted with PROJ's EGM96 grid.")
+        self._add(QgsProcessingParameterNumber(self.CHECK_FRACTION, "Share of points made check points",
+                                               QgsProcessingParameterNumber.Double, 0.0, minValue=0.0, maxValue=1.0),
+                  "0 to 1: this share of all points becomes check points (never used in the adjustment), "
+                  "chosen deterministically and spread along the image. Points already 'check' count.")
+        for name, label, default, help_text in (
+                (self.SIGMA_PX, "Image measurement sigma (px)", gcps.DEFAULT_SIGMA_PX,
+                 "A-priori standard deviation of the measured col/row, in pixels."),
+                (self.SIGMA_XY, "Ground planimetric sigma (m)", gcps.DEFAULT_SIGMA_XY,
+                 "A-priori standard deviation of the ground east/north coordinates, in metres."),
+                (self.SIGMA_Z, "Ground height sigma (m)", gcps.DEFAULT_SIGMA_Z,
+                 "A-priori standard deviation of the ground height, in metres.")):
+            self._add(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
+                                                   minValue=0.0), help_text)
+        out = QgsProcessingParameterVectorDestination(self.OUTPUT, "Ground control points",
+                                                      QgsProcessing.TypeVectorPoint)
+        out.setSupportsNonFileBasedOutput(False)
+        self._add(out, "GeoPackage (.gpkg) point layer of the checked GCPs, styled so points with a large "
+                  "a-priori residual (relative to the median) and points outside the image stand out.")
+
+    def _add(self, parameter, help_text: str) -> None:
+        parameter.setHelp(help_text)
+        self.addParameter(parameter)
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        scene_path = self.parameterAsFile(parameters, SCENE, context)
+        scene = load_scene_for(SCENE, scene_path)
+        dest = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
+        if Path(dest).suffix.lower() != ".gpkg":
+            raise QgsProcessingException(f"{self.OUTPUT}: GCP layers are written as GeoPackage; choose a .gpkg file "
+                                         f"(got {dest})")
+        with _core_log_to(feedback):
+            table = self._read(parameters, context)
+            check_cancelled(feedback)
+            feedback.setProgressText(f"checking {len(table)} points against {scene_path}")
+            table = core_call(gcps.check_against_scene, table, scene, scene_path,
+                              self.parameterAsString(parameters, self.CAMERA, context).strip() or None,
+                              self.parameterAsDouble(parameters, self.CHECK_FRACTION, context))
+        core_call(gcps.write_gpkg, table, dest)
+        self._report(table, feedback)
+        style_output_on_load(context, dest, STYLES / "gcps.qml")
+        feedback.setProgress(100)
+        return {self.OUTPUT: dest}
+
+    # --- reading --------------------------------------------------------------------------
+    def _read(self, parameters, context) -> gcps.GcpTable:
+        path = self.parameterAsFile(parameters, self.INPUT_FILE, context)
+        source = self.parameterAsSource(parameters, self.INPUT, context)
+        if bool(path) == (source is not None):
+            raise QgsProcessingException(f"give either {self.INPUT_FILE} (CSV or .points) or {self.INPUT} "
+                                         f"(point layer), not {'both' if path else 'neither'}")
+        heights = self._heights(parameters, context)
+        sigmas = {f"sigma_{k}": self.parameterAsDouble(parameters, name, context)
+                  for k, name in (("px", self.SIGMA_PX), ("xy", self.SIGMA_XY), ("z", self.SIGMA_Z))}
+        crs = _crs_text(self.parameterAsCrs(parameters, self.GROUND_CRS, context))
+        if source is not None:
+            return self._from_layer(parameters, context, source, heights, sigmas)
+        if path.lower().endswith(".points"):
+            return core_call(gcps.read_points_file, path, heights, crs, **sigmas)
+        text = {name: self.parameterAsString(parameters, name, context).strip() or None
+                for name in (self.ID_FIELD, self.COL_FIELD, self.ROW_FIELD, self.X_FIELD, self.Y_FIELD,
+                             self.Z_FIELD, self.ROLE_FIELD, self.CAMERA_FIELD)}
+        mapping = gcps.CsvMapping(col=text[self.COL_FIELD], row=text[self.ROW_FIELD], x=text[self.X_FIELD],
+                                  y=text[self.Y_FIELD], id=text[self.ID_FIELD], z=text[self.Z_FIELD],
+                                  role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD])
+        return core_call(gcps.read_csv, path, mapping, crs, heights, **sigmas)
+
+    def _heights(self, parameters, context) -> gcps.Heights:
+        kind = HEIGHT_SOURCES[self.parameterAsEnum(parameters, self.HEIGHT_SOURCE, context)]
+        datum = DEM_DATUMS[self.parameterAsEnum(parameters, DEM_DATUM, context)]
+        if kind == "constant":
+            return gcps.Heights("constant", "ellipsoid", value=self.parameterAsDouble(parameters, HEIGHT, context))
+        if kind == "dem":
+            dem = dem_from_parameters(self, parameters, context)
+            if not hasattr(dem, "path"):
+                raise QgsProcessingException("HEIGHT_SOURCE is 'DEM' but no DEM was given")
+            return gcps.Heights("dem", datum, dem=dem)
+        return gcps.Heights("z", datum)
+
+    def _from_layer(self, parameters, context, source, heights, sigmas) -> gcps.GcpTable:
+        """Arrays of the layer's features -> core.gcps.build_table (which checks them)."""
+        features = list(source.getFeatures())
+        if not features:
+            raise QgsProcessingException(f"{self.INPUT}: the layer has no features")
+        names = source.fields().names()
+
+        def column(param: str, required: bool):
+            name = self.parameterAsString(parameters, param, context).strip()
+            if not name:
+                if required:
+                    raise QgsProcessingException(f"{param}: name the field of the layer that holds it")
+                return None
+            if name not in names:
+                raise QgsProcessingException(f"{param}: the layer has no field {name!r} (fields: {', '.join(names)})")
+            return [f[name] for f in features]
+
+        xyz = np.array([_point_xyz(f) for f in features], dtype=float)
+        ids = column(self.ID_FIELD, False) or [f.id() for f in features]
+        z = column(self.Z_FIELD, False)
+        if z is None and QgsWkbTypes.hasZ(source.wkbType()):
+            z = xyz[:, 2]
+        return core_call(gcps.build_table, [str(i) for i in ids], _floats(column(self.COL_FIELD, True)),
+                         _floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
+                         crs=_crs_text(source.sourceCrs()), heights=heights,
+                         z=None if z is None else _floats(z), role=_texts(column(self.ROLE_FIELD, False)),
+                         camera=_texts(column(self.CAMERA_FIELD, False)), source=f"{self.INPUT} layer", **sigmas)
+
+    # --- report ---------------------------------------------------------------------------
+    @staticmethod
+    def _report(table: gcps.GcpTable, feedback) -> None:
+        s = gcps.summary(table)
+        feedback.pushInfo(f"{s['points']} points: {s['control']} control, {s['check']} check, "
+                          f"{s['outside']} outside the image")
+        if np.isfinite(s["median_px"]):
+            feedback.pushInfo(f"a-priori residuals (points inside the image): median {s['median_px']:.2f} px "
+                              f"({s['median_m']:.2f} m), max {s['max_px']:.2f} px ({s['max_m']:.2f} m)")
+
+
+def _crs_text(crs: QgsCoordinateReferenceSystem) -> str | None:
+    """A CRS string pyproj reads (the authority id, else WKT); None for an invalid CRS."""
+    if not crs.isValid():
+        return None
+    return crs.authid() if crs.authid().upper().startswith("EPSG:") else \
+        crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
+
+
+def _point_xyz(feature) -> tuple[float, float, float]:
+    """(x, y, z) of a point feature; NaN for an empty geometry or a missing Z."""
+    g = feature.geometry()
+    if g.isNull() or g.isEmpty():
+        return np.nan, np.nan, np.nan
+    p = g.vertexAt(0)
+    return p.x(), p.y(), p.z()
+
+
+def _floats(values) -> np.ndarray:
+    """Attribute values as floats; NULL and non-numeric text become NaN (reported with ids by the core)."""
+    def number(v):
+        try:
+            return float(v)
+        except (TypeError, ValueError):
+            return np.nan
+    return np.array([number(v) for v in values], dtype=float)
+
+
+def _texts(values):
+    """Attribute values as stripped strings (NULL -> ''); None (no field) stays None."""
+    return None if values is None else ["" if v is None or v == NULL else str(v).strip() for v in values]
+
+
+@contextmanager
+def _core_log_to(feedback):
+    """Show the GCP core's log warnings (e.g. disabled .points entries) in the Processing log."""
+    class _ToFeedback(logging.Handler):
+        def emit(self, record):
+            (feedback.pushWarning if record.levelno >= logging.WARNING else feedback.pushInfo)(record.getMessage())
+
+    logger = logging.getLogger(gcps.__name__)
+    handler = _ToFeedback(logging.INFO)
+    logger.addHandler(handler)
+    previous = logger.level
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(previous)

@@ -1,0 +1,228 @@
+"""Glue shared by the Processing algorithms: core errors -> QgsProcessingException,
+feedback -> core progress/cancel callbacks, DEM parameters -> core surfaces, output styling.
+
+The core knows nothing of QGIS; everything that adapts one to the other lives here.
+"""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from pyproj import CRS, Transformer
+from pyproj.exceptions import CRSError
+from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingAlgorithm, QgsProcessingException,
+                       QgsProcessingLayerPostProcessorInterface, QgsProcessingParameterEnum,
+                       QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer,
+                       QgsProcessingParameterString)
+from qgis.PyQt.QtGui import QIcon
+
+from ..core.errors import PushbroomError
+
+RESOURCES = Path(__file__).resolve().parents[1] / "resources"
+STYLES = RESOURCES / "styles"
+
+SCENE = "SCENE"
+CAMERA = "CAMERA"
+DEM = "DEM"
+DEM_DATUM = "DEM_DATUM"
+HEIGHT = "HEIGHT"
+DEM_DATUMS = ("geoid", "ellipsoid")  # core.dem datum names, in the order of the enum below
+DEM_DATUM_LABELS = ("Geoid (EGM96) — SRTM, Copernicus DEM, most national DEMs", "Ellipsoid (WGS84)")
+
+
+# --- algorithm base ------------------------------------------------------------------------
+class PushbroomAlgorithm(QgsProcessingAlgorithm):
+    """Base of the plugin's algorithms: id, name, group and help from class attributes.
+
+    shortHelpString() is HELP followed by every parameter's name and help text (setHelp), so
+    the toolbox, qgis_process help and the README say the same.
+    """
+    ID = ""
+    NAME = ""
+    GROUP = "Sensor model"
+    HELP = ""
+
+    def name(self):
+        return self.ID
+
+    def displayName(self):  # noqa: N802 (QGIS API names)
+        return self.NAME
+
+    def group(self):
+        return self.GROUP
+
+    def groupId(self):  # noqa: N802
+        return self.GROUP.lower().replace(" ", "")
+
+    def icon(self):
+        return QIcon(str(RESOURCES / "icon.svg"))
+
+    def createInstance(self):  # noqa: N802
+        return type(self)()
+
+    def shortHelpString(self):  # noqa: N802
+        rows = "".join(f"<li><b>{p.name()}</b>: {p.help() or p.description()}</li>"
+                       for p in self.parameterDefinitions())
+        outs = "".join(f"<li><b>{o.name()}</b>: {o.description()}</li>" for o in self.outputDefinitions())
+        return f"<p>{self.HELP}</p><p>Parameters:</p><ul>{rows}</ul><p>Outputs:</p><ul>{outs}</ul>"
+
+
+# --- errors -------------------------------------------------------------------------------
+@contextmanager
+def processing_errors(prefix: str = ""):
+    """Turn core.errors.PushbroomError raised inside the block into QgsProcessingException,
+    with ``prefix`` (e.g. the parameter name) put before the core's message."""
+    try:
+        yield
+    except PushbroomError as exc:
+        raise QgsProcessingException(f"{prefix}{exc}") from None
+
+
+def core_call(func: Callable, *args, **kw):
+    """Call a core function; its PushbroomError becomes a QgsProcessingException."""
+    with processing_errors():
+        return func(*args, **kw)
+
+
+def load_scene_for(parameter_name: str, path: str):
+    """Load any supported scene file (core.scene_io.load_scene) given by a parameter.
+
+    The error message names the parameter, e.g. "SCENE: /x/y.xml: no such file".
+    """
+    from ..core.scene_io import load_scene
+    if not path:
+        raise QgsProcessingException(f"{parameter_name}: no scene file given")
+    with processing_errors(f"{parameter_name}: "):
+        return load_scene(path)
+
+
+def camera_for(parameter_name: str, scene, text: str | None) -> int:
+    """Camera index of a scene from a parameter holding a camera name or index ('' = first)."""
+    text = (text or "").strip()
+    if not text:
+        return 0
+    with processing_errors(f"{parameter_name}: "):
+        return scene.camera_index(int(text) if text.isdigit() else text)
+
+
+def add_scene_parameters(alg, with_camera: bool = True) -> None:
+    """SCENE (any supported metadata or scene JSON) and, optionally, CAMERA."""
+    scene = QgsProcessingParameterFile(SCENE, "Scene (metadata or scene JSON)", extension="",
+                                       fileFilter="Scene files (*.json *.xml *.XML);;All files (*)")
+    scene.setHelp("The sensor model of the scene: a Pushbroom Adjust scene JSON (written by the simulator "
+                  "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, Maxar/DigitalGlobe "
+                  "*.XML).")
+    alg.addParameter(scene)
+    if with_camera:
+        camera = QgsProcessingParameterString(CAMERA, "Camera (name or index)", optional=True, defaultValue="")
+        camera.setHelp("For scenes with several cameras (three-line and multi-CCD sensors): the camera's name "
+                       "(e.g. NAD, FWD, BWD) or its 0-based index. Empty: the first camera.")
+        alg.addParameter(camera)
+
+
+def lonlat_of(parameter_name: str, crs, x, y) -> tuple[np.ndarray, np.ndarray]:
+    """WGS84 (lon, lat) degrees of coordinates (x, y) in a layer's QgsCoordinateReferenceSystem."""
+    if not crs.isValid():
+        raise QgsProcessingException(f"{parameter_name}: the layer has no valid CRS; assign one first")
+    try:
+        source = CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
+    except CRSError as exc:
+        raise QgsProcessingException(f"{parameter_name}: unknown CRS {crs.authid() or crs.description()} ({exc})") \
+            from None
+    lon, lat = Transformer.from_crs(source, CRS.from_epsg(4326), always_xy=True).transform(x, y)
+    lon, lat = np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
+    bad = ~(np.isfinite(lon) & np.isfinite(lat))
+    if bad.any():
+        raise QgsProcessingException(f"{parameter_name}: {bad.sum()} points cannot be converted from "
+                                     f"{crs.authid()} to WGS84 longitude/latitude")
+    return lon, lat
+
+
+def nonfinite_message(parameter_name: str, what: str, ids, bad) -> str:
+    """Message naming (some of) the features whose values are NaN, missing or infinite."""
+    first = ", ".join(str(i) for i in np.asarray(ids)[bad][:5])
+    return f"{parameter_name}: {int(np.sum(bad))} features have missing or non-finite {what} (feature ids {first}...)"
+
+
+# --- feedback -----------------------------------------------------------------------------
+def feedback_callbacks(feedback) -> tuple[Callable[[float, str | None], None], Callable[[], bool]]:
+    """(progress(fraction 0..1, message or None), is_cancelled()) for a QgsProcessingFeedback
+    (or None, when an algorithm runs without one)."""
+    def progress(fraction: float, message: str | None = None) -> None:
+        if feedback is None:
+            return
+        feedback.setProgress(100.0 * min(max(float(fraction), 0.0), 1.0))
+        if message:
+            feedback.setProgressText(message)
+
+    def is_cancelled() -> bool:
+        return feedback is not None and feedback.isCanceled()
+
+    return progress, is_cancelled
+
+
+def check_cancelled(feedback) -> None:
+    """Stop an algorithm between steps when the user cancelled it."""
+    if feedback is not None and feedback.isCanceled():
+        raise QgsProcessingException("cancelled by the user")
+
+
+# --- DEM parameters -----------------------------------------------------------------------
+def add_dem_parameters(alg, datum_help: str = "") -> None:
+    """Add the optional DEM raster, its height datum and the constant-height fallback."""
+    dem = QgsProcessingParameterRasterLayer(DEM, "Digital elevation model", optional=True)
+    dem.setHelp("Raster of terrain heights in metres, in any CRS, covering the whole area the "
+                "algorithm works on. Leave empty to use the constant HEIGHT instead.")
+    datum = QgsProcessingParameterEnum(DEM_DATUM, "DEM height datum", options=list(DEM_DATUM_LABELS),
+                                       defaultValue=0)
+    datum.setHelp(datum_help or "What the DEM's heights are measured from: the EGM96 geoid (mean sea level: "
+                  "SRTM, Copernicus DEM, most national DEMs) or the WGS84 ellipsoid. Geoid heights are "
+                  "converted to ellipsoidal heights with PROJ's EGM96 grid.")
+    height = QgsProcessingParameterNumber(HEIGHT, "Constant ellipsoidal height (m) without a DEM",
+                                          type=QgsProcessingParameterNumber.Double, defaultValue=0.0)
+    height.setHelp("Height in metres above the WGS84 ellipsoid of a flat terrain, used when no DEM is "
+                   "given. Ellipsoidal height = sea-level height + geoid undulation (-106 m to +85 m "
+                   "over the Earth).")
+    for p in (dem, datum, height):
+        alg.addParameter(p)
+
+
+def dem_from_parameters(alg, parameters, context):
+    """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one."""
+    from ..core.dem import ConstantHeight, Dem
+    layer = alg.parameterAsRasterLayer(parameters, DEM, context)
+    if layer is None:
+        return ConstantHeight(alg.parameterAsDouble(parameters, HEIGHT, context))
+    datum = DEM_DATUMS[alg.parameterAsEnum(parameters, DEM_DATUM, context)]
+    path = layer.source().split("|")[0]
+    with processing_errors(f"{DEM}: "):
+        return Dem(path, datum)
+
+
+# --- output styling -----------------------------------------------------------------------
+class _StyleOnLoad(QgsProcessingLayerPostProcessorInterface):
+    """Applies a QML style to an output layer when Processing loads it into the project."""
+
+    def __init__(self, qml_path: str):
+        super().__init__()
+        self.qml_path = qml_path
+
+    def postProcessLayer(self, layer, context, feedback):  # noqa: N802 (QGIS API name)
+        if layer is not None:
+            layer.loadNamedStyle(self.qml_path)
+            layer.triggerRepaint()
+
+
+# QGIS holds post-processors by C++ pointer only: keep the Python objects alive here.
+_post_processors: dict[str, _StyleOnLoad] = {}
+
+
+def style_output_on_load(context, layer_id: str, qml_path: str | Path) -> None:
+    """Style output ``layer_id`` with ``qml_path`` if Processing will load it on completion."""
+    if not context.willLoadLayerOnCompletion(layer_id):
+        return
+    post = _StyleOnLoad(str(qml_path))
+    _post_processors[layer_id] = post
+    context.layerToLoadOnCompletionDetails(layer_id).setPostProcessor(post)

@@ -1,0 +1,35 @@
+"""The 'pushbroom' Processing provider: the plugin's algorithms in the toolbox and qgis_process."""
+from qgis.core import QgsProcessingProvider
+from qgis.PyQt.QtGui import QIcon
+
+from .algorithms.footprint import FootprintAlgorithm
+from .algorithms.groundtoimage import GroundToImageAlgorithm
+from .algorithms.imagetoground import ImageToGroundAlgorithm
+from .algorithms.importgcps import ImportGcpsAlgorithm
+from .algorithms.simulatescene import SimulateSceneAlgorithm
+from .common import RESOURCES
+
+ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, GroundToImageAlgorithm, ImageToGroundAlgorithm,
+              FootprintAlgorithm)
+
+
+class PushbroomProvider(QgsProcessingProvider):
+
+    def id(self):
+        return "pushbroom"
+
+    def name(self):
+        return "Pushbroom Adjust"
+
+    def longName(self):  # noqa: N802 (QGIS API name)
+        return "Pushbroom Adjust — rigorous pushbroom sensor models"
+
+    def icon(self):
+        return QIcon(str(RESOURCES / "icon.svg"))
+
+    def svgIconPath(self):  # noqa: N802 (QGIS API name)
+        return str(RESOURCES / "icon.svg")
+
+    def loadAlgorithms(self):  # noqa: N802 (QGIS API name)
+        for alg in ALGORITHMS:
+            self.addAlgorithm(alg())
