@@ -15,3 +15,7 @@ class InputError(PushbroomError):
 
 class ConvergenceError(PushbroomError):
     """An iterative solution did not converge; the message says what was tried."""
+
+
+class Cancelled(PushbroomError):
+    """The user cancelled a long computation; nothing was written."""

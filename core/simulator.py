@@ -1,0 +1,649 @@
+"""Scene simulator: a pushbroom acquisition with known truth, deterministic by seed.
+
+A circular sun-synchronous orbit passes (descending) over a synthetic terrain; a preset
+camera set images it. Two scene models are written:
+
+- the **true** scene: the geometry that made the measurements;
+- the **onboard** scene: what the satellite's own ephemeris, attitude and laboratory
+  calibration deliver, i.e. the truth with the simulated errors. Error conventions (the
+  adjustment estimates their negatives):
+    onboard position(t) = true position(t) + b + d (t - t_c) + q (t - t_c)^2   (ECEF axes, m)
+    onboard attitude(t) = true attitude(t) @ R(a(t)),  a(t) = a0 + a1 (t - t_c) + a2 (t - t_c)^2,
+                          R = rotation_from_angles(roll, pitch, yaw) in the body frame (rad)
+    onboard camera      = the nominal (laboratory) design; the true camera has per-chip
+                          shifts (dx, dy), rotations dtheta, a focal-length error, radial lens
+                          distortion (k1) and, for multi-camera sets, installation errors.
+  t_c is the strip's mid time. Every drawn value is in ``simulation.json``.
+
+Outputs in the folder: ``onboard_scene.json``, ``true_scene.json``, ``gcps.csv`` (ground
+control and check points), ``tie_points.csv`` (multi-camera presets), ``dem.tif`` (EGM96
+geoid heights), ``simulation.json`` (settings and truth), and with ``render=True`` one raw
+image per camera ``image_<CAMERA>.tif`` (see :mod:`core.render`).
+
+Frames: ECEF metres, times in seconds from the epoch, image coordinates GDAL (col, row).
+The focal-plane chips run from right to left across track (nominal theta = pi), so that a
+descending pass gives images with north up and east to the right, as delivered products.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import math
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from osgeo import gdal, osr
+
+from .camera import Camera, Chip, LineTiming
+from .dem import Dem
+from .errors import Cancelled, InputError
+from .geodesy import A, ecef_to_geodetic, geodetic_to_ecef
+from .rotations import matrix_to_quat, rotation_from_angles, rot_y
+from .scene_io import save_scene
+from .sensor import SceneModel
+from .trajectory import Ephemeris, Platform, QuaternionSamples
+
+gdal.UseExceptions()
+log = logging.getLogger(__name__)
+
+GM_EARTH = 3.986004418e14          # m^3/s^2
+OMEGA_EARTH = 7.2921151467e-5      # rad/s
+EPOCH = "2010-12-15T03:00:00.000000Z"
+EPHEMERIS_STEP = 1.0               # s
+ATTITUDE_STEP = 0.25               # s
+TRAJECTORY_MARGIN = 30.0           # s of ephemeris/attitude beyond the imaging span
+ARCSEC = math.pi / 648000.0
+
+
+# --- presets ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CameraSpec:
+    """One camera of a preset. tilt: along-track view angle (rad, + forward); chips of
+    ``chip_pixels`` detectors overlapping by ``overlap`` px; odd chips are displaced along
+    track by ``stagger`` metres (a staggered TDI array), their rows delayed to match."""
+    name: str
+    focal_length: float
+    pitch: float
+    n_chips: int
+    chip_pixels: int
+    overlap: int = 0
+    stagger: float = 0.0
+    tilt: float = 0.0
+
+    @property
+    def cols(self) -> int:
+        return self.n_chips * self.chip_pixels - (self.n_chips - 1) * self.overlap
+
+
+@dataclass(frozen=True)
+class ErrorSettings:
+    """Magnitudes of the simulated errors. Each drawn value is magnitude * U(1/3, 1) with a
+    random sign (so 3 px gives 1-3 px), per component; 0 switches an error off.
+
+    position_bias (m), position_drift (m/s), position_quadratic (m/s^2): per ECEF axis.
+    attitude_bias (rad), attitude_drift (rad/s), attitude_quadratic (rad/s^2): per body axis.
+    ccd_shift (px, x and y) and ccd_rotation (rad, about the chip's first detector): every
+    chip but the middle (reference) one. focal_error (m). distortion (px): radial k1 giving
+    this displacement at the end of the array. installation (rad): per axis, every camera
+    but the reference (nadir) one.
+    """
+    position_bias: float = 0.0
+    position_drift: float = 0.0
+    position_quadratic: float = 0.0
+    attitude_bias: float = 0.0
+    attitude_drift: float = 0.0
+    attitude_quadratic: float = 0.0
+    ccd_shift: float = 0.0
+    ccd_rotation: float = 0.0
+    focal_error: float = 0.0
+    distortion: float = 0.0
+    installation: float = 0.0
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A sensor and orbit: altitude (m), inclination (rad), cameras (the reference camera,
+    where GCPs are placed, first), rows per scene, the scene centre and the terrain relief (m)."""
+    name: str
+    description: str
+    altitude: float
+    cameras: tuple[CameraSpec, ...]
+    scene_rows: int
+    errors: ErrorSettings
+    inclination: float = math.radians(98.5)
+    centre: tuple[float, float] = (114.0, 34.5)
+    relief: float = 1200.0
+
+
+PRESETS: dict[str, Preset] = {
+    "cbers02b_hrc": Preset(
+        "cbers02b_hrc", "CBERS-02B HRC, 778 km, 3 staggered TDI-CCDs of 4096 px, 2.36 m GSD", 778e3,
+        (CameraSpec("HRC", 3.3, 10e-6, 3, 4096, overlap=21, stagger=0.8e-3),), 12246,
+        ErrorSettings(position_bias=40.0, position_drift=0.05, attitude_bias=5e-4, attitude_drift=2e-6,
+                      attitude_quadratic=5e-9, ccd_shift=3.0, ccd_rotation=1e-3)),
+    "th1_tlc": Preset(
+        "th1_tlc", "TH-1 three-line camera, 500 km, 5 m GSD, forward/nadir/backward at +-25 deg", 500e3,
+        (CameraSpec("NAD", 1.0, 10e-6, 1, 12000),
+         CameraSpec("FWD", 1.0, 10e-6, 1, 12000, tilt=math.radians(25.0)),
+         CameraSpec("BWD", 1.0, 10e-6, 1, 12000, tilt=math.radians(-25.0))), 12000,
+        ErrorSettings(position_bias=10.0, position_drift=0.02, attitude_bias=1e-4, attitude_drift=5e-7,
+                      attitude_quadratic=1e-9, focal_error=20e-6, distortion=1.0, installation=20 * ARCSEC),
+        inclination=math.radians(97.3), centre=(113.5, 35.0)),
+    "zy3_tlc": Preset(
+        "zy3_tlc", "ZY-3 three-line camera, 505 km, nadir 2.1 m, forward/backward 3.5 m at +-22 deg", 505e3,
+        (CameraSpec("NAD", 1.7, 7e-6, 3, 8192),
+         CameraSpec("FWD", 1.7, 10e-6, 4, 4096, tilt=math.radians(22.0)),
+         CameraSpec("BWD", 1.7, 10e-6, 4, 4096, tilt=math.radians(-22.0))), 24576,
+        ErrorSettings(position_bias=10.0, position_drift=0.02, attitude_bias=1e-4, attitude_drift=5e-7,
+                      attitude_quadratic=1e-9, ccd_shift=1.0, ccd_rotation=2e-4, focal_error=20e-6,
+                      distortion=1.0, installation=20 * ARCSEC),
+        inclination=math.radians(97.4), centre=(115.0, 40.0)),
+}
+
+
+@dataclass
+class SimulationResult:
+    """Paths of the files written by :func:`simulate`."""
+    folder: Path
+    onboard_scene: Path
+    true_scene: Path
+    gcps: Path
+    dem: Path
+    manifest: Path
+    tie_points: Path | None = None
+    images: dict = field(default_factory=dict)
+
+
+# --- orbit and attitude ----------------------------------------------------------------------
+def circular_orbit(altitude: float, inclination: float, lon0: float, lat0: float, t) -> tuple[np.ndarray, np.ndarray]:
+    """ECEF positions and velocities (n, 3) of a circular orbit that passes, descending, over
+    (lon0, lat0) degrees at t = 0, at ``altitude`` m above the ellipsoid there. t: (n,) s."""
+    t = np.asarray(t, dtype=float)
+    radius = float(np.linalg.norm(geodetic_to_ecef(lon0, lat0, 0.0))) + altitude
+    n = math.sqrt(GM_EARTH / radius ** 3)
+    ground = geodetic_to_ecef(lon0, lat0, 0.0)
+    phi0 = math.asin(ground[2] / np.linalg.norm(ground))  # geocentric latitude
+    sin_i, cos_i = math.sin(inclination), math.cos(inclination)
+    if abs(math.sin(phi0)) > abs(sin_i):
+        raise InputError(f"latitude {lat0} is beyond the reach of an orbit inclined {math.degrees(inclination):.1f} deg")
+    u0 = math.pi - math.asin(math.sin(phi0) / sin_i)
+    node = math.radians(lon0) - math.atan2(cos_i * math.sin(u0), math.cos(u0))
+    p_axis = np.array([math.cos(node), math.sin(node), 0.0])
+    q_axis = np.array([-cos_i * math.sin(node), cos_i * math.cos(node), sin_i])
+    u = u0 + n * t
+    r_inertial = radius * (np.cos(u)[:, None] * p_axis + np.sin(u)[:, None] * q_axis)
+    v_inertial = radius * n * (-np.sin(u)[:, None] * p_axis + np.cos(u)[:, None] * q_axis)
+    # The inertial frame coincides with ECEF at t = 0 and the Earth turns under it.
+    a = OMEGA_EARTH * t
+    c, s = np.cos(a), np.sin(a)
+    rot = np.zeros((t.size, 3, 3))
+    rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = c, s, -s, c, 1.0
+    pos = np.einsum("nij,nj->ni", rot, r_inertial)
+    vel = np.einsum("nij,nj->ni", rot, v_inertial) - np.cross([0.0, 0.0, OMEGA_EARTH], pos)
+    return pos, vel
+
+
+def nadir_attitude(pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
+    """Body -> ECEF rotations (n, 3, 3) of a yaw-steered nadir-pointing platform: z toward the
+    Earth's centre, x along the ground track (ECEF velocity), y = z x x (right of track)."""
+    z = -pos / np.linalg.norm(pos, axis=1, keepdims=True)
+    x = vel - np.einsum("ni,ni->n", vel, z)[:, None] * z
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=2)
+
+
+def _platform_wobble(t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Smooth true attitude motion (n, 3) rad: a few slow oscillations of ~10 microradians,
+    measured by the star trackers (so present in both true and onboard models)."""
+    periods = rng.uniform(40.0, 200.0, (3, 2))
+    phases = rng.uniform(0.0, 2 * math.pi, (3, 2))
+    amp = rng.uniform(3e-6, 1e-5, (3, 2))
+    return np.sum(amp * np.sin(2 * math.pi * t[:, None, None] / periods + phases), axis=2)
+
+
+# --- cameras ---------------------------------------------------------------------------------
+def nominal_camera(spec: CameraSpec, rows: int, t0: float, period: float) -> Camera:
+    """The laboratory design of a camera: chips on one focal plane centred on the optical
+    axis, running right to left (theta = pi), odd chips staggered along track with their
+    rows delayed by whole lines so the delivered image is aligned to about a line."""
+    cols = spec.cols
+    chips = []
+    for k in range(spec.n_chips):
+        offset = k * (spec.chip_pixels - spec.overlap)
+        staggered = spec.stagger if k % 2 == 1 else 0.0
+        lines = round(staggered / spec.pitch)
+        chips.append(Chip(col_offset=float(offset), n_pixels=spec.chip_pixels, kind="focal_plane",
+                          time_offset=-lines * period, x0=staggered,
+                          y0=-(offset + 0.5 - cols / 2.0) * spec.pitch, pitch=spec.pitch, theta=math.pi,
+                          name=f"{spec.name}-{k + 1}"))
+    return Camera(name=spec.name, cols=cols, rows=rows, timing=LineTiming(t0=t0, period=period), chips=chips,
+                  focal_length=spec.focal_length, installation=rot_y(spec.tilt))
+
+
+def _draw(rng: np.random.Generator, magnitude: float, shape=()) -> np.ndarray:
+    """Values of size magnitude * U(1/3, 1) with random signs."""
+    return magnitude * rng.uniform(1.0 / 3.0, 1.0, shape) * rng.choice([-1.0, 1.0], shape)
+
+
+def perturbed_camera(nominal: Camera, errors: ErrorSettings, reference: bool, rng: np.random.Generator) -> tuple[Camera, dict]:
+    """The true camera: the nominal one with drawn interior errors, and a dict of them.
+
+    The middle chip is the reference of a multi-chip array (no shift or rotation); the
+    reference camera of a camera set has no installation error.
+    """
+    ref_chip = len(nominal.chips) // 2
+    chips, chip_truth = [], []
+    for k, chip in enumerate(nominal.chips):
+        free = k != ref_chip and len(nominal.chips) > 1
+        dx, dy = _draw(rng, errors.ccd_shift, 2) if free else (0.0, 0.0)
+        dtheta = float(_draw(rng, errors.ccd_rotation)) if free else 0.0
+        chips.append(replace(chip, x0=chip.x0 + dx * chip.pitch, y0=chip.y0 + dy * chip.pitch,
+                             theta=chip.theta + dtheta))
+        chip_truth.append({"chip": chip.name, "dx_px": float(dx), "dy_px": float(dy), "dx_m": float(dx * chip.pitch),
+                           "dy_m": float(dy * chip.pitch), "dtheta_rad": dtheta})
+    df = float(_draw(rng, errors.focal_error))
+    r_max = 0.5 * nominal.cols * nominal.chips[0].pitch
+    k1 = float(_draw(rng, errors.distortion)) * nominal.chips[0].pitch / r_max ** 3
+    angles = _draw(rng, errors.installation, 3) if not reference else np.zeros(3)
+    true = replace(nominal, chips=chips, focal_length=nominal.focal_length + df,
+                   distortion={"k1": k1} if k1 else {},
+                   installation=nominal.installation @ rotation_from_angles(*angles))
+    truth = {"camera": nominal.name, "chips": chip_truth, "focal_error_m": df, "k1_per_m2": k1,
+             "installation_error_rad": [float(a) for a in angles]}
+    return true, truth
+
+
+# --- the scene ---------------------------------------------------------------------------------
+@dataclass
+class _Geometry:
+    true: SceneModel
+    onboard: SceneModel
+    truth: dict
+
+
+def _line_period(spec: CameraSpec, altitude: float, ground_speed: float) -> float:
+    """Line period (s) giving square pixels on the ground for a camera's view angle."""
+    slant = altitude / math.cos(spec.tilt)
+    return slant * spec.pitch / spec.focal_length / math.cos(spec.tilt) / ground_speed
+
+
+def build_scenes(preset: Preset, n_scenes: int, errors: ErrorSettings, rng: np.random.Generator) -> _Geometry:
+    """True and onboard scene models of a strip of ``n_scenes`` scenes of ``preset``."""
+    lon0, lat0 = preset.centre
+    # Ground speed at the centre: the sub-satellite point's speed scaled from orbit to ground.
+    p, v = circular_orbit(preset.altitude, preset.inclination, lon0, lat0, np.array([0.0]))
+    ground_speed = float(np.linalg.norm(v[0]) * (np.linalg.norm(p[0]) - preset.altitude) / np.linalg.norm(p[0]))
+    ref = preset.cameras[0]
+    ref_period = _line_period(ref, preset.altitude, ground_speed)
+    rows = preset.scene_rows * n_scenes
+    duration = rows * ref_period
+    cams = []
+    for spec in preset.cameras:
+        period = _line_period(spec, preset.altitude, ground_speed)
+        # A forward camera sees a ground line before the nadir one: by the time the platform
+        # takes to fly the along-track distance of its view.
+        lead = preset.altitude * math.tan(spec.tilt) / ground_speed
+        cam_rows = int(round(duration / period))
+        cams.append(nominal_camera(spec, cam_rows, -0.5 * duration - lead, period))
+    t_first = min(c.timing.t0 + min(ch.time_offset for ch in c.chips) for c in cams) - TRAJECTORY_MARGIN
+    t_last = max(c.timing.time(np.array([c.rows]))[0] for c in cams) + TRAJECTORY_MARGIN
+    t_eph = np.arange(t_first, t_last + EPHEMERIS_STEP, EPHEMERIS_STEP)
+    pos, vel = circular_orbit(preset.altitude, preset.inclination, lon0, lat0, t_eph)
+    t_att = np.arange(t_first, t_last + ATTITUDE_STEP, ATTITUDE_STEP)
+    pa, va = circular_orbit(preset.altitude, preset.inclination, lon0, lat0, t_att)
+    rot_true = nadir_attitude(pa, va) @ rotation_from_angles(*_platform_wobble(t_att, rng).T)
+
+    traj = {name: _draw(rng, getattr(errors, name), 3) for name in
+            ("position_bias", "position_drift", "position_quadratic", "attitude_bias", "attitude_drift",
+             "attitude_quadratic")}
+    dt_e, dt_a = t_eph[:, None], t_att[:, None]
+    pos_on = pos + traj["position_bias"] + traj["position_drift"] * dt_e + traj["position_quadratic"] * dt_e ** 2
+    vel_on = vel + traj["position_drift"] + 2 * traj["position_quadratic"] * dt_e
+    att_err = traj["attitude_bias"] + traj["attitude_drift"] * dt_a + traj["attitude_quadratic"] * dt_a ** 2
+    rot_on = rot_true @ rotation_from_angles(*att_err.T)
+
+    true_cams, interior = [], []
+    for i, cam in enumerate(cams):
+        true_cam, truth = perturbed_camera(cam, errors, reference=(i == 0), rng=rng)
+        true_cams.append(true_cam)
+        interior.append(truth)
+
+    info = {"sensor": preset.name, "description": preset.description, "simulated": True,
+            "n_scenes": n_scenes, "scene_rows": preset.scene_rows,
+            "gsd_m": ref.pitch / ref.focal_length * preset.altitude,
+            "height_range": [-100.0, preset.relief + 1000.0]}
+    true = SceneModel(EPOCH, Platform(Ephemeris(t_eph, pos, vel), QuaternionSamples(t_att, matrix_to_quat(rot_true))),
+                      true_cams, aberration=True, refraction=True, info={**info, "model": "true"})
+    onboard = SceneModel(EPOCH, Platform(Ephemeris(t_eph, pos_on, vel_on),
+                                         QuaternionSamples(t_att, matrix_to_quat(rot_on))),
+                         cams, aberration=True, refraction=True, info={**info, "model": "onboard"})
+    truth = {"trajectory": {k: v.tolist() for k, v in traj.items()}, "reference_time_s": 0.0,
+             "interior": interior}
+    return _Geometry(true, onboard, truth)
+
+
+# --- terrain -----------------------------------------------------------------------------------
+def terrain_heights(lon, lat, centre: tuple[float, float], relief: float, seed: int) -> np.ndarray:
+    """Synthetic terrain (m above the geoid) at (lon, lat) degrees: a sum of random plane
+    waves with wavelengths 1.5-40 km and amplitudes growing with wavelength, spanning about
+    ``relief`` metres above a 200 m plain. Smooth at the DEM spacing, deterministic by seed."""
+    rng = np.random.default_rng([seed, 7])
+    n = 24
+    wavelength = np.exp(rng.uniform(np.log(1.5e3), np.log(40e3), n))
+    direction = rng.uniform(0.0, 2 * math.pi, n)
+    phase = rng.uniform(0.0, 2 * math.pi, n)
+    amp = wavelength / wavelength.sum()
+    x = (np.asarray(lon) - centre[0]) * 111320.0 * math.cos(math.radians(centre[1]))
+    y = (np.asarray(lat) - centre[1]) * 110540.0
+    k = 2 * math.pi / wavelength
+    h = np.zeros(np.broadcast(x, y).shape)
+    for i in range(n):  # a few waves over the whole grid: numpy does the work per wave
+        h += amp[i] * np.cos(k[i] * (x * np.cos(direction[i]) + y * np.sin(direction[i])) + phase[i])
+    # The sum is near-Gaussian with this standard deviation: +-3 sigma spans the relief.
+    sigma = math.sqrt(float(np.sum(amp ** 2)) / 2.0)
+    return 200.0 + relief * (0.5 + h / (6.0 * sigma)).clip(0.0, 1.0)
+
+
+def write_dem(path: Path, bounds: tuple[float, float, float, float], centre, relief: float, seed: int,
+              max_cells: int = 4_000_000) -> None:
+    """A GeoTIFF DEM in EPSG:4326 (EGM96 geoid heights, Float32) covering ``bounds``
+    (lon_min, lat_min, lon_max, lat_max) at 1 arc-second, coarser if it would exceed max_cells."""
+    lon_min, lat_min, lon_max, lat_max = bounds
+    step = max(1.0 / 3600.0, math.sqrt((lon_max - lon_min) * (lat_max - lat_min) / max_cells))
+    nx = int(math.ceil((lon_max - lon_min) / step)) + 1
+    ny = int(math.ceil((lat_max - lat_min) / step)) + 1
+    lon = lon_min + (np.arange(nx) + 0.5) * step
+    lat = lat_max - (np.arange(ny) + 0.5) * step
+    z = terrain_heights(lon[None, :], lat[:, None], centre, relief, seed).astype(np.float32)
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), nx, ny, 1, gdal.GDT_Float32,
+                                              ["COMPRESS=DEFLATE", "PREDICTOR=3", "TILED=YES"])
+    ds.SetGeoTransform((lon_min, step, 0.0, lat_max, 0.0, -step))
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(4326)
+    ds.SetProjection(srs.ExportToWkt())
+    band = ds.GetRasterBand(1)
+    band.WriteArray(z)
+    band.SetNoDataValue(-32768.0)
+    band.SetDescription("height above the EGM96 geoid (m)")
+    ds = None
+
+
+def scene_bounds(scene: SceneModel, heights: tuple[float, float], margin_deg: float = 0.02) -> tuple[float, float, float, float]:
+    """(lon_min, lat_min, lon_max, lat_max) of every camera's image border seen at the given
+    ellipsoidal heights, widened by margin_deg."""
+    lons, lats = [], []
+    for k, cam in enumerate(scene.cameras):
+        s = np.linspace(0.0, 1.0, 65)
+        col = np.concatenate([s * cam.cols, np.full_like(s, cam.cols), s * cam.cols, np.zeros_like(s)])
+        row = np.concatenate([np.zeros_like(s), s * cam.rows, np.full_like(s, cam.rows), s * cam.rows])
+        for h in heights:
+            lon, lat, _ = ecef_to_geodetic(scene.image_to_ground(col, row, h, k))
+            lons.append(lon)
+            lats.append(lat)
+    lon, lat = np.concatenate(lons), np.concatenate(lats)
+    return (float(lon.min()) - margin_deg, float(lat.min()) - margin_deg, float(lon.max()) + margin_deg,
+            float(lat.max()) + margin_deg)
+
+
+# --- measurements ------------------------------------------------------------------------------
+@dataclass
+class GcpSettings:
+    """How points are measured. n_gcps: ground points placed uniformly over the reference
+    camera's image; check_fraction: share made check points; image_noise (px), ground_noise_xy
+    / ground_noise_z (m): standard deviations; gross_fraction: share of image measurements
+    displaced by gross_min..gross_max px in a random direction; n_tie_points: ground points
+    measured (without ground coordinates) in every camera that sees them."""
+    n_gcps: int = 200
+    check_fraction: float = 0.0
+    image_noise: float = 0.3
+    ground_noise_xy: float = 0.0
+    ground_noise_z: float = 0.0
+    gross_fraction: float = 0.0
+    gross_min: float = 5.0
+    gross_max: float = 100.0
+    n_tie_points: int = 0
+
+    def validate(self) -> None:
+        for name in ("n_gcps", "n_tie_points", "image_noise", "ground_noise_xy", "ground_noise_z", "gross_min"):
+            if not getattr(self, name) >= 0:
+                raise InputError(f"{name} must be >= 0 (got {getattr(self, name)})")
+        for name in ("check_fraction", "gross_fraction"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise InputError(f"{name} must be between 0 and 1 (got {getattr(self, name)})")
+        if self.gross_max < self.gross_min:
+            raise InputError(f"gross_max ({self.gross_max}) must not be below gross_min ({self.gross_min})")
+
+
+def place_ground_points(scene: SceneModel, dem: Dem, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """(ECEF points (n, 3) on the DEM, their rows (n,)) seen at uniformly random positions
+    of camera 0."""
+    cam = scene.cameras[0]
+    col = rng.uniform(0.0, cam.cols, n)
+    row = rng.uniform(0.0, cam.rows, n)
+    ground = scene.image_to_ground_dem(col, row, dem, 0)
+    if not np.all(np.isfinite(ground)):
+        raise InputError(f"{int((~np.isfinite(ground[:, 0])).sum())} simulated points miss the DEM")
+    return ground, row
+
+
+def observe(scene: SceneModel, ground: np.ndarray) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """Noise-free image positions of ECEF points in every camera: a list of (camera index,
+    point indices, col, row) for the points that fall inside each camera's image."""
+    out = []
+    for k, cam in enumerate(scene.cameras):
+        col, row = scene.ground_to_image(ground, k)
+        inside = np.isfinite(col) & (col >= 0) & (col <= cam.cols) & (row >= 0) & (row <= cam.rows)
+        idx = np.nonzero(inside)[0]
+        out.append((k, idx, col[idx], row[idx]))
+    return out
+
+
+def _gross_offsets(n: int, settings: GcpSettings, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """(offsets (n, 2) px, flags (n,)) for gross errors in exactly round(share * n) measurements."""
+    flags = _exact_share(n, settings.gross_fraction, rng)
+    size = rng.uniform(settings.gross_min, settings.gross_max, n)
+    angle = rng.uniform(0.0, 2 * math.pi, n)
+    off = np.where(flags[:, None], np.stack([np.cos(angle), np.sin(angle)], axis=1) * size[:, None], 0.0)
+    return off, flags
+
+
+def _exact_share(n: int, share: float, rng: np.random.Generator) -> np.ndarray:
+    """Boolean mask (n,) with exactly round(share * n) randomly placed True values."""
+    mask = np.zeros(n, bool)
+    mask[rng.choice(n, int(round(share * n)), replace=False)] = True
+    return mask
+
+
+def _ground_noise(ground: np.ndarray, settings: GcpSettings, rng: np.random.Generator):
+    """(lon, lat, h) of the ground points with planimetric and height noise added."""
+    lon, lat, h = ecef_to_geodetic(ground)
+    east = rng.normal(0.0, settings.ground_noise_xy, lon.size)
+    north = rng.normal(0.0, settings.ground_noise_xy, lon.size)
+    up = rng.normal(0.0, settings.ground_noise_z, lon.size)
+    lat_r = np.radians(lat)
+    # Metres to degrees on the ellipsoid (meridian and prime-vertical radii).
+    e2 = 6.69437999014e-3
+    w = np.sqrt(1 - e2 * np.sin(lat_r) ** 2)
+    m_rad = A * (1 - e2) / w ** 3
+    n_rad = A / w
+    return (lon + np.degrees(east / ((n_rad + h) * np.cos(lat_r))), lat + np.degrees(north / (m_rad + h)), h + up)
+
+
+GCP_COLUMNS = ("id", "role", "camera", "col", "row", "lon", "lat", "h", "sigma_px", "sigma_xy", "sigma_z",
+               "col_true", "row_true", "lon_true", "lat_true", "h_true", "gross", "scene")
+TIE_COLUMNS = ("id", "camera", "col", "row", "col_true", "row_true", "lon_true", "lat_true", "h_true", "gross")
+
+
+def measure_points(scene: SceneModel, ground: np.ndarray, ids: np.ndarray, settings: GcpSettings,
+                   rng: np.random.Generator) -> dict:
+    """Columns (dict of (m,) arrays) of the image measurements of ground points in every
+    camera that sees them: noise-free and measured (noise and gross errors) positions."""
+    lon_t, lat_t, h_t = ecef_to_geodetic(ground)
+    cols: dict[str, list] = {k: [] for k in ("id", "camera", "col_true", "row_true", "index")}
+    for k, idx, col, row in observe(scene, ground):
+        cols["id"].append(ids[idx])
+        cols["camera"].append(np.full(idx.size, scene.cameras[k].name))
+        cols["col_true"].append(col)
+        cols["row_true"].append(row)
+        cols["index"].append(idx)
+    out = {k: np.concatenate(v) for k, v in cols.items()}
+    m = out["id"].size
+    offsets, gross = _gross_offsets(m, settings, rng)
+    out["col"] = out["col_true"] + rng.normal(0.0, settings.image_noise, m) + offsets[:, 0]
+    out["row"] = out["row_true"] + rng.normal(0.0, settings.image_noise, m) + offsets[:, 1]
+    out["gross"] = gross.astype(int)
+    idx = out.pop("index")
+    out["lon_true"], out["lat_true"], out["h_true"] = lon_t[idx], lat_t[idx], h_t[idx]
+    out["_index"] = idx
+    return out
+
+
+def _write_csv(path: Path, columns: tuple[str, ...], data: dict) -> None:
+    """Write parallel arrays as CSV with a header; floats to 15 significant digits (1e-12 deg, 1e-10 px)."""
+    n = len(data[columns[0]])
+    text = [np.asarray(data[c]).astype(str) if np.asarray(data[c]).dtype.kind in "UOi"
+            else np.char.mod("%.15g", np.asarray(data[c], dtype=float)) for c in columns]
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(columns)
+        w.writerows(zip(*text) if n else [])
+
+
+# --- the whole simulation ----------------------------------------------------------------------
+def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int = 200, image_noise: float = 0.3,
+             render: bool = False, errors: ErrorSettings | dict | None = None,
+             gcp_settings: GcpSettings | None = None, progress: Callable[[float, str | None], None] | None = None,
+             is_cancelled: Callable[[], bool] | None = None) -> SimulationResult:
+    """Simulate a strip of ``n_scenes`` scenes of ``preset`` into ``folder`` (created).
+
+    errors: the preset's :class:`ErrorSettings` (None), or another one, or a dict overriding
+    some of its fields. gcp_settings: measurement settings; n_gcps and image_noise set its
+    fields when it is None. progress(fraction, message) and is_cancelled() report and stop
+    long work; on cancel or error no output file is left half-written (each is written to a
+    temporary name and renamed at the end).
+    """
+    if preset not in PRESETS:
+        raise InputError(f"unknown preset {preset!r} (choose one of {', '.join(PRESETS)})")
+    if not 1 <= int(n_scenes) <= 200:
+        raise InputError(f"n_scenes must be between 1 and 200 (got {n_scenes})")
+    spec = PRESETS[preset]
+    errors = _error_settings(spec, errors)
+    settings = gcp_settings or GcpSettings(n_gcps=int(n_gcps), image_noise=float(image_noise))
+    settings.validate()
+    report = progress or (lambda fraction, message=None: None)
+    cancelled = is_cancelled or (lambda: False)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    staged: list[tuple[Path, Path]] = []
+
+    def stage(name: str) -> Path:
+        final = folder / name
+        tmp = folder / (name + ".part")
+        staged.append((tmp, final))
+        return tmp
+
+    def step(fraction: float, message: str) -> None:
+        if cancelled():
+            raise Cancelled("simulation cancelled by the user")
+        report(fraction, message)
+        log.info(message)
+
+    try:
+        step(0.0, f"building the {preset} strip of {n_scenes} scene(s)")
+        geo = build_scenes(spec, int(n_scenes), errors, rng)
+        step(0.1, "writing the terrain")
+        dem_tmp = stage("dem.tif")
+        bounds = scene_bounds(geo.true, tuple(geo.true.height_range))
+        write_dem(dem_tmp, bounds, spec.centre, spec.relief, seed)
+        dem = Dem(dem_tmp, datum="geoid")
+        lo, hi = dem.height_range
+        for scene in (geo.true, geo.onboard):
+            scene.info["height_range"] = [math.floor(lo - 50.0), math.ceil(hi + 50.0)]
+        step(0.3, f"measuring {settings.n_gcps} ground control points")
+        gcp_data = _gcp_columns(geo.true, dem, settings, int(n_scenes), rng)
+        gcp_tmp = stage("gcps.csv")
+        _write_csv(gcp_tmp, GCP_COLUMNS, gcp_data)
+        tie_tmp = None
+        if settings.n_tie_points:
+            if len(geo.true.cameras) < 2:
+                raise InputError(f"tie points need a preset with several cameras ({preset} has one)")
+            step(0.5, f"measuring {settings.n_tie_points} tie points")
+            ground, _ = place_ground_points(geo.true, dem, settings.n_tie_points, rng)
+            tie = measure_points(geo.true, ground, np.char.add("T", np.arange(1, ground.shape[0] + 1).astype(str)),
+                                 settings, rng)
+            tie_tmp = stage("tie_points.csv")
+            _write_csv(tie_tmp, TIE_COLUMNS, tie)
+        step(0.6, "writing the scene models")
+        save_scene(geo.true, stage("true_scene.json"))
+        save_scene(geo.onboard, stage("onboard_scene.json"))
+        images, frame = {}, None
+        if render:
+            from .render import render_image, texture_frame
+            frame = texture_frame(geo.true, dem, seed)
+            for k, cam in enumerate(geo.true.cameras):
+                path = stage(f"image_{cam.name}.tif")
+                base = 0.65 + 0.35 * k / len(geo.true.cameras)
+                step(base, f"rendering the {cam.name} image ({cam.cols} x {cam.rows})")
+                frame.setdefault("interpolation_error_px", {})[cam.name] = render_image(
+                    geo.true, k, dem, path, frame,
+                    progress=lambda f, b=base: report(b + f * 0.35 / len(geo.true.cameras), None),
+                    is_cancelled=cancelled)
+                images[cam.name] = folder / f"image_{cam.name}.tif"
+        manifest = {"preset": preset, "seed": seed, "n_scenes": int(n_scenes), "epoch": EPOCH,
+                    "errors": asdict(errors), "measurements": asdict(settings), "truth": geo.truth,
+                    "texture": frame,
+                    "conventions": __doc__.split("\n\n")[1].strip(),
+                    "files": {"true_scene": "true_scene.json", "onboard_scene": "onboard_scene.json",
+                              "gcps": "gcps.csv", "dem": "dem.tif (EGM96 geoid heights)",
+                              "tie_points": "tie_points.csv" if tie_tmp else None,
+                              "images": {k: v.name for k, v in images.items()}}}
+        stage("simulation.json").write_text(json.dumps(manifest, indent=1))
+        for tmp, final in staged:
+            tmp.replace(final)
+        staged.clear()
+        report(1.0, "simulation written")
+    finally:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
+    return SimulationResult(folder, folder / "onboard_scene.json", folder / "true_scene.json", folder / "gcps.csv",
+                            folder / "dem.tif", folder / "simulation.json",
+                            folder / "tie_points.csv" if settings.n_tie_points else None, images)
+
+
+def _error_settings(spec: Preset, errors) -> ErrorSettings:
+    if errors is None:
+        return spec.errors
+    if isinstance(errors, ErrorSettings):
+        return errors
+    unknown = set(errors) - set(ErrorSettings.__dataclass_fields__)
+    if unknown:
+        raise InputError(f"unknown error setting(s) {sorted(unknown)} (known: {', '.join(ErrorSettings.__dataclass_fields__)})")
+    bad = {k: v for k, v in errors.items() if not (np.isfinite(v) and v >= 0)}
+    if bad:
+        raise InputError(f"error magnitudes must be finite and >= 0 (got {bad})")
+    return replace(spec.errors, **{k: float(v) for k, v in errors.items()})
+
+
+def _gcp_columns(scene: SceneModel, dem: Dem, settings: GcpSettings, n_scenes: int,
+                 rng: np.random.Generator) -> dict:
+    """The GCP CSV columns: points on the DEM, measured in every camera that sees them."""
+    ground, placed_row = place_ground_points(scene, dem, settings.n_gcps, rng)
+    ids = np.char.add("G", np.arange(1, ground.shape[0] + 1).astype(str))
+    data = measure_points(scene, ground, ids, settings, rng)
+    idx = data.pop("_index")
+    lon, lat, h = _ground_noise(ground, settings, rng)
+    data["lon"], data["lat"], data["h"] = lon[idx], lat[idx], h[idx]
+    # Checks are whole ground points (all their cameras), drawn without regard to position.
+    check = _exact_share(ground.shape[0], settings.check_fraction, rng)
+    data["role"] = np.where(check[idx], "check", "control")
+    n = idx.size
+    data["sigma_px"] = np.full(n, max(settings.image_noise, 1e-3))
+    data["sigma_xy"] = np.full(n, max(settings.ground_noise_xy, 1e-3))
+    data["sigma_z"] = np.full(n, max(settings.ground_noise_z, 1e-3))
+    data["scene"] = 1 + np.minimum((placed_row[idx] * n_scenes / scene.cameras[0].rows).astype(int), n_scenes - 1)
+    return data

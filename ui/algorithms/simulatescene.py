@@ -1,0 +1,156 @@
+"""pushbroom:simulatescene — a simulated scene with known truth: onboard and true sensor models,
+GCPs, tie points, a DEM and optionally rendered raw images, from a preset sensor."""
+from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputRasterLayer,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+                       QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber)
+
+from ...core.simulator import PRESETS, GcpSettings, simulate
+from ..common import PushbroomAlgorithm, core_call, feedback_callbacks
+
+DEFAULT_PRESET = "cbers02b_hrc"
+MICRO = 1e-6
+
+# Error magnitudes the user may override: (parameter, core.simulator.ErrorSettings field,
+# label, factor from the parameter's unit to the core's SI unit, help).
+ERROR_PARAMETERS = (
+    ("POSITION_BIAS", "position_bias", "Position bias (m)", 1.0, "Bias of the onboard ephemeris per ECEF axis."),
+    ("POSITION_DRIFT", "position_drift", "Position drift (m/s)", 1.0, "Linear drift of the onboard ephemeris per axis."),
+    ("POSITION_QUADRATIC", "position_quadratic", "Position 2nd-order term (m/s²)", 1.0,
+     "Quadratic term of the onboard ephemeris error per axis."),
+    ("ATTITUDE_BIAS", "attitude_bias", "Attitude bias (µrad)", MICRO,
+     "Bias of the onboard attitude per body axis (roll, pitch, yaw); 1 µrad is 0.78 m on the ground from 778 km."),
+    ("ATTITUDE_DRIFT", "attitude_drift", "Attitude drift (µrad/s)", MICRO, "Linear attitude drift per body axis."),
+    ("ATTITUDE_QUADRATIC", "attitude_quadratic", "Attitude 2nd-order term (µrad/s²)", MICRO,
+     "Quadratic term of the attitude error per body axis."),
+    ("CCD_SHIFT", "ccd_shift", "CCD shift (px)", 1.0,
+     "Shift of every CCD chip but the middle one, along and across track, in detector pitches."),
+    ("CCD_ROTATION", "ccd_rotation", "CCD rotation (µrad)", MICRO,
+     "In-plane rotation of every CCD chip but the middle one, about its first detector (1000 µrad turns a "
+     "4096-px chip's far end by 4 px)."),
+    ("FOCAL_ERROR", "focal_error", "Focal length error (µm)", MICRO, "Error of the laboratory focal length."),
+    ("DISTORTION", "distortion", "Radial distortion at the array end (px)", 1.0,
+     "Radial lens distortion (k1), given as the displacement it causes at the end of the detector line."),
+    ("INSTALLATION", "installation", "Installation angle error (µrad)", MICRO,
+     "Error of each camera's mounting angles relative to the reference (nadir) camera, per axis "
+     "(three-line presets)."),
+)
+
+# Measurement settings: (parameter, core.simulator.GcpSettings field, label, type, default, min, max, help).
+MEASUREMENT_PARAMETERS = (
+    ("CHECK_FRACTION", "check_fraction", "Share of check points", "d", 0.0, 0.0, 1.0,
+     "0 to 1: this share of the ground points is written with role 'check' (never used by an adjustment)."),
+    ("GROUND_NOISE_XY", "ground_noise_xy", "Ground planimetric noise (m)", "d", 0.0, 0.0, 1000.0,
+     "Standard deviation of the error added to the GCPs' east and north coordinates (seed 000's matched "
+     "points: about 3 m)."),
+    ("GROUND_NOISE_Z", "ground_noise_z", "Ground height noise (m)", "d", 0.0, 0.0, 1000.0,
+     "Standard deviation of the error added to the GCP heights (seed 000: about 10 m)."),
+    ("GROSS_FRACTION", "gross_fraction", "Share of gross errors", "d", 0.0, 0.0, 1.0,
+     "0 to 1: this share of the image measurements is displaced by a gross error (flagged gross = 1 in the "
+     "CSV)."),
+    ("GROSS_MIN", "gross_min", "Smallest gross error (px)", "d", 5.0, 0.0, 1e5, "Lower bound of the gross errors."),
+    ("GROSS_MAX", "gross_max", "Largest gross error (px)", "d", 100.0, 0.0, 1e5, "Upper bound of the gross errors."),
+    ("N_TIE_POINTS", "n_tie_points", "Number of tie points", "i", 0, 0, 1_000_000,
+     "Ground points measured in every camera that sees them, without ground coordinates (presets with several "
+     "cameras); written to tie_points.csv."),
+)
+
+
+class SimulateSceneAlgorithm(PushbroomAlgorithm):
+    ID = "simulatescene"
+    NAME = "Simulate a scene"
+    GROUP = "Simulation"
+    HELP = ("Simulates the acquisition of a scene (or a strip of scenes) by a preset sensor over synthetic "
+            "terrain, with known truth: the <i>true</i> sensor model, the <i>onboard</i> one (as the satellite's "
+            "own ephemeris, attitude and laboratory calibration deliver it, with realistic errors: hundreds of "
+            "metres for CBERS-02B), ground control points measured in the images, optional tie points, the DEM "
+            "(EGM96 geoid heights) and, on request, the raw images rendered from a known ground texture. "
+            "simulation.json in the output folder records every drawn error. Advanced parameters override the "
+            "preset's error magnitudes (empty = the preset's value; each drawn value is 1/3 to 1 times the "
+            "magnitude, with a random sign) and set the measurement noise, check points and gross errors.")
+    PRESET, SEED, N_SCENES, N_GCPS, IMAGE_NOISE, RENDER = "PRESET", "SEED", "N_SCENES", "N_GCPS", "IMAGE_NOISE", \
+        "RENDER"
+    OUTPUT_FOLDER = "OUTPUT_FOLDER"
+    ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM = "ONBOARD_SCENE", "TRUE_SCENE", "GCPS", "DEM"
+    TIE_POINTS, MANIFEST = "TIE_POINTS", "MANIFEST"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
+        names = list(PRESETS)
+        preset = QgsProcessingParameterEnum(self.PRESET, "Sensor preset",
+                                            options=[f"{n}: {PRESETS[n].description}" for n in names],
+                                            defaultValue=names.index(DEFAULT_PRESET))
+        preset.setHelp("The simulated sensor and orbit: " + "; ".join(f"<b>{n}</b> ({PRESETS[n].description})"
+                                                                   for n in names) + ".")
+        seed = QgsProcessingParameterNumber(self.SEED, "Random seed", QgsProcessingParameterNumber.Integer, 0,
+                                            minValue=0)
+        seed.setHelp("Seed of the random errors, terrain, texture and point positions: the same seed gives the "
+                     "same files.")
+        n_scenes = QgsProcessingParameterNumber(self.N_SCENES, "Number of scenes along the strip",
+                                                QgsProcessingParameterNumber.Integer, 1, minValue=1, maxValue=200)
+        n_scenes.setHelp("How many consecutive scenes of one orbit strip to simulate. The strip is one image per "
+                         "camera (scenes × rows per scene) sharing one trajectory and its errors, as the scenes of "
+                         "one pass do.")
+        n_gcps = QgsProcessingParameterNumber(self.N_GCPS, "Number of ground control points",
+                                              QgsProcessingParameterNumber.Integer, 200, minValue=0,
+                                              maxValue=2_000_000)
+        n_gcps.setHelp("How many ground points (uniform over the reference camera's image, on the terrain) to "
+                       "measure; each is measured in every camera that sees it. Written to gcps.csv.")
+        noise = QgsProcessingParameterNumber(self.IMAGE_NOISE, "Image measurement noise (px)",
+                                             QgsProcessingParameterNumber.Double, 0.3, minValue=0.0, maxValue=100.0)
+        noise.setHelp("Standard deviation in pixels of the random error added to the measured image "
+                      "coordinates (0: perfect measurements).")
+        render = QgsProcessingParameterBoolean(self.RENDER, "Render the images", defaultValue=False)
+        render.setHelp("Also write each camera's raw image (8-bit GeoTIFF without georeferencing, "
+                       "image_<CAMERA>.tif) rendered from a known texture over the DEM, for orthorectification. "
+                       "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB.")
+        folder = QgsProcessingParameterFolderDestination(self.OUTPUT_FOLDER, "Output folder")
+        folder.setHelp("Folder the simulated files are written to (created if missing).")
+        for p in (preset, seed, n_scenes, n_gcps, noise, render):
+            self.addParameter(p)
+        for name, _, label, kind, default, lo, hi, help_text in MEASUREMENT_PARAMETERS:
+            kind = QgsProcessingParameterNumber.Integer if kind == "i" else QgsProcessingParameterNumber.Double
+            self._advanced(QgsProcessingParameterNumber(name, label, kind, default, minValue=lo, maxValue=hi),
+                           help_text)
+        for name, _, label, _, help_text in ERROR_PARAMETERS:
+            self._advanced(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double,
+                                                        optional=True, minValue=0.0),
+                           help_text + " Empty: the preset's value (see simulation.json).")
+        self.addParameter(folder)
+        self.addOutput(QgsProcessingOutputFile(self.ONBOARD_SCENE, "Onboard scene model (scene JSON)"))
+        self.addOutput(QgsProcessingOutputFile(self.TRUE_SCENE, "True scene model (scene JSON)"))
+        self.addOutput(QgsProcessingOutputFile(self.GCPS, "Ground control points (CSV: id, role, camera, col, row, "
+                                                          "lon, lat, h ellipsoidal, sigmas, true values, gross)"))
+        self.addOutput(QgsProcessingOutputFile(self.TIE_POINTS, "Tie points (CSV), when requested"))
+        self.addOutput(QgsProcessingOutputRasterLayer(self.DEM, "DEM (GeoTIFF, EGM96 geoid heights)"))
+        self.addOutput(QgsProcessingOutputFile(self.MANIFEST, "Simulation settings and drawn errors (JSON)"))
+        self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, "Output folder"))
+
+    def _advanced(self, parameter, help_text: str) -> None:
+        parameter.setHelp(help_text)
+        parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+        self.addParameter(parameter)
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        names = list(PRESETS)
+        preset = names[self.parameterAsEnum(parameters, self.PRESET, context)]
+        folder = self.parameterAsString(parameters, self.OUTPUT_FOLDER, context)
+        errors = {field: self.parameterAsDouble(parameters, name, context) * factor
+                  for name, field, _, factor, _ in ERROR_PARAMETERS if parameters.get(name) not in (None, "")}
+        measurements = {field: (self.parameterAsInt if kind == "i" else self.parameterAsDouble)(parameters, name,
+                                                                                              context)
+                        for name, field, _, kind, *_ in MEASUREMENT_PARAMETERS}
+        settings = GcpSettings(n_gcps=self.parameterAsInt(parameters, self.N_GCPS, context),
+                               image_noise=self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
+                               **measurements)
+        progress, is_cancelled = feedback_callbacks(feedback)
+        result = core_call(simulate, preset, folder,
+                           seed=self.parameterAsInt(parameters, self.SEED, context),
+                           n_scenes=self.parameterAsInt(parameters, self.N_SCENES, context),
+                           render=self.parameterAsBool(parameters, self.RENDER, context),
+                           errors=errors, gcp_settings=settings, progress=progress, is_cancelled=is_cancelled)
+        feedback.pushInfo(f"simulated {preset} into {folder}: " + ", ".join(
+            p.name for p in (result.onboard_scene, result.true_scene, result.gcps, result.dem,
+                             result.tie_points, *result.images.values()) if p is not None))
+        return {self.OUTPUT_FOLDER: folder, self.ONBOARD_SCENE: str(result.onboard_scene),
+                self.TRUE_SCENE: str(result.true_scene), self.GCPS: str(result.gcps), self.DEM: str(result.dem),
+                self.TIE_POINTS: str(result.tie_points) if result.tie_points else None,
+                self.MANIFEST: str(result.manifest)}
