@@ -30,8 +30,8 @@ run() {  # run ALGORITHM PARAM=VALUE... ; full log in out/logs/ALGORITHM.log
 }
 
 SIM="$OUT/simulation"
-run simulatescene SEED=0 N_GCPS=60 OUTPUT_FOLDER="$SIM"
-run importgcps SCENE="$SIM/onboard_scene.json" INPUT_FILE="$SIM/gcps.csv" X_FIELD=lon Y_FIELD=lat Z_FIELD=h \
+run simulatescene SEED=0 N_GCPS=60 CHECK_FRACTION=0.25 OUTPUT_FOLDER="$SIM"
+run importgcps SCENE="$SIM/onboard_scene.json" INPUT_FILE="$SIM/gcps.csv" X_FIELD=lon Y_FIELD=lat Z_FIELD=h ROLE_FIELD=role \
     DEM_DATUM=1 OUTPUT="$OUT/gcps.gpkg"
 run footprint SCENE="$SIM/onboard_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=0 OUTPUT="$OUT/footprint.gpkg"
 run groundtoimage SCENE="$SIM/onboard_scene.json" INPUT="$OUT/gcps.gpkg" OUTPUT="$OUT/gcps_in_image.gpkg"
