@@ -1,5 +1,6 @@
 """End to end on the command line: qgis_process loads the plugin, lists its algorithms and runs
 them on files. (Debian's /usr/bin/qgis_process wrapper is broken here; the binary is used.)"""
+import csv
 import json
 import os
 import subprocess
@@ -92,6 +93,35 @@ def test_run_groundtoimage_from_the_command_line(qgis_process, simulated, tmp_pa
     assert np.abs(values[:, 1].astype(float) - col).max() < 1e-4
     assert np.abs(values[:, 2].astype(float) - row).max() < 1e-4
     assert set(values[:, 3]) == {1}
+
+
+def test_simulate_import_and_image_to_ground_chained_on_the_command_line(qgis_process, tmp_path):
+    """Three-line preset, noise-free, with advanced settings in their user units (µrad)."""
+    sim = _run_json(qgis_process, "pushbroom:simulatescene", PRESET=1, SEED=2, N_GCPS=30, IMAGE_NOISE=0,
+                    CHECK_FRACTION=0.5, POSITION_BIAS=0, ATTITUDE_BIAS=100, OUTPUT_FOLDER=tmp_path / "sim")
+    manifest = json.loads(Path(sim["MANIFEST"]).read_text())
+    assert manifest["preset"] == "th1_tlc" and manifest["errors"]["position_bias"] == 0.0
+    assert manifest["errors"]["attitude_bias"] == pytest.approx(1e-4)
+    assert manifest["errors"]["attitude_drift"] == pytest.approx(5e-7)  # preset default kept
+    # import against the true scene: noise-free measurements have zero a-priori residuals
+    gcps = tmp_path / "gcps.gpkg"
+    _run_json(qgis_process, "pushbroom:importgcps", SCENE=sim["TRUE_SCENE"], INPUT_FILE=sim["GCPS"], Z_FIELD="h",
+              DEM_DATUM=1, ROLE_FIELD="role", CAMERA_FIELD="camera", OUTPUT=gcps)
+    values, _ = _read_layer(gcps, "id", "camera", "role", "res_px", "col", "row")
+    with open(sim["GCPS"]) as f:
+        n_rows = sum(1 for _ in f) - 1
+    assert len(values) == n_rows > 60 and set(values[:, 1]) == {"NAD", "FWD", "BWD"}
+    assert np.sum(values[:, 2] == "check") > 0 and np.max(values[:, 3].astype(float)) < 1e-5
+    # the nadir measurements back to the ground on the DEM land on the true points
+    ground = tmp_path / "ground.gpkg"
+    _run_json(qgis_process, "pushbroom:imagetoground", SCENE=sim["TRUE_SCENE"], CAMERA="NAD", INPUT=gcps,
+              DEM=sim["DEM"], DEM_DATUM=0, OUTPUT=ground)
+    out, _ = _read_layer(ground, "id", "camera", "lon", "lat")
+    nad = out[:, 1] == "NAD"
+    truth = {r["id"]: (float(r["lon_true"]), float(r["lat_true"]))
+             for r in csv.DictReader(open(sim["GCPS"])) if r["camera"] == "NAD"}
+    expected = np.array([truth[i] for i in out[nad, 0]])
+    assert np.abs(out[nad, 2:4].astype(float) - expected).max() < 1e-8  # degrees: 1 mm
 
 
 def test_a_failing_run_exits_non_zero_with_the_message(qgis_process, tmp_path):
