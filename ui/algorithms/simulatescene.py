@@ -83,7 +83,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         seed = QgsProcessingParameterNumber(self.SEED, "Random seed", QgsProcessingParameterNumber.Integer, 0,
                                             minValue=0)
         seed.setHelp("Seed of the random errors, terrain, texture and point positions: the same seed gives the "
-                     "same files.")
+                     "same simulation.")
         n_scenes = QgsProcessingParameterNumber(self.N_SCENES, "Number of scenes along the strip",
                                                 QgsProcessingParameterNumber.Integer, 1, minValue=1, maxValue=200)
         n_scenes.setHelp("How many consecutive scenes of one orbit strip to simulate. The strip is one image per "
