@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from osgeo import gdal, osr
+from osgeo import gdal
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 

@@ -14,6 +14,15 @@ import numpy as np
 from .errors import ConvergenceError, MetadataError
 
 
+def _check_coefficients(model, names: tuple[str, ...], what: str) -> None:
+    """Make each named attribute a (20,) float array; MetadataError naming a bad one."""
+    for k in names:
+        v = np.asarray(getattr(model, k), dtype=float).ravel()
+        if v.size != 20 or not np.all(np.isfinite(v)):
+            raise MetadataError(f"{what} {k} must hold 20 finite numbers (got {v.size})")
+        setattr(model, k, v)
+
+
 def rpc_terms(x, y, z) -> np.ndarray:
     """The 20 RPC00B monomials (n, 20) of normalised (x = lon, y = lat, z = height), broadcast."""
     x, y, z = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (x, y, z)))
@@ -46,11 +55,7 @@ class RpcModel:
     origin: float = 0.0
 
     def __post_init__(self):
-        for k in ("line_num", "line_den", "samp_num", "samp_den"):
-            v = np.asarray(getattr(self, k), dtype=float).ravel()
-            if v.size != 20 or not np.all(np.isfinite(v)):
-                raise MetadataError(f"RPC coefficient list {k} must hold 20 finite numbers (got {v.size})")
-            setattr(self, k, v)
+        _check_coefficients(self, ("line_num", "line_den", "samp_num", "samp_den"), "RPC coefficient list")
 
     def ground_to_image(self, lon, lat, h) -> tuple[np.ndarray, np.ndarray]:
         """GDAL (col, row) of ground points (lon, lat deg, h m)."""
@@ -110,12 +115,7 @@ class RationalDirectModel:
     origin: float = 0.0
 
     def __post_init__(self):
-        for k in ("lon_num", "lon_den", "lat_num", "lat_den"):
-            v = np.asarray(getattr(self, k), dtype=float).ravel()
-            if v.size != 20 or not np.all(np.isfinite(v)):
-                raise MetadataError(f"direct rational coefficient list {k} must hold 20 finite numbers "
-                                    f"(got {v.size})")
-            setattr(self, k, v)
+        _check_coefficients(self, ("lon_num", "lon_den", "lat_num", "lat_den"), "direct rational coefficient list")
 
     def image_to_ground(self, col, row, h) -> tuple[np.ndarray, np.ndarray]:
         """(lon, lat) degrees of GDAL image points (col, row) at ellipsoidal heights h (m)."""

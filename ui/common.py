@@ -107,6 +107,17 @@ def camera_for(parameter_name: str, scene, text: str | None) -> int:
         return scene.camera_index(int(text) if text.isdigit() else text)
 
 
+def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT"):
+    """(scene, camera index, feature source, its features) from SCENE, CAMERA and a feature
+    source parameter; errors name the parameter."""
+    scene = load_scene_for(SCENE, alg.parameterAsFile(parameters, SCENE, context))
+    camera = camera_for(CAMERA, scene, alg.parameterAsString(parameters, CAMERA, context))
+    source = alg.parameterAsSource(parameters, input_name, context)
+    if source is None:
+        raise QgsProcessingException(alg.invalidSourceError(parameters, input_name))
+    return scene, camera, source, list(source.getFeatures())
+
+
 def add_scene_parameters(alg, with_camera: bool = True) -> None:
     """SCENE (any supported metadata or scene JSON) and, optionally, CAMERA."""
     scene = QgsProcessingParameterFile(SCENE, "Scene (metadata or scene JSON)", extension="",

@@ -32,6 +32,7 @@ from ..errors import MetadataError
 from ..rpc import RationalDirectModel, RpcModel
 from ..sensor import SceneModel
 from ..trajectory import Ephemeris, Platform, QuaternionPolynomial
+from . import parse_floats as _floats
 
 SENSOR_MODEL = "Geometric_Data/Sensor_Model_Characteristics"
 GLOBAL_RFM = "Geoposition/Rational_Sensor_Model/Global_RFM"
@@ -264,16 +265,6 @@ def _rfm_coefficients(rfm, path: str, src: str) -> np.ndarray:
     if values.size != 40:
         raise MetadataError(f"{src}: <{full}>: expected 40 coefficients (20 numerator, 20 denominator), "
                             f"got {values.size}")
-    return values
-
-
-def _floats(text: str, src: str, where: str, min_count: int = 1) -> np.ndarray:
-    try:
-        values = np.array([float(x) for x in text.split()])
-    except ValueError:
-        raise MetadataError(f"{src}: {where}: {text[:60]!r} is not a list of numbers") from None
-    if values.size < min_count or not np.all(np.isfinite(values)):
-        raise MetadataError(f"{src}: {where}: expected at least {min_count} finite numbers, got {values.size}")
     return values
 
 

@@ -36,6 +36,7 @@ from ..rotations import quat_to_matrix
 from ..rpc import RpcModel
 from ..sensor import SceneModel
 from ..trajectory import Ephemeris, Platform, QuaternionSamples
+from . import parse_floats as _floats
 
 MM = 1e-3  # GEO lengths are millimetres
 
@@ -269,11 +270,3 @@ def _optional_number(parent, tag: str) -> float | None:
     return value if np.isfinite(value) else None
 
 
-def _floats(text: str, src: str, where: str, min_count: int = 1) -> np.ndarray:
-    try:
-        values = np.array([float(x) for x in text.split()])
-    except ValueError:
-        raise MetadataError(f"{src}: {where}: {text[:60]!r} is not a list of numbers") from None
-    if values.size < min_count or not np.all(np.isfinite(values)):
-        raise MetadataError(f"{src}: {where}: expected at least {min_count} finite numbers, got {values.size}")
-    return values

@@ -3,7 +3,7 @@ against a scene with a known attitude error, outside-image marking, errors, GeoP
 import numpy as np
 import pytest
 from osgeo import ogr
-from pyproj import CRS, Transformer
+from pyproj import CRS
 
 from core import gcps as G
 from core.camera import Camera, Chip, LineTiming

@@ -7,9 +7,9 @@ from qgis.PyQt.QtCore import QVariant
 
 from ...core.dem import to_ellipsoidal
 from ...core.geodesy import geodetic_to_ecef
-from ..common import (CAMERA, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
-                      add_scene_parameters, camera_for, check_cancelled, core_call, dem_from_parameters,
-                      load_scene_for, lonlat_of, nonfinite_message, style_output_on_load)
+from ..common import (STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
+                      core_call, dem_from_parameters, lonlat_of, nonfinite_message, scene_camera_and_features,
+                      style_output_on_load)
 
 Z_DATUMS = ("ellipsoid", "geoid")
 Z_DATUM_LABELS = ("Ellipsoid (WGS84)", "Geoid (EGM96)")
@@ -47,12 +47,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context))
-        camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
-        source = self.parameterAsSource(parameters, self.INPUT, context)
-        if source is None:
-            raise QgsProcessingException(self.invalidSourceError(parameters, self.INPUT))
-        features = list(source.getFeatures())
+        scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT)
         lon, lat, h = self._ground(parameters, context, source, features)
         check_cancelled(feedback)
         feedback.setProgressText(f"projecting {len(features)} points into camera {scene.cameras[camera].name}")

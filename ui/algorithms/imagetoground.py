@@ -8,8 +8,8 @@ from qgis.PyQt.QtCore import QVariant
 
 from ...core.dem import ConstantHeight
 from ...core.geodesy import ecef_to_geodetic
-from ..common import (CAMERA, DEM, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters,
-                      camera_for, check_cancelled, core_call, dem_from_parameters, load_scene_for, nonfinite_message,
+from ..common import (DEM, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
+                      core_call, dem_from_parameters, nonfinite_message, scene_camera_and_features,
                       style_output_on_load)
 
 OUTPUT_CRS = "EPSG:4979"  # WGS84 longitude, latitude (deg) and ellipsoidal height (m)
@@ -44,12 +44,7 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context))
-        camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
-        source = self.parameterAsSource(parameters, self.INPUT, context)
-        if source is None:
-            raise QgsProcessingException(self.invalidSourceError(parameters, self.INPUT))
-        features = list(source.getFeatures())
+        scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT)
         if not features:
             raise QgsProcessingException(f"{self.INPUT}: the table has no features")
         col, row = self._image_points(parameters, context, source, features)
