@@ -1,12 +1,14 @@
 """Scene JSON (the project's own scene file) and the reader dispatcher.
 
-Scene JSON, version 1 — one object:
+Scene JSON, version 2 — one object (version 1 files, without corrections, are read too):
     format      "pushbroom-scene"
-    version     1
+    version     2
     epoch       UTC ISO-8601 string; every time in the file is seconds from it
     platform    {"ephemeris": {times, positions, velocities?, order},
                  "attitude": {"kind": "quaternion_samples", times, quaternions (w,x,y,z), order}
-                          or {"kind": "quaternion_polynomial", offset, scale, coefficients}}
+                          or {"kind": "quaternion_polynomial", offset, scale, coefficients},
+                 "correction" (optional, written by an adjustment): {"position": {basis, coefficients},
+                     "attitude": {basis, coefficients}} — see core.trajectory.TrajectoryCorrection}
     cameras     list of {name, cols, rows, timing {t0, period} or {lines, times},
                  chips [...], focal_length, principal_point, distortion, installation}
     corrections {"aberration": bool, "refraction": bool}
@@ -19,12 +21,12 @@ import json
 from pathlib import Path
 
 from .camera import Camera
-from .errors import MetadataError
+from .errors import InputError, MetadataError
 from .sensor import SceneModel
 from .trajectory import Platform
 
 FORMAT = "pushbroom-scene"
-VERSION = 1
+VERSION = 2
 
 
 def scene_to_dict(scene: SceneModel) -> dict:
@@ -47,7 +49,7 @@ def scene_from_dict(d: dict, source: str = "scene JSON") -> SceneModel:
                           refraction=bool(corrections.get("refraction", False)), info=dict(d.get("info", {})))
     except KeyError as exc:
         raise MetadataError(f"{source}: required field {exc.args[0]!r} is missing") from None
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, InputError) as exc:
         raise MetadataError(f"{source}: malformed value ({exc})") from None
 
 

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import MetadataError
-from .rotations import quat_to_matrix
+from .rotations import quat_to_matrix, rotation_from_angles
+from .timebasis import TimeBasis
 
 
 def _lagrange_weights(nodes: np.ndarray, order: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -168,8 +169,54 @@ def attitude_from_dict(d: dict):
 
 
 @dataclass
+class TrajectoryCorrection:
+    """Corrections estimated by an adjustment, on top of the measured trajectory:
+
+        position(t) = measured position(t) + Bp(t) @ position_coefficients     (ECEF m)
+        rotation(t) = measured rotation(t) @ R(Ba(t) @ attitude_coefficients)   (body frame)
+
+    with R = rotation_from_angles(roll, pitch, yaw) (rad) and Bp, Ba time bases (see
+    :mod:`core.timebasis`). Coefficients: (m, 3) arrays, columns X, Y, Z and roll, pitch, yaw.
+    """
+    position: TimeBasis
+    position_coefficients: np.ndarray
+    attitude: TimeBasis
+    attitude_coefficients: np.ndarray
+
+    def __post_init__(self):
+        self.position_coefficients = np.asarray(self.position_coefficients, dtype=float).reshape(-1, 3)
+        self.attitude_coefficients = np.asarray(self.attitude_coefficients, dtype=float).reshape(-1, 3)
+        for name, basis, coef in (("position", self.position, self.position_coefficients),
+                                  ("attitude", self.attitude, self.attitude_coefficients)):
+            if coef.shape[0] != basis.size or not np.all(np.isfinite(coef)):
+                raise MetadataError(f"trajectory correction: {name} needs {basis.size} finite rows of 3 "
+                                    f"coefficients (got {coef.shape[0]})")
+
+    def offsets(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position offset (n,3) m, velocity offset (n,3) m/s, attitude angles (n,3) rad) at t."""
+        return (self.position.matrix(t) @ self.position_coefficients,
+                self.position.derivative(t) @ self.position_coefficients,
+                self.attitude.matrix(t) @ self.attitude_coefficients)
+
+    def apply(self, t, pos, vel, rot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The corrected (position, velocity, rotation) from measured ones at times t."""
+        dp, dv, angles = self.offsets(np.atleast_1d(np.asarray(t, dtype=float)))
+        return pos + dp, vel + dv, rot @ rotation_from_angles(angles[:, 0], angles[:, 1], angles[:, 2])
+
+    def to_dict(self) -> dict:
+        return {"position": {"basis": self.position.to_dict(), "coefficients": self.position_coefficients.tolist()},
+                "attitude": {"basis": self.attitude.to_dict(), "coefficients": self.attitude_coefficients.tolist()}}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TrajectoryCorrection":
+        return cls(TimeBasis.from_dict(d["position"]["basis"]), np.array(d["position"]["coefficients"]),
+                   TimeBasis.from_dict(d["attitude"]["basis"]), np.array(d["attitude"]["coefficients"]))
+
+
+@dataclass
 class Platform:
-    """Ephemeris plus attitude, with a dense sampled cache for fast repeated evaluation.
+    """Ephemeris plus attitude (plus an adjustment's correction, if any), with a dense sampled
+    cache for fast repeated evaluation.
 
     The cache tabulates position, velocity and rotation every ``cache_step`` seconds over
     [t_min, t_max] and interpolates linearly: at 1 ms steps the error is below 1e-6 m and
@@ -178,6 +225,7 @@ class Platform:
     """
     ephemeris: Ephemeris
     attitude: object
+    correction: TrajectoryCorrection | None = None
     cache_step: float = 1e-3
     _cache: tuple | None = field(default=None, repr=False, compare=False)
 
@@ -187,8 +235,8 @@ class Platform:
         t0, t1 = t_min - margin, t_max + margin
         n = int(np.ceil((t1 - t0) / self.cache_step)) + 1
         grid = t0 + self.cache_step * np.arange(n)
-        table = np.concatenate([self.ephemeris.position(grid), self.ephemeris.velocity(grid),
-                                self.attitude.rotation(grid).reshape(n, 9)], axis=1)
+        pos, vel, rot = self._exact_state(grid)
+        table = np.concatenate([pos, vel, rot.reshape(n, 9)], axis=1)
         # Each row holds a sample and the step to the next, so interpolation is one gather.
         self._cache = (t0, n, np.hstack([table[:-1], np.diff(table, axis=0)]))
 
@@ -210,12 +258,22 @@ class Platform:
             row[out] = np.concatenate([pos, vel, rot.reshape(-1, 9)], axis=1)
         return row[:, 0:3], row[:, 3:6], row[:, 6:15].reshape(-1, 3, 3)
 
-    def _exact_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def measured_state(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position, velocity, rotation) of the measured trajectory alone (no correction)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
         return self.ephemeris.position(t), self.ephemeris.velocity(t), self.attitude.rotation(t)
 
+    def _exact_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        state = self.measured_state(t)
+        return state if self.correction is None else self.correction.apply(t, *state)
+
     def to_dict(self) -> dict:
-        return {"ephemeris": self.ephemeris.to_dict(), "attitude": self.attitude.to_dict()}
+        d = {"ephemeris": self.ephemeris.to_dict(), "attitude": self.attitude.to_dict()}
+        if self.correction is not None:
+            d["correction"] = self.correction.to_dict()
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "Platform":
-        return cls(Ephemeris.from_dict(d["ephemeris"]), attitude_from_dict(d["attitude"]))
+        correction = TrajectoryCorrection.from_dict(d["correction"]) if d.get("correction") else None
+        return cls(Ephemeris.from_dict(d["ephemeris"]), attitude_from_dict(d["attitude"]), correction)
