@@ -73,3 +73,19 @@ def horizontal_direction(u: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.
     hor = u + cos_z[:, None] * up
     norm = np.linalg.norm(hor, axis=-1, keepdims=True)
     return np.where(norm > 1e-12, hor / np.maximum(norm, 1e-300), 0.0), cos_z
+
+
+def apparent_direction(ground: np.ndarray, sat: np.ndarray, vel: np.ndarray, up: np.ndarray, height: np.ndarray,
+                       aberration: bool, refraction: bool) -> np.ndarray:
+    """Unit direction (n, 3) in which a camera at ``sat`` (ECEF m, moving at ``vel`` m/s) sees
+    ground points ``ground`` (ECEF m, local up vectors ``up``, ellipsoidal heights ``height``):
+    the geometric direction bent by refraction (the ray arrives from farther off nadir) and
+    shifted by velocity aberration, each when switched on."""
+    g = ground - sat
+    if refraction:
+        hor, cos_z = horizontal_direction(g / np.linalg.norm(g, axis=1, keepdims=True), up)
+        g = g + refraction_offset(cos_z, height)[:, None] * hor
+    u = g / np.linalg.norm(g, axis=1, keepdims=True)
+    if aberration:
+        u = apparent_from_geometric(u, aberration_velocity(vel, -g))
+    return u

@@ -75,6 +75,15 @@ def enu_rotation(lon0_deg: float, lat0_deg: float) -> np.ndarray:
                      [ca * co, ca * so, sa]])
 
 
+def enu_rotations(lon_deg, lat_deg) -> np.ndarray:
+    """enu_rotation for many points at once: (n, 3, 3), rows east, north, up."""
+    lon, lat = np.radians(np.asarray(lon_deg, dtype=float)), np.radians(np.asarray(lat_deg, dtype=float))
+    so, co, sa, ca = np.sin(lon), np.cos(lon), np.sin(lat), np.cos(lat)
+    zero = np.zeros_like(lon)
+    return np.stack([np.stack([-so, co, zero], -1), np.stack([-sa * co, -sa * so, ca], -1),
+                     np.stack([ca * co, ca * so, sa], -1)], axis=-2)
+
+
 def ecef_to_enu(xyz, lon0_deg: float, lat0_deg: float, h0: float = 0.0) -> np.ndarray:
     """ECEF (..., 3) -> local east-north-up (..., 3) metres about (lon0, lat0, h0)."""
     origin = geodetic_to_ecef(lon0_deg, lat0_deg, h0)

@@ -76,3 +76,25 @@ def rotation_from_angles(roll, pitch, yaw) -> np.ndarray:
     angles it is the identity plus the skew matrix of (roll, pitch, yaw).
     """
     return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+
+
+def _axis_rotation_derivative(a, axis: int) -> np.ndarray:
+    """d/da of the active rotation by angle a about ``axis``, (..., 3, 3)."""
+    a = np.asarray(a, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    d = np.zeros(a.shape + (3, 3))
+    d[..., i, i] = -s
+    d[..., j, j] = -s
+    d[..., i, j] = -c
+    d[..., j, i] = c
+    return d
+
+
+def rotation_and_derivatives(angles) -> tuple[np.ndarray, np.ndarray]:
+    """rotation_from_angles of (..., 3) angles (roll, pitch, yaw) and its derivatives:
+    (R (..., 3, 3), dR (..., 3, 3, 3)) with dR[..., k, :, :] = dR/d angle_k."""
+    angles = np.asarray(angles, dtype=float)
+    rx, ry, rz = (_axis_rotation(angles[..., k], k) for k in range(3))
+    dx, dy, dz = (_axis_rotation_derivative(angles[..., k], k) for k in range(3))
+    return rz @ ry @ rx, np.stack([rz @ ry @ dx, rz @ dy @ rx, dz @ ry @ rx], axis=-3)

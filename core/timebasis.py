@@ -73,6 +73,28 @@ class TimeBasis:
             return self.order + 1
         return self.n_knots if self.kind == "lagrange" else self.n_knots + 1
 
+    @property
+    def width(self) -> int:
+        """Coefficients that act at any one time (polynomial: all; Lagrange: 4; spline: 3)."""
+        return {"polynomial": self.size, "lagrange": LAGRANGE_POINTS, "spline": 3}[self.kind]
+
+    def window(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """The basis in compact form: (first coefficient index (n,), weights (n, width)) such
+        that matrix(t)[i, first[i] + j] = weights[i, j] and is zero elsewhere."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.kind == "polynomial":
+            first = np.zeros(t.size, dtype=np.int64)
+        else:
+            offset = 1 if self.kind == "lagrange" else 0
+            first = np.clip(np.floor((t - self.start) / self.interval).astype(np.int64) - offset, 0,
+                            self.size - self.width)
+        idx = first[:, None] + np.arange(self.width)
+        weights = np.empty((t.size, self.width))
+        for lo in range(0, t.size, 65536):  # bounded temporaries for long strips
+            sl = slice(lo, lo + 65536)
+            weights[sl] = np.take_along_axis(self.matrix(t[sl]), idx[sl], axis=1)
+        return first, weights
+
     def knot_times(self) -> np.ndarray:
         """(n_knots,) knot times (s); for polynomials, t0."""
         if self.kind == "polynomial":

@@ -1,0 +1,660 @@
+"""Self-calibrating bundle adjustment of one scene (or strip) from ground control points.
+
+Gauss-Newton with Levenberg-Marquardt damping on the reduced normal equations (ground
+points eliminated, :mod:`core.adjust.normal`), analytic derivatives (:mod:`core.adjust.model`).
+Onboard GPS and star-tracker values enter as pseudo-observations of the trajectory
+corrections at the knots (seed 000 eq. 7-8); weighted interior parameters as
+pseudo-observations of value 0. Before solving, the parameters are checked for
+determinability: sets that the observations cannot separate (seed 000 Table II schemes 1-2)
+are named, and one parameter of each set is fixed (or the run stops, as the settings say).
+Gross errors: selection-weight iteration from posterior variances (Li Deren), or iterated
+Baarda data snooping; either way, observations whose normalised residual w exceeds the
+critical value at the end are flagged (never deleted from the input).
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy import linalg, stats
+
+from ..errors import Cancelled, ConvergenceError, InputError
+from ..gcps import GcpTable, resolve_cameras
+from ..geodesy import enu_rotations, geodetic_to_ecef
+from ..sensor import SceneModel
+from ..timebasis import TimeBasis
+from .model import Jacobian, Model, build_observations
+from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups
+from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
+
+log = logging.getLogger(__name__)
+
+ROBUST = ("none", "selection", "snooping")
+SINGULAR = 1e-11   # smallest eigenvalue / largest of the correlation-scaled normal matrix
+
+
+@dataclass
+class AdjustmentSettings:
+    """How to adjust.
+
+    position_model / attitude_model: 'polynomial' (order 0-2), 'lagrange' (orientation
+    images every *_interval s) or 'spline' (piecewise quadratics every *_interval s).
+    position_sigma (m) / attitude_sigma (rad): accuracy of the onboard GPS / star trackers,
+    pseudo-observations of the corrections at the knots; None: no pseudo-observations.
+    interior: free/weighted interior and installation parameters (see
+    :func:`core.adjust.parameters.parse_interior`). ground: 'weighted' (GCP sigmas) or 'fixed'.
+    robust: 'none', 'selection' or 'snooping'; alpha: significance of the outlier test.
+    on_singular: 'fix' (fix one parameter of each non-determinable set and go on) or 'stop'.
+    """
+    position_model: str = "polynomial"
+    position_order: int = 1
+    position_interval: float = 20.0
+    attitude_model: str = "polynomial"
+    attitude_order: int = 2
+    attitude_interval: float = 20.0
+    position_sigma: float | None = 100.0
+    attitude_sigma: float | None = None
+    interior: str = ""
+    ground: str = "weighted"
+    robust: str = "selection"
+    alpha: float = 0.001
+    on_singular: str = "fix"
+    max_iterations: int = 30
+    max_robust_iterations: int = 12
+
+    def validate(self) -> None:
+        if self.ground not in ("weighted", "fixed"):
+            raise InputError(f"ground must be 'weighted' or 'fixed' (got {self.ground!r})")
+        if self.robust not in ROBUST:
+            raise InputError(f"robust method must be one of {', '.join(ROBUST)} (got {self.robust!r})")
+        if self.on_singular not in ("fix", "stop"):
+            raise InputError(f"on_singular must be 'fix' or 'stop' (got {self.on_singular!r})")
+        if not 0 < self.alpha < 0.5:
+            raise InputError(f"alpha must be between 0 and 0.5 (got {self.alpha})")
+        for name in ("position_sigma", "attitude_sigma"):
+            v = getattr(self, name)
+            if v is not None and not v > 0:
+                raise InputError(f"{name} must be positive or empty (got {v})")
+
+
+@dataclass
+class AdjustmentResult:
+    """scene: the adjusted scene; report: JSON-ready statistics; points: per input row
+    (control and check) arrays: id, role, camera, col, row, res_col, res_row (px,
+    predicted - measured), res_px, w_col, w_row (normalised residuals), redundancy, weight
+    (final weight factor), flagged (bool); for check points the residuals are those of the
+    adjusted scene's ground -> image."""
+    scene: SceneModel
+    report: dict
+    points: dict = field(default_factory=dict)
+
+
+class _Problem:
+    """The data and unknowns of one adjustment, and one linearisation of it."""
+
+    def __init__(self, scene: SceneModel, table: GcpTable, settings: AdjustmentSettings):
+        self.scene, self.settings = scene, settings
+        t_min, t_max = scene.time_span()
+        self.params = ParameterSet(
+            scene,
+            TimeBasis.covering(settings.position_model, t_min, t_max, settings.position_order, settings.position_interval),
+            TimeBasis.covering(settings.attitude_model, t_min, t_max, settings.attitude_order, settings.attitude_interval),
+            settings.interior)
+        _start_from_existing_correction(scene, self.params)
+        control = np.nonzero(table.role == "control")[0]
+        self.rows = control
+        ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
+        sel = control[first]
+        self.ground0 = geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel])
+        self.ground = self.ground0.copy()
+        cams = np.array([scene.camera_index(c) for c in table.camera[control]])
+        self.obs = build_observations(scene, self.params, cams, table.col[control], table.row[control], point,
+                                      table.sigma_px[control], self.ground)
+        self.weighted = settings.ground == "weighted"
+        enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
+        w = np.stack([1 / table.sigma_xy[sel] ** 2, 1 / table.sigma_xy[sel] ** 2, 1 / table.sigma_z[sel] ** 2], 1) \
+            if self.weighted else np.zeros((0, 3))
+        self.ground_weight = np.einsum("mki,mk,mkj->mij", enu, w, enu)
+        self.enu = enu
+        self.factor = np.ones((len(self.obs), 2))  # robust weight factors per residual row
+        self.structure()
+
+    # --- unknowns and their columns -------------------------------------------------------
+    def structure(self) -> None:
+        """Unknown numbering and each observation's columns (after a change of the free set)."""
+        params = self.params
+        free = params.free
+        self.unknown = -np.ones(len(params.params), dtype=np.int64)
+        self.unknown[free] = np.arange(free.size)
+        obs = self.obs
+        pos = params.block_indices("position")
+        att = params.block_indices("attitude")
+        wp, wa = obs.pos_weights.shape[1], obs.att_weights.shape[1]
+        cols = [pos[obs.pos_first[:, None] + np.arange(wp)].reshape(-1, 3 * wp),
+                att[obs.att_first[:, None] + np.arange(wa)].reshape(-1, 3 * wa)]
+        inst = np.stack([params.camera_indices(c, "installation", ANGLES) for c in range(len(params.scene.cameras))])
+        cams = np.stack([params.camera_indices(c, "camera", CAMERA_TERMS) for c in range(len(params.scene.cameras))])
+        chip = -np.ones((len(obs), 4), dtype=np.int64)
+        for c, cam in enumerate(params.scene.cameras):
+            for k in range(len(cam.chips)):
+                _, idx = params.chip_indices(c, k)
+                chip[(obs.camera == c) & (obs.chip == k), :idx.size] = idx
+        cols += [inst[obs.camera], chip, cams[obs.camera]]
+        param_cols = np.concatenate(cols, axis=1)
+        self.columns = np.where(param_cols >= 0, self.unknown[np.maximum(param_cols, 0)], -1)
+        self.groups = groups(self.columns)
+
+    def values(self, jac: Jacobian) -> np.ndarray:
+        """Jacobian values (n, 2, q) in the column layout of :meth:`structure`."""
+        obs = self.obs
+        blocks = [np.einsum("nka,nw->nkwa", jac.S, obs.pos_weights).reshape(len(obs), 2, -1),
+                  np.einsum("nka,nw->nkwa", jac.angles, obs.att_weights).reshape(len(obs), 2, -1),
+                  jac.installation, jac.chip, jac.camera]
+        return np.concatenate(blocks, axis=2)
+
+    # --- one linearisation --------------------------------------------------------------------
+    def weights(self) -> np.ndarray:
+        return self.factor / self.obs.sigma[:, None] ** 2
+
+    def linearize(self) -> tuple[Linearization, GroundPrior | None]:
+        r, jac = Model(self.scene, self.params).linearize(self.obs, self.ground[self.obs.point])
+        lin = Linearization(r, self.weights(), self.columns, self.values(jac), jac.ground,
+                            self.obs.point if self.weighted else -np.ones(len(self.obs), np.int64))
+        prior = GroundPrior(self.ground_weight, self.ground - self.ground0) if self.weighted else None
+        return lin, prior
+
+    def residuals(self) -> np.ndarray:
+        return Model(self.scene, self.params).residuals(self.obs, self.ground[self.obs.point])
+
+    def cost(self) -> float:
+        r = self.residuals()
+        c = float(np.sum(self.weights() * r * r))
+        if self.weighted:
+            e = self.ground - self.ground0
+            c += float(np.einsum("mi,mij,mj->", e, self.ground_weight, e))
+        return c + sum(float(np.sum(p.weight * p.misfit(self.params) ** 2)) for p in self.pseudo())
+
+    def pseudo(self) -> list["_Pseudo"]:
+        """Pseudo-observations: trajectory corrections at the knots, weighted parameters."""
+        out = []
+        s = self.settings
+        for block, basis, sigma in (("position", self.params.position_basis, s.position_sigma),
+                                    ("attitude", self.params.attitude_basis, s.attitude_sigma)):
+            if sigma is None:
+                continue
+            times = basis.knot_times() if basis.kind != "polynomial" else \
+                basis.t0 + basis.scale * np.linspace(-1.0, 1.0, basis.size)
+            B = basis.matrix(times)  # (k, m)
+            idx = self.params.block_indices(block)
+            for a in range(3):
+                out.append(_Pseudo(f"{block} pseudo-observations", idx[:, a], B, 1.0 / sigma ** 2))
+        weighted = [i for i, p in enumerate(self.params.params) if p.mode == "weighted"]
+        if weighted:
+            out.append(_Pseudo("interior pseudo-observations", np.array(weighted), np.eye(len(weighted)),
+                               1.0 / np.array([self.params.params[i].sigma for i in weighted]) ** 2))
+        return out
+
+    def system(self) -> tuple[Linearization, System]:
+        lin, prior = self.linearize()
+        system = assemble(lin, prior, int(self.params.free.size), self.groups)
+        for p in self.pseudo():
+            cols = self.unknown[p.index]
+            m = p.misfit(self.params)
+            w = np.broadcast_to(p.weight, m.shape)
+            system.N[np.ix_(cols, cols)] += p.B.T @ (w[:, None] * p.B)
+            system.b += np.bincount(cols, weights=p.B.T @ (w * m), minlength=system.b.size)
+            system.cost += float(np.sum(w * m * m))
+        return lin, system
+
+    def step(self, lin: Linearization, system: System, dx: np.ndarray) -> None:
+        values = self.params.values()
+        values[self.params.free] += dx
+        self.params.set_values(values)
+        if self.weighted:
+            self.ground = self.ground + back_substitute(lin, system, dx)
+
+
+@dataclass
+class _Pseudo:
+    """A group of pseudo-observations B @ x[index] = 0 with weights (1/sigma^2)."""
+    group: str
+    index: np.ndarray
+    B: np.ndarray
+    weight: np.ndarray | float
+
+    def misfit(self, params: ParameterSet) -> np.ndarray:
+        return self.B @ params.values()[self.index]
+
+
+def _start_from_existing_correction(scene: SceneModel, params: ParameterSet) -> None:
+    """Re-adjusting an adjusted scene starts from its correction when the models agree."""
+    corr = scene.platform.correction
+    if corr is None:
+        return
+    if corr.position.to_dict() != params.position_basis.to_dict() or \
+            corr.attitude.to_dict() != params.attitude_basis.to_dict():
+        raise InputError("the scene was adjusted with another trajectory model; adjust the original (onboard) "
+                         "scene, or choose the same model and interval")
+    values = params.values()
+    values[params.block_indices("position")] = corr.position_coefficients
+    values[params.block_indices("attitude")] = corr.attitude_coefficients
+    params.set_values(values)
+
+
+# --- determinability ------------------------------------------------------------------------------
+def non_determinable(N: np.ndarray, names: list[str]) -> list[list[tuple[str, float]]]:
+    """Sets of parameters the normal matrix cannot separate: for each (near-)null direction of
+    the correlation-scaled matrix, the parameters taking part, with their weights."""
+    d = np.sqrt(np.diag(N))
+    dead = d <= 0
+    sets = [[(names[i], 1.0)] for i in np.nonzero(dead)[0]]
+    live = np.nonzero(~dead)[0]
+    C = N[np.ix_(live, live)] / np.outer(d[live], d[live])
+    vals, vecs = np.linalg.eigh(C)
+    for k in np.nonzero(vals < SINGULAR * vals[-1])[0]:
+        v = vecs[:, k]
+        big = np.nonzero(np.abs(v) > 0.25 * np.abs(v).max())[0]
+        sets.append([(names[live[i]], float(v[i])) for i in big[np.argsort(-np.abs(v[big]))]])
+    return sets
+
+
+def _choose_to_fix(problem: _Problem, members: list[tuple[str, float]]) -> str | None:
+    """The parameter to fix in a non-determinable set: an interior one, the reference
+    (middle) chip's first, else the one taking the largest part."""
+    params = problem.params
+    interior = [n for n, _ in members if params.params[params.index[n]].block not in ("position", "attitude")]
+    if not interior:
+        return None
+    for n in interior:
+        p = params.params[params.index[n]]
+        if p.block == "chip" and p.chip == len(problem.scene.cameras[p.camera].chips) // 2:
+            return n
+    return interior[0]
+
+
+def check_determinability(problem: _Problem, system: System) -> list[dict]:
+    """Find non-determinable parameter sets; fix one parameter of each (or stop). Returns
+    what was found and done, for the report."""
+    found = []
+    for _ in range(len(problem.params.params)):
+        names = [problem.params.params[i].name for i in problem.params.free]
+        sets = non_determinable(system.N, names)
+        if not sets:
+            return found
+        for members in sets:
+            chosen = _choose_to_fix(problem, members) if problem.settings.on_singular == "fix" else None
+            listed = ", ".join(n for n, _ in members)
+            if chosen is None:
+                hint = ("" if problem.settings.on_singular == "stop" else
+                        "; no interior parameter is among them: give onboard GPS/attitude sigmas, more or better "
+                        "spread GCPs, or a simpler trajectory model")
+                raise InputError(f"these parameters cannot be determined together from the observations: {listed}"
+                                 f"{hint}")
+            found.append({"parameters": [n for n, _ in members], "fixed": chosen})
+            log.warning("not determinable together: %s; fixed %s", listed, chosen)
+            problem.params.fix([chosen])
+            break  # re-check after each fix: one parameter may resolve several sets
+        problem.structure()
+        _, system = problem.system()
+    return found
+
+
+# --- the solution ------------------------------------------------------------------------------------
+def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
+    """Levenberg-Marquardt iterations to convergence; returns the iteration log."""
+    lam = 1e-6
+    history = []
+    lin, system = problem.system()
+    cost = system.cost
+    for it in range(problem.settings.max_iterations):
+        if is_cancelled():
+            raise Cancelled("adjustment cancelled by the user")
+        D = np.diag(system.N).copy()
+        D[D <= 0] = 1.0
+        while True:
+            try:
+                factor = linalg.cho_factor(system.N + lam * np.diag(D), check_finite=False)
+                dx = -linalg.cho_solve(factor, system.b, check_finite=False)
+            except linalg.LinAlgError:
+                lam *= 10.0
+                if lam > 1e12:
+                    raise ConvergenceError(_not_converged(history, "the normal matrix is not positive definite"))
+                continue
+            saved = (problem.params.values(), problem.ground.copy())
+            problem.step(lin, system, dx)
+            new_cost = problem.cost()
+            if new_cost <= cost * (1 + 1e-12):
+                break
+            problem.params.set_values(saved[0])
+            problem.ground = saved[1]
+            lam *= 10.0
+            if lam > 1e12:
+                raise ConvergenceError(_not_converged(history, "no step reduces the residuals"))
+        change = float(np.max(np.abs(np.einsum("nkq,nq->nk", lin.values,
+                                                np.where(lin.columns >= 0, dx[np.maximum(lin.columns, 0)], 0.0))),
+                              initial=0.0))
+        history.append({"iteration": it + 1, "cost": new_cost, "max_image_change_px": change, "damping": lam})
+        log.info("%siteration %d: weighted squared residuals %.6g, largest image change %.2e px", label, it + 1,
+                 new_cost, change)
+        progress(min(0.9, 0.1 + 0.08 * (it + 1)), f"{label}iteration {it + 1}: cost {new_cost:.6g}")
+        done = change < 1e-4 or abs(cost - new_cost) <= 1e-12 * max(cost, 1e-300)
+        cost = new_cost
+        lam = max(lam / 10.0, 1e-9)
+        lin, system = problem.system()
+        if done:
+            return {"iterations": history, "system": system, "linearization": lin}
+    raise ConvergenceError(_not_converged(history, f"still changing after {problem.settings.max_iterations} "
+                                                   "iterations"))
+
+
+def _not_converged(history: list[dict], why: str) -> str:
+    tried = "; ".join(f"#{h['iteration']}: {h['cost']:.4g} (step {h['max_image_change_px']:.3g} px)"
+                      for h in history[-5:]) or "no iteration completed"
+    return (f"the adjustment did not converge: {why}. Weighted squared residuals per iteration: {tried}. "
+            "Try fewer free interior parameters, a simpler trajectory model, onboard sigmas, or check the GCPs "
+            "for gross errors.")
+
+
+# --- statistics ------------------------------------------------------------------------------------------
+@dataclass
+class Statistics:
+    """Posterior statistics at the solution: Q (cofactor matrix of the unknowns), sigma0, dof,
+    per image row redundancy (n,2) and normalised residual w (n,2), the residuals v (n,2) px,
+    and variance components per observation group."""
+    Q: np.ndarray
+    sigma0: float
+    dof: float
+    redundancy: np.ndarray
+    w: np.ndarray
+    v: np.ndarray
+    components: dict
+
+
+def statistics(problem: _Problem, lin: Linearization, system: System) -> Statistics:
+    """Redundancy numbers (diagonal of the hat matrix, ground points included through their
+    Schur complement), normalised residuals and variance components."""
+    n_unknowns = system.N.shape[0]
+    Q = linalg.cho_solve(linalg.cho_factor(system.N, check_finite=False), np.eye(n_unknowns), check_finite=False)
+    P = np.zeros((lin.r.shape[0], 2, 2))
+    P[:, 0, 0], P[:, 1, 1] = lin.p[:, 0], lin.p[:, 1]
+    h = np.zeros_like(lin.r)
+    weighted = lin.point >= 0
+    B = np.zeros_like(P)
+    if weighted.any():
+        k = system.K[lin.point[weighted]]
+        jg = lin.jg[weighted]
+        B[weighted] = jg @ k @ np.swapaxes(jg, 1, 2) @ P[weighted]
+        h[weighted] = np.einsum("nij,njk,nik->ni", jg, k, jg)
+    G = np.zeros_like(P)
+    for idx in problem.groups:
+        keep = lin.columns[idx[0]] >= 0
+        if not keep.any():
+            continue
+        c = lin.columns[idx[0]][keep]
+        A = lin.values[idx][:, :, keep]
+        G[idx] = np.einsum("nkq,qr,nlr->nkl", A, Q[np.ix_(c, c)], A)
+    eye = np.eye(2)
+    h += np.einsum("nij,njk,nik->ni", eye - B, G, eye - B)
+    redundancy = np.clip(1.0 - h * lin.p, 0.0, 1.0)
+    v = lin.r
+    components = {"image": _component(lin.p * v * v, redundancy)}
+    if problem.weighted:
+        m = np.einsum("nij,njk->nik", system.K[np.maximum(lin.point, 0)], np.einsum("nki,nkl->nil", lin.jg, P))
+        qgg = system.K.copy()
+        np.add.at(qgg, lin.point[weighted], (m @ G @ np.swapaxes(m, 1, 2))[weighted])
+        e = np.einsum("mij,mj->mi", problem.enu, problem.ground - problem.ground0)
+        w_enu = np.einsum("mii->mi", np.einsum("mij,mjk,mlk->mil", problem.enu, problem.ground_weight, problem.enu))
+        r_g = np.clip(1.0 - np.einsum("mij,mjk,mik->mi", problem.enu, qgg, problem.enu) * w_enu, 0.0, 1.0)
+        components["ground_xy"] = _component((w_enu * e * e)[:, :2], r_g[:, :2])
+        components["ground_z"] = _component((w_enu * e * e)[:, 2], r_g[:, 2])
+    for p in problem.pseudo():
+        cols = problem.unknown[p.index]
+        m = p.misfit(problem.params)
+        hp = np.einsum("kq,qr,kr->k", p.B, Q[np.ix_(cols, cols)], p.B) * p.weight
+        old = components.get(p.group, (0.0, 0.0, 0))
+        add = (float(np.sum(p.weight * m * m)), float(np.sum(1 - hp)))
+        components[p.group] = (old[0] + add[0], old[1] + add[1], 0)
+    total_rows = 2 * len(problem.obs) + 3 * problem.ground.shape[0] * problem.weighted + \
+        sum(p.B.shape[0] for p in problem.pseudo())
+    dof = float(total_rows - n_unknowns - 3 * problem.ground.shape[0] * problem.weighted)
+    if dof <= 0:
+        raise InputError(f"too few observations: {total_rows} equations for "
+                         f"{n_unknowns + 3 * problem.ground.shape[0] * problem.weighted} unknowns")
+    sigma0 = math.sqrt(system.cost / dof)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.where(redundancy > 1e-6, v / (problem.obs.sigma[:, None] * np.sqrt(redundancy)), 0.0)
+    comps = {k: {"sum_pvv": s, "redundancy": r, "sigma0": math.sqrt(s / r) if r > 0 else None}
+             for k, (s, r, _) in components.items()}
+    return Statistics(Q, sigma0, dof, redundancy, w, v, comps)
+
+
+def _component(pvv: np.ndarray, redundancy: np.ndarray) -> tuple[float, float, int]:
+    return float(np.sum(pvv)), float(np.sum(redundancy)), int(np.size(pvv))
+
+
+def _critical(alpha: float) -> float:
+    return float(stats.norm.ppf(1.0 - alpha / 2.0))
+
+
+def robust_weights(problem: _Problem, st: Statistics) -> float:
+    """One step of the robust method; returns the largest change of a weight factor."""
+    crit = _critical(problem.settings.alpha)
+    old = problem.factor.copy()
+    if problem.settings.robust == "selection":
+        # Li Deren's selection weights: rows whose normalised residual (with the estimated
+        # sigma0) exceeds the critical value get the weight of their posterior variance.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.abs(st.w) / st.sigma0
+            ratio = np.where(t > crit, st.sigma0 ** 2 * st.redundancy * problem.obs.sigma[:, None] ** 2
+                             / np.maximum(st.v * st.v, 1e-300), 1.0)
+        problem.factor = np.repeat(np.clip(ratio.min(axis=1), 1e-8, 1.0)[:, None], 2, axis=1)
+    elif problem.settings.robust == "snooping":
+        live = problem.factor[:, 0] > 0
+        score = np.where(live, np.abs(st.w).max(axis=1), 0.0)
+        worst = float(score.max(initial=0.0))
+        if worst > crit:
+            problem.factor[score > max(crit, 0.5 * worst)] = 0.0
+    return float(np.max(np.abs(problem.factor - old), initial=0.0))
+
+
+# --- accuracy -------------------------------------------------------------------------------------------
+def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray) -> dict:
+    """Check-point accuracy of a scene: ground -> image residuals (px) and image -> ground at
+    the known height in a local east-north frame (m): RMSE per axis, max, CE90."""
+    if rows.size == 0:
+        return {"points": 0}
+    res = np.full((rows.size, 2), np.nan)
+    en = np.full((rows.size, 2), np.nan)
+    ground = geodetic_to_ecef(table.lon[rows], table.lat[rows], table.h[rows])
+    for c, cam in enumerate(scene.cameras):
+        m = table.camera[rows] == cam.name
+        if not m.any():
+            continue
+        col, row = scene.ground_to_image(ground[m], c)
+        res[m] = np.stack([col - table.col[rows][m], row - table.row[rows][m]], axis=1)
+        seen = scene.image_to_ground(table.col[rows][m], table.row[rows][m], table.h[rows][m], c)
+        rot = enu_rotations(table.lon[rows][m], table.lat[rows][m])
+        en[m] = np.einsum("nij,nj->ni", rot, seen - ground[m])[:, :2]
+    horizontal = np.hypot(en[:, 0], en[:, 1])
+    px = np.hypot(res[:, 0], res[:, 1])
+    rms = lambda a: float(np.sqrt(np.nanmean(a * a)))  # noqa: E731
+    return {"points": int(rows.size),
+            "image": {"rmse_col": rms(res[:, 0]), "rmse_row": rms(res[:, 1]), "rmse": rms(px),
+                      "max": float(np.nanmax(px))},
+            "ground": {"rmse_east": rms(en[:, 0]), "rmse_north": rms(en[:, 1]), "rmse": rms(horizontal),
+                       "max": float(np.nanmax(horizontal)), "ce90": float(np.nanpercentile(horizontal, 90))},
+            "residuals": res, "en": en}
+
+
+# --- the whole adjustment ----------------------------------------------------------------------------------
+def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings) -> GcpTable:
+    """Cameras resolved and the GCPs checked before anything is solved: finite values, points
+    in this scene's images, enough of them, and spread over the image."""
+    settings.validate()
+    table = resolve_cameras(table, scene)
+    bad = ~np.all(np.isfinite(np.stack([table.col, table.row, table.lon, table.lat, table.h, table.sigma_px,
+                                        table.sigma_xy, table.sigma_z])), axis=0)
+    if bad.any():
+        raise InputError(f"GCPs {', '.join(table.id[bad][:10])} have NaN or missing coordinates or sigmas")
+    if np.any(table.sigma_px <= 0) or (settings.ground == "weighted" and
+                                       (np.any(table.sigma_xy <= 0) or np.any(table.sigma_z <= 0))):
+        raise InputError("GCP sigmas must be positive (sigma_px, and sigma_xy, sigma_z for weighted ground)")
+    control = table.role == "control"
+    inside = np.zeros(len(table), bool)
+    for c, cam in enumerate(scene.cameras):
+        m = table.camera == cam.name
+        inside[m] = (table.col[m] >= 0) & (table.col[m] <= cam.cols) & (table.row[m] >= 0) & (table.row[m] <= cam.rows)
+    if not inside[control].any():
+        raise InputError("no control point lies inside this scene's images: is the GCP layer from another scene?")
+    if (~inside[control]).sum() > 0.5 * control.sum():
+        raise InputError(f"{int((~inside[control]).sum())} of {int(control.sum())} control points lie outside the "
+                         "scene's images: is the GCP layer from another scene?")
+    _check_spread(scene, table, control)
+    return table
+
+
+def _check_spread(scene: SceneModel, table: GcpTable, control: np.ndarray) -> None:
+    """Control points on a line or bunched in a corner cannot fix a trajectory."""
+    cam = scene.cameras[0]
+    xy = np.stack([table.col[control] / cam.cols, table.row[control] / cam.rows], axis=1)
+    if xy.shape[0] < 3:
+        raise InputError(f"too few control points: {xy.shape[0]} (at least 3, better many more, are needed)")
+    span = xy.max(axis=0) - xy.min(axis=0)
+    sv = np.linalg.svd(xy - xy.mean(axis=0), compute_uv=False)
+    if sv[1] < 0.01 * sv[0]:
+        raise InputError("the control points lie on a line; the scene's rotation about it cannot be determined. "
+                         "Add points off that line.")
+    if span[0] < 0.1 and span[1] < 0.1:
+        raise InputError(f"the control points cover only {100 * span[0]:.0f}% x {100 * span[1]:.0f}% of the image "
+                         "(one corner); spread them over the scene")
+
+
+def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | None = None,
+           progress: Callable[[float, str | None], None] | None = None,
+           is_cancelled: Callable[[], bool] | None = None) -> AdjustmentResult:
+    """Adjust ``scene`` to the control points of ``table``; evaluate its check points."""
+    settings = settings or AdjustmentSettings()
+    progress = progress or (lambda fraction, message=None: None)
+    is_cancelled = is_cancelled or (lambda: False)
+    table = check_inputs(scene, table, settings)
+    progress(0.02, "setting up the observations")
+    problem = _Problem(scene, table, settings)
+    n_eq = 2 * len(problem.obs) + 3 * problem.ground.shape[0] * problem.weighted + \
+        sum(p.B.shape[0] for p in problem.pseudo())
+    n_unknowns = problem.params.free.size + 3 * problem.ground.shape[0] * problem.weighted
+    if n_eq <= n_unknowns:
+        raise InputError(f"too few GCPs for the chosen model: {len(problem.obs)} image observations give {n_eq} "
+                         f"equations for {n_unknowns} unknowns; add GCPs or choose a simpler trajectory model "
+                         "(lower order, longer interval) or fewer interior parameters")
+    _, system = problem.system()
+    determinability = check_determinability(problem, system)
+    robust_log = []
+    for k in range(settings.max_robust_iterations if settings.robust != "none" else 1):
+        label = f"robust pass {k + 1}: " if settings.robust != "none" else ""
+        result = solve(problem, progress, is_cancelled, label)
+        st = statistics(problem, result["linearization"], result["system"])
+        if settings.robust == "none":
+            break
+        change = robust_weights(problem, st)
+        down = int(np.sum(problem.factor[:, 0] < 0.999))
+        robust_log.append({"pass": k + 1, "sigma0": st.sigma0, "down_weighted": down, "largest_change": change})
+        log.info("robust pass %d: sigma0 %.3f, %d observations down-weighted", k + 1, st.sigma0, down)
+        if change < 1e-3:
+            break
+    progress(0.92, "evaluating check points")
+    adjusted = problem.params.adjusted_scene()
+    adjusted.info["adjustment"] = {"settings": asdict(settings)}
+    return _result(problem, table, adjusted, result, st, determinability, robust_log)
+
+
+def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: dict, st: Statistics,
+            determinability: list, robust_log: list) -> AdjustmentResult:
+    crit = _critical(problem.settings.alpha)
+    params = problem.params
+    free = params.free
+    sigma = np.full(len(params.params), np.nan)
+    sigma[free] = st.sigma0 * np.sqrt(np.diag(st.Q))
+    d = np.sqrt(np.diag(st.Q))
+    corr_matrix = st.Q / np.outer(d, d)
+    parameters = []
+    for i, p in enumerate(params.params):
+        parameters.append({"name": p.name, "block": p.block, "value": p.value, "sigma": None if np.isnan(sigma[i])
+                           else float(sigma[i]), "unit": p.unit, "mode": p.mode,
+                           "significant": None if np.isnan(sigma[i]) or p.block in ("position", "attitude")
+                           else bool(abs(p.value) > 1.96 * sigma[i])})
+    interior = [j for j, i in enumerate(free) if params.params[i].block not in ("position", "attitude")]
+    pairs = []
+    names = [params.params[i].name for i in free]
+    for a in range(len(free)):
+        for b in range(a + 1, len(free)):
+            if abs(corr_matrix[a, b]) > 0.9 and (a in interior or b in interior):
+                pairs.append({"a": names[a], "b": names[b], "r": float(corr_matrix[a, b])})
+    flagged = np.abs(st.w).max(axis=1) > crit
+    rows = problem.rows
+    n = len(table)
+    points = {"id": table.id, "role": table.role, "camera": table.camera, "col": table.col, "row": table.row,
+              "res_col": np.full(n, np.nan), "res_row": np.full(n, np.nan), "w_col": np.full(n, np.nan),
+              "w_row": np.full(n, np.nan), "redundancy": np.full(n, np.nan), "weight": np.full(n, np.nan),
+              "flagged": np.zeros(n, bool)}
+    points["res_col"][rows], points["res_row"][rows] = st.v[:, 0], st.v[:, 1]
+    points["w_col"][rows], points["w_row"][rows] = st.w[:, 0], st.w[:, 1]
+    points["redundancy"][rows] = st.redundancy.mean(axis=1)
+    points["weight"][rows] = problem.factor[:, 0]
+    points["flagged"][rows] = flagged
+    checks = np.nonzero(table.role == "check")[0]
+    after = accuracy(adjusted, table, checks)
+    before = accuracy(problem.scene, table, checks)
+    if checks.size:
+        points["res_col"][checks], points["res_row"][checks] = after["residuals"][:, 0], after["residuals"][:, 1]
+    points["res_px"] = np.hypot(points["res_col"], points["res_row"])
+    good = ~flagged
+    chi2_lo, chi2_hi = stats.chi2.ppf([0.025, 0.975], st.dof) / st.dof
+    report = {
+        "settings": asdict(problem.settings),
+        "observations": {"control_points": int(problem.ground.shape[0]), "image_observations": len(problem.obs),
+                         "check_points": int(checks.size), "unknowns": int(free.size),
+                         "ground_unknowns": int(3 * problem.ground.shape[0] * problem.weighted),
+                         "degrees_of_freedom": st.dof},
+        "iterations": result["iterations"],
+        "robust": {"method": problem.settings.robust, "passes": robust_log, "critical_w": crit,
+                   "flagged": int(flagged.sum()), "flagged_ids": [str(i) for i in table.id[rows][flagged][:1000]]},
+        "sigma0": st.sigma0,
+        "sigma0_test": {"ratio_bounds_95": [math.sqrt(chi2_lo), math.sqrt(chi2_hi)],
+                        "passed": bool(chi2_lo <= st.sigma0 ** 2 <= chi2_hi)},
+        "variance_components": st.components,
+        "determinability": determinability,
+        "parameters": parameters,
+        "high_correlations": sorted(pairs, key=lambda x: -abs(x["r"]))[:50],
+        "control_residuals": _residual_summary(st.v[good]),
+        "control_residuals_per_chip": {
+            f"{c.name}/{ch.name or k + 1}": _residual_summary(st.v[good & (problem.obs.camera == ci)
+                                                                    & (problem.obs.chip == k)])
+            for ci, c in enumerate(problem.scene.cameras) for k, ch in enumerate(c.chips)},
+        "check_points": {k: v for k, v in after.items() if k not in ("residuals", "en")},
+        "check_points_before": {k: v for k, v in before.items() if k not in ("residuals", "en")},
+        "trajectory": _trajectory_curves(problem),
+    }
+    return AdjustmentResult(adjusted, report, points)
+
+
+def _residual_summary(v: np.ndarray) -> dict:
+    if v.size == 0:
+        return {"count": 0}
+    px = np.hypot(v[:, 0], v[:, 1])
+    return {"count": int(v.shape[0]), "rmse_col": float(np.sqrt(np.mean(v[:, 0] ** 2))),
+            "rmse_row": float(np.sqrt(np.mean(v[:, 1] ** 2))), "max_col": float(np.max(np.abs(v[:, 0]))),
+            "max_row": float(np.max(np.abs(v[:, 1]))), "max": float(px.max())}
+
+
+def _trajectory_curves(problem: _Problem, samples: int = 200) -> dict:
+    """Corrections against time, for plots: position (m, ECEF) and attitude (rad)."""
+    t_min, t_max = problem.scene.time_span()
+    t = np.linspace(t_min, t_max, samples)
+    pb, ab = problem.params.position_basis, problem.params.attitude_basis
+    return {"time": t.tolist(),
+            "position": (pb.matrix(t) @ problem.params.block_values("position")).tolist(),
+            "attitude": (ab.matrix(t) @ problem.params.block_values("attitude")).tolist(),
+            "position_knots": pb.knot_times().tolist(), "attitude_knots": ab.knot_times().tolist()}

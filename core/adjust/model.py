@@ -1,0 +1,278 @@
+"""Image observations of ground points: collinearity residuals and their analytic Jacobians.
+
+For an observation at measured image position (col, row) in camera c on chip k, the line
+time t = timing(row) + time_offset_k fixes the measured platform state. With the current
+corrections the satellite is at S = S_m(t) + Bp(t) Cp and the body turns by
+R = R_m(t) @ E(Ba(t) Ca); the camera axes are I_c @ E(delta_c) (installation). A ground
+point X projects to normalised camera coordinates
+
+    w = (I_c E(delta_c))^T R^T g,   (ux, uy) = (w0 / w2, w1 / w2),
+
+g being the apparent direction S -> X (refraction and velocity aberration as in the sensor
+model; held fixed in the derivatives, where they change nothing measurable). The detector's
+own (ux, uy) follows from the chip and camera terms (seed 000 eq. 4, seed 001 eq. 7). The
+residual r_u = projected - detector (radians) becomes pixels through the 2x2 map
+T = -(d r_u / d (col, row))^-1 of the input scene at the observation: r = T r_u is the
+(predicted - measured) (col, row) to first order, so residuals and sigmas are in pixels.
+
+Arrays: n observations; Jacobian blocks (n, 2, k) in pixels per unit of the parameter.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from .. import corrections as corr
+from ..geodesy import ecef_to_geodetic, up_vector
+from ..rotations import rotation_and_derivatives
+from ..sensor import SceneModel
+from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
+
+
+@dataclass
+class ImageObservations:
+    """Fixed data of n image observations: camera, chip, point (index of the ground point),
+    d (detector index on the chip), t (s), the measured platform state pos, vel (n,3) and
+    rot (n,3,3), the trajectory basis windows (first (n,), weights (n, w)), T (n,2,2),
+    sigma (n,) px and the measured col, row (n,) px."""
+    camera: np.ndarray
+    chip: np.ndarray
+    point: np.ndarray
+    d: np.ndarray
+    t: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    rot: np.ndarray
+    pos_first: np.ndarray
+    pos_weights: np.ndarray
+    att_first: np.ndarray
+    att_weights: np.ndarray
+    T: np.ndarray
+    sigma: np.ndarray
+    col: np.ndarray
+    row: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    def select(self, m) -> "ImageObservations":
+        return ImageObservations(**{f.name: getattr(self, f.name)[m] for f in fields(self)})
+
+    def at_time(self, params: ParameterSet, t: np.ndarray, platform) -> "ImageObservations":
+        """The same observations imaged at other times t (measured state and windows redone)."""
+        out = self.select(slice(None))
+        out.t = t
+        out.pos, out.vel, out.rot = platform.measured_state(t)
+        out.pos_first, out.pos_weights = params.position_basis.window(t)
+        out.att_first, out.att_weights = params.attitude_basis.window(t)
+        return out
+
+
+def build_observations(scene: SceneModel, params: ParameterSet, camera, col, row, point, sigma,
+                       ground: np.ndarray) -> ImageObservations:
+    """Observations (col, row measured px, sigma px) of ground points ``point`` (indices into
+    ``ground`` (m, 3) ECEF, used for the pixel map) in cameras ``camera`` (indices)."""
+    camera = np.asarray(camera, dtype=np.int64)
+    col, row = np.asarray(col, dtype=float), np.asarray(row, dtype=float)
+    n = col.size
+    chip = np.zeros(n, dtype=np.int64)
+    d = np.zeros(n)
+    t = np.zeros(n)
+    for c, cam in enumerate(scene.cameras):
+        m = camera == c
+        chip[m] = cam.chip_index(col[m])
+        d[m] = col[m] - np.array([ch.col_offset for ch in cam.chips])[chip[m]] - 0.5
+        t[m] = cam.timing.time(row[m]) + cam.time_offset(chip[m])
+    empty = np.zeros((n, 0))
+    obs = ImageObservations(camera, chip, np.asarray(point, dtype=np.int64), d, t, empty, empty, empty,
+                            np.zeros(n, np.int64), empty, np.zeros(n, np.int64), empty, np.zeros((n, 2, 2)),
+                            np.broadcast_to(np.asarray(sigma, dtype=float), (n,)).copy(), col, row)
+    obs = obs.at_time(params, t, scene.platform)
+    obs.T = pixel_map(scene, params, obs, ground[obs.point])
+    return obs
+
+
+def pixel_map(scene: SceneModel, params: ParameterSet, obs: ImageObservations, x: np.ndarray) -> np.ndarray:
+    """T (n,2,2): (dcol, drow) = T @ r_u, minus the inverse of d r_u / d(col, row), by unit
+    differences in column (detector) and row (line time) at ground points x (n,3)."""
+    r0 = Model(scene, params).residuals_u(obs, x)
+    period = np.array([cam.timing.mean_period() for cam in scene.cameras])[obs.camera]
+    later = obs.at_time(params, obs.t + period, scene.platform)
+    d_row = Model(scene, params).residuals_u(later, x) - r0
+    right = obs.select(slice(None))
+    right.d = obs.d + 1.0
+    d_col = Model(scene, params).residuals_u(right, x) - r0
+    return -np.linalg.inv(np.stack([d_col, d_row], axis=2))
+
+
+@dataclass
+class Jacobian:
+    """d(residual px)/d(parameter) blocks for n observations: S (n,2,3) platform position,
+    angles (n,2,3) attitude angles, installation (n,2,3), ground (n,2,3), chip (n,2,4)
+    (focal-plane chips use the first 3: dx, dy, theta; look-angle chips ux0, ux1, uy0, uy1),
+    camera (n,2,10) in the order of CAMERA_TERMS."""
+    S: np.ndarray
+    angles: np.ndarray
+    installation: np.ndarray
+    ground: np.ndarray
+    chip: np.ndarray
+    camera: np.ndarray
+
+
+class Model:
+    """The collinearity model of a scene under a parameter set's current values."""
+
+    def __init__(self, scene: SceneModel, params: ParameterSet):
+        self.scene = scene
+        self.params = params
+        values = params.values()
+        self.cp = values[params.block_indices("position")]
+        self.ca = values[params.block_indices("attitude")]
+        n_cam = len(scene.cameras)
+        self.inst = np.array([[params.params[params.index[f"{c.name}.{a}"]].value for a in ANGLES]
+                              for c in scene.cameras])
+        self.cam_terms = np.zeros((n_cam, len(CAMERA_TERMS)))
+        for c, cam in enumerate(scene.cameras):
+            for j, term in enumerate(CAMERA_TERMS):
+                i = params.index.get(f"{cam.name}.{term}")
+                if i is not None:
+                    self.cam_terms[c, j] = params.params[i].value
+        self.chip_terms = {}
+        for c, cam in enumerate(scene.cameras):
+            for k in range(len(cam.chips)):
+                terms, idx = params.chip_indices(c, k)
+                self.chip_terms[c, k] = values[idx]
+
+    # --- the pieces --------------------------------------------------------------------------
+    def platform(self, obs: ImageObservations):
+        """(S (n,3), R (n,3,3), E (n,3,3), dE (n,3,3,3)) at the observations."""
+        S = obs.pos + np.einsum("nw,nwa->na", obs.pos_weights,
+                                self.cp[obs.pos_first[:, None] + np.arange(obs.pos_weights.shape[1])])
+        angles = np.einsum("nw,nwa->na", obs.att_weights,
+                           self.ca[obs.att_first[:, None] + np.arange(obs.att_weights.shape[1])])
+        E, dE = rotation_and_derivatives(angles)
+        return S, obs.rot @ E, E, dE
+
+    def detector(self, obs: ImageObservations, with_jacobian: bool = False):
+        """Detector (ux, uy) (n,2) and, with_jacobian, d/d chip terms (n,2,4) and d/d camera
+        terms (n,2,10)."""
+        n = len(obs)
+        u = np.empty((n, 2))
+        j_chip = np.zeros((n, 2, 4)) if with_jacobian else None
+        j_cam = np.zeros((n, 2, len(CAMERA_TERMS))) if with_jacobian else None
+        for c, cam in enumerate(self.scene.cameras):
+            for k, chip in enumerate(cam.chips):
+                m = np.nonzero((obs.camera == c) & (obs.chip == k))[0]
+                if m.size == 0:
+                    continue
+                terms = self.chip_terms[c, k]
+                d = obs.d[m]
+                if chip.kind == "look_angle":
+                    ux, uy = chip.look(d)
+                    s = d / chip.n_pixels
+                    u[m, 0] = ux + terms[0] + terms[1] * s
+                    u[m, 1] = uy + terms[2] + terms[3] * s
+                    if with_jacobian:
+                        j_chip[m, 0, 0], j_chip[m, 0, 1] = 1.0, s
+                        j_chip[m, 1, 2], j_chip[m, 1, 3] = 1.0, s
+                    continue
+                u[m], jc, jk = _focal_plane(cam, chip, terms, self.cam_terms[c], d, with_jacobian)
+                if with_jacobian:
+                    j_chip[m, :, :3], j_cam[m] = jc, jk
+        return u, j_chip, j_cam
+
+    def residuals_u(self, obs: ImageObservations, x: np.ndarray) -> np.ndarray:
+        """r_u (n,2) radians: projected minus detector normalised coordinates."""
+        return self._evaluate(obs, x, False)[0]
+
+    def residuals(self, obs: ImageObservations, x: np.ndarray) -> np.ndarray:
+        """Residuals (n,2) px, (col, row) order: predicted minus measured, to first order."""
+        return np.einsum("nij,nj->ni", obs.T, self.residuals_u(obs, x))
+
+    def linearize(self, obs: ImageObservations, x: np.ndarray) -> tuple[np.ndarray, Jacobian]:
+        """(residuals (n,2) px, Jacobian in px per parameter unit)."""
+        r_u, jac = self._evaluate(obs, x, True)
+        T = obs.T
+        scale = lambda a: np.einsum("nij,njk->nik", T, a)  # noqa: E731
+        return (np.einsum("nij,nj->ni", T, r_u),
+                Jacobian(*(scale(getattr(jac, f.name)) for f in fields(Jacobian))))
+
+    def _evaluate(self, obs: ImageObservations, x: np.ndarray, with_jacobian: bool):
+        S, R, E, dE = self.platform(obs)
+        lon, lat, h = ecef_to_geodetic(x)
+        g = corr.apparent_direction(x, S, obs.vel, up_vector(lon, lat), h, self.scene.aberration,
+                                    self.scene.refraction) * np.linalg.norm(x - S, axis=1, keepdims=True)
+        inst, d_inst = rotation_and_derivatives(self.inst[obs.camera])
+        mount = np.stack([c.installation for c in self.scene.cameras])[obs.camera] @ inst  # camera -> body
+        v_body = np.einsum("nji,nj->ni", R, g)  # R^T g
+        w = np.einsum("nji,nj->ni", mount, v_body)  # mount^T v_body
+        proj = w[:, :2] / w[:, 2:3]
+        det, j_chip, j_cam = self.detector(obs, with_jacobian)
+        r_u = proj - det
+        if not with_jacobian:
+            return r_u, None
+        # d(ux, uy)/dw
+        gw = np.zeros((len(obs), 2, 3))
+        gw[:, 0, 0] = gw[:, 1, 1] = 1.0 / w[:, 2]
+        gw[:, :, 2] = -proj / w[:, 2:3]
+        m_t = np.swapaxes(mount, 1, 2) @ np.swapaxes(R, 1, 2)  # w = m_t @ g
+        j_ground = gw @ m_t
+        q = np.einsum("nji,nj->ni", obs.rot, g)  # R_m^T g: w = mount^T E^T q
+        mount_t = np.swapaxes(mount, 1, 2)
+        j_angles = np.stack([np.einsum("nij,nj->ni", gw, np.einsum("nij,nkj,nk->ni", mount_t, dE[:, a], q))
+                             for a in range(3)], axis=2)
+        base = np.stack([c.installation for c in self.scene.cameras])[obs.camera]
+        v_cam0 = np.einsum("nji,nj->ni", base, v_body)  # base^T v_body: w = inst^T v_cam0
+        j_inst = np.stack([np.einsum("nij,nj->ni", gw, np.einsum("nkj,nk->nj", d_inst[:, a], v_cam0))
+                           for a in range(3)], axis=2)
+        return r_u, Jacobian(-j_ground, j_angles, j_inst, j_ground, -j_chip, -j_cam)
+
+
+def _focal_plane(cam, chip, terms, cam_terms, d, with_jacobian):
+    """Normalised (ux, uy) (n,2) of focal-plane detectors d on a chip with corrections
+    terms = (dx, dy, theta) and camera terms (CAMERA_TERMS order), with the derivatives
+    (n,2,3) and (n,2,10) when asked (seed 000 eq. 4, seed 001 eq. 7)."""
+    th = chip.theta + terms[2]
+    x = chip.x0 + terms[0] + d * chip.pitch * np.sin(th)
+    y = chip.y0 + terms[1] + d * chip.pitch * np.cos(th)
+    base = cam.distortion
+    f = cam.focal_length + cam_terms[0]
+    dxp, dyp, k1, k2, p1, p2, b1, b2, b3 = (base.get(t, 0.0) + v for t, v in zip(CAMERA_TERMS[1:], cam_terms[1:]))
+    df_old = base.get("df", 0.0)
+    xb = x - cam.principal_point[0]
+    yb = y - cam.principal_point[1]
+    r2 = xb * xb + yb * yb
+    radial = k1 * r2 + k2 * r2 * r2
+    dx = (dxp - df_old / cam.focal_length * xb + radial * xb + p1 * (r2 + 2 * xb * xb) + 2 * p2 * xb * yb
+          + b1 * xb + b2 * yb)
+    dy = dyp - df_old / cam.focal_length * yb + radial * yb + 2 * p1 * xb * yb + p2 * (r2 + 2 * yb * yb) + b3 * yb
+    X, Y = xb + dx, yb + dy
+    u = np.stack([X / f, Y / f], axis=1)
+    if not with_jacobian:
+        return u, None, None
+    dr = 2.0 * (k1 + 2.0 * k2 * r2)  # d radial / d(xb^2 + yb^2) * 2
+    c_df = df_old / cam.focal_length
+    dX_dxb = 1 - c_df + radial + xb * xb * dr + 6 * p1 * xb + 2 * p2 * yb + b1
+    dX_dyb = xb * yb * dr + 2 * p1 * yb + 2 * p2 * xb + b2
+    dY_dxb = yb * xb * dr + 2 * p1 * yb + 2 * p2 * xb
+    dY_dyb = 1 - c_df + radial + yb * yb * dr + 2 * p1 * xb + 6 * p2 * yb + b3
+    dxb_dth, dyb_dth = d * chip.pitch * np.cos(th), -d * chip.pitch * np.sin(th)
+    n = d.size
+    jc = np.empty((n, 2, 3))
+    jc[:, 0, 0], jc[:, 1, 0] = dX_dxb / f, dY_dxb / f
+    jc[:, 0, 1], jc[:, 1, 1] = dX_dyb / f, dY_dyb / f
+    jc[:, 0, 2] = (dX_dxb * dxb_dth + dX_dyb * dyb_dth) / f
+    jc[:, 1, 2] = (dY_dxb * dxb_dth + dY_dyb * dyb_dth) / f
+    zero, one = np.zeros(n), np.ones(n)
+    jk = np.stack([
+        np.stack([-X / f ** 2, -Y / f ** 2], axis=1),                            # f
+        np.stack([one / f, zero], axis=1), np.stack([zero, one / f], axis=1),      # dxp, dyp
+        np.stack([r2 * xb, r2 * yb], axis=1) / f,                                  # k1
+        np.stack([r2 * r2 * xb, r2 * r2 * yb], axis=1) / f,                        # k2
+        np.stack([r2 + 2 * xb * xb, 2 * xb * yb], axis=1) / f,                     # p1
+        np.stack([2 * xb * yb, r2 + 2 * yb * yb], axis=1) / f,                     # p2
+        np.stack([xb, zero], axis=1) / f, np.stack([yb, zero], axis=1) / f,        # b1, b2
+        np.stack([zero, yb], axis=1) / f,                                          # b3
+    ], axis=2)
+    return u, jc, jk

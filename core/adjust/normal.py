@@ -1,0 +1,165 @@
+"""Normal equations of the image observations with the ground points eliminated.
+
+Each control point has one image observation per camera that sees it and, when its ground
+coordinates are weighted, three unknowns with a pseudo-observation (east, north, up sigmas).
+Writing J_p (2 x q) for the observation's derivatives by the q parameters it touches, J_g
+(2 x 3) by its ground point, P its weight and P_G the point's ground weight (ECEF), the
+point's unknowns are eliminated by the Schur complement (seed 003 eq. 21-23). For a point seen
+once this folds into the observation itself:
+
+    K = (J_g' P J_g + P_G)^-1,   P~ = P - P J_g K J_g' P,   r~ = r - J_g K b_g,
+    N += J_p' P~ J_p,            b += J_p' P r~,             b_g = J_g' P r + P_G e
+
+(e = current ground minus measured ground). Observations touching the same parameter
+columns (same camera, chip and trajectory knots) are stacked and multiplied with BLAS, so
+assembly costs one dense product per group. Points seen in several cameras (three-line
+scenes) are eliminated with sparse products over all their observations.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+
+
+@dataclass
+class Linearization:
+    """Per-observation linearised system: residuals r (n,2) px, weights p (n,2) (1/px^2),
+    columns (n,q) unknown indices (-1 unused), values (n,2,q), ground Jacobian jg (n,2,3),
+    point (n,) index into the ground unknowns (-1: ground fixed)."""
+    r: np.ndarray
+    p: np.ndarray
+    columns: np.ndarray
+    values: np.ndarray
+    jg: np.ndarray
+    point: np.ndarray
+
+
+@dataclass
+class GroundPrior:
+    """Weighted ground points: weight (m,3,3) ECEF (1/m^2), misfit e (m,3) = current -
+    measured (m)."""
+    weight: np.ndarray
+    misfit: np.ndarray
+
+
+@dataclass
+class System:
+    """Reduced normal equations N dx = -b of the n_unknowns parameters, with what is needed
+    to back-substitute the ground points (K (m,3,3), b_g (m,3))."""
+    N: np.ndarray
+    b: np.ndarray
+    K: np.ndarray
+    bg: np.ndarray
+    cost: float
+
+
+def groups(columns: np.ndarray) -> list[np.ndarray]:
+    """Observation indices grouped by identical column rows."""
+    _, inverse = np.unique(columns, axis=0, return_inverse=True)
+    order = np.argsort(inverse, kind="stable")
+    splits = np.nonzero(np.diff(inverse[order]))[0] + 1
+    return np.split(order, splits)
+
+
+def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs_groups: list[np.ndarray]) -> System:
+    """Reduced normal equations of the image observations (ground eliminated)."""
+    N = np.zeros((n_unknowns, n_unknowns))
+    b = np.zeros(n_unknowns)
+    n_points = 0 if prior is None else prior.weight.shape[0]
+    K = np.zeros((n_points, 3, 3))
+    bg = np.zeros((n_points, 3))
+    cost = float(np.sum(lin.p * lin.r * lin.r))
+    P = np.zeros((lin.r.shape[0], 2, 2))
+    P[:, 0, 0], P[:, 1, 1] = lin.p[:, 0], lin.p[:, 1]
+    p_tilde, r_tilde = P, lin.r
+    if n_points:
+        cost += float(np.einsum("mi,mij,mj->", prior.misfit, prior.weight, prior.misfit))
+        counts = np.bincount(lin.point[lin.point >= 0], minlength=n_points)
+        jtp = np.einsum("nki,nkl->nil", lin.jg, P)                         # J_g' P (n,3,2)
+        ngg = prior.weight.copy()
+        np.add.at(ngg, lin.point[lin.point >= 0], (jtp @ lin.jg)[lin.point >= 0])
+        bg = prior.weight @ prior.misfit[:, :, None]
+        bg = bg[:, :, 0]
+        np.add.at(bg, lin.point[lin.point >= 0], np.einsum("nil,nl->ni", jtp, lin.r)[lin.point >= 0])
+        K = np.linalg.inv(ngg)
+        single = (lin.point >= 0) & (counts[np.maximum(lin.point, 0)] == 1)
+        if single.any():
+            k = K[lin.point[single]]
+            pj = np.swapaxes(jtp[single], 1, 2)                            # P J_g (s,2,3)
+            p_tilde = P.copy()
+            p_tilde[single] = P[single] - pj @ k @ jtp[single]
+            r_tilde = lin.r.copy()
+            r_tilde[single] = lin.r[single] - np.einsum("nij,njk,nk->ni", lin.jg[single], k, bg[lin.point[single]])
+        multi = (lin.point >= 0) & ~single
+    else:
+        multi = np.zeros(lin.r.shape[0], bool)
+    # b = sum J_p' P r~ ; N = sum J_p' P~ J_p (per group of identical columns)
+    pr = np.einsum("nij,nj->ni", P, r_tilde)
+    contrib = np.einsum("nkq,nk->nq", lin.values, pr)
+    ok = lin.columns >= 0
+    b += np.bincount(lin.columns[ok], weights=contrib[ok], minlength=n_unknowns)
+    chol = _chol2(np.where(multi[:, None, None], P, p_tilde))
+    for idx in obs_groups:
+        cols = lin.columns[idx[0]]
+        keep = cols >= 0
+        if not keep.any():
+            continue
+        a = np.einsum("nji,njq->niq", chol[idx], lin.values[idx][:, :, keep]).reshape(-1, int(keep.sum()))
+        c = cols[keep]
+        N[np.ix_(c, c)] += a.T @ a
+    if multi.any():
+        _subtract_shared_points(N, b, lin, multi, K, bg, P, n_unknowns)
+    return System(N, b, K, bg, cost)
+
+
+def _chol2(p: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factors L (n,2,2) of symmetric positive (semi)definite 2x2 matrices
+    (L L' = p); semidefinite ones (a fully absorbed observation) get zeros where needed."""
+    a, b, c = p[:, 0, 0], p[:, 0, 1], p[:, 1, 1]
+    l11 = np.sqrt(np.maximum(a, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        l21 = np.where(l11 > 0, b / l11, 0.0)
+    l22 = np.sqrt(np.maximum(c - l21 * l21, 0.0))
+    out = np.zeros_like(p)
+    out[:, 0, 0], out[:, 1, 0], out[:, 1, 1] = l11, l21, l22
+    return out
+
+
+def _subtract_shared_points(N, b, lin, multi, K, bg, P, n_unknowns) -> None:
+    """Schur complement of points observed several times: N -= N_pg K N_gp, b -= N_pg K b_g,
+    with N_pg = J_p' P J_g assembled sparse over the points' observations."""
+    idx = np.nonzero(multi)[0]
+    q = lin.columns.shape[1]
+    cols = lin.columns[idx]
+    # J_p' P J_g per observation: (n, q, 3)
+    block = np.einsum("nkq,nkl,nlg->nqg", lin.values[idx], P[idx], lin.jg[idx])
+    pts = lin.point[idx]
+    rows = np.repeat(cols[:, :, None], 3, axis=2)
+    gcol = np.repeat((3 * pts[:, None, None] + np.arange(3)[None, None, :]), q, axis=1)
+    keep = rows >= 0
+    n_pg = sparse.csr_matrix((block[keep], (rows[keep], gcol[keep])), shape=(n_unknowns, 3 * K.shape[0]))
+    used = np.unique(pts)
+    m = K.shape[0]
+    base = 3 * np.arange(m)[:, None, None]
+    k_rows = np.broadcast_to(base + np.arange(3)[None, :, None], (m, 3, 3))
+    k_cols = np.broadcast_to(base + np.arange(3)[None, None, :], (m, 3, 3))
+    k_blocks = sparse.csr_matrix((K.ravel(), (k_rows.ravel(), k_cols.ravel())), shape=(3 * m, 3 * m))
+    w = n_pg @ k_blocks
+    N -= (w @ n_pg.T).toarray()
+    g = np.zeros(3 * K.shape[0])
+    g.reshape(-1, 3)[used] = bg[used]
+    b -= w @ g
+
+
+def back_substitute(lin: Linearization, system: System, dx: np.ndarray) -> np.ndarray:
+    """Ground corrections (m,3): dg = -K (b_g + N_gp dx)."""
+    if system.K.shape[0] == 0:
+        return np.zeros((0, 3))
+    step = np.einsum("nkq,nq->nk", lin.values, np.where(lin.columns >= 0, dx[np.maximum(lin.columns, 0)], 0.0))
+    P = lin.p
+    rhs = system.bg.copy()
+    sel = lin.point >= 0
+    np.add.at(rhs, lin.point[sel], np.einsum("nki,nk->ni", lin.jg[sel], (P * step)[sel]))
+    return -np.einsum("mij,mj->mi", system.K, rhs)

@@ -1,0 +1,207 @@
+"""The unknowns of a bundle adjustment and how they change a scene.
+
+Blocks (values are corrections to the input scene, SI units):
+- ``position``: coefficients (m, 3) of the position-correction basis, ECEF metres;
+- ``attitude``: coefficients (m, 3) of the attitude-angle basis (roll, pitch, yaw), radians,
+  applied in the body frame: rotation = measured @ rotation_from_angles(angles);
+- ``installation``: per camera, (roll, pitch, yaw) rad: installation = nominal @ R(angles);
+- ``chip``: per focal-plane chip ``dx, dy`` (m on the focal plane) and ``theta`` (rad), seed
+  000 eq. 4; per look-angle chip ``ux0, uy0`` (offsets) and ``ux1, uy1`` (change across the
+  chip), radians;
+- ``camera``: per focal-plane camera the 10 terms of seed 001 eq. 7: ``f`` (its df, m),
+  ``dxp, dyp`` (m), ``k1`` (1/m^2), ``k2`` (1/m^4), ``p1, p2`` (1/m), ``b1, b2, b3``.
+
+Names: ``position.X.bias``, ``attitude.pitch.OI3 t=12.0s``, ``<camera>.roll``,
+``<chip>.dx``, ``<camera>.k1``. Trajectory coefficients are always free (onboard GPS and
+star-tracker values enter as pseudo-observations); every other parameter is fixed unless
+the settings make it free or weighted (a pseudo-observation of value 0 with a sigma).
+"""
+from __future__ import annotations
+
+import fnmatch
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..camera import DISTORTION_TERMS
+from ..errors import InputError
+from ..rotations import rotation_from_angles
+from ..sensor import SceneModel
+from ..timebasis import TimeBasis
+from ..trajectory import Platform, TrajectoryCorrection
+
+AXES = ("X", "Y", "Z")
+ANGLES = ("roll", "pitch", "yaw")
+CHIP_TERMS = ("dx", "dy", "theta")
+LOOK_TERMS = ("ux0", "ux1", "uy0", "uy1")
+CAMERA_TERMS = ("f",) + tuple(t for t in DISTORTION_TERMS if t != "df")
+UNITS = {"dx": "m", "dy": "m", "theta": "rad", "ux0": "rad", "ux1": "rad", "uy0": "rad", "uy1": "rad",
+         "f": "m", "dxp": "m", "dyp": "m", "k1": "1/m2", "k2": "1/m4", "p1": "1/m", "p2": "1/m", "b1": "",
+         "b2": "", "b3": "", "roll": "rad", "pitch": "rad", "yaw": "rad"}
+
+
+@dataclass
+class Parameter:
+    """One unknown: name, block, current value (SI), mode ('free', 'fixed', 'weighted'),
+    sigma of its pseudo-observation (weighted), unit; camera/chip indices where relevant."""
+    name: str
+    block: str
+    value: float = 0.0
+    mode: str = "fixed"
+    sigma: float = 0.0
+    unit: str = ""
+    camera: int = -1
+    chip: int = -1
+    term: str = ""
+
+
+def parse_interior(spec: str | list | None) -> list[tuple[str, float | None]]:
+    """Interior/installation selections: comma-separated ``pattern`` (free) or
+    ``pattern=sigma`` (weighted), patterns with shell wildcards matched against parameter
+    names, e.g. ``"HRC-1.*, HRC-3.*, HRC.f=1e-5"``."""
+    if spec is None:
+        return []
+    items = spec if isinstance(spec, list) else [s for s in str(spec).replace(";", ",").split(",")]
+    out = []
+    for item in (s.strip() for s in items):
+        if not item:
+            continue
+        pattern, _, sigma = item.partition("=")
+        if sigma:
+            try:
+                value = float(sigma)
+            except ValueError:
+                raise InputError(f"interior parameter {item!r}: the sigma after '=' must be a number") from None
+            if not value > 0:
+                raise InputError(f"interior parameter {item!r}: the sigma must be positive")
+            out.append((pattern.strip(), value))
+        else:
+            out.append((pattern.strip(), None))
+    return out
+
+
+class ParameterSet:
+    """All unknowns of an adjustment of one scene, with the trajectory bases."""
+
+    def __init__(self, scene: SceneModel, position: TimeBasis, attitude: TimeBasis, interior=None):
+        self.scene = scene
+        self.position_basis = position
+        self.attitude_basis = attitude
+        self.params: list[Parameter] = []
+        for k, label in enumerate(position.labels()):
+            for a, axis in enumerate(AXES):
+                self.params.append(Parameter(f"position.{axis}.{label}", "position", mode="free", unit="m"))
+        for k, label in enumerate(attitude.labels()):
+            for a, angle in enumerate(ANGLES):
+                self.params.append(Parameter(f"attitude.{angle}.{label}", "attitude", mode="free", unit="rad"))
+        for c, cam in enumerate(scene.cameras):
+            for term in ANGLES:
+                self.params.append(Parameter(f"{cam.name}.{term}", "installation", unit="rad", camera=c, term=term))
+            focal = all(ch.kind == "focal_plane" for ch in cam.chips)
+            if focal:
+                for term in CAMERA_TERMS:
+                    self.params.append(Parameter(f"{cam.name}.{term}", "camera", unit=UNITS[term], camera=c,
+                                                 term=term))
+            for k, chip in enumerate(cam.chips):
+                name = chip.name or f"{cam.name}-{k + 1}"
+                for term in (CHIP_TERMS if chip.kind == "focal_plane" else LOOK_TERMS):
+                    self.params.append(Parameter(f"{name}.{term}", "chip", unit=UNITS[term], camera=c, chip=k,
+                                                 term=term))
+        names = [p.name for p in self.params]
+        if len(set(names)) != len(names):
+            raise InputError("the scene's camera and chip names are not unique; parameters cannot be named")
+        self._select(parse_interior(interior))
+        self.index = {p.name: i for i, p in enumerate(self.params)}
+
+    def _select(self, selections) -> None:
+        selectable = [p for p in self.params if p.block not in ("position", "attitude")]
+        for pattern, sigma in selections:
+            hits = [p for p in selectable if fnmatch.fnmatchcase(p.name, pattern)]
+            if not hits:
+                raise InputError(f"interior parameter {pattern!r} matches none of this scene's parameters "
+                                 f"(e.g. {', '.join(p.name for p in selectable[:12])}, ...)")
+            for p in hits:
+                p.mode, p.sigma = ("weighted", sigma) if sigma else ("free", 0.0)
+
+    # --- the unknown vector ------------------------------------------------------------------
+    @property
+    def free(self) -> np.ndarray:
+        """Indices (into params) of the unknowns (free and weighted), in order."""
+        return np.array([i for i, p in enumerate(self.params) if p.mode != "fixed"], dtype=np.int64)
+
+    def values(self) -> np.ndarray:
+        return np.array([p.value for p in self.params])
+
+    def set_values(self, values: np.ndarray) -> None:
+        for p, v in zip(self.params, values):
+            p.value = float(v)
+
+    def fix(self, names) -> None:
+        for n in names:
+            self.params[self.index[n]].mode = "fixed"
+
+    def block_values(self, block: str) -> np.ndarray:
+        """(m, 3) coefficients of the position or attitude block."""
+        return np.array([p.value for p in self.params if p.block == block]).reshape(-1, 3)
+
+    def block_indices(self, block: str) -> np.ndarray:
+        """(m, 3) parameter indices of the position or attitude block."""
+        return np.array([i for i, p in enumerate(self.params) if p.block == block], dtype=np.int64).reshape(-1, 3)
+
+    def camera_indices(self, camera: int, block: str, terms) -> np.ndarray:
+        """Parameter indices (len(terms),) of a camera's installation or camera terms (-1: none)."""
+        return np.array([self.index.get(f"{self.scene.cameras[camera].name}.{t}", -1) for t in terms]
+                        if block in ("installation", "camera") else [], dtype=np.int64)
+
+    def chip_indices(self, camera: int, chip: int) -> tuple[tuple[str, ...], np.ndarray]:
+        """(terms, parameter indices) of one chip."""
+        ch = self.scene.cameras[camera].chips[chip]
+        terms = CHIP_TERMS if ch.kind == "focal_plane" else LOOK_TERMS
+        name = ch.name or f"{self.scene.cameras[camera].name}-{chip + 1}"
+        return terms, np.array([self.index[f"{name}.{t}"] for t in terms], dtype=np.int64)
+
+    # --- the adjusted scene ------------------------------------------------------------------
+    def adjusted_scene(self) -> SceneModel:
+        """A copy of the input scene with the current corrections baked in: the trajectory
+        correction on the platform, chip/camera terms and installation in the cameras."""
+        s = self.scene
+        platform = Platform(s.platform.ephemeris, s.platform.attitude,
+                            TrajectoryCorrection(self.position_basis, self.block_values("position"),
+                                                 self.attitude_basis, self.block_values("attitude")),
+                            s.platform.cache_step)
+        cameras = []
+        for c, cam in enumerate(s.cameras):
+            v = {p.term: p.value for p in self.params if p.camera == c and p.block in ("installation", "camera")}
+            chips = []
+            for k, ch in enumerate(cam.chips):
+                terms, idx = self.chip_indices(c, k)
+                cv = dict(zip(terms, (self.params[i].value for i in idx)))
+                if ch.kind == "focal_plane":
+                    chips.append(replace(ch, x0=ch.x0 + cv["dx"], y0=ch.y0 + cv["dy"], theta=ch.theta + cv["theta"]))
+                else:
+                    chips.append(_shift_look_angles(ch, cv))
+            distortion = dict(cam.distortion)
+            for term in CAMERA_TERMS[1:]:
+                if v.get(term, 0.0) != 0.0:
+                    distortion[term] = distortion.get(term, 0.0) + v[term]
+            cameras.append(replace(cam, chips=chips, focal_length=cam.focal_length + v.get("f", 0.0),
+                                   distortion=distortion,
+                                   installation=cam.installation @ rotation_from_angles(
+                                       v["roll"], v["pitch"], v["yaw"])))
+        return SceneModel(s.epoch, platform, cameras, s.aberration, s.refraction, dict(s.info))
+
+
+def _shift_look_angles(chip, cv: dict):
+    """A look-angle chip with ux += ux0 + ux1 * d/n and likewise uy (d: detector index)."""
+    n = float(chip.n_pixels)
+    if chip.ux_table is not None:
+        d = np.arange(chip.ux_table.size, dtype=float)
+        return replace(chip, ux_table=chip.ux_table + cv["ux0"] + cv["ux1"] * d / n,
+                       uy_table=chip.uy_table + cv["uy0"] + cv["uy1"] * d / n)
+    ux = np.zeros(max(chip.ux_poly.size, 2))
+    uy = np.zeros(max(chip.uy_poly.size, 2))
+    ux[:chip.ux_poly.size] = chip.ux_poly
+    uy[:chip.uy_poly.size] = chip.uy_poly
+    ux[:2] += (cv["ux0"], cv["ux1"] / n)
+    uy[:2] += (cv["uy0"], cv["uy1"] / n)
+    return replace(chip, ux_poly=ux, uy_poly=uy)
