@@ -33,7 +33,8 @@ from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 log = logging.getLogger(__name__)
 
 ROBUST = ("none", "selection", "snooping")
-SINGULAR = 1e-11   # smallest eigenvalue / largest of the correlation-scaled normal matrix
+SINGULAR = 1e-11           # trajectory: smallest / largest eigenvalue of the correlation-scaled matrix
+INTERIOR_SINGULAR = 1e-5   # interior: share of a combination's information left with the trajectory free
 
 
 @dataclass
@@ -245,58 +246,75 @@ def _start_from_existing_correction(scene: SceneModel, params: ParameterSet) -> 
 
 
 # --- determinability ------------------------------------------------------------------------------
-def non_determinable(N: np.ndarray, names: list[str]) -> list[list[tuple[str, float]]]:
-    """Sets of parameters the normal matrix cannot separate: for each (near-)null direction of
-    the correlation-scaled matrix, the parameters taking part, with their weights."""
-    d = np.sqrt(np.diag(N))
-    dead = d <= 0
-    sets = [[(names[i], 1.0)] for i in np.nonzero(dead)[0]]
-    live = np.nonzero(~dead)[0]
-    C = N[np.ix_(live, live)] / np.outer(d[live], d[live])
-    vals, vecs = np.linalg.eigh(C)
-    for k in np.nonzero(vals < SINGULAR * vals[-1])[0]:
-        v = vecs[:, k]
-        big = np.nonzero(np.abs(v) > 0.25 * np.abs(v).max())[0]
-        sets.append([(names[live[i]], float(v[i])) for i in big[np.argsort(-np.abs(v[big]))]])
+def non_determinable(N: np.ndarray, names: list[str], trajectory: np.ndarray) -> list[list[str]]:
+    """Sets of parameters the observations cannot separate, each listed with the most
+    involved first.
+
+    Trajectory: (near-)null directions of the correlation-scaled normal matrix (ratio below
+    SINGULAR). Interior (the rest): directions that keep less than INTERIOR_SINGULAR of their
+    information once the trajectory is free (the Schur complement of the trajectory block,
+    scaled by the interior diagonal), named with the trajectory parameters that absorb them.
+    """
+    d = np.sqrt(np.maximum(np.diag(N), 0.0))
+    dead = np.nonzero(d <= 0)[0]
+    if dead.size:
+        return [[names[i]] for i in dead]
+    C = N / np.outer(d, d)
+    t = np.nonzero(trajectory)[0]
+    vals, vecs = np.linalg.eigh(C[np.ix_(t, t)])
+    sets = [_members(vecs[:, k], t, names) for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
+    if sets or trajectory.all():
+        return sets
+    i = np.nonzero(~trajectory)[0]
+    absorb = np.linalg.solve(C[np.ix_(t, t)], C[np.ix_(t, i)])
+    vals, vecs = np.linalg.eigh(C[np.ix_(i, i)] - C[np.ix_(i, t)] @ absorb)
+    for k in np.nonzero(vals < INTERIOR_SINGULAR)[0]:
+        inner = _members(vecs[:, k], i, names)
+        outer = _members(-absorb @ vecs[:, k], t, names)[:2]
+        sets.append(inner + outer)
     return sets
 
 
-def _choose_to_fix(problem: _Problem, members: list[tuple[str, float]]) -> str | None:
-    """The parameter to fix in a non-determinable set: an interior one, the reference
-    (middle) chip's first, else the one taking the largest part."""
+def _members(v: np.ndarray, index: np.ndarray, names: list[str]) -> list[str]:
+    big = np.nonzero(np.abs(v) > 0.25 * np.abs(v).max())[0]
+    return [names[index[j]] for j in big[np.argsort(-np.abs(v[big]))]]
+
+
+def _choose_to_fix(problem: _Problem, members: list[str]) -> str | None:
+    """The parameter to fix in a non-determinable set: an interior one, preferably of the
+    reference (middle) chip, else the one taking the largest part."""
     params = problem.params
-    interior = [n for n, _ in members if params.params[params.index[n]].block not in ("position", "attitude")]
-    if not interior:
-        return None
+    interior = [n for n in members if params.params[params.index[n]].block not in ("position", "attitude")]
     for n in interior:
         p = params.params[params.index[n]]
         if p.block == "chip" and p.chip == len(problem.scene.cameras[p.camera].chips) // 2:
             return n
-    return interior[0]
+    return interior[0] if interior else None
 
 
 def check_determinability(problem: _Problem, system: System) -> list[dict]:
-    """Find non-determinable parameter sets; fix one parameter of each (or stop). Returns
-    what was found and done, for the report."""
+    """Find non-determinable parameter sets; fix one interior parameter of each (or stop with
+    their names). Returns what was found and done, for the report."""
     found = []
     for _ in range(len(problem.params.params)):
-        names = [problem.params.params[i].name for i in problem.params.free]
-        sets = non_determinable(system.N, names)
+        free = problem.params.free
+        names = [problem.params.params[i].name for i in free]
+        trajectory = np.array([problem.params.params[i].block in ("position", "attitude") for i in free])
+        sets = non_determinable(system.N, names, trajectory)
         if not sets:
             return found
-        for members in sets:
-            chosen = _choose_to_fix(problem, members) if problem.settings.on_singular == "fix" else None
-            listed = ", ".join(n for n, _ in members)
-            if chosen is None:
-                hint = ("" if problem.settings.on_singular == "stop" else
-                        "; no interior parameter is among them: give onboard GPS/attitude sigmas, more or better "
-                        "spread GCPs, or a simpler trajectory model")
-                raise InputError(f"these parameters cannot be determined together from the observations: {listed}"
-                                 f"{hint}")
-            found.append({"parameters": [n for n, _ in members], "fixed": chosen})
-            log.warning("not determinable together: %s; fixed %s", listed, chosen)
-            problem.params.fix([chosen])
-            break  # re-check after each fix: one parameter may resolve several sets
+        members = sets[0]
+        chosen = _choose_to_fix(problem, members) if problem.settings.on_singular == "fix" else None
+        if chosen is None:
+            hint = ("" if problem.settings.on_singular == "stop" and any(
+                problem.params.params[problem.params.index[n]].block not in ("position", "attitude")
+                for n in members) else
+                "; give onboard GPS/attitude sigmas, more or better spread GCPs, or a simpler trajectory model")
+            raise InputError(f"these parameters cannot be determined together from the observations: "
+                             f"{', '.join(members)}{hint}")
+        found.append({"parameters": members, "fixed": chosen})
+        log.warning("not determinable together: %s; fixed %s", ", ".join(members), chosen)
+        problem.params.fix([chosen])
         problem.structure()
         _, system = problem.system()
     return found
