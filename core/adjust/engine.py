@@ -530,8 +530,25 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
     if (~inside[control]).sum() > 0.5 * control.sum():
         raise InputError(f"{int((~inside[control]).sum())} of {int(control.sum())} control points lie outside the "
                          "scene's images: is the GCP layer from another scene?")
+    _check_seen_by_scene(scene, table.select(control))
     _check_spread(scene, table, control)
     return table
+
+
+def _check_seen_by_scene(scene: SceneModel, control: GcpTable) -> None:
+    """Most control points' ground positions must project into the scene's images: onboard
+    errors move them by hundreds of pixels, another scene by its whole size."""
+    seen = np.zeros(len(control), bool)
+    for c, cam in enumerate(scene.cameras):
+        m = control.camera == cam.name
+        if m.any():
+            col, row = scene.ground_to_image(control.select(m).ecef(), c)
+            seen[m] = (col > -0.5 * cam.cols) & (col < 1.5 * cam.cols) & (row > -0.5 * cam.rows) & \
+                (row < 1.5 * cam.rows)
+    if seen.mean() < 0.5:
+        raise InputError(f"the ground positions of {int((~seen).sum())} of {len(control)} control points are far "
+                         "outside this scene's images (more than half an image away): is the GCP layer from "
+                         "another scene?")
 
 
 def _check_spread(scene: SceneModel, table: GcpTable, control: np.ndarray) -> None:
@@ -628,7 +645,8 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: di
     if checks.size:
         points["res_col"][checks], points["res_row"][checks] = after["residuals"][:, 0], after["residuals"][:, 1]
     points["res_px"] = np.hypot(points["res_col"], points["res_row"])
-    good = ~flagged
+    # Robust runs leave their flagged observations out of the residual figures; plain ones keep all.
+    good = ~flagged if problem.settings.robust != "none" else np.ones_like(flagged)
     chi2_lo, chi2_hi = stats.chi2.ppf([0.025, 0.975], st.dof) / st.dof
     report = {
         "settings": asdict(problem.settings),
