@@ -27,13 +27,14 @@ from ..geodesy import enu_rotations, geodetic_to_ecef
 from ..sensor import SceneModel
 from ..timebasis import TimeBasis
 from .model import Jacobian, Model, build_observations
-from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups
+from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, sum_by_point
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 
 log = logging.getLogger(__name__)
 
 ROBUST = ("none", "selection", "snooping")
 SINGULAR = 1e-11           # trajectory: smallest / largest eigenvalue of the correlation-scaled matrix
+STEP_TOLERANCE = 1e-4     # px: a step changing no image residual more than this is converged
 INTERIOR_SINGULAR = 1e-5   # interior: share of a combination's information left with the trajectory free
 
 
@@ -341,31 +342,34 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
                 if lam > 1e12:
                     raise ConvergenceError(_not_converged(history, "the normal matrix is not positive definite"))
                 continue
+            change = _image_change(lin, dx)
+            if change < STEP_TOLERANCE:  # at the optimum already: rounding decides the cost, not the step
+                return {"iterations": history, "system": system, "linearization": lin}
             saved = (problem.params.values(), problem.ground.copy())
             problem.step(lin, system, dx)
             new_cost = problem.cost()
-            if new_cost <= cost * (1 + 1e-12):
+            if new_cost <= cost * (1 + 1e-9):
                 break
             problem.params.set_values(saved[0])
             problem.ground = saved[1]
             lam *= 10.0
             if lam > 1e12:
                 raise ConvergenceError(_not_converged(history, "no step reduces the residuals"))
-        change = float(np.max(np.abs(np.einsum("nkq,nq->nk", lin.values,
-                                                np.where(lin.columns >= 0, dx[np.maximum(lin.columns, 0)], 0.0))),
-                              initial=0.0))
         history.append({"iteration": it + 1, "cost": new_cost, "max_image_change_px": change, "damping": lam})
         log.info("%siteration %d: weighted squared residuals %.6g, largest image change %.2e px", label, it + 1,
                  new_cost, change)
         progress(min(0.9, 0.1 + 0.08 * (it + 1)), f"{label}iteration {it + 1}: cost {new_cost:.6g}")
-        done = change < 1e-4 or abs(cost - new_cost) <= 1e-12 * max(cost, 1e-300)
         cost = new_cost
         lam = max(lam / 10.0, 1e-9)
         lin, system = problem.system()
-        if done:
-            return {"iterations": history, "system": system, "linearization": lin}
     raise ConvergenceError(_not_converged(history, f"still changing after {problem.settings.max_iterations} "
                                                    "iterations"))
+
+
+def _image_change(lin: Linearization, dx: np.ndarray) -> float:
+    """Largest change (px) a parameter step makes to an image residual, to first order."""
+    step = np.einsum("nkq,nq->nk", lin.values, np.where(lin.columns >= 0, dx[np.maximum(lin.columns, 0)], 0.0))
+    return float(np.max(np.abs(step), initial=0.0))
 
 
 def _not_converged(history: list[dict], why: str) -> str:
@@ -413,7 +417,8 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
             continue
         c = lin.columns[idx[0]][keep]
         A = lin.values[idx][:, :, keep]
-        G[idx] = np.einsum("nkq,qr,nlr->nkl", A, Q[np.ix_(c, c)], A)
+        AQ = (A.reshape(-1, c.size) @ Q[np.ix_(c, c)]).reshape(A.shape)
+        G[idx] = np.einsum("nkq,nlq->nkl", AQ, A)
     eye = np.eye(2)
     h += np.einsum("nij,njk,nik->ni", eye - B, G, eye - B)
     redundancy = np.clip(1.0 - h * lin.p, 0.0, 1.0)
@@ -421,8 +426,8 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
     components = {"image": _component(lin.p * v * v, redundancy)}
     if problem.weighted:
         m = np.einsum("nij,njk->nik", system.K[np.maximum(lin.point, 0)], np.einsum("nki,nkl->nil", lin.jg, P))
-        qgg = system.K.copy()
-        np.add.at(qgg, lin.point[weighted], (m @ G @ np.swapaxes(m, 1, 2))[weighted])
+        qgg = system.K + sum_by_point(lin.point[weighted], (m @ G @ np.swapaxes(m, 1, 2))[weighted],
+                                      system.K.shape[0])
         e = np.einsum("mij,mj->mi", problem.enu, problem.ground - problem.ground0)
         w_enu = np.einsum("mii->mi", np.einsum("mij,mjk,mlk->mil", problem.enu, problem.ground_weight, problem.enu))
         r_g = np.clip(1.0 - np.einsum("mij,mjk,mik->mi", problem.enu, qgg, problem.enu) * w_enu, 0.0, 1.0)
@@ -462,11 +467,14 @@ def robust_weights(problem: _Problem, st: Statistics) -> float:
     crit = _critical(problem.settings.alpha)
     old = problem.factor.copy()
     if problem.settings.robust == "selection":
-        # Li Deren's selection weights: rows whose normalised residual (with the estimated
-        # sigma0) exceeds the critical value get the weight of their posterior variance.
+        # Li Deren's selection weights: rows whose normalised residual exceeds the critical
+        # value get the weight of their posterior variance. The scale is robust (1.4826 MAD of
+        # the normalised residuals): sigma0 of a first pass is inflated by the gross errors
+        # themselves and would hide most of them.
+        scale = max(1.4826 * float(np.median(np.abs(st.w[st.redundancy > 1e-6]))), 1e-12)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.abs(st.w) / st.sigma0
-            ratio = np.where(t > crit, st.sigma0 ** 2 * st.redundancy * problem.obs.sigma[:, None] ** 2
+            t = np.abs(st.w) / scale
+            ratio = np.where(t > crit, scale ** 2 * st.redundancy * problem.obs.sigma[:, None] ** 2
                              / np.maximum(st.v * st.v, 1e-300), 1.0)
         problem.factor = np.repeat(np.clip(ratio.min(axis=1), 1e-8, 1.0)[:, None], 2, axis=1)
     elif problem.settings.robust == "snooping":
@@ -479,32 +487,56 @@ def robust_weights(problem: _Problem, st: Statistics) -> float:
 
 
 # --- accuracy -------------------------------------------------------------------------------------------
-def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray) -> dict:
+def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float) -> dict:
     """Check-point accuracy of a scene: ground -> image residuals (px) and image -> ground at
-    the known height in a local east-north frame (m): RMSE per axis, max, CE90."""
+    the known height in a local east-north frame (m): RMSE per axis, max, CE90.
+
+    Figures over all check points, and again without the blunders: check points whose image
+    residual exceeds the critical value (at ``alpha``) of what their own sigmas allow (image
+    sigma and ground sigma over the GSD, per axis). A model error makes many points exceed it:
+    compare both figures before trusting either.
+    """
     if rows.size == 0:
         return {"points": 0}
     res = np.full((rows.size, 2), np.nan)
     en = np.full((rows.size, 2), np.nan)
-    ground = geodetic_to_ecef(table.lon[rows], table.lat[rows], table.h[rows])
+    allowed = np.full(rows.size, np.nan)
+    sub = table.select(rows)
+    ground = sub.ecef()
+    crit = _critical(alpha)
     for c, cam in enumerate(scene.cameras):
-        m = table.camera[rows] == cam.name
+        m = sub.camera == cam.name
         if not m.any():
             continue
         col, row = scene.ground_to_image(ground[m], c)
-        res[m] = np.stack([col - table.col[rows][m], row - table.row[rows][m]], axis=1)
-        seen = scene.image_to_ground(table.col[rows][m], table.row[rows][m], table.h[rows][m], c)
-        rot = enu_rotations(table.lon[rows][m], table.lat[rows][m])
-        en[m] = np.einsum("nij,nj->ni", rot, seen - ground[m])[:, :2]
+        res[m] = np.stack([col - sub.col[m], row - sub.row[m]], axis=1)
+        seen = scene.image_to_ground(sub.col[m], sub.row[m], sub.h[m], c)
+        en[m] = np.einsum("nij,nj->ni", enu_rotations(sub.lon[m], sub.lat[m]), seen - ground[m])[:, :2]
+        allowed[m] = crit * np.hypot(sub.sigma_px[m], np.maximum(sub.sigma_xy[m], sub.sigma_z[m]) / _gsd(scene, c))
+    flagged = ~(np.abs(res) <= allowed[:, None]).all(axis=1)
+    return {"points": int(rows.size), **_figures(res, en), "blunders": int(flagged.sum()),
+            "without_blunders": _figures(res[~flagged], en[~flagged]),
+            "residuals": res, "en": en, "is_flagged": flagged}
+
+
+def _figures(res: np.ndarray, en: np.ndarray) -> dict:
+    """RMSE per axis, max and CE90 of image residuals (n,2) px and ground errors (n,2) m."""
+    if res.shape[0] == 0:
+        return {"image": None, "ground": None}
     horizontal = np.hypot(en[:, 0], en[:, 1])
     px = np.hypot(res[:, 0], res[:, 1])
-    rms = lambda a: float(np.sqrt(np.nanmean(a * a)))  # noqa: E731
-    return {"points": int(rows.size),
-            "image": {"rmse_col": rms(res[:, 0]), "rmse_row": rms(res[:, 1]), "rmse": rms(px),
-                      "max": float(np.nanmax(px))},
+    rms = lambda a: float(np.sqrt(np.mean(a * a)))  # noqa: E731
+    return {"image": {"rmse_col": rms(res[:, 0]), "rmse_row": rms(res[:, 1]), "rmse": rms(px), "max": float(px.max())},
             "ground": {"rmse_east": rms(en[:, 0]), "rmse_north": rms(en[:, 1]), "rmse": rms(horizontal),
-                       "max": float(np.nanmax(horizontal)), "ce90": float(np.nanpercentile(horizontal, 90))},
-            "residuals": res, "en": en}
+                       "max": float(horizontal.max()), "ce90": float(np.percentile(horizontal, 90))}}
+
+
+def _gsd(scene: SceneModel, camera: int) -> float:
+    """Ground sample distance (m): the distance between neighbouring pixels at the image centre."""
+    cam = scene.cameras[camera]
+    c, r = np.array([cam.cols / 2, cam.cols / 2 + 1]), np.array([cam.rows / 2, cam.rows / 2])
+    g = scene.image_to_ground(c, r, float(np.mean(scene.height_range)), camera)
+    return float(np.linalg.norm(g[1] - g[0]))
 
 
 # --- the whole adjustment ----------------------------------------------------------------------------------
@@ -593,11 +625,15 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
         st = statistics(problem, result["linearization"], result["system"])
         if settings.robust == "none":
             break
+        before = problem.factor[:, 0] < 1.0
         change = robust_weights(problem, st)
-        down = int(np.sum(problem.factor[:, 0] < 0.999))
-        robust_log.append({"pass": k + 1, "sigma0": st.sigma0, "down_weighted": down, "largest_change": change})
-        log.info("robust pass %d: sigma0 %.3f, %d observations down-weighted", k + 1, st.sigma0, down)
-        if change < 1e-3:
+        after = problem.factor[:, 0] < 1.0
+        robust_log.append({"pass": k + 1, "sigma0": st.sigma0, "down_weighted": int(after.sum()),
+                           "largest_change": change})
+        log.info("robust pass %d: sigma0 %.3f, %d observations down-weighted", k + 1, st.sigma0, int(after.sum()))
+        # Done when no observation changes side: the weights of the down-weighted ones only
+        # follow their (already large) residuals and no longer move the solution.
+        if change < 1e-3 or (k > 0 and np.array_equal(before, after)):
             break
     progress(0.92, "evaluating check points")
     adjusted = problem.params.adjusted_scene()
@@ -640,10 +676,11 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: di
     points["weight"][rows] = problem.factor[:, 0]
     points["flagged"][rows] = flagged
     checks = np.nonzero(table.role == "check")[0]
-    after = accuracy(adjusted, table, checks)
-    before = accuracy(problem.scene, table, checks)
+    after = accuracy(adjusted, table, checks, problem.settings.alpha)
+    before = accuracy(problem.scene, table, checks, problem.settings.alpha)
     if checks.size:
         points["res_col"][checks], points["res_row"][checks] = after["residuals"][:, 0], after["residuals"][:, 1]
+        points["flagged"][checks] = after["is_flagged"]
     points["res_px"] = np.hypot(points["res_col"], points["res_row"])
     # Robust runs leave their flagged observations out of the residual figures; plain ones keep all.
     good = ~flagged if problem.settings.robust != "none" else np.ones_like(flagged)
@@ -669,8 +706,8 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: di
             f"{c.name}/{ch.name or k + 1}": _residual_summary(st.v[good & (problem.obs.camera == ci)
                                                                     & (problem.obs.chip == k)])
             for ci, c in enumerate(problem.scene.cameras) for k, ch in enumerate(c.chips)},
-        "check_points": {k: v for k, v in after.items() if k not in ("residuals", "en")},
-        "check_points_before": {k: v for k, v in before.items() if k not in ("residuals", "en")},
+        "check_points": {k: v for k, v in after.items() if k not in ("residuals", "en", "is_flagged")},
+        "check_points_before": {k: v for k, v in before.items() if k not in ("residuals", "en", "is_flagged")},
         "trajectory": _trajectory_curves(problem),
     }
     return AdjustmentResult(adjusted, report, points)

@@ -27,6 +27,7 @@ from .. import corrections as corr
 from ..geodesy import ecef_to_geodetic, up_vector
 from ..rotations import rotation_and_derivatives
 from ..sensor import SceneModel
+from ..trajectory import Platform
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 
 
@@ -63,7 +64,10 @@ class ImageObservations:
         """The same observations imaged at other times t (measured state and windows redone)."""
         out = self.select(slice(None))
         out.t = t
-        out.pos, out.vel, out.rot = platform.measured_state(t)
+        # The measured trajectory alone, tabulated (1 ms steps) rather than Lagrange per point.
+        measured = Platform(platform.ephemeris, platform.attitude, cache_step=platform.cache_step)
+        measured.prepare(float(t.min()), float(t.max()))
+        out.pos, out.vel, out.rot = measured.state(t)
         out.pos_first, out.pos_weights = params.position_basis.window(t)
         out.att_first, out.att_weights = params.attitude_basis.window(t)
         return out
@@ -146,13 +150,14 @@ class Model:
 
     # --- the pieces --------------------------------------------------------------------------
     def platform(self, obs: ImageObservations):
-        """(S (n,3), R (n,3,3), E (n,3,3), dE (n,3,3,3)) at the observations."""
+        """(S (n,3) corrected position, E (n,3,3) attitude correction and dE (n,3,3,3) its
+        derivatives by (roll, pitch, yaw)) at the observations."""
         S = obs.pos + np.einsum("nw,nwa->na", obs.pos_weights,
                                 self.cp[obs.pos_first[:, None] + np.arange(obs.pos_weights.shape[1])])
         angles = np.einsum("nw,nwa->na", obs.att_weights,
                            self.ca[obs.att_first[:, None] + np.arange(obs.att_weights.shape[1])])
         E, dE = rotation_and_derivatives(angles)
-        return S, obs.rot @ E, E, dE
+        return S, E, dE
 
     def detector(self, obs: ImageObservations, with_jacobian: bool = False):
         """Detector (ux, uy) (n,2) and, with_jacobian, d/d chip terms (n,2,4) and d/d camera
@@ -199,34 +204,40 @@ class Model:
                 Jacobian(*(scale(getattr(jac, f.name)) for f in fields(Jacobian))))
 
     def _evaluate(self, obs: ImageObservations, x: np.ndarray, with_jacobian: bool):
-        S, R, E, dE = self.platform(obs)
+        S, E, dE = self.platform(obs)
         lon, lat, h = ecef_to_geodetic(x)
         g = corr.apparent_direction(x, S, obs.vel, up_vector(lon, lat), h, self.scene.aberration,
                                     self.scene.refraction) * np.linalg.norm(x - S, axis=1, keepdims=True)
-        inst, d_inst = rotation_and_derivatives(self.inst[obs.camera])
-        mount = np.stack([c.installation for c in self.scene.cameras])[obs.camera] @ inst  # camera -> body
-        v_body = np.einsum("nji,nj->ni", R, g)  # R^T g
-        w = np.einsum("nji,nj->ni", mount, v_body)  # mount^T v_body
+        q = np.einsum("nji,nj->ni", obs.rot, g)          # measured body frame
+        y = np.einsum("nji,nj->ni", E, q)                # corrected body frame: w = mount^T y
+        n = len(obs)
+        w = np.empty((n, 3))
+        dw_angles = np.empty((n, 3, 3)) if with_jacobian else None   # [n, angle, w component]
+        dw_inst = np.empty((n, 3, 3)) if with_jacobian else None
+        dw_ground = np.empty((n, 3, 3)) if with_jacobian else None   # [n, X component, w component]
+        for c, cam in enumerate(self.scene.cameras):
+            m = np.nonzero(obs.camera == c)[0]
+            if m.size == 0:
+                continue
+            inst, d_inst = rotation_and_derivatives(self.inst[c])
+            mount = cam.installation @ inst                 # camera -> body
+            w[m] = y[m] @ mount
+            if with_jacobian:
+                for a in range(3):
+                    dw_angles[m, a] = np.einsum("nji,nj->ni", dE[m, a], q[m]) @ mount
+                    dw_inst[m, a] = (y[m] @ cam.installation) @ d_inst[a]
+                dw_ground[m] = (obs.rot[m] @ E[m]) @ mount
         proj = w[:, :2] / w[:, 2:3]
         det, j_chip, j_cam = self.detector(obs, with_jacobian)
         r_u = proj - det
         if not with_jacobian:
             return r_u, None
-        # d(ux, uy)/dw
-        gw = np.zeros((len(obs), 2, 3))
-        gw[:, 0, 0] = gw[:, 1, 1] = 1.0 / w[:, 2]
-        gw[:, :, 2] = -proj / w[:, 2:3]
-        m_t = np.swapaxes(mount, 1, 2) @ np.swapaxes(R, 1, 2)  # w = m_t @ g
-        j_ground = gw @ m_t
-        q = np.einsum("nji,nj->ni", obs.rot, g)  # R_m^T g: w = mount^T E^T q
-        mount_t = np.swapaxes(mount, 1, 2)
-        j_angles = np.stack([np.einsum("nij,nj->ni", gw, np.einsum("nij,nkj,nk->ni", mount_t, dE[:, a], q))
-                             for a in range(3)], axis=2)
-        base = np.stack([c.installation for c in self.scene.cameras])[obs.camera]
-        v_cam0 = np.einsum("nji,nj->ni", base, v_body)  # base^T v_body: w = inst^T v_cam0
-        j_inst = np.stack([np.einsum("nij,nj->ni", gw, np.einsum("nkj,nk->nj", d_inst[:, a], v_cam0))
-                           for a in range(3)], axis=2)
-        return r_u, Jacobian(-j_ground, j_angles, j_inst, j_ground, -j_chip, -j_cam)
+
+        def projected(dw):  # d(ux, uy) from d(w) (..., 3) -> (n, 2, k)
+            return (dw[:, :, :2] - proj[:, None, :] * dw[:, :, 2:3]).transpose(0, 2, 1) / w[:, 2, None, None]
+
+        j_ground = projected(dw_ground)
+        return r_u, Jacobian(-j_ground, projected(dw_angles), projected(dw_inst), j_ground, -j_chip, -j_cam)
 
 
 def _focal_plane(cam, chip, terms, cam_terms, d, with_jacobian):

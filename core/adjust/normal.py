@@ -76,13 +76,12 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
     p_tilde, r_tilde = P, lin.r
     if n_points:
         cost += float(np.einsum("mi,mij,mj->", prior.misfit, prior.weight, prior.misfit))
-        counts = np.bincount(lin.point[lin.point >= 0], minlength=n_points)
-        jtp = np.einsum("nki,nkl->nil", lin.jg, P)                         # J_g' P (n,3,2)
-        ngg = prior.weight.copy()
-        np.add.at(ngg, lin.point[lin.point >= 0], (jtp @ lin.jg)[lin.point >= 0])
-        bg = prior.weight @ prior.misfit[:, :, None]
-        bg = bg[:, :, 0]
-        np.add.at(bg, lin.point[lin.point >= 0], np.einsum("nil,nl->ni", jtp, lin.r)[lin.point >= 0])
+        seen = lin.point >= 0
+        counts = np.bincount(lin.point[seen], minlength=n_points)
+        jtp = lin.jg.transpose(0, 2, 1) * lin.p[:, None, :]                # J_g' P (n,3,2)
+        ngg = prior.weight + sum_by_point(lin.point[seen], (jtp @ lin.jg)[seen], n_points)
+        bg = np.einsum("mij,mj->mi", prior.weight, prior.misfit) + \
+            sum_by_point(lin.point[seen], np.einsum("nil,nl->ni", jtp, lin.r)[seen], n_points)
         K = np.linalg.inv(ngg)
         single = (lin.point >= 0) & (counts[np.maximum(lin.point, 0)] == 1)
         if single.any():
@@ -112,6 +111,13 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
     if multi.any():
         _subtract_shared_points(N, b, lin, multi, K, bg, P, n_unknowns)
     return System(N, b, K, bg, cost)
+
+
+def sum_by_point(point: np.ndarray, values: np.ndarray, n_points: int) -> np.ndarray:
+    """Sums of per-observation arrays values (n, ...) over the observations of each point."""
+    flat = values.reshape(values.shape[0], -1)
+    out = np.stack([np.bincount(point, weights=flat[:, k], minlength=n_points) for k in range(flat.shape[1])], 1)
+    return out.reshape((n_points,) + values.shape[1:])
 
 
 def _chol2(p: np.ndarray) -> np.ndarray:
@@ -158,8 +164,7 @@ def back_substitute(lin: Linearization, system: System, dx: np.ndarray) -> np.nd
     if system.K.shape[0] == 0:
         return np.zeros((0, 3))
     step = np.einsum("nkq,nq->nk", lin.values, np.where(lin.columns >= 0, dx[np.maximum(lin.columns, 0)], 0.0))
-    P = lin.p
-    rhs = system.bg.copy()
     sel = lin.point >= 0
-    np.add.at(rhs, lin.point[sel], np.einsum("nki,nk->ni", lin.jg[sel], (P * step)[sel]))
+    rhs = system.bg + sum_by_point(lin.point[sel], np.einsum("nki,nk->ni", lin.jg[sel], (lin.p * step)[sel]),
+                                   system.K.shape[0])
     return -np.einsum("mij,mj->mi", system.K, rhs)

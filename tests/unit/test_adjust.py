@@ -73,17 +73,17 @@ def test_analytic_jacobian_matches_central_differences(tmp_path, preset, interio
         col = problem.unknown[j]
         mine = np.where((problem.columns == col)[:, None, :], analytic, 0.0).sum(axis=2)
         scale = np.abs(numeric).max()
-        if scale == 0:
-            assert np.abs(mine).max() == 0, params.params[j].name
-            continue
-        assert np.abs(mine - numeric).max() < 2e-4 * scale, params.params[j].name
+        # Aberration and refraction are held fixed in the analytic derivatives: an O(v/c) =
+        # 2.5e-5 relative effect (measured worst 9e-5, on position terms).
+        # 1e-8 px: rounding in differences of residuals of hundreds of pixels
+        assert np.abs(mine - numeric).max() < 3e-4 * scale + 1e-8, params.params[j].name
     # ground derivatives
     for a in range(3):
         xp, xm = x.copy(), x.copy()
         xp[:, a] += 0.01
         xm[:, a] -= 0.01
         numeric = (Model(scene, params).residuals(problem.obs, xp) - Model(scene, params).residuals(problem.obs, xm)) / 0.02
-        assert np.abs(jac.ground[:, :, a] - numeric).max() < 2e-4 * np.abs(numeric).max()
+        assert np.abs(jac.ground[:, :, a] - numeric).max() < 3e-4 * np.abs(numeric).max()
 
 
 # --- recovery ------------------------------------------------------------------------------------------
@@ -174,10 +174,14 @@ def test_gross_errors_are_flagged_and_do_not_spoil_the_solution(tmp_path, cbers,
     assert flagged[control & ~gross].mean() <= 0.01
     _, scene, clean_table, _ = cbers
     clean = adjust(scene, clean_table, AdjustmentSettings(interior=CBERS_CHIPS, robust="none")).report
-    # check points with gross errors are not evaluated as accuracy: compare the good ones
-    checks = (table.role == "check") & ~gross
-    res = np.hypot(out.points["res_col"][checks], out.points["res_row"][checks])
-    assert np.sqrt(np.mean(res ** 2)) < 1.1 * clean["check_points"]["image"]["rmse"]
+    # check points with gross errors are flagged and left out of the accuracy figures
+    checks = table.role == "check"
+    assert flagged[checks & gross].mean() >= 0.98 and flagged[checks & ~gross].mean() <= 0.01
+    assert out.report["check_points"]["blunders"] == int(flagged[checks].sum())
+    assert clean["check_points"]["blunders"] <= 0.005 * checks.sum()  # two axes at alpha 0.001: ~0.2%
+    robust = out.report["check_points"]["without_blunders"]
+    assert robust["image"]["rmse"] < 1.1 * clean["check_points"]["image"]["rmse"]
+    assert robust["ground"]["rmse"] < 1.1 * clean["check_points"]["ground"]["rmse"]
 
 
 # --- bad input ---------------------------------------------------------------------------------------------
