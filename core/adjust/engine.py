@@ -34,7 +34,7 @@ log = logging.getLogger(__name__)
 
 ROBUST = ("none", "selection", "snooping")
 SINGULAR = 1e-11           # trajectory: smallest / largest eigenvalue of the correlation-scaled matrix
-STEP_TOLERANCE = 1e-4     # px: a step changing no image residual more than this is converged
+STEP_TOLERANCE = 1e-3     # px: a step changing no image residual more than this is converged
 INTERIOR_SINGULAR = 1e-5   # interior: share of a combination's information left with the trajectory free
 
 
@@ -146,16 +146,19 @@ class _Problem:
                 chip[(obs.camera == c) & (obs.chip == k), :idx.size] = idx
         cols += [inst[obs.camera], chip, cams[obs.camera]]
         param_cols = np.concatenate(cols, axis=1)
-        self.columns = np.where(param_cols >= 0, self.unknown[np.maximum(param_cols, 0)], -1)
+        columns = np.where(param_cols >= 0, self.unknown[np.maximum(param_cols, 0)], -1)
+        # Only the column slots some observation uses (fixed terms cost nothing then).
+        self.slots = np.nonzero((columns >= 0).any(axis=0))[0]
+        self.columns = columns[:, self.slots]
         self.groups = groups(self.columns)
 
     def values(self, jac: Jacobian) -> np.ndarray:
         """Jacobian values (n, 2, q) in the column layout of :meth:`structure`."""
         obs = self.obs
-        blocks = [np.einsum("nka,nw->nkwa", jac.S, obs.pos_weights).reshape(len(obs), 2, -1),
-                  np.einsum("nka,nw->nkwa", jac.angles, obs.att_weights).reshape(len(obs), 2, -1),
+        blocks = [(jac.S[:, :, None, :] * obs.pos_weights[:, None, :, None]).reshape(len(obs), 2, -1),
+                  (jac.angles[:, :, None, :] * obs.att_weights[:, None, :, None]).reshape(len(obs), 2, -1),
                   jac.installation, jac.chip, jac.camera]
-        return np.concatenate(blocks, axis=2)
+        return np.concatenate(blocks, axis=2)[:, :, self.slots]
 
     # --- one linearisation --------------------------------------------------------------------
     def weights(self) -> np.ndarray:
@@ -323,8 +326,10 @@ def check_determinability(problem: _Problem, system: System) -> list[dict]:
 
 # --- the solution ------------------------------------------------------------------------------------
 def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
-    """Levenberg-Marquardt iterations to convergence; returns the iteration log."""
-    lam = 1e-6
+    """Gauss-Newton iterations to convergence, damped (Levenberg-Marquardt) only after a step
+    that fails: damping slows the weakly determined directions (position against attitude,
+    eigenvalue ratios ~1e-8) to linear convergence. Returns the iteration log."""
+    lam = 0.0
     history = []
     lin, system = problem.system()
     cost = system.cost
@@ -338,7 +343,7 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
                 factor = linalg.cho_factor(system.N + lam * np.diag(D), check_finite=False)
                 dx = -linalg.cho_solve(factor, system.b, check_finite=False)
             except linalg.LinAlgError:
-                lam *= 10.0
+                lam = max(10.0 * lam, 1e-9)
                 if lam > 1e12:
                     raise ConvergenceError(_not_converged(history, "the normal matrix is not positive definite"))
                 continue
@@ -352,7 +357,7 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
                 break
             problem.params.set_values(saved[0])
             problem.ground = saved[1]
-            lam *= 10.0
+            lam = max(10.0 * lam, 1e-9)
             if lam > 1e12:
                 raise ConvergenceError(_not_converged(history, "no step reduces the residuals"))
         history.append({"iteration": it + 1, "cost": new_cost, "max_image_change_px": change, "damping": lam})
@@ -360,7 +365,7 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
                  new_cost, change)
         progress(min(0.9, 0.1 + 0.08 * (it + 1)), f"{label}iteration {it + 1}: cost {new_cost:.6g}")
         cost = new_cost
-        lam = max(lam / 10.0, 1e-9)
+        lam = lam / 10.0 if lam > 1e-9 else 0.0
         lin, system = problem.system()
     raise ConvergenceError(_not_converged(history, f"still changing after {problem.settings.max_iterations} "
                                                    "iterations"))

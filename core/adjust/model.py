@@ -199,7 +199,11 @@ class Model:
         """(residuals (n,2) px, Jacobian in px per parameter unit)."""
         r_u, jac = self._evaluate(obs, x, True)
         T = obs.T
-        scale = lambda a: np.einsum("nij,njk->nik", T, a)  # noqa: E731
+
+        def scale(a):  # T @ a for (n,2,k) blocks, written out: 2x2 products are memory-bound
+            return np.stack([T[:, 0, 0, None] * a[:, 0] + T[:, 0, 1, None] * a[:, 1],
+                             T[:, 1, 0, None] * a[:, 0] + T[:, 1, 1, None] * a[:, 1]], axis=1)
+
         return (np.einsum("nij,nj->ni", T, r_u),
                 Jacobian(*(scale(getattr(jac, f.name)) for f in fields(Jacobian))))
 

@@ -82,7 +82,7 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
         ngg = prior.weight + sum_by_point(lin.point[seen], (jtp @ lin.jg)[seen], n_points)
         bg = np.einsum("mij,mj->mi", prior.weight, prior.misfit) + \
             sum_by_point(lin.point[seen], np.einsum("nil,nl->ni", jtp, lin.r)[seen], n_points)
-        K = np.linalg.inv(ngg)
+        K = inverse3(ngg)
         single = (lin.point >= 0) & (counts[np.maximum(lin.point, 0)] == 1)
         if single.any():
             k = K[lin.point[single]]
@@ -113,8 +113,28 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
     return System(N, b, K, bg, cost)
 
 
+def inverse3(a: np.ndarray) -> np.ndarray:
+    """Inverses of symmetric 3x3 matrices (m,3,3) by their adjugates (np.linalg.inv is ~10x
+    slower on millions of small matrices)."""
+    a00, a01, a02, a11, a12, a22 = a[:, 0, 0], a[:, 0, 1], a[:, 0, 2], a[:, 1, 1], a[:, 1, 2], a[:, 2, 2]
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    out = np.stack([c00, c01, c02, c01, c11, c12, c02, c12, c22], axis=1).reshape(-1, 3, 3)
+    return out / det[:, None, None]
+
+
 def sum_by_point(point: np.ndarray, values: np.ndarray, n_points: int) -> np.ndarray:
     """Sums of per-observation arrays values (n, ...) over the observations of each point."""
+    if point.size == n_points:
+        out = np.zeros((n_points,) + values.shape[1:])
+        out[point] = values
+        if np.array_equal(np.sort(point), np.arange(n_points)):
+            return out  # one observation per point: nothing to sum
     flat = values.reshape(values.shape[0], -1)
     out = np.stack([np.bincount(point, weights=flat[:, k], minlength=n_points) for k in range(flat.shape[1])], 1)
     return out.reshape((n_points,) + values.shape[1:])

@@ -75,8 +75,9 @@ def test_analytic_jacobian_matches_central_differences(tmp_path, preset, interio
         scale = np.abs(numeric).max()
         # Aberration and refraction are held fixed in the analytic derivatives: an O(v/c) =
         # 2.5e-5 relative effect (measured worst 9e-5, on position terms).
-        # 1e-8 px: rounding in differences of residuals of hundreds of pixels
-        assert np.abs(mine - numeric).max() < 3e-4 * scale + 1e-8, params.params[j].name
+        # plus a floor for rounding: residuals of hundreds of px differ by ~1e-12 px at any step
+        # (knots where this scene has no observations have a true derivative of 0)
+        assert np.abs(mine - numeric).max() < 3e-4 * scale + 1e-11 / step, params.params[j].name
     # ground derivatives
     for a in range(3):
         xp, xm = x.copy(), x.copy()
