@@ -107,14 +107,20 @@ class _Problem:
             settings.interior)
         _start_from_existing_correction(scene, self.params)
         control = np.nonzero(table.role == "control")[0]
-        self.rows = control
         ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
         sel = control[first]
         self.ground0 = geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel])
         self.ground = self.ground0.copy()
-        cams = np.array([scene.camera_index(c) for c in table.camera[control]])
-        self.obs = build_observations(scene, self.params, cams, table.col[control], table.row[control], point,
-                                      table.sigma_px[control], self.ground)
+        names = [c.name for c in scene.cameras]
+        cams = np.searchsorted(np.array(sorted(names)), table.camera[control])
+        cams = np.argsort(names)[cams]  # camera indices, vectorised
+        obs = build_observations(scene, self.params, cams, table.col[control], table.row[control], point,
+                                 table.sigma_px[control], self.ground)
+        # Observations sorted by what decides their parameter columns, so that observations
+        # sharing columns are contiguous whatever the free parameters: groups are slices.
+        order = np.lexsort((obs.att_first, obs.pos_first, obs.chip, obs.camera))
+        self.obs = obs.select(order)
+        self.rows = control[order]
         self.weighted = settings.ground == "weighted"
         enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
         w = np.stack([1 / table.sigma_xy[sel] ** 2, 1 / table.sigma_xy[sel] ** 2, 1 / table.sigma_z[sel] ** 2], 1) \
@@ -155,10 +161,19 @@ class _Problem:
     def values(self, jac: Jacobian) -> np.ndarray:
         """Jacobian values (n, 2, q) in the column layout of :meth:`structure`."""
         obs = self.obs
-        blocks = [(jac.S[:, :, None, :] * obs.pos_weights[:, None, :, None]).reshape(len(obs), 2, -1),
-                  (jac.angles[:, :, None, :] * obs.att_weights[:, None, :, None]).reshape(len(obs), 2, -1),
-                  jac.installation, jac.chip, jac.camera]
-        return np.concatenate(blocks, axis=2)[:, :, self.slots]
+        wp, wa = obs.pos_weights.shape[1], obs.att_weights.shape[1]
+        out = np.empty((len(obs), 2, self.slots.size))
+        for j, slot in enumerate(self.slots):
+            if slot < 3 * wp:
+                out[:, :, j] = jac.S[:, :, slot % 3] * obs.pos_weights[:, slot // 3, None]
+            elif slot < 3 * (wp + wa):
+                k = slot - 3 * wp
+                out[:, :, j] = jac.angles[:, :, k % 3] * obs.att_weights[:, k // 3, None]
+            else:
+                k = slot - 3 * (wp + wa)
+                block, k = ((jac.installation, k) if k < 3 else (jac.chip, k - 3) if k < 7 else (jac.camera, k - 7))
+                out[:, :, j] = block[:, :, k]
+        return out
 
     # --- one linearisation --------------------------------------------------------------------
     def weights(self) -> np.ndarray:
@@ -366,9 +381,15 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
         progress(min(0.9, 0.1 + 0.08 * (it + 1)), f"{label}iteration {it + 1}: cost {new_cost:.6g}")
         cost = new_cost
         lam = lam / 10.0 if lam > 1e-9 else 0.0
+        if change < 10 * STEP_TOLERANCE and lam == 0.0:
+            # Gauss-Newton converges quadratically here: the next step would change nothing
+            # measurable. The statistics take the last linearisation with the final residuals.
+            lin.r = problem.residuals()
+            system.cost = new_cost
+            return {"iterations": history, "system": system, "linearization": lin}
         lin, system = problem.system()
-    raise ConvergenceError(_not_converged(history, f"still changing after {problem.settings.max_iterations} "
-                                                   "iterations"))
+    n = problem.settings.max_iterations
+    raise ConvergenceError(_not_converged(history, f"still changing after {n} iteration{'s' * (n != 1)}"))
 
 
 def _image_change(lin: Linearization, dx: np.ndarray) -> float:
@@ -417,10 +438,10 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
         h[weighted] = np.einsum("nij,njk,nik->ni", jg, k, jg)
     G = np.zeros_like(P)
     for idx in problem.groups:
-        keep = lin.columns[idx[0]] >= 0
+        keep = lin.columns[idx.start] >= 0
         if not keep.any():
             continue
-        c = lin.columns[idx[0]][keep]
+        c = lin.columns[idx.start][keep]
         A = lin.values[idx][:, :, keep]
         AQ = (A.reshape(-1, c.size) @ Q[np.ix_(c, c)]).reshape(A.shape)
         G[idx] = np.einsum("nkq,nlq->nkl", AQ, A)

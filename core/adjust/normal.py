@@ -55,15 +55,17 @@ class System:
     cost: float
 
 
-def groups(columns: np.ndarray) -> list[np.ndarray]:
-    """Observation indices grouped by identical column rows."""
-    _, inverse = np.unique(columns, axis=0, return_inverse=True)
-    order = np.argsort(inverse, kind="stable")
-    splits = np.nonzero(np.diff(inverse[order]))[0] + 1
-    return np.split(order, splits)
+def groups(columns: np.ndarray) -> list[slice]:
+    """Runs of consecutive observations with identical column rows (observations are kept
+    sorted so that those sharing columns are adjacent)."""
+    if columns.shape[0] == 0:
+        return []
+    change = np.nonzero(np.any(columns[1:] != columns[:-1], axis=1))[0] + 1
+    bounds = np.r_[0, change, columns.shape[0]]
+    return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs_groups: list[np.ndarray]) -> System:
+def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs_groups: list[slice]) -> System:
     """Reduced normal equations of the image observations (ground eliminated)."""
     N = np.zeros((n_unknowns, n_unknowns))
     b = np.zeros(n_unknowns)
@@ -100,12 +102,15 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
     ok = lin.columns >= 0
     b += np.bincount(lin.columns[ok], weights=contrib[ok], minlength=n_unknowns)
     chol = _chol2(np.where(multi[:, None, None], P, p_tilde))
+    # L' J_p for every observation (L L' = P~), so that N = sum of (L' J_p)' (L' J_p)
+    scaled = chol[:, 0, :, None] * lin.values[:, :1, :] + chol[:, 1, :, None] * lin.values[:, 1:, :]
     for idx in obs_groups:
-        cols = lin.columns[idx[0]]
+        cols = lin.columns[idx.start]
         keep = cols >= 0
         if not keep.any():
             continue
-        a = np.einsum("nji,njq->niq", chol[idx], lin.values[idx][:, :, keep]).reshape(-1, int(keep.sum()))
+        block = scaled[idx]
+        a = (block if keep.all() else block[:, :, keep]).reshape(-1, int(keep.sum()))
         c = cols[keep]
         N[np.ix_(c, c)] += a.T @ a
     if multi.any():
