@@ -23,7 +23,7 @@ from scipy import linalg, stats
 
 from ..errors import Cancelled, ConvergenceError, InputError
 from ..gcps import GcpTable, resolve_cameras
-from ..geodesy import enu_rotations, geodetic_to_ecef
+from ..geodesy import enu_rotations, geodetic_to_ecef, up_vector
 from ..sensor import SceneModel
 from ..timebasis import TimeBasis
 from .model import Jacobian, Model, build_observations
@@ -519,7 +519,8 @@ def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float)
 
     Figures over all check points, and again without the blunders: check points whose image
     residual exceeds the critical value (at ``alpha``) of what their own sigmas allow (image
-    sigma and ground sigma over the GSD, per axis). A model error makes many points exceed it:
+    sigma, planimetric ground sigma over the GSD and the image shift of a height error of
+    sigma_z, per axis). A model error makes many points exceed it:
     compare both figures before trusting either.
     """
     if rows.size == 0:
@@ -538,7 +539,10 @@ def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float)
         res[m] = np.stack([col - sub.col[m], row - sub.row[m]], axis=1)
         seen = scene.image_to_ground(sub.col[m], sub.row[m], sub.h[m], c)
         en[m] = np.einsum("nij,nj->ni", enu_rotations(sub.lon[m], sub.lat[m]), seen - ground[m])[:, :2]
-        allowed[m] = crit * np.hypot(sub.sigma_px[m], np.maximum(sub.sigma_xy[m], sub.sigma_z[m]) / _gsd(scene, c))
+        # a height error moves the image point by its relief displacement only
+        up = ground[m] + sub.sigma_z[m, None] * up_vector(sub.lon[m], sub.lat[m])
+        relief = np.hypot(*(a - b for a, b in zip(scene.ground_to_image(up, c), (col, row))))
+        allowed[m] = crit * np.sqrt(sub.sigma_px[m] ** 2 + (sub.sigma_xy[m] / _gsd(scene, c)) ** 2 + relief ** 2)
     flagged = ~(np.abs(res) <= allowed[:, None]).all(axis=1)
     return {"points": int(rows.size), **_figures(res, en), "blunders": int(flagged.sum()),
             "without_blunders": _figures(res[~flagged], en[~flagged]),
