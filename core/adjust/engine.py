@@ -669,8 +669,14 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
             break
     progress(0.92, "evaluating check points")
     adjusted = problem.params.adjusted_scene()
-    adjusted.info["adjustment"] = {"settings": asdict(settings)}
-    return _result(problem, table, adjusted, result, st, determinability, robust_log)
+    out = _result(problem, table, adjusted, result, st, determinability, robust_log)
+    adjusted.info["adjustment"] = {
+        "settings": asdict(settings), "sigma0": st.sigma0,
+        "parameters": [{k: p[k] for k in ("name", "value", "sigma", "unit", "mode")}
+                       for p in out.report["parameters"] if p["mode"] != "fixed" or p["value"] != 0.0],
+        "determinability": determinability,
+        "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
+    return out
 
 
 def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: dict, st: Statistics,

@@ -11,7 +11,7 @@ from core.adjust import AdjustmentSettings, adjust
 from core.adjust.engine import _Problem, check_inputs
 from core.adjust.model import Model
 from core.errors import ConvergenceError, InputError
-from core.scene_io import load_scene
+from core.scene_io import load_scene, save_scene
 from core.simulator import GcpSettings, simulate
 
 CBERS_CHIPS = "HRC-1.*, HRC-3.*"
@@ -88,7 +88,7 @@ def test_analytic_jacobian_matches_central_differences(tmp_path, preset, interio
 
 
 # --- recovery ------------------------------------------------------------------------------------------
-def test_chip_parameters_are_recovered_and_check_points_reach_the_noise(cbers):
+def test_chip_parameters_are_recovered_and_check_points_reach_the_noise(cbers, tmp_path):
     result, scene, table, manifest = cbers
     out = adjust(scene, table, AdjustmentSettings(interior=CBERS_CHIPS, robust="none"))
     rep = out.report
@@ -106,11 +106,20 @@ def test_chip_parameters_are_recovered_and_check_points_reach_the_noise(cbers):
             p = params[f"{chip}.{term}"]
             assert abs(p["value"] - truth[key]) < 3 * p["sigma"], p["name"]
             assert p["significant"]
-    # the adjusted scene carries it all: its own ground -> image meets the check points
+    # the adjusted scene carries it all: parameters with sigmas and the settings, and its own
+    # ground -> image meets the check points
+    info = out.scene.info["adjustment"]
+    assert info["settings"]["interior"] == CBERS_CHIPS and info["sigma0"] == rep["sigma0"]
+    saved = {p["name"]: p for p in info["parameters"]}
+    assert saved["HRC-1.dx"]["sigma"] == params["HRC-1.dx"]["sigma"] and "HRC-2.dx" not in saved
     checks = table.role == "check"
     col, row = out.scene.ground_to_image(table.select(checks).ecef())
     assert np.sqrt(np.mean((col - table.col[checks]) ** 2)) == pytest.approx(
         rep["check_points"]["image"]["rmse_col"], rel=1e-6)
+    # ... also once written as scene JSON and read back, as every algorithm will read it
+    save_scene(out.scene, tmp_path / "adjusted.json")
+    col2, row2 = load_scene(tmp_path / "adjusted.json").ground_to_image(table.select(checks).ecef())
+    assert np.max(np.hypot(col2 - col, row2 - row)) < 1e-6
 
 
 def test_all_ten_parameters_are_reported_non_determinable_and_the_middle_chip_fixed(cbers):
