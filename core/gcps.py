@@ -35,6 +35,7 @@ from pyproj.exceptions import CRSError
 from .dem import Dem, to_ellipsoidal
 from .errors import InputError
 from .geodesy import geodetic_to_ecef
+from .vector_io import write_layer
 
 gdal.UseExceptions()
 ogr.UseExceptions()
@@ -516,41 +517,19 @@ def _wgs84_3d() -> osr.SpatialReference:
     return srs
 
 
-def write_gpkg(table: GcpTable, path, layer: str = GPKG_LAYER) -> None:
+def write_gpkg(table: GcpTable, path, layer: str = GPKG_LAYER, extra: dict | None = None) -> None:
     """Write the table as a GeoPackage point layer (replacing the file).
 
     Geometry: Point Z (lon, lat, ellipsoidal h) in EPSG:4979. Fields: id, role, camera, col, row,
     h, sigma_px, sigma_xy, sigma_z, res_col, res_row, res_px, res_m, inside (0/1; NULL = not
-    checked). Missing residuals are NULL. The scene file the residuals were computed against
-    is the layer metadata item PUSHBROOM_SCENE.
+    checked), then the ``extra`` columns {name: (n,) array}. Missing values are NULL. The
+    scene file the residuals were computed against is the layer metadata item PUSHBROOM_SCENE.
     """
-    path = Path(path)
-    if path.suffix.lower() != ".gpkg":
-        raise InputError(f"{path}: GCP layers are written as GeoPackage; use a .gpkg file name")
-    drv = ogr.GetDriverByName("GPKG")
-    if path.exists():
-        drv.DeleteDataSource(str(path))
-    ds = drv.CreateDataSource(str(path))
-    lyr = ds.CreateLayer(layer, _wgs84_3d(), ogr.wkbPoint25D, options=["FID=fid"])
-    for name, kind in _GPKG_FIELDS:
-        lyr.CreateField(ogr.FieldDefn(name, kind))
-    if table.scene:
-        lyr.SetMetadataItem(SCENE_METADATA_KEY, table.scene)
-    columns = _gpkg_columns(table)
-    defn = lyr.GetLayerDefn()
-    lyr.StartTransaction()
-    for i in range(len(table)):  # OGR writes feature by feature
-        feat = ogr.Feature(defn)
-        for name, _ in _GPKG_FIELDS:
-            value = columns[name][i]
-            if isinstance(value, str) or np.isfinite(value):
-                feat.SetField(name, value.item() if hasattr(value, "item") else value)
-        geom = ogr.Geometry(ogr.wkbPoint25D)
-        geom.AddPoint(float(table.lon[i]), float(table.lat[i]), float(table.h[i]))
-        feat.SetGeometry(geom)
-        lyr.CreateFeature(feat)
-    lyr.CommitTransaction()
-    ds = None
+    columns = {**_gpkg_columns(table), **(extra or {})}
+    points = (f"POINT Z ({lo!r} {la!r} {h!r})" for lo, la, h in zip(table.lon.tolist(), table.lat.tolist(),
+                                                                       table.h.tolist()))
+    write_layer(path, layer, _wgs84_3d(), ogr.wkbPoint25D, columns, points,
+                {SCENE_METADATA_KEY: table.scene} if table.scene else None)
 
 
 def _gpkg_columns(table: GcpTable) -> dict:
@@ -560,7 +539,7 @@ def _gpkg_columns(table: GcpTable) -> dict:
             "h": table.h, "sigma_px": table.sigma_px, "sigma_xy": table.sigma_xy, "sigma_z": table.sigma_z,
             "res_col": nan if res is None else res.col, "res_row": nan if res is None else res.row,
             "res_px": nan if res is None else res.px, "res_m": nan if res is None else res.m,
-            "inside": nan if res is None else res.inside.astype(float)}
+            "inside": nan if res is None else np.where(res.inside, 1.0, 0.0)}
 
 
 def read_gpkg(path, layer: str | None = None) -> GcpTable:

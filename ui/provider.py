@@ -2,6 +2,7 @@
 from qgis.core import QgsProcessingProvider
 from qgis.PyQt.QtGui import QIcon
 
+from .algorithms.bundleadjust import BundleAdjustAlgorithm
 from .algorithms.footprint import FootprintAlgorithm
 from .algorithms.groundtoimage import GroundToImageAlgorithm
 from .algorithms.imagetoground import ImageToGroundAlgorithm
@@ -9,8 +10,8 @@ from .algorithms.importgcps import ImportGcpsAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .common import RESOURCES
 
-ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, GroundToImageAlgorithm, ImageToGroundAlgorithm,
-              FootprintAlgorithm)
+ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, BundleAdjustAlgorithm, GroundToImageAlgorithm,
+              ImageToGroundAlgorithm, FootprintAlgorithm)
 
 
 class PushbroomProvider(QgsProcessingProvider):

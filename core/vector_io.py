@@ -1,0 +1,62 @@
+"""Writing vector layers with OGR: fields from parallel numpy arrays, one geometry per row.
+
+Types follow the arrays: strings -> String, booleans and integers -> Integer, floats ->
+Real (NaN written as NULL). The file is written under a temporary name and renamed, so an
+output is complete or absent.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from osgeo import ogr, osr
+
+from .errors import InputError
+
+ogr.UseExceptions()
+
+
+def _field_type(values: np.ndarray) -> int:
+    kind = np.asarray(values).dtype.kind
+    return ogr.OFTString if kind in "UOS" else ogr.OFTInteger if kind in "biu" else ogr.OFTReal
+
+
+def write_layer(path, layer: str, srs: osr.SpatialReference, geometry_type: int, columns: dict,
+                geometries, metadata: dict | None = None) -> None:
+    """Write a GeoPackage layer: ``columns`` {name: (n,) array}, ``geometries`` n OGR
+    geometries (or WKT strings), optional layer metadata items. Replaces the file."""
+    path = Path(path)
+    if path.suffix.lower() != ".gpkg":
+        raise InputError(f"{path}: layers are written as GeoPackage; use a .gpkg file name")
+    tmp = path.with_name(path.stem + ".part.gpkg")
+    drv = ogr.GetDriverByName("GPKG")
+    try:
+        if tmp.exists():
+            drv.DeleteDataSource(str(tmp))
+        ds = drv.CreateDataSource(str(tmp))
+        lyr = ds.CreateLayer(layer, srs, geometry_type, options=["FID=fid"])
+        arrays = {name: np.asarray(v) for name, v in columns.items()}
+        for name, values in arrays.items():
+            lyr.CreateField(ogr.FieldDefn(name, _field_type(values)))
+        for key, value in (metadata or {}).items():
+            lyr.SetMetadataItem(key, value)
+        defn = lyr.GetLayerDefn()
+        # Python lists: OGR takes one value at a time, and numpy scalars cost more to convert.
+        values = {name: v.tolist() for name, v in arrays.items()}
+        lyr.StartTransaction()
+        for i, geom in enumerate(geometries):  # OGR writes feature by feature
+            feat = ogr.Feature(defn)
+            for name, column in values.items():
+                v = column[i]
+                if isinstance(v, str) or (v == v):  # NaN -> NULL
+                    feat.SetField(name, int(v) if isinstance(v, bool) else v)
+            feat.SetGeometry(ogr.CreateGeometryFromWkt(geom) if isinstance(geom, str) else geom)
+            lyr.CreateFeature(feat)
+        lyr.CommitTransaction()
+        ds = lyr = None
+        if path.exists():
+            drv.DeleteDataSource(str(path))
+        tmp.replace(path)
+    finally:
+        if tmp.exists():
+            drv.DeleteDataSource(str(tmp))

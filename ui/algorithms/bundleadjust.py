@@ -1,0 +1,218 @@
+"""pushbroom:bundleadjust — self-calibrating bundle adjustment of a scene from its GCP layer:
+the adjusted scene JSON, JSON and HTML reports, the GCP layer with residuals and flags, and
+residual vectors."""
+import math
+from pathlib import Path
+
+from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutputFile,
+                       QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
+                       QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
+                       QgsProcessingParameterVectorLayer)
+
+from ...core import gcps
+from ...core.adjust import AdjustmentSettings, adjust
+from ...core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_residual_vectors
+from ...core.adjust.report import write_report_html, write_report_json
+from ...core.scene_io import save_scene
+from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, core_call, feedback_callbacks,
+                      load_scene_for, style_output_on_load)
+
+MODELS = ("polynomial", "lagrange", "spline")  # core.timebasis kinds, in the order of the enum
+MODEL_LABELS = ("Polynomial (systematic-error compensation)", "Orientation images (4-point Lagrange)",
+                "Piecewise polynomial (quadratic, continuous)")
+ROBUST = ("none", "selection", "snooping")
+ROBUST_LABELS = ("None", "Selection weights (posterior variances)", "Data snooping (Baarda)")
+ARCSEC = math.pi / 648000.0
+
+
+class BundleAdjustAlgorithm(PushbroomAlgorithm):
+    ID = "bundleadjust"
+    NAME = "Bundle adjustment"
+    GROUP = "Adjustment"
+    HELP = ("Self-calibrating bundle adjustment of a pushbroom scene (or strip) to its ground control points. "
+            "Corrections to the measured orbit and attitude are estimated as polynomials, orientation images "
+            "or piecewise polynomials in time; the onboard GPS and star trackers enter as weighted "
+            "pseudo-observations. Interior parameters (CCD shifts and rotations, focal length, lens "
+            "distortion, installation angles) can be estimated too. Parameter sets the GCPs cannot separate "
+            "are detected and named, and one of each is fixed (or the run stops). Gross errors are found by "
+            "selection weights or data snooping and flagged, never deleted. Check points are never used in "
+            "the solution and give the accuracy before and after. Outputs: the adjusted scene JSON that every "
+            "other algorithm reads as SCENE, a JSON and an HTML report with plots, the GCP layer with the "
+            "adjusted residuals and flags, and ground residual vectors.")
+    GCPS = "GCPS"
+    POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
+        "POSITION_MODEL", "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
+    ATTITUDE_MODEL, ATTITUDE_ORDER, ATTITUDE_INTERVAL, ATTITUDE_SIGMA = \
+        "ATTITUDE_MODEL", "ATTITUDE_ORDER", "ATTITUDE_INTERVAL", "ATTITUDE_SIGMA"
+    INTERIOR, GROUND, ROBUST, ALPHA, ON_SINGULAR, RESIDUAL_SCALE = \
+        "INTERIOR", "GROUND", "ROBUST", "ALPHA", "ON_SINGULAR", "RESIDUAL_SCALE"
+    OUTPUT_SCENE, OUTPUT_REPORT, OUTPUT_GCPS, OUTPUT_RESIDUALS = \
+        "OUTPUT_SCENE", "OUTPUT_REPORT", "OUTPUT_GCPS", "OUTPUT_RESIDUALS"
+    OUTPUT_REPORT_JSON = "OUTPUT_REPORT_JSON"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
+        add_scene_parameters(self, with_camera=False)
+        self._add(QgsProcessingParameterVectorLayer(self.GCPS, "Ground control points (GeoPackage)",
+                                                    [QgsProcessing.TypeVectorPoint]),
+                  "The GCP layer written by 'Import ground control points' (GeoPackage): image col/row, ground "
+                  "position, role control/check, camera and sigmas of every point.")
+        for block, default_order, default_sigma, unit, sigma_help in (
+                ("POSITION", 1, 100.0, "m", "Accuracy of the onboard orbit (GPS), metres per axis: the position "
+                 "corrections at the knots enter as pseudo-observations of 0 with this sigma. 0: none (only the GCPs "
+                 "fix the position)."),
+                ("ATTITUDE", 2, 0.0, "arcsec", "Accuracy of the onboard attitude (star trackers), arcseconds per "
+                 "axis, as pseudo-observations of the attitude corrections. 0: none.")):
+            what = block.lower()
+            self._add(QgsProcessingParameterEnum(f"{block}_MODEL", f"{block.title()} correction model",
+                                                 options=list(MODEL_LABELS), defaultValue=0),
+                      f"How the {what} correction varies in time: a polynomial of order {block}_ORDER over the "
+                      f"strip (systematic-error compensation, seed 000 eq. 1-2; order 2 without pseudo-observations "
+                      f"is seed 002's quadratic model), orientation images every {block}_INTERVAL seconds with "
+                      "4-point Lagrange interpolation (seed 000 eq. 3), or quadratic pieces between knots every "
+                      f"{block}_INTERVAL seconds, continuous in value and slope (seed 001 eq. 9).")
+            self._add(QgsProcessingParameterNumber(f"{block}_ORDER", f"{block.title()} polynomial order",
+                                                   QgsProcessingParameterNumber.Integer, default_order, minValue=0,
+                                                   maxValue=2),
+                      "0: bias, 1: bias and drift, 2: also a quadratic term (polynomial model only).")
+            self._add(QgsProcessingParameterNumber(f"{block}_INTERVAL", f"{block.title()} knot interval (s)",
+                                                   QgsProcessingParameterNumber.Double, 20.0, minValue=0.01),
+                      "Seconds between orientation images or knots (Lagrange and piecewise models). Shorter "
+                      "intervals follow faster motion but let position and attitude trade off (seed 000 Fig. 7-11).")
+            self._add(QgsProcessingParameterNumber(f"{block}_SIGMA", f"Onboard {what} sigma ({unit})",
+                                                   QgsProcessingParameterNumber.Double, default_sigma, minValue=0.0),
+                      sigma_help)
+        self._add(QgsProcessingParameterString(self.INTERIOR, "Interior parameters to estimate", optional=True,
+                                               defaultValue=""),
+                  "Comma-separated parameter names, shell wildcards allowed; 'name=sigma' estimates it with a "
+                  "pseudo-observation of 0 and that sigma (SI units). Names: <chip>.dx, <chip>.dy (m on the focal "
+                  "plane), <chip>.theta (rad) for focal-plane CCDs; <chip>.ux0, .ux1, .uy0, .uy1 (rad) for "
+                  "look-angle detectors; <camera>.f, .dxp, .dyp, .k1, .k2, .p1, .p2, .b1, .b2, .b3 (seed 001 eq. 7); "
+                  "<camera>.roll, .pitch, .yaw (installation, rad). Example for CBERS-02B: 'HRC-1.*, HRC-3.*' (the "
+                  "left and right CCDs against the middle one). Empty: none.")
+        self._add(QgsProcessingParameterEnum(self.GROUND, "GCP ground coordinates",
+                                             options=["Weighted by their sigmas", "Fixed"], defaultValue=0),
+                  "Weighted: the ground coordinates are unknowns with the GCPs' sigma_xy/sigma_z as pseudo-"
+                  "observations (matched or map-derived points). Fixed: taken as exact (surveyed points).")
+        self._add(QgsProcessingParameterEnum(self.ROBUST, "Gross error detection", options=list(ROBUST_LABELS),
+                                             defaultValue=1),
+                  "Selection weights down-weight observations whose normalised residual exceeds the critical "
+                  "value (Li Deren's posterior-variance weights); data snooping removes them from the solution in "
+                  "batches (Baarda). Either way the flagged points stay in the output layer with flagged = 1.")
+        self._add(QgsProcessingParameterNumber(self.ALPHA, "Significance of the outlier test",
+                                               QgsProcessingParameterNumber.Double, 0.001, minValue=1e-9, maxValue=0.2),
+                  "Probability of flagging a good observation (0.001: |w| > 3.29).", advanced=True)
+        self._add(QgsProcessingParameterEnum(self.ON_SINGULAR, "Non-determinable parameters",
+                                             options=["Fix one of each set and continue", "Stop with their names"],
+                                             defaultValue=0),
+                  "What to do when the GCPs cannot separate some parameters (e.g. all three CBERS CCDs' shifts "
+                  "and the attitude): fix one of each set (the middle CCD's, if involved) or stop.", advanced=True)
+        self._add(QgsProcessingParameterNumber(self.RESIDUAL_SCALE, "Residual vector exaggeration",
+                                               QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0),
+                  "Factor by which the ground residual vectors are drawn longer than they are.", advanced=True)
+        self._add(QgsProcessingParameterFileDestination(self.OUTPUT_SCENE, "Adjusted scene",
+                                                        fileFilter="Scene JSON (*.json)"),
+                  "Scene JSON with the corrections, the parameters with sigmas and the settings; every algorithm "
+                  "accepts it as SCENE.")
+        self._add(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, "Report (HTML)",
+                                                        fileFilter="HTML (*.html)"),
+                  "A report to read: accuracy before/after, decisions, parameters, plots. The same figures as "
+                  "JSON go beside it (same name, .json).")
+        gcp_out = QgsProcessingParameterVectorDestination(self.OUTPUT_GCPS, "Adjusted GCPs",
+                                                          QgsProcessing.TypeVectorPoint)
+        gcp_out.setSupportsNonFileBasedOutput(False)
+        self._add(gcp_out, "GeoPackage of the input points with the adjusted residuals (res_col, res_row, res_px, "
+                  "res_m), normalised residuals w_col/w_row, redundancy, weight and flagged (1 = gross error).")
+        vec_out = QgsProcessingParameterVectorDestination(self.OUTPUT_RESIDUALS, "Residual vectors",
+                                                          QgsProcessing.TypeVectorLine)
+        vec_out.setSupportsNonFileBasedOutput(False)
+        self._add(vec_out, "GeoPackage of lines from each GCP along its ground residual, exaggerated "
+                  "RESIDUAL_SCALE times (res_m holds the true length).")
+        self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, "Report (JSON)"))
+
+    def _add(self, parameter, help_text: str, advanced: bool = False) -> None:
+        parameter.setHelp(help_text)
+        if advanced:
+            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+        self.addParameter(parameter)
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        scene_path = self.parameterAsFile(parameters, SCENE, context)
+        scene = load_scene_for(SCENE, scene_path)
+        table = self._gcps(parameters, context)
+        settings = self._settings(parameters, context)
+        outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
+            (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
+            (self.OUTPUT_RESIDUALS, ".gpkg"))}
+        progress, is_cancelled = feedback_callbacks(feedback)
+        result = core_call(adjust, scene, table, settings, progress, is_cancelled)
+        feedback.setProgressText("writing the outputs")
+        en = core_call(ground_residuals, result.scene, table)
+        core_call(save_scene, result.scene, outputs[self.OUTPUT_SCENE])
+        report_json = str(Path(outputs[self.OUTPUT_REPORT]).with_suffix(".json"))
+        core_call(write_report_json, result.report, report_json)
+        core_call(write_report_html, result.report, result.points, outputs[self.OUTPUT_REPORT],
+                  f"Bundle adjustment of {Path(scene_path).name}")
+        core_call(write_adjusted_gcps, table, result.points, en, outputs[self.OUTPUT_GCPS],
+                  outputs[self.OUTPUT_SCENE])
+        core_call(write_residual_vectors, table, result.points, en, outputs[self.OUTPUT_RESIDUALS],
+                  self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context))
+        style_output_on_load(context, outputs[self.OUTPUT_GCPS], STYLES / "adjusted_gcps.qml")
+        style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
+        self._report(result.report, feedback)
+        feedback.setProgress(100)
+        return {**outputs, self.OUTPUT_REPORT_JSON: report_json}
+
+    # --- parameters -------------------------------------------------------------------------
+    def _gcps(self, parameters, context) -> gcps.GcpTable:
+        layer = self.parameterAsVectorLayer(parameters, self.GCPS, context)
+        if layer is None:
+            raise QgsProcessingException(f"{self.GCPS}: no GCP layer given")
+        source = layer.source()
+        path, _, options = source.partition("|")
+        name = dict(o.split("=", 1) for o in options.split("|") if "=" in o).get("layername")
+        if not path.lower().endswith(".gpkg"):
+            raise QgsProcessingException(f"{self.GCPS}: {source} is not a GeoPackage; write the GCPs with 'Import "
+                                         "ground control points' first")
+        return core_call(gcps.read_gpkg, path, name)
+
+    def _settings(self, parameters, context) -> AdjustmentSettings:
+        number = lambda name: self.parameterAsDouble(parameters, name, context)  # noqa: E731
+        position_sigma, attitude_sigma = number(self.POSITION_SIGMA), number(self.ATTITUDE_SIGMA)
+        return AdjustmentSettings(
+            position_model=MODELS[self.parameterAsEnum(parameters, self.POSITION_MODEL, context)],
+            position_order=self.parameterAsInt(parameters, self.POSITION_ORDER, context),
+            position_interval=number(self.POSITION_INTERVAL),
+            attitude_model=MODELS[self.parameterAsEnum(parameters, self.ATTITUDE_MODEL, context)],
+            attitude_order=self.parameterAsInt(parameters, self.ATTITUDE_ORDER, context),
+            attitude_interval=number(self.ATTITUDE_INTERVAL),
+            position_sigma=position_sigma or None, attitude_sigma=attitude_sigma * ARCSEC or None,
+            interior=self.parameterAsString(parameters, self.INTERIOR, context),
+            ground=("weighted", "fixed")[self.parameterAsEnum(parameters, self.GROUND, context)],
+            robust=ROBUST[self.parameterAsEnum(parameters, self.ROBUST, context)],
+            alpha=number(self.ALPHA),
+            on_singular=("fix", "stop")[self.parameterAsEnum(parameters, self.ON_SINGULAR, context)])
+
+    def _destination(self, parameters, context, name: str, suffix: str) -> str:
+        if name in (self.OUTPUT_GCPS, self.OUTPUT_RESIDUALS):
+            path = self.parameterAsOutputLayer(parameters, name, context)
+        else:
+            path = self.parameterAsFileOutput(parameters, name, context)
+        if Path(path).suffix.lower() != suffix:
+            raise QgsProcessingException(f"{name}: expected a {suffix} file (got {path})")
+        return path
+
+    @staticmethod
+    def _report(rep: dict, feedback) -> None:
+        for d in rep["determinability"]:
+            feedback.pushWarning(f"not determinable together: {', '.join(d['parameters'])}; fixed {d['fixed']}")
+        ctl = rep["control_residuals"]
+        feedback.pushInfo(f"sigma0 {rep['sigma0']:.3f} ({'passes' if rep['sigma0_test']['passed'] else 'fails'} "
+                          f"the 95 % test); control residuals RMSE col {ctl.get('rmse_col', float('nan')):.3f} px, "
+                          f"row {ctl.get('rmse_row', float('nan')):.3f} px; {rep['robust']['flagged']} observations "
+                          "flagged as gross errors")
+        for label, key in (("before", "check_points_before"), ("after", "check_points")):
+            c = rep[key]
+            if c.get("ground"):
+                feedback.pushInfo(f"check points {label}: RMSE {c['image']['rmse']:.3f} px, {c['ground']['rmse']:.2f} m "
+                                  f"(CE90 {c['ground']['ce90']:.2f} m) over {c['points']} points")
