@@ -211,8 +211,12 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                           f"the 95 % test); control residuals RMSE col {ctl.get('rmse_col', float('nan')):.3f} px, "
                           f"row {ctl.get('rmse_row', float('nan')):.3f} px; {rep['robust']['flagged']} observations "
                           "flagged as gross errors")
-        for label, key in (("before", "check_points_before"), ("after", "check_points")):
-            c = rep[key]
-            if c.get("ground"):
+        after = rep["check_points"]
+        lines = [("before", rep["check_points_before"], after.get("points")), ("after", after, after.get("points"))]
+        if after.get("blunders"):
+            lines.append((f"after, without their {after['blunders']} blunders", after["without_blunders"],
+                          after["points"] - after["blunders"]))
+        for label, c, n in lines:
+            if c and c.get("ground"):
                 feedback.pushInfo(f"check points {label}: RMSE {c['image']['rmse']:.3f} px, {c['ground']['rmse']:.2f} m "
-                                  f"(CE90 {c['ground']['ce90']:.2f} m) over {c['points']} points")
+                                  f"(CE90 {c['ground']['ce90']:.2f} m) over {n} points")
