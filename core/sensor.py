@@ -143,23 +143,25 @@ class SceneModel:
         u = self._geometric_ray(s, v, u_app, dist)
         dist = ray_height_intersection(s, u, h0, newton_steps=0)
         active = np.isfinite(dist)
+        search = np.zeros(active.shape, bool)
         p = np.full(s.shape, np.nan)
         for _ in range(max_iter):
             idx = np.nonzero(active)[0]
             if idx.size == 0:
                 break
             ground, misfit, rate = self._surface_misfit(s[idx], u[idx], dist[idx], idx, surface)
-            dist[idx] -= misfit / rate
-            p[idx] = ground
-            done = np.abs(misfit) < tol
+            # A point off the surface (a DEM's edge or hole) says nothing about where the ray
+            # meets it: such rays are searched along their whole length below.
             lost = ~np.isfinite(misfit)
-            dist[idx[lost]] = np.nan
-            p[idx[lost]] = np.nan
+            done = np.abs(misfit) < tol
+            dist[idx[~lost]] -= misfit[~lost] / rate[~lost]
+            p[idx] = ground
             if self.aberration:
-                u[idx] = self._geometric_ray(s[idx], v[idx], u_app[idx], dist[idx])
+                u[idx[~lost]] = self._geometric_ray(s[idx[~lost]], v[idx[~lost]], u_app[idx[~lost]], dist[idx[~lost]])
+            search[idx[lost]] = True
             active[idx[done | lost]] = False
-        if active.any():
-            idx = np.nonzero(active)[0]
+        idx = np.nonzero(active | search)[0]
+        if idx.size:
             p[idx] = self._first_crossing(s[idx], u[idx], idx, surface, h_range, tol)
         return p
 
@@ -195,7 +197,7 @@ class SceneModel:
         while np.nanmax(np.where(found, hi - lo, 0.0), initial=0.0) > tol:
             mid = 0.5 * (lo + hi)
             _, misfit, _ = self._surface_misfit(s, u, mid, idx, surface)
-            above = misfit > 0
+            above = ~(misfit <= 0)  # off the surface (NaN) on the way down: the crossing is further
             lo = np.where(above, mid, lo)
             hi = np.where(above, hi, mid)
         ground, _, _ = self._surface_misfit(s, u, 0.5 * (lo + hi), idx, surface)

@@ -175,8 +175,6 @@ def test_round_trip_constant_height(scene):
     assert np.max(np.hypot(col - c, row - r)) < 1e-4  # measured 2e-6 px
 
 
-@pytest.mark.xfail(strict=True, reason="core/sensor.py: a ray whose first point (at the DEM's mid height) "
-                   "falls outside the DEM is dropped as lost instead of searched along the ray")
 def test_dem_ray_near_dem_edge(scene, shared_data):
     """This ray meets the DEM at ~655 m, 20 m inside its last node column (found by sampling the
     ray); the start at the DEM's mid height (560 m) lies outside the DEM."""
