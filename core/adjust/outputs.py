@@ -1,5 +1,12 @@
 """Output layers of an adjustment: the GCP layer with the adjusted residuals and flags, and
-ground residual vectors (GeoPackage, written completely or not at all)."""
+ground residual vectors. GeoPackage via OGR (no QGIS), each written under a temporary name and
+renamed (:func:`core.vector_io.write_layer`), so an output is complete or absent.
+
+Conventions: image residuals are predicted minus measured (col, row) in GDAL pixels, as in
+:class:`core.adjust.engine.AdjustmentResult`; the ground residual of a point is where the
+adjusted scene sees its measured (col, row) at the GCP's ellipsoidal height, minus the GCP, in
+the point's local east/north frame (metres).
+"""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -7,22 +14,29 @@ from dataclasses import replace
 import numpy as np
 from osgeo import ogr, osr
 
+from ..errors import InputError
 from ..gcps import GcpTable, Residuals, write_gpkg
-from ..geodesy import enu_rotations
+from ..geodesy import A, F, enu_rotations
 from ..sensor import SceneModel
 from ..vector_io import write_layer
 
-M_PER_DEG_LAT = 110540.0
-M_PER_DEG_LON_EQUATOR = 111320.0
+ogr.UseExceptions()
+
 ADJUSTMENT_FIELDS = ("w_col", "w_row", "redundancy", "weight", "flagged")
+E2 = F * (2.0 - F)  # WGS84 first eccentricity squared
 
 
-def ground_residuals(scene: SceneModel, table: GcpTable) -> np.ndarray:
-    """(n, 2) east, north metres from each GCP to where the scene sees its measured image
-    position at the GCP's height."""
+def ground_residuals(scene: SceneModel, table: GcpTable, cameras=None) -> np.ndarray:
+    """(n, 2) east, north metres from each GCP to where ``scene`` sees its measured image
+    position at the GCP's ellipsoidal height; NaN where the ray misses.
+
+    cameras: (n,) camera names of the rows (default the table's); pass an adjustment's
+    ``points['camera']``, where empty cameras of single-camera scenes are resolved.
+    """
+    cameras = np.asarray(table.camera if cameras is None else cameras)
     en = np.full((len(table), 2), np.nan)
-    for c, cam in enumerate(scene.cameras):
-        m = table.camera == cam.name
+    for c, cam in enumerate(scene.cameras):  # one vectorised call per camera
+        m = cameras == cam.name
         if m.any():
             seen = scene.image_to_ground(table.col[m], table.row[m], table.h[m], c)
             en[m] = np.einsum("nij,nj->ni", enu_rotations(table.lon[m], table.lat[m]),
@@ -30,30 +44,113 @@ def ground_residuals(scene: SceneModel, table: GcpTable) -> np.ndarray:
     return en
 
 
-def write_adjusted_gcps(table: GcpTable, points: dict, en: np.ndarray, path, scene_path: str = "") -> None:
-    """The GCP layer (schema of pushbroom:importgcps) with the adjusted residuals (res_col,
-    res_row, res_px in px, res_m in m on the ground) and the fields w_col, w_row (normalised
-    residuals), redundancy, weight (robust weight factor) and flagged (1 = gross error)."""
-    inside = table.residuals.inside if table.residuals is not None else np.ones(len(table), bool)
-    res = Residuals(points["res_col"], points["res_row"], points["res_px"], np.hypot(en[:, 0], en[:, 1]), inside)
+def write_adjusted_gcps(table: GcpTable, points: dict, path, scene: SceneModel | None = None, *,
+                        en: np.ndarray | None = None, scene_path: str = "", source=None,
+                        source_layer: str | None = None) -> None:
+    """The GCP layer with the adjustment's results, as a GeoPackage Point Z layer in EPSG:4979.
+
+    Fields: those of the GCP layer (:func:`core.gcps.write_gpkg`: id, role, camera, col, row, h,
+    sigmas, inside) with res_col, res_row, res_px (px, predicted - measured) and res_m (ground
+    length, m) now the adjusted residuals, then w_col, w_row (normalised residuals), redundancy
+    (share), weight (final robust weight factor) and flagged (1 = gross error); then any other
+    fields of ``source`` (the input GeoPackage and its layer ``source_layer``, read feature by
+    feature in the order :func:`core.gcps.read_gpkg` read them), e.g. notes a user added.
+
+    points: :attr:`AdjustmentResult.points` (rows as in ``table``). res_m comes from ``en``
+    (:func:`ground_residuals`), or is computed with the adjusted ``scene``; NaN without either.
+    scene_path: the adjusted scene file, kept as layer metadata PUSHBROOM_SCENE.
+    """
+    n = len(table)
+    _check_rows(points, n)
+    cameras = np.asarray(points.get("camera", table.camera))
+    if en is None:
+        en = ground_residuals(scene, table, cameras) if scene is not None else np.full((n, 2), np.nan)
+    inside = table.residuals.inside if table.residuals is not None else np.ones(n, bool)
+    res = Residuals(np.asarray(points["res_col"], float), np.asarray(points["res_row"], float),
+                    np.asarray(points["res_px"], float), np.hypot(en[:, 0], en[:, 1]), inside)
     extra = {k: np.asarray(points[k], dtype=float) for k in ADJUSTMENT_FIELDS if k != "flagged"}
-    extra["flagged"] = np.asarray(points["flagged"], dtype=int)
-    write_gpkg(replace(table, residuals=res, scene=scene_path or table.scene), path, extra=extra)
+    extra["flagged"] = np.asarray(points["flagged"]).astype(int)
+    if source is not None:
+        extra.update({k: v for k, v in _other_fields(source, source_layer, n).items() if k not in extra})
+    write_gpkg(replace(table, camera=cameras, residuals=res, scene=scene_path or table.scene), path, extra=extra)
 
 
-def write_residual_vectors(table: GcpTable, points: dict, en: np.ndarray, path, scale: float) -> None:
-    """Lines (EPSG:4326) from each GCP along its ground residual exaggerated ``scale`` times;
-    fields id, role, camera, res_px, res_m (true length, m), flagged."""
-    lat_r = np.radians(table.lat)
-    lon2 = table.lon + scale * en[:, 0] / (M_PER_DEG_LON_EQUATOR * np.cos(lat_r))
-    lat2 = table.lat + scale * en[:, 1] / M_PER_DEG_LAT
+def write_residual_vectors(scene: SceneModel | None, table: GcpTable, points: dict, path, scale: float, *,
+                           en: np.ndarray | None = None) -> None:
+    """Lines (EPSG:4326), one per point whose ground residual is known, from the GCP's ground
+    position along its ground residual exaggerated ``scale`` times. Fields id, role, camera,
+    res_px (image residual, px), res_m (unexaggerated ground length, m), flagged (0/1). The
+    scale is kept as layer metadata PUSHBROOM_SCALE.
+
+    en: (n, 2) east/north ground residuals (:func:`ground_residuals`); computed with the
+    adjusted ``scene`` when not given.
+    """
+    n = len(table)
+    _check_rows(points, n)
+    if not scale > 0:
+        raise InputError(f"the residual vector exaggeration must be positive (got {scale})")
+    cameras = np.asarray(points.get("camera", table.camera))
+    if en is None:
+        if scene is None:
+            raise InputError("residual vectors need the adjusted scene or the ground residuals")
+        en = ground_residuals(scene, table, cameras)
+    # metres -> degrees with the ellipsoid's meridian and prime-vertical radii at each point
+    s = np.sin(np.radians(table.lat))
+    w = np.sqrt(1.0 - E2 * s * s)
+    meridian, normal = A * (1.0 - E2) / w ** 3, A / w
+    lon2 = table.lon + np.degrees(scale * en[:, 0] / (normal * np.cos(np.radians(table.lat))))
+    lat2 = table.lat + np.degrees(scale * en[:, 1] / meridian)
     ok = np.isfinite(lon2) & np.isfinite(lat2)
-    lines = [f"LINESTRING ({a!r} {b!r}, {c!r} {d!r})" for a, b, c, d in
+    lines = [f"LINESTRING ({a!r} {b!r}, {c!r} {d!r})" for a, b, c, d in  # WKT per feature, for OGR
              zip(table.lon[ok].tolist(), table.lat[ok].tolist(), lon2[ok].tolist(), lat2[ok].tolist())]
     srs = osr.SpatialReference()
     srs.ImportFromEPSG(4326)
     srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    columns = {"id": table.id[ok], "role": table.role[ok], "camera": table.camera[ok],
-               "res_px": np.asarray(points["res_px"])[ok], "res_m": np.hypot(en[ok, 0], en[ok, 1]),
+    columns = {"id": table.id[ok], "role": table.role[ok], "camera": cameras[ok],
+               "res_px": np.asarray(points["res_px"], float)[ok], "res_m": np.hypot(en[ok, 0], en[ok, 1]),
                "flagged": np.asarray(points["flagged"])[ok].astype(int)}
-    write_layer(path, "residuals", srs, ogr.wkbLineString, columns, lines, {"PUSHBROOM_SCALE": str(scale)})
+    write_layer(path, "residuals", srs, ogr.wkbLineString, columns, lines, {"PUSHBROOM_SCALE": repr(float(scale))})
+
+
+def _check_rows(points: dict, n: int) -> None:
+    missing = [k for k in ("res_col", "res_row", "res_px", *ADJUSTMENT_FIELDS) if k not in points]
+    if missing:
+        raise InputError(f"adjustment results lack {', '.join(missing)}")
+    bad = [k for k in ("res_col", "res_row", "res_px", *ADJUSTMENT_FIELDS) if len(points[k]) != n]
+    if bad:
+        raise InputError(f"adjustment results {', '.join(bad)} do not have one value per GCP ({n})")
+
+
+_SCHEMA = {"fid", "id", "role", "camera", "col", "row", "h", "sigma_px", "sigma_xy", "sigma_z", "res_col", "res_row",
+           "res_px", "res_m", "inside", *ADJUSTMENT_FIELDS}
+
+
+def _other_fields(source, layer: str | None, n: int) -> dict:
+    """Fields of a GCP GeoPackage outside the GCP and adjustment schema, as arrays: integers
+    (float when some are NULL), reals, and everything else as text ('' for NULL)."""
+    try:
+        ds = ogr.Open(str(source))
+    except RuntimeError as exc:
+        raise InputError(f"{source}: cannot be opened as a vector file ({exc})") from None
+    lyr = ds.GetLayerByName(layer) if layer else ds.GetLayer(0)
+    if lyr is None:
+        raise InputError(f"{source}: no layer {layer!r}")
+    defn = lyr.GetLayerDefn()
+    fields = [(defn.GetFieldDefn(i).GetName(), defn.GetFieldDefn(i).GetType()) for i in range(defn.GetFieldCount())]
+    fields = [(name, kind) for name, kind in fields if name.lower() not in _SCHEMA]
+    if not fields:
+        return {}
+    rows = [[f.GetField(name) if f.IsFieldSetAndNotNull(name) else None for name, _ in fields]
+            for f in lyr]  # OGR reads feature by feature
+    if len(rows) != n:
+        raise InputError(f"{source}: {len(rows)} features, but the adjustment has {n} points")
+    out = {}
+    for j, (name, kind) in enumerate(fields):
+        values = [r[j] for r in rows]
+        if kind in (ogr.OFTInteger, ogr.OFTInteger64) and None not in values:
+            out[name] = np.array(values, dtype=np.int64)
+        elif kind in (ogr.OFTInteger, ogr.OFTInteger64, ogr.OFTReal):
+            out[name] = np.array([np.nan if v is None else v for v in values], dtype=float)
+        else:
+            out[name] = np.array(["" if v is None else str(v) for v in values], dtype=object)
+    return out

@@ -1,6 +1,8 @@
 """pushbroom:bundleadjust — self-calibrating bundle adjustment of a scene from its GCP layer:
 the adjusted scene JSON, JSON and HTML reports, the GCP layer with residuals and flags, and
 residual vectors."""
+from __future__ import annotations
+
 import math
 from pathlib import Path
 
@@ -12,11 +14,14 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutpu
 
 from ...core import gcps
 from ...core.adjust import AdjustmentSettings, adjust
+from ...core.adjust.engine import check_inputs
 from ...core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_residual_vectors
-from ...core.adjust.report import write_report_html, write_report_json
+from ...core.adjust.parameters import ParameterSet
+from ...core.errors import PushbroomError
 from ...core.scene_io import save_scene
-from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, core_call, feedback_callbacks,
-                      load_scene_for, style_output_on_load)
+from ...core.timebasis import TimeBasis
+from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, check_cancelled, core_call,
+                      feedback_callbacks, load_scene_for, processing_errors, style_output_on_load)
 
 MODELS = ("polynomial", "lagrange", "spline")  # core.timebasis kinds, in the order of the enum
 MODEL_LABELS = ("Polynomial (systematic-error compensation)", "Orientation images (4-point Lagrange)",
@@ -84,12 +89,19 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                       sigma_help)
         self._add(QgsProcessingParameterString(self.INTERIOR, "Interior parameters to estimate", optional=True,
                                                defaultValue=""),
-                  "Comma-separated parameter names, shell wildcards allowed; 'name=sigma' estimates it with a "
-                  "pseudo-observation of 0 and that sigma (SI units). Names: <chip>.dx, <chip>.dy (m on the focal "
-                  "plane), <chip>.theta (rad) for focal-plane CCDs; <chip>.ux0, .ux1, .uy0, .uy1 (rad) for "
-                  "look-angle detectors; <camera>.f, .dxp, .dyp, .k1, .k2, .p1, .p2, .b1, .b2, .b3 (seed 001 eq. 7); "
-                  "<camera>.roll, .pitch, .yaw (installation, rad). Example for CBERS-02B: 'HRC-1.*, HRC-3.*' (the "
-                  "left and right CCDs against the middle one). Empty: none.")
+                  "Interior and installation parameters to estimate, comma-separated; every other one stays "
+                  "at the scene's value. A name alone makes the parameter free; 'name=sigma' makes it weighted "
+                  "(a pseudo-observation of 0 correction with that sigma, in the parameter's SI unit). Shell "
+                  "wildcards match several names: * any text, ? one character. Names use the scene's chip and "
+                  "camera names (CBERS-02B: camera HRC, chips HRC-1, HRC-2, HRC-3): {chip}.dx, .dy (CCD shift on "
+                  "the focal plane, m) and .theta (CCD rotation, rad), seed 000 eq. 4; {chip}.ux0, .ux1, .uy0, "
+                  ".uy1 (rad) for detectors given by look angles; {camera}.f (focal length correction, m), .dxp, "
+                  ".dyp (principal point, m), .k1, .k2 (radial distortion), .p1, .p2 (decentring), .b1, .b2, .b3 "
+                  "(affinity), seed 001 eq. 7; {camera}.roll, .pitch, .yaw (installation angles, rad; with several "
+                  "cameras free them for all but the reference camera). Example for CBERS-02B: 'HRC-1.*, HRC-3.*' "
+                  "(shifts and rotations of the left and right CCDs against the middle one); 'HRC-1.*, HRC-3.*, "
+                  "HRC.f=1e-5' also estimates the focal length, weighted with 10 µm. Sets the GCPs cannot separate "
+                  "from the trajectory are reported (see ON_SINGULAR). Empty: none (trajectory only).")
         self._add(QgsProcessingParameterEnum(self.GROUND, "GCP ground coordinates",
                                              options=["Weighted by their sigmas", "Fixed"], defaultValue=0),
                   "Weighted: the ground coordinates are unknowns with the GCPs' sigma_xy/sigma_z as pseudo-"
@@ -137,26 +149,39 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.addParameter(parameter)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        from ...core.adjust.report import write_report_html, write_report_json
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path)
-        table = self._gcps(parameters, context)
+        table, gcp_path, gcp_layer = self._gcps(parameters, context)
         settings = self._settings(parameters, context)
         outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
             (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
             (self.OUTPUT_RESIDUALS, ".gpkg"))}
+        scale = self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context)
+        # Checks that name the parameter at fault before the (long) solution starts.
+        core_call(settings.validate)
+        with processing_errors(f"{self.GCPS}: "):
+            check_inputs(scene, table, settings)
+        self._check_interior(scene, settings.interior)
+        feedback.pushInfo(f"{len(table)} points from {gcp_path}: {int((table.role == 'control').sum())} control, "
+                          f"{int((table.role == 'check').sum())} check")
         progress, is_cancelled = feedback_callbacks(feedback)
-        result = core_call(adjust, scene, table, settings, progress, is_cancelled)
+        try:
+            result = adjust(scene, table, settings, progress, is_cancelled)
+        except PushbroomError as exc:
+            raise QgsProcessingException(self._named(str(exc))) from None
+        check_cancelled(feedback)
         feedback.setProgressText("writing the outputs")
-        en = core_call(ground_residuals, result.scene, table)
+        en = core_call(ground_residuals, result.scene, table, result.points["camera"])
         core_call(save_scene, result.scene, outputs[self.OUTPUT_SCENE])
         report_json = str(Path(outputs[self.OUTPUT_REPORT]).with_suffix(".json"))
         core_call(write_report_json, result.report, report_json)
         core_call(write_report_html, result.report, result.points, outputs[self.OUTPUT_REPORT],
-                  f"Bundle adjustment of {Path(scene_path).name}")
-        core_call(write_adjusted_gcps, table, result.points, en, outputs[self.OUTPUT_GCPS],
-                  outputs[self.OUTPUT_SCENE])
-        core_call(write_residual_vectors, table, result.points, en, outputs[self.OUTPUT_RESIDUALS],
-                  self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context))
+                  title=f"Bundle adjustment of {Path(scene_path).name}")
+        core_call(write_adjusted_gcps, table, result.points, outputs[self.OUTPUT_GCPS], en=en,
+                  scene_path=outputs[self.OUTPUT_SCENE], source=gcp_path, source_layer=gcp_layer)
+        core_call(write_residual_vectors, result.scene, table, result.points, outputs[self.OUTPUT_RESIDUALS], scale,
+                  en=en)
         style_output_on_load(context, outputs[self.OUTPUT_GCPS], STYLES / "adjusted_gcps.qml")
         style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
         self._report(result.report, feedback)
@@ -164,17 +189,32 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         return {**outputs, self.OUTPUT_REPORT_JSON: report_json}
 
     # --- parameters -------------------------------------------------------------------------
-    def _gcps(self, parameters, context) -> gcps.GcpTable:
+    def _gcps(self, parameters, context) -> tuple[gcps.GcpTable, str, str | None]:
+        """The GCP table, the GeoPackage's path and its layer name (None: the first layer)."""
         layer = self.parameterAsVectorLayer(parameters, self.GCPS, context)
         if layer is None:
             raise QgsProcessingException(f"{self.GCPS}: no GCP layer given")
         source = layer.source()
         path, _, options = source.partition("|")
         name = dict(o.split("=", 1) for o in options.split("|") if "=" in o).get("layername")
-        if not path.lower().endswith(".gpkg"):
+        if layer.providerType() != "ogr" or not path.lower().endswith(".gpkg"):
             raise QgsProcessingException(f"{self.GCPS}: {source} is not a GeoPackage; write the GCPs with 'Import "
-                                         "ground control points' first")
-        return core_call(gcps.read_gpkg, path, name)
+                                         "ground control points' (pushbroom:importgcps) first")
+        with processing_errors(f"{self.GCPS}: "):
+            return gcps.read_gpkg(path, name), path, name
+
+    def _check_interior(self, scene, interior: str) -> None:
+        """INTERIOR's names and sigmas against the scene's parameters; the error lists the
+        scene's cameras and CCD chips, whose names the patterns use."""
+        t_min, t_max = scene.time_span()
+        basis = TimeBasis.covering("polynomial", t_min, t_max, 0)
+        try:
+            ParameterSet(scene, basis, basis, interior)
+        except PushbroomError as exc:
+            names = "; ".join(f"camera {c.name} with chips " + ", ".join(ch.name or f"{c.name}-{k + 1}"
+                                                                       for k, ch in enumerate(c.chips))
+                              for c in scene.cameras)
+            raise QgsProcessingException(f"{self.INTERIOR}: {exc}. This scene has {names}.") from None
 
     def _settings(self, parameters, context) -> AdjustmentSettings:
         number = lambda name: self.parameterAsDouble(parameters, name, context)  # noqa: E731
@@ -193,6 +233,13 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             alpha=number(self.ALPHA),
             on_singular=("fix", "stop")[self.parameterAsEnum(parameters, self.ON_SINGULAR, context)])
 
+    def _named(self, message: str) -> str:
+        """A core error found while solving, prefixed with the parameter at fault where that is clear."""
+        for start, name in (("too few GCPs", self.GCPS), ("the scene was adjusted with another", SCENE)):
+            if message.startswith(start):
+                return f"{name}: {message}"
+        return message
+
     def _destination(self, parameters, context, name: str, suffix: str) -> str:
         if name in (self.OUTPUT_GCPS, self.OUTPUT_RESIDUALS):
             path = self.parameterAsOutputLayer(parameters, name, context)
@@ -205,7 +252,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     @staticmethod
     def _report(rep: dict, feedback) -> None:
         for d in rep["determinability"]:
-            feedback.pushWarning(f"not determinable together: {', '.join(d['parameters'])}; fixed {d['fixed']}")
+            feedback.pushWarning(f"not determinable together from these GCPs: {', '.join(d['parameters'])}; "
+                                 f"{d['fixed']} was fixed at its input value (ON_SINGULAR)")
         ctl = rep["control_residuals"]
         feedback.pushInfo(f"sigma0 {rep['sigma0']:.3f} ({'passes' if rep['sigma0_test']['passed'] else 'fails'} "
                           f"the 95 % test); control residuals RMSE col {ctl.get('rmse_col', float('nan')):.3f} px, "
@@ -218,5 +266,5 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                           after["points"] - after["blunders"]))
         for label, c, n in lines:
             if c and c.get("ground"):
-                feedback.pushInfo(f"check points {label}: RMSE {c['image']['rmse']:.3f} px, {c['ground']['rmse']:.2f} m "
-                                  f"(CE90 {c['ground']['ce90']:.2f} m) over {n} points")
+                feedback.pushInfo(f"check points {label}: RMSE {c['image']['rmse']:.3f} px, "
+                                  f"{c['ground']['rmse']:.2f} m (CE90 {c['ground']['ce90']:.2f} m) over {n} points")
