@@ -706,13 +706,11 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: di
                            else float(sigma[i]), "unit": p.unit, "mode": p.mode,
                            "significant": None if np.isnan(sigma[i]) or p.block in ("position", "attitude")
                            else bool(abs(p.value) > 1.96 * sigma[i])})
-    interior = [j for j, i in enumerate(free) if params.params[i].block not in ("position", "attitude")]
-    pairs = []
-    names = [params.params[i].name for i in free]
-    for a in range(len(free)):
-        for b in range(a + 1, len(free)):
-            if abs(corr_matrix[a, b]) > 0.9 and (a in interior or b in interior):
-                pairs.append({"a": names[a], "b": names[b], "r": float(corr_matrix[a, b])})
+    pairs = correlated_pairs(corr_matrix, [params.params[i] for i in free])
+    for pair in pairs:
+        if pair["trajectory"]:
+            log.warning("%s and %s are correlated %.4f: the GCPs hardly separate them (their sigmas say by how "
+                        "much); onboard sigmas (pseudo-observations) would", pair["a"], pair["b"], pair["r"])
     flagged = np.abs(st.w).max(axis=1) > crit
     rows = problem.rows
     n = len(table)
@@ -750,7 +748,7 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: di
         "variance_components": st.components,
         "determinability": determinability,
         "parameters": parameters,
-        "high_correlations": sorted(pairs, key=lambda x: -abs(x["r"]))[:50],
+        "high_correlations": pairs,
         "control_residuals": _residual_summary(st.v[good]),
         "control_residuals_per_chip": {
             f"{c.name}/{ch.name or k + 1}": _residual_summary(st.v[good & (problem.obs.camera == ci)
@@ -761,6 +759,19 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: di
         "trajectory": _trajectory_curves(problem),
     }
     return AdjustmentResult(adjusted, report, points)
+
+
+def correlated_pairs(corr: np.ndarray, params: list) -> list[dict]:
+    """Pairs of unknowns worth a look: |r| > 0.9 where an interior parameter takes part, and
+    |r| > 0.999 between trajectory terms (a split the control barely determines)."""
+    trajectory = np.array([p.block in ("position", "attitude") for p in params])
+    a, b = np.triu_indices(len(params), 1)
+    r = corr[a, b]
+    both = trajectory[a] & trajectory[b]
+    keep = np.nonzero(np.where(both, np.abs(r) > 0.999, np.abs(r) > 0.9))[0]
+    keep = keep[np.argsort(-np.abs(r[keep]))][:50]
+    return [{"a": params[a[k]].name, "b": params[b[k]].name, "r": float(r[k]), "trajectory": bool(both[k])}
+            for k in keep]
 
 
 def _residual_summary(v: np.ndarray) -> dict:

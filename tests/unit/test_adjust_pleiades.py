@@ -240,8 +240,8 @@ def test_recovery_over_seeds(truth, onboard, vendor_points):
 
 def test_without_position_prior_the_split_is_lost(truth, onboard, vendor_points):
     """No onboard position sigma: the engine still solves (the set is not exactly singular,
-    so determinability stays empty, and high_correlations lists only pairs with an interior
-    parameter) but position and attitude trade off: sigmas grow a hundredfold (measured
+    so determinability stays empty; high_correlations names the trajectory pairs correlated
+    beyond 0.999, and the log warns) but position and attitude trade off: sigmas grow a hundredfold (measured
     pitch bias 1137 urad, roll 145, yaw 257; position X/Z ~600 m; correlations of pitch bias
     with yaw bias -1.000, with position Z 0.999, roll bias with position Y -0.99, from the
     engine's cofactor matrix) and the estimates wander with the noise (pitch bias -1647 urad
@@ -253,6 +253,8 @@ def test_without_position_prior_the_split_is_lost(truth, onboard, vendor_points)
     report = result.report
     p = parameters(report)
     assert report["determinability"] == []
+    named = {frozenset((c["a"], c["b"])) for c in report["high_correlations"] if c["trajectory"]}
+    assert frozenset(("attitude.pitch.bias", "attitude.yaw.bias")) in named
     for a in ("roll", "pitch"):
         name = f"attitude.{a}.bias"
         assert p[name]["sigma"] > 50 * with_prior[name]["sigma"]

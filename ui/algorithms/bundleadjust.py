@@ -251,6 +251,10 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
 
     @staticmethod
     def _report(rep: dict, feedback) -> None:
+        for c in rep["high_correlations"]:
+            if c["trajectory"]:
+                feedback.pushWarning(f"{c['a']} and {c['b']} are correlated {c['r']:.4f}: the GCPs hardly separate "
+                                     "them; give onboard sigmas (POSITION_SIGMA, ATTITUDE_SIGMA)")
         for d in rep["determinability"]:
             feedback.pushWarning(f"not determinable together from these GCPs: {', '.join(d['parameters'])}; "
                                  f"{d['fixed']} was fixed at its input value (ON_SINGULAR)")
