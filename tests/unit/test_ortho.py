@@ -1,0 +1,113 @@
+"""Orthorectification against the known ground texture of a rendered simulated scene:
+sub-pixel registration overall and along the CCD seams, bad input, no partial output."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from osgeo import gdal
+from pyproj import CRS, Transformer
+
+from core.dem import Dem
+from core.errors import InputError
+from core.ortho import default_grid, orthorectify
+from core.render import render_image, texture_at, texture_frame
+from core.scene_io import load_scene
+from core.simulator import simulate
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    """A 1200-row cut of a CBERS-02B scene (three staggered CCDs), rendered from the texture."""
+    folder = tmp_path_factory.mktemp("ortho")
+    result = simulate("cbers02b_hrc", folder, seed=3, n_gcps=5)
+    full = load_scene(result.true_scene)
+    scene = replace(full, cameras=[replace(full.cameras[0], rows=1200)], _guess={})
+    dem = Dem(result.dem, datum="geoid")
+    frame = texture_frame(full, dem, 3)
+    render_image(scene, 0, dem, folder / "raw.tif", frame)
+    return scene, dem, frame, folder
+
+
+def shift_against_texture(path, frame, mask=None, n: int = 400_000) -> tuple[np.ndarray, int]:
+    """(dx, dy) px of the orthoimage against the texture: least squares on the texture's
+    gradient at up to n sampled valid pixels (inside ``mask`` if given), and how many were used."""
+    ds = gdal.Open(str(path))
+    gt = ds.GetGeoTransform()
+    img = ds.GetRasterBand(1).ReadAsArray().astype(float)
+    ok = img > 0
+    ok[[0, -1], :] = ok[:, [0, -1]] = False
+    if mask is not None:
+        ok &= mask
+    i, j = np.nonzero(ok)
+    pick = np.random.default_rng(0).choice(i.size, min(n, i.size), replace=False)
+    i, j = i[pick], j[pick]
+    to_lonlat = Transformer.from_crs(CRS.from_wkt(ds.GetProjection()), CRS.from_epsg(4326), always_xy=True)
+
+    def truth(di=0.0, dj=0.0):
+        lon, lat = to_lonlat.transform(gt[0] + (j + 0.5 + dj) * gt[1], gt[3] + (i + 0.5 + di) * gt[5])
+        return 20.0 + 215.0 * texture_at(lon, lat, tuple(frame["centre"]), frame["gsd_m"], frame["seed"])
+
+    t0 = truth()
+    gx = (truth(dj=0.5) - truth(dj=-0.5))
+    gy = (truth(di=0.5) - truth(di=-0.5))
+    d, *_ = np.linalg.lstsq(np.stack([gx, gy], axis=1), img[i, j] - t0, rcond=None)
+    return -d, int(i.size)
+
+
+@pytest.mark.parametrize("resampling", ["bilinear", "cubic"])
+def test_orthoimage_lies_on_the_texture_within_a_twentieth_of_a_pixel(rendered, tmp_path, resampling):
+    scene, dem, frame, folder = rendered
+    out = tmp_path / "ortho.tif"
+    figures = orthorectify(scene, folder / "raw.tif", dem, out, resampling=resampling)
+    assert figures["densification_error_px"] < 0.01
+    d, n = shift_against_texture(out, frame)
+    assert n == 400_000 and np.hypot(*d) < 0.05, d
+    ds = gdal.Open(str(out))
+    band = ds.GetRasterBand(1)
+    assert band.GetNoDataValue() == 0 and band.GetOverviewCount() > 0
+    assert ds.GetMetadata("IMAGE_STRUCTURE")["COMPRESSION"] == "DEFLATE"
+    assert band.GetBlockSize() == [512, 512]
+
+
+def test_no_seam_across_the_staggered_ccds(rendered, tmp_path):
+    """Strips of the orthoimage over the two CCD boundaries register as well as the rest."""
+    scene, dem, frame, folder = rendered
+    out = tmp_path / "ortho.tif"
+    orthorectify(scene, folder / "raw.tif", dem, out)
+    ds = gdal.Open(str(out))
+    gt = ds.GetGeoTransform()
+    # where the boundaries fall on the ground: the ground points of the seam columns
+    cam = scene.cameras[0]
+    rows = np.linspace(100, cam.rows - 100, 40)
+    for boundary in (c.col_offset for c in cam.chips[1:]):
+        from core.geodesy import ecef_to_geodetic
+        lon, lat, _ = ecef_to_geodetic(scene.image_to_ground_dem(np.full(rows.size, boundary), rows, dem))
+        x, y = Transformer.from_crs(CRS.from_epsg(4326), CRS.from_wkt(ds.GetProjection()), always_xy=True).transform(lon, lat)
+        j = ((x - gt[0]) / gt[1]).astype(int)
+        i = ((y - gt[3]) / gt[5]).astype(int)
+        mask = np.zeros((ds.RasterYSize, ds.RasterXSize), bool)
+        for a, b in zip(i, j):  # 40 seam samples, a 30-px square around each
+            mask[max(a - 15, 0):a + 15, max(b - 15, 0):b + 15] = True
+        d, n = shift_against_texture(out, frame, mask)
+        assert n > 20_000 and np.hypot(*d) < 0.05, (boundary, d)
+
+
+def test_bad_input_is_refused_and_nothing_is_left(rendered, tmp_path):
+    scene, dem, frame, folder = rendered
+    small = tmp_path / "small.tif"
+    gdal.GetDriverByName("GTiff").Create(str(small), 100, 100, 1, gdal.GDT_Byte)
+    with pytest.raises(InputError, match=r"small.tif: the raster is 100 x 100 px but camera HRC .* 12246 x 1200"):
+        orthorectify(scene, small, dem, tmp_path / "o.tif")
+    with pytest.raises(InputError, match="resampling must be one of nearest, bilinear, cubic"):
+        orthorectify(scene, folder / "raw.tif", dem, tmp_path / "o.tif", resampling="lanczos")
+    with pytest.raises(InputError, match="cannot be opened as a raster"):
+        orthorectify(scene, tmp_path / "missing.tif", dem, tmp_path / "o.tif")
+    part = Dem.__new__(Dem)  # a DEM covering only the western half of the scene
+    part.__dict__.update(dem.__dict__)
+    lon0 = dem.gt[0] + dem.gt[1] * dem.shape[1] / 2
+    part.height = lambda lon, lat: np.where(np.asarray(lon) < lon0, dem.height(lon, lat), np.nan)
+    with pytest.raises(InputError, match="does not cover the scene"):
+        default_grid(scene, 0, part)
+    with pytest.raises(RuntimeError):
+        orthorectify(scene, folder / "raw.tif", dem, tmp_path / "no such folder" / "o.tif")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["small.tif"]
