@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from osgeo import gdal, osr
+from osgeo import gdal
 from pyproj import CRS, Transformer
 from scipy import ndimage
 
