@@ -1,11 +1,15 @@
 """Adjustment reports: JSON for machines, one self-contained HTML page for people.
 
 The HTML page leads with the figures that decide whether to trust the result (sigma0 and its
-test, control residuals, check points before and after), then what the adjustment decided
-(non-determinable parameters fixed, gross errors flagged), the interior parameters with
-their sigmas, and three plots as inline PNG: image residual vectors over the image (seed 000
-Fig. 6), trajectory corrections against time (Fig. 7-11) and residuals per CCD chip.
-Both files are written completely or not at all (temporary file, then rename).
+test, control residuals, check points before and after), then the settings, what the
+adjustment decided (non-determinable parameters fixed, gross errors flagged), the interior
+and installation parameters with their sigmas, three plots as inline PNG (image residual
+vectors over the image, seed 000 Fig. 6; trajectory corrections against time, Fig. 7-11;
+residual RMSE per CCD chip), high correlations, variance components and iterations.
+
+Both files are written completely or not at all (``<path>.part``, then rename). The plots are
+drawn on bare matplotlib ``Figure`` objects with the Agg canvas: no pyplot, so no global
+backend switch inside QGIS and no figure registry to leak.
 """
 from __future__ import annotations
 
@@ -13,36 +17,55 @@ import base64
 import html
 import io
 import json
+import logging
 import math
 from pathlib import Path
 
 import numpy as np
 
-MAX_ARROWS = 5000
+log = logging.getLogger(__name__)
+
+MAX_ARROWS = 5000  # residual vectors drawn at most; more are subsampled (stated in the caption)
+MAX_LISTED_TRAJECTORY = 24  # trajectory coefficients listed one per row up to this many, else summarised
+ARCSEC_PER_RAD = 180.0 / math.pi * 3600.0
+PNG_DPI = 90
 
 
+# --- JSON ---------------------------------------------------------------------------------------
 def _plain(value):
-    """JSON-ready copy: numpy scalars and arrays to Python, NaN and infinities to None."""
+    """JSON-ready copy of ``value``: numpy scalars and arrays become Python numbers and lists,
+    NaN and infinities become None, dict keys strings; other objects (paths, enums) their str()."""
     if isinstance(value, dict):
         return {str(k): _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_plain(v) for v in value]
     if isinstance(value, np.ndarray):
         return _plain(value.tolist())
-    if isinstance(value, (np.bool_, bool)):
+    if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    if isinstance(value, (np.integer, int)):
+    if isinstance(value, (int, np.integer)):
         return int(value)
-    if isinstance(value, (np.floating, float)):
+    if isinstance(value, (float, np.floating)):
         return float(value) if math.isfinite(value) else None
-    return value
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
 
 
 def report_to_json(report: dict) -> str:
+    """The report as strict JSON text (numpy types converted, NaN and infinities as null)."""
     return json.dumps(_plain(report), indent=1, allow_nan=False)
 
 
+def write_report_json(report: dict, path) -> None:
+    """Write the report as JSON to ``path``, completely or not at all."""
+    _write_atomically(path, report_to_json(report))
+    log.info("wrote the adjustment report %s", path)
+
+
 def _write_atomically(path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` through ``path + '.part'`` and a rename, so that ``path``
+    is either the whole new file or untouched; the temporary file never stays behind."""
     path = Path(path)
     tmp = path.with_name(path.name + ".part")
     try:
@@ -52,203 +75,341 @@ def _write_atomically(path, text: str) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def write_report_json(report: dict, path) -> None:
-    """The report as JSON (NaN as null)."""
-    _write_atomically(path, report_to_json(report))
+# --- HTML page ----------------------------------------------------------------------------------
+_STYLE = ("body{font-family:sans-serif;max-width:1150px;margin:2em auto;color:#222;line-height:1.4}"
+          "table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;"
+          "text-align:right}th{background:#f2f2f2}td.l,th.l{text-align:left}.bad{color:#b00}.ok{color:#070}"
+          ".big{font-size:1.25em}figure{margin:1em 0 2em}figcaption{font-size:.9em;color:#444;max-width:60em}"
+          "img{max-width:100%}")
 
 
-# --- HTML --------------------------------------------------------------------------------------
 def write_report_html(report: dict, points: dict, path, title: str = "Bundle adjustment report") -> None:
-    """One self-contained HTML page (plots inline) of an adjustment's report and points."""
-    import matplotlib
-    matplotlib.use("Agg")
+    """Write one self-contained HTML page (plots as inline PNG) of an adjustment's ``report`` and
+    per-GCP ``points`` (see :class:`core.adjust.engine.AdjustmentResult`) to ``path``,
+    completely or not at all."""
     rep = _plain(report)
-    body = [f"<h1>{html.escape(title)}</h1>", _headline(rep), _decisions(rep), _parameter_table(rep),
-            _figure("Image residual vectors of the control points", _residual_plot(points)),
-            _figure("Trajectory corrections against time", _trajectory_plot(rep["trajectory"])),
-            _figure("Residuals per CCD chip", _chip_plot(rep["control_residuals_per_chip"])),
-            _correlations(rep), _components(rep), _iterations(rep), _settings(rep)]
-    page = ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>" + html.escape(title) + "</title><style>"
-            "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
-            "table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;"
-            "text-align:right}th{background:#f2f2f2}td.l,th.l{text-align:left}.bad{color:#b00}.ok{color:#070}"
-            "img{max-width:100%}</style></head><body>" + "\n".join(body) + "</body></html>")
+    body = [f"<h1>{html.escape(title)}</h1>", _headline_section(rep), _settings_section(rep),
+            _decisions_section(rep), _parameters_section(rep), "<h2>Plots</h2>",
+            _residual_vector_figure(points), _trajectory_figure(rep["trajectory"]),
+            _chip_figure(rep["control_residuals_per_chip"]), _correlations_section(rep),
+            _variance_components_section(rep), _iterations_section(rep)]
+    page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+            f"<style>{_STYLE}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
     _write_atomically(path, page)
+    log.info("wrote the adjustment report %s", path)
 
 
-def _num(v, spec: str = ".3f") -> str:
-    return "–" if v is None else format(v, spec)
+def _fmt(value, spec: str = ".3f") -> str:
+    """``value`` formatted with ``spec``; a dash when it is missing (None)."""
+    return "–" if value is None else format(value, spec)
 
 
 def _table(header: list[str], rows: list[list[str]], left: int = 1) -> str:
-    th = "".join(f"<th class='l'>{h}</th>" if i < left else f"<th>{h}</th>" for i, h in enumerate(header))
-    trs = "".join("<tr>" + "".join(f"<td class='l'>{c}</td>" if i < left else f"<td>{c}</td>"
-                                   for i, c in enumerate(r)) + "</tr>" for r in rows)
-    return f"<table><tr>{th}</tr>{trs}</table>"
+    """An HTML table; the first ``left`` columns left-aligned (text), the others right (numbers).
+    Cells are HTML already: escape text before passing it."""
+    def cells(tag: str, row: list[str]) -> str:
+        return "".join(f"<{tag} class='l'>{c}</{tag}>" if i < left else f"<{tag}>{c}</{tag}>"
+                       for i, c in enumerate(row))
+    return ("<table><tr>" + cells("th", header) + "</tr>"
+            + "".join("<tr>" + cells("td", r) + "</tr>" for r in rows) + "</table>")
 
 
-def _headline(rep: dict) -> str:
-    test = rep["sigma0_test"]
-    verdict = ("<span class='ok'>consistent with the stated sigmas</span>" if test["passed"] else
-               "<span class='bad'>not consistent with the stated sigmas (95 % bounds "
-               f"{test['ratio_bounds_95'][0]:.3f}–{test['ratio_bounds_95'][1]:.3f})</span>")
-    obs = rep["observations"]
-    ctl = rep["control_residuals"]
-    rows = []
-    for label, key in (("before (input scene)", "check_points_before"), ("after", "check_points")):
-        c = rep[key]
-        img, gnd = c.get("image") or {}, c.get("ground") or {}
-        rows.append([label, _num(img.get("rmse_col")), _num(img.get("rmse_row")), _num(img.get("max")),
-                     _num(gnd.get("rmse_east"), ".2f"), _num(gnd.get("rmse_north"), ".2f"),
-                     _num(gnd.get("ce90"), ".2f"), _num(gnd.get("max"), ".2f")])
-    clean = rep["check_points"].get("without_blunders") or {}
-    if rep["check_points"].get("blunders"):
-        img, gnd = clean.get("image") or {}, clean.get("ground") or {}
-        rows.append([f"after, without {rep['check_points']['blunders']} blunders", _num(img.get("rmse_col")),
-                     _num(img.get("rmse_row")), _num(img.get("max")), _num(gnd.get("rmse_east"), ".2f"),
-                     _num(gnd.get("rmse_north"), ".2f"), _num(gnd.get("ce90"), ".2f"), _num(gnd.get("max"), ".2f")])
-    return (f"<p><b>sigma0 = {rep['sigma0']:.3f}</b>, {verdict}; {obs['control_points']} control points, "
-            f"{obs['image_observations']} image observations, {obs['check_points']} check points, "
-            f"{obs['unknowns']} parameters, {obs['degrees_of_freedom']:.0f} degrees of freedom.</p>"
-            f"<p>Control residuals: RMSE col {_num(ctl.get('rmse_col'))} px, row {_num(ctl.get('rmse_row'))} px, "
-            f"max {_num(ctl.get('max'), '.2f')} px ({ctl.get('count', 0)} observations"
-            f"{', flagged ones left out' if rep['robust']['method'] != 'none' else ''}).</p>"
-            "<h2>Check points</h2>"
-            + _table(["", "RMSE col px", "RMSE row px", "max px", "RMSE east m", "RMSE north m", "CE90 m", "max m"],
-                     rows))
+def _sigma0_sentence(rep: dict) -> str:
+    """sigma0 (unitless: 1 when the residuals match the stated sigmas) and its chi-square test."""
+    lo, hi = rep["sigma0_test"]["ratio_bounds_95"]
+    verdict = ("<span class='ok'>passed: the residuals agree with the stated sigmas</span>"
+               if rep["sigma0_test"]["passed"] else
+               "<span class='bad'>failed: the residuals do not agree with the stated sigmas</span>")
+    return (f"<p class='big'><b>sigma0 = {_fmt(rep['sigma0'])}</b> (95 % acceptance interval "
+            f"{_fmt(lo)}–{_fmt(hi)}): {verdict}.</p>")
 
 
-def _decisions(rep: dict) -> str:
-    out = []
-    for d in rep["determinability"]:
-        out.append(f"<li class='bad'>Not determinable together: {html.escape(', '.join(d['parameters']))}; "
-                   f"<b>{html.escape(d['fixed'])}</b> was fixed.</li>")
+def _check_point_row(label: str, figures: dict, points) -> list[str]:
+    """One row of the check point table: image RMSE (px) and ground RMSE, CE90 (m)."""
+    img, gnd = figures.get("image") or {}, figures.get("ground") or {}
+    return [html.escape(label), str(points), _fmt(img.get("rmse_col")), _fmt(img.get("rmse_row")),
+            _fmt(img.get("rmse")), _fmt(img.get("max"), ".2f"), _fmt(gnd.get("rmse_east"), ".2f"),
+            _fmt(gnd.get("rmse_north"), ".2f"), _fmt(gnd.get("rmse"), ".2f"), _fmt(gnd.get("ce90"), ".2f"),
+            _fmt(gnd.get("max"), ".2f")]
+
+
+def _headline_section(rep: dict) -> str:
+    """sigma0 and its test, the control residuals and the check points before and after (px and m)."""
+    obs, ctl = rep["observations"], rep["control_residuals"]
+    left_out = ", flagged observations left out" if rep["robust"]["method"] != "none" else ""
+    out = [_sigma0_sentence(rep),
+           f"<p>{obs['control_points']} control points ({obs['image_observations']} image observations), "
+           f"{obs['check_points']} check points, {obs['unknowns']} adjusted parameters, "
+           f"{_fmt(obs['degrees_of_freedom'], '.0f')} degrees of freedom.</p>",
+           "<h2>Control point residuals</h2>",
+           f"<p class='big'>RMSE col {_fmt(ctl.get('rmse_col'))} px, row {_fmt(ctl.get('rmse_row'))} px; "
+           f"largest {_fmt(ctl.get('max'), '.2f')} px ({ctl.get('count', 0)} observations{left_out}).</p>"]
+    before, after = rep["check_points_before"], rep["check_points"]
+    out.append("<h2>Check points (independent accuracy)</h2>")
+    if not after.get("points"):
+        out.append("<p>No check points: the accuracy of the result is not measured independently.</p>")
+        return "\n".join(out)
+    rows = [_check_point_row("before (input scene)", before, before["points"]),
+            _check_point_row("after adjustment", after, after["points"])]
+    if after.get("blunders"):
+        rows.append(_check_point_row(f"after, without the {after['blunders']} blunders",
+                                     after["without_blunders"], after["points"] - after["blunders"]))
+    out.append(_table(["", "points", "RMSE col px", "RMSE row px", "RMSE px", "max px", "RMSE east m",
+                       "RMSE north m", "RMSE m", "CE90 m", "max m"], rows))
+    if after.get("blunders"):
+        out.append(f"<p>{after['blunders']} check points have residuals beyond what their own sigmas allow "
+                   "(blunders in the check data, or a model error when many do): compare both rows.</p>")
+    return "\n".join(out)
+
+
+def _settings_section(rep: dict) -> str:
+    """The adjustment settings as given."""
+    rows = [[html.escape(str(k)), html.escape("–" if v is None else str(v))] for k, v in rep["settings"].items()]
+    return "<h2>Settings</h2>" + _table(["setting", "value"], rows, left=2)
+
+
+def _decisions_section(rep: dict) -> str:
+    """Non-determinable parameter sets and the parameter fixed in each; gross error detection."""
+    items = [f"<li>Not determinable together: {html.escape(', '.join(d['parameters']))}; "
+             f"<b>{html.escape(d['fixed'])}</b> was fixed.</li>" if d.get("fixed") else
+             f"<li>Not determinable together: {html.escape(', '.join(d['parameters']))}; "
+             "nothing was fixed.</li>" for d in rep["determinability"]]
     rob = rep["robust"]
-    if rob["method"] != "none":
-        out.append(f"<li>Gross errors ({html.escape(rob['method'])}): {rob['flagged']} image observations flagged "
-                   f"(|w| &gt; {rob['critical_w']:.2f}) in {len(rob['passes'])} passes; they stay in the GCP layer, "
-                   "marked.</li>")
-    return "<h2>Decisions</h2><ul>" + ("".join(out) or "<li>None needed.</li>") + "</ul>"
+    if rob["method"] == "none":
+        items.append("<li>No gross error detection (robust = none): every observation kept its full weight.</li>")
+    else:
+        ids = ", ".join(rob["flagged_ids"][:30]) + (", …" if rob["flagged"] > 30 else "")
+        items.append(f"<li>Gross errors ({html.escape(rob['method'])}): {rob['flagged']} image observations "
+                     f"flagged (normalised residual |w| &gt; {_fmt(rob['critical_w'], '.2f')}) in "
+                     f"{len(rob['passes'])} passes; they stay in the GCP layer, marked"
+                     + (f": {html.escape(ids)}" if ids else "") + ".</li>")
+    return "<h2>Decisions</h2><ul>" + "".join(items) + "</ul>"
 
 
-def _parameter_table(rep: dict) -> str:
+def _display_value(value, unit: str, block: str) -> tuple[float | None, str]:
+    """A parameter value (SI) in the unit a photogrammetrist reads: angles in arcsec, focal-plane
+    shifts (camera and chip blocks) in µm; other units unchanged."""
+    if value is None:
+        return None, unit
+    if unit == "rad":
+        return value * ARCSEC_PER_RAD, "arcsec"
+    if unit == "m" and block in ("camera", "chip"):
+        return value * 1e6, "µm"
+    return value, unit
+
+
+def _parameter_row(p: dict, fixed_by_determinability: set) -> list[str]:
+    """One parameter's table row: value and sigma in display units, |value|/sigma, significance."""
+    value, unit = _display_value(p["value"], p["unit"], p["block"])
+    sigma, _ = _display_value(p["sigma"], p["unit"], p["block"])
+    mode = "fixed (not determinable)" if p["name"] in fixed_by_determinability else p["mode"]
+    ratio = _fmt(abs(p["value"]) / p["sigma"], ".1f") if p["sigma"] else "–"
+    significant = "–" if p["significant"] is None else ("yes" if p["significant"] else "no")
+    return [html.escape(p["name"]), html.escape(mode), _fmt(value, ".4g"), _fmt(sigma, ".3g"),
+            html.escape(unit), ratio, significant]
+
+
+def _trajectory_summary_rows(params: list[dict]) -> list[list[str]]:
+    """Per trajectory axis (e.g. position.X): coefficient count, largest |value| and largest sigma."""
+    axes: dict[str, list[dict]] = {}
+    for p in params:
+        axes.setdefault(".".join(p["name"].split(".")[:2]), []).append(p)
     rows = []
-    trajectory = {"position": [], "attitude": []}
-    for p in rep["parameters"]:
-        if p["block"] in trajectory:
-            trajectory[p["block"]].append(p)
-            continue
-        if p["mode"] == "fixed" and not p["value"]:
-            continue
-        sig = "" if p["significant"] is None else ("yes" if p["significant"] else "no")
-        rows.append([html.escape(p["name"]), p["mode"], f"{p['value']:.6g}", _num(p["sigma"], ".3g"),
-                     html.escape(p["unit"]), sig])
-    summary = "".join(
-        f"<li>{block}: {len(ps)} coefficients, largest |value| {max(abs(p['value']) for p in ps):.4g} "
-        f"{html.escape(ps[0]['unit'])}</li>" for block, ps in trajectory.items() if ps)
-    table = _table(["parameter", "mode", "value", "sigma", "unit", "significant"], rows) if rows else \
-        "<p>No interior or installation parameter was estimated.</p>"
-    return f"<h2>Interior and installation parameters</h2>{table}<p>Trajectory corrections:</p><ul>{summary}</ul>"
+    for axis, ps in axes.items():
+        unit = _display_value(0.0, ps[0]["unit"], ps[0]["block"])[1]
+        largest = max(abs(_display_value(p["value"], p["unit"], p["block"])[0]) for p in ps)
+        sigmas = [_display_value(p["sigma"], p["unit"], p["block"])[0] for p in ps if p["sigma"] is not None]
+        rows.append([html.escape(axis), str(len(ps)), _fmt(largest, ".4g"),
+                     _fmt(max(sigmas) if sigmas else None, ".3g"), html.escape(unit)])
+    return rows
 
 
-def _correlations(rep: dict) -> str:
-    rows = [[html.escape(c["a"]), html.escape(c["b"]), f"{c['r']:.4f}"] for c in rep["high_correlations"][:20]]
-    return "<h2>High correlations (|r| &gt; 0.9)</h2>" + (_table(["parameter", "parameter", "r"], rows, 2)
-                                                          if rows else "<p>None.</p>")
+def _parameters_section(rep: dict) -> str:
+    """Interior and installation parameters (free, weighted, or fixed by the determinability
+    check or at a non-zero value) and the trajectory corrections, listed or summarised per axis."""
+    fixed = {d["fixed"] for d in rep["determinability"] if d.get("fixed")}
+    interior = [p for p in rep["parameters"] if p["block"] not in ("position", "attitude")
+                and (p["mode"] != "fixed" or p["value"] or p["name"] in fixed)]
+    trajectory = [p for p in rep["parameters"] if p["block"] in ("position", "attitude")]
+    header = ["parameter", "mode", "value", "sigma", "unit", "|value|/sigma", "significant (95 %)"]
+    out = ["<h2>Interior and installation parameters</h2>"]
+    out.append(_table(header, [_parameter_row(p, fixed) for p in interior], left=2) if interior else
+               "<p>No interior or installation parameter was estimated.</p>")
+    out.append("<h2>Trajectory corrections</h2>")
+    if len(trajectory) <= MAX_LISTED_TRAJECTORY:
+        out.append(_table(header[:6], [_parameter_row(p, fixed)[:6] for p in trajectory], left=2))
+    else:
+        out.append(f"<p>{len(trajectory)} coefficients, summarised per axis (all of them are in the JSON "
+                   "report); the curves are plotted below.</p>")
+        out.append(_table(["axis", "coefficients", "largest |value|", "largest sigma", "unit"],
+                          _trajectory_summary_rows(trajectory)))
+    return "\n".join(out)
 
 
-def _components(rep: dict) -> str:
-    rows = [[html.escape(k), _num(v["sigma0"]), _num(v["redundancy"], ".1f")]
+def _correlations_section(rep: dict) -> str:
+    """Pairs of adjusted parameters with high correlation (as selected by the engine)."""
+    rows = [[html.escape(c["a"]), html.escape(c["b"]), _fmt(c["r"], ".4f")] for c in rep["high_correlations"]]
+    return ("<h2>High correlations</h2><p>|r| &gt; 0.9 where an interior parameter takes part, |r| &gt; 0.999 "
+            "between trajectory terms.</p>"
+            + (_table(["parameter", "parameter", "r"], rows, left=2) if rows else "<p>None.</p>"))
+
+
+def _variance_components_section(rep: dict) -> str:
+    """sigma0 and redundancy of each observation group."""
+    rows = [[html.escape(k), _fmt(v.get("sigma0")), _fmt(v.get("redundancy"), ".1f"), _fmt(v.get("sum_pvv"), ".4g")]
             for k, v in rep["variance_components"].items()]
-    return "<h2>Variance components</h2>" + _table(["group", "sigma0", "redundancy"], rows)
+    return "<h2>Variance components</h2>" + _table(["group", "sigma0", "redundancy", "sum of pvv"], rows)
 
 
-def _iterations(rep: dict) -> str:
-    rows = [[str(i["iteration"]), f"{i['cost']:.6g}", f"{i['max_image_change_px']:.3g}"] for i in rep["iterations"]]
-    return "<h2>Iterations (last pass)</h2>" + _table(["#", "weighted squared residuals", "largest change px"], rows)
+def _iterations_section(rep: dict) -> str:
+    """The robust passes (if any) and the Gauss-Newton iterations of the last pass."""
+    out = []
+    passes = rep["robust"]["passes"]
+    if passes:
+        out.append("<h2>Robust passes</h2>" + _table(
+            ["pass", "sigma0", "down-weighted observations", "largest weight change"],
+            [[str(p["pass"]), _fmt(p["sigma0"]), str(p["down_weighted"]), _fmt(p["largest_change"], ".3g")]
+             for p in passes]))
+    out.append("<h2>Iterations (last pass)</h2>" + _table(
+        ["#", "weighted squared residuals", "largest image change px", "damping"],
+        [[str(i["iteration"]), _fmt(i["cost"], ".6g"), _fmt(i["max_image_change_px"], ".3g"),
+          _fmt(i.get("damping"), ".3g")] for i in rep["iterations"]]))
+    return "\n".join(out)
 
 
-def _settings(rep: dict) -> str:
-    rows = [[html.escape(str(k)), html.escape(str(v))] for k, v in rep["settings"].items()]
-    return "<h2>Settings</h2>" + _table(["setting", "value"], rows, 2)
-
-
-def _figure(caption: str, png: bytes | None, note: str = "") -> str:
-    if png is None:
-        return ""
-    data = base64.b64encode(png).decode("ascii")
-    return f"<h2>{html.escape(caption)}</h2><img alt='{html.escape(caption)}' src='data:image/png;base64,{data}'>"
+# --- plots --------------------------------------------------------------------------------------
+def _new_figure(width: float, height: float):
+    """A matplotlib Figure (inches) on an Agg canvas, outside pyplot."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
 
 
 def _png(fig) -> bytes:
-    import matplotlib.pyplot as plt
+    """The figure rendered as PNG bytes; its memory is released."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
+    fig.savefig(buf, format="png", dpi=PNG_DPI)
+    fig.clear()
     return buf.getvalue()
 
 
-def _residual_plot(points: dict) -> bytes | None:
-    import matplotlib.pyplot as plt
-    ctl = np.asarray(points["role"]) == "control"
-    ok = ctl & np.isfinite(np.asarray(points["res_col"], dtype=float))
-    if not ok.any():
-        return None
-    idx = np.nonzero(ok)[0]
-    if idx.size > MAX_ARROWS:
-        idx = idx[np.linspace(0, idx.size - 1, MAX_ARROWS).astype(int)]
-    col, row = np.asarray(points["col"])[idx], np.asarray(points["row"])[idx]
-    dc, dr = np.asarray(points["res_col"])[idx], np.asarray(points["res_row"])[idx]
-    flagged = np.asarray(points["flagged"])[idx]
-    good = ~flagged
-    extent = max(np.ptp(col), np.ptp(row), 1.0)
-    scale = 0.03 * extent / max(float(np.percentile(np.hypot(dc[good], dr[good]), 95)) if good.any() else 1.0, 1e-9)
-    fig, ax = plt.subplots(figsize=(10, 7))
-    if good.any():
-        ax.quiver(col[good], row[good], dc[good] * scale, dr[good] * scale, angles="xy", scale_units="xy", scale=1,
-                  color="#1f5fa8", width=0.0015, label="control")
-    if flagged.any():  # gross errors would swamp the plot as arrows at this exaggeration
-        ax.plot(col[flagged], row[flagged], "x", color="#c00", ms=4, label=f"flagged ({int(flagged.sum())})")
+def _figure_html(png: bytes, alt: str, caption: str) -> str:
+    """An inline PNG (base64 data URI) with an escaped alt text and caption."""
+    data = base64.b64encode(png).decode("ascii")
+    return (f"<figure><img alt='{html.escape(alt)}' src='data:image/png;base64,{data}'>"
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+
+
+def _subsample(index: np.ndarray, limit: int) -> np.ndarray:
+    """At most ``limit`` entries of ``index``, a reproducible uniform random choice, in order."""
+    if index.size <= limit:
+        return index
+    return np.sort(np.random.default_rng(0).choice(index, limit, replace=False))
+
+
+def _exaggeration(dc: np.ndarray, dr: np.ndarray, extent: float) -> float:
+    """Factor that draws the 95th-percentile residual vector (px) as 2.5 % of the image extent (px)."""
+    typical = float(np.percentile(np.hypot(dc, dr), 95)) if dc.size else 0.0
+    return 0.025 * extent / max(typical, 1e-6)
+
+
+def _nice_length(value: float) -> float:
+    """1, 2 or 5 times a power of ten, not above ``value`` (> 0): a readable scale-arrow length."""
+    power = 10.0 ** math.floor(math.log10(value))
+    return max(m * power for m in (1, 2, 5) if m * power <= value)
+
+
+def _residual_vector_figure(points: dict) -> str:
+    """Plot (a): image residual vectors (predicted - measured, px) at the measured positions,
+    exaggerated; control points blue, check points (adjusted model) orange, flagged ones red
+    crosses (their vectors would swamp the others). Subsampled to MAX_ARROWS points."""
+    col, row = np.asarray(points["col"], dtype=float), np.asarray(points["row"], dtype=float)
+    dc, dr = np.asarray(points["res_col"], dtype=float), np.asarray(points["res_row"], dtype=float)
+    role, flagged = np.asarray(points["role"]), np.asarray(points["flagged"], dtype=bool)
+    usable = np.isfinite(dc) & np.isfinite(dr) & np.isfinite(col) & np.isfinite(row)
+    if not usable.any():
+        return "<p>No image residuals to plot.</p>"
+    shown = _subsample(np.nonzero(usable)[0], MAX_ARROWS)
+    groups = {"control": shown[(role[shown] == "control") & ~flagged[shown]],
+              "check": shown[(role[shown] == "check") & ~flagged[shown]], "flagged": shown[flagged[shown]]}
+    extent = max(np.ptp(col[usable]), np.ptp(row[usable]), 1.0)
+    basis = groups["control"] if groups["control"].size else groups["check"]  # unflagged vectors set the scale
+    scale = _exaggeration(dc[basis], dr[basis], extent)
+    fig = _new_figure(10, 8)
+    ax = fig.add_subplot()
+    arrows = None
+    for name, colour in (("control", "#1f5fa8"), ("check", "#e08a00")):
+        i = groups[name]
+        if i.size:
+            arrows = ax.quiver(col[i], row[i], dc[i] * scale, dr[i] * scale, angles="xy", scale_units="xy",
+                               scale=1, color=colour, width=0.0018, label=f"{name} ({i.size})")
+    i = groups["flagged"]
+    if i.size:
+        ax.plot(col[i], row[i], "x", color="#d00", ms=5, mew=1.2, label=f"flagged ({i.size}), not drawn as vectors")
+    if arrows is not None:
+        key = _nice_length(0.1 * extent / scale)
+        ax.quiverkey(arrows, 0.97, 1.025, key * scale, f"scale: {key:g} px", labelpos="W", coordinates="axes",
+                     color="k")
+    ax.set_xlim(col[usable].min() - 0.02 * extent, col[usable].max() + 0.02 * extent)
+    ax.set_ylim(row[usable].max() + 0.02 * extent, row[usable].min() - 0.02 * extent)  # image y down
+    ax.set_aspect("equal" if np.ptp(row[usable]) < 4 * max(np.ptp(col[usable]), 1.0) else "auto")
     ax.set_xlabel("column (px)")
-    ax.set_ylabel("row (px)")
-    ax.invert_yaxis()
-    ax.set_aspect("equal" if np.ptp(row) < 5 * np.ptp(col) else "auto")
-    shown = f"{idx.size} of {int(ok.sum())} control observations" if idx.size < ok.sum() else \
-        f"{idx.size} control observations"
-    ax.set_title(f"residual vectors (predicted − measured), exaggerated {scale:.0f}×; {shown}")
-    ax.legend(loc="upper right")
-    return _png(fig)
+    ax.set_ylabel("row (px, down)")
+    ax.set_title(f"image residuals (predicted − measured), exaggerated {scale:.3g}×", loc="left")
+    ax.legend(loc="lower left", fontsize="small", framealpha=0.9)
+    total = int(usable.sum())
+    sampled = (f" {shown.size} of the {total} points are drawn (a uniform random subsample)."
+               if shown.size < total else "")
+    caption = (f"Image residual vectors, predicted − measured, drawn {scale:.3g} times their length (scale arrow "
+               "above the plot). Control points blue, check points (from the adjusted model) orange, flagged "
+               f"observations as red crosses.{sampled}")
+    return _figure_html(_png(fig), "image residual vectors", caption)
 
 
-def _trajectory_plot(tr: dict) -> bytes:
-    import matplotlib.pyplot as plt
-    t = np.asarray(tr["time"])
-    fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
-    pos, att = np.asarray(tr["position"]), np.degrees(np.asarray(tr["attitude"])) * 3600
-    for a, name in enumerate("XYZ"):
-        axes[0].plot(t, pos[:, a], label=name)
-    for a, name in enumerate(("roll", "pitch", "yaw")):
-        axes[1].plot(t, att[:, a], label=name)
-    for ax, knots in ((axes[0], tr["position_knots"]), (axes[1], tr["attitude_knots"])):
-        for k in knots:
-            ax.axvline(k, color="#bbb", lw=0.6, zorder=0)
-        ax.legend(loc="upper right")
+def _trajectory_figure(trajectory: dict) -> str:
+    """Plot (b): position corrections (m, ECEF X/Y/Z) and attitude corrections (arcsec, roll/pitch/
+    yaw) against time (s), knot times (for polynomials the reference time t0) as grey lines."""
+    t = np.asarray(trajectory["time"], dtype=float)
+    pos = np.asarray(trajectory["position"], dtype=float).reshape(-1, 3)
+    att = np.asarray(trajectory["attitude"], dtype=float).reshape(-1, 3) * ARCSEC_PER_RAD
+    fig = _new_figure(10, 7)
+    axes = fig.subplots(2, 1, sharex=True)
+    for ax, values, names, knots in ((axes[0], pos, ("X", "Y", "Z"), trajectory["position_knots"]),
+                                     (axes[1], att, ("roll", "pitch", "yaw"), trajectory["attitude_knots"])):
+        for k, knot in enumerate(knots):
+            ax.axvline(knot, color="#aaa", lw=0.8, ls="--", zorder=0, label="knots" if k == 0 else None)
+        for a, name in enumerate(names):
+            ax.plot(t, values[:, a], lw=1.5, label=name)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize="small", ncol=4)
     axes[0].set_ylabel("position correction (m, ECEF)")
     axes[1].set_ylabel("attitude correction (arcsec)")
-    axes[1].set_xlabel("time (s from the scene epoch); grey lines: knots / orientation images")
-    return _png(fig)
+    axes[1].set_xlabel("time (s)")
+    axes[0].set_title("trajectory corrections (adjusted − input)")
+    caption = ("Corrections to the input trajectory against time: position in metres along the ECEF axes, "
+               "attitude (roll, pitch, yaw) in arcseconds. Dashed grey lines: knot times of the trajectory "
+               "model (for polynomials the reference time t0).")
+    return _figure_html(_png(fig), "trajectory corrections", caption)
 
 
-def _chip_plot(per_chip: dict) -> bytes | None:
-    import matplotlib.pyplot as plt
+def _chip_figure(per_chip: dict) -> str:
+    """Plot (c): control residual RMSE (px) in col and row per CCD chip, with the observation counts."""
     names = [k for k, v in per_chip.items() if v.get("count")]
     if not names:
-        return None
+        return "<p>No control residuals per chip to plot.</p>"
     x = np.arange(len(names))
-    fig, ax = plt.subplots(figsize=(max(5, 1.2 * len(names)), 4))
-    ax.bar(x - 0.2, [per_chip[n]["rmse_col"] for n in names], 0.4, label="col (across track)")
-    ax.bar(x + 0.2, [per_chip[n]["rmse_row"] for n in names], 0.4, label="row (along track)")
-    ax.set_xticks(x, names)
-    ax.set_ylabel("residual RMSE (px)")
-    ax.legend()
-    return _png(fig)
+    fig = _new_figure(max(6.0, 1.1 * len(names) + 2), 4.5)
+    ax = fig.add_subplot()
+    ax.bar(x - 0.2, [per_chip[n]["rmse_col"] for n in names], 0.4, label="col (across track)", color="#1f5fa8")
+    ax.bar(x + 0.2, [per_chip[n]["rmse_row"] for n in names], 0.4, label="row (along track)", color="#e08a00")
+    ax.set_xticks(x, [f"{n}\n{per_chip[n]['count']} obs" for n in names], fontsize="small")
+    ax.set_xlabel("camera / CCD chip")
+    ax.set_ylabel("control residual RMSE (px)")
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize="small")
+    caption = ("Control point residual RMSE per CCD chip, column and row, in pixels (flagged observations left "
+               "out in robust runs). A chip clearly above the others points to an unmodelled chip offset or "
+               "rotation.")
+    return _figure_html(_png(fig), "residual RMSE per CCD chip", caption)

@@ -1,55 +1,160 @@
-"""Adjustment reports: JSON that parses back, one HTML page with the figures and plots."""
+"""Adjustment reports on a real small adjustment: JSON that parses back, one self-contained HTML
+page with the headline figures, the decisions and three inline PNG plots, written atomically."""
 import base64
 import json
 import re
+import time
 
+import matplotlib
 import numpy as np
 import pytest
 
 from core import gcps as G
 from core.adjust import AdjustmentSettings, adjust
-from core.adjust.report import report_to_json, write_report_html, write_report_json
+from core.adjust.report import MAX_ARROWS, report_to_json, write_report_html, write_report_json
 from core.scene_io import load_scene
 from core.simulator import GcpSettings, simulate
 
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+IMAGES = re.compile(r"data:image/png;base64,([A-Za-z0-9+/=]+)")
+
 
 @pytest.fixture(scope="module")
-def result(tmp_path_factory):
+def simulated(tmp_path_factory):
+    """A CBERS-02B scene with 400 GCPs (half check points, 5 % gross errors) and its GCP table."""
     sim = simulate("cbers02b_hrc", tmp_path_factory.mktemp("sim"), seed=6,
-                   gcp_settings=GcpSettings(n_gcps=600, image_noise=0.5, check_fraction=0.5, gross_fraction=0.05))
+                   gcp_settings=GcpSettings(n_gcps=400, image_noise=0.5, check_fraction=0.5, gross_fraction=0.05))
     table = G.read_csv(sim.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
                        G.Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.01, sigma_z=0.01)
-    # all three chips: the middle one's terms are not determinable and get fixed
-    return adjust(load_scene(sim.onboard_scene), table, AdjustmentSettings(interior="HRC-1.*, HRC-2.*, HRC-3.*"))
+    return sim, table
 
 
-def test_json_parses_back_with_nan_as_null(result, tmp_path):
+@pytest.fixture(scope="module")
+def result(simulated):
+    """All three chips' interior terms: the middle chip's are not determinable and get fixed."""
+    sim, table = simulated
+    out = adjust(load_scene(sim.onboard_scene), table, AdjustmentSettings(interior="HRC-1.*, HRC-2.*, HRC-3.*"))
+    assert out.report["determinability"], "the fixture must exercise the determinability messages"
+    return out
+
+
+@pytest.fixture(scope="module")
+def page(result, tmp_path_factory):
+    path = tmp_path_factory.mktemp("html") / "report.html"
+    write_report_html(result.report, result.points, path, title="CBERS <script>alert(1)</script>")
+    return path.read_text(encoding="utf-8")
+
+
+def test_json_parses_back_with_numpy_converted_and_nan_as_null(result, tmp_path):
     path = tmp_path / "report.json"
-    write_report_json({**result.report, "extra": [np.nan, np.float32(1.5), np.int64(3)]}, path)
+    extra = {"nan": np.nan, "inf": np.float64(np.inf), "f32": np.float32(1.5), "i64": np.int64(3),
+             "flag": np.bool_(True), "array": np.array([[1.0, np.nan], [2.0, 3.0]])}
+    write_report_json({**result.report, "extra": extra}, path)
     back = json.loads(path.read_text())
-    assert back["sigma0"] == result.report["sigma0"] and back["extra"] == [None, 1.5, 3]
-    assert back["parameters"][0]["name"] == result.report["parameters"][0]["name"]
+    assert back["sigma0"] == result.report["sigma0"]
+    assert back["extra"] == {"nan": None, "inf": None, "f32": 1.5, "i64": 3, "flag": True,
+                             "array": [[1.0, None], [2.0, 3.0]]}
+    assert [p["name"] for p in back["parameters"]] == [p["name"] for p in result.report["parameters"]]
+    assert len(back["trajectory"]["position"]) == len(result.report["trajectory"]["time"])
+    assert not (tmp_path / "report.json.part").exists()
     assert "NaN" not in report_to_json(result.report)
 
 
-def test_html_holds_the_figures_decisions_and_three_plots(result, tmp_path):
-    path = tmp_path / "report.html"
-    write_report_html(result.report, result.points, path, title="CBERS <script>alert(1)</script>")
-    text = path.read_text()
-    assert "<script>" not in text and "&lt;script&gt;" in text
-    images = re.findall(r"data:image/png;base64,([A-Za-z0-9+/=]+)", text)
+def test_html_has_three_inline_png_plots(page):
+    images = IMAGES.findall(page)
     assert len(images) == 3
-    assert base64.b64decode(images[0])[:8] == b"\x89PNG\r\n\x1a\n"
-    assert f"sigma0 = {result.report['sigma0']:.3f}" in text
-    assert format(result.report["check_points"]["image"]["rmse_col"], ".3f") in text
-    assert "HRC-2.dx</b> was fixed" in text
-    assert f"{result.report['robust']['flagged']} image observations flagged" in text
+    for data in images:
+        assert base64.b64decode(data)[:8] == PNG_MAGIC
+    assert "<img" in page and "src='http" not in page and "src=\"http" not in page  # self-contained
 
 
-def test_an_unwritable_report_leaves_nothing(result, tmp_path):
+def test_html_leads_with_sigma0_control_and_check_point_accuracy(result, page):
+    rep = result.report
+    assert f"sigma0 = {rep['sigma0']:.3f}" in page
+    assert page.index("sigma0 =") < page.index("Settings") < page.index("data:image/png")
+    ctl = rep["control_residuals"]
+    assert f"RMSE col {ctl['rmse_col']:.3f} px, row {ctl['rmse_row']:.3f} px" in page
+    checks = rep["check_points"]
+    row = re.search(r"<tr><td class='l'>after adjustment</td>(.*?)</tr>", page).group(1)
+    assert f"<td>{checks['image']['rmse_col']:.3f}</td><td>{checks['image']['rmse_row']:.3f}</td>" in row
+    assert f"<td>{checks['ground']['ce90']:.2f}</td>" in row
+    before = rep["check_points_before"]
+    assert f"<td>{before['image']['rmse_col']:.3f}</td>" in page
+    if checks["blunders"]:
+        assert f"without the {checks['blunders']} blunders" in page
+
+
+def test_html_names_the_fixed_parameters_and_the_flagged_count(result, page):
+    for decision in result.report["determinability"]:
+        assert f"<b>{decision['fixed']}</b> was fixed" in page
+        # and the interior table marks it
+        assert re.search(rf"<td class='l'>{re.escape(decision['fixed'])}</td><td class='l'>fixed \(not determinable\)",
+                         page)
+    assert f"{result.report['robust']['flagged']} image observations flagged" in page
+
+
+def test_html_shows_interior_parameters_in_readable_units(result, page):
+    p = next(p for p in result.report["parameters"] if p["name"] == "HRC-1.theta")
+    assert p["unit"] == "rad" and p["mode"] == "free"
+    arcsec = np.degrees(p["value"]) * 3600
+    assert re.search(rf"<td class='l'>HRC-1.theta</td><td class='l'>free</td><td>{arcsec:.4g}</td>"
+                     r"<td>[^<]+</td><td>arcsec</td>", page)
+
+
+def test_title_and_text_are_escaped(page):
+    assert "<script>" not in page
+    assert "<title>CBERS &lt;script&gt;alert(1)&lt;/script&gt;</title>" in page
+
+
+def test_many_trajectory_coefficients_are_summarised_per_axis(simulated, tmp_path):
+    sim, table = simulated
+    out = adjust(load_scene(sim.onboard_scene), table,
+                 AdjustmentSettings(attitude_model="spline", attitude_interval=0.3, attitude_sigma=1e-4))
+    n_trajectory = sum(p["block"] in ("position", "attitude") for p in out.report["parameters"])
+    assert n_trajectory > 24
+    path = tmp_path / "spline.html"
+    write_report_html(out.report, out.points, path)
+    text = path.read_text(encoding="utf-8")
+    assert f"{n_trajectory} coefficients, summarised per axis" in text
+    assert "<td class='l'>attitude.roll</td>" in text and "attitude.roll.S2" not in text
+    assert len(IMAGES.findall(text)) == 3
+
+
+def test_half_a_million_points_are_subsampled_quickly(result, tmp_path):
+    n = 500_000
+    take = np.resize(np.arange(len(result.points["col"])), n)
+    points = {k: np.asarray(v)[take] for k, v in result.points.items()}
+    usable = int((np.isfinite(points["res_col"]) & np.isfinite(points["res_row"])).sum())
+    start = time.perf_counter()
+    write_report_html(result.report, points, tmp_path / "big.html")
+    assert time.perf_counter() - start < 5.0
+    text = (tmp_path / "big.html").read_text(encoding="utf-8")
+    assert f"{MAX_ARROWS} of the {usable} points are drawn" in text
+
+
+def test_no_matplotlib_figure_is_left_open(result, tmp_path):
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    before = plt.get_fignums()
+    write_report_html(result.report, result.points, tmp_path / "report.html")
+    assert plt.get_fignums() == before
+
+
+def test_an_unwritable_report_raises_and_leaves_nothing(result, tmp_path):
     missing = tmp_path / "no such folder" / "report.html"
     with pytest.raises(OSError):
         write_report_html(result.report, result.points, missing)
     with pytest.raises(OSError):
         write_report_json(result.report, missing.with_suffix(".json"))
     assert not (tmp_path / "no such folder").exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_failing_report_leaves_the_previous_file_untouched(result, tmp_path):
+    path = tmp_path / "report.html"
+    path.write_text("previous report")
+    broken = {k: v for k, v in result.report.items() if k != "trajectory"}
+    with pytest.raises(KeyError):
+        write_report_html(broken, result.points, path)
+    assert path.read_text() == "previous report"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]
