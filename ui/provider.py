@@ -7,11 +7,12 @@ from .algorithms.footprint import FootprintAlgorithm
 from .algorithms.groundtoimage import GroundToImageAlgorithm
 from .algorithms.imagetoground import ImageToGroundAlgorithm
 from .algorithms.importgcps import ImportGcpsAlgorithm
+from .algorithms.orthorectify import OrthorectifyAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .common import RESOURCES
 
 ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, BundleAdjustAlgorithm, GroundToImageAlgorithm,
-              ImageToGroundAlgorithm, FootprintAlgorithm)
+              ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm)
 
 
 class PushbroomProvider(QgsProcessingProvider):

@@ -1,4 +1,4 @@
-"""The plugin loads in QGIS and its provider lists the six algorithms with complete help."""
+"""The plugin loads in QGIS and its provider lists its algorithms with complete help."""
 import importlib
 
 from qgis.core import QgsApplication
@@ -6,10 +6,10 @@ from qgis.core import QgsApplication
 from .conftest import PLUGIN
 
 ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:bundleadjust", "pushbroom:groundtoimage",
-              "pushbroom:imagetoground", "pushbroom:footprint"]
+              "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify"]
 
 
-def test_provider_lists_the_six_algorithms(provider):
+def test_provider_lists_its_algorithms(provider):
     assert provider.id() == "pushbroom" and provider.name() == "Pushbroom Adjust"
     assert not provider.icon().isNull() and provider.svgIconPath().endswith("icon.svg")
     assert sorted(a.id() for a in provider.algorithms()) == sorted(ALGORITHMS)

@@ -1,0 +1,61 @@
+"""pushbroom:orthorectify in QGIS and from qgis_process, on a rendered cut of a simulated scene."""
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from osgeo import gdal
+from qgis.core import QgsProcessingException
+
+import processing
+from core.dem import Dem
+from core.render import render_image, texture_frame
+from core.scene_io import load_scene, save_scene
+from core.simulator import simulate
+
+from .test_qgis_process import _run_json, qgis_process  # noqa: F401 (fixture)
+
+
+@pytest.fixture(scope="module")
+def raw(tmp_path_factory):
+    """(scene JSON, raw image, DEM) of a 400-row cut of a CBERS-02B scene, rendered."""
+    folder = tmp_path_factory.mktemp("raw")
+    result = simulate("cbers02b_hrc", folder, seed=2, n_gcps=5)
+    full = load_scene(result.true_scene)
+    scene = replace(full, cameras=[replace(full.cameras[0], rows=400)], _guess={})
+    dem = Dem(result.dem, datum="geoid")
+    render_image(scene, 0, dem, folder / "raw.tif", texture_frame(full, dem, 2))
+    save_scene(scene, folder / "cut.json")
+    return str(folder / "cut.json"), str(folder / "raw.tif"), str(result.dem)
+
+
+def test_orthorectify_with_processing_run(provider, raw, tmp_path):
+    scene, image, dem = raw
+    out = processing.run("pushbroom:orthorectify", {"INPUT": image, "SCENE": scene, "DEM": dem, "DEM_DATUM": 0,
+                                                    "RESOLUTION": 5.0, "RESAMPLING": 2,
+                                                    "OUTPUT": str(tmp_path / "ortho.tif")})["OUTPUT"]
+    ds = gdal.Open(out)
+    assert ds.GetGeoTransform()[1] == 5.0 and "UTM zone 50N" in ds.GetProjection()
+    data = ds.GetRasterBand(1).ReadAsArray()
+    # a 400-row cut is a thin strip across its bounding box: ~11 % of it is image
+    assert 0.05 < np.mean(data > 0) < 0.3 and ds.GetRasterBand(1).GetNoDataValue() == 0
+
+
+def test_bad_parameters_are_named(provider, raw, tmp_path):
+    scene, image, dem = raw
+    base = {"INPUT": image, "SCENE": scene, "DEM": dem, "OUTPUT": str(tmp_path / "o.tif")}
+    with pytest.raises(QgsProcessingException, match="CRS: EPSG:4326 is not a projected CRS"):
+        processing.run("pushbroom:orthorectify", {**base, "CRS": "EPSG:4326"})
+    with pytest.raises(QgsProcessingException, match="OUTPUT: the orthoimage is written as GeoTIFF"):
+        processing.run("pushbroom:orthorectify", {**base, "OUTPUT": str(tmp_path / "o.png")})
+    with pytest.raises(QgsProcessingException, match="the raster is 12246 x 400 px but camera HRC"):
+        processing.run("pushbroom:orthorectify", {**base, "SCENE": str(Path(scene).with_name("true_scene.json"))})
+    assert not (tmp_path / "o.tif").exists()
+
+
+def test_orthorectify_from_the_command_line(qgis_process, raw, tmp_path):  # noqa: F811
+    scene, image, dem = raw
+    results = _run_json(qgis_process, "pushbroom:orthorectify", INPUT=image, SCENE=scene, DEM=dem, DEM_DATUM=0,
+                        CRS="EPSG:32650", RESOLUTION=10, OUTPUT=tmp_path / "o.tif")
+    ds = gdal.Open(results["OUTPUT"])
+    assert ds.GetGeoTransform()[1] == 10.0 and ds.RasterCount == 1
