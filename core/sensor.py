@@ -154,10 +154,11 @@ class SceneModel:
             # meets it: such rays are searched along their whole length below.
             lost = ~np.isfinite(misfit)
             done = np.abs(misfit) < tol
-            dist[idx[~lost]] -= misfit[~lost] / rate[~lost]
+            keep = idx[~lost]
+            dist[keep] -= misfit[~lost] / rate[~lost]
             p[idx] = ground
             if self.aberration:
-                u[idx[~lost]] = self._geometric_ray(s[idx[~lost]], v[idx[~lost]], u_app[idx[~lost]], dist[idx[~lost]])
+                u[keep] = self._geometric_ray(s[keep], v[keep], u_app[keep], dist[keep])
             search[idx[lost]] = True
             active[idx[done | lost]] = False
         idx = np.nonzero(active | search)[0]
@@ -181,7 +182,8 @@ class SceneModel:
     def _first_crossing(self, s, u, idx, surface, h_range, tol) -> np.ndarray:
         """Ground points where rays first cross the surface, by stepping down from the top of
         its height range and bisecting: for steep terrain seen obliquely, where Newton that
-        ignores the slope oscillates. NaN where a ray never crosses."""
+        ignores the slope oscillates, and for rays whose Newton point fell off the surface (a
+        DEM's edge or hole). NaN where a ray does not cross where the surface is defined."""
         top = ray_height_intersection(s, u, h_range[1] + 1.0, newton_steps=0)
         bottom = ray_height_intersection(s, u, h_range[0] - 1.0, newton_steps=0)
         steps = np.linspace(0.0, 1.0, 129)
@@ -189,21 +191,26 @@ class SceneModel:
         n, m = d.shape
         _, misfit, _ = self._surface_misfit(np.repeat(s, m, 0), np.repeat(u, m, 0), d.ravel(),
                                             np.repeat(idx, m), surface)
-        below = (misfit.reshape(n, m) <= 0) & np.isfinite(misfit.reshape(n, m))
-        found = below[:, 1:].any(axis=1) & ~below[:, 0]
+        misfit = misfit.reshape(n, m)
+        below = misfit <= 0
+        found = below[:, 1:].any(axis=1)
         j = np.argmax(below[:, 1:], axis=1) + 1
-        lo = d[np.arange(n), j - 1]
-        hi = d[np.arange(n), j]
+        rows = np.arange(n)
+        lo, hi, misfit_lo = d[rows, j - 1], d[rows, j], misfit[rows, j - 1]
         while np.nanmax(np.where(found, hi - lo, 0.0), initial=0.0) > tol:
             mid = 0.5 * (lo + hi)
             _, misfit, _ = self._surface_misfit(s, u, mid, idx, surface)
-            above = ~(misfit <= 0)  # off the surface (NaN) on the way down: the crossing is further
-            lo = np.where(above, mid, lo)
+            above = ~(misfit <= 0)  # off the surface (NaN) too: a crossing may lie further on
+            lo, misfit_lo = np.where(above, mid, lo), np.where(above, misfit, misfit_lo)
             hi = np.where(above, hi, mid)
+        # A ray that comes onto the surface (past a DEM's edge or out of a hole) already below it
+        # crosses where the surface is unknown: that point on the edge is not on the ground.
+        found &= misfit_lo > 0
         ground, _, _ = self._surface_misfit(s, u, 0.5 * (lo + hi), idx, surface)
         ground[~found] = np.nan
         if (~found).any():
-            log.warning("%d rays do not meet the surface inside its height range", (~found).sum())
+            log.warning("%d rays do not meet the surface where it is defined (they pass off its "
+                        "edge or through a hole, or outside its height range)", (~found).sum())
         return ground
 
     # --- ground -> image -----------------------------------------------------------------

@@ -184,6 +184,35 @@ def test_dem_ray_near_dem_edge(scene, shared_data):
     assert ecef_to_geodetic(g)[2][0] == pytest.approx(655.0, abs=1.0)
 
 
+class ClippedDem:
+    """A DEM with no data on one side of a line through (lon, lat) (direction (dlon, dlat) points
+    into the cut-away side)."""
+    def __init__(self, dem, lon, lat, dlon, dlat):
+        self.dem, self.at, self.towards = dem, (lon, lat), (dlon, dlat)
+        self.height_range = dem.height_range
+
+    def height(self, lon, lat):
+        side = (lon - self.at[0]) * self.towards[0] + (lat - self.at[1]) * self.towards[1]
+        return np.where(side > 0, np.nan, self.dem.height(lon, lat))
+
+
+def test_dem_ray_entering_dem_below_surface(scene, shared_data):
+    """The edge ray with the DEM cut ~2 m past its crossing, on the side the ray comes from: it
+    enters the DEM below the surface, so it meets the ground where the DEM is unknown (NaN), not
+    on the DEM's edge (which bisection of a bracket starting off the DEM gave, 6 m underground)."""
+    dem = Dem(shared_data / MNT, datum="ellipsoid")
+    col, row = np.array([39974.235]), np.array([18076.936])
+    g = scene.image_to_ground_dem(col, row, dem)
+    _, _, _, u = scene.line_of_sight(col, row)
+    lon, lat, _ = ecef_to_geodetic(g)
+    lon_up, lat_up, _ = ecef_to_geodetic(g - 200.0 * u)  # 200 m back up the ray
+    towards = np.array([lon_up - lon, lat_up - lat]).ravel()
+    towards /= np.hypot(*towards)
+    cut = -2e-5 * towards  # ~2 m (in degrees) past the crossing
+    clipped = ClippedDem(dem, lon[0] + cut[0], lat[0] + cut[1], *towards)
+    assert np.isnan(scene.image_to_ground_dem(col, row, clipped)).all()
+
+
 # --- errors --------------------------------------------------------------------------------------
 def mutated(shared_data, tmp_path, block: str):
     text = (shared_data / XML).read_text()
