@@ -35,7 +35,7 @@ from pyproj.exceptions import CRSError
 from .dem import Dem, to_ellipsoidal
 from .errors import InputError
 from .geodesy import geodetic_to_ecef
-from .vector_io import write_layer
+from .vector_io import open_layer, write_layer
 
 gdal.UseExceptions()
 ogr.UseExceptions()
@@ -550,13 +550,7 @@ def read_gpkg(path, layer: str | None = None) -> GcpTable:
     restored when every point has them.
     """
     path = Path(path)
-    try:
-        ds = ogr.Open(str(path))
-    except RuntimeError as exc:
-        raise InputError(f"{path}: cannot be opened as a vector file ({exc})") from None
-    lyr = ds.GetLayerByName(layer) if layer else ds.GetLayer(0)
-    if lyr is None:
-        raise InputError(f"{path}: no layer {layer!r}")
+    ds, lyr = open_layer(path, layer)
     names = [lyr.GetLayerDefn().GetFieldDefn(i).GetName() for i in range(lyr.GetLayerDefn().GetFieldCount())]
     missing = [f for f in ("id", "role", "col", "row") if f not in names]
     if missing:

@@ -21,6 +21,19 @@ def _field_type(values: np.ndarray) -> int:
     return ogr.OFTString if kind in "UOS" else ogr.OFTInteger if kind in "biu" else ogr.OFTReal
 
 
+def open_layer(path, layer: str | None = None):
+    """(data source, layer) of a vector file's named (or first) layer; InputError naming the
+    file when it cannot be read. Keep the data source: the layer lives only as long as it."""
+    try:
+        ds = ogr.Open(str(path))
+    except RuntimeError as exc:
+        raise InputError(f"{path}: cannot be opened as a vector file ({exc})") from None
+    lyr = ds.GetLayerByName(layer) if layer else ds.GetLayer(0)
+    if lyr is None:
+        raise InputError(f"{path}: no layer {layer!r}")
+    return ds, lyr
+
+
 def write_layer(path, layer: str, srs: osr.SpatialReference, geometry_type: int, columns: dict,
                 geometries, metadata: dict | None = None) -> None:
     """Write a GeoPackage layer: ``columns`` {name: (n,) array}, ``geometries`` n OGR

@@ -13,6 +13,7 @@ import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingAlgorithm, QgsProcessingException,
+                       QgsProcessingParameterDefinition,
                        QgsProcessingLayerPostProcessorInterface, QgsProcessingParameterEnum,
                        QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer,
                        QgsProcessingParameterString)
@@ -61,6 +62,13 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
     def createInstance(self):  # noqa: N802
         return type(self)()
+
+    def add_parameter(self, parameter, help_text: str, advanced: bool = False) -> None:
+        """Add a parameter with its help text (shown in the toolbox and qgis_process help)."""
+        parameter.setHelp(help_text)
+        if advanced:
+            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+        self.addParameter(parameter)
 
     def shortHelpString(self):  # noqa: N802
         rows = "".join(f"<li><b>{p.name()}</b>: {p.help() or p.description()}</li>"

@@ -18,7 +18,7 @@ from ..errors import InputError
 from ..gcps import GcpTable, Residuals, write_gpkg
 from ..geodesy import A, F, enu_rotations
 from ..sensor import SceneModel
-from ..vector_io import write_layer
+from ..vector_io import open_layer, write_layer
 
 ogr.UseExceptions()
 
@@ -128,13 +128,7 @@ _SCHEMA = {"fid", "id", "role", "camera", "col", "row", "h", "sigma_px", "sigma_
 def _other_fields(source, layer: str | None, n: int) -> dict:
     """Fields of a GCP GeoPackage outside the GCP and adjustment schema, as arrays: integers
     (float when some are NULL), reals, and everything else as text ('' for NULL)."""
-    try:
-        ds = ogr.Open(str(source))
-    except RuntimeError as exc:
-        raise InputError(f"{source}: cannot be opened as a vector file ({exc})") from None
-    lyr = ds.GetLayerByName(layer) if layer else ds.GetLayer(0)
-    if lyr is None:
-        raise InputError(f"{source}: no layer {layer!r}")
+    ds, lyr = open_layer(source, layer)
     defn = lyr.GetLayerDefn()
     fields = [(defn.GetFieldDefn(i).GetName(), defn.GetFieldDefn(i).GetType()) for i in range(defn.GetFieldCount())]
     fields = [(name, kind) for name, kind in fields if name.lower() not in _SCHEMA]

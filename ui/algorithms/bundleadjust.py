@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutputFile,
-                       QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+                       QgsProcessingParameterEnum,
                        QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
                        QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
                        QgsProcessingParameterVectorLayer)
@@ -58,7 +58,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
-        self._add(QgsProcessingParameterVectorLayer(self.GCPS, "Ground control points (GeoPackage)",
+        self.add_parameter(QgsProcessingParameterVectorLayer(self.GCPS, "Ground control points (GeoPackage)",
                                                     [QgsProcessing.TypeVectorPoint]),
                   "The GCP layer written by 'Import ground control points' (GeoPackage): image col/row, ground "
                   "position, role control/check, camera and sigmas of every point.")
@@ -69,25 +69,25 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                 ("ATTITUDE", 2, 0.0, "arcsec", "Accuracy of the onboard attitude (star trackers), arcseconds per "
                  "axis, as pseudo-observations of the attitude corrections. 0: none.")):
             what = block.lower()
-            self._add(QgsProcessingParameterEnum(f"{block}_MODEL", f"{block.title()} correction model",
+            self.add_parameter(QgsProcessingParameterEnum(f"{block}_MODEL", f"{block.title()} correction model",
                                                  options=list(MODEL_LABELS), defaultValue=0),
                       f"How the {what} correction varies in time: a polynomial of order {block}_ORDER over the "
                       f"strip (systematic-error compensation, seed 000 eq. 1-2; order 2 without pseudo-observations "
                       f"is seed 002's quadratic model), orientation images every {block}_INTERVAL seconds with "
                       "4-point Lagrange interpolation (seed 000 eq. 3), or quadratic pieces between knots every "
                       f"{block}_INTERVAL seconds, continuous in value and slope (seed 001 eq. 9).")
-            self._add(QgsProcessingParameterNumber(f"{block}_ORDER", f"{block.title()} polynomial order",
+            self.add_parameter(QgsProcessingParameterNumber(f"{block}_ORDER", f"{block.title()} polynomial order",
                                                    QgsProcessingParameterNumber.Integer, default_order, minValue=0,
                                                    maxValue=2),
                       "0: bias, 1: bias and drift, 2: also a quadratic term (polynomial model only).")
-            self._add(QgsProcessingParameterNumber(f"{block}_INTERVAL", f"{block.title()} knot interval (s)",
+            self.add_parameter(QgsProcessingParameterNumber(f"{block}_INTERVAL", f"{block.title()} knot interval (s)",
                                                    QgsProcessingParameterNumber.Double, 20.0, minValue=0.01),
                       "Seconds between orientation images or knots (Lagrange and piecewise models). Shorter "
                       "intervals follow faster motion but let position and attitude trade off (seed 000 Fig. 7-11).")
-            self._add(QgsProcessingParameterNumber(f"{block}_SIGMA", f"Onboard {what} sigma ({unit})",
+            self.add_parameter(QgsProcessingParameterNumber(f"{block}_SIGMA", f"Onboard {what} sigma ({unit})",
                                                    QgsProcessingParameterNumber.Double, default_sigma, minValue=0.0),
                       sigma_help)
-        self._add(QgsProcessingParameterString(self.INTERIOR, "Interior parameters to estimate", optional=True,
+        self.add_parameter(QgsProcessingParameterString(self.INTERIOR, "Interior parameters to estimate", optional=True,
                                                defaultValue=""),
                   "Interior and installation parameters to estimate, comma-separated; every other one stays "
                   "at the scene's value. A name alone makes the parameter free; 'name=sigma' makes it weighted "
@@ -102,51 +102,46 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                   "(shifts and rotations of the left and right CCDs against the middle one); 'HRC-1.*, HRC-3.*, "
                   "HRC.f=1e-5' also estimates the focal length, weighted with 10 µm. Sets the GCPs cannot separate "
                   "from the trajectory are reported (see ON_SINGULAR). Empty: none (trajectory only).")
-        self._add(QgsProcessingParameterEnum(self.GROUND, "GCP ground coordinates",
+        self.add_parameter(QgsProcessingParameterEnum(self.GROUND, "GCP ground coordinates",
                                              options=["Weighted by their sigmas", "Fixed"], defaultValue=0),
                   "Weighted: the ground coordinates are unknowns with the GCPs' sigma_xy/sigma_z as pseudo-"
                   "observations (matched or map-derived points). Fixed: taken as exact (surveyed points).")
-        self._add(QgsProcessingParameterEnum(self.ROBUST, "Gross error detection", options=list(ROBUST_LABELS),
+        self.add_parameter(QgsProcessingParameterEnum(self.ROBUST, "Gross error detection", options=list(ROBUST_LABELS),
                                              defaultValue=1),
                   "Selection weights down-weight observations whose normalised residual exceeds the critical "
                   "value (Li Deren's posterior-variance weights); data snooping removes them from the solution in "
                   "batches (Baarda). Either way the flagged points stay in the output layer with flagged = 1.")
-        self._add(QgsProcessingParameterNumber(self.ALPHA, "Significance of the outlier test",
+        self.add_parameter(QgsProcessingParameterNumber(self.ALPHA, "Significance of the outlier test",
                                                QgsProcessingParameterNumber.Double, 0.001, minValue=1e-9, maxValue=0.2),
                   "Probability of flagging a good observation (0.001: |w| > 3.29).", advanced=True)
-        self._add(QgsProcessingParameterEnum(self.ON_SINGULAR, "Non-determinable parameters",
+        self.add_parameter(QgsProcessingParameterEnum(self.ON_SINGULAR, "Non-determinable parameters",
                                              options=["Fix one of each set and continue", "Stop with their names"],
                                              defaultValue=0),
                   "What to do when the GCPs cannot separate some parameters (e.g. all three CBERS CCDs' shifts "
                   "and the attitude): fix one of each set (the middle CCD's, if involved) or stop.", advanced=True)
-        self._add(QgsProcessingParameterNumber(self.RESIDUAL_SCALE, "Residual vector exaggeration",
+        self.add_parameter(QgsProcessingParameterNumber(self.RESIDUAL_SCALE, "Residual vector exaggeration",
                                                QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0),
                   "Factor by which the ground residual vectors are drawn longer than they are.", advanced=True)
-        self._add(QgsProcessingParameterFileDestination(self.OUTPUT_SCENE, "Adjusted scene",
+        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_SCENE, "Adjusted scene",
                                                         fileFilter="Scene JSON (*.json)"),
                   "Scene JSON with the corrections, the parameters with sigmas and the settings; every algorithm "
                   "accepts it as SCENE.")
-        self._add(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, "Report (HTML)",
+        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, "Report (HTML)",
                                                         fileFilter="HTML (*.html)"),
                   "A report to read: accuracy before/after, decisions, parameters, plots. The same figures as "
                   "JSON go beside it (same name, .json).")
         gcp_out = QgsProcessingParameterVectorDestination(self.OUTPUT_GCPS, "Adjusted GCPs",
                                                           QgsProcessing.TypeVectorPoint)
         gcp_out.setSupportsNonFileBasedOutput(False)
-        self._add(gcp_out, "GeoPackage of the input points with the adjusted residuals (res_col, res_row, res_px, "
+        self.add_parameter(gcp_out, "GeoPackage of the input points with the adjusted residuals (res_col, res_row, res_px, "
                   "res_m), normalised residuals w_col/w_row, redundancy, weight and flagged (1 = gross error).")
         vec_out = QgsProcessingParameterVectorDestination(self.OUTPUT_RESIDUALS, "Residual vectors",
                                                           QgsProcessing.TypeVectorLine)
         vec_out.setSupportsNonFileBasedOutput(False)
-        self._add(vec_out, "GeoPackage of lines from each GCP along its ground residual, exaggerated "
+        self.add_parameter(vec_out, "GeoPackage of lines from each GCP along its ground residual, exaggerated "
                   "RESIDUAL_SCALE times (res_m holds the true length).")
         self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, "Report (JSON)"))
 
-    def _add(self, parameter, help_text: str, advanced: bool = False) -> None:
-        parameter.setHelp(help_text)
-        if advanced:
-            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-        self.addParameter(parameter)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         from ...core.adjust.report import write_report_html, write_report_json

@@ -42,15 +42,15 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
-        self._add(QgsProcessingParameterString(self.CAMERA, "Camera of all points (name or index)", optional=True,
+        self.add_parameter(QgsProcessingParameterString(self.CAMERA, "Camera of all points (name or index)", optional=True,
                                                defaultValue=""),
                   "Camera in which every point was measured, by name (e.g. NAD) or 0-based index. Empty: "
                   "each point's CAMERA_FIELD value, or the scene's only camera.")
-        self._add(QgsProcessingParameterFile(self.INPUT_FILE, "GCP file (CSV or QGIS .points)", optional=True,
+        self.add_parameter(QgsProcessingParameterFile(self.INPUT_FILE, "GCP file (CSV or QGIS .points)", optional=True,
                                              fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"),
                   "Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas accepted "
                   "with ; TAB |), or a QGIS Georeferencer .points file. Give this or INPUT, not both.")
-        self._add(QgsProcessingParameterFeatureSource(self.INPUT, "GCP point layer", [QgsProcessing.TypeVectorPoint],
+        self.add_parameter(QgsProcessingParameterFeatureSource(self.INPUT, "GCP point layer", [QgsProcessing.TypeVectorPoint],
                                                       optional=True),
                   "Point layer whose geometry is the ground position (its own CRS) and whose fields hold the "
                   "image position (COL_FIELD, ROW_FIELD). Give this or INPUT_FILE, not both.")
@@ -67,19 +67,19 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                   (self.CAMERA_FIELD, "Camera field", "", "Camera name (or index) of each point, for scenes "
                    "with several cameras. Ignored when CAMERA is set."))
         for name, label, default, help_text in fields:
-            self._add(QgsProcessingParameterString(name, label, optional=True, defaultValue=default), help_text)
-        self._add(QgsProcessingParameterCrs(self.GROUND_CRS, "Ground CRS (CSV and .points)", optional=True,
+            self.add_parameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default), help_text)
+        self.add_parameter(QgsProcessingParameterCrs(self.GROUND_CRS, "Ground CRS (CSV and .points)", optional=True,
                                             defaultValue="EPSG:4326"),
                   "CRS of the ground coordinates in a CSV, or of a .points file without a '#CRS:' line (the "
                   "file's own line wins). A layer brings its own CRS.")
-        self._add(QgsProcessingParameterEnum(self.HEIGHT_SOURCE, "Heights from", options=list(HEIGHT_SOURCE_LABELS),
+        self.add_parameter(QgsProcessingParameterEnum(self.HEIGHT_SOURCE, "Heights from", options=list(HEIGHT_SOURCE_LABELS),
                                              defaultValue=0),
                   "Where the GCP heights come from: the Z values (Z_FIELD or point Z), the DEM sampled at "
                   "each point, or the constant HEIGHT. .points files hold no heights.")
         add_dem_parameters(self, datum_help="What the DEM's heights and the GCPs' Z values are measured from: "
                            "the EGM96 geoid (mean sea level, as most surveys and DEMs) or the WGS84 ellipsoid "
                            "(GNSS heights). Geoid heights are converted with PROJ's EGM96 grid.")
-        self._add(QgsProcessingParameterNumber(self.CHECK_FRACTION, "Share of points made check points",
+        self.add_parameter(QgsProcessingParameterNumber(self.CHECK_FRACTION, "Share of points made check points",
                                                QgsProcessingParameterNumber.Double, 0.0, minValue=0.0, maxValue=1.0),
                   "0 to 1: this share of all points becomes check points (never used in the adjustment), "
                   "chosen deterministically and spread along the image. Points already 'check' count.")
@@ -90,17 +90,14 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                  "A-priori standard deviation of the ground east/north coordinates, in metres."),
                 (self.SIGMA_Z, "Ground height sigma (m)", gcps.DEFAULT_SIGMA_Z,
                  "A-priori standard deviation of the ground height, in metres.")):
-            self._add(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
+            self.add_parameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
                                                    minValue=0.0), help_text)
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, "Ground control points",
                                                       QgsProcessing.TypeVectorPoint)
         out.setSupportsNonFileBasedOutput(False)
-        self._add(out, "GeoPackage (.gpkg) point layer of the checked GCPs, styled so points with a large "
+        self.add_parameter(out, "GeoPackage (.gpkg) point layer of the checked GCPs, styled so points with a large "
                   "a-priori residual (relative to the median) and points outside the image stand out.")
 
-    def _add(self, parameter, help_text: str) -> None:
-        parameter.setHelp(help_text)
-        self.addParameter(parameter)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         scene_path = self.parameterAsFile(parameters, SCENE, context)

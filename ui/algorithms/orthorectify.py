@@ -7,7 +7,7 @@ from pathlib import Path
 from pyproj import CRS
 from pyproj.exceptions import CRSError
 from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingException, QgsProcessingParameterCrs,
-                       QgsProcessingParameterDefinition, QgsProcessingParameterEnum, QgsProcessingParameterExtent,
+                       QgsProcessingParameterEnum, QgsProcessingParameterExtent,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
                        QgsProcessingParameterRasterLayer)
 
@@ -29,34 +29,29 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         "INPUT", "CRS", "RESOLUTION", "RESAMPLING", "NODATA", "EXTENT", "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self._add(QgsProcessingParameterRasterLayer(self.INPUT, "Raw image"),
+        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, "Raw image"),
                   "The scene's raw image (any GDAL format, any number of bands and data type), of the size the "
                   "scene's camera images, without georeferencing.")
         add_scene_parameters(self)
         add_dem_parameters(self)
-        self._add(QgsProcessingParameterCrs(self.CRS_PARAM, "Output CRS", optional=True),
+        self.add_parameter(QgsProcessingParameterCrs(self.CRS_PARAM, "Output CRS", optional=True),
                   "Projected CRS of the orthoimage. Empty: the WGS84 UTM zone of the scene's centre.")
-        self._add(QgsProcessingParameterNumber(self.RESOLUTION, "Pixel size (m)", QgsProcessingParameterNumber.Double,
+        self.add_parameter(QgsProcessingParameterNumber(self.RESOLUTION, "Pixel size (m)", QgsProcessingParameterNumber.Double,
                                                optional=True, minValue=0.0),
                   "Output pixel size in the CRS's units (metres). Empty or 0: the ground sample distance at the "
                   "image centre.")
-        self._add(QgsProcessingParameterEnum(self.RESAMPLING_PARAM, "Resampling", options=list(RESAMPLING),
+        self.add_parameter(QgsProcessingParameterEnum(self.RESAMPLING_PARAM, "Resampling", options=list(RESAMPLING),
                                              defaultValue=1),
                   "How raw pixel values are interpolated: nearest neighbour, bilinear (default) or cubic spline.")
-        self._add(QgsProcessingParameterNumber(self.NODATA, "Nodata value", QgsProcessingParameterNumber.Double,
+        self.add_parameter(QgsProcessingParameterNumber(self.NODATA, "Nodata value", QgsProcessingParameterNumber.Double,
                                                0.0), "Value of output pixels the image does not cover (and nodata "
                                                      "in the GeoTIFF).")
-        self._add(QgsProcessingParameterExtent(self.EXTENT, "Extent", optional=True),
+        self.add_parameter(QgsProcessingParameterExtent(self.EXTENT, "Extent", optional=True),
                   "Part of the scene to produce (any CRS). Empty: the whole footprint of the image on the DEM.",
                   advanced=True)
-        self._add(QgsProcessingParameterRasterDestination(self.OUTPUT, "Orthoimage"),
+        self.add_parameter(QgsProcessingParameterRasterDestination(self.OUTPUT, "Orthoimage"),
                   "GeoTIFF (tiled 512 x 512, DEFLATE, overviews, nodata set).")
 
-    def _add(self, parameter, help_text: str, advanced: bool = False) -> None:
-        parameter.setHelp(help_text)
-        if advanced:
-            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-        self.addParameter(parameter)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)

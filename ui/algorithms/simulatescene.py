@@ -1,7 +1,7 @@
 """pushbroom:simulatescene — a simulated scene with known truth: onboard and true sensor models,
 GCPs, tie points, a DEM and optionally rendered raw images, from a preset sensor."""
 from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputRasterLayer,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber)
 
 from ...core.simulator import PRESETS, GcpSettings, simulate
@@ -108,12 +108,12 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
             self.addParameter(p)
         for name, _, label, kind, default, lo, hi, help_text in MEASUREMENT_PARAMETERS:
             kind = QgsProcessingParameterNumber.Integer if kind == "i" else QgsProcessingParameterNumber.Double
-            self._advanced(QgsProcessingParameterNumber(name, label, kind, default, minValue=lo, maxValue=hi),
-                           help_text)
+            self.add_parameter(QgsProcessingParameterNumber(name, label, kind, default, minValue=lo, maxValue=hi),
+                               help_text, advanced=True)
         for name, _, label, _, help_text in ERROR_PARAMETERS:
-            self._advanced(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double,
-                                                        optional=True, minValue=0.0),
-                           help_text + " Empty: the preset's value (see simulation.json).")
+            self.add_parameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double,
+                                                            optional=True, minValue=0.0),
+                               help_text + " Empty: the preset's value (see simulation.json).", advanced=True)
         self.addParameter(folder)
         self.addOutput(QgsProcessingOutputFile(self.ONBOARD_SCENE, "Onboard scene model (scene JSON)"))
         self.addOutput(QgsProcessingOutputFile(self.TRUE_SCENE, "True scene model (scene JSON)"))
@@ -124,10 +124,6 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputFile(self.MANIFEST, "Simulation settings and drawn errors (JSON)"))
         self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, "Output folder"))
 
-    def _advanced(self, parameter, help_text: str) -> None:
-        parameter.setHelp(help_text)
-        parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-        self.addParameter(parameter)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         names = list(PRESETS)
