@@ -35,7 +35,7 @@ run simulatescene SEED=0 N_GCPS=2000 IMAGE_NOISE=0.5 CHECK_FRACTION=0.5 GROUND_N
     GROSS_FRACTION=0.02 OUTPUT_FOLDER="$SIM"
 run importgcps SCENE="$SIM/onboard_scene.json" INPUT_FILE="$SIM/gcps.csv" X_FIELD=lon Y_FIELD=lat Z_FIELD=h ROLE_FIELD=role \
     DEM_DATUM=1 OUTPUT="$OUT/gcps.gpkg"
-run bundleadjust SCENE="$SIM/onboard_scene.json" GCPS="$OUT/gcps.gpkg" INTERIOR="HRC-1.*, HRC-3.*" \
+run bundleadjust SCENE="$SIM/onboard_scene.json" GCPS="$OUT/gcps.gpkg" INTERIOR="HRC-1.*, HRC-3.*" POSITION_ORDER=0 \
     OUTPUT_SCENE="$OUT/adjusted_scene.json" OUTPUT_REPORT="$OUT/adjustment.html" \
     OUTPUT_GCPS="$OUT/adjusted_gcps.gpkg" OUTPUT_RESIDUALS="$OUT/residuals.gpkg"
 run footprint SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=0 OUTPUT="$OUT/footprint.gpkg"
