@@ -3,6 +3,7 @@ from qgis.core import QgsProcessingProvider
 from qgis.PyQt.QtGui import QIcon
 
 from .algorithms.bundleadjust import BundleAdjustAlgorithm
+from .algorithms.exportrpc import ExportRpcAlgorithm
 from .algorithms.footprint import FootprintAlgorithm
 from .algorithms.groundtoimage import GroundToImageAlgorithm
 from .algorithms.imagetoground import ImageToGroundAlgorithm
@@ -12,7 +13,7 @@ from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .common import RESOURCES
 
 ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, BundleAdjustAlgorithm, GroundToImageAlgorithm,
-              ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm)
+              ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm, ExportRpcAlgorithm)
 
 
 class PushbroomProvider(QgsProcessingProvider):

@@ -6,7 +6,8 @@ from qgis.core import QgsApplication
 from .conftest import PLUGIN
 
 ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:bundleadjust", "pushbroom:groundtoimage",
-              "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify"]
+              "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",
+              "pushbroom:exportrpc"]
 
 
 def test_provider_lists_its_algorithms(provider):

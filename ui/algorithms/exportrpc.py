@@ -1,0 +1,159 @@
+"""pushbroom:exportrpc — RPC00B rational polynomials fitted to the rigorous model, written where
+GDAL and QGIS read them, with the fit's check figures per CCD."""
+from pathlib import Path
+
+from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProcessingOutputNumber,
+                       QgsProcessingOutputRasterLayer, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer)
+
+from ...core.dem import ConstantHeight
+from ...core.rpcfit import dem_height_range, fit_rpc, image_vrt_with_rpc, write_rpc
+from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
+                      check_cancelled, core_call, dem_from_parameters, feedback_callbacks, load_scene_for,
+                      processing_errors)
+
+
+class ExportRpcAlgorithm(PushbroomAlgorithm):
+    ID = "exportrpc"
+    NAME = "Export RPC"
+    GROUP = "Products"
+    HELP = ("Fits an RPC00B model (third-order rational polynomials, the form GDAL, QGIS and most "
+            "photogrammetric software read) to one camera of the scene's rigorous sensor model, over the whole "
+            "image and the terrain's height range, and checks it on an independent grid (other image positions, "
+            "other heights, both ends of the height range). The fit error is logged and written as JSON, overall, "
+            "per CCD chip and at the height-range ends. On single-chip cameras it is a few hundred-thousandths "
+            "of a pixel. A camera of several separately aligned (staggered) CCDs steps at the chip seams, which "
+            "one smooth RPC cannot follow: the per-CCD and seam figures show how large that is. "
+            "GDAL finds the RPC of an image <name>.<ext> in the file <name>_RPC.TXT or <name>.RPB in the same "
+            "folder (so name OUTPUT after the image, in the image's folder, if you want that), or in a GeoTIFF's "
+            "RPC tag or a VRT's RPC metadata. With IMAGE, a small VRT beside OUTPUT shows the image with the RPC; "
+            "the image itself is never modified. In QGIS, use it with Raster > Projections > Warp (Reproject) "
+            "with the transformer option RPC (optionally RPC_DEM=<dem>), or gdalwarp -rpc; RPC heights are "
+            "ellipsoidal, so a sea-level DEM must declare its vertical CRS (e.g. EPSG:4326+5773) for GDAL to "
+            "convert it. "
+            "Image coordinates follow GDAL: (0, 0) is the upper-left corner of the first pixel; in the RPC "
+            "file, sample = col - 0.5 and line = row - 0.5 as GDAL's RPC transformer expects.")
+    HEIGHT_SPAN, GRID, HEIGHT_LEVELS, REGULARISATION = "HEIGHT_SPAN", "GRID", "HEIGHT_LEVELS", "REGULARISATION"
+    IMAGE, OUTPUT = "IMAGE", "OUTPUT"
+    REPORT, IMAGE_WITH_RPC, RMS_PX, MAX_PX = "REPORT", "IMAGE_WITH_RPC", "RMS_PX", "MAX_PX"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
+        add_scene_parameters(self)
+        add_dem_parameters(self)
+        self.add_parameter(
+            QgsProcessingParameterNumber(self.HEIGHT_SPAN, "Height span without a DEM (± m)",
+                                         QgsProcessingParameterNumber.Double, 500.0, minValue=1.0,
+                                         maxValue=10000.0),
+            "Without a DEM the RPC is fitted from HEIGHT - HEIGHT_SPAN to HEIGHT + HEIGHT_SPAN (metres, "
+            "ellipsoidal); outside that range it extrapolates. With a DEM, the range is the DEM's heights over "
+            "the image plus a margin (10 % of their span, at least 50 m).")
+        self.add_parameter(
+            QgsProcessingParameterNumber(self.GRID, "Fit grid nodes across and along the image",
+                                         QgsProcessingParameterNumber.Integer, 31, minValue=4, maxValue=201),
+            "The rigorous model is sampled on this many image columns and rows (image edges included) at "
+            "each height level; 31 is plenty for a cubic RPC.", advanced=True)
+        self.add_parameter(
+            QgsProcessingParameterNumber(self.HEIGHT_LEVELS, "Fit height levels",
+                                         QgsProcessingParameterNumber.Integer, 7, minValue=4, maxValue=51),
+            "Number of heights, from the bottom to the top of the height range, at which the grid is "
+            "sampled (a cubic in height needs at least 4).", advanced=True)
+        self.add_parameter(
+            QgsProcessingParameterNumber(self.REGULARISATION, "Regularisation (Tikhonov)",
+                                         QgsProcessingParameterNumber.Double, 1e-12, minValue=0.0, maxValue=1e-2),
+            "Ridge weight, relative to the normalised normal equations, that keeps the denominators tame. "
+            "It is raised automatically (and the value used reported) when a denominator would vanish.",
+            advanced=True)
+        self.add_parameter(
+            QgsProcessingParameterRasterLayer(self.IMAGE, "Image of this camera (optional)", optional=True),
+            "The raw image the scene's camera took (same size as the camera's image). When given, a VRT "
+            "named after OUTPUT (e.g. scene_RPC.TXT -> scene.vrt) is written beside OUTPUT: it shows the "
+            "image unchanged, with the RPC in its metadata, so GDAL and QGIS can orthorectify it. The image "
+            "file itself is never modified.")
+        self.add_parameter(
+            QgsProcessingParameterFileDestination(self.OUTPUT, "RPC file", "RPC text (*_RPC.TXT);;RPB (*.RPB)",
+                                                  defaultValue=None),
+            "Where to write the RPC: a name ending in _RPC.TXT writes GDAL's RPC text (the DigitalGlobe "
+            "'KEY: value' layout), .RPB the RPB layout. GDAL uses it for an image called <name>.<ext> in the "
+            "same folder. The fit report is written beside it as <OUTPUT>.json.")
+        self.addOutput(QgsProcessingOutputFile(self.REPORT, "Fit report (JSON): errors overall, per CCD, at "
+                                                            "the height-range ends"))
+        self.addOutput(QgsProcessingOutputRasterLayer(self.IMAGE_WITH_RPC, "Image with RPC (VRT), when IMAGE "
+                                                                           "is given"))
+        self.addOutput(QgsProcessingOutputNumber(self.RMS_PX, "Check RMS error (px)"))
+        self.addOutput(QgsProcessingOutputNumber(self.MAX_PX, "Check maximum error (px)"))
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        out = Path(self.parameterAsFileOutput(parameters, self.OUTPUT, context))
+        name = out.name.lower()
+        if not (name.endswith(".txt") or name.endswith(".rpb")):
+            raise QgsProcessingException(f"{self.OUTPUT}: {out} must end in _RPC.TXT (GDAL's RPC text) or .RPB")
+        if name.endswith(".txt") and not name.endswith("_rpc.txt"):
+            feedback.pushWarning(f"{out.name} does not end in _RPC.TXT: GDAL will not find it beside an image "
+                                 f"by itself")
+        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context))
+        camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
+        cam = scene.cameras[camera]
+        surface = dem_from_parameters(self, parameters, context)
+        if isinstance(surface, ConstantHeight):
+            span = self.parameterAsDouble(parameters, self.HEIGHT_SPAN, context)
+            heights = (surface.value - span, surface.value + span)
+        else:
+            feedback.setProgressText("height range of the DEM over the image")
+            with processing_errors(f"{DEM}: "):
+                heights = dem_height_range(scene, surface, camera)
+        check_cancelled(feedback)
+        grid = self.parameterAsInt(parameters, self.GRID, context)
+        levels = self.parameterAsInt(parameters, self.HEIGHT_LEVELS, context)
+        progress, _ = feedback_callbacks(feedback)
+        rpc, report = core_call(fit_rpc, scene, camera, heights, grid=(grid, grid, levels),
+                                regularisation=self.parameterAsDouble(parameters, self.REGULARISATION, context),
+                                progress=lambda f, m=None: progress(0.9 * f, m))
+        check_cancelled(feedback)
+        report["scene"] = str(self.parameterAsFile(parameters, SCENE, context))
+        self._log(feedback, report)
+
+        vrt = None
+        layer = self.parameterAsRasterLayer(parameters, self.IMAGE, context)
+        if layer is not None:
+            image = layer.source().split("|")[0]
+            stem = out.name[:-len("_RPC.TXT")] if name.endswith("_rpc.txt") else out.stem
+            vrt = out.with_name(stem + ".vrt")
+            if vrt.resolve() == Path(image).resolve():
+                raise QgsProcessingException(f"{self.IMAGE}: {image} would be overwritten by the VRT {vrt}; "
+                                             f"choose another OUTPUT name")
+            with processing_errors(f"{self.IMAGE}: "):
+                image_vrt_with_rpc(rpc, image, vrt, cam.cols, cam.rows)
+            report["image"] = image
+            report["image_with_rpc"] = str(vrt)
+        try:
+            with processing_errors(f"{self.OUTPUT}: "):
+                write_rpc(rpc, out, report)
+        except QgsProcessingException:
+            if vrt is not None:
+                vrt.unlink(missing_ok=True)
+            raise
+        feedback.pushInfo(f"RPC written to {out} (report {out}.json)" + (f"; image with RPC: {vrt}" if vrt else ""))
+        feedback.setProgress(100.0)
+        check = report["check"]
+        return {self.OUTPUT: str(out), self.REPORT: f"{out}.json", self.IMAGE_WITH_RPC: str(vrt) if vrt else None,
+                self.RMS_PX: check["rms_px"], self.MAX_PX: check["max_px"]}
+
+    @staticmethod
+    def _log(feedback, report) -> None:
+        check = report["check"]
+        lo, hi = report["height_range"]
+        feedback.pushInfo(f"camera {report['camera']}: RPC00B fitted on {report['fit']['points']} points, heights "
+                          f"{lo:.0f} to {hi:.0f} m (ellipsoidal); regularisation used {report['regularisation_used']}")
+        feedback.pushInfo(f"check on {check['points']} independent points: RMS {check['rms_px']:.4f} px, "
+                          f"max {check['max_px']:.4f} px")
+        for end, fig in check["heights"].items():
+            feedback.pushInfo(f"  at the {end} end ({fig['height_m']:.0f} m): RMS {fig['rms_px']:.4f} px, "
+                              f"max {fig['max_px']:.4f} px")
+        for chip in check["chips"]:
+            if chip["rms_px"] is not None:
+                feedback.pushInfo(f"  CCD {chip['name']} (cols {chip['cols'][0]:.0f}-{chip['cols'][1]:.0f}): "
+                                  f"RMS {chip['rms_px']:.4f} px, max {chip['max_px']:.4f} px")
+        for step in check.get("seam_steps", []):
+            feedback.pushInfo(f"  seam at col {step['col']:.0f}: the rigorous model steps by {step['mean_px']:.3f} px")
+        if "note" in check:
+            feedback.pushWarning(check["note"])
