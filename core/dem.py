@@ -112,6 +112,20 @@ class Dem:
         """(min, max) ellipsoidal height in metres."""
         return self._range
 
+    def write_ellipsoidal(self, path: str | Path) -> Path:
+        """Write the DEM's ellipsoidal heights (float32, same grid and CRS, nodata NaN) to a
+        GeoTIFF: what tools that take DEM heights as ellipsoidal (GDAL's RPC_DEM) need."""
+        src = gdal.Open(self.path)
+        ds = gdal.GetDriverByName("GTiff").Create(str(path), self.shape[1], self.shape[0], 1, gdal.GDT_Float32,
+                                                  ["COMPRESS=DEFLATE"])
+        ds.SetGeoTransform(self.gt)
+        ds.SetProjection(src.GetProjection())
+        band = ds.GetRasterBand(1)
+        band.SetNoDataValue(float("nan"))
+        band.WriteArray(self.z.astype(np.float32))
+        band = ds = None
+        return Path(path)
+
     def bounds_lonlat(self) -> tuple[float, float, float, float]:
         """(lon_min, lat_min, lon_max, lat_max) of the DEM's node centres."""
         lon, lat = self._node_lonlat()

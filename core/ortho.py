@@ -37,6 +37,7 @@ gdal.UseExceptions()
 log = logging.getLogger(__name__)
 
 RESAMPLING = {"nearest": 0, "bilinear": 1, "cubic": 3}  # spline orders of scipy.ndimage
+OVERVIEW_FACTORS = (2, 4, 8, 16, 32, 64)
 SEAM_MARGIN = 8.0  # px from a chip boundary within which cells are mapped pixel by pixel
 
 
@@ -61,19 +62,39 @@ def utm_crs(lon: float, lat: float) -> CRS:
     return CRS.from_epsg((32600 if lat >= 0 else 32700) + zone)
 
 
+def scene_utm_crs(scene: SceneModel, camera: int, surface) -> CRS:
+    """The WGS84 UTM zone CRS of the image centre on the surface (the default output CRS)."""
+    lon, lat, _ = ecef_to_geodetic(_image_on_surface(scene, camera, surface, footprint=False))
+    return utm_crs(float(lon[-1]), float(lat[-1]))
+
+
+def _image_on_surface(scene: SceneModel, camera: int, surface, footprint: bool) -> np.ndarray:
+    """ECEF points (n, 3) where the image meets the surface: with ``footprint`` 33 points along
+    each side of the border, then (always) the centre pixel and its right neighbour.
+    InputError naming the DEM where they do not meet it."""
+    cam = scene.cameras[camera]
+    s = np.linspace(0.0, 1.0, 33)
+    centre_col, centre_row = np.array([cam.cols / 2, cam.cols / 2 + 1]), np.array([cam.rows / 2] * 2)
+    if footprint:
+        col = np.concatenate([s * cam.cols, np.full_like(s, cam.cols), s * cam.cols, np.zeros_like(s), centre_col])
+        row = np.concatenate([np.zeros_like(s), s * cam.rows, np.full_like(s, cam.rows), s * cam.rows, centre_row])
+    else:
+        col, row = centre_col, centre_row
+    ground = scene.image_to_ground_dem(col, row, surface, camera)
+    if not np.all(np.isfinite(ground)):
+        name = getattr(surface, "path", "the terrain surface")
+        where = "the image's centre" if not np.all(np.isfinite(ground[-2:])) else "the image's border"
+        raise InputError(f"DEM {name} does not cover the scene: {where} does not meet it. Use a DEM covering the "
+                         f"footprint, a constant height, or an extent inside the DEM")
+    return ground
+
+
 def default_grid(scene: SceneModel, camera: int, surface, crs: CRS | None = None,
                  resolution: float | None = None, extent: tuple | None = None) -> OrthoGrid:
     """The grid covering the image's footprint on the surface (or ``extent`` = (xmin, ymin,
     xmax, ymax) in ``crs``), in ``crs`` (default: the UTM zone of the scene centre), at
     ``resolution`` m (default: the ground sample distance at the image centre)."""
-    cam = scene.cameras[camera]
-    s = np.linspace(0.0, 1.0, 33)
-    col = np.concatenate([s * cam.cols, np.full_like(s, cam.cols), s * cam.cols, np.zeros_like(s), [cam.cols / 2,
-                                                                                                    cam.cols / 2 + 1]])
-    row = np.concatenate([np.zeros_like(s), s * cam.rows, np.full_like(s, cam.rows), s * cam.rows, [cam.rows / 2] * 2])
-    ground = scene.image_to_ground_dem(col, row, surface, camera)
-    if not np.all(np.isfinite(ground)):
-        raise InputError("the image's border does not meet the DEM everywhere: the DEM does not cover the scene")
+    ground = _image_on_surface(scene, camera, surface, footprint=extent is None)
     lon, lat, _ = ecef_to_geodetic(ground)
     crs = crs or utm_crs(float(lon[-1]), float(lat[-1]))
     x, y = Transformer.from_crs(CRS.from_epsg(4326), crs, always_xy=True).transform(lon, lat)
@@ -82,12 +103,120 @@ def default_grid(scene: SceneModel, camera: int, surface, crs: CRS | None = None
     if not resolution > 0:
         raise InputError(f"the output resolution must be positive (got {resolution})")
     xmin, ymin, xmax, ymax = extent or (np.min(x[:-2]), np.min(y[:-2]), np.max(x[:-2]), np.max(y[:-2]))
+    if not (xmax > xmin and ymax > ymin):
+        raise InputError(f"the extent {extent} is empty: it needs xmin < xmax and ymin < ymax")
     x0 = math.floor(xmin / resolution) * resolution
     y0 = math.ceil(ymax / resolution) * resolution
     cols, rows = int(math.ceil((xmax - x0) / resolution)), int(math.ceil((y0 - ymin) / resolution))
     if cols * rows > 2e9:
         raise InputError(f"the output would have {cols} x {rows} pixels; choose a coarser resolution or an extent")
     return OrthoGrid(crs, x0, y0, resolution, cols, rows)
+
+
+def overview_levels(cols: int, rows: int) -> list[int]:
+    """Overview decimation factors of an output: halvings down to about 256 px on the long side."""
+    return [f for f in OVERVIEW_FACTORS if max(cols, rows) / f >= 256]
+
+
+def _open_raw(image_path, cam):
+    """The raw image as a GDAL dataset (decoded on all cores), checked against the camera's size."""
+    try:
+        src = gdal.OpenEx(str(image_path), gdal.OF_RASTER, open_options=["NUM_THREADS=ALL_CPUS"])
+    except RuntimeError as exc:
+        raise InputError(f"{image_path}: cannot be opened as a raster ({exc})") from None
+    if (src.RasterXSize, src.RasterYSize) != (cam.cols, cam.rows):
+        raise InputError(f"{image_path}: the raster is {src.RasterXSize} x {src.RasterYSize} px but camera {cam.name} "
+                         f"of the scene images {cam.cols} x {cam.rows} px: is it the scene's image?")
+    return src
+
+
+def _resample(data: np.ndarray, col: np.ndarray, row: np.ndarray, order: int, fill) -> np.ndarray:
+    """Values of the raw band ``data`` (rows, cols) at image positions (col, row) (GDAL
+    convention, arrays of the tile's shape); ``fill`` outside the image. Integer types rounded
+    and clipped to their range."""
+    outside = ~np.isfinite(col) | (col < 0) | (col > data.shape[1]) | (row < 0) | (row > data.shape[0])
+    any_outside = outside.any()
+    if any_outside and outside.all():
+        return np.full(col.shape, fill, dtype=data.dtype)
+    # image positions (centres at +0.5) -> array indices (centres at 0), in the raw window the
+    # tile needs (a cubic spline is prefiltered on that window only)
+    i, j = row - 0.5, col - 0.5
+    if any_outside:
+        i, j = np.where(outside, np.nan, i), np.where(outside, np.nan, j)
+    i0, j0 = max(int(np.nanmin(i)) - 4, 0), max(int(np.nanmin(j)) - 4, 0)
+    i1, j1 = min(int(np.nanmax(i)) + 5, data.shape[0]), min(int(np.nanmax(j)) + 5, data.shape[1])
+    coords = np.stack([i - i0, j - j0])
+    if any_outside:
+        coords[:, outside] = 0.0
+    window = data[i0:i1, j0:j1]
+    if order <= 1:  # an integer band's output is rounded by ndimage; no overshoot to clip
+        block = ndimage.map_coordinates(window, coords, order=order, mode="nearest", prefilter=False)
+    else:
+        values = ndimage.map_coordinates(window.astype(np.float32), coords, order=order, mode="nearest")
+        if np.issubdtype(data.dtype, np.integer):
+            info = np.iinfo(data.dtype)
+            values = np.clip(np.rint(values), info.min, info.max)
+        block = values.astype(data.dtype)
+    if any_outside:
+        block[outside] = fill
+    return block
+
+
+def _overview_blocks(block: np.ndarray, levels: list[int], nodata, nearest: bool) -> list[np.ndarray]:
+    """A tile's part of each overview level (factor f: ceil(shape / f) px): the mean of the valid
+    (not nodata) pixels of each f x f cell, or with ``nearest`` the pixel nearest its centre.
+    Cells without valid pixels are nodata."""
+    if nearest:
+        def pick(n, f):
+            return np.minimum(np.arange(-(-n // f)) * f + f // 2, n - 1)
+        return [block[np.ix_(pick(block.shape[0], f), pick(block.shape[1], f))] for f in levels]
+    valid = np.ones(block.shape, bool) if nodata is None else block != nodata
+    if not valid.any():
+        return [np.full((-(-block.shape[0] // f), -(-block.shape[1] // f)), nodata, block.dtype) for f in levels]
+    total = block.astype(np.float32)  # float32 sums: 1e-7 relative, far below one grey level
+    total[~valid] = 0.0
+    count = valid.astype(np.float32)
+    out, reached = [], 1
+    for f in levels:
+        while reached < f:  # halve the sums and counts: level 2f from level f
+            total, count = _sum_pairs(total), _sum_pairs(count)
+            reached *= 2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = total / count
+        if np.issubdtype(block.dtype, np.integer):
+            mean = np.rint(mean)
+        out.append(np.where(count > 0, mean, nodata if nodata is not None else 0).astype(block.dtype))
+    return out
+
+
+def _sum_pairs(a: np.ndarray) -> np.ndarray:
+    """Sums of 2 x 2 cells (a ragged last row / column summed alone)."""
+    h, w = a.shape
+    if h % 2 or w % 2:
+        padded = np.zeros((h + h % 2, w + w % 2), a.dtype)
+        padded[:h, :w] = a
+        a = padded
+    return a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]
+
+
+@dataclass
+class _Nodes:
+    """Exact image positions (col, row) at output nodes (i, j) = (r0 + a*step, c0 + b*step)
+    (ncol, nrow: (na, nb)) and at the cell centres between them (ecol, erow: (na-1, nb-1))."""
+    r0: int
+    c0: int
+    step: int
+    ncol: np.ndarray
+    nrow: np.ndarray
+    ecol: np.ndarray
+    erow: np.ndarray
+
+    def window(self, r0: int, r1: int, c0: int, c1: int) -> "_Nodes":
+        """The nodes of a tile whose corners (r0, c0) lie on the node grid, to at least (r1, c1)."""
+        a, b = (r0 - self.r0) // self.step, (c0 - self.c0) // self.step
+        na, nb = -(-(r1 - r0) // self.step) + 1, -(-(c1 - c0) // self.step) + 1
+        return _Nodes(r0, c0, self.step, self.ncol[a:a + na, b:b + nb], self.nrow[a:a + na, b:b + nb],
+                      self.ecol[a:a + na - 1, b:b + nb - 1], self.erow[a:a + na - 1, b:b + nb - 1])
 
 
 class _Mapper:
@@ -112,29 +241,70 @@ class _Mapper:
             col[ok], row[ok] = self.scene.ground_to_image(geodetic_to_ecef(lon[ok], lat[ok], h[ok]), self.camera)
         return col, row
 
-    def tile(self, r0: int, r1: int, c0: int, c1: int, step: int, max_error: float) -> tuple[np.ndarray, np.ndarray, float]:
-        """(col, row) arrays (r1-r0, c1-c0) of a tile, and the densification error measured (px)."""
+    def exact_many(self, i: np.ndarray, j: np.ndarray, chunk: int = 250_000,
+                   is_cancelled: Callable[[], bool] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`exact` for many positions (any equal shapes), in chunks of bounded memory."""
+        col, row = np.empty(i.size), np.empty(i.size)
+        fi, fj = i.ravel(), j.ravel()
+        for k in range(0, i.size, chunk):
+            if is_cancelled and is_cancelled():
+                raise Cancelled("orthorectification cancelled by the user")
+            col[k:k + chunk], row[k:k + chunk] = self.exact(fi[k:k + chunk], fj[k:k + chunk])
+        return col.reshape(i.shape), row.reshape(i.shape)
+
+    def nodes(self, r0: int, r1: int, c0: int, c1: int, step: int,
+              is_cancelled: Callable[[], bool] | None = None) -> "_Nodes":
+        """Exact image positions at the nodes (every ``step`` output pixels, from (r0, c0) to at
+        least (r1, c1)) and at the centres of the cells between them."""
+        ni = np.arange(r0, r1 + step, step, dtype=float)
+        nj = np.arange(c0, c1 + step, step, dtype=float)
+        ncol, nrow = self.exact_many(*np.meshgrid(ni, nj, indexing="ij"), is_cancelled=is_cancelled)
+        ecol, erow = self.exact_many(*np.meshgrid(ni[:-1] + step / 2, nj[:-1] + step / 2, indexing="ij"),
+                                     is_cancelled=is_cancelled)
+        return _Nodes(r0, c0, step, ncol, nrow, ecol, erow)
+
+    def dem_gap_share(self, planned: "_Nodes") -> float:
+        """Share of the image's nodes in the output that the surface gives no height (they stay
+        nodata): nodes without a height that fall in the image at the surface's mean height."""
+        nodes = np.argwhere(np.isnan(planned.ncol)).astype(float)
+        if nodes.size == 0:
+            return 0.0
+        i, j = nodes[:, 0] * planned.step + planned.r0, nodes[:, 1] * planned.step + planned.c0
+        lon, lat = self.to_lonlat.transform(self.grid.x0 + (j + 0.5) * self.grid.resolution,
+                                            self.grid.y0 - (i + 0.5) * self.grid.resolution)
+        no_height = ~np.isfinite(self.surface.height(lon, lat))
+        if not no_height.any():
+            return 0.0
+        h = float(np.mean(self.surface.height_range))
+        col, row = self.scene.ground_to_image(geodetic_to_ecef(lon[no_height], lat[no_height], np.full(no_height.sum(), h)),
+                                              self.camera)
+        missing = int(np.sum((col >= 0) & (col <= self.cam.cols) & (row >= 0) & (row <= self.cam.rows)))
+        covered = int(np.sum((planned.ncol >= 0) & (planned.ncol <= self.cam.cols) & (planned.nrow >= 0)
+                             & (planned.nrow <= self.cam.rows)))
+        return missing / max(missing + covered, 1)
+
+    def tile(self, r0: int, r1: int, c0: int, c1: int, step: int, max_error: float,
+             planned: "_Nodes | None" = None) -> tuple[np.ndarray, np.ndarray, float]:
+        """(col, row) arrays (r1-r0, c1-c0) of a tile, and the densification error measured (px).
+        planned: nodes of the whole grid at ``step`` (:meth:`nodes`), sliced instead of computed."""
+        nodes = planned.window(r0, r1, c0, c1) if planned is not None and planned.step == step else None
         while True:
-            ni = np.arange(r0, r1 + step, step, dtype=float)
-            nj = np.arange(c0, c1 + step, step, dtype=float)
-            gi, gj = np.meshgrid(ni, nj, indexing="ij")
-            ncol, nrow = self.exact(gi.ravel(), gj.ravel())
-            ncol, nrow = ncol.reshape(gi.shape), nrow.reshape(gi.shape)
+            nodes = nodes or self.nodes(r0, r1, c0, c1, step)
+            ncol, nrow, ecol, erow = nodes.ncol, nodes.nrow, nodes.ecol, nodes.erow
             # check at the cell centres where the four corners lie on one chip
-            ci, cj = np.meshgrid(ni[:-1] + step / 2, nj[:-1] + step / 2, indexing="ij")
-            ecol, erow = self.exact(ci.ravel(), cj.ravel())
-            icol = 0.25 * (ncol[:-1, :-1] + ncol[1:, :-1] + ncol[:-1, 1:] + ncol[1:, 1:]).ravel()
-            irow = 0.25 * (nrow[:-1, :-1] + nrow[1:, :-1] + nrow[:-1, 1:] + nrow[1:, 1:]).ravel()
+            icol = 0.25 * (ncol[:-1, :-1] + ncol[1:, :-1] + ncol[:-1, 1:] + ncol[1:, 1:])
+            irow = 0.25 * (nrow[:-1, :-1] + nrow[1:, :-1] + nrow[:-1, 1:] + nrow[1:, 1:])
             # Seam cells: corners on different chips, or a centre the exact mapping puts on
             # another chip (a seam duplicate: both pixels see the point).
-            centre_chip = self.cam.chip_index(np.nan_to_num(ecol, nan=-1.0)).reshape(ci.shape)
+            centre_chip = self.cam.chip_index(np.nan_to_num(ecol, nan=-1.0))
             seam = self._seam_cells(ncol) | (centre_chip != self.cam.chip_index(np.nan_to_num(
                 ncol[:-1, :-1], nan=-1.0)))
-            err = np.hypot(icol - ecol, irow - erow)[~seam.ravel()]
+            err = np.hypot(icol - ecol, irow - erow)[~seam]
             worst = float(np.nanmax(err, initial=0.0))
             if worst <= max_error or step <= 2:
                 break
             step //= 2
+            nodes = None
         col, row = self._densify(ncol, nrow, r1 - r0, c1 - c0, step)
         if seam.any():
             self._exact_in_cells(col, row, seam, r0, c0, step)
@@ -192,84 +362,75 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
     t_start = time.perf_counter()
     if resampling not in RESAMPLING:
         raise InputError(f"resampling must be one of {', '.join(RESAMPLING)} (got {resampling!r})")
+    if tile % step or tile % OVERVIEW_FACTORS[-1]:
+        raise ValueError(f"tile ({tile}) must be a multiple of step ({step}) and of {OVERVIEW_FACTORS[-1]}")
     cam = scene.cameras[camera]
-    try:
-        src = gdal.Open(str(image_path))
-    except RuntimeError as exc:
-        raise InputError(f"{image_path}: cannot be opened as a raster ({exc})") from None
-    if (src.RasterXSize, src.RasterYSize) != (cam.cols, cam.rows):
-        raise InputError(f"{image_path}: the raster is {src.RasterXSize} x {src.RasterYSize} px but camera {cam.name} "
-                         f"of the scene images {cam.cols} x {cam.rows} px: is it the scene's image?")
+    src = _open_raw(image_path, cam)
     grid = grid or default_grid(scene, camera, surface)
-    bands = [src.GetRasterBand(b + 1) for b in range(src.RasterCount)]
-    dtype = bands[0].DataType
-    data = [b.ReadAsArray() for b in bands]  # the raw image in memory: random access by the mapping
-    fill = nodata if nodata is not None else 0.0
     output_path = Path(output_path)
     tmp = output_path.with_name(output_path.stem + ".part.tif")
-    drv = gdal.GetDriverByName("GTiff")
-    out = drv.Create(str(tmp), grid.cols, grid.rows, len(bands), dtype,
-                     ["TILED=YES", f"BLOCKXSIZE={tile}", f"BLOCKYSIZE={tile}", "COMPRESS=DEFLATE", "PREDICTOR=2",
-                      "BIGTIFF=IF_SAFER", "NUM_THREADS=ALL_CPUS"])
+    if not output_path.parent.is_dir() or not os.access(output_path.parent, os.W_OK):
+        raise InputError(f"cannot write {output_path}: folder {output_path.parent} does not exist or is not writable")
+    bands = [src.GetRasterBand(b + 1) for b in range(src.RasterCount)]
+    data = [b.ReadAsArray() for b in bands]  # the raw image in memory: random access by the mapping
+    fill = nodata if nodata is not None else 0.0
+    cancelled = is_cancelled or (lambda: False)
+    report = progress or (lambda fraction: None)
+    levels = overview_levels(grid.cols, grid.rows)
     try:
+        out = gdal.GetDriverByName("GTiff").Create(
+            str(tmp), grid.cols, grid.rows, len(bands), bands[0].DataType,
+            ["TILED=YES", f"BLOCKXSIZE={tile}", f"BLOCKYSIZE={tile}", "COMPRESS=DEFLATE", "PREDICTOR=2",
+             "BIGTIFF=IF_SAFER", "NUM_THREADS=ALL_CPUS"])
         out.SetGeoTransform(grid.geotransform())
         out.SetProjection(grid.crs.to_wkt())
         for k in range(len(bands)):
             if nodata is not None:
                 out.GetRasterBand(k + 1).SetNoDataValue(nodata)
+        if levels:
+            out.BuildOverviews("NONE", levels)  # created empty; each tile writes its own part of them
+        out_bands = [out.GetRasterBand(k + 1) for k in range(len(bands))]
         mapper = _Mapper(scene, camera, surface, grid)
+        planned = mapper.nodes(0, grid.rows, 0, grid.cols, step, is_cancelled=cancelled)
+        gaps = mapper.dem_gap_share(planned)
+        if gaps > 0:
+            log.warning("DEM %s gives no height for %.1f %% of the image's footprint in the output grid: those "
+                        "pixels are nodata", getattr(surface, "path", ""), 100 * gaps)
+        report(0.05)
         tiles = [(r0, min(r0 + tile, grid.rows), c0, min(c0 + tile, grid.cols))
                  for r0 in range(0, grid.rows, tile) for c0 in range(0, grid.cols, tile)]
-        cancelled = is_cancelled or (lambda: False)
         order = RESAMPLING[resampling]
 
         def work(t):
             if cancelled():
                 raise Cancelled("orthorectification cancelled by the user")
             r0, r1, c0, c1 = t
-            col, row, err = mapper.tile(r0, r1, c0, c1, step, max_error)
-            outside = ~np.isfinite(col) | (col < 0) | (col > cam.cols) | (row < 0) | (row > cam.rows)
-            blocks = [np.full(col.shape, fill, dtype=d.dtype) for d in data]
-            if outside.all():
-                return t, blocks, err
-            # image positions (GDAL, centres at +0.5) -> array indices (centres at 0), in the raw
-            # window this tile needs (a cubic spline is prefiltered on that window only)
-            i, j = row[~outside] - 0.5, col[~outside] - 0.5
-            i0, j0 = max(int(i.min()) - 4, 0), max(int(j.min()) - 4, 0)
-            i1, j1 = min(int(i.max()) + 5, cam.rows), min(int(j.max()) + 5, cam.cols)
-            coords = np.stack([i - i0, j - j0])
-            for b, d in zip(blocks, data):
-                window = d[i0:i1, j0:j1]
-                values = ndimage.map_coordinates(window.astype(np.float32) if order > 1 else window, coords,
-                                                 order=order, mode="nearest", prefilter=order > 1)
-                if np.issubdtype(d.dtype, np.integer):
-                    info = np.iinfo(d.dtype)
-                    values = np.clip(np.rint(values), info.min, info.max)
-                b[~outside] = values
-            return t, blocks, err
+            col, row, err = mapper.tile(r0, r1, c0, c1, step, max_error, planned)
+            blocks = [_resample(d, col, row, order, fill) for d in data]
+            return t, blocks, [_overview_blocks(b, levels, nodata, order == 0) for b in blocks], err
 
         worst = 0.0
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-            for n, ((r0, r1, c0, c1), blocks, err) in enumerate(pool.map(work, tiles)):
-                for k, b in enumerate(blocks):
-                    out.GetRasterBand(k + 1).WriteArray(b, c0, r0)
+            for n, ((r0, r1, c0, c1), blocks, overviews, err) in enumerate(pool.map(work, tiles)):
+                for band, b, ovr in zip(out_bands, blocks, overviews):
+                    band.WriteArray(b, c0, r0)
+                    for k, (f, o) in enumerate(zip(levels, ovr)):
+                        band.GetOverview(k).WriteArray(o, c0 // f, r0 // f)
                 worst = max(worst, err)
-                if progress:
-                    progress(0.9 * (n + 1) / len(tiles))
-        levels = [f for f in (2, 4, 8, 16, 32) if max(grid.cols, grid.rows) / f >= 256]
-        if levels:
-            out.BuildOverviews("AVERAGE" if resampling != "nearest" else "NEAREST", levels)
+                report(0.05 + 0.93 * (n + 1) / len(tiles))
+        out_bands = None
         out.FlushCache()
         out = None
         tmp.replace(output_path)
+    except RuntimeError as exc:  # GDAL: disk full, file system errors
+        raise InputError(f"cannot write {output_path}: {exc}") from None
     finally:
-        out = None
+        out_bands = out = None
         if tmp.exists():
             tmp.unlink()
-    if progress:
-        progress(1.0)
+    report(1.0)
     figures = {"cols": grid.cols, "rows": grid.rows, "resolution_m": grid.resolution, "crs": grid.crs.to_string(),
-               "densification_error_px": worst, "max_error_px": max_error, "seconds": time.perf_counter() - t_start}
+               "densification_error_px": worst, "max_error_px": max_error, "dem_gap_share": gaps, "seconds": time.perf_counter() - t_start}
     log.info("orthoimage %d x %d at %.3f m in %.1f s; densification error <= %.2e px", grid.cols, grid.rows,
              grid.resolution, figures["seconds"], worst)
     return figures

@@ -8,7 +8,7 @@ from osgeo import gdal
 from pyproj import CRS, Transformer
 
 from core.dem import Dem
-from core.errors import InputError
+from core.errors import Cancelled, InputError
 from core.ortho import default_grid, orthorectify
 from core.render import render_image, texture_at, texture_frame
 from core.scene_io import load_scene
@@ -102,12 +102,78 @@ def test_bad_input_is_refused_and_nothing_is_left(rendered, tmp_path):
         orthorectify(scene, folder / "raw.tif", dem, tmp_path / "o.tif", resampling="lanczos")
     with pytest.raises(InputError, match="cannot be opened as a raster"):
         orthorectify(scene, tmp_path / "missing.tif", dem, tmp_path / "o.tif")
-    part = Dem.__new__(Dem)  # a DEM covering only the western half of the scene
+    with pytest.raises(InputError, match=r"cannot write .*o.tif: folder .*no such folder does not exist"):
+        orthorectify(scene, folder / "raw.tif", dem, tmp_path / "no such folder" / "o.tif")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["small.tif"]
+
+
+def western_half(dem: Dem) -> Dem:
+    """The DEM with heights only west of its middle meridian."""
+    part = Dem.__new__(Dem)
     part.__dict__.update(dem.__dict__)
     lon0 = dem.gt[0] + dem.gt[1] * dem.shape[1] / 2
     part.height = lambda lon, lat: np.where(np.asarray(lon) < lon0, dem.height(lon, lat), np.nan)
-    with pytest.raises(InputError, match="does not cover the scene"):
+    return part
+
+
+def test_a_dem_covering_part_of_the_scene(rendered, tmp_path, caplog):
+    """Without an extent the grid cannot be planned (error naming the DEM); on a given grid the
+    uncovered part is nodata and its share is reported and logged as a warning."""
+    scene, dem, frame, folder = rendered
+    part = western_half(dem)
+    with pytest.raises(InputError, match=rf"DEM {dem.path} does not cover the scene: the image's (centre|border) does not meet it"):
         default_grid(scene, 0, part)
-    with pytest.raises(RuntimeError):
-        orthorectify(scene, folder / "raw.tif", dem, tmp_path / "no such folder" / "o.tif")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["small.tif"]
+    grid = default_grid(scene, 0, dem)
+    figures = orthorectify(scene, folder / "raw.tif", part, tmp_path / "o.tif", grid=grid)
+    assert 0.3 < figures["dem_gap_share"] < 0.7
+    assert "gives no height for" in caplog.text
+    full = orthorectify(scene, folder / "raw.tif", dem, tmp_path / "full.tif", grid=grid)
+    assert full["dem_gap_share"] == 0
+    ds_part, ds_full = gdal.Open(str(tmp_path / "o.tif")), gdal.Open(str(tmp_path / "full.tif"))
+    covered_part = np.mean(ds_part.GetRasterBand(1).ReadAsArray() > 0)
+    covered_full = np.mean(ds_full.GetRasterBand(1).ReadAsArray() > 0)
+    assert covered_part / covered_full == pytest.approx(1 - figures["dem_gap_share"], abs=0.03)
+
+
+def test_cancel_or_a_failure_midway_leaves_no_file(rendered, tmp_path, monkeypatch):
+    scene, dem, frame, folder = rendered
+    calls = []
+
+    def cancel_after_three():
+        calls.append(1)
+        return len(calls) > 3
+    with pytest.raises(Cancelled):
+        orthorectify(scene, folder / "raw.tif", dem, tmp_path / "o.tif", is_cancelled=cancel_after_three)
+    assert list(tmp_path.iterdir()) == []
+    from core import ortho
+    real = ortho._overview_blocks
+
+    def fail_at_tile_five(*args, _n=[0]):
+        _n[0] += 1
+        if _n[0] == 5:
+            raise RuntimeError("No space left on device")
+        return real(*args)
+    monkeypatch.setattr(ortho, "_overview_blocks", fail_at_tile_five)
+    with pytest.raises(InputError, match=r"cannot write .*o.tif: No space left on device"):
+        orthorectify(scene, folder / "raw.tif", dem, tmp_path / "o.tif")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_overviews_are_means_of_the_valid_pixels(rendered, tmp_path):
+    scene, dem, frame, folder = rendered
+    out = tmp_path / "o.tif"
+    orthorectify(scene, folder / "raw.tif", dem, out)
+    ds = gdal.Open(str(out))
+    band = ds.GetRasterBand(1)
+    full = band.ReadAsArray().astype(float)
+    for k in range(band.GetOverviewCount()):
+        ovr = band.GetOverview(k)
+        f = int(round(ds.RasterXSize / ovr.XSize))
+        assert ovr.XSize == -(-ds.RasterXSize // f) and ovr.YSize == -(-ds.RasterYSize // f)
+        h, w = ds.RasterYSize // f * f, ds.RasterXSize // f * f
+        cells = full[:h, :w].reshape(h // f, f, w // f, f)
+        count = (cells > 0).sum(axis=(1, 3))
+        with np.errstate(invalid="ignore"):
+            expected = np.where(count > 0, np.rint(cells.sum(axis=(1, 3)) / count), 0)
+        got = ovr.ReadAsArray()[:h // f, :w // f]
+        assert np.array_equal(got, expected), (f, np.abs(got - expected).max())

@@ -11,8 +11,8 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingException, Qgs
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
                        QgsProcessingParameterRasterLayer)
 
-from ...core.ortho import RESAMPLING, default_grid, orthorectify
-from ..common import (CAMERA, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
+from ...core.ortho import RESAMPLING, default_grid, orthorectify, scene_utm_crs
+from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       core_call, dem_from_parameters, feedback_callbacks, load_scene_for)
 
 
@@ -68,7 +68,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                                          f"(got {output})")
         extent = None
         if parameters.get(self.EXTENT):
-            crs = crs or core_call(default_grid, scene, camera, surface).crs  # the extent needs its CRS first
+            crs = crs or core_call(scene_utm_crs, scene, camera, surface)  # the extent needs its CRS first
             rect = self.parameterAsExtent(parameters, self.EXTENT, context,
                                           QgsCoordinateReferenceSystem(crs.to_wkt()))
             extent = (rect.xMinimum(), rect.yMinimum(), rect.xMaximum(), rect.yMaximum())
@@ -84,6 +84,9 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                             is_cancelled=is_cancelled)
         feedback.pushInfo(f"written in {figures['seconds']:.1f} s; image positions densified within "
                           f"{figures['densification_error_px']:.1e} px of the exact model")
+        if figures["dem_gap_share"] > 0:
+            feedback.pushWarning(f"{DEM}: the DEM gives no height for {100 * figures['dem_gap_share']:.1f} % "
+                                 "of the image's footprint in the output; those pixels are nodata")
         return {self.OUTPUT: output}
 
     def _crs(self, parameters, context) -> CRS | None:

@@ -1,0 +1,63 @@
+"""Comparing two orthoimages of the same grid: the shift between them by least squares on
+image gradients, overall and per block (used by the GDAL consistency test and bench)."""
+from __future__ import annotations
+
+import numpy as np
+from osgeo import gdal
+
+from core.dem import Dem
+from core.ortho import OrthoGrid, _Mapper
+
+gdal.UseExceptions()
+
+
+def shift_normals(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Normal equations (N 2x2, u 2) of the shift (dx, dy) px of b against a, by least squares
+    on a's gradients where both are valid and textured, and the number of pixels used."""
+    gy, gx = np.gradient(a)
+    ok = (a > 0) & (b > 0)
+    ok[[0, -1], :] = ok[:, [0, -1]] = False
+    ok &= np.hypot(gx, gy) > 1
+    g = np.stack([gx[ok], gy[ok]], axis=1).astype(np.float64)
+    return g.T @ g, g.T @ (a - b)[ok].astype(np.float64), int(ok.sum())
+
+
+def read_band(path: str) -> np.ndarray:
+    ds = gdal.Open(path)  # held while reading: a band outliving its dataset crashes GDAL
+    return ds.GetRasterBand(1).ReadAsArray().astype(np.float32)
+
+
+def image_difference(ours: str, theirs: str, blocks: int = 8) -> dict:
+    """Shift of gdalwarp's orthoimage against ours: overall and the largest of blocks x blocks
+    blocks (with over 50 000 textured pixels), mean |difference| and coverage differences."""
+    a, b = (read_band(path) for path in (ours, theirs))
+    total_n, total_u, used, worst = np.zeros((2, 2)), np.zeros(2), 0, 0.0
+    h, w = a.shape
+    for bi in range(blocks):
+        for bj in range(blocks):
+            sl = np.s_[bi * h // blocks:(bi + 1) * h // blocks, bj * w // blocks:(bj + 1) * w // blocks]
+            n, u, count = shift_normals(a[sl], b[sl])
+            total_n, total_u, used = total_n + n, total_u + u, used + count
+            if count > 50_000:
+                worst = max(worst, float(np.hypot(*np.linalg.solve(n, u))))
+    both = (a > 0) & (b > 0)
+    return {"shift_px": [float(v) for v in np.linalg.solve(total_n, total_u)], "pixels": used,
+            "worst_block_shift_px": worst, "mean_abs_difference_dn": float(np.mean(np.abs(a - b)[both])),
+            "coverage_only_ours": int(((a > 0) & ~(b > 0)).sum()), "coverage_only_gdal": int((~(a > 0) & (b > 0)).sum())}
+
+
+def gdal_rpc_against_rigorous(scene, dem_path, raw_path, grid: OrthoGrid, n: int = 200_000,
+                              seed: int = 1) -> np.ndarray:
+    """|image position by our rigorous model - by GDAL's RPC transformer| (px of the raw image)
+    at n random output positions of ``grid`` that fall inside the image, both on the DEM at
+    ``dem_path`` (ellipsoidal heights; GDAL reads the RPC beside ``raw_path``)."""
+    mapper = _Mapper(scene, 0, Dem(dem_path, datum="ellipsoid"), grid)
+    rng = np.random.default_rng(seed)
+    i, j = rng.uniform(0, grid.rows, n), rng.uniform(0, grid.cols, n)
+    col, row = mapper.exact(i - 0.5, j - 0.5)  # exact() takes pixel-centre units
+    lon, lat = mapper.to_lonlat.transform(grid.x0 + j * grid.resolution, grid.y0 - i * grid.resolution)
+    raw = gdal.Open(str(raw_path))
+    tr = gdal.Transformer(raw, None, ["METHOD=RPC", f"RPC_DEM={dem_path}"])
+    pts = np.array(tr.TransformPoints(1, np.stack([lon, lat, np.zeros_like(lon)], axis=1).tolist())[0])
+    inside = (col > 1) & (col < raw.RasterXSize - 1) & (row > 1) & (row < raw.RasterYSize - 1)
+    return np.hypot(pts[:, 0] - col, pts[:, 1] - row)[inside]
