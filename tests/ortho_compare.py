@@ -1,14 +1,43 @@
-"""Comparing two orthoimages of the same grid: the shift between them by least squares on
-image gradients, overall and per block (used by the GDAL consistency test and bench)."""
+"""Comparing orthoimages: with the known texture of a rendered simulated scene, and with
+another orthoimage of the same grid (the shift between them by least squares on image
+gradients, overall and per block), and our mapping with GDAL's RPC transformer."""
 from __future__ import annotations
 
 import numpy as np
 from osgeo import gdal
+from pyproj import CRS, Transformer
 
 from core.dem import Dem
 from core.ortho import OrthoGrid, _Mapper
+from core.render import texture_at
 
 gdal.UseExceptions()
+
+
+def shift_against_texture(path, frame, mask=None, n: int = 400_000) -> tuple[np.ndarray, int]:
+    """(dx, dy) px of the orthoimage against the texture: least squares on the texture's
+    gradient at up to n sampled valid pixels (inside ``mask`` if given), and how many were used."""
+    ds = gdal.Open(str(path))
+    gt = ds.GetGeoTransform()
+    img = ds.GetRasterBand(1).ReadAsArray().astype(float)
+    ok = img > 0
+    ok[[0, -1], :] = ok[:, [0, -1]] = False
+    if mask is not None:
+        ok &= mask
+    i, j = np.nonzero(ok)
+    pick = np.random.default_rng(0).choice(i.size, min(n, i.size), replace=False)
+    i, j = i[pick], j[pick]
+    to_lonlat = Transformer.from_crs(CRS.from_wkt(ds.GetProjection()), CRS.from_epsg(4326), always_xy=True)
+
+    def truth(di=0.0, dj=0.0):
+        lon, lat = to_lonlat.transform(gt[0] + (j + 0.5 + dj) * gt[1], gt[3] + (i + 0.5 + di) * gt[5])
+        return 20.0 + 215.0 * texture_at(lon, lat, tuple(frame["centre"]), frame["gsd_m"], frame["seed"])
+
+    t0 = truth()
+    gx = (truth(dj=0.5) - truth(dj=-0.5))
+    gy = (truth(di=0.5) - truth(di=-0.5))
+    d, *_ = np.linalg.lstsq(np.stack([gx, gy], axis=1), img[i, j] - t0, rcond=None)
+    return -d, int(i.size)
 
 
 def shift_normals(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:

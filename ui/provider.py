@@ -1,5 +1,7 @@
 """The 'pushbroom' Processing provider: the plugin's algorithms in the toolbox and qgis_process."""
-from qgis.core import QgsProcessingProvider
+import logging
+
+from qgis.core import QgsProcessingModelAlgorithm, QgsProcessingProvider
 from qgis.PyQt.QtGui import QIcon
 
 from .algorithms.bundleadjust import BundleAdjustAlgorithm
@@ -12,6 +14,8 @@ from .algorithms.orthorectify import OrthorectifyAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .common import RESOURCES
 
+log = logging.getLogger(__name__)
+MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
 ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, BundleAdjustAlgorithm, GroundToImageAlgorithm,
               ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm, ExportRpcAlgorithm)
 
@@ -36,3 +40,9 @@ class PushbroomProvider(QgsProcessingProvider):
     def loadAlgorithms(self):  # noqa: N802 (QGIS API name)
         for alg in ALGORITHMS:
             self.addAlgorithm(alg())
+        for path in sorted(MODELS.glob("*.model3")):
+            model = QgsProcessingModelAlgorithm()
+            if model.fromFile(str(path)):
+                self.addAlgorithm(model)
+            else:
+                log.warning("cannot read the graphical model %s", path)

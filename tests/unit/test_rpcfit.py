@@ -99,6 +99,17 @@ def test_nominal_staggered_array_fits_nearly_as_well(simulated, tmp_path):
     assert report["check"]["rms_px"] < 0.05 and report["check"]["max_px"] < 0.2  # measured 0.025 / 0.09
 
 
+def test_a_pole_between_the_fit_nodes_is_regularised_away(simulated):
+    """Over the DEM's height range, the least-regularised fit of the nominal CBERS camera puts a
+    pole of the denominator between the fit nodes (check max 128 px against fit max 10 px); the
+    fit raises the regularisation until the independent check agrees with the fit."""
+    _, result = simulated["cbers02b_hrc"]
+    scene = load_scene(result.onboard_scene)
+    _, report = fit_rpc(scene, 0, dem_height_range(scene, Dem(result.dem, datum="geoid")))
+    assert report["check"]["rms_px"] < 0.05 and report["check"]["max_px"] < 0.2, report["check"]
+    assert max(report["regularisation_used"].values()) > report["regularisation"]
+
+
 # --- GDAL's convention and the vendor model ----------------------------------------------------
 def _gdal_image_to_ground(ds, col, row, h):
     tr = gdal.Transformer(ds, None, ["METHOD=RPC", f"RPC_HEIGHT={h}", "RPC_PIXEL_ERROR_THRESHOLD=1e-6"])

@@ -71,7 +71,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         "RENDER"
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
     ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM = "ONBOARD_SCENE", "TRUE_SCENE", "GCPS", "DEM"
-    TIE_POINTS, MANIFEST = "TIE_POINTS", "MANIFEST"
+    TIE_POINTS, MANIFEST, IMAGE = "TIE_POINTS", "MANIFEST", "IMAGE"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         names = list(PRESETS)
@@ -122,6 +122,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputFile(self.TIE_POINTS, "Tie points (CSV), when requested"))
         self.addOutput(QgsProcessingOutputRasterLayer(self.DEM, "DEM (GeoTIFF, EGM96 geoid heights)"))
         self.addOutput(QgsProcessingOutputFile(self.MANIFEST, "Simulation settings and drawn errors (JSON)"))
+        self.addOutput(QgsProcessingOutputRasterLayer(self.IMAGE, "Raw image of the first camera, when rendered"))
         self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, "Output folder"))
 
 
@@ -149,4 +150,5 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         return {self.OUTPUT_FOLDER: folder, self.ONBOARD_SCENE: str(result.onboard_scene),
                 self.TRUE_SCENE: str(result.true_scene), self.GCPS: str(result.gcps), self.DEM: str(result.dem),
                 self.TIE_POINTS: str(result.tie_points) if result.tie_points else None,
-                self.MANIFEST: str(result.manifest)}
+                self.MANIFEST: str(result.manifest),
+                self.IMAGE: str(next(iter(result.images.values()))) if result.images else None}
