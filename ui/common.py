@@ -13,7 +13,7 @@ import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingAlgorithm, QgsProcessingException,
-                       QgsProcessingParameterDefinition,
+                       QgsProcessingParameterDefinition, QgsProcessingParameterFileDestination, QgsProcessingUtils,
                        QgsProcessingLayerPostProcessorInterface, QgsProcessingParameterEnum,
                        QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer,
                        QgsProcessingParameterString)
@@ -69,6 +69,16 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         if advanced:
             parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
         self.addParameter(parameter)
+
+    def output_path(self, parameters, context, name: str, temporary_name: str) -> str:
+        """Where output parameter ``name`` goes; a new temporary file ``temporary_name`` when it is
+        empty (a graphical model passes that for outputs nobody asked for, which later steps
+        may still need)."""
+        if isinstance(self.parameterDefinition(name), QgsProcessingParameterFileDestination):
+            path = self.parameterAsFileOutput(parameters, name, context)
+        else:
+            path = self.parameterAsOutputLayer(parameters, name, context)
+        return path or QgsProcessingUtils.generateTempFilename(temporary_name)
 
     def shortHelpString(self):  # noqa: N802
         rows = "".join(f"<li><b>{p.name()}</b>: {p.help() or p.description()}</li>"

@@ -32,10 +32,11 @@ def test_the_model_file_is_valid_and_in_the_toolbox(provider):
 
 @pytest.fixture(scope="module")
 def chain(provider, tmp_path_factory):
+    """The model run by processing.run, as the toolbox and Python console run it."""
     out = tmp_path_factory.mktemp("model")
     results = processing.run(MODEL_ID, {
         "SEED": 1, "N_GCPS": 1000, "simulate:Simulation folder": str(out / "sim"),
-        "adjust:Adjusted scene": str(out / "adjusted.json"), "adjust:Adjustment report": str(out / "report.html"),
+        "adjust:Adjusted scene": "TEMPORARY_OUTPUT", "adjust:Adjustment report": str(out / "report.html"),
         "ortho:Orthoimage": str(out / "ortho.tif"), "rpc:RPC file": str(out / "image_HRC_RPC.TXT")})
     return results, out
 
@@ -60,6 +61,19 @@ def test_the_model_chain_exports_an_rpc_gdal_uses(chain):
     assert (vrt.RasterXSize, vrt.RasterYSize) == (12246, 12246)
 
 
-def test_the_model_is_listed_by_qgis_process(qgis_process):  # noqa: F811
+def test_the_model_runs_from_qgis_process(qgis_process, tmp_path):  # noqa: F811
+    """Outputs not given on the command line reach the steps empty: they are written to temporary
+    files (the adjusted scene the later steps need among them)."""
     listing = qgis_process("list")
     assert MODEL_ID in listing.stdout
+    done = qgis_process("--json", "run", MODEL_ID, "--", "SEED=2", "N_GCPS=300",
+                        f"simulate:Simulation folder={tmp_path / 'sim'}", f"ortho:Orthoimage={tmp_path / 'o.tif'}",
+                        f"rpc:RPC file={tmp_path / 'image_HRC_RPC.TXT'}")
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    results = json.loads(done.stdout)["results"]
+    # a temporary file (removed when qgis_process ends), which orthorectify and exportrpc read
+    assert results["adjust:Adjusted scene"].endswith("output_scene.json")
+    assert results["ortho:Orthoimage"] == str(tmp_path / "o.tif")
+    ds = gdal.Open(str(tmp_path / "o.tif"))
+    assert ds.RasterCount == 1 and ds.GetRasterBand(1).GetOverviewCount() > 0
+    assert (tmp_path / "image_HRC.vrt").is_file()

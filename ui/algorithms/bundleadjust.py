@@ -236,10 +236,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         return message
 
     def _destination(self, parameters, context, name: str, suffix: str) -> str:
-        if name in (self.OUTPUT_GCPS, self.OUTPUT_RESIDUALS):
-            path = self.parameterAsOutputLayer(parameters, name, context)
-        else:
-            path = self.parameterAsFileOutput(parameters, name, context)
+        path = self.output_path(parameters, context, name, name.lower() + suffix)
         if Path(path).suffix.lower() != suffix:
             raise QgsProcessingException(f"{name}: expected a {suffix} file (got {path})")
         return path

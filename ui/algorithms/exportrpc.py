@@ -83,7 +83,7 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputNumber(self.MAX_PX, "Check maximum error (px)"))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        out = Path(self.parameterAsFileOutput(parameters, self.OUTPUT, context))
+        out = Path(self.output_path(parameters, context, self.OUTPUT, "image_RPC.TXT"))
         name = out.name.lower()
         if not (name.endswith(".txt") or name.endswith(".rpb")):
             raise QgsProcessingException(f"{self.OUTPUT}: {out} must end in _RPC.TXT (GDAL's RPC text) or .RPB")

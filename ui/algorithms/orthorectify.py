@@ -24,7 +24,9 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             "or adjusted) and a DEM. Every output pixel's image position is computed exactly on a coarse grid "
             "and densified within 0.01 px (checked per tile); cells along the seams of staggered CCD arrays "
             "are mapped pixel by pixel, so no seam is smeared. Works in tiles on all cores with bounded memory; "
-            "writes a tiled, DEFLATE-compressed GeoTIFF with overviews and nodata, completely or not at all.")
+            "writes a tiled, DEFLATE-compressed GeoTIFF with overviews and nodata, completely or not at all. "
+            "With a DEM that covers only part of the scene, give an EXTENT inside it: pixels without a height "
+            "are nodata and a warning gives their share of the footprint.")
     INPUT, CRS_PARAM, RESOLUTION, RESAMPLING_PARAM, NODATA, EXTENT, OUTPUT = \
         "INPUT", "CRS", "RESOLUTION", "RESAMPLING", "NODATA", "EXTENT", "OUTPUT"
 
@@ -62,7 +64,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         surface = dem_from_parameters(self, parameters, context)
         crs = self._crs(parameters, context)
-        output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
+        output = self.output_path(parameters, context, self.OUTPUT, "orthoimage.tif")
         if Path(output).suffix.lower() not in (".tif", ".tiff"):
             raise QgsProcessingException(f"{self.OUTPUT}: the orthoimage is written as GeoTIFF; use a .tif file "
                                          f"(got {output})")
