@@ -29,6 +29,7 @@ from osgeo import gdal
 from pyproj import CRS, Transformer
 from scipy import ndimage
 
+from .dem import ConstantHeight
 from .errors import Cancelled, InputError
 from .geodesy import ecef_to_geodetic, geodetic_to_ecef
 from .sensor import SceneModel
@@ -70,7 +71,8 @@ def scene_utm_crs(scene: SceneModel, camera: int, surface) -> CRS:
 
 def _image_on_surface(scene: SceneModel, camera: int, surface, footprint: bool) -> np.ndarray:
     """ECEF points (n, 3) where the image meets the surface: with ``footprint`` 33 points along
-    each side of the border, then (always) the centre pixel and its right neighbour.
+    each side of the border, then (always) the centre pixel and its right neighbour (without
+    ``footprint``, at the surface's mean height where the surface misses them).
     InputError naming the DEM where they do not meet it."""
     cam = scene.cameras[camera]
     s = np.linspace(0.0, 1.0, 33)
@@ -81,6 +83,9 @@ def _image_on_surface(scene: SceneModel, camera: int, surface, footprint: bool) 
     else:
         col, row = centre_col, centre_row
     ground = scene.image_to_ground_dem(col, row, surface, camera)
+    if not footprint and not np.all(np.isfinite(ground)):
+        # the centre only sets the default CRS and pixel size: the DEM's mean height serves there
+        ground = scene.image_to_ground_dem(col, row, ConstantHeight(float(np.mean(surface.height_range))), camera)
     if not np.all(np.isfinite(ground)):
         name = getattr(surface, "path", "the terrain surface")
         where = "the image's centre" if not np.all(np.isfinite(ground[-2:])) else "the image's border"

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from osgeo import gdal
-from qgis.core import QgsProcessingException
+from qgis.core import QgsProcessingException, QgsProcessingFeedback
 
 import processing
 from core.dem import Dem
@@ -50,7 +50,53 @@ def test_bad_parameters_are_named(provider, raw, tmp_path):
         processing.run("pushbroom:orthorectify", {**base, "OUTPUT": str(tmp_path / "o.png")})
     with pytest.raises(QgsProcessingException, match="the raster is 12246 x 400 px but camera HRC"):
         processing.run("pushbroom:orthorectify", {**base, "SCENE": str(Path(scene).with_name("true_scene.json"))})
-    assert not (tmp_path / "o.tif").exists()
+    with pytest.raises(QgsProcessingException, match="CRS: unknown CRS 'EPSG:999999'"):
+        processing.run("pushbroom:orthorectify", {**base, "CRS": "EPSG:999999"})
+    with pytest.raises(QgsProcessingException, match=r"cannot write .*o.tif: folder .*missing does not exist"):
+        processing.run("pushbroom:orthorectify", {**base, "OUTPUT": str(tmp_path / "missing" / "o.tif")})
+    nocrs = tmp_path / "nocrs.tif"
+    src = gdal.Open(dem)
+    copy = gdal.GetDriverByName("GTiff").CreateCopy(str(nocrs), src)
+    copy.SetProjection("")
+    copy = None
+    with pytest.raises(QgsProcessingException, match="DEM: .*nocrs.tif: has no coordinate reference system"):
+        processing.run("pushbroom:orthorectify", {**base, "DEM": str(nocrs)})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["nocrs.tif"]
+
+
+def test_a_dem_covering_part_of_the_scene_is_warned(provider, raw, tmp_path):
+    """Without EXTENT the grid cannot be planned (an error naming the DEM); with an extent, the
+    pixels without a height are nodata and a warning gives their share."""
+    scene, image, dem = raw
+    src = gdal.Open(dem)
+    half = tmp_path / "west.tif"  # the western half of the DEM
+    gdal.Translate(str(half), src, srcWin=[0, 0, src.RasterXSize // 2, src.RasterYSize])
+    with pytest.raises(QgsProcessingException, match=r"DEM .*west.tif does not cover the scene"):
+        processing.run("pushbroom:orthorectify", {"INPUT": image, "SCENE": scene, "DEM": str(half),
+                                                  "OUTPUT": str(tmp_path / "o.tif")})
+    full = processing.run("pushbroom:orthorectify", {"INPUT": image, "SCENE": scene, "DEM": dem, "RESOLUTION": 10,
+                                                     "OUTPUT": str(tmp_path / "full.tif")})["OUTPUT"]
+    ds = gdal.Open(full)
+    g = ds.GetGeoTransform()
+    extent = f"{g[0]},{g[0] + g[1] * ds.RasterXSize},{g[3] + g[5] * ds.RasterYSize},{g[3]} [EPSG:32650]"
+    feedback = _Warnings()
+    processing.run("pushbroom:orthorectify", {"INPUT": image, "SCENE": scene, "DEM": str(half), "RESOLUTION": 10,
+                                              "EXTENT": extent, "OUTPUT": str(tmp_path / "part.tif")},
+                   feedback=feedback)
+    assert any("the DEM gives no height for" in w for w in feedback.warnings), feedback.warnings
+    part_ds = gdal.Open(str(tmp_path / "part.tif"))  # held: a band outliving its dataset crashes GDAL
+    part = part_ds.GetRasterBand(1).ReadAsArray()
+    whole = ds.GetRasterBand(1).ReadAsArray()
+    assert part.shape == whole.shape and 0.2 < np.mean(part > 0) / np.mean(whole > 0) < 0.8
+
+
+class _Warnings(QgsProcessingFeedback):
+    def __init__(self):
+        super().__init__()
+        self.warnings = []
+
+    def pushWarning(self, warning):  # noqa: N802 (QGIS API name)
+        self.warnings.append(warning)
 
 
 def test_orthorectify_from_the_command_line(qgis_process, raw, tmp_path):  # noqa: F811
