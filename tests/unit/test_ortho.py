@@ -152,3 +152,39 @@ def test_overviews_are_means_of_the_valid_pixels(rendered, tmp_path):
             expected = np.where(count > 0, np.rint(cells.sum(axis=(1, 3)) / count), 0)
         got = ovr.ReadAsArray()[:h // f, :w // f]
         assert np.array_equal(got, expected), (f, np.abs(got - expected).max())
+
+
+def test_every_band_and_data_type_is_kept(rendered, tmp_path):
+    """A two-band 16-bit image gives a two-band 16-bit orthoimage whose bands are the single
+    8-bit band's orthoimage transformed as the input bands were (nearest: exactly); a float band
+    stays float; cubic overshoot of an integer band is clipped to the type's range."""
+    scene, dem, frame, folder = rendered
+    src = gdal.Open(str(folder / "raw.tif"))
+    dn = src.GetRasterBand(1).ReadAsArray().astype(np.uint16)
+    multi = tmp_path / "multi.tif"
+    ds = gdal.GetDriverByName("GTiff").Create(str(multi), src.RasterXSize, src.RasterYSize, 2, gdal.GDT_UInt16)
+    ds.GetRasterBand(1).WriteArray(dn * 200)
+    ds.GetRasterBand(2).WriteArray(65535 - dn * 200)
+    ds = None
+    for name, kind in (("steps.tif", gdal.GDT_UInt16), ("steps_float.tif", gdal.GDT_Float32)):
+        # sharp steps up to the 16-bit maximum: the cubic spline overshoots there
+        ds = gdal.GetDriverByName("GTiff").Create(str(tmp_path / name), src.RasterXSize, src.RasterYSize, 1, kind)
+        ds.GetRasterBand(1).WriteArray(np.where(dn > 127, 65535, 30000))
+        ds = None
+    orthorectify(scene, folder / "raw.tif", dem, tmp_path / "one.tif", resampling="nearest")
+    orthorectify(scene, multi, dem, tmp_path / "two.tif", resampling="nearest")
+    one, two = gdal.Open(str(tmp_path / "one.tif")), gdal.Open(str(tmp_path / "two.tif"))
+    assert two.RasterCount == 2 and two.GetRasterBand(2).DataType == gdal.GDT_UInt16
+    ref = one.GetRasterBand(1).ReadAsArray().astype(np.int64)
+    valid = ref > 0
+    assert valid.mean() > 0.2  # a 1200-row cut: a thin strip across its bounding box
+    assert np.array_equal(two.GetRasterBand(1).ReadAsArray()[valid], ref[valid] * 200)
+    assert np.array_equal(two.GetRasterBand(2).ReadAsArray()[valid], 65535 - ref[valid] * 200)
+    assert np.all(two.GetRasterBand(2).ReadAsArray()[~valid] == 0)
+    for name in ("steps", "steps_float"):
+        orthorectify(scene, tmp_path / f"{name}.tif", dem, tmp_path / f"cubic_{name}.tif", resampling="cubic")
+    cubic, cubic_float = (gdal.Open(str(tmp_path / f"cubic_{n}.tif")) for n in ("steps", "steps_float"))
+    u16 = cubic.GetRasterBand(1).ReadAsArray()[valid]
+    f32 = cubic_float.GetRasterBand(1).ReadAsArray()[valid]
+    assert u16.dtype == np.uint16 and f32.dtype == np.float32 and f32.max() > 70000  # overshoot happened
+    assert np.array_equal(u16, np.clip(np.rint(f32), 0, 65535))  # rounded and clipped, never wrapped
