@@ -19,13 +19,14 @@ from __future__ import annotations
 import logging
 import math
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from osgeo import gdal
+from osgeo import gdal, gdal_array
 from pyproj import CRS, Transformer
 from scipy import ndimage
 
@@ -135,36 +136,68 @@ def _open_raw(image_path, cam):
     return src
 
 
-def _resample(data: np.ndarray, col: np.ndarray, row: np.ndarray, order: int, fill) -> np.ndarray:
-    """Values of the raw band ``data`` (rows, cols) at image positions (col, row) (GDAL
-    convention, arrays of the tile's shape); ``fill`` outside the image. Integer types rounded
-    and clipped to their range."""
-    outside = ~np.isfinite(col) | (col < 0) | (col > data.shape[1]) | (row < 0) | (row > data.shape[0])
+class _RawImage:
+    """The raw image's bands (count, rows, cols), read by window: from memory when the whole
+    image fits in ``budget`` bytes (decoded once, on all cores), else from the file through a
+    GDAL dataset per thread (GDAL datasets are not shared between threads), so memory stays
+    bounded for images of any size."""
+
+    def __init__(self, path, src, budget: float):
+        self.path, self.count = str(path), src.RasterCount
+        self.rows, self.cols = src.RasterYSize, src.RasterXSize
+        self.data_type = src.GetRasterBand(1).DataType
+        self.dtype = np.dtype(gdal_array.GDALTypeCodeToNumericTypeCode(self.data_type))
+        size = self.rows * self.cols * self.count * self.dtype.itemsize
+        self.data = src.ReadAsArray().reshape(self.count, self.rows, self.cols) if size <= budget else None
+        self._local = threading.local()
+        self._opened: list = []
+
+    def window(self, i0: int, i1: int, j0: int, j1: int) -> np.ndarray:
+        """Bands (count, i1-i0, j1-j0) of rows i0..i1 and columns j0..j1."""
+        if self.data is not None:
+            return self.data[:, i0:i1, j0:j1]
+        ds = getattr(self._local, "ds", None)
+        if ds is None:
+            ds = self._local.ds = gdal.Open(self.path)
+            self._opened.append(ds)
+        return ds.ReadAsArray(j0, i0, j1 - j0, i1 - i0).reshape(self.count, i1 - i0, j1 - j0)
+
+    def close(self) -> None:
+        self.data, self._opened = None, []
+
+
+def _resample(raw: _RawImage, col: np.ndarray, row: np.ndarray, order: int, fill) -> list[np.ndarray]:
+    """Values of every band of the raw image at image positions (col, row) (GDAL convention,
+    arrays of the tile's shape); ``fill`` outside the image. Integer types rounded and clipped
+    to their range."""
+    outside = ~np.isfinite(col) | (col < 0) | (col > raw.cols) | (row < 0) | (row > raw.rows)
     any_outside = outside.any()
     if any_outside and outside.all():
-        return np.full(col.shape, fill, dtype=data.dtype)
+        return [np.full(col.shape, fill, dtype=raw.dtype) for _ in range(raw.count)]
     # image positions (centres at +0.5) -> array indices (centres at 0), in the raw window the
     # tile needs (a cubic spline is prefiltered on that window only)
     i, j = row - 0.5, col - 0.5
     if any_outside:
         i, j = np.where(outside, np.nan, i), np.where(outside, np.nan, j)
     i0, j0 = max(int(np.nanmin(i)) - 4, 0), max(int(np.nanmin(j)) - 4, 0)
-    i1, j1 = min(int(np.nanmax(i)) + 5, data.shape[0]), min(int(np.nanmax(j)) + 5, data.shape[1])
+    i1, j1 = min(int(np.nanmax(i)) + 5, raw.rows), min(int(np.nanmax(j)) + 5, raw.cols)
     coords = np.stack([i - i0, j - j0])
     if any_outside:
         coords[:, outside] = 0.0
-    window = data[i0:i1, j0:j1]
-    if order <= 1:  # an integer band's output is rounded by ndimage; no overshoot to clip
-        block = ndimage.map_coordinates(window, coords, order=order, mode="nearest", prefilter=False)
-    else:
-        values = ndimage.map_coordinates(window.astype(np.float32), coords, order=order, mode="nearest")
-        if np.issubdtype(data.dtype, np.integer):
-            info = np.iinfo(data.dtype)
-            values = np.clip(np.rint(values), info.min, info.max)
-        block = values.astype(data.dtype)
-    if any_outside:
-        block[outside] = fill
-    return block
+    blocks = []
+    for window in raw.window(i0, i1, j0, j1):
+        if order <= 1:  # an integer band's output is rounded by ndimage; no overshoot to clip
+            block = ndimage.map_coordinates(window, coords, order=order, mode="nearest", prefilter=False)
+        else:
+            values = ndimage.map_coordinates(window.astype(np.float32), coords, order=order, mode="nearest")
+            if np.issubdtype(raw.dtype, np.integer):
+                info = np.iinfo(raw.dtype)
+                values = np.clip(np.rint(values), info.min, info.max)
+            block = values.astype(raw.dtype)
+        if any_outside:
+            block[outside] = fill
+        blocks.append(block)
+    return blocks
 
 
 def _overview_blocks(block: np.ndarray, levels: list[int], nodata, nearest: bool) -> list[np.ndarray]:
@@ -358,11 +391,14 @@ class _Mapper:
 
 def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: int = 0, grid: OrthoGrid | None = None,
                  resampling: str = "bilinear", nodata: float | None = 0.0, tile: int = 512, step: int = 32,
-                 max_error: float = 0.01, progress: Callable[[float], None] | None = None,
+                 max_error: float = 0.01, memory_budget: float = 2 ** 30,
+                 progress: Callable[[float], None] | None = None,
                  is_cancelled: Callable[[], bool] | None = None) -> dict:
     """Orthorectify ``image_path`` (any GDAL raster, any bands and type, of the scene camera's
     size) onto ``grid`` (default :func:`default_grid`) and write a tiled, compressed GeoTIFF
-    with overviews to ``output_path``. Returns figures: grid, densification error (px), time."""
+    with overviews to ``output_path``. The raw image is held in memory when it takes at most
+    ``memory_budget`` bytes, else read by window for each tile. Returns figures: grid,
+    densification error (px), share of the footprint without DEM heights, time."""
     import time
     t_start = time.perf_counter()
     if resampling not in RESAMPLING:
@@ -376,25 +412,24 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
     tmp = output_path.with_name(output_path.stem + ".part.tif")
     if not output_path.parent.is_dir() or not os.access(output_path.parent, os.W_OK):
         raise InputError(f"cannot write {output_path}: folder {output_path.parent} does not exist or is not writable")
-    bands = [src.GetRasterBand(b + 1) for b in range(src.RasterCount)]
-    data = [b.ReadAsArray() for b in bands]  # the raw image in memory: random access by the mapping
+    raw = _RawImage(image_path, src, memory_budget)
     fill = nodata if nodata is not None else 0.0
     cancelled = is_cancelled or (lambda: False)
     report = progress or (lambda fraction: None)
     levels = overview_levels(grid.cols, grid.rows)
     try:
         out = gdal.GetDriverByName("GTiff").Create(
-            str(tmp), grid.cols, grid.rows, len(bands), bands[0].DataType,
+            str(tmp), grid.cols, grid.rows, raw.count, raw.data_type,
             ["TILED=YES", f"BLOCKXSIZE={tile}", f"BLOCKYSIZE={tile}", "COMPRESS=DEFLATE", "PREDICTOR=2",
              "BIGTIFF=IF_SAFER", "NUM_THREADS=ALL_CPUS"])
         out.SetGeoTransform(grid.geotransform())
         out.SetProjection(grid.crs.to_wkt())
-        for k in range(len(bands)):
+        for k in range(raw.count):
             if nodata is not None:
                 out.GetRasterBand(k + 1).SetNoDataValue(nodata)
         if levels:
             out.BuildOverviews("NONE", levels)  # created empty; each tile writes its own part of them
-        out_bands = [out.GetRasterBand(k + 1) for k in range(len(bands))]
+        out_bands = [out.GetRasterBand(k + 1) for k in range(raw.count)]
         mapper = _Mapper(scene, camera, surface, grid)
         planned = mapper.nodes(0, grid.rows, 0, grid.cols, step, is_cancelled=cancelled)
         gaps = mapper.dem_gap_share(planned)
@@ -411,7 +446,7 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
                 raise Cancelled("orthorectification cancelled by the user")
             r0, r1, c0, c1 = t
             col, row, err = mapper.tile(r0, r1, c0, c1, step, max_error, planned)
-            blocks = [_resample(d, col, row, order, fill) for d in data]
+            blocks = _resample(raw, col, row, order, fill)
             return t, blocks, [_overview_blocks(b, levels, nodata, order == 0) for b in blocks], err
 
         worst = 0.0
@@ -431,6 +466,7 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
         raise InputError(f"cannot write {output_path}: {exc}") from None
     finally:
         out_bands = out = None
+        raw.close()
         if tmp.exists():
             tmp.unlink()
     report(1.0)

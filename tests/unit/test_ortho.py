@@ -181,6 +181,10 @@ def test_every_band_and_data_type_is_kept(rendered, tmp_path):
     assert np.array_equal(two.GetRasterBand(1).ReadAsArray()[valid], ref[valid] * 200)
     assert np.array_equal(two.GetRasterBand(2).ReadAsArray()[valid], 65535 - ref[valid] * 200)
     assert np.all(two.GetRasterBand(2).ReadAsArray()[~valid] == 0)
+    # an image beyond the memory budget is read window by window: the same orthoimage
+    orthorectify(scene, multi, dem, tmp_path / "windows.tif", resampling="nearest", memory_budget=0)
+    windows = gdal.Open(str(tmp_path / "windows.tif"))
+    assert np.array_equal(windows.ReadAsArray(), two.ReadAsArray())
     for name in ("steps", "steps_float"):
         orthorectify(scene, tmp_path / f"{name}.tif", dem, tmp_path / f"cubic_{name}.tif", resampling="cubic")
     cubic, cubic_float = (gdal.Open(str(tmp_path / f"cubic_{n}.tif")) for n in ("steps", "steps_float"))

@@ -23,7 +23,8 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
     HELP = ("Resamples a raw pushbroom image onto a north-up map grid with the scene's rigorous model (onboard "
             "or adjusted) and a DEM. Every output pixel's image position is computed exactly on a coarse grid "
             "and densified within 0.01 px (checked per tile); cells along the seams of staggered CCD arrays "
-            "are mapped pixel by pixel, so no seam is smeared. Works in tiles on all cores with bounded memory; "
+            "are mapped pixel by pixel, so no seam is smeared. Works in tiles on all cores with bounded memory "
+            "(raw images over 1 GiB are read window by window); "
             "writes a tiled, DEFLATE-compressed GeoTIFF with overviews and nodata, completely or not at all. "
             "With a DEM that covers only part of the scene, give an EXTENT inside it: pixels without a height "
             "are nodata and a warning gives their share of the footprint.")
