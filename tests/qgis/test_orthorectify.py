@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from osgeo import gdal
-from qgis.core import QgsProcessingException, QgsProcessingFeedback
+from qgis.core import QgsProcessingException
 
 import processing
 from core.dem import Dem
@@ -13,6 +13,7 @@ from core.render import render_image, texture_frame
 from core.scene_io import load_scene, save_scene
 from core.simulator import simulate
 
+from .test_algorithms import RecordingFeedback
 from .test_qgis_process import _run_json, qgis_process  # noqa: F401 (fixture)
 
 
@@ -79,7 +80,7 @@ def test_a_dem_covering_part_of_the_scene_is_warned(provider, raw, tmp_path):
     ds = gdal.Open(full)
     g = ds.GetGeoTransform()
     extent = f"{g[0]},{g[0] + g[1] * ds.RasterXSize},{g[3] + g[5] * ds.RasterYSize},{g[3]} [EPSG:32650]"
-    feedback = _Warnings()
+    feedback = RecordingFeedback()
     processing.run("pushbroom:orthorectify", {"INPUT": image, "SCENE": scene, "DEM": str(half), "RESOLUTION": 10,
                                               "EXTENT": extent, "OUTPUT": str(tmp_path / "part.tif")},
                    feedback=feedback)
@@ -88,15 +89,6 @@ def test_a_dem_covering_part_of_the_scene_is_warned(provider, raw, tmp_path):
     part = part_ds.GetRasterBand(1).ReadAsArray()
     whole = ds.GetRasterBand(1).ReadAsArray()
     assert part.shape == whole.shape and 0.2 < np.mean(part > 0) / np.mean(whole > 0) < 0.8
-
-
-class _Warnings(QgsProcessingFeedback):
-    def __init__(self):
-        super().__init__()
-        self.warnings = []
-
-    def pushWarning(self, warning):  # noqa: N802 (QGIS API name)
-        self.warnings.append(warning)
 
 
 def test_orthorectify_from_the_command_line(qgis_process, raw, tmp_path):  # noqa: F811
