@@ -33,6 +33,7 @@ from .rpc import RpcModel, rpc_terms
 
 DEFAULT_GRID = (31, 31, 7)
 DEFAULT_REGULARISATION = 1e-12
+MAX_REGULARISATION = 1e-4  # beyond it the ridge itself bends the fit by a good fraction of a pixel
 DEFAULT_CHECK_GRID = (40, 40)
 
 RPC_KEYS = ("LINE_OFF", "SAMP_OFF", "LAT_OFF", "LONG_OFF", "HEIGHT_OFF", "LINE_SCALE", "SAMP_SCALE",
@@ -98,22 +99,28 @@ def fit_rpc(scene, camera=0, height_range=None, grid=DEFAULT_GRID, regularisatio
     line = (row - 0.5 - norm["line_off"]) / norm["line_scale"]
     samp = (col - 0.5 - norm["samp_off"]) / norm["samp_scale"]
     report_progress(0.4, "solving the rational functions")
-    # A pole of the denominator between the fit nodes fits the nodes but not the image between
-    # them: the independent check shows it. Raise the regularisation until the check agrees
-    # with the fit (or keep the best checked model).
+    # A pole of the denominator, at a fit node or between the nodes (where only the independent
+    # check sees it), means data the cubic ratio cannot follow there: raise the regularisation
+    # until the check agrees with the fit, keeping the best checked model.
     best = None
     reg = float(regularisation)
     while True:
-        rpc, report = _fit_and_check(scene, k, cam, t, line, samp, norm, (col, row, lon, lat, hh), (lo, hi),
-                                     (nx, ny, nz), reg, check_grid, max_iter)
-        if best is None or report["check"]["max_px"] < best[1]["check"]["max_px"]:
-            best = rpc, report
-        if report["check"]["max_px"] <= 2.0 * report["fit"]["max_px"] + 0.05:
+        try:
+            rpc, report = _fit_and_check(scene, k, cam, t, line, samp, norm, (col, row, lon, lat, hh), (lo, hi),
+                                         (nx, ny, nz), reg, check_grid, max_iter)
+        except _VanishingDenominator:
+            report = None
+        if report is not None:
+            if best is None or report["check"]["max_px"] < best[1]["check"]["max_px"]:
+                best = rpc, report
+            if report["check"]["max_px"] <= 2.0 * report["fit"]["max_px"] + 0.05:
+                break
+        if reg >= MAX_REGULARISATION:
             break
-        used = max(report["regularisation_used"].values())
-        if used >= 1e-4:
-            break
-        reg = max(used * 100.0, 1e-14)
+        reg = max(reg * 100.0, 1e-14)
+    if best is None:
+        raise InputError(f"RPC fit: the denominator vanishes inside the fit grid even with regularisation {reg:g}; "
+                         "the scene geometry cannot be represented by an RPC")
     rpc, report = best
     report["regularisation"] = float(regularisation)
     report_progress(1.0, None)
@@ -123,17 +130,18 @@ def fit_rpc(scene, camera=0, height_range=None, grid=DEFAULT_GRID, regularisatio
 def _fit_and_check(scene, k, cam, t, line, samp, norm, fit_points, height_range, grid, regularisation, check_grid,
                    max_iter) -> tuple[RpcModel, dict]:
     """One fit of both ratios at one regularisation, its residuals at the fit nodes and its
-    independent check (the report of :func:`fit_rpc`)."""
+    independent check (the report of :func:`fit_rpc`). _VanishingDenominator when the
+    denominator vanishes at a fit node."""
     col, row, lon, lat, hh = fit_points
-    line_num, line_den, it_l, reg_l = _solve_ratio_safe(t, line, regularisation, max_iter)
-    samp_num, samp_den, it_s, reg_s = _solve_ratio_safe(t, samp, regularisation, max_iter)
+    line_num, line_den, it_l = _solve_ratio(t, line, regularisation, max_iter)
+    samp_num, samp_den, it_s = _solve_ratio(t, samp, regularisation, max_iter)
     rpc = RpcModel(line_num=line_num, line_den=line_den, samp_num=samp_num, samp_den=samp_den, origin=0.0, **norm)
     fc, fr = rpc.ground_to_image(lon, lat, hh)
     fit_err = np.hypot(fc - col, fr - row)
     report = {
         "camera": cam.name, "camera_index": k, "cols": cam.cols, "rows": cam.rows,
-        "height_range": [float(v) for v in height_range], "grid": list(grid), "regularisation": float(regularisation),
-        "iterations": {"line": it_l, "samp": it_s}, "regularisation_used": {"line": reg_l, "samp": reg_s},
+        "height_range": [float(v) for v in height_range], "grid": list(grid),
+        "iterations": {"line": it_l, "samp": it_s}, "regularisation_used": float(regularisation),
         "fit": {"points": int(col.size), "rms_px": _rms(fit_err), "max_px": float(np.max(fit_err))},
         "convention": "GDAL RPC00B: sample = col - 0.5, line = row - 0.5 (0 = centre of the first pixel)",
     }
@@ -259,21 +267,6 @@ def _normalisation(cam, lon, lat, hrange) -> dict:
     return dict(line_off=line_off, line_scale=line_scale, samp_off=samp_off, samp_scale=samp_scale,
                 lat_off=lat_off, lat_scale=lat_scale, lon_off=lon_off, lon_scale=lon_scale,
                 height_off=h_off, height_scale=h_scale)
-
-
-def _solve_ratio_safe(t: np.ndarray, r: np.ndarray, regularisation: float, max_iter: int):
-    """:func:`_solve_ratio`, with the regularisation raised 100-fold (up to 1e-4) while the
-    denominator vanishes somewhere in the fit grid (data an RPC cannot follow, e.g. chip seams).
-    Returns (num, den, iterations, regularisation used)."""
-    reg = float(regularisation)
-    while True:
-        try:
-            return (*_solve_ratio(t, r, reg, max_iter), reg)
-        except _VanishingDenominator:
-            if reg >= 1e-4:
-                raise InputError("RPC fit: the denominator vanishes inside the fit grid even with regularisation "
-                                 f"{reg:g}; the scene geometry cannot be represented by an RPC") from None
-            reg = max(reg * 100.0, 1e-14)
 
 
 class _VanishingDenominator(Exception):

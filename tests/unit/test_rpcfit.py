@@ -107,7 +107,7 @@ def test_a_pole_between_the_fit_nodes_is_regularised_away(simulated):
     scene = load_scene(result.onboard_scene)
     _, report = fit_rpc(scene, 0, dem_height_range(scene, Dem(result.dem, datum="geoid")))
     assert report["check"]["rms_px"] < 0.05 and report["check"]["max_px"] < 0.2, report["check"]
-    assert max(report["regularisation_used"].values()) > report["regularisation"]
+    assert report["regularisation_used"] > report["regularisation"]
 
 
 # --- GDAL's convention and the vendor model ----------------------------------------------------

@@ -61,7 +61,8 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
             QgsProcessingParameterNumber(self.REGULARISATION, "Regularisation (Tikhonov)",
                                          QgsProcessingParameterNumber.Double, 1e-12, minValue=0.0, maxValue=1e-2),
             "Ridge weight, relative to the normalised normal equations, that keeps the denominators tame. "
-            "It is raised automatically (and the value used reported) when a denominator would vanish.",
+            "It is raised 100-fold at a time (up to 1e-4; the value used is reported) while the denominator "
+            "vanishes at a fit node or the independent check's largest error exceeds twice the fit's.",
             advanced=True)
         self.add_parameter(
             QgsProcessingParameterRasterLayer(self.IMAGE, "Image of this camera (optional)", optional=True),
@@ -143,7 +144,7 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         check = report["check"]
         lo, hi = report["height_range"]
         feedback.pushInfo(f"camera {report['camera']}: RPC00B fitted on {report['fit']['points']} points, heights "
-                          f"{lo:.0f} to {hi:.0f} m (ellipsoidal); regularisation used {report['regularisation_used']}")
+                          f"{lo:.0f} to {hi:.0f} m (ellipsoidal); regularisation used {report['regularisation_used']:g}")
         feedback.pushInfo(f"check on {check['points']} independent points: RMS {check['rms_px']:.4f} px, "
                           f"max {check['max_px']:.4f} px")
         for end, fig in check["heights"].items():
