@@ -150,7 +150,6 @@ class _RawImage:
         size = self.rows * self.cols * self.count * self.dtype.itemsize
         self.data = src.ReadAsArray().reshape(self.count, self.rows, self.cols) if size <= budget else None
         self._local = threading.local()
-        self._opened: list = []
 
     def window(self, i0: int, i1: int, j0: int, j1: int) -> np.ndarray:
         """Bands (count, i1-i0, j1-j0) of rows i0..i1 and columns j0..j1."""
@@ -159,11 +158,11 @@ class _RawImage:
         ds = getattr(self._local, "ds", None)
         if ds is None:
             ds = self._local.ds = gdal.Open(self.path)
-            self._opened.append(ds)
         return ds.ReadAsArray(j0, i0, j1 - j0, i1 - i0).reshape(self.count, i1 - i0, j1 - j0)
 
     def close(self) -> None:
-        self.data, self._opened = None, []
+        """Drop the decoded image and every thread's dataset."""
+        self.data, self._local = None, threading.local()
 
 
 def _resample(raw: _RawImage, col: np.ndarray, row: np.ndarray, order: int, fill) -> list[np.ndarray]:
@@ -471,7 +470,8 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
             tmp.unlink()
     report(1.0)
     figures = {"cols": grid.cols, "rows": grid.rows, "resolution_m": grid.resolution, "crs": grid.crs.to_string(),
-               "densification_error_px": worst, "max_error_px": max_error, "dem_gap_share": gaps, "seconds": time.perf_counter() - t_start}
+               "densification_error_px": worst, "max_error_px": max_error, "dem_gap_share": gaps,
+               "seconds": time.perf_counter() - t_start}
     log.info("orthoimage %d x %d at %.3f m in %.1f s; densification error <= %.2e px", grid.cols, grid.rows,
              grid.resolution, figures["seconds"], worst)
     return figures

@@ -7,11 +7,37 @@ import numpy as np
 from osgeo import gdal
 from pyproj import CRS, Transformer
 
+from dataclasses import replace
+
 from core.dem import Dem
 from core.ortho import OrthoGrid, _Mapper
-from core.render import texture_at
+from core.render import render_image, texture_at, texture_frame
+from core.scene_io import load_scene
+from core.simulator import simulate
 
 gdal.UseExceptions()
+
+
+def rendered_cut(folder, seed: int, rows: int, model: str = "true_scene", surface=None):
+    """A CBERS-02B scene simulated into ``folder``, its ``model`` (true_scene or onboard_scene)
+    cut to the first ``rows`` rows, and the cut's raw image rendered from the texture into
+    folder/raw.tif over ``surface`` (default: the simulated DEM). Returns (cut scene, simulation
+    result, geoid DEM, texture frame)."""
+    result = simulate("cbers02b_hrc", folder, seed=seed, n_gcps=5)
+    full = load_scene(getattr(result, model))
+    scene = replace(full, cameras=[replace(full.cameras[0], rows=rows)], _guess={})
+    dem = Dem(result.dem, datum="geoid")
+    frame = texture_frame(full, dem, seed)
+    render_image(scene, 0, surface or dem, folder / "raw.tif", frame)
+    return scene, result, dem, frame
+
+
+def gdalwarp_rpc(raw, dem_path, grid: OrthoGrid, output) -> None:
+    """gdalwarp with the RPC beside ``raw`` and RPC_DEM ``dem_path``, bilinear, onto ``grid``."""
+    gdal.Warp(str(output), str(raw), rpc=True, transformerOptions=[f"RPC_DEM={dem_path}"],
+              dstSRS=grid.crs.to_wkt(), outputBounds=(grid.x0, grid.y0 - grid.rows * grid.resolution,
+                                                      grid.x0 + grid.cols * grid.resolution, grid.y0),
+              width=grid.cols, height=grid.rows, resampleAlg="bilinear", dstNodata=0)
 
 
 def shift_against_texture(path, frame, mask=None, n: int = 400_000) -> tuple[np.ndarray, int]:

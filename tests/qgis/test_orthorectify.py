@@ -1,5 +1,4 @@
 """pushbroom:orthorectify in QGIS and from qgis_process, on a rendered cut of a simulated scene."""
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -8,10 +7,8 @@ from osgeo import gdal
 from qgis.core import QgsProcessingException
 
 import processing
-from core.dem import Dem
-from core.render import render_image, texture_frame
-from core.scene_io import load_scene, save_scene
-from core.simulator import simulate
+from core.scene_io import save_scene
+from tests.ortho_compare import rendered_cut
 
 from .test_algorithms import RecordingFeedback
 from .test_qgis_process import _run_json, qgis_process  # noqa: F401 (fixture)
@@ -21,11 +18,7 @@ from .test_qgis_process import _run_json, qgis_process  # noqa: F401 (fixture)
 def raw(tmp_path_factory):
     """(scene JSON, raw image, DEM) of a 400-row cut of a CBERS-02B scene, rendered."""
     folder = tmp_path_factory.mktemp("raw")
-    result = simulate("cbers02b_hrc", folder, seed=2, n_gcps=5)
-    full = load_scene(result.true_scene)
-    scene = replace(full, cameras=[replace(full.cameras[0], rows=400)], _guess={})
-    dem = Dem(result.dem, datum="geoid")
-    render_image(scene, 0, dem, folder / "raw.tif", texture_frame(full, dem, 2))
+    scene, result, _, _ = rendered_cut(folder, seed=2, rows=400)
     save_scene(scene, folder / "cut.json")
     return str(folder / "cut.json"), str(folder / "raw.tif"), str(result.dem)
 

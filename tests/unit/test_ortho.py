@@ -1,6 +1,5 @@
 """Orthorectification against the known ground texture of a rendered simulated scene:
 sub-pixel registration overall and along the CCD seams, bad input, no partial output."""
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -9,23 +8,16 @@ from pyproj import CRS, Transformer
 
 from core.dem import Dem
 from core.errors import Cancelled, InputError
+from core.geodesy import ecef_to_geodetic
 from core.ortho import default_grid, orthorectify
-from core.render import render_image, texture_frame
-from core.scene_io import load_scene
-from core.simulator import simulate
-from tests.ortho_compare import shift_against_texture
+from tests.ortho_compare import rendered_cut, shift_against_texture
 
 
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory):
     """A 1200-row cut of a CBERS-02B scene (three staggered CCDs), rendered from the texture."""
     folder = tmp_path_factory.mktemp("ortho")
-    result = simulate("cbers02b_hrc", folder, seed=3, n_gcps=5)
-    full = load_scene(result.true_scene)
-    scene = replace(full, cameras=[replace(full.cameras[0], rows=1200)], _guess={})
-    dem = Dem(result.dem, datum="geoid")
-    frame = texture_frame(full, dem, 3)
-    render_image(scene, 0, dem, folder / "raw.tif", frame)
+    scene, _, dem, frame = rendered_cut(folder, seed=3, rows=1200)
     return scene, dem, frame, folder
 
 
@@ -55,7 +47,6 @@ def test_no_seam_across_the_staggered_ccds(rendered, tmp_path):
     cam = scene.cameras[0]
     rows = np.linspace(100, cam.rows - 100, 40)
     for boundary in (c.col_offset for c in cam.chips[1:]):
-        from core.geodesy import ecef_to_geodetic
         lon, lat, _ = ecef_to_geodetic(scene.image_to_ground_dem(np.full(rows.size, boundary), rows, dem))
         x, y = Transformer.from_crs(CRS.from_epsg(4326), CRS.from_wkt(ds.GetProjection()), always_xy=True).transform(lon, lat)
         j = ((x - gt[0]) / gt[1]).astype(int)

@@ -1,6 +1,5 @@
 """Consistency with GDAL: gdalwarp with the RPC we export, on the same DEM and grid, gives the
 orthoimage our rigorous orthorectification gives, to a fraction of a pixel."""
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -8,11 +7,8 @@ from osgeo import gdal
 
 from core.dem import Dem
 from core.ortho import default_grid, orthorectify
-from core.render import render_image, texture_frame
 from core.rpcfit import dem_height_range, fit_rpc, sidecar_path, write_rpc
-from core.scene_io import load_scene
-from core.simulator import simulate
-from tests.ortho_compare import gdal_rpc_against_rigorous, image_difference
+from tests.ortho_compare import gdal_rpc_against_rigorous, gdalwarp_rpc, image_difference, rendered_cut
 
 
 @pytest.fixture(scope="module")
@@ -21,21 +17,15 @@ def both(tmp_path_factory):
     follows), its rendered image with the exported RPC beside it, the ellipsoidal DEM, the
     common grid, and the two orthoimages: ours and gdalwarp's."""
     folder = tmp_path_factory.mktemp("gdal")
-    result = simulate("cbers02b_hrc", folder, seed=4, n_gcps=5)
-    full = load_scene(result.onboard_scene)
-    scene = replace(full, cameras=[replace(full.cameras[0], rows=1500)], _guess={})
-    dem_path = Dem(result.dem, datum="geoid").write_ellipsoidal(folder / "dem_ellipsoid.tif")
+    scene, result, geoid_dem, _ = rendered_cut(folder, seed=4, rows=1500, model="onboard_scene")
+    dem_path = geoid_dem.write_ellipsoidal(folder / "dem_ellipsoid.tif")
     dem = Dem(dem_path, datum="ellipsoid")
     raw = folder / "raw.tif"
-    render_image(scene, 0, dem, raw, texture_frame(full, dem, 4))
     rpc, report = fit_rpc(scene, 0, dem_height_range(scene, dem))
     write_rpc(rpc, sidecar_path(raw), report)
     grid = default_grid(scene, 0, dem)
     orthorectify(scene, raw, dem, folder / "ours.tif", grid=grid, resampling="bilinear")
-    gdal.Warp(str(folder / "gdalwarp.tif"), str(raw), rpc=True, transformerOptions=[f"RPC_DEM={dem_path}"],
-              dstSRS=grid.crs.to_wkt(), outputBounds=(grid.x0, grid.y0 - grid.rows * grid.resolution,
-                                                      grid.x0 + grid.cols * grid.resolution, grid.y0),
-              width=grid.cols, height=grid.rows, resampleAlg="bilinear", dstNodata=0)
+    gdalwarp_rpc(raw, dem_path, grid, folder / "gdalwarp.tif")
     return scene, dem_path, raw, grid, folder, report
 
 

@@ -16,7 +16,7 @@ from core.ortho import default_grid, orthorectify, utm_crs
 from core.readers.dimap import read_dimap_rfm
 from core.rpcfit import sidecar_path, write_rpc
 from core.scene_io import load_scene
-from tests.ortho_compare import image_difference
+from tests.ortho_compare import gdalwarp_rpc, image_difference
 
 XML = "pleiades/PHRDIMAP_P1BP--2018122638935449CP.XML"
 MNT = "pleiades/MNT_P1BP--2018122638935449CP.tif"  # ellipsoidal heights (tests/unit/test_pleiades.py)
@@ -47,10 +47,7 @@ def pleiades_orthos(shared_data, tmp_path_factory):
     x, y = Transformer.from_crs(CRS.from_epsg(4326), crs, always_xy=True).transform(lon, lat)
     grid = default_grid(scene, 0, dem, crs=crs, extent=(x.min(), y.min(), x.max(), y.max()))
     figures = orthorectify(scene, raw, dem, folder / "ours.tif", grid=grid, memory_budget=0)
-    gdal.Warp(str(folder / "gdalwarp.tif"), str(raw), rpc=True, transformerOptions=[f"RPC_DEM={dem_path}"],
-              dstSRS=grid.crs.to_wkt(), outputBounds=(grid.x0, grid.y0 - grid.rows * grid.resolution,
-                                                      grid.x0 + grid.cols * grid.resolution, grid.y0),
-              width=grid.cols, height=grid.rows, resampleAlg="bilinear", dstNodata=0)
+    gdalwarp_rpc(raw, dem_path, grid, folder / "gdalwarp.tif")
     return folder, grid, figures
 
 
