@@ -11,6 +11,9 @@ from osgeo import gdal
 from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 
 import processing
+from core.geodesy import ecef_to_geodetic
+from core.rpcfit import fit_rpc
+from core.scene_io import load_scene
 from tests.ortho_compare import shift_against_texture
 
 from .test_qgis_process import qgis_process  # noqa: F401 (fixture)
@@ -57,8 +60,20 @@ def test_the_model_chain_exports_an_rpc_gdal_uses(chain):
     # the adjusted CCDs are misaligned, as the true ones: one RPC follows them to ~1 px (per CCD in the report)
     assert report["check"]["rms_px"] < 1.5 and len(report["check"]["chips"]) == 3
     vrt = gdal.Open(str(rpc.with_name("image_HRC.vrt")))  # the raw image with the RPC, beside the RPC file
-    assert float(vrt.GetMetadata("RPC")["SAMP_SCALE"]) > 6000
     assert (vrt.RasterXSize, vrt.RasterYSize) == (12246, 12246)
+    # GDAL's RPC transformer on the VRT maps ground points of the adjusted model back into the
+    # image as the fitted RPC does, and within the fit's own check error of the rigorous model
+    scene = load_scene(results["adjust:Adjusted scene"])
+    fitted, _ = fit_rpc(scene, 0, report["height_range"])
+    h = float(np.mean(report["height_range"]))
+    col, row = (a.ravel() for a in np.meshgrid(np.linspace(500, 11700, 6), np.linspace(500, 11700, 6)))
+    lon, lat, _ = ecef_to_geodetic(scene.image_to_ground(col, row, np.full(col.size, h)))
+    tr = gdal.Transformer(vrt, None, ["METHOD=RPC", f"RPC_HEIGHT={h}"])
+    pts = np.array(tr.TransformPoints(1, np.stack([lon, lat, np.zeros_like(lon)], axis=1).tolist())[0])
+    fc, fr = fitted.ground_to_image(lon, lat, np.full(lon.size, h))
+    assert np.hypot(pts[:, 0] - fc, pts[:, 1] - fr).max() < 1e-3
+    err = np.hypot(pts[:, 0] - col, pts[:, 1] - row)
+    assert err.max() <= report["check"]["max_px"] + 0.01, err
 
 
 def test_the_model_runs_from_qgis_process(qgis_process, tmp_path):  # noqa: F811
