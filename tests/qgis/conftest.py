@@ -6,6 +6,8 @@ through a symlink ``pushbroom_adjust`` -> repository root in a temporary plugin 
 same folder is QGIS_PLUGINPATH for the qgis_process tests.
 """
 import importlib
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -14,6 +16,7 @@ from qgis.core import QgsApplication
 
 REPO = Path(__file__).resolve().parents[2]
 PLUGIN = "pushbroom_adjust"
+QGIS_PROCESS = "/usr/bin/qgis_process.bin"  # Debian's /usr/bin/qgis_process wrapper is broken here
 
 
 @pytest.fixture(scope="session")
@@ -60,3 +63,19 @@ def simulated(provider, tmp_path_factory) -> dict:
     return processing.run("pushbroom:simulatescene", {"PRESET": 0, "SEED": 3, "N_SCENES": 1, "N_GCPS": 12,
                                                       "IMAGE_NOISE": 0.0, "RENDER": False,
                                                       "OUTPUT_FOLDER": str(out)})
+
+
+@pytest.fixture(scope="session")
+def qgis_process(plugin_path, tmp_path_factory):
+    """Run qgis_process with the plugin enabled in a throw-away profile; returns a function
+    (*args) -> CompletedProcess."""
+    env = dict(os.environ, QGIS_PLUGINPATH=str(plugin_path), QT_QPA_PLATFORM="offscreen",
+               QGIS_CUSTOM_CONFIG_PATH=str(tmp_path_factory.mktemp("profile")))
+
+    def run(*args):
+        return subprocess.run([QGIS_PROCESS, *args], env=env, capture_output=True, text=True, timeout=600,
+                              stdin=subprocess.DEVNULL)
+
+    enabled = run("plugins", "enable", PLUGIN)
+    assert enabled.returncode == 0, enabled.stdout + enabled.stderr
+    return run

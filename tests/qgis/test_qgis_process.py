@@ -2,8 +2,6 @@
 them on files. (Debian's /usr/bin/qgis_process wrapper is broken here; the binary is used.)"""
 import csv
 import json
-import os
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -15,26 +13,7 @@ from core.geodesy import ecef_to_geodetic
 from core.products import footprints
 from core.scene_io import load_scene
 
-from .conftest import PLUGIN
 from .test_provider import ALGORITHMS
-
-QGIS_PROCESS = "/usr/bin/qgis_process.bin"
-
-
-@pytest.fixture(scope="module")
-def qgis_process(plugin_path, tmp_path_factory):
-    """Run qgis_process with the plugin enabled in a throw-away profile; returns a function
-    (*args) -> CompletedProcess."""
-    env = dict(os.environ, QGIS_PLUGINPATH=str(plugin_path), QT_QPA_PLATFORM="offscreen",
-               QGIS_CUSTOM_CONFIG_PATH=str(tmp_path_factory.mktemp("profile")))
-
-    def run(*args):
-        return subprocess.run([QGIS_PROCESS, *args], env=env, capture_output=True, text=True, timeout=600,
-                              stdin=subprocess.DEVNULL)
-
-    enabled = run("plugins", "enable", PLUGIN)
-    assert enabled.returncode == 0, enabled.stdout + enabled.stderr
-    return run
 
 
 def _run_json(qgis_process, alg, **params) -> dict:

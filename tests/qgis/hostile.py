@@ -1,0 +1,67 @@
+"""Harness of the hostile-input suite (tests/qgis/test_hostile_*.py).
+
+A run with bad input must stop with a QgsProcessingException whose message names the parameter
+(or file, field) at fault — never another exception (a traceback for the user), never exit 0 —
+and must leave the files it was given, and the folders it was to write to, exactly as they were:
+no input modified, no partial output, no temporary file left behind.
+
+Each case names what it watches; ``snapshot`` records size, mtime and a hash of every file there.
+"""
+from __future__ import annotations
+
+import hashlib
+import subprocess
+from pathlib import Path
+
+import pytest
+from qgis.core import QgsProcessingException, QgsProcessingFeedback
+
+import processing
+
+
+def snapshot(*paths) -> dict:
+    """{path: (size, mtime_ns, mode, sha256)} of every file at or under ``paths`` (missing ones skipped)."""
+    state = {}
+    for p in map(Path, paths):
+        files = [p] if p.is_file() else sorted(f for f in p.rglob("*") if f.is_file()) if p.is_dir() else []
+        for f in files:
+            st = f.stat()
+            state[str(f)] = (st.st_size, st.st_mtime_ns, st.st_mode, hashlib.sha256(f.read_bytes()).hexdigest())
+    return state
+
+
+def assert_unchanged(before: dict, watch) -> None:
+    after = snapshot(*watch)
+    added = sorted(set(after) - set(before))
+    removed = sorted(set(before) - set(after))
+    changed = sorted(k for k in set(before) & set(after) if before[k] != after[k])
+    assert not (added or removed or changed), f"files added {added}, removed {removed}, changed {changed}"
+
+
+def assert_refused(alg_id: str, params: dict, *contains: str, watch=()) -> str:
+    """Run ``alg_id`` with ``params`` through processing.run; it must raise QgsProcessingException
+    whose message contains every string of ``contains`` (case-insensitive), and leave the files and
+    folders in ``watch`` unchanged. Returns the message."""
+    before = snapshot(*watch)
+    with pytest.raises(QgsProcessingException) as info:
+        processing.run(alg_id, params, feedback=QgsProcessingFeedback())
+    message = str(info.value)
+    for text in contains:
+        assert text.lower() in message.lower(), f"{text!r} not in the message: {message}"
+    assert "Traceback" not in message
+    assert_unchanged(before, watch)
+    return message
+
+
+def assert_refused_cli(qgis_process, alg_id: str, params: dict, *contains: str, watch=()) -> str:
+    """The same through qgis_process (a fixture of conftest): exit code not 0, no Python
+    traceback on either stream, the message on one of them. Returns stdout + stderr."""
+    before = snapshot(*watch)
+    done: subprocess.CompletedProcess = qgis_process("run", alg_id, "--", *(f"{k}={v}" for k, v in params.items()))
+    text = done.stdout + done.stderr
+    assert done.returncode != 0, f"exit 0 for bad input: {text}"
+    assert "Traceback" not in text, text
+    for t in contains:
+        assert t.lower() in text.lower(), f"{t!r} not in the output: {text}"
+    assert_unchanged(before, watch)
+    return text
