@@ -104,16 +104,21 @@ def core_call(func: Callable, *args, **kw):
         return func(*args, **kw)
 
 
-def load_scene_for(parameter_name: str, path: str):
+def load_scene_for(parameter_name: str, path: str, feedback=None):
     """Load any supported scene file (core.scene_io.load_scene) given by a parameter.
 
-    The error message names the parameter, e.g. "SCENE: /x/y.xml: no such file".
+    The error message names the parameter, e.g. "SCENE: /x/y.xml: no such file". The reader's
+    warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``.
     """
     from ..core.scene_io import load_scene
     if not path:
         raise QgsProcessingException(f"{parameter_name}: no scene file given")
     with processing_errors(f"{parameter_name}: "):
-        return load_scene(path)
+        scene = load_scene(path)
+    if feedback is not None:
+        for warning in scene.info.get("warnings", []):
+            feedback.pushWarning(f"{parameter_name}: {warning}")
+    return scene
 
 
 def camera_for(parameter_name: str, scene, text: str | None) -> int:
@@ -125,10 +130,10 @@ def camera_for(parameter_name: str, scene, text: str | None) -> int:
         return scene.camera_index(int(text) if text.isdigit() else text)
 
 
-def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT"):
+def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT", feedback=None):
     """(scene, camera index, feature source, its features) from SCENE, CAMERA and a feature
-    source parameter; errors name the parameter."""
-    scene = load_scene_for(SCENE, alg.parameterAsFile(parameters, SCENE, context))
+    source parameter; errors name the parameter, the reader's warnings go to ``feedback``."""
+    scene = load_scene_for(SCENE, alg.parameterAsFile(parameters, SCENE, context), feedback)
     camera = camera_for(CAMERA, scene, alg.parameterAsString(parameters, CAMERA, context))
     source = alg.parameterAsSource(parameters, input_name, context)
     if source is None:

@@ -20,11 +20,32 @@ Vendor conventions and how they are converted here:
 These conventions were checked on two WorldView-2 scenes: the model meets the vendor RPB to
 0.18/0.38 px and the IMD corner coordinates to 0.07 px (tests/unit/test_worldview.py); a
 reversed detector, a scalar-first reading or an inverted attitude would be pixels to
-kilometres off. Velocity aberration and atmospheric refraction are on: DigitalGlobe's
-attitude is the measured (apparent) pointing.
+kilometres off.
+
+Corrections - the rule and its sources. The ATT quaternions are the measured attitude of the
+spacecraft, so the line of sight needs velocity aberration (~25 urad, ~15 m) and atmospheric
+refraction to meet the ground, for every Maxar satellite and ISD version: Maxar's own RPB and
+IMD corners include both (WorldView-2, ISD 24.06: 35-40 px off without them), and the NASA Ames
+Stereo Pipeline applies both to every WorldView product with no rule per version or date
+(ASP 3.4.0, 2024, NEWS.rst and docs/tutorial.rst "dg_csm"; src/asp/Camera/LinescanDGModel.cc).
+No published source (DigitalGlobe ISD documentation v1.1.2, 2014; ASP; GDAL and OSSIM read only
+the RPB) describes a generation whose attitude already contains them. The reader therefore
+applies both, and ``info["corrections"]`` says so and why. What does differ between files is
+who made the RPB: the Ames Stereo Pipeline's ``dg_mosaic`` (the tool that joins a tiled
+product, output ``*.r100.xml``) replaces Maxar's RPB by an RPC that ``rpc_gen`` fits to ASP's
+own model; ASP 3.1.0-3.3.0 (May 2022 - June 2024) had velocity aberration and refraction off
+by default, so such an RPB is ~15 m (tens of px) from Maxar's geometry. It is recognised from
+the metadata: rpc_gen's normalisation (one pixel scale max(rows, cols)/2 for line and sample,
+offsets at half the image size, src/asp/Tools/rpc_gen.cc) and no TIL section (dg_mosaic
+removes it). ``info["rpb_origin"]`` names the maker and a warning explains the offset. A
+satellite or ISD version the reader cannot place (SATID not one of QB02, WV01-WV04, GE01;
+IMD/VERSION missing, not a number, or newer than the newest checked, 28) gets a warning naming
+what was assumed; warnings are logged and listed in ``info["warnings"]``, which the Processing
+algorithms show.
 """
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -38,7 +59,15 @@ from ..sensor import SceneModel
 from ..trajectory import Ephemeris, Platform, QuaternionSamples
 from . import parse_floats as _floats
 
+log = logging.getLogger(__name__)
+
 MM = 1e-3  # GEO lengths are millimetres
+SATELLITES = {"QB02": "QuickBird", "WV01": "WorldView-1", "WV02": "WorldView-2", "WV03": "WorldView-3",
+              "WV04": "WorldView-4", "GE01": "GeoEye-1"}
+NEWEST_ISD_MAJOR = 28  # IMD/VERSION of the newest product checked (WorldView-3, 2022: 28.3)
+CORRECTIONS_REASON = ("velocity aberration and atmospheric refraction applied: the ATT quaternions are the "
+                      "measured attitude, and Maxar's own models include both corrections for every satellite "
+                      "and ISD version (as the NASA Ames Stereo Pipeline applies them to every WorldView product)")
 
 
 def read_maxar(path: str | Path, root: ElementTree.Element) -> SceneModel:
@@ -75,9 +104,21 @@ def read_maxar(path: str | Path, root: ElementTree.Element) -> SceneModel:
         "gsd_m": _optional_number(image, "MEANPRODUCTGSD"),
         "off_nadir_deg": _optional_number(image, "MEANOFFNADIRVIEWANGLE"),
     }
+    info["isd_version"] = imd.findtext("VERSION", "").strip() or None
+    info["corrections"] = {"aberration": True, "refraction": True, "reason": CORRECTIONS_REASON}
+    warnings = [w for w in [_unplaced_generation(info["sensor"], info["isd_version"])] if w]
     if root.find("RPB") is not None:
         rpc = read_maxar_rpc(path, root)
         info["height_range"] = [rpc.height_off - rpc.height_scale, rpc.height_off + rpc.height_scale]
+        info["rpb_origin"] = _rpb_origin(rpc, camera.cols, camera.rows, root.find("TIL") is not None)
+        if info["rpb_origin"] != "Maxar":
+            warnings.append(f"the RPB was refitted by {info['rpb_origin']}, not made by Maxar; ASP 3.1.0-3.3.0 "
+                            "fitted it to a model without velocity aberration and refraction, so it can lie ~15 m "
+                            "(tens of pixels) from this rigorous model, which applies both as Maxar does")
+    if warnings:
+        info["warnings"] = [f"{src}: {w}" for w in warnings]
+        for w in info["warnings"]:
+            log.warning(w)
     return SceneModel(epoch=epoch, platform=Platform(ephemeris, attitude), cameras=[camera],
                       aberration=True, refraction=True, info=info)
 
@@ -105,6 +146,43 @@ def read_maxar_rpc(path: str | Path, root: ElementTree.Element | None = None) ->
         return RpcModel(**coef, **scalars, origin=0.0)
     except MetadataError as exc:
         raise MetadataError(f"{src}: {where}: {exc}") from None
+
+
+# --- product generation and corrections -------------------------------------------------------
+def _unplaced_generation(satid: str, version: str | None) -> str | None:
+    """Warning text when the satellite or the ISD version is not one this reader can place
+    (None when it can): what is unknown and the convention assumed."""
+    if satid not in SATELLITES:
+        unknown = f"satellite IMD/IMAGE/SATID {satid!r} is none of {', '.join(SATELLITES)}"
+    elif version is None:
+        unknown = "IMD/VERSION (the ISD version) is missing"
+    else:
+        try:
+            major = int(float(version))
+        except ValueError:
+            major = None
+        if major is None:
+            unknown = f"IMD/VERSION {version!r} is not an ISD version number"
+        elif major > NEWEST_ISD_MAJOR:
+            unknown = f"ISD version {version} is newer than the newest checked ({NEWEST_ISD_MAJOR}.x)"
+        else:
+            return None
+    return (f"cannot place this product's generation: {unknown}; assumed the convention of the Maxar "
+            "products checked (WorldView-2 ISD 24.06, WorldView-3 ISD 28.3): ATT is the measured attitude, "
+            "velocity aberration and atmospheric refraction applied")
+
+
+def _rpb_origin(rpc: RpcModel, cols: int, rows: int, has_til: bool) -> str:
+    """Who made the RPB: "Maxar", or the Ames Stereo Pipeline when the file carries the
+    normalisation of its rpc_gen (as dg_mosaic writes it: one pixel scale max(rows, cols)/2 for
+    line and sample, offsets at half the image size, to 1 px for reduced-resolution mosaics)
+    and no TIL section (dg_mosaic removes it; Maxar products have one)."""
+    half = max(rows, cols) / 2.0
+    rpc_gen = (abs(rpc.line_scale - half) <= 1.0 and abs(rpc.samp_scale - half) <= 1.0
+               and abs(rpc.line_off - rows / 2.0) <= 1.0 and abs(rpc.samp_off - cols / 2.0) <= 1.0)
+    if rpc_gen and not has_til:
+        return "the Ames Stereo Pipeline (dg_mosaic, rpc_gen)"
+    return "Maxar"
 
 
 # --- sections ------------------------------------------------------------------------------

@@ -1,8 +1,12 @@
-"""WorldView-2 (Maxar isd XML) reader against the vendor's own models of the same scenes.
+"""WorldView-2 and WorldView-3 (Maxar isd XML) reader against the models that come with them.
 
-Truth: the RPB (vendor RPC00B) and the IMD corner coordinates of each scene, both produced by
-Maxar from its rigorous model. Data: ../shared/data/worldview2 (NASA Ames Stereo Pipeline test
-data, Apache-2.0; metadata (c) Maxar).
+Truth: the RPB (RPC00B) and the IMD corner coordinates of each scene. For the WorldView-2 scenes
+both are Maxar's. Data: ../shared/data/worldview2 (NASA Ames Stereo Pipeline test data,
+Apache-2.0; metadata (c) Maxar) and ../shared/data/worldview3 (uw-cryo asp_plot test data,
+BSD-3-Clause; metadata (c) Maxar). The WorldView-3 file (ISD 28.3, 2022) is the output of the
+Ames Stereo Pipeline's dg_mosaic: its RPB was refitted by ASP's rpc_gen to ASP's model without
+velocity aberration and refraction (ASP 3.1-3.3), while its IMD corners are Maxar's; see the
+WorldView-3 tests at the end for the figures.
 
 Measured with this reader (15 x 15 image points x 3 heights, RPB inverted to the ground):
     scene (off-nadir)   no corrections   + aberration   + refraction (default)
@@ -31,13 +35,12 @@ def _path(shared_data, name):
     return shared_data / "worldview2" / name
 
 
-@pytest.fixture(scope="module", params=sorted(SCENES))
-def case(request, shared_data):
-    """(name, scene, rpc, ground points (n,3) ECEF, RPB col (n,), RPB row (n,))."""
-    path = _path(shared_data, request.param)
+def _rpb_grid(path, n=15):
+    """(scene, rpc, ground points (3 n n, 3) ECEF, RPB col, RPB row): n x n image points at the
+    lowest, middle and highest height of the RPB, put on the ground by the RPB."""
     scene, rpc = load_scene(path), read_maxar_rpc(path)
     cam = scene.cameras[0]
-    c, r = (a.ravel() for a in np.meshgrid(np.linspace(0.5, cam.cols - 0.5, 15), np.linspace(0.5, cam.rows - 0.5, 15)))
+    c, r = (a.ravel() for a in np.meshgrid(np.linspace(0.5, cam.cols - 0.5, n), np.linspace(0.5, cam.rows - 0.5, n)))
     lo, hi = scene.info["height_range"]
     ground, cols, rows = [], [], []
     for h in (lo, 0.5 * (lo + hi), hi):
@@ -45,11 +48,17 @@ def case(request, shared_data):
         ground.append(geodetic_to_ecef(lon, lat, h))
         cols.append(c)
         rows.append(r)
-    return request.param, scene, rpc, np.concatenate(ground), np.concatenate(cols), np.concatenate(rows)
+    return scene, rpc, np.concatenate(ground), np.concatenate(cols), np.concatenate(rows)
 
 
-def _misfit(scene, ground, col, row, aberration=True, refraction=True):
-    """(max, RMS) px distance between the scene's ground_to_image and the RPB image points."""
+@pytest.fixture(scope="module", params=sorted(SCENES))
+def case(request, shared_data):
+    """(name, scene, rpc, ground points (n,3) ECEF, RPB col (n,), RPB row (n,))."""
+    return (request.param, *_rpb_grid(_path(shared_data, request.param)))
+
+
+def _projected(scene, ground, aberration=True, refraction=True):
+    """The scene's ground_to_image (col, row) with the corrections switched as given."""
     scene.aberration, scene.refraction = aberration, refraction
     scene._guess.clear()
     try:
@@ -57,8 +66,14 @@ def _misfit(scene, ground, col, row, aberration=True, refraction=True):
     finally:
         scene.aberration = scene.refraction = True
         scene._guess.clear()
+    assert np.all(np.isfinite(c)) and np.all(np.isfinite(r))
+    return c, r
+
+
+def _misfit(scene, ground, col, row, aberration=True, refraction=True):
+    """(max, RMS) px distance between the scene's ground_to_image and the RPB image points."""
+    c, r = _projected(scene, ground, aberration, refraction)
     d = np.hypot(c - col, r - row)
-    assert np.all(np.isfinite(d))
     return d.max(), np.sqrt(np.mean(d * d))
 
 
@@ -107,6 +122,10 @@ def test_round_trip_over_whole_image(case):
 def test_scene_metadata(case, shared_data):
     name, scene, rpc, *_ = case
     assert scene.aberration and scene.refraction
+    assert scene.info["corrections"]["aberration"] and scene.info["corrections"]["refraction"]
+    assert "measured attitude" in scene.info["corrections"]["reason"]
+    assert scene.info["isd_version"] == "24.06"
+    assert scene.info["rpb_origin"] == "Maxar" and "warnings" not in scene.info
     assert scene.info["sensor"] == "WV02"
     assert scene.info["catalog_id"] == {"wv_mvp_1.xml": "1030010033C4AA00", "wv_mvp_2.xml": "1030010032134D00"}[name]
     assert scene.info["height_range"] == [rpc.height_off - rpc.height_scale, rpc.height_off + rpc.height_scale]
@@ -173,3 +192,117 @@ def test_missing_rpb_is_named(shared_data, tmp_path):
     with pytest.raises(MetadataError, match=r"<RPB> section \(vendor RPC\) is missing"):
         read_maxar_rpc(path)
     assert "height_range" not in load_scene(path).info
+
+
+# --- WorldView-3 (ISD 28.3, 2022): a product joined by the Ames Stereo Pipeline's dg_mosaic -------
+WV3 = "1040010074793300.xml"
+
+
+@pytest.fixture(scope="module")
+def wv3(shared_data):
+    """(scene, rpc, ground (n,3), RPB col, RPB row) of the WorldView-3 scene."""
+    return _rpb_grid(shared_data / "worldview3" / WV3)
+
+
+def test_wv3_rpb_is_recognised_as_an_asp_refit(wv3):
+    """Its RPB carries rpc_gen's normalisation (line and sample scale 21504 = max(43008, 38912)/2,
+    offsets at half the image size) and the file has no TIL section: the RPB is the Ames Stereo
+    Pipeline's, not Maxar's; the model still applies both corrections, and says so."""
+    scene, rpc, *_ = wv3
+    assert rpc.line_scale == rpc.samp_scale == 21504.0
+    assert scene.info["sensor"] == "WV03" and scene.info["isd_version"] == "28.3"
+    assert scene.aberration and scene.refraction
+    assert scene.info["corrections"] == {"aberration": True, "refraction": True,
+                                         "reason": scene.info["corrections"]["reason"]}
+    assert "Ames Stereo Pipeline" in scene.info["rpb_origin"]
+    (warning,) = scene.info["warnings"]
+    assert WV3 in warning and "not made by Maxar" in warning and "~15 m" in warning
+
+
+def test_wv3_rpb_is_the_model_without_corrections(wv3):
+    """The RPB meets the rigorous model without velocity aberration and refraction (the model
+    ASP 3.1-3.3 fitted it to) to 1.00 px RMS, 1.81 px max over 15 x 15 points x 3 heights
+    (mean -0.01/-0.02 px); with both corrections it is 49.8-53.3 px away (mean -25.2 col,
+    +44.8 row, ~15 m): the wrong choice for this RPB is tens of pixels off."""
+    scene, _, ground, col, row = wv3
+    worst, rms = _misfit(scene, ground, col, row, aberration=False, refraction=False)
+    assert worst <= 1.9 and rms <= 1.05
+    c, r = _projected(scene, ground)
+    assert np.hypot(c - col, r - row).min() > 45.0
+    assert np.mean(c - col) == pytest.approx(-25.2, abs=1.0) and np.mean(r - row) == pytest.approx(44.8, abs=1.0)
+
+
+def test_wv3_what_remains_is_attitude_motion_along_the_rows(wv3):
+    """What the RPB leaves (uncorrected model) varies with the row: a mean over each row of up
+    to 1.34 px (col) and 1.00 px (row), about two periods along the 1.9 s of the scene; across
+    columns and heights only 0.19 px RMS (0.58 max) remains. The same wave is the ATT samples'
+    (every 0.02 s) departure from a cubic in time (correlation 0.86 in col): attitude motion a
+    cubic RPC cannot follow. So the 0.5 px RMS / 1.5 px max target cannot be met against this RPB."""
+    scene, _, ground, col, row = wv3
+    c, r = _projected(scene, ground, aberration=False, refraction=False)
+    res = np.stack([c - col, r - row]).reshape(2, 3, 15, 15)           # (col/row, height, row, col)
+    per_row = res.mean(axis=(1, 3))
+    rest = np.sqrt(((res - per_row[:, None, :, None]) ** 2).sum(axis=0))
+    assert np.abs(per_row[0]).max() > 1.0 and np.count_nonzero(np.diff(np.sign(per_row[0]))) >= 3
+    assert np.sqrt(np.mean(rest ** 2)) <= 0.25 and rest.max() <= 0.7
+    wave = _attitude_wave(scene, ground).reshape(3, 15, 15).mean(axis=(0, 2))
+    assert np.corrcoef(wave, per_row[0])[0, 1] > 0.8
+
+
+def _attitude_wave(scene, ground):
+    """Column shift (n,) px of the ground points when the ATT samples are replaced by a cubic
+    in time fitted over the scene (+-2 s): the attitude motion a cubic cannot follow."""
+    from core.trajectory import Platform, QuaternionSamples
+    att, original = scene.platform.attitude, scene.platform
+    t0, t1 = scene.time_span()
+    near = (att.times > t0 - 2.0) & (att.times < t1 + 2.0)
+    x = (att.times - 0.5 * (t0 + t1)) / (0.5 * (t1 - t0) + 2.0)
+    q = np.polynomial.polynomial.polyval(x, np.polynomial.polynomial.polyfit(x[near], att.quaternions[near], 3)).T
+    c0, _ = _projected(scene, ground, aberration=False, refraction=False)
+    scene.platform = Platform(original.ephemeris, QuaternionSamples(att.times, q / np.linalg.norm(q, axis=1)[:, None]))
+    try:
+        c1, _ = _projected(scene, ground, aberration=False, refraction=False)
+    finally:
+        scene.platform = original
+    return c0 - c1
+
+
+def test_wv3_imd_corners_need_the_corrections(shared_data, wv3):
+    """The IMD corners are Maxar's (dg_mosaic copies its tiles' corners): with both corrections
+    the upper-left corner is 1.2 px (col) / 9.0 px (row) from pixel (0.5, 0.5), the left edge
+    (LL) 0.4 px in col, the top edge (UR) 10.1 px in row; without them 26.6/35.8, 25.6 and
+    34.6 px. The image data end 506 columns and 794 rows before NUMCOLUMNS/NUMROWS (dg_mosaic
+    pads the mosaic; the TLC table ends at line 38116), so only the left and top edges are
+    checked. The 9-10 px along the rows that remain are not explained (the stereo partner
+    1040010075633C00 shows 9.1 px col / -4.1 px row at its upper-left corner)."""
+    from core.readers import parse_xml
+    scene, *_ = wv3
+    band = parse_xml(shared_data / "worldview3" / WV3).find("IMD/BAND_P")
+    corner = {k: [float(band.findtext(k + x)) for x in ("LON", "LAT", "HAE")] for k in ("UL", "UR", "LL")}
+    ground = np.array([geodetic_to_ecef(*corner[k]) for k in ("UL", "UR", "LL")])
+    c, r = _projected(scene, ground)
+    assert abs(c[0] - 0.5) < 1.5 and abs(c[2] - 0.5) < 1.0
+    assert abs(r[0] - 0.5) < 10.0 and abs(r[1] - 0.5) < 11.0
+    c, r = _projected(scene, ground, aberration=False, refraction=False)
+    assert min(abs(c[0] - 0.5), abs(c[2] - 0.5)) > 25.0 and min(abs(r[0] - 0.5), abs(r[1] - 0.5)) > 34.0
+
+
+@pytest.mark.parametrize("edit, unknown", [
+    (lambda t: t.replace("<VERSION>24.06</VERSION>", "<VERSION>31.0</VERSION>", 1),
+     "ISD version 31.0 is newer than the newest checked (28.x)"),
+    (lambda t: t.replace("<VERSION>24.06</VERSION>", "", 1), "IMD/VERSION (the ISD version) is missing"),
+    (lambda t: t.replace("<VERSION>24.06</VERSION>", "<VERSION>v2x</VERSION>", 1),
+     "IMD/VERSION 'v2x' is not an ISD version number"),
+    (lambda t: t.replace("<SATID>WV02</SATID>", "<SATID>LG01</SATID>", 1), "satellite IMD/IMAGE/SATID 'LG01'"),
+])
+def test_unplaced_generation_is_warned(shared_data, tmp_path, caplog, edit, unknown):
+    """A product the reader cannot place still loads, with corrections on, and one warning
+    (logged and in info["warnings"]) naming what is unknown and what was assumed."""
+    path = _edited(shared_data, tmp_path, edit)
+    with caplog.at_level("WARNING", logger="core.readers.maxar"):
+        scene = load_scene(path)
+    (warning,) = scene.info["warnings"]
+    assert "edited.xml" in warning and unknown in warning
+    assert "assumed the convention" in warning and "velocity aberration and atmospheric refraction applied" in warning
+    assert scene.aberration and scene.refraction
+    assert [rec.getMessage() for rec in caplog.records] == [warning]

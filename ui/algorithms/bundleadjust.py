@@ -146,7 +146,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         from ...core.adjust.report import write_report_html, write_report_json
         scene_path = self.parameterAsFile(parameters, SCENE, context)
-        scene = load_scene_for(SCENE, scene_path)
+        scene = load_scene_for(SCENE, scene_path, feedback)
         table, gcp_path, gcp_layer = self._gcps(parameters, context)
         settings = self._settings(parameters, context)
         outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (

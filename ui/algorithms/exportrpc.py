@@ -91,7 +91,7 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         if name.endswith(".txt") and not name.endswith("_rpc.txt"):
             feedback.pushWarning(f"{out.name} does not end in _RPC.TXT: GDAL will not find it beside an image "
                                  f"by itself")
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context))
+        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         cam = scene.cameras[camera]
         surface = dem_from_parameters(self, parameters, context)

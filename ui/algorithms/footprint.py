@@ -34,7 +34,7 @@ class FootprintAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context))
+        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         surface = dem_from_parameters(self, parameters, context)
         samples = self.parameterAsInt(parameters, self.SAMPLES, context)
         fields = QgsFields()

@@ -47,7 +47,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT)
+        scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT, feedback)
         lon, lat, h = self._ground(parameters, context, source, features)
         check_cancelled(feedback)
         feedback.setProgressText(f"projecting {len(features)} points into camera {scene.cameras[camera].name}")

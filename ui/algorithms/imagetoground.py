@@ -44,7 +44,7 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT)
+        scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT, feedback)
         if not features:
             raise QgsProcessingException(f"{self.INPUT}: the table has no features")
         col, row = self._image_points(parameters, context, source, features)

@@ -101,7 +101,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         scene_path = self.parameterAsFile(parameters, SCENE, context)
-        scene = load_scene_for(SCENE, scene_path)
+        scene = load_scene_for(SCENE, scene_path, feedback)
         dest = self.output_path(parameters, context, self.OUTPUT, "gcps.gpkg")
         if Path(dest).suffix.lower() != ".gpkg":
             raise QgsProcessingException(f"{self.OUTPUT}: GCP layers are written as GeoPackage; choose a .gpkg file "

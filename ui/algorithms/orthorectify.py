@@ -61,7 +61,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         if layer is None:
             raise QgsProcessingException(f"{self.INPUT}: no raw image given")
         image = layer.source().split("|")[0]
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context))
+        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         surface = dem_from_parameters(self, parameters, context)
         crs = self._crs(parameters, context)
