@@ -64,6 +64,7 @@ log = logging.getLogger(__name__)
 MM = 1e-3  # GEO lengths are millimetres
 SATELLITES = {"QB02": "QuickBird", "WV01": "WorldView-1", "WV02": "WorldView-2", "WV03": "WorldView-3",
               "WV04": "WorldView-4", "GE01": "GeoEye-1"}
+MAX_IMAGE_SIZE = 10_000_000  # pixels per side: far beyond any Maxar strip (WorldView-3: 43008 detectors)
 NEWEST_ISD_MAJOR = 28  # IMD/VERSION of the newest product checked (WorldView-3, 2022: 28.3)
 CORRECTIONS_REASON = ("velocity aberration and atmospheric refraction applied: the ATT quaternions are the "
                       "measured attitude, and Maxar's own models include both corrections for every satellite "
@@ -75,6 +76,7 @@ def read_maxar(path: str | Path, root: ElementTree.Element) -> SceneModel:
     Maxar isd XML. Raises MetadataError naming the missing or malformed section/field."""
     src = str(path)
     imd = _section(root, "IMD", src, "image metadata")
+    _check_sensor_geometry_product(imd, src)
     image = _child(imd, "IMAGE", src, "IMD")
     first_line = _utc(_text(image, "FIRSTLINETIME", src, "IMD/IMAGE"), src, "IMD/IMAGE/FIRSTLINETIME")
     epoch_dt = first_line.astype("datetime64[us]").astype("datetime64[ns]")  # exactly the epoch string
@@ -86,9 +88,9 @@ def read_maxar(path: str | Path, root: ElementTree.Element) -> SceneModel:
         [_number(_child(geo, "CAMERA_ATTITUDE", src, "GEO"), k, src, "GEO/CAMERA_ATTITUDE")
          for k in ("QCS1", "QCS2", "QCS3", "QCS4")]))
     ephemeris = _apply_perspective_centre(geo, ephemeris, attitude, src)
-    cols = int(_number(imd, "NUMCOLUMNS", src, "IMD"))
+    cols = _image_size(imd, "NUMCOLUMNS", src)
     camera = Camera(name=_text(imd, "BANDID", src, "IMD"), cols=cols,
-                    rows=int(_number(imd, "NUMROWS", src, "IMD")),
+                    rows=_image_size(imd, "NUMROWS", src),
                     timing=_read_line_timing(image, src, epoch_dt),
                     chips=[_read_chip(geo, cols, src)],
                     focal_length=_number(_child(geo, "PRINCIPAL_DISTANCE", src, "GEO"), "PD", src,
@@ -170,6 +172,22 @@ def _unplaced_generation(satid: str, version: str | None) -> str | None:
     return (f"cannot place this product's generation: {unknown}; assumed the convention of the Maxar "
             "products checked (WorldView-2 ISD 24.06, WorldView-3 ISD 28.3): ATT is the measured attitude, "
             "velocity aberration and atmospheric refraction applied")
+
+
+def _check_sensor_geometry_product(imd, src: str) -> None:
+    """Refuse a map-projected product (Standard2A, ORStandard2A, ortho; IMD/MAPPROJECTEDPRODUCT):
+    its image no longer has the sensor's lines and detectors. Only Basic1B and Stereo1B keep
+    them (the Ames Stereo Pipeline accepts only these for WorldView, LinescanDGModel.cc); a
+    file without IMAGEDESCRIPTOR (older products) is taken as 1B."""
+    descriptor = imd.findtext("IMAGEDESCRIPTOR", "").strip()
+    if imd.find("MAPPROJECTEDPRODUCT") is not None:
+        what = "IMD/MAPPROJECTEDPRODUCT is present (a map-projected product)"
+    elif descriptor and not descriptor.upper().endswith("1B"):
+        what = f"IMD/IMAGEDESCRIPTOR is {descriptor!r}"
+    else:
+        return
+    raise MetadataError(f"{src}: {what}, not a Basic1B or Stereo1B product: its image no longer keeps the "
+                        "sensor's lines and detectors, so the pushbroom model cannot describe it (use its RPB)")
 
 
 def _rpb_origin(rpc: RpcModel, cols: int, rows: int, has_til: bool) -> str:
@@ -337,6 +355,15 @@ def _number(parent, tag: str, src: str, where: str) -> float:
     if not np.isfinite(value):
         raise MetadataError(f"{src}: {where}/{tag} is not finite ({text!r})")
     return value
+
+
+def _image_size(imd, tag: str, src: str) -> int:
+    """IMD/NUMCOLUMNS or NUMROWS: a whole number of pixels from 1 to MAX_IMAGE_SIZE."""
+    value = _number(imd, tag, src, "IMD")
+    if value != int(value) or not 1 <= value <= MAX_IMAGE_SIZE:
+        raise MetadataError(f"{src}: IMD/{tag} is {value:g}; expected a whole number of pixels "
+                            f"from 1 to {MAX_IMAGE_SIZE}")
+    return int(value)
 
 
 def _optional_number(parent, tag: str) -> float | None:

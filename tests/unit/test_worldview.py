@@ -306,3 +306,14 @@ def test_unplaced_generation_is_warned(shared_data, tmp_path, caplog, edit, unkn
     assert "assumed the convention" in warning and "velocity aberration and atmospheric refraction applied" in warning
     assert scene.aberration and scene.refraction
     assert [rec.getMessage() for rec in caplog.records] == [warning]
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t.replace("<IMAGEDESCRIPTOR>Stereo1B", "<IMAGEDESCRIPTOR>ORStandard2A"),
+     "IMD/IMAGEDESCRIPTOR is 'ORStandard2A', not a Basic1B or Stereo1B product"),
+    (lambda t: t.replace("<BAND_P>", "<MAPPROJECTEDPRODUCT><EARTHMODEL>WGS-84</EARTHMODEL></MAPPROJECTEDPRODUCT><BAND_P>", 1),
+     r"IMD/MAPPROJECTEDPRODUCT is present \(a map-projected product\)"),
+])
+def test_map_projected_products_are_refused(shared_data, tmp_path, edit, message):
+    with pytest.raises(MetadataError, match=message):
+        load_scene(_edited(shared_data, tmp_path, edit))
