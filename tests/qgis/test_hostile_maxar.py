@@ -12,25 +12,13 @@ import json
 import re
 
 import pytest
-from qgis.core import QgsProcessingFeedback
 
 import processing
 
 from .hostile import assert_refused, assert_refused_cli
+from .test_algorithms import RecordingFeedback
 
 SOURCE = "wv_mvp_1.xml"
-
-
-class WarningFeedback(QgsProcessingFeedback):
-    """Keeps the warnings an algorithm pushes."""
-
-    def __init__(self):
-        super().__init__()
-        self.warnings = []
-
-    def pushWarning(self, warning):  # noqa: N802 (QGIS API name)
-        self.warnings.append(warning)
-        super().pushWarning(warning)
 
 
 def _edited(shared_data, tmp_path, edit):
@@ -109,7 +97,7 @@ def test_unplaced_maxar_generation_gives_a_footprint_and_a_warning(provider, sha
     """Legitimate but unplaced: the footprint is made (the same as the original's, as the
     convention assumed is the same) and the log says what was assumed."""
     path, out = _edited(shared_data, tmp_path, edit)
-    feedback = WarningFeedback()
+    feedback = RecordingFeedback()
     result = processing.run("pushbroom:footprint", {"SCENE": str(path), "HEIGHT": 600.0, "OUTPUT": "memory:"},
                             feedback=feedback)
     original = processing.run("pushbroom:footprint", {"SCENE": str(shared_data / "worldview2" / SOURCE),
@@ -126,7 +114,7 @@ def test_rpb_refitted_by_asp_is_warned(provider, shared_data, tmp_path):
     Maxar's, so ground -> image runs and the log says why it differs from the RPB by ~15 m."""
     xml = shared_data / "worldview3" / "1040010074793300.xml"
     points = _ground_points(tmp_path, -156.6250, 71.3315, 7.0)
-    feedback = WarningFeedback()
+    feedback = RecordingFeedback()
     out = processing.run("pushbroom:groundtoimage", {"SCENE": str(xml), "INPUT": str(points), "OUTPUT": "memory:"},
                          feedback=feedback)["OUTPUT"]
     (warning,) = [w for w in feedback.warnings if "RPB" in w]
