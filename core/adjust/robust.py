@@ -48,6 +48,14 @@ least MIN_GROUP of them), each named in the report:
 Any of them makes the result "not reliable" (a warning in the log and the report, and in the
 adjusted scene's adjustment info), except a systematic subset below SYSTEMATIC_SHARE, which
 is named as a warning only: the outlier test removed it.
+
+A group whose stated sigmas are wrong relative to each other (per-point sigmas off by
+different factors) is not described by one factor; the iteration then drifts slowly towards
+one group taking the misfit of another, and the loop stops at its pass limit, saying so.
+
+References: Förstner, W. (1979): Ein Verfahren zur Schätzung von Varianz- und
+Kovarianzkomponenten. Allgemeine Vermessungs-Nachrichten 86, 446-453. Zar, J. H. (1999):
+Biostatistical Analysis, 4th ed., Prentice Hall, ch. 27.
 """
 from __future__ import annotations
 

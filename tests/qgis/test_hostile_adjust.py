@@ -18,16 +18,12 @@ from .test_algorithms import RecordingFeedback
 INTERIOR = "HRC-1.*, HRC-3.*"
 
 
-class _Feedback(RecordingFeedback):
+class _Log(RecordingFeedback):
     """Keeps the info lines too."""
-
-    def __init__(self):
-        super().__init__()
-        self.infos = []
+    info: list
 
     def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.infos.append(info)
-        super().pushInfo(info)
+        self.__dict__.setdefault("info", []).append(info)
 
 
 @pytest.fixture(scope="module")
@@ -93,8 +89,8 @@ def _gcps(sim, folder: Path, rows: list[dict] | None = None, **extra) -> str:
                                                                  SIGMA_PX=0.5, **extra))["OUTPUT"]
 
 
-def _adjust(sim, gcps: str, folder: Path, **extra) -> tuple[dict, _Feedback]:
-    log = _Feedback()
+def _adjust(sim, gcps: str, folder: Path, **extra) -> tuple[dict, _Log]:
+    log = _Log()
     result = processing.run("pushbroom:bundleadjust", {
         "SCENE": sim["ONBOARD_SCENE"], "GCPS": gcps, "INTERIOR": INTERIOR,
         "OUTPUT_SCENE": str(folder / "adjusted.json"), "OUTPUT_REPORT": str(folder / "report.html"),
@@ -160,4 +156,4 @@ def test_surveyed_and_digitised_points_mixed_by_per_point_sigmas(sims, tmp_path)
     assert rep["reliability"]["reliable"] and not rep["robust"]["stopped_at_limit"]
     assert rep["robust"]["flagged"] <= 0.01 * rep["observations"]["image_observations"]
     assert rep["variance_components"]["image HRC"]["estimated_sigma"] == pytest.approx(0.5, rel=0.15)
-    assert any(w.startswith("variance component image HRC: stated sigma 0.5 px, estimated") for w in log.infos)
+    assert any(w.startswith("variance component image HRC: stated sigma 0.5 px, estimated") for w in log.info)
