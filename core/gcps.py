@@ -48,6 +48,7 @@ HEIGHT_SOURCES = ("z", "dem", "constant")
 DEFAULT_SIGMA_PX = 0.5
 DEFAULT_SIGMA_XY = 1.0
 DEFAULT_SIGMA_Z = 1.0
+MAX_SIGMA = 1e6  # px or m: a per-point sigma beyond is no measurement
 GPKG_LAYER = "gcps"
 SCENE_METADATA_KEY = "PUSHBROOM_SCENE"
 _MAX_LISTED = 10
@@ -141,7 +142,8 @@ class Heights:
 class CsvMapping:
     """Which CSV columns hold what. id None: ids are the data line numbers (1-based).
     x, y: ground coordinates in the CRS given to :func:`read_csv` (lon/lat order for degrees).
-    z, role, camera: optional columns."""
+    z, role, camera: optional columns. sigma_px (px), sigma_xy, sigma_z (m): optional columns
+    of per-point sigmas (empty cells take the sigma given to :func:`read_csv`)."""
     col: str = "col"
     row: str = "row"
     x: str = "lon"
@@ -150,6 +152,9 @@ class CsvMapping:
     z: str | None = None
     role: str | None = None
     camera: str | None = None
+    sigma_px: str | None = None
+    sigma_xy: str | None = None
+    sigma_z: str | None = None
 
 
 # --- building a table -----------------------------------------------------------------------
@@ -290,9 +295,38 @@ def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpT
     def number(name: str | None):
         return None if name is None else _numbers(text(name), name, ids, source)
 
+    for key in ("sigma_px", "sigma_xy", "sigma_z"):
+        column = getattr(mapping, key)
+        if column is not None:
+            sigmas[key] = per_point_sigmas(text(column), sigmas.get(key, _DEFAULT_SIGMAS[key]), column, ids, source)
     return build_table(ids, number(mapping.col), number(mapping.row), number(mapping.x), number(mapping.y),
                        crs=crs, heights=heights, z=number(mapping.z), role=text(mapping.role),
                        camera=text(mapping.camera), source=source, **sigmas)
+
+
+_DEFAULT_SIGMAS = {"sigma_px": DEFAULT_SIGMA_PX, "sigma_xy": DEFAULT_SIGMA_XY, "sigma_z": DEFAULT_SIGMA_Z}
+
+
+def per_point_sigmas(values, default: float, name: str, ids, source: str) -> np.ndarray:
+    """(n,) sigmas from a column of per-point values (text, numbers, or None); empty cells and
+    None take ``default``. Every given value must be a number in (0, MAX_SIGMA]: InputError naming the
+    column ``name`` and the points otherwise (an exact point is not a sigma of 0 but GROUND =
+    fixed in the adjustment)."""
+    ids = np.asarray(ids, dtype=str)
+    raw = np.char.strip(np.array(["" if v is None else str(v) for v in values], dtype=str))
+    given = raw != ""
+    numeric = np.array([_is_number(t) for t in np.char.replace(raw, ",", ".")], dtype=bool)
+    out = np.full(raw.size, float(default))
+    ok = given & numeric
+    out[ok] = np.char.replace(raw[ok], ",", ".").astype(float)
+    bad = given & ~(numeric & (out > 0) & (out <= MAX_SIGMA))
+    if bad.any():
+        shown = ", ".join(f"{i}: {t!r}" for i, t in zip(ids[bad][:_MAX_LISTED], raw[bad][:_MAX_LISTED]))
+        more = f" and {int(bad.sum()) - _MAX_LISTED} more" if bad.sum() > _MAX_LISTED else ""
+        raise InputError(f"{source}: per-point sigma field {name!r} must hold numbers > 0 and <= {MAX_SIGMA:g} (or "
+                         f"stay empty for the default {default:g}); point(s) {shown}{more}. A sigma of 0 is not possible in a weighted "
+                         "adjustment: give exact points a small sigma, or fix all ground coordinates (GROUND)")
+    return out
 
 
 def _read_delimited(path: Path) -> tuple[list[str], np.ndarray]:

@@ -29,6 +29,8 @@ from ..timebasis import TimeBasis
 from .model import Jacobian, Model, build_observations
 from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, sum_by_point
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
+from .robust import (COMPONENT_TOLERANCE, breakdown, component_report, components, critical as _critical, image_group,
+                     inliers, rescale, robust_scale, robust_weights, stated_sigma0, truncation)
 
 log = logging.getLogger(__name__)
 
@@ -54,6 +56,10 @@ class AdjustmentSettings:
     :func:`core.adjust.parameters.parse_interior`). ground: 'weighted' (GCP sigmas) or 'fixed'.
     robust: 'none', 'selection' or 'snooping'; alpha: significance of the outlier test.
     on_singular: 'fix' (fix one parameter of each non-determinable set and go on) or 'stop'.
+    max_iterations: Gauss-Newton iterations per solution; max_robust_iterations: passes of
+    the robust / variance component loop. variance_components: estimate a factor on the stated
+    sigmas per observation group and test outliers against it (see :mod:`core.adjust.robust`);
+    False trusts the stated sigmas.
     """
     position_model: str = "polynomial"
     position_order: int = 1
@@ -70,6 +76,7 @@ class AdjustmentSettings:
     on_singular: str = "fix"
     max_iterations: int = 30
     max_robust_iterations: int = 12
+    variance_components: bool = True
 
     def validate(self) -> None:
         if self.ground not in ("weighted", "fixed"):
@@ -126,13 +133,36 @@ class _Problem:
         self.obs = obs.select(order)
         self.rows = control[order]
         self.weighted = settings.ground == "weighted"
-        enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
-        w = np.stack([1 / table.sigma_xy[sel] ** 2, 1 / table.sigma_xy[sel] ** 2, 1 / table.sigma_z[sel] ** 2], 1) \
-            if self.weighted else np.zeros((0, 3))
-        self.ground_weight = np.einsum("mki,mk,mkj->mij", enu, w, enu)
-        self.enu = enu
+        self.enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
+        self.ground_sigma = np.stack([table.sigma_xy[sel], table.sigma_xy[sel], table.sigma_z[sel]], 1) \
+            if self.weighted else np.zeros((0, 3))  # stated east, north, up sigmas (m, 3) m
         self.factor = np.ones((len(self.obs), 2))  # robust weight factors per residual row
+        self.scale: dict[str, float] = {}  # variance component factor on the stated sigmas, per group
+        self.rescaled()
         self.structure()
+
+    # --- sigmas: stated, times the variance component factor of their group ----------------
+    def rescaled(self) -> None:
+        """Ground weights (m,3,3) ECEF from the stated sigmas and the current factors."""
+        s = np.array([self.scale.get("ground_xy", 1.0)] * 2 + [self.scale.get("ground_z", 1.0)])
+        self.ground_weight = np.einsum("mki,mk,mkj->mij", self.enu, 1.0 / (self.ground_sigma * s) ** 2, self.enu)
+
+    def image_sigma(self) -> np.ndarray:
+        """(n,) px: each image observation's stated sigma times its camera's factor."""
+        factors = np.array([self.scale.get(image_group(c.name), 1.0) for c in self.scene.cameras])
+        return self.obs.sigma * factors[self.obs.camera]
+
+    def stated_sigma(self, group: str) -> tuple[float | None, str]:
+        """The median stated sigma of a group and its unit (None for interior pseudo-observations,
+        whose sigmas have several units)."""
+        for c, cam in enumerate(self.scene.cameras):
+            if group == image_group(cam.name):
+                return float(np.median(self.obs.sigma[self.obs.camera == c])), "px"
+        if group.startswith("ground"):
+            return float(np.median(self.ground_sigma[:, 2 if group == "ground_z" else 0])), "m"
+        s = self.settings
+        return {"position pseudo-observations": (s.position_sigma, "m"),
+                "attitude pseudo-observations": (s.attitude_sigma, "rad")}.get(group, (None, ""))
 
     # --- unknowns and their columns -------------------------------------------------------
     def structure(self) -> None:
@@ -181,7 +211,7 @@ class _Problem:
 
     # --- one linearisation --------------------------------------------------------------------
     def weights(self) -> np.ndarray:
-        return self.factor / self.obs.sigma[:, None] ** 2
+        return self.factor / self.image_sigma()[:, None] ** 2
 
     def linearize(self) -> tuple[Linearization, GroundPrior | None]:
         r, jac = Model(self.scene, self.params).linearize(self.obs, self.ground[self.obs.point])
@@ -213,12 +243,14 @@ class _Problem:
                 basis.t0 + basis.scale * np.linspace(-1.0, 1.0, basis.size)
             B = basis.matrix(times)  # (k, m)
             idx = self.params.block_indices(block)
+            group = f"{block} pseudo-observations"
             for a in range(3):
-                out.append(_Pseudo(f"{block} pseudo-observations", idx[:, a], B, 1.0 / sigma ** 2))
+                out.append(_Pseudo(group, idx[:, a], B, 1.0 / (sigma * self.scale.get(group, 1.0)) ** 2))
         weighted = [i for i, p in enumerate(self.params.params) if p.mode == "weighted"]
         if weighted:
-            out.append(_Pseudo("interior pseudo-observations", np.array(weighted), np.eye(len(weighted)),
-                               1.0 / np.array([self.params.params[i].sigma for i in weighted]) ** 2))
+            group = "interior pseudo-observations"
+            sigmas = np.array([self.params.params[i].sigma for i in weighted]) * self.scale.get(group, 1.0)
+            out.append(_Pseudo(group, np.array(weighted), np.eye(len(weighted)), 1.0 / sigmas ** 2))
         return out
 
     def system(self) -> tuple[Linearization, System]:
@@ -422,15 +454,21 @@ def _not_converged(history: list[dict], why: str) -> str:
 @dataclass
 class Statistics:
     """Posterior statistics at the solution: Q (cofactor matrix of the unknowns), sigma0, dof,
-    per image row redundancy (n,2) and normalised residual w (n,2), the residuals v (n,2) px,
-    and variance components per observation group."""
+    per image row redundancy (n,2) and normalised residual w (n,2) (against the stated sigmas
+    times their group's factor), the residuals v (n,2) px and p v^2 (n,2) with the current
+    weights; per control point p e^2 (m,3) and redundancy (m,3) of its east, north, up ground
+    coordinates (weighted ground; else (0,3)); per pseudo-observation group (sum of p v^2,
+    redundancy, count)."""
     Q: np.ndarray
     sigma0: float
     dof: float
     redundancy: np.ndarray
     w: np.ndarray
     v: np.ndarray
-    components: dict
+    pvv: np.ndarray
+    ground_pvv: np.ndarray
+    ground_redundancy: np.ndarray
+    pseudo: dict
 
 
 def statistics(problem: _Problem, lin: Linearization, system: System) -> Statistics:
@@ -461,7 +499,7 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
     h += np.einsum("nij,njk,nik->ni", eye - B, G, eye - B)
     redundancy = np.clip(1.0 - h * lin.p, 0.0, 1.0)
     v = lin.r
-    components = {"image": _component(lin.p * v * v, redundancy)}
+    ground_pvv, r_g = np.zeros((0, 3)), np.zeros((0, 3))
     if problem.weighted:
         m = np.einsum("nij,njk->nik", system.K[np.maximum(lin.point, 0)], np.einsum("nki,nkl->nil", lin.jg, P))
         qgg = system.K + sum_by_point(lin.point[weighted], (m @ G @ np.swapaxes(m, 1, 2))[weighted],
@@ -469,15 +507,14 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
         e = np.einsum("mij,mj->mi", problem.enu, problem.ground - problem.ground0)
         w_enu = np.einsum("mii->mi", np.einsum("mij,mjk,mlk->mil", problem.enu, problem.ground_weight, problem.enu))
         r_g = np.clip(1.0 - np.einsum("mij,mjk,mik->mi", problem.enu, qgg, problem.enu) * w_enu, 0.0, 1.0)
-        components["ground_xy"] = _component((w_enu * e * e)[:, :2], r_g[:, :2])
-        components["ground_z"] = _component((w_enu * e * e)[:, 2], r_g[:, 2])
+        ground_pvv = w_enu * e * e
+    pseudo: dict[str, tuple[float, float, int]] = {}
     for p in problem.pseudo():
         cols = problem.unknown[p.index]
         m = p.misfit(problem.params)
         hp = np.einsum("kq,qr,kr->k", p.B, Q[np.ix_(cols, cols)], p.B) * p.weight
-        old = components.get(p.group, (0.0, 0.0, 0))
-        add = (float(np.sum(p.weight * m * m)), float(np.sum(1 - hp)))
-        components[p.group] = (old[0] + add[0], old[1] + add[1], 0)
+        old = pseudo.get(p.group, (0.0, 0.0, 0))
+        pseudo[p.group] = (old[0] + float(np.sum(p.weight * m * m)), old[1] + float(np.sum(1 - hp)), old[2] + m.size)
     total_rows = 2 * len(problem.obs) + 3 * problem.ground.shape[0] * problem.weighted + \
         sum(p.B.shape[0] for p in problem.pseudo())
     dof = float(total_rows - n_unknowns - 3 * problem.ground.shape[0] * problem.weighted)
@@ -485,56 +522,32 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
         raise InputError(f"too few observations: {total_rows} equations for "
                          f"{n_unknowns + 3 * problem.ground.shape[0] * problem.weighted} unknowns")
     sigma0 = math.sqrt(system.cost / dof)
+    w = normalised(problem, v, redundancy)
+    return Statistics(Q, sigma0, dof, redundancy, w, v, lin.p * v * v, ground_pvv, r_g, pseudo)
+
+
+def normalised(problem: _Problem, v: np.ndarray, redundancy: np.ndarray) -> np.ndarray:
+    """Normalised residuals w (n,2) = v / (sigma sqrt(r)), sigma the stated image sigma times
+    its camera's variance component factor."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        w = np.where(redundancy > 1e-6, v / (problem.obs.sigma[:, None] * np.sqrt(redundancy)), 0.0)
-    comps = {k: {"sum_pvv": s, "redundancy": r, "sigma0": math.sqrt(s / r) if r > 0 else None}
-             for k, (s, r, _) in components.items()}
-    return Statistics(Q, sigma0, dof, redundancy, w, v, comps)
-
-
-def _component(pvv: np.ndarray, redundancy: np.ndarray) -> tuple[float, float, int]:
-    return float(np.sum(pvv)), float(np.sum(redundancy)), int(np.size(pvv))
-
-
-def _critical(alpha: float) -> float:
-    return float(stats.norm.ppf(1.0 - alpha / 2.0))
-
-
-def robust_weights(problem: _Problem, st: Statistics) -> float:
-    """One step of the robust method; returns the largest change of a weight factor."""
-    crit = _critical(problem.settings.alpha)
-    old = problem.factor.copy()
-    if problem.settings.robust == "selection":
-        # Li Deren's selection weights: rows whose normalised residual exceeds the critical
-        # value get the weight of their posterior variance. The scale is robust (1.4826 MAD of
-        # the normalised residuals): sigma0 of a first pass is inflated by the gross errors
-        # themselves and would hide most of them.
-        scale = max(1.4826 * float(np.median(np.abs(st.w[st.redundancy > 1e-6]))), 1e-12)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.abs(st.w) / scale
-            ratio = np.where(t > crit, scale ** 2 * st.redundancy * problem.obs.sigma[:, None] ** 2
-                             / np.maximum(st.v * st.v, 1e-300), 1.0)
-        problem.factor = np.repeat(np.clip(ratio.min(axis=1), 1e-8, 1.0)[:, None], 2, axis=1)
-    elif problem.settings.robust == "snooping":
-        live = problem.factor[:, 0] > 0
-        score = np.where(live, np.abs(st.w).max(axis=1), 0.0)
-        worst = float(score.max(initial=0.0))
-        if worst > crit:
-            problem.factor[score > max(crit, 0.5 * worst)] = 0.0
-    return float(np.max(np.abs(problem.factor - old), initial=0.0))
+        return np.where(redundancy > 1e-6, v / (problem.image_sigma()[:, None] * np.sqrt(redundancy)), 0.0)
 
 
 # --- accuracy -------------------------------------------------------------------------------------------
-def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float) -> dict:
+def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float,
+             scale: dict[str, float] | None = None) -> dict:
     """Check-point accuracy of a scene: ground -> image residuals (px) and image -> ground at
     the known height in a local east-north frame (m): RMSE per axis, max, CE90.
 
     Figures over all check points, and again without the blunders: check points whose image
     residual exceeds the critical value (at ``alpha``) of what their own sigmas allow (image
     sigma, planimetric ground sigma over the GSD and the image shift of a height error of
-    sigma_z, per axis). A model error makes many points exceed it:
-    compare both figures before trusting either.
+    sigma_z, per axis), each times its group's variance component factor in ``scale`` (the
+    check points are measured as the control points are: the factors estimated on those make
+    the test independent of the stated sigmas' scale). A model error makes many points exceed
+    it: compare both figures before trusting either.
     """
+    scale = scale or {}
     if rows.size == 0:
         return {"points": 0}
     res = np.full((rows.size, 2), np.nan)
@@ -552,9 +565,12 @@ def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float)
         seen = scene.image_to_ground(sub.col[m], sub.row[m], sub.h[m], c)
         en[m] = np.einsum("nij,nj->ni", enu_rotations(sub.lon[m], sub.lat[m]), seen - ground[m])[:, :2]
         # a height error moves the image point by its relief displacement only
-        up = ground[m] + sub.sigma_z[m, None] * up_vector(sub.lon[m], sub.lat[m])
+        sigma_z = sub.sigma_z[m] * scale.get("ground_z", 1.0)
+        up = ground[m] + sigma_z[:, None] * up_vector(sub.lon[m], sub.lat[m])
         relief = np.hypot(*(a - b for a, b in zip(scene.ground_to_image(up, c), (col, row))))
-        allowed[m] = crit * np.sqrt(sub.sigma_px[m] ** 2 + (sub.sigma_xy[m] / _gsd(scene, c)) ** 2 + relief ** 2)
+        sigma_px = sub.sigma_px[m] * scale.get(image_group(cam.name), 1.0)
+        sigma_xy = sub.sigma_xy[m] * scale.get("ground_xy", 1.0)
+        allowed[m] = crit * np.sqrt(sigma_px ** 2 + (sigma_xy / _gsd(scene, c)) ** 2 + relief ** 2)
     flagged = ~(np.abs(res) <= allowed[:, None]).all(axis=1)
     return {"points": int(rows.size), **_figures(res, en), "blunders": int(flagged.sum()),
             "without_blunders": _figures(res[~flagged], en[~flagged]),
@@ -662,28 +678,16 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
                          "(lower order, longer interval) or fewer interior parameters")
     _, system = problem.system()
     determinability = check_determinability(problem, system)
-    robust_log = []
-    for k in range(settings.max_robust_iterations if settings.robust != "none" else 1):
-        label = f"robust pass {k + 1}: " if settings.robust != "none" else ""
-        result = solve(problem, progress, is_cancelled, label)
-        st = statistics(problem, result["linearization"], result["system"])
-        if settings.robust == "none":
-            break
-        before = problem.factor[:, 0] < 1.0
-        change = robust_weights(problem, st)
-        after = problem.factor[:, 0] < 1.0
-        robust_log.append({"pass": k + 1, "sigma0": st.sigma0, "down_weighted": int(after.sum()),
-                           "largest_change": change})
-        log.info("robust pass %d: sigma0 %.3f, %d observations down-weighted", k + 1, st.sigma0, int(after.sum()))
-        # Done when no observation changes side: the weights of the down-weighted ones only
-        # follow their (already large) residuals and no longer move the solution.
-        if change < 1e-3 or (k > 0 and np.array_equal(before, after)):
-            break
+    est = _estimate(problem, progress, is_cancelled)
     progress(0.92, "evaluating check points")
     adjusted = problem.params.adjusted_scene()
-    out = _result(problem, table, adjusted, result, st, determinability, robust_log)
+    out = _result(problem, table, adjusted, est, determinability)
+    rep = out.report
     adjusted.info["adjustment"] = {
-        "settings": asdict(settings), "sigma0": st.sigma0,
+        "settings": asdict(settings), "sigma0": rep["sigma0"],
+        "variance_components": {k: {f: v[f] for f in ("apriori_sigma", "estimated_sigma", "unit", "estimated")}
+                                for k, v in rep["variance_components"].items()},
+        "reliable": rep["reliability"]["reliable"], "robust_stopped_at_limit": rep["robust"]["stopped_at_limit"],
         "parameters": [{k: p[k] for k in ("name", "value", "sigma", "unit", "mode")}
                        for p in out.report["parameters"] if p["mode"] != "fixed" or p["value"] != 0.0],
         "determinability": determinability,
@@ -691,9 +695,63 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     return out
 
 
-def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: dict, st: Statistics,
-            determinability: list, robust_log: list) -> AdjustmentResult:
+@dataclass
+class _Estimate:
+    """The last solution and its statistics, the robust passes' log, whether the loop stopped
+    at its pass limit, the variance components (group -> (sum of p v^2 with the stated sigmas,
+    redundancy, count)) over the inliers (n,) of the last pass, and the truncation factor."""
+    result: dict
+    st: Statistics
+    passes: list
+    at_limit: bool
+    components: dict
+    inlier: np.ndarray
+    kappa: float
+
+
+def _estimate(problem: _Problem, progress, is_cancelled) -> _Estimate:
+    """Solve, estimate the variance components and down-weight gross errors, alternately,
+    until neither the flags nor the component factors change (see :mod:`core.adjust.robust`)."""
+    s = problem.settings
+    crit = _critical(s.alpha)
+    robust = s.robust != "none"
+    kappa = truncation(crit) if robust else 1.0
+    iterate = robust or s.variance_components
+    passes = []
+    for k in range(s.max_robust_iterations if iterate else 1):
+        label = f"robust pass {k + 1}: " if robust else f"variance component pass {k + 1}: " if iterate else ""
+        result = solve(problem, progress, is_cancelled, label)
+        st = statistics(problem, result["linearization"], result["system"])
+        # Before any component is estimated the scale is robust: sigma0 of a first pass is
+        # inflated by the gross errors themselves and would hide most of them.
+        scale = robust_scale(st.w, st.redundancy) if robust and (k == 0 or not s.variance_components) else 1.0
+        inlier = inliers(st, scale, crit) if robust else np.ones(len(problem.obs), bool)
+        comps = components(problem, st, inlier)
+        component_change = 0.0
+        if s.variance_components:
+            component_change = rescale(problem, comps, kappa)
+            st.w, scale = normalised(problem, st.v, st.redundancy), 1.0
+        before = problem.factor[:, 0] < 1.0
+        change = robust_weights(problem, st, scale) if robust else 0.0
+        after = problem.factor[:, 0] < 1.0
+        passes.append({"pass": k + 1, "sigma0": st.sigma0, "down_weighted": int(after.sum()),
+                       "largest_change": change, "component_change": component_change})
+        log.info("%ssigma0 %.3f, %d observations down-weighted, variance components changed by %.1f %%", label,
+                 st.sigma0, int(after.sum()), 100 * component_change)
+        # Done when no observation changes side (the weights of the down-weighted ones then only
+        # follow their already large residuals and no longer move the solution) and no variance
+        # component changes by more than its tolerance.
+        settled = change < 1e-3 or (k > 0 and np.array_equal(before, after))
+        if not iterate or (settled and component_change < COMPONENT_TOLERANCE):
+            return _Estimate(result, st, passes, False, comps, inlier, kappa)
+    log.warning("robust estimation stopped at its limit of %d passes; the flags may be incomplete", len(passes))
+    return _Estimate(result, st, passes, True, comps, inlier, kappa)
+
+
+def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Estimate,
+            determinability: list) -> AdjustmentResult:
     crit = _critical(problem.settings.alpha)
+    result, st = est.result, est.st
     params = problem.params
     free = params.free
     sigma = np.full(len(params.params), np.nan)
@@ -724,15 +782,23 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: di
     points["weight"][rows] = problem.factor[:, 0]
     points["flagged"][rows] = flagged
     checks = np.nonzero(table.role == "check")[0]
-    after = accuracy(adjusted, table, checks, problem.settings.alpha)
-    before = accuracy(problem.scene, table, checks, problem.settings.alpha)
+    after = accuracy(adjusted, table, checks, problem.settings.alpha, problem.scale)
+    before = accuracy(problem.scene, table, checks, problem.settings.alpha, problem.scale)
     if checks.size:
         points["res_col"][checks], points["res_row"][checks] = after["residuals"][:, 0], after["residuals"][:, 1]
         points["flagged"][checks] = after["is_flagged"]
     points["res_px"] = np.hypot(points["res_col"], points["res_row"])
     # Robust runs leave their flagged observations out of the residual figures; plain ones keep all.
     good = ~flagged if problem.settings.robust != "none" else np.ones_like(flagged)
-    chi2_lo, chi2_hi = stats.chi2.ppf([0.025, 0.975], st.dof) / st.dof
+    # sigma0 of the stated sigmas: over the inliers (with their redundancy) when the variance
+    # components are estimated, else over all observations as weighted.
+    sigma0, dof = stated_sigma0(est.components, est.kappa) if problem.settings.variance_components else \
+        (st.sigma0, st.dof)
+    chi2_lo, chi2_hi = stats.chi2.ppf([0.025, 0.975], dof) / dof
+    problems = breakdown(problem, st, flagged, est.inlier)
+    reliable = all(p["reliable"] for p in problems)
+    for p in problems:
+        log.warning("%s%s", p["message"], "" if p["reliable"] else "; the result is not reliable")
     report = {
         "settings": asdict(problem.settings),
         "observations": {"control_points": int(problem.ground.shape[0]), "image_observations": len(problem.obs),
@@ -740,12 +806,15 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, result: di
                          "ground_unknowns": int(3 * problem.ground.shape[0] * problem.weighted),
                          "degrees_of_freedom": st.dof},
         "iterations": result["iterations"],
-        "robust": {"method": problem.settings.robust, "passes": robust_log, "critical_w": crit,
-                   "flagged": int(flagged.sum()), "flagged_ids": [str(i) for i in table.id[rows][flagged][:1000]]},
-        "sigma0": st.sigma0,
+        "robust": {"method": problem.settings.robust, "passes": est.passes, "critical_w": crit,
+                   "stopped_at_limit": est.at_limit, "flagged": int(flagged.sum()),
+                   "flagged_ids": [str(i) for i in table.id[rows][flagged][:1000]]},
+        "reliability": {"reliable": reliable, "problems": problems},
+        "sigma0": sigma0,
+        "sigma0_adjusted": st.sigma0,
         "sigma0_test": {"ratio_bounds_95": [math.sqrt(chi2_lo), math.sqrt(chi2_hi)],
-                        "passed": bool(chi2_lo <= st.sigma0 ** 2 <= chi2_hi)},
-        "variance_components": st.components,
+                        "passed": bool(chi2_lo <= sigma0 ** 2 <= chi2_hi)},
+        "variance_components": component_report(problem, est.components, est.kappa),
         "determinability": determinability,
         "parameters": parameters,
         "high_correlations": pairs,

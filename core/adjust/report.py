@@ -88,7 +88,7 @@ def write_report_html(report: dict, points: dict, path, title: str = "Bundle adj
     per-GCP ``points`` (see :class:`core.adjust.engine.AdjustmentResult`) to ``path``,
     completely or not at all."""
     rep = _plain(report)
-    body = [f"<h1>{html.escape(title)}</h1>", _headline_section(rep), _settings_section(rep),
+    body = [f"<h1>{html.escape(title)}</h1>", _reliability_section(rep), _headline_section(rep), _settings_section(rep),
             _decisions_section(rep), _parameters_section(rep), "<h2>Plots</h2>",
             _residual_vector_figure(points), _trajectory_figure(rep["trajectory"]),
             _chip_figure(rep["control_residuals_per_chip"]), _correlations_section(rep),
@@ -112,6 +112,22 @@ def _table(header: list[str], rows: list[list[str]], left: int = 1) -> str:
                        for i, c in enumerate(row))
     return ("<table><tr>" + cells("th", header) + "</tr>"
             + "".join("<tr>" + cells("td", r) + "</tr>" for r in rows) + "</table>")
+
+
+def _reliability_section(rep: dict) -> str:
+    """What makes the result unreliable or the flags incomplete, first of all (empty when nothing)."""
+    rel = rep.get("reliability") or {"reliable": True, "problems": []}
+    items = [f"<li>{html.escape(p['message'])}</li>" for p in rel["problems"]]
+    if rep["robust"].get("stopped_at_limit"):
+        items.append(f"<li>robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; the "
+                     "flags may be incomplete.</li>")
+    if not items:
+        return ""
+    head = ("<p class='big bad'><b>The result is not reliable</b>: the robust estimation broke down (more "
+            "than 40 % of a CCD chip's observations flagged, flagged residuals pointing the same way, or one "
+            "chip's residuals much larger than the other chips').</p>" if not rel["reliable"] else
+            "<p class='big bad'><b>Warnings</b></p>")
+    return head + "<ul class='bad'>" + "".join(items) + "</ul>"
 
 
 def _sigma0_sentence(rep: dict) -> str:
@@ -179,10 +195,11 @@ def _decisions_section(rep: dict) -> str:
         items.append("<li>No gross error detection (robust = none): every observation kept its full weight.</li>")
     else:
         ids = ", ".join(rob["flagged_ids"][:30]) + (", …" if rob["flagged"] > 30 else "")
+        limit = " (stopped at the pass limit: the flags may be incomplete)" if rob.get("stopped_at_limit") else ""
         items.append(f"<li>Gross errors ({html.escape(rob['method'])}): {rob['flagged']} image observations "
-                     f"flagged (normalised residual |w| &gt; {_fmt(rob['critical_w'], '.2f')}) in "
-                     f"{len(rob['passes'])} passes; they stay in the GCP layer, marked"
-                     + (f": {html.escape(ids)}" if ids else "") + ".</li>")
+                     f"flagged (normalised residual |w| &gt; {_fmt(rob['critical_w'], '.2f')}, against the sigmas "
+                     f"rescaled by the variance components) in {len(rob['passes'])} passes{limit}; they stay in "
+                     "the GCP layer, marked" + (f": {html.escape(ids)}" if ids else "") + ".</li>")
     return "<h2>Decisions</h2><ul>" + "".join(items) + "</ul>"
 
 
@@ -255,10 +272,21 @@ def _correlations_section(rep: dict) -> str:
 
 
 def _variance_components_section(rep: dict) -> str:
-    """sigma0 and redundancy of each observation group."""
-    rows = [[html.escape(k), _fmt(v.get("sigma0")), _fmt(v.get("redundancy"), ".1f"), _fmt(v.get("sum_pvv"), ".4g")]
-            for k, v in rep["variance_components"].items()]
-    return "<h2>Variance components</h2>" + _table(["group", "sigma0", "redundancy", "sum of pvv"], rows)
+    """Per observation group: stated and estimated sigma, their ratio and its test, redundancy."""
+    def row(k: str, v: dict) -> list[str]:
+        test = "–" if v.get("passed") is None else ("<span class='ok'>passed</span>" if v["passed"] else
+                                                     "<span class='bad'>failed</span>")
+        used = "yes" if v.get("estimated") else "no (redundancy below 10)"
+        return [html.escape(k), str(v.get("observations", "–")), _fmt(v.get("redundancy"), ".1f"),
+                _fmt(v.get("apriori_sigma"), ".4g"), _fmt(v.get("estimated_sigma"), ".4g"),
+                html.escape(v.get("unit") or ""), _fmt(v.get("sigma0")), test, used]
+    rows = [row(k, v) for k, v in rep["variance_components"].items()]
+    return ("<h2>Variance components</h2><p>Per observation group, the stated (a-priori, median) sigma and the "
+            "sigma the residuals of the inliers imply (Förstner's estimator); their ratio is the group's sigma0. "
+            "Estimated factors replace the stated sigmas before the outlier test and in the check-point blunder "
+            "test.</p>"
+            + _table(["group", "observations", "redundancy", "stated sigma", "estimated sigma", "unit",
+                      "ratio", "chi² test (95 %)", "used"], rows))
 
 
 def _iterations_section(rep: dict) -> str:
@@ -267,9 +295,9 @@ def _iterations_section(rep: dict) -> str:
     passes = rep["robust"]["passes"]
     if passes:
         out.append("<h2>Robust passes</h2>" + _table(
-            ["pass", "sigma0", "down-weighted observations", "largest weight change"],
-            [[str(p["pass"]), _fmt(p["sigma0"]), str(p["down_weighted"]), _fmt(p["largest_change"], ".3g")]
-             for p in passes]))
+            ["pass", "sigma0", "down-weighted observations", "largest weight change", "largest component change"],
+            [[str(p["pass"]), _fmt(p["sigma0"]), str(p["down_weighted"]), _fmt(p["largest_change"], ".3g"),
+              _fmt(p.get("component_change"), ".3g")] for p in passes]))
     out.append("<h2>Iterations (last pass)</h2>" + _table(
         ["#", "weighted squared residuals", "largest image change px", "damping"],
         [[str(i["iteration"]), _fmt(i["cost"], ".6g"), _fmt(i["max_image_change_px"], ".3g"),

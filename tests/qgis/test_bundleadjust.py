@@ -153,7 +153,9 @@ def test_layers_have_the_adjustment_fields_and_one_feature_per_point(chain):
     found = (flags[control] == 1) & gross[control]
     print(f"control gross errors: {gross[control].sum()} simulated, {flags[control].sum()} flagged, "
           f"{found.sum()} of them right")
-    assert found.sum() >= 0.9 * gross[control].sum() and found.sum() >= 0.9 * flags[control].sum()
+    # good points flagged: the test's alpha on two axes (~0.6 expected of ~290), against sigmas the
+    # variance components estimate from ~300 redundancy (+-4 %): at most 1 %
+    assert found.sum() >= 0.9 * gross[control].sum() and (flags[control] == 1)[~gross[control]].mean() <= 0.01
     # residual vectors: one line per point, res_m as in the GCP layer, drawn RESIDUAL_SCALE times longer
     vec_ds = ogr.Open(result["OUTPUT_RESIDUALS"])  # the layer lives only as long as its data source
     vectors = vec_ds.GetLayer(0)

@@ -161,7 +161,7 @@ def test_three_line_installation_angles_with_weighted_ground(tmp_path):
                                     robust="none"))
     rep = out.report
     assert rep["sigma0"] == pytest.approx(1.0, abs=0.08)
-    for group in ("image", "ground_xy", "ground_z"):
+    for group in ("image FWD", "image NAD", "image BWD", "ground_xy", "ground_z"):
         assert rep["variance_components"][group]["sigma0"] == pytest.approx(1.0, abs=0.15), group
     params = {p["name"]: p for p in rep["parameters"]}
     for cam in truth[1:]:

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutputFile,
-                       QgsProcessingParameterEnum,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum,
                        QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
                        QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
                        QgsProcessingParameterVectorLayer)
@@ -52,6 +52,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         "ATTITUDE_MODEL", "ATTITUDE_ORDER", "ATTITUDE_INTERVAL", "ATTITUDE_SIGMA"
     INTERIOR, GROUND, ROBUST, ALPHA, ON_SINGULAR, RESIDUAL_SCALE = \
         "INTERIOR", "GROUND", "ROBUST", "ALPHA", "ON_SINGULAR", "RESIDUAL_SCALE"
+    VARIANCE_COMPONENTS, MAX_ROBUST_PASSES = "VARIANCE_COMPONENTS", "MAX_ROBUST_PASSES"
     OUTPUT_SCENE, OUTPUT_REPORT, OUTPUT_GCPS, OUTPUT_RESIDUALS = \
         "OUTPUT_SCENE", "OUTPUT_REPORT", "OUTPUT_GCPS", "OUTPUT_RESIDUALS"
     OUTPUT_REPORT_JSON = "OUTPUT_REPORT_JSON"
@@ -114,6 +115,17 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterNumber(self.ALPHA, "Significance of the outlier test",
                                                QgsProcessingParameterNumber.Double, 0.001, minValue=1e-9, maxValue=0.2),
                   "Probability of flagging a good observation (0.001: |w| > 3.29).", advanced=True)
+        self.add_parameter(QgsProcessingParameterBoolean(self.VARIANCE_COMPONENTS, "Estimate variance components",
+                                                         defaultValue=True),
+                  "Estimate a factor on the stated sigmas per observation group (image observations per camera, "
+                  "ground xy, ground z, onboard pseudo-observations) from the residuals and use it before the "
+                  "outlier test, so that flags and check figures do not depend on how well the sigmas were "
+                  "guessed (Förstner 1979). Off: the stated sigmas are trusted as they are.", advanced=True)
+        self.add_parameter(QgsProcessingParameterNumber(self.MAX_ROBUST_PASSES, "Robust passes at most",
+                                                        QgsProcessingParameterNumber.Integer, 12, minValue=1,
+                                                        maxValue=100),
+                  "Passes of gross error detection and variance component estimation; a run that needs more "
+                  "says so (the flags may then be incomplete).", advanced=True)
         self.add_parameter(QgsProcessingParameterEnum(self.ON_SINGULAR, "Non-determinable parameters",
                                              options=["Fix one of each set and continue", "Stop with their names"],
                                              defaultValue=0),
@@ -226,6 +238,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             ground=("weighted", "fixed")[self.parameterAsEnum(parameters, self.GROUND, context)],
             robust=ROBUST[self.parameterAsEnum(parameters, self.ROBUST, context)],
             alpha=number(self.ALPHA),
+            variance_components=self.parameterAsBoolean(parameters, self.VARIANCE_COMPONENTS, context),
+            max_robust_iterations=self.parameterAsInt(parameters, self.MAX_ROBUST_PASSES, context),
             on_singular=("fix", "stop")[self.parameterAsEnum(parameters, self.ON_SINGULAR, context)])
 
     def _named(self, message: str) -> str:
@@ -250,6 +264,16 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         for d in rep["determinability"]:
             feedback.pushWarning(f"not determinable together from these GCPs: {', '.join(d['parameters'])}; "
                                  f"{d['fixed']} was fixed at its input value (ON_SINGULAR)")
+        for group, c in rep["variance_components"].items():
+            if c["apriori_sigma"] is not None and c["estimated_sigma"] is not None:
+                feedback.pushInfo(f"variance component {group}: stated sigma {c['apriori_sigma']:.4g} {c['unit']}, "
+                                  f"estimated {c['estimated_sigma']:.4g} {c['unit']} (redundancy "
+                                  f"{c['redundancy']:.1f}{'' if c['estimated'] else ', too small: not used'})")
+        if rep["robust"]["stopped_at_limit"]:
+            feedback.pushWarning(f"robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; "
+                                 "the flags may be incomplete")
+        for p in rep["reliability"]["problems"]:
+            feedback.pushWarning(p["message"] + ("" if p["reliable"] else "; the result is not reliable"))
         ctl = rep["control_residuals"]
         feedback.pushInfo(f"sigma0 {rep['sigma0']:.3f} ({'passes' if rep['sigma0_test']['passed'] else 'fails'} "
                           f"the 95 % test); control residuals RMSE col {ctl.get('rmse_col', float('nan')):.3f} px, "

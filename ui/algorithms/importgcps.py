@@ -39,6 +39,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
     Z_FIELD, ROLE_FIELD, CAMERA_FIELD = "Z_FIELD", "ROLE_FIELD", "CAMERA_FIELD"
     GROUND_CRS, HEIGHT_SOURCE, CHECK_FRACTION = "GROUND_CRS", "HEIGHT_SOURCE", "CHECK_FRACTION"
     SIGMA_PX, SIGMA_XY, SIGMA_Z, OUTPUT = "SIGMA_PX", "SIGMA_XY", "SIGMA_Z", "OUTPUT"
+    SIGMA_FIELDS = {"sigma_px": "SIGMA_PX_FIELD", "sigma_xy": "SIGMA_XY_FIELD", "sigma_z": "SIGMA_Z_FIELD"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
@@ -92,6 +93,15 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                  "A-priori standard deviation of the ground height, in metres.")):
             self.add_parameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
                                                    minValue=0.0), help_text)
+        for key, what, unit in (("sigma_px", "image measurement sigma", "px"),
+                                ("sigma_xy", "ground planimetric sigma", "m"), ("sigma_z", "ground height sigma", "m")):
+            name = self.SIGMA_FIELDS[key]
+            self.add_parameter(QgsProcessingParameterString(name, f"Per-point {what} field ({unit})", optional=True,
+                                                            defaultValue=""),
+                      f"Field (CSV column or layer field) holding each point's {what} in {unit}, so that "
+                      "surveyed and map-digitised points can be mixed; an empty cell takes "
+                      f"{key.replace('sigma_', 'SIGMA_').upper()}. Values must be > 0. Empty: every point "
+                      f"takes {key.replace('sigma_', 'SIGMA_').upper()}.")
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, "Ground control points",
                                                       QgsProcessing.TypeVectorPoint)
         out.setSupportsNonFileBasedOutput(False)
@@ -133,13 +143,19 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         if source is not None:
             return self._from_layer(parameters, context, source, heights, sigmas)
         if path.lower().endswith(".points"):
+            given = [name for name in self.SIGMA_FIELDS.values() if self.parameterAsString(parameters, name, context)]
+            if given:
+                raise QgsProcessingException(f"{given[0]}: QGIS .points files have no per-point sigma fields; "
+                                             "leave it empty or import a CSV")
             return core_call(gcps.read_points_file, path, heights, crs, **sigmas)
         text = {name: self.parameterAsString(parameters, name, context).strip() or None
                 for name in (self.ID_FIELD, self.COL_FIELD, self.ROW_FIELD, self.X_FIELD, self.Y_FIELD,
                              self.Z_FIELD, self.ROLE_FIELD, self.CAMERA_FIELD)}
+        fields = {k: self.parameterAsString(parameters, name, context).strip() or None
+                  for k, name in self.SIGMA_FIELDS.items()}
         mapping = gcps.CsvMapping(col=text[self.COL_FIELD], row=text[self.ROW_FIELD], x=text[self.X_FIELD],
                                   y=text[self.Y_FIELD], id=text[self.ID_FIELD], z=text[self.Z_FIELD],
-                                  role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD])
+                                  role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD], **fields)
         return core_call(gcps.read_csv, path, mapping, crs, heights, **sigmas)
 
     def _heights(self, parameters, context) -> gcps.Heights:
@@ -173,6 +189,12 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
 
         xyz = np.array([_point_xyz(f) for f in features], dtype=float)
         ids = column(self.ID_FIELD, False) or [f.id() for f in features]
+        for key, name in self.SIGMA_FIELDS.items():
+            values = column(name, False)
+            if values is not None:
+                sigmas[key] = core_call(gcps.per_point_sigmas, _texts(values), sigmas[key],
+                                        self.parameterAsString(parameters, name, context).strip(),
+                                        [str(i) for i in ids], f"{self.INPUT} layer")
         z = column(self.Z_FIELD, False)
         if z is None and QgsWkbTypes.hasZ(source.wkbType()):
             z = xyz[:, 2]
