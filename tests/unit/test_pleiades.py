@@ -1,4 +1,4 @@
-"""Pleiades DIMAP reader against the vendor's own models of the same scene (shared/data/pleiades):
+"""Pleiades DIMAP reader against the vendor's own models of the same scene (tests/data/pleiades):
 the Global_RFM (direct and inverse rational functions) in the XML, and an independent 65x65
 direct-localisation grid at 9 heights. Measured figures are in the assertions' comments."""
 from __future__ import annotations
