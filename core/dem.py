@@ -234,7 +234,8 @@ class Dem:
         x, y = (lon, lat) if self._to_dem is None else self._to_dem.transform(lon, lat)
         px = (np.asarray(x, dtype=float) - self.gt[0]) / self.gt[1]
         py = (np.asarray(y, dtype=float) - self.gt[3]) / self.gt[5]
-        z = self._grid_for(px, py).sample(px, py)
+        grid = self._grid_for(px, py)
+        z = np.full(px.shape, np.nan) if grid is None else grid.sample(px, py)
         if self.datum == "geoid":
             z = z + geoid_undulation_lattice(lon, lat)
         return z
@@ -258,9 +259,10 @@ class Dem:
         return Path(path)
 
     # --- windows ---------------------------------------------------------------------------------
-    def _grid_for(self, px: np.ndarray, py: np.ndarray) -> _Grid:
+    def _grid_for(self, px: np.ndarray, py: np.ndarray) -> _Grid | None:
         """A loaded grid covering every queried point that lies on the DEM (px, py: DEM pixel
-        coordinates); reads a new window around them when the current one does not."""
+        coordinates); reads a new window around them when the current one does not. None when
+        no point has ever been on the DEM."""
         overview = self._overview()
         if overview.step <= self._step:
             return overview

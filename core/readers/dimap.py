@@ -245,10 +245,13 @@ def _find(parent, path: str, src: str, what: str, where: str = ""):
 
 
 def _text(parent, path: str, src: str, where: str) -> str:
-    elem = parent.find(path)
+    found = parent.findall(path)
     full = _join(where, path)
-    if elem is None:
+    if not found:
         raise MetadataError(f"{src}: <{full}> is missing")
+    if len(found) > 1:
+        raise MetadataError(f"{src}: <{full}> appears {len(found)} times; expected once")
+    elem = found[0]
     text = (elem.text or "").strip()
     if not text:
         raise MetadataError(f"{src}: <{full}> is empty")
