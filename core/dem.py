@@ -1,12 +1,25 @@
-"""Digital elevation models for ray intersection.
+"""Digital elevation models for ray intersection, read only where and as finely as needed.
 
-A DEM is read once into memory as float64 ellipsoidal heights (EPSG:4979 sense). Heights
-of a geoid-referenced DEM (EGM96, as SRTM and most national DEMs) are converted with the
-PROJ geoid grid ``egm96_15.gtx`` at load. Sampling is bilinear in the DEM's own CRS;
-queries outside the DEM, or on nodata, return NaN so callers can say what is uncovered.
+A :class:`Dem` opens its raster lazily: it keeps the geometry (CRS, geotransform, size) and reads
+heights by window when asked for them. Callers say what they need: :meth:`Dem.height` reads the
+window around the queried points (with a margin, kept for the next queries), at the DEM's own
+resolution or at the coarser spacing a caller chose with :meth:`Dem.with_spacing` (a footprint
+needs the terrain every ~100 m, not every metre). Coarse windows are block averages read with
+GDAL's decimated RasterIO (which uses the raster's overviews when it has them), in strips, so
+neither the heights nor GDAL's block cache ever hold more than the window.
+
+Heights are returned as ellipsoidal metres (EPSG:4979 sense). A geoid-referenced DEM (EGM96, as
+SRTM and most national DEMs) is converted at the queried points only: the undulation is taken by
+PROJ (grid ``egm96_15.gtx``) on a fixed lattice of 1/16 degree nodes (it divides the grid's 15'
+cells, so the bilinear lattice reproduces PROJ's own bilinear interpolation) and interpolated.
+Sampling is bilinear between pixel centres in the DEM's own CRS; queries outside the DEM, or
+on nodata, return NaN so callers can say what is uncovered.
 """
 from __future__ import annotations
 
+import copy
+import math
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,6 +33,14 @@ from .errors import InputError
 gdal.UseExceptions()
 
 GEOID_GRID = "egm96_15.gtx"
+GEOID_LATTICE_DEG = 1.0 / 16.0  # divides the 15' EGM96 grid cells
+MAX_LATTICE_NODES = 1_000_000   # beyond this the undulation is evaluated at the points themselves
+OVERVIEW_CELLS = 1024 * 1024    # the whole-DEM overview behind height_range
+MAX_WINDOW_BYTES = 2 ** 30      # the largest window of heights held in memory
+PLAUSIBLE_HEIGHTS = (-12_000.0, 10_000.0)  # m: deepest trench to above Everest, either datum
+_STRIP_NODES = 128              # output rows per read; GDAL's block cache is released after each
+_STRIP_BYTES = 32 * 2 ** 20     # at most this many bytes of DEM pixels per read averaged in numpy
+_WINDOW_MARGIN = 0.25           # share of a window's size added on each side for the next queries
 
 
 def geoid_undulation(lon, lat) -> np.ndarray:
@@ -34,6 +55,30 @@ def geoid_undulation(lon, lat) -> np.ndarray:
     return n
 
 
+def geoid_undulation_lattice(lon, lat) -> np.ndarray:
+    """:func:`geoid_undulation` (m) at (lon, lat) degrees, bilinear between the nodes of a fixed
+    1/16 degree lattice covering the points: PROJ is asked at the lattice nodes only. The value at
+    a place does not depend on the other points queried with it."""
+    lon = np.asarray(lon, dtype=float)
+    lat = np.asarray(lat, dtype=float)
+    ok = np.isfinite(lon) & np.isfinite(lat)
+    out = np.full(lon.shape, np.nan)
+    if not ok.any():
+        return out
+    step = GEOID_LATTICE_DEG
+    lon_ok, lat_ok = lon[ok], lat[ok]
+    i0, j0 = math.floor(np.min(lat_ok) / step), math.floor(np.min(lon_ok) / step)
+    i1, j1 = math.floor(np.max(lat_ok) / step) + 1, math.floor(np.max(lon_ok) / step) + 1
+    if (i1 - i0 + 1) * (j1 - j0 + 1) > MAX_LATTICE_NODES:
+        out[ok] = geoid_undulation(lon_ok, lat_ok)
+        return out
+    node_lat, node_lon = np.arange(i0, i1 + 1) * step, np.arange(j0, j1 + 1) * step
+    n = geoid_undulation(*np.meshgrid(node_lon, node_lat))  # (lat, lon) nodes
+    fy, fx = lat_ok / step - i0, lon_ok / step - j0
+    out[ok] = _bilinear(n, fy, fx)
+    return out
+
+
 def to_ellipsoidal(lon, lat, height, datum: str) -> np.ndarray:
     """Heights (m) in ``datum`` ('ellipsoid' or 'geoid' = EGM96) -> ellipsoidal heights."""
     if datum == "ellipsoid":
@@ -41,6 +86,25 @@ def to_ellipsoidal(lon, lat, height, datum: str) -> np.ndarray:
     if datum == "geoid":
         return np.asarray(height, dtype=float) + geoid_undulation(lon, lat)
     raise InputError(f"height datum must be 'ellipsoid' or 'geoid' (got {datum!r})")
+
+
+def _bilinear(z: np.ndarray, fy: np.ndarray, fx: np.ndarray) -> np.ndarray:
+    """Bilinear values of grid z (ny, nx) at fractional node indices (fy, fx) inside it."""
+    ny, nx = z.shape
+    i = np.clip(fy.astype(np.int64), 0, max(ny - 2, 0))
+    j = np.clip(fx.astype(np.int64), 0, max(nx - 2, 0))
+    wy, wx = fy - i, fx - j
+    i1, j1 = np.minimum(i + 1, ny - 1), np.minimum(j + 1, nx - 1)
+    z00, z01 = z[i, j].astype(float), z[i, j1].astype(float)
+    z10, z11 = z[i1, j].astype(float), z[i1, j1].astype(float)
+    return (z00 * (1 - wx) + z01 * wx) * (1 - wy) + (z10 * (1 - wx) + z11 * wx) * wy
+
+
+def _block_sums(z: np.ndarray, step: int, h: int, w: int) -> np.ndarray:
+    """Sums (float64) of the step x step blocks of z (h * step, w * step): (h, w). Along rows
+    first, over contiguous memory, then along columns."""
+    rows = z.reshape(h * step, w, step).sum(axis=2, dtype=np.float64)
+    return rows.reshape(h, step, w).sum(axis=1)
 
 
 @dataclass
@@ -56,19 +120,49 @@ class ConstantHeight:
         return float(self.value), float(self.value)
 
 
-class Dem:
-    """A raster DEM in memory, sampled bilinearly.
+@dataclass
+class _Grid:
+    """Heights in the DEM's datum (NaN = nodata) on a window of the DEM at decimation ``step``:
+    node (i, j) is the centre of the step x step block of DEM pixels whose upper-left pixel is
+    (row0 + i * step, col0 + j * step). z: (rows, cols) float32 or float64."""
+    z: np.ndarray
+    row0: int
+    col0: int
+    step: int
 
-    path: any GDAL raster with a CRS; band 1 holds heights in metres.
-    datum: 'geoid' (EGM96, converted at load) or 'ellipsoid'.
+    def node_indices(self, px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional node indices (fx, fy) of DEM pixel coordinates (px, py; GDAL, 0 = edge)."""
+        return (px - self.col0) / self.step - 0.5, (py - self.row0) / self.step - 0.5
+
+    def inside(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        fx, fy = self.node_indices(px, py)
+        ny, nx = self.z.shape
+        return (fx >= 0) & (fy >= 0) & (fx <= nx - 1) & (fy <= ny - 1)
+
+    def sample(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        """Bilinear heights at DEM pixel coordinates; NaN outside the window or on nodata."""
+        fx, fy = self.node_indices(px, py)
+        ok = self.inside(px, py)
+        val = _bilinear(self.z, np.where(ok, fy, 0.0), np.where(ok, fx, 0.0))
+        return np.where(ok, val, np.nan)
+
+
+class Dem:
+    """A raster DEM read by window, sampled bilinearly.
+
+    path: any GDAL raster with a north-up geotransform and a CRS; band 1 holds heights in metres.
+    datum: 'geoid' (EGM96, converted at the sampled points) or 'ellipsoid'.
+    max_bytes: the largest window of heights held in memory; a larger need is an InputError
+    naming the DEM.
     """
 
-    def __init__(self, path: str | Path, datum: str = "geoid"):
+    def __init__(self, path: str | Path, datum: str = "geoid", max_bytes: int = MAX_WINDOW_BYTES):
         self.path = str(path)
-        try:
-            ds = gdal.Open(self.path)
-        except RuntimeError as exc:
-            raise InputError(f"DEM {self.path}: cannot be opened as a raster ({exc})") from None
+        if datum not in ("geoid", "ellipsoid"):
+            raise InputError(f"height datum must be 'ellipsoid' or 'geoid' (got {datum!r})")
+        self.datum = datum
+        self.max_bytes = int(max_bytes)
+        ds = self._open()
         wkt = ds.GetProjection()
         if not wkt:
             raise InputError(f"DEM {self.path}: has no coordinate reference system; assign one (e.g. EPSG:4326)")
@@ -76,77 +170,235 @@ class Dem:
             self.crs = CRS.from_wkt(wkt)
         except CRSError as exc:
             raise InputError(f"DEM {self.path}: unknown CRS ({exc})") from None
-        band = ds.GetRasterBand(1)
-        z = band.ReadAsArray().astype(np.float64)
-        nodata = band.GetNoDataValue()
-        if nodata is not None:
-            z[z == nodata] = np.nan
         gt = ds.GetGeoTransform()
         if gt[2] != 0 or gt[4] != 0:
             raise InputError(f"DEM {self.path}: rotated geotransforms are not supported; warp it to north-up first")
+        if gt[1] == 0 or gt[5] == 0:
+            raise InputError(f"DEM {self.path}: its geotransform has a zero pixel size")
         self.gt = gt
-        self.shape = z.shape
+        self.shape = (ds.RasterYSize, ds.RasterXSize)
+        if min(self.shape) < 2:
+            raise InputError(f"DEM {self.path}: {self.shape[1]} x {self.shape[0]} pixels; at least 2 x 2 are "
+                             "needed to interpolate heights")
+        band = ds.GetRasterBand(1)
+        if gdal.DataTypeIsComplex(band.DataType) or band.DataType == gdal.GDT_Unknown:
+            raise InputError(f"DEM {self.path}: band 1 is of type {gdal.GetDataTypeName(band.DataType)}; "
+                             "heights must be real numbers (integer or floating point)")
+        self._buf_type = gdal.GDT_Float64 if band.DataType == gdal.GDT_Float64 else gdal.GDT_Float32
+        self._nodata = band.GetNoDataValue()
         self._to_dem = None if self.crs.equals(CRS.from_epsg(4326), ignore_axis_order=True) else \
             Transformer.from_crs(CRS.from_epsg(4326), self.crs, always_xy=True)
-        if datum != "ellipsoid":
-            lon, lat = self._node_lonlat()
-            z = to_ellipsoidal(lon, lat, z, datum)
-        self.datum = datum
-        self.z = z
-        finite = z[np.isfinite(z)]
-        if finite.size == 0:
-            raise InputError(f"DEM {self.path}: holds no valid heights")
-        self._range = (float(finite.min()), float(finite.max()))
+        self._step = 1
+        self._grid: _Grid | None = None
+        self._overview_grid: _Grid | None = None
+        self._range: tuple[float, float] | None = None
+        self._lock = threading.Lock()
 
-    def _node_lonlat(self) -> tuple[np.ndarray, np.ndarray]:
-        rows, cols = np.mgrid[0:self.shape[0], 0:self.shape[1]]
-        x = self.gt[0] + (cols + 0.5) * self.gt[1]
-        y = self.gt[3] + (rows + 0.5) * self.gt[5]
-        if self._to_dem is None:
-            return x, y
-        back = Transformer.from_crs(self.crs, CRS.from_epsg(4326), always_xy=True)
-        return back.transform(x, y)
-
+    # --- what callers ask for ----------------------------------------------------------------
     @property
     def height_range(self) -> tuple[float, float]:
-        """(min, max) ellipsoidal height in metres."""
+        """(min, max) ellipsoidal height (m) over the whole DEM: exact when the DEM has at most
+        OVERVIEW_CELLS pixels, else from block averages widened by 10 % of the span (>= 20 m)."""
+        if self._range is None:
+            grid = self._overview()
+            lo, hi = self._grid_range(grid)
+            if grid.step > 1:
+                pad = max(0.1 * (hi - lo), 20.0)
+                lo, hi = lo - pad, hi + pad
+            self._range = (lo, hi)
         return self._range
 
-    def write_ellipsoidal(self, path: str | Path) -> Path:
-        """Write the DEM's ellipsoidal heights (float32, same grid and CRS, nodata NaN) to a
-        GeoTIFF: what tools that take DEM heights as ellipsoidal (GDAL's RPC_DEM) need."""
-        src = gdal.Open(self.path)
-        ds = gdal.GetDriverByName("GTiff").Create(str(path), self.shape[1], self.shape[0], 1, gdal.GDT_Float32,
-                                                  ["COMPRESS=DEFLATE"])
-        ds.SetGeoTransform(self.gt)
-        ds.SetProjection(src.GetProjection())
-        band = ds.GetRasterBand(1)
-        band.SetNoDataValue(float("nan"))
-        band.WriteArray(self.z.astype(np.float32))
-        band = ds = None
-        return Path(path)
+    def with_spacing(self, metres: float) -> "Dem":
+        """This DEM sampled no finer than ``metres`` (block averages of whole DEM pixels): what a
+        caller needing only the coarse terrain asks for. The DEM's own resolution if finer."""
+        step = max(1, int(metres // self.pixel_size_m())) if np.isfinite(metres) else 1
+        self.height_range  # noqa: B018 -- read the overview once, shared with the coarse view
+        coarse = copy.copy(self)
+        coarse._step, coarse._grid, coarse._lock = step, None, threading.Lock()
+        return coarse
 
-    def bounds_lonlat(self) -> tuple[float, float, float, float]:
-        """(lon_min, lat_min, lon_max, lat_max) of the DEM's node centres."""
-        lon, lat = self._node_lonlat()
-        return float(np.min(lon)), float(np.min(lat)), float(np.max(lon)), float(np.max(lat))
+    def pixel_size_m(self) -> float:
+        """Approximate ground size (m) of a DEM pixel (geometric mean of its sides, at the DEM's
+        centre for a geographic CRS)."""
+        dx, dy = abs(self.gt[1]), abs(self.gt[5])
+        if self.crs.is_geographic:
+            lat = self.gt[3] + 0.5 * self.shape[0] * self.gt[5]
+            return math.sqrt(dx * 111_320.0 * max(math.cos(math.radians(lat)), 1e-3) * dy * 110_574.0)
+        unit = self.crs.axis_info[0].unit_conversion_factor if self.crs.axis_info else 1.0
+        return math.sqrt(dx * dy) * unit
 
     def height(self, lon, lat) -> np.ndarray:
         """Bilinear ellipsoidal height (m) at (lon, lat) degrees; NaN outside or on nodata."""
         lon = np.asarray(lon, dtype=float)
         lat = np.asarray(lat, dtype=float)
+        x, y = (lon, lat) if self._to_dem is None else self._to_dem.transform(lon, lat)
+        px = (np.asarray(x, dtype=float) - self.gt[0]) / self.gt[1]
+        py = (np.asarray(y, dtype=float) - self.gt[3]) / self.gt[5]
+        grid = self._grid_for(px, py)
+        z = np.full(px.shape, np.nan) if grid is None else grid.sample(px, py)
+        if self.datum == "geoid":
+            z = z + geoid_undulation_lattice(lon, lat)
+        return z
+
+    def write_ellipsoidal(self, path: str | Path) -> Path:
+        """Write the DEM's ellipsoidal heights (float32, same grid and CRS, nodata NaN) to a
+        GeoTIFF: what tools that take DEM heights as ellipsoidal (GDAL's RPC_DEM) need."""
+        rows, cols = self.shape
+        src = self._open()
+        ds = gdal.GetDriverByName("GTiff").Create(str(path), cols, rows, 1, gdal.GDT_Float32,
+                                                  ["COMPRESS=DEFLATE", "TILED=YES"])
+        ds.SetGeoTransform(self.gt)
+        ds.SetProjection(src.GetProjection())
+        band = ds.GetRasterBand(1)
+        band.SetNoDataValue(float("nan"))
+        for r0 in range(0, rows, _STRIP_NODES):
+            grid = _Grid(self._read(src, r0, 0, min(_STRIP_NODES, rows - r0), cols, 1), r0, 0, 1)
+            pj, pi = np.meshgrid(np.arange(cols) + 0.5, np.arange(grid.z.shape[0]) + r0 + 0.5)
+            band.WriteArray(self._ellipsoidal(grid.z, pj, pi).astype(np.float32), 0, r0)
+        band = ds = None
+        return Path(path)
+
+    # --- windows ---------------------------------------------------------------------------------
+    def _grid_for(self, px: np.ndarray, py: np.ndarray) -> _Grid | None:
+        """A loaded grid covering every queried point that lies on the DEM (px, py: DEM pixel
+        coordinates); reads a new window around them when the current one does not. None when
+        no point has ever been on the DEM."""
+        overview = self._overview()
+        if overview.step <= self._step:
+            return overview
+        rows, cols = self.shape
+        on_dem = (px >= 0.5) & (py >= 0.5) & (px <= cols - 0.5) & (py <= rows - 0.5)
+        with self._lock:
+            grid = self._grid
+            need = on_dem if grid is None else on_dem & ~grid.inside(px, py)
+            if need.any():
+                grid = self._grid = self._load_around(px[need], py[need], grid)
+        return grid
+
+    def _load_around(self, px: np.ndarray, py: np.ndarray, current: _Grid | None) -> _Grid:
+        """Read the window (aligned to the decimation step) covering the points with a margin,
+        united with the current window."""
+        step, (rows, cols) = self._step, self.shape
+        c0, c1, r0, r1 = float(np.min(px)), float(np.max(px)), float(np.min(py)), float(np.max(py))
+        pad_c = max(_WINDOW_MARGIN * (c1 - c0), 16.0 * step)
+        pad_r = max(_WINDOW_MARGIN * (r1 - r0), 16.0 * step)
+        c0, c1, r0, r1 = c0 - pad_c, c1 + pad_c, r0 - pad_r, r1 + pad_r
+        if current is not None:
+            h, w = current.z.shape
+            c0, r0 = min(c0, current.col0), min(r0, current.row0)
+            c1, r1 = max(c1, current.col0 + w * step), max(r1, current.row0 + h * step)
+        col0 = max(0, int(c0 // step) * step)
+        row0 = max(0, int(r0 // step) * step)
+        ncols = (min(cols, int(math.ceil(c1))) - col0) // step
+        nrows = (min(rows, int(math.ceil(r1))) - row0) // step
+        return _Grid(self._read(self._open(), row0, col0, max(nrows, 1), max(ncols, 1), step), row0, col0, step)
+
+    def _overview(self) -> _Grid:
+        """The whole DEM at the decimation that keeps it within OVERVIEW_CELLS nodes (the DEM
+        itself when it is that small), read once."""
+        if self._overview_grid is None:
+            rows, cols = self.shape
+            step = max(1, math.ceil(math.sqrt(rows * cols / OVERVIEW_CELLS)))
+            grid = _Grid(self._read(self._open(), 0, 0, max(rows // step, 1), max(cols // step, 1), step), 0, 0, step)
+            self._overview_grid = grid
+            self._check_plausible(grid)
+        return self._overview_grid
+
+    def _read(self, ds, row0: int, col0: int, nrows: int, ncols: int, step: int) -> np.ndarray:
+        """Heights (DEM datum, nodata -> NaN) of nrows x ncols nodes, each the average of a
+        step x step block of pixels from (row0, col0); read in strips, releasing GDAL's cache."""
+        dtype = np.float64 if self._buf_type == gdal.GDT_Float64 else np.float32
+        need = nrows * ncols * np.dtype(dtype).itemsize
+        if need > self.max_bytes:
+            raise InputError(f"DEM {self.path}: the area needed is {ncols} x {nrows} DEM pixels"
+                             f"{f' (every {step}th)' if step > 1 else ''}, {need / 2 ** 20:.0f} MB, over the "
+                             f"{self.max_bytes / 2 ** 20:.0f} MB a DEM may take in memory; use a coarser DEM, "
+                             "or one cut to the area of the scene (or a smaller extent)")
+        try:
+            z = np.empty((nrows, ncols), dtype=dtype)
+        except MemoryError:
+            raise InputError(f"DEM {self.path}: not enough memory for {ncols} x {nrows} DEM pixels; use a "
+                             "coarser DEM, or one cut to the area of the scene") from None
+        band = ds.GetRasterBand(1)
+        # Whole strips of pixels averaged here cost a plain read; GDAL's averaging RasterIO is
+        # slower, but it uses the raster's overviews and reads huge blocks piecewise.
+        by_numpy = step > 1 and band.GetOverviewCount() == 0 and step * step * ncols * z.itemsize <= _STRIP_BYTES
+        strip = max(1, min(_STRIP_NODES, _STRIP_BYTES // max(step * step * ncols * z.itemsize, 1))) if by_numpy \
+            else _STRIP_NODES
+        try:
+            for i in range(0, nrows, strip):
+                n = min(strip, nrows - i)
+                if by_numpy:
+                    z[i:i + n] = self._block_means(band.ReadAsArray(col0, row0 + i * step, ncols * step, n * step,
+                                                                    buf_type=self._buf_type), step)
+                else:
+                    z[i:i + n] = self._masked(band.ReadAsArray(
+                        col0, row0 + i * step, ncols * step, n * step, buf_xsize=ncols, buf_ysize=n,
+                        buf_type=self._buf_type, resample_alg=gdal.GRIORA_Average))
+                band.FlushCache()
+        except RuntimeError as exc:
+            raise InputError(f"DEM {self.path}: cannot read its heights ({exc})") from None
+        return z
+
+    def _masked(self, z: np.ndarray) -> np.ndarray:
+        """z with the nodata value made NaN (in place)."""
+        if self._nodata is not None and not math.isnan(self._nodata):
+            z[z == z.dtype.type(self._nodata)] = np.nan
+        return z
+
+    def _block_means(self, z: np.ndarray, step: int) -> np.ndarray:
+        """Means of the valid pixels (not nodata) of each step x step block of z; NaN where none."""
+        z = self._masked(z)
+        h, w = z.shape[0] // step, z.shape[1] // step
+        z = z[:h * step, :w * step]
+        valid = np.isfinite(z)
+        if valid.all():
+            return _block_sums(z, step, h, w) / (step * step)
+        count = _block_sums(valid.astype(np.float32), step, h, w)
+        total = _block_sums(np.where(valid, z, z.dtype.type(0)), step, h, w)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(count > 0, total / count, np.nan)
+
+    def _open(self):
+        try:
+            ds = gdal.Open(self.path)
+        except RuntimeError as exc:
+            raise InputError(f"DEM {self.path}: cannot be opened as a raster ({exc})") from None
+        if ds is None or ds.RasterCount < 1:
+            raise InputError(f"DEM {self.path}: cannot be opened as a raster with a band of heights")
+        return ds
+
+    # --- heights of a whole grid ------------------------------------------------------------------
+    def _grid_range(self, grid: _Grid) -> tuple[float, float]:
+        """(min, max) ellipsoidal height (m) of a grid's nodes."""
+        lo, hi = np.inf, -np.inf
+        ny, nx = grid.z.shape
+        pj = grid.col0 + (np.arange(nx) + 0.5) * grid.step
+        for i in range(0, ny, _STRIP_NODES):
+            pi = grid.row0 + (np.arange(i, min(i + _STRIP_NODES, ny)) + 0.5) * grid.step
+            h = self._ellipsoidal(grid.z[i:i + _STRIP_NODES], *np.meshgrid(pj, pi))
+            if np.isfinite(h).any():
+                lo, hi = min(lo, float(np.nanmin(h))), max(hi, float(np.nanmax(h)))
+        if not np.isfinite(lo):
+            raise InputError(f"DEM {self.path}: holds no valid heights (every pixel is nodata)")
+        return lo, hi
+
+    def _ellipsoidal(self, z: np.ndarray, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        """Ellipsoidal heights (m) of DEM values z at DEM pixel coordinates (px, py), same shapes."""
+        if self.datum == "ellipsoid":
+            return z.astype(float)
+        x, y = self.gt[0] + px * self.gt[1], self.gt[3] + py * self.gt[5]
         if self._to_dem is not None:
-            lon, lat = self._to_dem.transform(lon, lat)
-        fx = (lon - self.gt[0]) / self.gt[1] - 0.5
-        fy = (lat - self.gt[3]) / self.gt[5] - 0.5
-        ny, nx = self.shape
-        ok = (fx >= 0) & (fy >= 0) & (fx <= nx - 1) & (fy <= ny - 1)
-        fx = np.where(ok, fx, 0.0)
-        fy = np.where(ok, fy, 0.0)
-        i = np.minimum(fy.astype(np.int64), max(ny - 2, 0))
-        j = np.minimum(fx.astype(np.int64), max(nx - 2, 0))
-        wy, wx = fy - i, fx - j
-        z = self.z
-        i1, j1 = np.minimum(i + 1, ny - 1), np.minimum(j + 1, nx - 1)
-        val = ((z[i, j] * (1 - wx) + z[i, j1] * wx) * (1 - wy) + (z[i1, j] * (1 - wx) + z[i1, j1] * wx) * wy)
-        return np.where(ok, val, np.nan)
+            x, y = Transformer.from_crs(self.crs, CRS.from_epsg(4326), always_xy=True).transform(x, y)
+        return z + geoid_undulation_lattice(x, y)
+
+    def _check_plausible(self, grid: _Grid) -> None:
+        """Refuse heights no terrain has (a nodata value without its nodata tag, or not metres)."""
+        finite = grid.z[np.isfinite(grid.z)]
+        if finite.size == 0:
+            raise InputError(f"DEM {self.path}: holds no valid heights (every pixel is nodata)")
+        lo, hi = float(finite.min()), float(finite.max())
+        if lo < PLAUSIBLE_HEIGHTS[0] or hi > PLAUSIBLE_HEIGHTS[1]:
+            raise InputError(f"DEM {self.path}: heights from {lo:.6g} to {hi:.6g} m are not terrain heights "
+                             f"(expected {PLAUSIBLE_HEIGHTS[0]:.0f} to {PLAUSIBLE_HEIGHTS[1]:.0f} m): a nodata "
+                             "value without its nodata tag, or heights not in metres?")

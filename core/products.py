@@ -64,11 +64,12 @@ def footprints(scene: SceneModel, surface, cameras=None, samples_per_edge: int =
 def _footprint(scene: SceneModel, k: int, surface, samples_per_edge: int) -> Footprint:
     cam = scene.cameras[k]
     col, row = image_outline(cam, samples_per_edge)
-    ground = scene.image_to_ground_dem(col, row, surface, camera=k)
+    ground = scene.image_to_ground_dem(col, row, _coarse_enough(scene, k, col, row, surface), camera=k)
     missing = ~np.all(np.isfinite(ground), axis=1)
     if missing.any():
+        name = f"DEM {surface.path}" if hasattr(surface, "path") else "the terrain surface"
         raise InputError(f"camera {cam.name!r}: {missing.sum()} of {col.size} points of the image outline do not "
-                         f"meet the terrain surface (a DEM that does not cover the scene, or lines of sight "
+                         f"meet {name} (a DEM that does not cover the scene, or lines of sight "
                          f"that miss the Earth)")
     lon, lat, h = ecef_to_geodetic(ground)
     lon = _continuous_longitudes(lon)
@@ -76,6 +77,17 @@ def _footprint(scene: SceneModel, k: int, surface, samples_per_edge: int) -> Foo
     if area < 0:  # clockwise: the image is seen mirrored (e.g. flying south); turn it round
         lon, lat, h = lon[::-1], lat[::-1], h[::-1]
     return Footprint(cam.name, cam.cols, cam.rows, lon, lat, h, abs(area) / 1e6)
+
+
+def _coarse_enough(scene: SceneModel, k: int, col: np.ndarray, row: np.ndarray, surface):
+    """The surface sampled at half the ground spacing of the outline's points (a DEM read no
+    finer than that: a footprint needs the terrain under its vertices, not every metre)."""
+    if not hasattr(surface, "with_spacing"):
+        return surface
+    flat = scene.image_to_ground(col, row, float(np.mean(surface.height_range)), camera=k)
+    spacing = np.linalg.norm(np.diff(flat, axis=0), axis=1)
+    spacing = spacing[np.isfinite(spacing) & (spacing > 0)]
+    return surface.with_spacing(0.5 * float(np.median(spacing))) if spacing.size else surface
 
 
 def _continuous_longitudes(lon: np.ndarray) -> np.ndarray:

@@ -1,18 +1,20 @@
 """Shared test fixtures: where the real vendor metadata lives.
 
-CI clones the repository with ``shared/`` beside it, so the real data is ../shared/data
-relative to the repository root (also in a developer's checkout).
+The real test data (Pleiades DIMAP, WorldView-2 and WorldView-3 Maxar XML, with their attribution
+and licences in tests/data/README.md) is kept in the repository under tests/data/, so a bare clone
+runs the whole suite.
 """
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED_DATA = REPO.parent / "shared" / "data"
+TEST_DATA = REPO / "tests" / "data"
 
 
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
-    if not SHARED_DATA.is_dir():
-        pytest.fail(f"real test data not found at {SHARED_DATA} (expected shared/ beside the repository)")
-    return SHARED_DATA
+    """The folder of the real vendor test data (tests/data: pleiades/, worldview2/, worldview3/)."""
+    if not TEST_DATA.is_dir():
+        pytest.fail(f"real test data not found at {TEST_DATA} (it is part of the repository)")
+    return TEST_DATA

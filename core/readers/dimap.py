@@ -7,8 +7,9 @@ Blocks used, under ``Geometric_Data/Sensor_Model_Characteristics``:
   - ``Sensor_Attitudes``: quaternion polynomials Q0 (scalar part) .. Q3 in u = (t - OFFSET) /
     SCALE, t in UTC seconds of the day of START, rotating the body frame to ECEF.
   - ``SENSOR_LINE_PERIOD`` (ms): time of row r (1-based) = START + (r - 1) * period.
-  - ``Sensor_Viewing_Model``: look angles PsiX, PsiY (rad) as polynomials in (c - 1), c the
-    1-based column; the body line of sight is (PsiY, -PsiX, 1) with the angles themselves
+  - ``Sensor_Viewing_Model``: look angles PsiX, PsiY (rad) as polynomials in (k - 1), k the
+    1-based retina column; image column c is retina column Position_In_Retina/FIRST_COL + c - 1
+    (the retina range may be wider than the image); the body line of sight is (PsiY, -PsiX, 1) with the angles themselves
     (not their tangents), i.e. camera ux = PsiY, uy = -PsiX, installation = identity.
 The vendor's ``Geoposition/Rational_Sensor_Model/Global_RFM`` (direct image -> ground and
 inverse ground -> image rational functions, normalisation in ``RFM_Validity`` as A = scale,
@@ -37,6 +38,7 @@ from . import parse_floats as _floats
 SENSOR_MODEL = "Geometric_Data/Sensor_Model_Characteristics"
 GLOBAL_RFM = "Geoposition/Rational_Sensor_Model/Global_RFM"
 PLATFORMS = {"PHR": "Pleiades", "SPOT": "SPOT"}
+MAX_LOOK_ANGLE = 0.5  # rad: half the widest field of view a pushbroom retina could have
 
 
 def read_dimap(path: str | Path, root: ElementTree.Element) -> SceneModel:
@@ -167,20 +169,33 @@ def _read_attitude(model, src: str, epoch_dt: np.datetime64, timing: LineTiming,
 
 
 def _read_look_angles(model, src: str, cols: int) -> Chip:
-    """PsiX, PsiY (rad) polynomials in the detector index d = c - 1 (c the 1-based column).
+    """PsiX, PsiY (rad) polynomials in the retina index d = k - 1 (k the 1-based retina column).
 
-    Only products whose retina positions are the image columns 1..NCOLS are accepted: the only
-    layout verified against vendor models.
+    ``Position_In_Retina`` FIRST_COL..LAST_COL is the range of retina columns the model covers;
+    image column c (1-based) is retina column FIRST_COL + c - 1, so a product cut across track
+    from a wider acquisition keeps the retina's polynomials and starts at its own FIRST_COL. The
+    range may be wider than the image (a real Pleiades product's model covers 1..NCOLS+1); one
+    narrower than the image, or look angles beyond MAX_LOOK_ANGLE over the image, are refused.
     """
     where = f"{SENSOR_MODEL}/Sensor_Viewing_Model"
     view = _find(model, "Sensor_Viewing_Model", src, "the viewing directions", SENSOR_MODEL)
-    first = int(_number(view, "Position_In_Retina/FIRST_COL", src, where))
-    last = int(_number(view, "Position_In_Retina/LAST_COL", src, where))
-    if (first, last) != (1, cols):
-        raise MetadataError(f"{src}: {where}/Position_In_Retina: columns {first}..{last}; this reader "
-                            f"handles retina positions 1..{cols} (the image's NCOLS) only")
-    psi = {name: _polynomial(view, f"Viewing_Directions/{name}_Model", src, where, "a look-angle polynomial")
-           for name in ("PsiX", "PsiY")}
+    first = _number(view, "Position_In_Retina/FIRST_COL", src, where)
+    last = _number(view, "Position_In_Retina/LAST_COL", src, where)
+    if first != int(first) or last != int(last) or first < 1 or last - first + 1 < cols:
+        raise MetadataError(f"{src}: {where}/Position_In_Retina: retina columns {first:g}..{last:g} do not cover "
+                            f"the image's {cols} columns (Raster_Dimensions/NCOLS); expected whole column numbers "
+                            f"from 1 with LAST_COL - FIRST_COL + 1 >= {cols}")
+    shift = np.polynomial.Polynomial([first - 1.0, 1.0])  # retina index of image index c - 1
+    psi = {}
+    for name in ("PsiX", "PsiY"):
+        poly = np.polynomial.Polynomial(_polynomial(view, f"Viewing_Directions/{name}_Model", src, where,
+                                                    "a look-angle polynomial"))
+        psi[name] = poly(shift).coef if first > 1 else poly.coef
+        ends = poly(np.array([first - 1.0, first + cols - 2.0]))
+        if not np.all(np.abs(ends) <= MAX_LOOK_ANGLE):
+            raise MetadataError(f"{src}: {where}/Viewing_Directions/{name}_Model: look angles {ends[0]:.4g} and "
+                                f"{ends[1]:.4g} rad at the image's first and last columns; a pushbroom "
+                                f"retina sees within +-{MAX_LOOK_ANGLE} rad of its axis (radians expected)")
     return Chip(col_offset=0.0, n_pixels=cols, kind="look_angle", ux_poly=psi["PsiY"], uy_poly=-psi["PsiX"],
                 name="retina")
 
@@ -230,10 +245,13 @@ def _find(parent, path: str, src: str, what: str, where: str = ""):
 
 
 def _text(parent, path: str, src: str, where: str) -> str:
-    elem = parent.find(path)
+    found = parent.findall(path)
     full = _join(where, path)
-    if elem is None:
+    if not found:
         raise MetadataError(f"{src}: <{full}> is missing")
+    if len(found) > 1:
+        raise MetadataError(f"{src}: <{full}> appears {len(found)} times; expected once")
+    elem = found[0]
     text = (elem.text or "").strip()
     if not text:
         raise MetadataError(f"{src}: <{full}> is empty")

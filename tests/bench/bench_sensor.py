@@ -31,7 +31,7 @@ from core.scene_io import load_scene  # noqa: E402
 from core.simulator import simulate  # noqa: E402
 from tests.seams import round_trip_errors  # noqa: E402
 
-PLEIADES = REPO.parent / "shared" / "data" / "pleiades"
+PLEIADES = REPO / "tests" / "data" / "pleiades"
 
 
 def bench(name: str, scene, dem, n: int, seed: int = 0) -> None:

@@ -1,4 +1,4 @@
-"""Bundle adjustment on the real Pleiades 1B scene (shared/data/pleiades): a known attitude bias
+"""Bundle adjustment on the real Pleiades 1B scene (tests/data/pleiades): a known attitude bias
 and drift is put on the onboard model, GCPs come from the vendor's own direct RFM with image
 noise, and the adjustment must take the error out again.
 

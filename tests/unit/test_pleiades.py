@@ -1,4 +1,4 @@
-"""Pleiades DIMAP reader against the vendor's own models of the same scene (shared/data/pleiades):
+"""Pleiades DIMAP reader against the vendor's own models of the same scene (tests/data/pleiades):
 the Global_RFM (direct and inverse rational functions) in the XML, and an independent 65x65
 direct-localisation grid at 9 heights. Measured figures are in the assertions' comments."""
 from __future__ import annotations
@@ -258,4 +258,83 @@ def test_too_few_ephemeris_points(shared_data, tmp_path):
     path = tmp_path / "short.XML"
     path.write_text(head + tail)
     with pytest.raises(MetadataError, match="7 <Point> samples; 8 are needed"):
+        load_scene(path)
+
+
+# --- layouts the format allows: variants derived from the real product ---------------------------
+PERIOD_S = 0.0735e-3  # SENSOR_LINE_PERIOD of the product
+
+
+def variant(shared_data, tmp_path, cols=None, rows=None, retina=None, start_row=0, name="variant.XML"):
+    """The product edited as DIMAP allows: Raster_Dimensions NCOLS/NROWS, Position_In_Retina
+    FIRST_COL..LAST_COL and the sensor model's START/END moved by start_row lines (a product cut
+    from the acquisition keeps the retina's look-angle polynomials)."""
+    text = (shared_data / XML).read_text()
+    if cols is not None:
+        text = text.replace("<NCOLS>40000</NCOLS>", f"<NCOLS>{cols}</NCOLS>", 1)
+    if rows is not None:
+        text = text.replace("<NROWS>38248</NROWS>", f"<NROWS>{rows}</NROWS>", 1)
+    if retina is not None:
+        text = re.sub(r"<Position_In_Retina>.*?</Position_In_Retina>",
+                      f"<Position_In_Retina><FIRST_COL>{retina[0]}</FIRST_COL><LAST_COL>{retina[1]}</LAST_COL>"
+                      "</Position_In_Retina>", text, flags=re.S)
+    if start_row or rows is not None:
+        start = np.datetime64("2018-12-26T10:48:55.449000000") + np.timedelta64(round(start_row * PERIOD_S * 1e9), "ns")
+        end = start + np.timedelta64(round((rows or 38248) * PERIOD_S * 1e9), "ns")
+        text = re.sub(r"<UTC_Sensor_Model_Range>.*?</UTC_Sensor_Model_Range>",
+                      f"<UTC_Sensor_Model_Range><START>{start}Z</START><END>{end}Z</END></UTC_Sensor_Model_Range>",
+                      text, flags=re.S)
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_retina_one_column_wider_than_the_image(shared_data, tmp_path, scene):
+    """A real Pleiades product's model covers retina columns 1..NCOLS+1: the same model."""
+    wider = load_scene(variant(shared_data, tmp_path, retina=(1, 40001)))
+    col, row = image_grid(scene, 6)
+    np.testing.assert_array_equal(wider.image_to_ground(col, row, 575.0), scene.image_to_ground(col, row, 575.0))
+    wide = load_scene(variant(shared_data, tmp_path, retina=(1, 60000), name="wide.XML"))
+    np.testing.assert_array_equal(wide.image_to_ground(col, row, 575.0), scene.image_to_ground(col, row, 575.0))
+
+
+@pytest.mark.parametrize("first_col, first_row, cols, rows", [
+    (12001, 0, 9000, 38248),       # cut across track: retina columns 12001..21000
+    (1, 20000, 40000, 8000),       # cut along track: rows 20001..28000
+    (30001, 5000, 10000, 10000),   # a window of the acquisition
+])
+def test_cut_product_meets_the_full_scenes_rfm(shared_data, tmp_path, rfm, first_col, first_row, cols, rows):
+    """A product cut from the acquisition (its own NCOLS/NROWS, FIRST_COL in the retina, START
+    moved by the rows cut) is the full scene's model shifted by the cut: the vendor RFM of the full
+    scene at (col + FIRST_COL - 1, row + first_row) sees the same ground. Measured < 0.003 px."""
+    cut = load_scene(variant(shared_data, tmp_path, cols=cols, rows=rows,
+                             retina=(first_col, first_col + cols - 1), start_row=first_row))
+    cam = cut.cameras[0]
+    assert (cam.cols, cam.rows) == (cols, rows)
+    col, row = image_grid(cut, 8)
+    lon, lat, h = ecef_to_geodetic(cut.image_to_ground(col, row, 575.0))
+    inverse, _ = rfm
+    c_full, r_full = inverse.ground_to_image(lon, lat, h)
+    assert np.max(np.abs(c_full - (col + first_col - 1))) < 0.01
+    assert np.max(np.abs(r_full - (row + first_row))) < 0.01
+
+
+@pytest.mark.parametrize("retina, cols, message", [
+    ((1, 39999), None, r"retina columns 1\.\.39999 do not cover the image's 40000 columns"),
+    ((0, 40000), None, r"retina columns 0\.\.40000 do not cover"),
+    ((1.5, 40001), None, r"retina columns 1\.5\.\.40001"),
+    ((40000, 1), None, r"retina columns 40000\.\.1 do not cover"),
+    ((900001, 940000), None, r"PsiX_Model: look angles .* rad at the image's first and last columns"),
+])
+def test_implausible_retina_layouts_are_refused(shared_data, tmp_path, retina, cols, message):
+    with pytest.raises(MetadataError, match=message):
+        load_scene(variant(shared_data, tmp_path, cols=cols, retina=retina))
+
+
+def test_look_angles_in_degrees_are_refused(shared_data, tmp_path):
+    text = (shared_data / XML).read_text().replace("<COEFFICIENTS>-0.01422 7.11e-07</COEFFICIENTS>",
+                                                    "<COEFFICIENTS>-0.8147 4.07e-05</COEFFICIENTS>")
+    path = tmp_path / "degrees.XML"
+    path.write_text(text)
+    with pytest.raises(MetadataError, match=r"PsiX_Model: look angles -0\.8147 and .* \(radians expected\)"):
         load_scene(path)

@@ -96,7 +96,7 @@ def test_footprint_on_a_dem_and_an_uncovering_dem(tmp_path):
     (fp,) = footprints(scene, Dem(tmp_path / "big.tif", datum="ellipsoid"), samples_per_edge=16)
     assert np.allclose(fp.height, 100.0, atol=1e-3)
     _write_dem(tmp_path / "small.tif", -0.05, -0.05, 0.001, 20)
-    with pytest.raises(InputError, match="camera 'PAN': .* do not meet the terrain surface"):
+    with pytest.raises(InputError, match="camera 'PAN': .* do not meet DEM .*small.tif"):
         footprints(scene, Dem(tmp_path / "small.tif", datum="ellipsoid"))
 
 
