@@ -1,7 +1,7 @@
 """Hostile inputs: Maxar/DigitalGlobe isd XML (WorldView) through pushbroom:footprint and
 pushbroom:groundtoimage.
 
-Each case edits a temporary copy of a real WorldView-2 XML (../shared/data/worldview2, via the
+Each case edits a temporary copy of a real WorldView-2 XML (tests/data/worldview2, via the
 ``shared_data`` fixture) and asserts the exact behaviour: a QgsProcessingException naming SCENE,
 the file and the field, with the XML and the output folder unchanged; or, for input that is
 legitimate but not what the reader was checked on, a result with a warning naming what it assumed.

@@ -1,8 +1,8 @@
 """WorldView-2 and WorldView-3 (Maxar isd XML) reader against the models that come with them.
 
 Truth: the RPB (RPC00B) and the IMD corner coordinates of each scene. For the WorldView-2 scenes
-both are Maxar's. Data: ../shared/data/worldview2 (NASA Ames Stereo Pipeline test data,
-Apache-2.0; metadata (c) Maxar) and ../shared/data/worldview3 (uw-cryo asp_plot test data,
+both are Maxar's. Data: tests/data/worldview2 (NASA Ames Stereo Pipeline test data,
+Apache-2.0; metadata (c) Maxar) and tests/data/worldview3 (uw-cryo asp_plot test data,
 BSD-3-Clause; metadata (c) Maxar). The WorldView-3 file (ISD 28.3, 2022) is the output of the
 Ames Stereo Pipeline's dg_mosaic: its RPB was refitted by ASP's rpc_gen to ASP's model without
 velocity aberration and refraction (ASP 3.1-3.3), while its IMD corners are Maxar's; see the
