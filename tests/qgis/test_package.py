@@ -6,6 +6,7 @@ import ast
 import configparser
 import json
 import os
+import re
 import subprocess
 import sys
 import zipfile
@@ -20,6 +21,7 @@ from core.products import footprints
 from core.scene_io import load_scene
 
 from .conftest import PLUGIN, QGIS_PROCESS, REPO
+from .test_provider import ALGORITHMS, MODELS
 
 CONTENT = ("metadata.txt", "__init__.py", "plugin.py", "LICENSE", "README.md", "core", "ui", "resources")
 # What the plugin may import besides itself: the standard library and these (QGIS's Python and the
@@ -107,6 +109,12 @@ def test_zip_metadata_is_complete_and_truthful(package):
     assert package.name == f"{PLUGIN}-{meta['version']}.zip"
     assert meta["changelog"].split()[0] == meta["version"]  # the newest entry is this version
     assert f"{PLUGIN}/{meta['icon']}" in names
+    with zipfile.ZipFile(package) as z:
+        ui_source = "".join(z.read(n).decode("utf-8") for n in z.namelist() if n.startswith(f"{PLUGIN}/ui/"))
+    resources = re.findall(r'"([\w./-]+\.(?:qml|svg|model3))"', ui_source)  # files the code names
+    assert "icon.svg" in resources and "gcps.qml" in resources
+    shipped = {n.rsplit("/", 1)[-1] for n in names if n.startswith(f"{PLUGIN}/resources/")}
+    assert set(resources) <= shipped
     assert "GNU GENERAL PUBLIC LICENSE" in licence and "Version 2, June 1991" in licence
     assert "any later version" in meta["about"]
 
@@ -196,6 +204,10 @@ def test_installed_zip_enables_and_runs_in_a_fresh_profile(installed, tmp_path):
     run = _qgis_process(installed, tmp_path)
     enabled = run("plugins", "enable", PLUGIN)
     assert enabled.returncode == 0, enabled.stdout + enabled.stderr
+    listed = run("list")
+    assert listed.returncode == 0, listed.stderr
+    for alg in ALGORITHMS + MODELS:  # the models come from the zip's resources/models/
+        assert f"\t{alg}\t" in listed.stdout, alg
     sim = _run_json(run, "pushbroom:simulatescene", SEED=3, N_GCPS=12, OUTPUT_FOLDER=tmp_path / "sim")
     out = tmp_path / "footprint.gpkg"
     _run_json(run, "pushbroom:footprint", SCENE=sim["TRUE_SCENE"], DEM=sim["DEM"], DEM_DATUM=0, SAMPLES=16,
