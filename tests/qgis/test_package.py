@@ -22,6 +22,7 @@ from core.scene_io import load_scene
 
 from .conftest import PLUGIN, QGIS_PROCESS, REPO
 from .test_provider import ALGORITHMS, MODELS
+from .test_qgis_process import _run_json
 
 CONTENT = ("metadata.txt", "__init__.py", "plugin.py", "LICENSE", "README.md", "core", "ui", "resources")
 # What the plugin may import besides itself: the standard library and these (QGIS's Python and the
@@ -73,19 +74,13 @@ def _qgis_process(config: Path, cwd: Path):
     return run
 
 
-def _run_json(run, alg, **params) -> dict:
-    done = run("--json", "run", alg, "--", *(f"{k}={v}" for k, v in params.items()))
-    assert done.returncode == 0, done.stdout + done.stderr
-    return json.loads(done.stdout)["results"]
-
-
 def test_zip_holds_exactly_the_tracked_plugin_files_in_one_folder(package):
     with zipfile.ZipFile(package) as z:
         names = z.namelist()
         assert z.testzip() is None
     files = {n for n in names if not n.endswith("/")}
-    tracked = subprocess.run(["git", "ls-files", "--", *CONTENT], cwd=REPO, capture_output=True, text=True,
-                             check=True).stdout.split()
+    tracked = subprocess.run(["git", "ls-files", "-z", "--", *CONTENT], cwd=REPO, capture_output=True, text=True,
+                             check=True).stdout.split("\0")[:-1]
     assert len(tracked) > 40  # the listing really sees the plugin
     assert files == {f"{PLUGIN}/{f}" for f in tracked}
     assert names[0] == f"{PLUGIN}/"  # plugins.qgis.org takes the package name from the first entry
