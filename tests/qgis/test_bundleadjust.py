@@ -17,7 +17,7 @@ from core.gcps import read_gpkg
 from core.geodesy import enu_rotations, geodetic_to_ecef
 from core.scene_io import load_scene
 
-from .test_qgis_process import _run_json, qgis_process  # noqa: F401 (fixture)
+from .test_qgis_process import _run_json
 
 INTERIOR = "HRC-1.*, HRC-3.*"
 NEW_FIELDS = ("res_col", "res_row", "res_px", "res_m", "w_col", "w_row", "redundancy", "weight", "flagged")
@@ -266,7 +266,7 @@ def _few_gcps(sim, folder: Path, n_control: int) -> str:
                                                    "OUTPUT": str(folder / f"few{n_control}.gpkg")})["OUTPUT"]
 
 
-def test_bundleadjust_from_the_command_line(qgis_process, chain, tmp_path):  # noqa: F811
+def test_bundleadjust_from_the_command_line(qgis_process, chain, tmp_path):
     """Orientation images for position and attitude, from qgis_process, with the GCP file path."""
     sim, gcps, _, _ = chain
     results = _run_json(qgis_process, "pushbroom:bundleadjust", SCENE=sim["ONBOARD_SCENE"], GCPS=gcps,

@@ -16,7 +16,6 @@ from core.rpcfit import fit_rpc
 from core.scene_io import load_scene
 from tests.ortho_compare import shift_against_texture
 
-from .test_qgis_process import qgis_process  # noqa: F401 (fixture)
 
 MODEL_FILE = Path(__file__).resolve().parents[2] / "resources" / "models" / "simulate_adjust_orthorectify.model3"
 MODEL_ID = "pushbroom:Simulate, adjust, orthorectify and export RPC"
@@ -76,7 +75,7 @@ def test_the_model_chain_exports_an_rpc_gdal_uses(chain):
     assert err.max() <= report["check"]["max_px"] + 0.01, err
 
 
-def test_the_model_runs_from_qgis_process(qgis_process, tmp_path):  # noqa: F811
+def test_the_model_runs_from_qgis_process(qgis_process, tmp_path):
     """Outputs not given on the command line reach the steps empty: they are written to temporary
     files (the adjusted scene the later steps need among them)."""
     listing = qgis_process("list")
