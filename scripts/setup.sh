@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Idempotent set-up: Debian packages (installed only when missing) and the .venv with pytest-qgis.
+# Idempotent set-up: Debian packages (installed only when missing) and the .venv with pytest-qgis and ruff.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -22,4 +22,8 @@ if [ ! -x .venv/bin/python ]; then
 fi
 if ! .venv/bin/python -c "import pytest_qgis" 2>/dev/null; then
     .venv/bin/python -m pip install -q --disable-pip-version-check "pytest-qgis<3" </dev/null
+fi
+RUFF_VERSION=0.17.5  # the linter .ci/run runs (configuration: ruff.toml)
+if [ "$(.venv/bin/ruff --version 2>/dev/null)" != "ruff $RUFF_VERSION" ]; then
+    .venv/bin/python -m pip install -q --disable-pip-version-check "ruff==$RUFF_VERSION" </dev/null
 fi

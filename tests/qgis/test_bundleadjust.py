@@ -268,7 +268,7 @@ def _few_gcps(sim, folder: Path, n_control: int) -> str:
                                                    "OUTPUT": str(folder / f"few{n_control}.gpkg")})["OUTPUT"]
 
 
-def test_bundleadjust_from_the_command_line(qgis_process, chain, tmp_path):  # noqa: F811
+def test_bundleadjust_from_the_command_line(qgis_process, chain, tmp_path):
     """Orientation images for position and attitude, from qgis_process, with the GCP file path."""
     sim, gcps, _, _ = chain
     results = _run_json(qgis_process, "pushbroom:bundleadjust", SCENE=sim["ONBOARD_SCENE"], GCPS=gcps,

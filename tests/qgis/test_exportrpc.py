@@ -116,7 +116,7 @@ def test_a_dem_that_does_not_cover_the_scene(simulated, tmp_path):
     assert not out.exists()
 
 
-def test_run_exportrpc_from_the_command_line(qgis_process, simulated, tmp_path):  # noqa: F811
+def test_run_exportrpc_from_the_command_line(qgis_process, simulated, tmp_path):
     out = tmp_path / "scene_RPC.TXT"
     results = _run_json(qgis_process, "pushbroom:exportrpc", SCENE=simulated["TRUE_SCENE"], HEIGHT=700,
                         HEIGHT_SPAN=600, GRID=21, OUTPUT=out)

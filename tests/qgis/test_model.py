@@ -75,7 +75,7 @@ def test_the_model_chain_exports_an_rpc_gdal_uses(chain):
     assert err.max() <= report["check"]["max_px"] + 0.01, err
 
 
-def test_the_model_runs_from_qgis_process(qgis_process, tmp_path):  # noqa: F811
+def test_the_model_runs_from_qgis_process(qgis_process, tmp_path):
     """Outputs not given on the command line reach the steps empty: they are written to temporary
     files (the adjusted scene the later steps need among them)."""
     listing = qgis_process("list")

@@ -84,7 +84,7 @@ def test_a_dem_covering_part_of_the_scene_is_warned(provider, raw, tmp_path):
     assert part.shape == whole.shape and 0.2 < np.mean(part > 0) / np.mean(whole > 0) < 0.8
 
 
-def test_orthorectify_from_the_command_line(qgis_process, raw, tmp_path):  # noqa: F811
+def test_orthorectify_from_the_command_line(qgis_process, raw, tmp_path):
     scene, image, dem = raw
     results = _run_json(qgis_process, "pushbroom:orthorectify", INPUT=image, SCENE=scene, DEM=dem, DEM_DATUM=0,
                         CRS="EPSG:32650", RESOLUTION=10, OUTPUT=tmp_path / "o.tif")
