@@ -94,9 +94,12 @@ class _Schema:
         if not isinstance(value, list):
             self.fail(path, f"must be a list of numbers (got {_shown(value)})")
         try:
-            a = np.array(value, dtype=float)
-        except (TypeError, ValueError):
+            kind = np.array(value).dtype.kind
+        except ValueError:  # ragged rows
+            kind = "O"
+        if kind not in "iuf":  # also text ("0"), true/false and null
             self.fail(path, "must hold only numbers, in rows of equal length")
+        a = np.array(value, dtype=float)
         if a.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, a.shape)):
             want = " x ".join("N" if n is None else str(n) for n in shape)
             self.fail(path, f"must be an array of shape {want} (got shape {' x '.join(map(str, a.shape)) or '()'})")
