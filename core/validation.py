@@ -109,6 +109,23 @@ class _Schema:
             self.fail(_join(path, index), f"must be a finite number (got {a[tuple(index)]})")
         return a
 
+    def lengths_within(self, rows: np.ndarray, path: str, bounds: tuple[float, float], problem: str) -> None:
+        """Every row's length within ``bounds``; ``problem`` formats (length, low, high)."""
+        with np.errstate(over="ignore"):
+            length = np.linalg.norm(rows, axis=1)
+        bad = ~((length >= bounds[0]) & (length <= bounds[1]))
+        if bad.any():
+            i = int(np.argmax(bad))
+            self.fail(_join(path, [i]), problem.format(length[i], *bounds))
+
+    def sample_times(self, d: dict, path: str) -> np.ndarray:
+        """The strictly increasing ``times`` (at least 2) of a trajectory table."""
+        times = self.array(self.required(d, "times", path), f"{path}.times", (None,))
+        if times.size < 2:
+            self.fail(f"{path}.times", f"needs at least 2 samples (got {times.size})")
+        self.increasing(times, f"{path}.times")
+        return times
+
     def increasing(self, a: np.ndarray, path: str) -> None:
         steps = np.diff(a)
         if (steps <= 0).any():
@@ -175,26 +192,14 @@ def _check_order(s: _Schema, value, path: str, samples: int) -> None:
 
 def _check_ephemeris(s: _Schema, e: dict) -> None:
     p = "platform.ephemeris"
-    times = s.array(s.required(e, "times", p), f"{p}.times", (None,))
-    if times.size < 2:
-        s.fail(f"{p}.times", f"needs at least 2 samples (got {times.size})")
-    s.increasing(times, f"{p}.times")
+    times = s.sample_times(e, p)
     pos = s.array(s.required(e, "positions", p), f"{p}.positions", (times.size, 3))
-    with np.errstate(over="ignore"):
-        radius = np.linalg.norm(pos, axis=1)
-    bad = (radius < ORBIT_RADIUS[0]) | (radius > ORBIT_RADIUS[1])
-    if bad.any():
-        i = int(np.argmax(bad))
-        s.fail(f"{p}.positions[{i}]", f"is {radius[i]:.6g} m from the Earth's centre; a satellite is "
-                                      f"{ORBIT_RADIUS[0]:.3g} to {ORBIT_RADIUS[1]:.3g} m away (ECEF metres expected)")
+    s.lengths_within(pos, f"{p}.positions", ORBIT_RADIUS, "is {:.6g} m from the Earth's centre; a satellite is "
+                                                          "{:.3g} to {:.3g} m away (ECEF metres expected)")
     if e.get("velocities") is not None:
         vel = s.array(e["velocities"], f"{p}.velocities", (times.size, 3))
-        speed = np.linalg.norm(vel, axis=1)
-        bad = (speed < ORBIT_SPEED[0]) | (speed > ORBIT_SPEED[1])
-        if bad.any():
-            i = int(np.argmax(bad))
-            s.fail(f"{p}.velocities[{i}]", f"speed {speed[i]:.6g} m/s is not an orbital speed "
-                                           f"({ORBIT_SPEED[0]:g} to {ORBIT_SPEED[1]:g} m/s, ECEF m/s expected)")
+        s.lengths_within(vel, f"{p}.velocities", ORBIT_SPEED, "speed {:.6g} m/s is not an orbital speed "
+                                                              "({:g} to {:g} m/s, ECEF m/s expected)")
     if "order" in e:
         _check_order(s, e["order"], f"{p}.order", times.size)
 
@@ -212,10 +217,7 @@ def _check_attitude(s: _Schema, a: dict) -> dict | None:
         return None
     if kind != "quaternion_samples":
         s.fail(f"{p}.kind", f"must be 'quaternion_samples' or 'quaternion_polynomial' (got {_shown(kind)})")
-    times = s.array(s.required(a, "times", p), f"{p}.times", (None,))
-    if times.size < 2:
-        s.fail(f"{p}.times", f"needs at least 2 samples (got {times.size})")
-    s.increasing(times, f"{p}.times")
+    times = s.sample_times(a, p)
     q = s.array(s.required(a, "quaternions", p), f"{p}.quaternions", (times.size, 4))
     norm = np.linalg.norm(q, axis=1)
     off = np.abs(norm - 1.0) > QUATERNION_TOLERANCE
