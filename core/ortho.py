@@ -113,7 +113,7 @@ def default_grid(scene: SceneModel, camera: int, surface, crs: CRS | None = None
     xmin, ymin, xmax, ymax = extent or (np.min(x[:-2]), np.min(y[:-2]), np.max(x[:-2]), np.max(y[:-2]))
     if not (xmax > xmin and ymax > ymin):
         raise InputError(f"the extent {extent} is empty: it needs xmin < xmax and ymin < ymax")
-    width, height = (xmax - xmin) / resolution, (ymax - ymin) / resolution
+    width, height = float(xmax - xmin) / resolution, float(ymax - ymin) / resolution
     if not width * height <= MAX_OUTPUT_PIXELS:  # also inf: never round sizes that no file can hold
         raise InputError(f"resolution {resolution:g} m: the output would have {width:.4g} x {height:.4g} pixels "
                          f"(more than {MAX_OUTPUT_PIXELS:.0e}); choose a coarser resolution or a smaller extent")

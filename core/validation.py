@@ -380,8 +380,10 @@ def _check_views(scene, source: str) -> None:
     for i, cam in enumerate(scene.cameras):
         col = np.array([0.0, cam.cols, 0.0, cam.cols, cam.cols / 2])
         row = np.array([0.0, 0.0, cam.rows, cam.rows, cam.rows / 2])
-        _, s, _, u = scene.line_of_sight(col, row, i)
-        dist = ray_height_intersection(s, u, 0.0, newton_steps=0)
+        # from the exact trajectory: preparing the scene's cache here would outlive later edits of the model
+        s, _, r = scene.platform.state(cam.timing.time(row) + cam.time_offset(cam.chip_index(col)))
+        u = np.einsum("nij,nj->ni", r, cam.los_camera(col) @ cam.installation.T)
+        dist = ray_height_intersection(s, u / np.linalg.norm(u, axis=1, keepdims=True), 0.0, newton_steps=0)
         missed = ~np.isfinite(dist)
         if missed.any():
             k = int(np.argmax(missed))
