@@ -35,6 +35,8 @@ from pyproj.exceptions import CRSError
 from .dem import Dem, to_ellipsoidal
 from .errors import InputError
 from .geodesy import geodetic_to_ecef
+from .validation import (MAX_IMAGE_COORDINATE, PLAUSIBLE_HEIGHTS, implausible_heights,
+                         implausible_image_coordinates)
 from .vector_io import open_layer, write_layer
 
 gdal.UseExceptions()
@@ -48,7 +50,9 @@ HEIGHT_SOURCES = ("z", "dem", "constant")
 DEFAULT_SIGMA_PX = 0.5
 DEFAULT_SIGMA_XY = 1.0
 DEFAULT_SIGMA_Z = 1.0
-MAX_SIGMA = 1e6  # px or m: a per-point sigma beyond is no measurement
+# Largest a-priori sigmas accepted: beyond them a point carries no information (and a typo is likelier).
+# Ground sigmas may be 0 (ground fixed); the image sigma may not.
+MAX_SIGMA = {"sigma_px": 1e4, "sigma_xy": 1e5, "sigma_z": 1e5}
 GPKG_LAYER = "gcps"
 SCENE_METADATA_KEY = "PUSHBROOM_SCENE"
 _MAX_LISTED = 10
@@ -182,7 +186,9 @@ def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None
     _require_unique(ids, camera, source)
     lon, lat = _to_lonlat(x, y, crs, ids, source)
     h = _heights(lon, lat, heights, z, ids, source)
-    return GcpTable(ids, _roles(role, ids, source), camera, col, row, lon, lat, h, sigma_px, sigma_xy, sigma_z)
+    table = GcpTable(ids, _roles(role, ids, source), camera, col, row, lon, lat, h, sigma_px, sigma_xy, sigma_z)
+    _require_plausible(table, source)
+    return table
 
 
 def _listed(ids) -> str:
@@ -206,6 +212,25 @@ def _require_unique(ids, camera, source: str) -> None:
         raise InputError(f"{source}: point id(s) {_listed(dup)} occur more than once for the same camera")
 
 
+def _require_plausible(table: GcpTable, source: str) -> None:
+    """Image coordinates no image reaches, heights no terrain has, and sigmas that are not
+    positive numbers are refused, naming the points (finite-ness is checked before)."""
+    checks = (("col/row", f"beyond any image (|value| > {MAX_IMAGE_COORDINATE:g} px)",
+               implausible_image_coordinates(table.col, table.row)),
+              ("h", f"not a terrain height ({PLAUSIBLE_HEIGHTS[0]:g} to {PLAUSIBLE_HEIGHTS[1]:g} m ellipsoidal)",
+               implausible_heights(table.h)))
+    for name, what, bad in checks:
+        if bad.any():
+            raise InputError(f"{source}: {name} of point(s) {_listed(table.id[bad])} is {what}")
+    for name, low in (("sigma_px", "> 0"), ("sigma_xy", ">= 0"), ("sigma_z", ">= 0")):
+        values = getattr(table, name)
+        with np.errstate(invalid="ignore"):
+            bad = ~(((values > 0) | ((values == 0) & (low == ">= 0"))) & (values < MAX_SIGMA[name]))
+        if bad.any():
+            raise InputError(f"{source}: {name} of point(s) {_listed(table.id[bad])} must be {low} and below "
+                             f"{MAX_SIGMA[name]:g} (got {values[bad][0]:g})")
+
+
 def parse_crs(crs, source: str = "GCP input") -> CRS:
     """A pyproj CRS from any user string (EPSG:xxxx, WKT, PROJ); InputError naming it if unknown."""
     if crs is None or not str(crs).strip():
@@ -227,7 +252,7 @@ def _to_lonlat(x, y, crs, ids, source: str) -> tuple[np.ndarray, np.ndarray]:
     """(lon, lat) WGS84 degrees of (x, y) in crs (axis order: easting/longitude first)."""
     tr = Transformer.from_crs(parse_crs(crs, source), CRS.from_epsg(4326), always_xy=True)
     lon, lat = (np.asarray(v, dtype=float) for v in tr.transform(x, y))
-    bad = ~(np.isfinite(lon) & np.isfinite(lat) & (np.abs(lat) <= 90.0))
+    bad = ~(np.isfinite(lon) & np.isfinite(lat) & (np.abs(lat) <= 90.0) & (np.abs(lon) <= 360.0))
     if bad.any():
         raise InputError(f"{source}: ground coordinates of point(s) {_listed(ids[bad])} cannot be converted "
                          f"from {tr.source_crs.name!r} to WGS84 (outside the CRS's area or wrong axis order?)")
@@ -298,7 +323,8 @@ def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpT
     for key in ("sigma_px", "sigma_xy", "sigma_z"):
         column = getattr(mapping, key)
         if column is not None:
-            sigmas[key] = per_point_sigmas(text(column), sigmas.get(key, _DEFAULT_SIGMAS[key]), column, ids, source)
+            sigmas[key] = per_point_sigmas(text(column), sigmas.get(key, _DEFAULT_SIGMAS[key]), column, ids, source,
+                                           key)
     return build_table(ids, number(mapping.col), number(mapping.row), number(mapping.x), number(mapping.y),
                        crs=crs, heights=heights, z=number(mapping.z), role=text(mapping.role),
                        camera=text(mapping.camera), source=source, **sigmas)
@@ -307,9 +333,10 @@ def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpT
 _DEFAULT_SIGMAS = {"sigma_px": DEFAULT_SIGMA_PX, "sigma_xy": DEFAULT_SIGMA_XY, "sigma_z": DEFAULT_SIGMA_Z}
 
 
-def per_point_sigmas(values, default: float, name: str, ids, source: str) -> np.ndarray:
-    """(n,) sigmas from a column of per-point values (text, numbers, or None); empty cells and
-    None take ``default``. Every given value must be a number in (0, MAX_SIGMA]: InputError naming the
+def per_point_sigmas(values, default: float, name: str, ids, source: str, key: str) -> np.ndarray:
+    """(n,) sigmas ``key`` (sigma_px, sigma_xy or sigma_z) from a column of per-point values (text, numbers,
+    or None); empty cells and None take ``default``. Every given value must be a number in
+    (0, MAX_SIGMA[key]): InputError naming the
     column ``name`` and the points otherwise (an exact point is not a sigma of 0 but GROUND =
     fixed in the adjustment)."""
     ids = np.asarray(ids, dtype=str)
@@ -319,11 +346,11 @@ def per_point_sigmas(values, default: float, name: str, ids, source: str) -> np.
     out = np.full(raw.size, float(default))
     ok = given & numeric
     out[ok] = np.char.replace(raw[ok], ",", ".").astype(float)
-    bad = given & ~(numeric & (out > 0) & (out <= MAX_SIGMA))
+    bad = given & ~(numeric & (out > 0) & (out < MAX_SIGMA[key]))
     if bad.any():
         shown = ", ".join(f"{i}: {t!r}" for i, t in zip(ids[bad][:_MAX_LISTED], raw[bad][:_MAX_LISTED]))
         more = f" and {int(bad.sum()) - _MAX_LISTED} more" if bad.sum() > _MAX_LISTED else ""
-        raise InputError(f"{source}: per-point sigma field {name!r} must hold numbers > 0 and <= {MAX_SIGMA:g} (or "
+        raise InputError(f"{source}: per-point sigma field {name!r} must hold numbers > 0 and below {MAX_SIGMA[key]:g} (or "
                          f"stay empty for the default {default:g}); point(s) {shown}{more}. A sigma of 0 is not possible in a weighted "
                          "adjustment: give exact points a small sigma, or fix all ground coordinates (GROUND)")
     return out
@@ -595,6 +622,9 @@ def read_gpkg(path, layer: str | None = None) -> GcpTable:
         geom = feat.GetGeometryRef()
         if geom is None:
             raise InputError(f"{path}: point {feat.GetField('id')!r} has no geometry")
+        if ogr.GT_Flatten(geom.GetGeometryType()) != ogr.wkbPoint:
+            raise InputError(f"{path}: GCP {feat.GetField('id')!r} is a {geom.GetGeometryName().lower()}, not a point "
+                             f"(a GCP layer holds points)")
         if to_wgs is not None:
             geom = geom.Clone()
             geom.Transform(to_wgs)
@@ -613,6 +643,7 @@ def read_gpkg(path, layer: str | None = None) -> GcpTable:
                      lon, lat, h, _float(cols["sigma_px"], DEFAULT_SIGMA_PX),
                      _float(cols["sigma_xy"], DEFAULT_SIGMA_XY), _float(cols["sigma_z"], DEFAULT_SIGMA_Z),
                      scene=lyr.GetMetadataItem(SCENE_METADATA_KEY) or "")
+    _require_plausible(table, str(path))
     inside = _float(cols["inside"])
     if np.isfinite(inside).all():
         table.residuals = Residuals(_float(cols["res_col"]), _float(cols["res_row"]), _float(cols["res_px"]),

@@ -95,8 +95,8 @@ def ray_height_intersection(origin, direction, h, newton_steps: int = 2) -> np.n
     ellipsoidal height h (m, (n,) or scalar), nearest intersection in front of the origin.
 
     Intersects the ellipsoid inflated by h (exact for h = 0, metres off otherwise), then
-    refines with ``newton_steps`` Newton steps on the true geodetic height. Rays that miss
-    return NaN.
+    refines with ``newton_steps`` Newton steps on the true geodetic height. Rays that miss,
+    and origins on or below that surface (it is then met behind them or from inside), return NaN.
     """
     origin = np.asarray(origin, dtype=float)
     d = np.asarray(direction, dtype=float)
@@ -109,7 +109,8 @@ def ray_height_intersection(origin, direction, h, newton_steps: int = 2) -> np.n
     qc = np.einsum("...i,...i->...", ow, ow) - 1.0
     disc = qb * qb - 4.0 * qa * qc
     with np.errstate(invalid="ignore"):
-        s = (-qb - np.sqrt(disc)) / (2.0 * qa)
+        s = np.where(qc > 0, (-qb - np.sqrt(disc)) / (2.0 * qa), np.nan)
+        s = np.where(s > 0, s, np.nan)
     for _ in range(newton_steps):
         p = origin + s[..., None] * d
         lon, lat, hp = ecef_to_geodetic(p)

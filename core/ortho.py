@@ -34,12 +34,14 @@ from .dem import ConstantHeight
 from .errors import Cancelled, InputError
 from .geodesy import ecef_to_geodetic, geodetic_to_ecef
 from .sensor import SceneModel
+from .validation import check_nodata
 
 gdal.UseExceptions()
 log = logging.getLogger(__name__)
 
 RESAMPLING = {"nearest": 0, "bilinear": 1, "cubic": 3}  # spline orders of scipy.ndimage
 OVERVIEW_FACTORS = (2, 4, 8, 16, 32, 64)
+MAX_OUTPUT_PIXELS = 2e9  # per band: ~2 GB at 8 bits, more than any scene needs at its own GSD
 SEAM_MARGIN = 8.0  # px from a chip boundary within which cells are mapped pixel by pixel
 
 
@@ -111,11 +113,13 @@ def default_grid(scene: SceneModel, camera: int, surface, crs: CRS | None = None
     xmin, ymin, xmax, ymax = extent or (np.min(x[:-2]), np.min(y[:-2]), np.max(x[:-2]), np.max(y[:-2]))
     if not (xmax > xmin and ymax > ymin):
         raise InputError(f"the extent {extent} is empty: it needs xmin < xmax and ymin < ymax")
+    width, height = float(xmax - xmin) / resolution, float(ymax - ymin) / resolution
+    if not width * height <= MAX_OUTPUT_PIXELS:  # also inf: never round sizes that no file can hold
+        raise InputError(f"resolution {resolution:g} m: the output would have {width:.4g} x {height:.4g} pixels "
+                         f"(more than {MAX_OUTPUT_PIXELS:.0e}); choose a coarser resolution or a smaller extent")
     x0 = math.floor(xmin / resolution) * resolution
     y0 = math.ceil(ymax / resolution) * resolution
     cols, rows = int(math.ceil((xmax - x0) / resolution)), int(math.ceil((y0 - ymin) / resolution))
-    if cols * rows > 2e9:
-        raise InputError(f"the output would have {cols} x {rows} pixels; choose a coarser resolution or an extent")
     return OrthoGrid(crs, x0, y0, resolution, cols, rows)
 
 
@@ -406,6 +410,8 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
         raise ValueError(f"tile ({tile}) must be a multiple of step ({step}) and of {OVERVIEW_FACTORS[-1]}")
     cam = scene.cameras[camera]
     src = _open_raw(image_path, cam)
+    if nodata is not None:
+        check_nodata(nodata, gdal_array.GDALTypeCodeToNumericTypeCode(src.GetRasterBand(1).DataType))
     grid = grid or default_grid(scene, camera, surface)
     output_path = Path(output_path)
     tmp = output_path.with_name(output_path.stem + ".part.tif")

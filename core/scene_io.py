@@ -21,12 +21,14 @@ import json
 from pathlib import Path
 
 from .camera import Camera
-from .errors import InputError, MetadataError
+from .errors import MetadataError, PushbroomError
 from .sensor import SceneModel
 from .trajectory import Platform
+from .validation import check_scene_dict, check_scene_model
 
 FORMAT = "pushbroom-scene"
 VERSION = 2
+UTF8_BOM = b"\xef\xbb\xbf"  # written by some editors (Notepad); JSON and XML both allow it
 
 
 def scene_to_dict(scene: SceneModel) -> dict:
@@ -37,10 +39,9 @@ def scene_to_dict(scene: SceneModel) -> dict:
 
 
 def scene_from_dict(d: dict, source: str = "scene JSON") -> SceneModel:
-    if d.get("format") != FORMAT:
-        raise MetadataError(f"{source}: not a Pushbroom Adjust scene (field 'format' must be {FORMAT!r})")
-    if int(d.get("version", 0)) > VERSION:
-        raise MetadataError(f"{source}: scene version {d.get('version')} is newer than this plugin reads ({VERSION})")
+    """The SceneModel of a scene-JSON object, checked against the schema
+    (:func:`core.validation.check_scene_dict`); MetadataError naming ``source`` and the key path."""
+    d = check_scene_dict(d, source, FORMAT, VERSION)
     try:
         corrections = d.get("corrections", {})
         return SceneModel(epoch=str(d["epoch"]), platform=Platform.from_dict(d["platform"]),
@@ -49,8 +50,16 @@ def scene_from_dict(d: dict, source: str = "scene JSON") -> SceneModel:
                           refraction=bool(corrections.get("refraction", False)), info=dict(d.get("info", {})))
     except KeyError as exc:
         raise MetadataError(f"{source}: required field {exc.args[0]!r} is missing") from None
-    except (TypeError, ValueError, InputError) as exc:
+    except (TypeError, ValueError, PushbroomError) as exc:
         raise MetadataError(f"{source}: malformed value ({exc})") from None
+
+
+def validate_scene(scene: SceneModel, source: str) -> SceneModel:
+    """Check a scene read from any format by the scene-JSON schema and the model's own checks
+    (:mod:`core.validation`): vendor metadata meets the same rules as scene JSON."""
+    check_scene_dict(scene_to_dict(scene), source, FORMAT, VERSION)
+    check_scene_model(scene, source)
+    return scene
 
 
 def save_scene(scene: SceneModel, path: str | Path) -> None:
@@ -67,16 +76,17 @@ def load_scene(path: str | Path) -> SceneModel:
     if not path.is_file():
         raise MetadataError(f"{path}: no such file")
     with path.open("rb") as f:
-        head = f.read(4096).lstrip()
-    if head.startswith(b"{"):
+        head = f.read(4096).removeprefix(UTF8_BOM).lstrip()
+    if head.startswith((b"{", b"[")):
         try:
-            d = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
+            d = json.loads(path.read_text(encoding="utf-8-sig"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise MetadataError(f"{path}: invalid JSON ({exc})") from None
         scene = scene_from_dict(d, str(path))
+        check_scene_model(scene, str(path))
     elif head.startswith(b"<"):
         from .readers import read_xml_scene
-        scene = read_xml_scene(path)
+        scene = validate_scene(read_xml_scene(path), str(path))
     else:
         raise MetadataError(f"{path}: neither scene JSON nor XML metadata (DIMAP v2 or Maxar)")
     scene.info.setdefault("source", str(path))

@@ -164,6 +164,12 @@ class SceneModel:
         idx = np.nonzero(active | search)[0]
         if idx.size:
             p[idx] = self._first_crossing(s[idx], u[idx], idx, surface, h_range, tol)
+        # The surface is met in front of the satellite or not at all: never a point behind it.
+        behind = np.einsum("ni,ni->n", p - s, u) <= 0
+        if behind.any():
+            log.warning("%d lines of sight meet the surface only behind the satellite: no ground point",
+                        behind.sum())
+            p[behind] = np.nan
         return p
 
     def _surface_misfit(self, s, u, dist, idx, surface):

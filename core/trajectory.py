@@ -147,11 +147,14 @@ class QuaternionPolynomial:
         if not np.all(np.isfinite(self.coefficients)) or not np.isfinite(self.scale) or self.scale == 0:
             raise MetadataError("attitude polynomial has non-finite coefficients or a zero scale")
 
+    def quaternion(self, t) -> np.ndarray:
+        """The polynomials' quaternions (n, 4) at times t (n,) s, not normalised."""
+        u = (np.atleast_1d(np.asarray(t, dtype=float)) - self.offset) / self.scale
+        return (u[:, None] ** np.arange(self.coefficients.shape[1])) @ self.coefficients.T
+
     def rotation(self, t) -> np.ndarray:
         """Body -> ECEF rotation matrices (n, 3, 3) at times t (n,) s."""
-        u = (np.atleast_1d(np.asarray(t, dtype=float)) - self.offset) / self.scale
-        powers = u[:, None] ** np.arange(self.coefficients.shape[1])
-        return quat_to_matrix(powers @ self.coefficients.T)
+        return quat_to_matrix(self.quaternion(t))
 
     def to_dict(self) -> dict:
         return {"kind": "quaternion_polynomial", "offset": self.offset, "scale": self.scale,

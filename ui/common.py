@@ -174,6 +174,16 @@ def lonlat_of(parameter_name: str, crs, x, y) -> tuple[np.ndarray, np.ndarray]:
     return lon, lat
 
 
+def require_points(parameter_name: str, source) -> None:
+    """Refuse a feature source whose geometries are not points (a line or polygon layer where
+    points are meant: taking one vertex of each would be silently wrong)."""
+    from qgis.core import QgsWkbTypes
+    kind = QgsWkbTypes.geometryType(source.wkbType())
+    if kind != QgsWkbTypes.PointGeometry:
+        raise QgsProcessingException(f"{parameter_name}: the layer holds {QgsWkbTypes.displayString(source.wkbType())} "
+                                     f"geometries; a point layer is needed")
+
+
 def nonfinite_message(parameter_name: str, what: str, ids, bad) -> str:
     """Message naming (some of) the features whose values are NaN, missing or infinite."""
     first = ", ".join(str(i) for i in np.asarray(ids)[bad][:5])
@@ -226,13 +236,17 @@ def add_dem_parameters(alg, datum_help: str = "") -> None:
 def dem_from_parameters(alg, parameters, context):
     """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one."""
     from ..core.dem import ConstantHeight, Dem
+    from ..core.validation import check_surface_heights, check_terrain_height
     layer = alg.parameterAsRasterLayer(parameters, DEM, context)
     if layer is None:
-        return ConstantHeight(alg.parameterAsDouble(parameters, HEIGHT, context))
+        with processing_errors():
+            return ConstantHeight(check_terrain_height(alg.parameterAsDouble(parameters, HEIGHT, context), HEIGHT))
     datum = DEM_DATUMS[alg.parameterAsEnum(parameters, DEM_DATUM, context)]
     path = layer.source().split("|")[0]
     with processing_errors(f"{DEM}: "):
-        return Dem(path, datum)
+        dem = Dem(path, datum)
+        check_surface_heights(dem.height_range, path)
+        return dem
 
 
 # --- output styling -----------------------------------------------------------------------

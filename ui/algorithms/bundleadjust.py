@@ -132,7 +132,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                   "What to do when the GCPs cannot separate some parameters (e.g. all three CBERS CCDs' shifts "
                   "and the attitude): fix one of each set (the middle CCD's, if involved) or stop.", advanced=True)
         self.add_parameter(QgsProcessingParameterNumber(self.RESIDUAL_SCALE, "Residual vector exaggeration",
-                                               QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0),
+                                               QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0,
+                                               maxValue=1e6),
                   "Factor by which the ground residual vectors are drawn longer than they are.", advanced=True)
         self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_SCENE, "Adjusted scene",
                                                         fileFilter="Scene JSON (*.json)"),

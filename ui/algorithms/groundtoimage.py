@@ -7,9 +7,10 @@ from qgis.PyQt.QtCore import QVariant
 
 from ...core.dem import to_ellipsoidal
 from ...core.geodesy import geodetic_to_ecef
+from ...core.validation import PLAUSIBLE_HEIGHTS, implausible_heights
 from ..common import (STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
-                      core_call, dem_from_parameters, lonlat_of, nonfinite_message, scene_camera_and_features,
-                      style_output_on_load)
+                      core_call, dem_from_parameters, lonlat_of, nonfinite_message, require_points,
+                      scene_camera_and_features, style_output_on_load)
 
 Z_DATUMS = ("ellipsoid", "geoid")
 Z_DATUM_LABELS = ("Ellipsoid (WGS84)", "Geoid (EGM96)")
@@ -48,6 +49,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT, feedback)
+        require_points(self.INPUT, source)
         lon, lat, h = self._ground(parameters, context, source, features)
         check_cancelled(feedback)
         feedback.setProgressText(f"projecting {len(features)} points into camera {scene.cameras[camera].name}")
@@ -101,6 +103,13 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         datum = Z_DATUMS[self.parameterAsEnum(parameters, self.Z_DATUM, context)]
         if use_z.any():
             h[use_z] = core_call(to_ellipsoidal, lon[use_z], lat[use_z], xyz[use_z, 2], datum)
+            implausible = use_z & implausible_heights(h)
+            if implausible.any():
+                raise QgsProcessingException(
+                    f"{self.INPUT}: the Z values of {int(implausible.sum())} points are not terrain heights "
+                    f"({PLAUSIBLE_HEIGHTS[0]:g} to {PLAUSIBLE_HEIGHTS[1]:g} m ellipsoidal; feature ids "
+                    f"{', '.join(str(i) for i in ids[implausible][:5])}); uncheck {self.USE_Z} to take heights "
+                    f"from the DEM or HEIGHT")
         if (~use_z).any():
             surface = dem_from_parameters(self, parameters, context)
             h[~use_z] = surface.height(lon[~use_z], lat[~use_z])

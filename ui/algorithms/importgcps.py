@@ -11,9 +11,10 @@ from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsProcessing, QgsPro
                        QgsProcessingParameterVectorDestination, QgsWkbTypes)
 
 from ...core import gcps
+from ...core.validation import check_terrain_height
 from ..common import (DEM_DATUM, DEM_DATUMS, HEIGHT, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
                       add_scene_parameters, check_cancelled, core_call, dem_from_parameters, load_scene_for,
-                      style_output_on_load)
+                      require_points, style_output_on_load)
 
 HEIGHT_SOURCES = ("z", "dem", "constant")  # core.gcps.Heights.source, in the order of the enum
 HEIGHT_SOURCE_LABELS = ("Z values (Z_FIELD, or the layer's point Z)", "DEM", "Constant height (HEIGHT)")
@@ -162,7 +163,8 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         kind = HEIGHT_SOURCES[self.parameterAsEnum(parameters, self.HEIGHT_SOURCE, context)]
         datum = DEM_DATUMS[self.parameterAsEnum(parameters, DEM_DATUM, context)]
         if kind == "constant":
-            return gcps.Heights("constant", "ellipsoid", value=self.parameterAsDouble(parameters, HEIGHT, context))
+            value = self.parameterAsDouble(parameters, HEIGHT, context)
+            return gcps.Heights("constant", "ellipsoid", value=core_call(check_terrain_height, value, HEIGHT))
         if kind == "dem":
             dem = dem_from_parameters(self, parameters, context)
             if not hasattr(dem, "path"):
@@ -172,6 +174,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
 
     def _from_layer(self, parameters, context, source, heights, sigmas) -> gcps.GcpTable:
         """Arrays of the layer's features -> core.gcps.build_table (which checks them)."""
+        require_points(self.INPUT, source)
         features = list(source.getFeatures())
         if not features:
             raise QgsProcessingException(f"{self.INPUT}: the layer has no features")
@@ -194,7 +197,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
             if values is not None:
                 sigmas[key] = core_call(gcps.per_point_sigmas, _texts(values), sigmas[key],
                                         self.parameterAsString(parameters, name, context).strip(),
-                                        [str(i) for i in ids], f"{self.INPUT} layer")
+                                        [str(i) for i in ids], f"{self.INPUT} layer", key)
         z = column(self.Z_FIELD, False)
         if z is None and QgsWkbTypes.hasZ(source.wkbType()):
             z = xyz[:, 2]

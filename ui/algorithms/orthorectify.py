@@ -4,14 +4,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pyproj import CRS
+import numpy as np
+from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
-from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingException, QgsProcessingParameterCrs,
+from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY, QgsProcessingException,
+                       QgsProcessingParameterCrs, QgsRectangle,
                        QgsProcessingParameterEnum, QgsProcessingParameterExtent,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
                        QgsProcessingParameterRasterLayer)
 
+from ...core.dem import ConstantHeight
 from ...core.ortho import RESAMPLING, default_grid, orthorectify, scene_utm_crs
+from ...core.products import footprints
 from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       core_call, dem_from_parameters, feedback_callbacks, load_scene_for)
 
@@ -75,6 +79,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             rect = self.parameterAsExtent(parameters, self.EXTENT, context,
                                           QgsCoordinateReferenceSystem(crs.to_wkt()))
             extent = (rect.xMinimum(), rect.yMinimum(), rect.xMaximum(), rect.yMaximum())
+            self._check_extent(scene, camera, surface, crs, extent, feedback)
         resolution = self.parameterAsDouble(parameters, self.RESOLUTION, context) or None
         feedback.setProgressText("planning the output grid")
         grid = core_call(default_grid, scene, camera, surface, crs, resolution, extent)
@@ -91,6 +96,24 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             feedback.pushWarning(f"{DEM}: the DEM gives no height for {100 * figures['dem_gap_share']:.1f} % "
                                  "of the image's footprint in the output; those pixels are nodata")
         return {self.OUTPUT: output}
+
+    def _check_extent(self, scene, camera: int, surface, crs: CRS, extent: tuple, feedback) -> None:
+        """Refuse an EXTENT that misses the image's footprint (traced at the terrain's mean
+        height), warn with the share of it outside."""
+        box = QgsGeometry.fromRect(QgsRectangle(*extent))
+        if not box.area() > 0:
+            raise QgsProcessingException(f"{self.EXTENT}: the extent {extent} is empty")
+        flat = ConstantHeight(float(np.mean(surface.height_range)))
+        (outline,) = core_call(footprints, scene, flat, cameras=[camera], samples_per_edge=32)
+        x, y = Transformer.from_crs(CRS.from_epsg(4326), crs, always_xy=True).transform(outline.lon, outline.lat)
+        footprint = QgsGeometry.fromPolygonXY([[QgsPointXY(float(a), float(b)) for a, b in zip(x, y)]])
+        share = footprint.intersection(box).area() / box.area()
+        if share <= 0:
+            raise QgsProcessingException(f"{self.EXTENT}: the extent does not overlap the image's footprint "
+                                         f"({footprint.boundingBox().toString(0)} in {crs.to_string()})")
+        if share < 0.999:
+            feedback.pushWarning(f"{self.EXTENT}: {100 * (1 - share):.1f} % of the extent lies outside the image's "
+                                 f"footprint; those pixels are nodata")
 
     def _crs(self, parameters, context) -> CRS | None:
         """The output CRS as pyproj's, or None for the default (UTM); geographic CRSs refused."""
