@@ -29,6 +29,7 @@ from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 
 from .errors import InputError
+from .validation import check_surface_heights
 
 gdal.UseExceptions()
 
@@ -37,7 +38,6 @@ GEOID_LATTICE_DEG = 1.0 / 16.0  # divides the 15' EGM96 grid cells
 MAX_LATTICE_NODES = 1_000_000   # beyond this the undulation is evaluated at the points themselves
 OVERVIEW_CELLS = 1024 * 1024    # the whole-DEM overview behind height_range
 MAX_WINDOW_BYTES = 2 ** 30      # the largest window of heights held in memory
-PLAUSIBLE_HEIGHTS = (-12_000.0, 10_000.0)  # m: deepest trench to above Everest, either datum
 _STRIP_NODES = 128              # output rows per read; GDAL's block cache is released after each
 _STRIP_BYTES = 32 * 2 ** 20     # at most this many bytes of DEM pixels per read averaged in numpy
 _WINDOW_MARGIN = 0.25           # share of a window's size added on each side for the next queries
@@ -397,8 +397,4 @@ class Dem:
         finite = grid.z[np.isfinite(grid.z)]
         if finite.size == 0:
             raise InputError(f"DEM {self.path}: holds no valid heights (every pixel is nodata)")
-        lo, hi = float(finite.min()), float(finite.max())
-        if lo < PLAUSIBLE_HEIGHTS[0] or hi > PLAUSIBLE_HEIGHTS[1]:
-            raise InputError(f"DEM {self.path}: heights from {lo:.6g} to {hi:.6g} m are not terrain heights "
-                             f"(expected {PLAUSIBLE_HEIGHTS[0]:.0f} to {PLAUSIBLE_HEIGHTS[1]:.0f} m): a nodata "
-                             "value without its nodata tag, or heights not in metres?")
+        check_surface_heights((float(finite.min()), float(finite.max())), f"DEM {self.path}")

@@ -236,7 +236,7 @@ def add_dem_parameters(alg, datum_help: str = "") -> None:
 def dem_from_parameters(alg, parameters, context):
     """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one."""
     from ..core.dem import ConstantHeight, Dem
-    from ..core.validation import check_surface_heights, check_terrain_height
+    from ..core.validation import check_terrain_height
     layer = alg.parameterAsRasterLayer(parameters, DEM, context)
     if layer is None:
         with processing_errors():
@@ -245,7 +245,7 @@ def dem_from_parameters(alg, parameters, context):
     path = layer.source().split("|")[0]
     with processing_errors(f"{DEM}: "):
         dem = Dem(path, datum)
-        check_surface_heights(dem.height_range, path)
+        dem.height_range  # reads the DEM's overview: implausible heights are refused before any output
         return dem
 
 

@@ -74,7 +74,7 @@ def _bad_dems(folder, sim_dem):
     return {
         "no CRS": (_write(folder / "nocrs.tif", z, gt), "no coordinate reference system"),
         "all nodata": (_write(folder / "nodata.tif", np.full_like(z, -32768), gt, wkt, -32768), "no valid heights"),
-        "constant 1e30": (_write(folder / "huge.tif", np.full_like(z, 1e30), gt, wkt), "not terrain heights"),
+        "constant 1e30": (_write(folder / "huge.tif", np.full_like(z, 1e30), gt, wkt), "not all terrain heights"),
         "outside the scene": (_write(folder / "far.tif", z, far, wkt), "cover"),
         "one pixel": (_write(folder / "one.tif", z[:1, :1], gt, wkt), "at least 2 x 2"),
         "complex band": (_write(folder / "complex.tif", z.astype(np.complex64), gt, wkt, dtype=gdal.GDT_CFloat32),
