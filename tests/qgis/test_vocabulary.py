@@ -228,3 +228,23 @@ def test_the_readme_demo_and_models_use_value_names():
             for block in text.split(f'<Option name="{name}" type="List">')[1:]:
                 static = block.split("</Option>", 2)[0]
                 assert 'static_value" type="int"' not in static, (model.name, name)
+
+
+def test_the_toolbox_lists_and_returns_the_value_names(provider):
+    """QGIS 3.22's drop-down of a static-string enumeration shows the value names themselves (it
+    has no separate labels: the help says what each means) and gives back the name chosen; an
+    optional one without default starts at '[Not selected]'."""
+    from qgis.gui import QgsGui, QgsProcessingGui
+    from qgis.PyQt.QtWidgets import QComboBox
+    context = QgsProcessingContext()
+    alg = provider.algorithm("groundtoimage")
+    for name, shown, first in (("DEM_DATUM", ["geoid", "ellipsoid"], "geoid"),
+                               ("Z_DATUM", ["[Not selected]", "geoid", "ellipsoid"], None)):
+        wrapper = QgsGui.processingGuiRegistry().createParameterWidgetWrapper(alg.parameterDefinition(name),
+                                                                             QgsProcessingGui.Standard)
+        combo = wrapper.createWrappedWidget(context)
+        assert isinstance(combo, QComboBox)
+        assert [combo.itemText(i) for i in range(combo.count())] == shown
+        assert wrapper.parameterValue() == first
+        combo.setCurrentIndex(shown.index("ellipsoid"))
+        assert wrapper.parameterValue() == "ellipsoid"
