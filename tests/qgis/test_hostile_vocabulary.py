@@ -4,7 +4,9 @@ are refused with the parameter's value names, before anything is written; Z valu
 datum the layer's CRS states are read in that datum."""
 import numpy as np
 import pytest
-from qgis.core import QgsFeature, QgsGeometry, QgsPoint, QgsProperty, QgsVectorLayer
+from qgis.core import (QgsFeature, QgsGeometry, QgsPoint, QgsProcessingException, QgsProcessingFeedback,
+                       QgsProcessingModelAlgorithm, QgsProcessingModelChildAlgorithm,
+                       QgsProcessingModelChildParameterSource, QgsProcessingModelOutput, QgsProperty, QgsVectorLayer)
 
 import processing
 from core.dem import to_ellipsoidal
@@ -14,6 +16,18 @@ from core.scene_io import load_scene
 from .hostile import assert_refused, assert_refused_cli
 
 DATUMS = "geoid, ellipsoid"
+
+
+class RecordingFeedback(QgsProcessingFeedback):
+    """Keeps the errors reported to the log."""
+
+    def __init__(self):
+        super().__init__()
+        self.errors = []
+
+    def reportError(self, error, fatalError=False):  # noqa: N802, N803 (QGIS API names)
+        self.errors.append(error)
+        super().reportError(error, fatalError)
 
 
 def _points_z(crs: str, lon, lat, h) -> QgsVectorLayer:
@@ -139,3 +153,26 @@ def test_a_bad_choice_on_the_command_line_is_refused(qgis_process, simulated, tm
     params = {"SCENE": simulated["TRUE_SCENE"], "DEM": simulated["DEM"], name: value,
               "OUTPUT": str(tmp_path / "f.gpkg")}
     assert_refused_cli(qgis_process, "pushbroom:footprint", params, *texts, watch=[tmp_path])
+
+
+def test_a_saved_model_with_an_option_number_is_refused(simulated, tmp_path):
+    """A model saved before the names (static value 1 for DEM_DATUM, once 'ellipsoid'): the modeler
+    marks the step, and a run stops there with the names in the log instead of reading a datum."""
+    model = QgsProcessingModelAlgorithm("old model", "tests")
+    child = QgsProcessingModelChildAlgorithm("pushbroom:footprint")
+    child.setChildId("footprint")
+    for name, value in (("SCENE", simulated["TRUE_SCENE"]), ("DEM", simulated["DEM"]), ("DEM_DATUM", 1),
+                        ("SAMPLES", 8), ("HEIGHT", 0.0)):
+        child.addParameterSources(name, [QgsProcessingModelChildParameterSource.fromStaticValue(value)])
+    output = QgsProcessingModelOutput("footprints")
+    output.setChildOutputName("OUTPUT")
+    child.setModelOutputs({"footprints": output})
+    model.addChildAlgorithm(child)
+    model.updateDestinationParameters()
+    valid, problems = model.validate()  # the modeler marks the step
+    assert not valid and "Value for <i>DEM_DATUM</i> is not acceptable" in problems[0]
+    feedback = RecordingFeedback()
+    with pytest.raises(QgsProcessingException, match="Error encountered while running"):
+        processing.run(model, {"footprint:footprints": str(tmp_path / "f.gpkg")}, feedback=feedback)
+    assert any(e.startswith("DEM_DATUM: 1 is an option number") and e.endswith(DATUMS) for e in feedback.errors)
+    assert list(tmp_path.iterdir()) == []

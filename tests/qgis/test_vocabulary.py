@@ -9,7 +9,6 @@ broken copies of 'groundtoimage'.
 """
 import importlib
 import re
-from pathlib import Path
 
 import pytest
 from qgis.core import (QgsProcessingContext, QgsProcessingModelAlgorithm, QgsProcessingParameterDefinition,
