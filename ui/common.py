@@ -25,7 +25,6 @@ RESOURCES = Path(__file__).resolve().parents[1] / "resources"
 STYLES = RESOURCES / "styles"
 
 
-
 # --- algorithm base ------------------------------------------------------------------------
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
     """Base of the plugin's algorithms: id, name, group and help from class attributes.
