@@ -36,15 +36,15 @@ SIM="$OUT/simulation"
 run simulatescene SEED=0 N_GCPS=2000 IMAGE_NOISE=0.5 CHECK_FRACTION=0.5 GROUND_NOISE_XY=1 GROUND_NOISE_Z=1 \
     GROSS_FRACTION=0.02 RENDER=true OUTPUT_FOLDER="$SIM"
 run importgcps SCENE="$SIM/onboard_scene.json" INPUT_FILE="$SIM/gcps.csv" X_FIELD=lon Y_FIELD=lat Z_FIELD=h ROLE_FIELD=role \
-    DEM_DATUM=1 OUTPUT="$OUT/gcps.gpkg"
+    Z_DATUM=ellipsoid OUTPUT="$OUT/gcps.gpkg"
 run bundleadjust SCENE="$SIM/onboard_scene.json" GCPS="$OUT/gcps.gpkg" INTERIOR="HRC-1.*, HRC-3.*" POSITION_ORDER=0 \
     OUTPUT_SCENE="$OUT/adjusted_scene.json" OUTPUT_REPORT="$OUT/adjustment.html" \
     OUTPUT_GCPS="$OUT/adjusted_gcps.gpkg" OUTPUT_RESIDUALS="$OUT/residuals.gpkg"
-run orthorectify INPUT="$SIM/image_HRC.tif" SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=0 \
+run orthorectify INPUT="$SIM/image_HRC.tif" SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=geoid \
     OUTPUT="$OUT/orthoimage.tif"
-run exportrpc SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=0 IMAGE="$SIM/image_HRC.tif" \
+run exportrpc SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=geoid IMAGE="$SIM/image_HRC.tif" \
     OUTPUT="$OUT/image_HRC_RPC.TXT"
-run footprint SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=0 OUTPUT="$OUT/footprint.gpkg"
+run footprint SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=geoid OUTPUT="$OUT/footprint.gpkg"
 run groundtoimage SCENE="$OUT/adjusted_scene.json" INPUT="$OUT/gcps.gpkg" OUTPUT="$OUT/gcps_in_image.gpkg"
 
 cat <<END

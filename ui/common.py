@@ -14,23 +14,15 @@ from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingAlgorithm, QgsProcessingException,
                        QgsProcessingParameterDefinition, QgsProcessingParameterFileDestination, QgsProcessingUtils,
-                       QgsProcessingLayerPostProcessorInterface, QgsProcessingParameterEnum,
-                       QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer,
-                       QgsProcessingParameterString)
+                       QgsProcessingLayerPostProcessorInterface, QgsProcessingParameterEnum)
 from qgis.PyQt.QtGui import QIcon
 
 from ..core.errors import PushbroomError
+from . import parameters as vocabulary
+from .parameters import CAMERA, DEM, DEM_DATUM, HEIGHT, SCENE, enum_refusal, enum_value, tr
 
 RESOURCES = Path(__file__).resolve().parents[1] / "resources"
 STYLES = RESOURCES / "styles"
-
-SCENE = "SCENE"
-CAMERA = "CAMERA"
-DEM = "DEM"
-DEM_DATUM = "DEM_DATUM"
-HEIGHT = "HEIGHT"
-DEM_DATUMS = ("geoid", "ellipsoid")  # core.dem datum names, in the order of the enum below
-DEM_DATUM_LABELS = ("Geoid (EGM96) — SRTM, Copernicus DEM, most national DEMs", "Ellipsoid (WGS84)")
 
 
 # --- algorithm base ------------------------------------------------------------------------
@@ -38,24 +30,27 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     """Base of the plugin's algorithms: id, name, group and help from class attributes.
 
     shortHelpString() is HELP followed by every parameter's name and help text (setHelp), so
-    the toolbox, qgis_process help and the README say the same.
+    the toolbox, qgis_process help and the README say the same. NAME, GROUP and HELP are
+    English and shown through tr(); GROUP_ID never changes with the language.
+    Enumeration values are checked before a run (checkParameterValues): an unknown name or an
+    option number is refused with the parameter's value names.
     """
     ID = ""
     NAME = ""
-    GROUP = "Sensor model"
+    GROUP, GROUP_ID = "Sensor model", "sensormodel"
     HELP = ""
 
     def name(self):
         return self.ID
 
     def displayName(self):  # noqa: N802 (QGIS API names)
-        return self.NAME
+        return tr(self.NAME)
 
     def group(self):
-        return self.GROUP
+        return tr(self.GROUP)
 
     def groupId(self):  # noqa: N802
-        return self.GROUP.lower().replace(" ", "")
+        return self.GROUP_ID
 
     def icon(self):
         return QIcon(str(RESOURCES / "icon.svg"))
@@ -63,9 +58,11 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     def createInstance(self):  # noqa: N802
         return type(self)()
 
-    def add_parameter(self, parameter, help_text: str, advanced: bool = False) -> None:
-        """Add a parameter with its help text (shown in the toolbox and qgis_process help)."""
-        parameter.setHelp(help_text)
+    def add_parameter(self, parameter, help_text: str | None = None, advanced: bool = False) -> None:
+        """Add a parameter with its help text (shown in the toolbox and qgis_process help); None keeps
+        the help a shared definition of ui.parameters brings."""
+        if help_text is not None:
+            parameter.setHelp(help_text)
         if advanced:
             parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
         self.addParameter(parameter)
@@ -84,7 +81,21 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         rows = "".join(f"<li><b>{p.name()}</b>: {p.help() or p.description()}</li>"
                        for p in self.parameterDefinitions())
         outs = "".join(f"<li><b>{o.name()}</b>: {o.description()}</li>" for o in self.outputDefinitions())
-        return f"<p>{self.HELP}</p><p>Parameters:</p><ul>{rows}</ul><p>Outputs:</p><ul>{outs}</ul>"
+        return (f"<p>{tr(self.HELP)}</p><p>{tr('Parameters')}:</p><ul>{rows}</ul>"
+                f"<p>{tr('Outputs')}:</p><ul>{outs}</ul>")
+
+    def checkParameterValues(self, parameters, context):  # noqa: N802
+        """Enumerations take value names only (see ui.parameters.enum_refusal); an empty text is
+        'not given', as the toolbox's '[Not selected]' is. The rest is QGIS's own check."""
+        given = dict(parameters)
+        for definition in self.parameterDefinitions():
+            if isinstance(definition, QgsProcessingParameterEnum):
+                refusal = enum_refusal(definition, given.get(definition.name()))
+                if refusal:
+                    return False, refusal
+                if given.get(definition.name()) == "":
+                    given[definition.name()] = None
+        return super().checkParameterValues(given, context)
 
 
 # --- errors -------------------------------------------------------------------------------
@@ -143,17 +154,9 @@ def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT
 
 def add_scene_parameters(alg, with_camera: bool = True) -> None:
     """SCENE (any supported metadata or scene JSON) and, optionally, CAMERA."""
-    scene = QgsProcessingParameterFile(SCENE, "Scene (metadata or scene JSON)", extension="",
-                                       fileFilter="Scene files (*.json *.xml *.XML);;All files (*)")
-    scene.setHelp("The sensor model of the scene: a Pushbroom Adjust scene JSON (written by the simulator "
-                  "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, Maxar/DigitalGlobe "
-                  "*.XML).")
-    alg.addParameter(scene)
+    alg.addParameter(vocabulary.scene())
     if with_camera:
-        camera = QgsProcessingParameterString(CAMERA, "Camera (name or index)", optional=True, defaultValue="")
-        camera.setHelp("For scenes with several cameras (three-line and multi-CCD sensors): the camera's name "
-                       "(e.g. NAD, FWD, BWD) or its 0-based index. Empty: the first camera.")
-        alg.addParameter(camera)
+        alg.addParameter(vocabulary.camera())
 
 
 def lonlat_of(parameter_name: str, crs, x, y) -> tuple[np.ndarray, np.ndarray]:
@@ -182,6 +185,23 @@ def require_points(parameter_name: str, source) -> None:
     if kind != QgsWkbTypes.PointGeometry:
         raise QgsProcessingException(f"{parameter_name}: the layer holds {QgsWkbTypes.displayString(source.wkbType())} "
                                      f"geometries; a point layer is needed")
+
+
+def z_datum_of_crs(crs) -> str | None:
+    """What the Z values of a layer in QgsCoordinateReferenceSystem ``crs`` are measured from, when
+    the CRS says it: 'ellipsoid' for a 3D geographic CRS (EPSG:4979, the output of 'Image to
+    ground'), 'geoid' for a compound CRS with EGM96 heights (EPSG:4326+5773); else None."""
+    if not crs.isValid():
+        return None
+    try:
+        pyproj_crs = CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
+    except CRSError:
+        return None
+    if pyproj_crs.is_geographic and len(pyproj_crs.axis_info) == 3:
+        return "ellipsoid"
+    if pyproj_crs.is_compound and any("EGM96" in (sub.name or "") for sub in pyproj_crs.sub_crs_list[1:]):
+        return "geoid"
+    return None
 
 
 def nonfinite_message(parameter_name: str, what: str, ids, bad) -> str:
@@ -214,22 +234,9 @@ def check_cancelled(feedback) -> None:
 
 
 # --- DEM parameters -----------------------------------------------------------------------
-def add_dem_parameters(alg, datum_help: str = "") -> None:
+def add_dem_parameters(alg) -> None:
     """Add the optional DEM raster, its height datum and the constant-height fallback."""
-    dem = QgsProcessingParameterRasterLayer(DEM, "Digital elevation model", optional=True)
-    dem.setHelp("Raster of terrain heights in metres, in any CRS, covering the whole area the "
-                "algorithm works on. Leave empty to use the constant HEIGHT instead.")
-    datum = QgsProcessingParameterEnum(DEM_DATUM, "DEM height datum", options=list(DEM_DATUM_LABELS),
-                                       defaultValue=0)
-    datum.setHelp(datum_help or "What the DEM's heights are measured from: the EGM96 geoid (mean sea level: "
-                  "SRTM, Copernicus DEM, most national DEMs) or the WGS84 ellipsoid. Geoid heights are "
-                  "converted to ellipsoidal heights with PROJ's EGM96 grid.")
-    height = QgsProcessingParameterNumber(HEIGHT, "Constant ellipsoidal height (m) without a DEM",
-                                          type=QgsProcessingParameterNumber.Double, defaultValue=0.0)
-    height.setHelp("Height in metres above the WGS84 ellipsoid of a flat terrain, used when no DEM is "
-                   "given. Ellipsoidal height = sea-level height + geoid undulation (-106 m to +85 m "
-                   "over the Earth).")
-    for p in (dem, datum, height):
+    for p in (vocabulary.dem(), vocabulary.dem_datum(), vocabulary.height()):
         alg.addParameter(p)
 
 
@@ -241,7 +248,7 @@ def dem_from_parameters(alg, parameters, context):
     if layer is None:
         with processing_errors():
             return ConstantHeight(check_terrain_height(alg.parameterAsDouble(parameters, HEIGHT, context), HEIGHT))
-    datum = DEM_DATUMS[alg.parameterAsEnum(parameters, DEM_DATUM, context)]
+    datum = enum_value(alg, parameters, DEM_DATUM, context)
     path = layer.source().split("|")[0]
     with processing_errors(f"{DEM}: "):
         dem = Dem(path, datum)

@@ -13,6 +13,7 @@ from .algorithms.importgcps import ImportGcpsAlgorithm
 from .algorithms.orthorectify import OrthorectifyAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .common import RESOURCES
+from .parameters import tr
 
 log = logging.getLogger(__name__)
 MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
@@ -26,10 +27,10 @@ class PushbroomProvider(QgsProcessingProvider):
         return "pushbroom"
 
     def name(self):
-        return "Pushbroom Adjust"
+        return tr("Pushbroom Adjust")
 
     def longName(self):  # noqa: N802 (QGIS API name)
-        return "Pushbroom Adjust — rigorous pushbroom sensor models"
+        return tr("Pushbroom Adjust — rigorous pushbroom sensor models")
 
     def icon(self):
         return QIcon(str(RESOURCES / "icon.svg"))

@@ -60,7 +60,7 @@ def simulated(provider, tmp_path_factory) -> dict:
     """
     import processing
     out = tmp_path_factory.mktemp("sim")
-    return processing.run("pushbroom:simulatescene", {"PRESET": 0, "SEED": 3, "N_SCENES": 1, "N_GCPS": 12,
+    return processing.run("pushbroom:simulatescene", {"PRESET": "cbers02b_hrc", "SEED": 3, "N_SCENES": 1, "N_GCPS": 12,
                                                       "IMAGE_NOISE": 0.0, "RENDER": False,
                                                       "OUTPUT_FOLDER": str(out)})
 

@@ -97,7 +97,7 @@ def test_simulatescene_writes_loadable_models_gcps_and_dem(simulated, scene, dem
 # --- footprint --------------------------------------------------------------------------------------
 def test_footprint_polygons_follow_the_core_outline_on_the_dem(simulated, scene, dem):
     out = processing.run("pushbroom:footprint", {"SCENE": simulated["TRUE_SCENE"], "DEM": simulated["DEM"],
-                                                 "DEM_DATUM": 0, "SAMPLES": 32, "OUTPUT": "memory:"})["OUTPUT"]
+                                                 "DEM_DATUM": "geoid", "SAMPLES": 32, "OUTPUT": "memory:"})["OUTPUT"]
     assert out.crs().authid() == "EPSG:4326" and out.featureCount() == len(scene.cameras)
     truth = footprints(scene, dem, samples_per_edge=32)
     for f, fp in zip(out.getFeatures(), truth):
@@ -139,7 +139,7 @@ def _tiny_dem(path, scene, dem, size_deg=0.001):
 def test_image_to_ground_then_back_returns_the_pixels(simulated, scene, dem):
     col, row = _random_image_points(scene, 200)
     ground = processing.run("pushbroom:imagetoground", {"SCENE": simulated["TRUE_SCENE"], "INPUT": _table(col, row),
-                                                        "DEM": simulated["DEM"], "DEM_DATUM": 0,
+                                                        "DEM": simulated["DEM"], "DEM_DATUM": "geoid",
                                                         "OUTPUT": "memory:"})["OUTPUT"]
     assert ground.crs().authid() == "EPSG:4979" and ground.featureCount() == 200
     lon, lat, h = _values(ground, "lon", "lat", "h_ellipsoid").T
@@ -165,7 +165,7 @@ def test_ground_to_image_in_a_projected_crs_with_heights_from_the_dem(simulated,
     x, y = Transformer.from_crs(4326, epsg, always_xy=True).transform(lon, lat)
     layer = _points(x, y, crs=f"EPSG:{epsg}")
     out = processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"], "INPUT": layer,
-                                                     "DEM": simulated["DEM"], "DEM_DATUM": 0,
+                                                     "DEM": simulated["DEM"], "DEM_DATUM": "geoid",
                                                      "OUTPUT": "memory:"})["OUTPUT"]
     assert out.crs().authid() == f"EPSG:{epsg}" and [f["name"] for f in out.getFeatures()][:2] == ["p0", "p1"]
     c2, r2 = _values(out, "col", "row").T
@@ -180,7 +180,7 @@ def test_points_outside_the_image_are_kept_flagged_and_counted(simulated, scene,
     lon, lat, h = ecef_to_geodetic(scene.image_to_ground(col, row, 100.0))
     feedback = RecordingFeedback()
     out = processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"], "INPUT": _points(lon, lat, h),
-                                                     "Z_DATUM": 0, "OUTPUT": "memory:"}, feedback=feedback)["OUTPUT"]
+                                                     "Z_DATUM": "ellipsoid", "OUTPUT": "memory:"}, feedback=feedback)["OUTPUT"]
     c2, r2, inside = _values(out, "col", "row", "in_image").T
     assert list(inside) == [1, 0, 0]
     assert np.abs(c2 - col).max() < 1e-3 and np.abs(r2 - row).max() < 1e-3
@@ -265,7 +265,8 @@ def test_output_layers_are_styled_when_loaded_into_the_project(simulated, scene)
     assert layer.labelsEnabled() and layer.labeling().settings().fieldName == "camera"
     pts = processing.runAndLoadResults("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"],
                                                                    "INPUT": _points([0.0], [0.0], [0.0]),
-                                                                   "OUTPUT": "memory:"})["OUTPUT"]
+                                                                   "Z_DATUM": "ellipsoid", "OUTPUT": "memory:"}
+                                       )["OUTPUT"]
     renderer = project.mapLayer(pts).renderer()
     assert renderer.type() == "categorizedSymbol" and renderer.classAttribute() == "in_image"
     project.removeAllMapLayers()

@@ -55,7 +55,7 @@ def chain(provider, tmp_path_factory):
                                                      "GROUND_NOISE_XY": 1.0, "GROUND_NOISE_Z": 1.0,
                                                      "OUTPUT_FOLDER": str(out / "sim")})
     gcps = processing.run("pushbroom:importgcps", {"SCENE": sim["ONBOARD_SCENE"], "INPUT_FILE": sim["GCPS"],
-                                                   "Z_FIELD": "h", "DEM_DATUM": 1, "ROLE_FIELD": "role",
+                                                   "Z_FIELD": "h", "Z_DATUM": "ellipsoid", "ROLE_FIELD": "role",
                                                    "CAMERA_FIELD": "camera", "SIGMA_PX": 0.5,
                                                    "OUTPUT": str(out / "gcps.gpkg")})["OUTPUT"]
     log = _Log()
@@ -263,7 +263,7 @@ def _few_gcps(sim, folder: Path, n_control: int) -> str:
         writer.writeheader()
         writer.writerows(keep)
     return processing.run("pushbroom:importgcps", {"SCENE": sim["ONBOARD_SCENE"], "INPUT_FILE": str(path),
-                                                   "Z_FIELD": "h", "DEM_DATUM": 1, "ROLE_FIELD": "role",
+                                                   "Z_FIELD": "h", "Z_DATUM": "ellipsoid", "ROLE_FIELD": "role",
                                                    "CAMERA_FIELD": "camera",
                                                    "OUTPUT": str(folder / f"few{n_control}.gpkg")})["OUTPUT"]
 
@@ -272,7 +272,7 @@ def test_bundleadjust_from_the_command_line(qgis_process, chain, tmp_path):
     """Orientation images for position and attitude, from qgis_process, with the GCP file path."""
     sim, gcps, _, _ = chain
     results = _run_json(qgis_process, "pushbroom:bundleadjust", SCENE=sim["ONBOARD_SCENE"], GCPS=gcps,
-                        INTERIOR=INTERIOR, POSITION_MODEL=1, POSITION_INTERVAL=2, ATTITUDE_MODEL=1,
+                        INTERIOR=INTERIOR, POSITION_MODEL="lagrange", POSITION_INTERVAL=2, ATTITUDE_MODEL="lagrange",
                         ATTITUDE_INTERVAL=2, ATTITUDE_SIGMA=20, OUTPUT_SCENE=tmp_path / "s.json",
                         OUTPUT_REPORT=tmp_path / "r.html", OUTPUT_GCPS=tmp_path / "g.gpkg",
                         OUTPUT_RESIDUALS=tmp_path / "v.gpkg")

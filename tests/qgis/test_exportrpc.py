@@ -44,7 +44,7 @@ def test_export_with_a_dem_reports_every_ccd(simulated, tmp_path):
     out = tmp_path / "hrc_RPC.TXT"
     feedback = RecordingFeedback()
     res = processing.run("pushbroom:exportrpc", {"SCENE": simulated["TRUE_SCENE"], "DEM": simulated["DEM"],
-                                                 "DEM_DATUM": 0, "OUTPUT": str(out)}, feedback=feedback)
+                                                 "DEM_DATUM": "geoid", "OUTPUT": str(out)}, feedback=feedback)
     assert Path(res["OUTPUT"]) == out and out.is_file() and res["IMAGE_WITH_RPC"] in (None, "")
     report = json.loads(Path(res["REPORT"]).read_text())
     assert [c["chip"] for c in report["check"]["chips"]] == [0, 1, 2]

@@ -51,7 +51,7 @@ def _write(path: Path, rows: list[dict]) -> Path:
 
 
 def _import_params(sim, path: Path, output: Path, **extra) -> dict:
-    return {"SCENE": sim["ONBOARD_SCENE"], "INPUT_FILE": str(path), "Z_FIELD": "h", "DEM_DATUM": 1,
+    return {"SCENE": sim["ONBOARD_SCENE"], "INPUT_FILE": str(path), "Z_FIELD": "h", "Z_DATUM": "ellipsoid",
             "ROLE_FIELD": "role", "CAMERA_FIELD": "camera", "OUTPUT": str(output), **extra}
 
 

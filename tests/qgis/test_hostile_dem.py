@@ -55,7 +55,7 @@ def raw_image(simulated, tmp_path_factory):
 
 
 def _params(alg, simulated, dem, raw_image, out_dir):
-    base = {"SCENE": simulated["TRUE_SCENE"], "DEM": dem, "DEM_DATUM": 0}
+    base = {"SCENE": simulated["TRUE_SCENE"], "DEM": dem, "DEM_DATUM": "geoid"}
     if alg == "footprint":
         return {**base, "OUTPUT": "memory:"}
     if alg == "imagetoground":
@@ -102,7 +102,7 @@ def test_bad_dem_is_refused_naming_it(simulated, sim_dem, raw_image, tmp_path, a
 
 
 def _area(simulated, dem) -> float:
-    layer = processing.run("pushbroom:footprint", {"SCENE": simulated["TRUE_SCENE"], "DEM": dem, "DEM_DATUM": 0,
+    layer = processing.run("pushbroom:footprint", {"SCENE": simulated["TRUE_SCENE"], "DEM": dem, "DEM_DATUM": "geoid",
                                                    "OUTPUT": "memory:"})["OUTPUT"]
     (feature,) = list(layer.getFeatures())
     return float(feature["area_km2"])
@@ -172,5 +172,5 @@ def test_huge_vrt_dem_at_full_resolution_is_refused(simulated, raw_image, tmp_pa
 def test_a_dem_that_is_not_a_raster(simulated, tmp_path):
     path = tmp_path / "text.tif"
     path.write_text("not a raster\n")
-    assert_refused("pushbroom:footprint", {"SCENE": simulated["TRUE_SCENE"], "DEM": str(path), "DEM_DATUM": 0,
+    assert_refused("pushbroom:footprint", {"SCENE": simulated["TRUE_SCENE"], "DEM": str(path), "DEM_DATUM": "geoid",
                                            "OUTPUT": "memory:"}, "DEM", watch=[tmp_path])

@@ -67,7 +67,7 @@ def _gcp_csv(files, folder: Path, field: str, value: str, row: int = 3) -> Path:
 
 def _import_params(simulated, path, tmp_path, **extra) -> dict:
     return {"SCENE": simulated["ONBOARD_SCENE"], "INPUT_FILE": str(path), "Z_FIELD": "h", "ROLE_FIELD": "role",
-            "CAMERA_FIELD": "camera", "HEIGHT_SOURCE": 0, "DEM_DATUM": 1, "OUTPUT": str(tmp_path / "out.gpkg"),
+            "CAMERA_FIELD": "camera", "HEIGHT_SOURCE": "z", "Z_DATUM": "ellipsoid", "OUTPUT": str(tmp_path / "out.gpkg"),
             **extra}
 
 
@@ -138,7 +138,7 @@ def test_extreme_value_in_a_points_file(provider, simulated, files, tmp_path, co
     path = tmp_path / "gcps.points"
     path.write_text("\n".join(lines) + "\n")
     assert_refused("pushbroom:importgcps", {"SCENE": simulated["ONBOARD_SCENE"], "INPUT_FILE": str(path),
-                                            "HEIGHT_SOURCE": 2, "HEIGHT": 800.0,
+                                            "HEIGHT_SOURCE": "constant", "HEIGHT": 800.0,
                                             "OUTPUT": str(tmp_path / "out.gpkg")},
                    "gcps.points", text, watch=[tmp_path])
 
@@ -171,7 +171,7 @@ def _height_params(alg, value, simulated, files, tmp_path) -> dict:
             "groundtoimage": {**scene, "INPUT": _ground_layer(tmp_path, files, None), "OUTPUT": str(tmp_path / "i.gpkg")},
             "orthorectify": {**scene, "INPUT": files["byte"], "OUTPUT": str(tmp_path / "ortho.tif")},
             "importgcps": _import_params(simulated, _gcp_csv(files, tmp_path, "h", "800"), tmp_path,
-                                         HEIGHT_SOURCE=2, HEIGHT=value)}[alg]
+                                         HEIGHT_SOURCE="constant", HEIGHT=value)}[alg]
 
 
 @pytest.mark.parametrize("alg, value", HEIGHTS, ids=[f"{a} HEIGHT={v:g}" for a, v in HEIGHTS])
@@ -198,7 +198,7 @@ def test_ground_point_z_no_terrain_has(provider, simulated, files, tmp_path, z):
 
 @pytest.mark.parametrize("alg", ["footprint", "exportrpc", "imagetoground"])
 def test_dem_with_undeclared_voids(provider, simulated, files, tmp_path, alg):
-    params = {**_height_params(alg, 0.0, simulated, files, tmp_path), "DEM": files["dem_voids"], "DEM_DATUM": 1}
+    params = {**_height_params(alg, 0.0, simulated, files, tmp_path), "DEM": files["dem_voids"], "DEM_DATUM": "ellipsoid"}
     assert_refused(f"pushbroom:{alg}", params, "DEM", "-32768", "nodata value not declared", watch=[tmp_path])
 
 
@@ -287,7 +287,7 @@ def test_line_layer_where_points_are_meant(provider, simulated, files, tmp_path,
     lines = _line_layer(tmp_path, files)
     params = {"SCENE": simulated["ONBOARD_SCENE"], "INPUT": lines, "OUTPUT": str(tmp_path / "out.gpkg")}
     if alg == "importgcps":
-        params.update(ID_FIELD="id", HEIGHT_SOURCE=2, HEIGHT=800.0)
+        params.update(ID_FIELD="id", HEIGHT_SOURCE="constant", HEIGHT=800.0)
     assert_refused(f"pushbroom:{alg}", params, "INPUT", "LineString", "point layer", watch=[tmp_path])
 
 

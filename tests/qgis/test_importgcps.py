@@ -45,7 +45,7 @@ def _run(params, feedback=None):
 def test_import_simulated_gcps_csv(simulated, core, tmp_path):
     rows = list(csv.DictReader(open(simulated["GCPS"])))
     out = _run({"SCENE": simulated["ONBOARD_SCENE"], "INPUT_FILE": simulated["GCPS"], "Z_FIELD": "h",
-                "ROLE_FIELD": "role", "CAMERA_FIELD": "camera", "HEIGHT_SOURCE": 0, "DEM_DATUM": 1,
+                "ROLE_FIELD": "role", "CAMERA_FIELD": "camera", "HEIGHT_SOURCE": "z", "Z_DATUM": "ellipsoid",
                 "SIGMA_PX": 0.3, "OUTPUT": str(tmp_path / "gcps.gpkg")})["OUTPUT"]
     layer = QgsVectorLayer(out, "gcps", "ogr")
     assert layer.isValid() and layer.featureCount() == len(rows)
@@ -96,7 +96,7 @@ def test_points_file_with_disabled_and_outside_points(core, provider, tmp_path):
     (tmp_path / "img.points").write_text("\n".join(lines) + "\n")
     log = _Log()
     out = _run({"SCENE": str(tmp_path / "scene.json"), "INPUT_FILE": str(tmp_path / "img.points"),
-                "HEIGHT_SOURCE": 2, "HEIGHT": 0.0, "OUTPUT": str(tmp_path / "pts.gpkg")}, log)["OUTPUT"]
+                "HEIGHT_SOURCE": "constant", "HEIGHT": 0.0, "OUTPUT": str(tmp_path / "pts.gpkg")}, log)["OUTPUT"]
     text = "\n".join(log.lines)
     assert "1 disabled point(s) imported as check points: 3" in text
     assert "5 points: 4 control, 1 check, 1 outside the image" in text
@@ -145,7 +145,7 @@ def test_point_layer_in_utm_and_input_errors(core, provider, tmp_path):
         feats.append(f)
     layer.dataProvider().addFeatures(feats)
     params = {"SCENE": str(tmp_path / "scene.json"), "INPUT": layer, "ID_FIELD": "name", "COL_FIELD": "c",
-              "ROW_FIELD": "r", "HEIGHT_SOURCE": 2, "HEIGHT": 30.0, "OUTPUT": str(tmp_path / "layer.gpkg")}
+              "ROW_FIELD": "r", "HEIGHT_SOURCE": "constant", "HEIGHT": 30.0, "OUTPUT": str(tmp_path / "layer.gpkg")}
     table = core["gcps"].read_gpkg(_run(params)["OUTPUT"])
     assert table.id.tolist() == ["p0", "p1", "p2"]
     assert np.allclose(table.lon, lon, atol=1e-9) and np.allclose(table.lat, lat, atol=1e-9)
@@ -153,7 +153,7 @@ def test_point_layer_in_utm_and_input_errors(core, provider, tmp_path):
     temporary = _run({**params, "OUTPUT": "TEMPORARY_OUTPUT"})["OUTPUT"]
     assert temporary.endswith(".gpkg") and len(core["gcps"].read_gpkg(temporary)) == 3
     with pytest.raises(QgsProcessingException, match="Z values"):
-        _run({**params, "HEIGHT_SOURCE": 0})  # a 2D layer has no Z
+        _run({**params, "HEIGHT_SOURCE": "z", "Z_DATUM": "ellipsoid"})  # a 2D layer has no Z
     with pytest.raises(QgsProcessingException, match="either INPUT_FILE .* or INPUT .*not both"):
         _run({**params, "INPUT_FILE": str(tmp_path / "scene.json")})
     with pytest.raises(QgsProcessingException, match="no field 'rr'"):

@@ -25,8 +25,8 @@ def raw(tmp_path_factory):
 
 def test_orthorectify_with_processing_run(provider, raw, tmp_path):
     scene, image, dem = raw
-    out = processing.run("pushbroom:orthorectify", {"INPUT": image, "SCENE": scene, "DEM": dem, "DEM_DATUM": 0,
-                                                    "RESOLUTION": 5.0, "RESAMPLING": 2,
+    out = processing.run("pushbroom:orthorectify", {"INPUT": image, "SCENE": scene, "DEM": dem, "DEM_DATUM": "geoid",
+                                                    "RESOLUTION": 5.0, "RESAMPLING": "cubic",
                                                     "OUTPUT": str(tmp_path / "ortho.tif")})["OUTPUT"]
     ds = gdal.Open(out)
     assert ds.GetGeoTransform()[1] == 5.0 and "UTM zone 50N" in ds.GetProjection()
@@ -86,7 +86,7 @@ def test_a_dem_covering_part_of_the_scene_is_warned(provider, raw, tmp_path):
 
 def test_orthorectify_from_the_command_line(qgis_process, raw, tmp_path):
     scene, image, dem = raw
-    results = _run_json(qgis_process, "pushbroom:orthorectify", INPUT=image, SCENE=scene, DEM=dem, DEM_DATUM=0,
+    results = _run_json(qgis_process, "pushbroom:orthorectify", INPUT=image, SCENE=scene, DEM=dem, DEM_DATUM="geoid",
                         CRS="EPSG:32650", RESOLUTION=10, OUTPUT=tmp_path / "o.tif")
     ds = gdal.Open(results["OUTPUT"])
     assert ds.GetGeoTransform()[1] == 10.0 and ds.RasterCount == 1

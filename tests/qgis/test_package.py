@@ -205,7 +205,7 @@ def test_installed_zip_enables_and_runs_in_a_fresh_profile(installed, tmp_path):
         assert f"\t{alg}\t" in listed.stdout, alg
     sim = _run_json(run, "pushbroom:simulatescene", SEED=3, N_GCPS=12, OUTPUT_FOLDER=tmp_path / "sim")
     out = tmp_path / "footprint.gpkg"
-    _run_json(run, "pushbroom:footprint", SCENE=sim["TRUE_SCENE"], DEM=sim["DEM"], DEM_DATUM=0, SAMPLES=16,
+    _run_json(run, "pushbroom:footprint", SCENE=sim["TRUE_SCENE"], DEM=sim["DEM"], DEM_DATUM="geoid", SAMPLES=16,
               OUTPUT=out)
 
     ds = ogr.Open(str(out))  # kept: its layer dies with it

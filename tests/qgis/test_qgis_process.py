@@ -49,7 +49,7 @@ def test_help_shows_parameter_help(qgis_process):
 def test_run_footprint_from_the_command_line(qgis_process, simulated, tmp_path):
     out = tmp_path / "footprint.gpkg"
     results = _run_json(qgis_process, "pushbroom:footprint", SCENE=simulated["TRUE_SCENE"], DEM=simulated["DEM"],
-                        DEM_DATUM=0, SAMPLES=16, OUTPUT=out)
+                        DEM_DATUM="geoid", SAMPLES=16, OUTPUT=out)
     assert Path(results["OUTPUT"].split("|")[0]) == out
     values, _ = _read_layer(out, "camera", "area_km2")
     truth = footprints(load_scene(simulated["TRUE_SCENE"]), Dem(simulated["DEM"], "geoid"), samples_per_edge=16)
@@ -66,7 +66,8 @@ def test_run_groundtoimage_from_the_command_line(qgis_process, simulated, tmp_pa
     lon, lat, h = ecef_to_geodetic(scene.image_to_ground_dem(col, row, dem))
     points = _write_points(tmp_path / "points.gpkg", lon, lat, h)
     out = tmp_path / "image_points.gpkg"
-    _run_json(qgis_process, "pushbroom:groundtoimage", SCENE=simulated["TRUE_SCENE"], INPUT=points, OUTPUT=out)
+    _run_json(qgis_process, "pushbroom:groundtoimage", SCENE=simulated["TRUE_SCENE"], INPUT=points,
+              Z_DATUM="ellipsoid", OUTPUT=out)
     values, _ = _read_layer(out, "name", "col", "row", "in_image")
     assert list(values[:, 0]) == [f"p{i}" for i in range(7)]
     assert np.abs(values[:, 1].astype(float) - col).max() < 1e-4
@@ -76,7 +77,7 @@ def test_run_groundtoimage_from_the_command_line(qgis_process, simulated, tmp_pa
 
 def test_simulate_import_and_image_to_ground_chained_on_the_command_line(qgis_process, tmp_path):
     """Three-line preset, noise-free, with advanced settings in their user units (µrad)."""
-    sim = _run_json(qgis_process, "pushbroom:simulatescene", PRESET=1, SEED=2, N_GCPS=30, IMAGE_NOISE=0,
+    sim = _run_json(qgis_process, "pushbroom:simulatescene", PRESET="th1_tlc", SEED=2, N_GCPS=30, IMAGE_NOISE=0,
                     CHECK_FRACTION=0.5, POSITION_BIAS=0, ATTITUDE_BIAS=100, OUTPUT_FOLDER=tmp_path / "sim")
     manifest = json.loads(Path(sim["MANIFEST"]).read_text())
     assert manifest["preset"] == "th1_tlc" and manifest["errors"]["position_bias"] == 0.0
@@ -85,7 +86,7 @@ def test_simulate_import_and_image_to_ground_chained_on_the_command_line(qgis_pr
     # import against the true scene: noise-free measurements have zero a-priori residuals
     gcps = tmp_path / "gcps.gpkg"
     _run_json(qgis_process, "pushbroom:importgcps", SCENE=sim["TRUE_SCENE"], INPUT_FILE=sim["GCPS"], Z_FIELD="h",
-              DEM_DATUM=1, ROLE_FIELD="role", CAMERA_FIELD="camera", OUTPUT=gcps)
+              Z_DATUM="ellipsoid", ROLE_FIELD="role", CAMERA_FIELD="camera", OUTPUT=gcps)
     values, _ = _read_layer(gcps, "id", "camera", "role", "res_px", "col", "row")
     with open(sim["GCPS"]) as f:
         n_rows = sum(1 for _ in f) - 1
@@ -94,7 +95,7 @@ def test_simulate_import_and_image_to_ground_chained_on_the_command_line(qgis_pr
     # the nadir measurements back to the ground on the DEM land on the true points
     ground = tmp_path / "ground.gpkg"
     _run_json(qgis_process, "pushbroom:imagetoground", SCENE=sim["TRUE_SCENE"], CAMERA="NAD", INPUT=gcps,
-              DEM=sim["DEM"], DEM_DATUM=0, OUTPUT=ground)
+              DEM=sim["DEM"], DEM_DATUM="geoid", OUTPUT=ground)
     out, _ = _read_layer(ground, "id", "camera", "lon", "lat")
     nad = out[:, 1] == "NAD"
     truth = {r["id"]: (float(r["lon_true"]), float(r["lat_true"]))

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutputFile,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum,
+                       QgsProcessingParameterBoolean,
                        QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
                        QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
                        QgsProcessingParameterVectorLayer)
@@ -22,19 +22,16 @@ from ...core.scene_io import save_scene
 from ...core.timebasis import TimeBasis
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, check_cancelled, core_call,
                       feedback_callbacks, load_scene_for, processing_errors, style_output_on_load)
+from ..parameters import (ATTITUDE_MODEL, GROUND, ON_SINGULAR, POSITION_MODEL, ROBUST, enum_value, ground_mode,
+                          on_singular, robust_method, tr, trajectory_model)
 
-MODELS = ("polynomial", "lagrange", "spline")  # core.timebasis kinds, in the order of the enum
-MODEL_LABELS = ("Polynomial (systematic-error compensation)", "Orientation images (4-point Lagrange)",
-                "Piecewise polynomial (quadratic, continuous)")
-ROBUST = ("none", "selection", "snooping")
-ROBUST_LABELS = ("None", "Selection weights (posterior variances)", "Data snooping (Baarda)")
 ARCSEC = math.pi / 648000.0
 
 
 class BundleAdjustAlgorithm(PushbroomAlgorithm):
     ID = "bundleadjust"
     NAME = "Bundle adjustment"
-    GROUP = "Adjustment"
+    GROUP, GROUP_ID = "Adjustment", "adjustment"
     HELP = ("Self-calibrating bundle adjustment of a pushbroom scene (or strip) to its ground control points. "
             "Corrections to the measured orbit and attitude are estimated as polynomials, orientation images "
             "or piecewise polynomials in time; the onboard GPS and star trackers enter as weighted "
@@ -47,11 +44,11 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             "adjusted residuals and flags, and ground residual vectors.")
     GCPS = "GCPS"
     POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
-        "POSITION_MODEL", "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
+        POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
     ATTITUDE_MODEL, ATTITUDE_ORDER, ATTITUDE_INTERVAL, ATTITUDE_SIGMA = \
-        "ATTITUDE_MODEL", "ATTITUDE_ORDER", "ATTITUDE_INTERVAL", "ATTITUDE_SIGMA"
+        ATTITUDE_MODEL, "ATTITUDE_ORDER", "ATTITUDE_INTERVAL", "ATTITUDE_SIGMA"
     INTERIOR, GROUND, ROBUST, ALPHA, ON_SINGULAR, RESIDUAL_SCALE = \
-        "INTERIOR", "GROUND", "ROBUST", "ALPHA", "ON_SINGULAR", "RESIDUAL_SCALE"
+        "INTERIOR", GROUND, ROBUST, "ALPHA", ON_SINGULAR, "RESIDUAL_SCALE"
     VARIANCE_COMPONENTS, MAX_ROBUST_PASSES = "VARIANCE_COMPONENTS", "MAX_ROBUST_PASSES"
     OUTPUT_SCENE, OUTPUT_REPORT, OUTPUT_GCPS, OUTPUT_RESIDUALS = \
         "OUTPUT_SCENE", "OUTPUT_REPORT", "OUTPUT_GCPS", "OUTPUT_RESIDUALS"
@@ -59,101 +56,87 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
-        self.add_parameter(QgsProcessingParameterVectorLayer(self.GCPS, "Ground control points (GeoPackage)",
+        self.add_parameter(QgsProcessingParameterVectorLayer(self.GCPS, tr("Ground control points (GeoPackage)"),
                                                     [QgsProcessing.TypeVectorPoint]),
-                  "The GCP layer written by 'Import ground control points' (GeoPackage): image col/row, ground "
-                  "position, role control/check, camera and sigmas of every point.")
-        for block, default_order, default_sigma, unit, sigma_help in (
-                ("POSITION", 1, 100.0, "m", "Accuracy of the onboard orbit (GPS), metres per axis: the position "
-                 "corrections at the knots enter as pseudo-observations of 0 with this sigma. 0: none (only the GCPs "
-                 "fix the position)."),
-                ("ATTITUDE", 2, 0.0, "arcsec", "Accuracy of the onboard attitude (star trackers), arcseconds per "
-                 "axis, as pseudo-observations of the attitude corrections. 0: none.")):
-            what = block.lower()
-            self.add_parameter(QgsProcessingParameterEnum(f"{block}_MODEL", f"{block.title()} correction model",
-                                                 options=list(MODEL_LABELS), defaultValue=0),
-                      f"How the {what} correction varies in time: a polynomial of order {block}_ORDER over the "
-                      f"strip (systematic-error compensation, seed 000 eq. 1-2; order 2 without pseudo-observations "
-                      f"is seed 002's quadratic model), orientation images every {block}_INTERVAL seconds with "
-                      "4-point Lagrange interpolation (seed 000 eq. 3), or quadratic pieces between knots every "
-                      f"{block}_INTERVAL seconds, continuous in value and slope (seed 001 eq. 9).")
-            self.add_parameter(QgsProcessingParameterNumber(f"{block}_ORDER", f"{block.title()} polynomial order",
-                                                   QgsProcessingParameterNumber.Integer, default_order, minValue=0,
-                                                   maxValue=2),
-                      "0: bias, 1: bias and drift, 2: also a quadratic term (polynomial model only).")
-            self.add_parameter(QgsProcessingParameterNumber(f"{block}_INTERVAL", f"{block.title()} knot interval (s)",
-                                                   QgsProcessingParameterNumber.Double, 20.0, minValue=0.01),
-                      "Seconds between orientation images or knots (Lagrange and piecewise models). Shorter "
-                      "intervals follow faster motion but let position and attitude trade off (seed 000 Fig. 7-11).")
-            self.add_parameter(QgsProcessingParameterNumber(f"{block}_SIGMA", f"Onboard {what} sigma ({unit})",
-                                                   QgsProcessingParameterNumber.Double, default_sigma, minValue=0.0),
-                      sigma_help)
-        self.add_parameter(QgsProcessingParameterString(self.INTERIOR, "Interior parameters to estimate", optional=True,
-                                               defaultValue=""),
-                  "Interior and installation parameters to estimate, comma-separated; every other one stays "
+                  tr("The GCP layer written by 'Import ground control points' (GeoPackage): image col/row, "
+                     "ground position, role control/check, camera and sigmas of every point."))
+        for block, what, default_order, default_sigma, unit, sigma_help in (
+                ("POSITION", tr("position"), 1, 100.0, "m", tr(
+                    "Accuracy of the onboard orbit (GPS), metres per axis: the position corrections at the knots "
+                    "enter as pseudo-observations of 0 with this sigma. 0: none (only the GCPs fix the position).")),
+                ("ATTITUDE", tr("attitude"), 2, 0.0, "arcsec", tr(
+                    "Accuracy of the onboard attitude (star trackers), arcseconds per axis, as pseudo-observations "
+                    "of the attitude corrections. 0: none."))):
+            self.addParameter(trajectory_model(f"{block}_MODEL", what))
+            title = what.capitalize()
+            self.add_parameter(QgsProcessingParameterNumber(
+                f"{block}_ORDER", tr("{what} polynomial order").format(what=title),
+                QgsProcessingParameterNumber.Integer, default_order, minValue=0, maxValue=2),
+                tr("0: bias, 1: bias and drift, 2: also a quadratic term (polynomial model only)."))
+            self.add_parameter(QgsProcessingParameterNumber(
+                f"{block}_INTERVAL", tr("{what} knot interval (s)").format(what=title),
+                QgsProcessingParameterNumber.Double, 20.0, minValue=0.01),
+                tr("Seconds between orientation images or knots (lagrange and spline models). Shorter intervals "
+                   "follow faster motion but let position and attitude trade off (Zheng et al. 2015, Fig. 7-11)."))
+            self.add_parameter(QgsProcessingParameterNumber(
+                f"{block}_SIGMA", tr("Onboard {what} sigma ({unit})").format(what=what, unit=unit),
+                QgsProcessingParameterNumber.Double, default_sigma, minValue=0.0), sigma_help)
+        self.add_parameter(QgsProcessingParameterString(self.INTERIOR, tr("Interior parameters to estimate"),
+                                                        optional=True, defaultValue=""),
+                  tr("Interior and installation parameters to estimate, comma-separated; every other one stays "
                   "at the scene's value. A name alone makes the parameter free; 'name=sigma' makes it weighted "
                   "(a pseudo-observation of 0 correction with that sigma, in the parameter's SI unit). Shell "
                   "wildcards match several names: * any text, ? one character. Names use the scene's chip and "
                   "camera names (CBERS-02B: camera HRC, chips HRC-1, HRC-2, HRC-3): {chip}.dx, .dy (CCD shift on "
-                  "the focal plane, m) and .theta (CCD rotation, rad), seed 000 eq. 4; {chip}.ux0, .ux1, .uy0, "
-                  ".uy1 (rad) for detectors given by look angles; {camera}.f (focal length correction, m), .dxp, "
+                  "the focal plane, m) and .theta (CCD rotation, rad), after Zheng et al. 2015; {chip}.ux0, .ux1, "
+                  ".uy0, .uy1 (rad) for detectors given by look angles; {camera}.f (focal length correction, m), .dxp, "
                   ".dyp (principal point, m), .k1, .k2 (radial distortion), .p1, .p2 (decentring), .b1, .b2, .b3 "
-                  "(affinity), seed 001 eq. 7; {camera}.roll, .pitch, .yaw (installation angles, rad; with several "
-                  "cameras free them for all but the reference camera). Example for CBERS-02B: 'HRC-1.*, HRC-3.*' "
-                  "(shifts and rotations of the left and right CCDs against the middle one); 'HRC-1.*, HRC-3.*, "
+                  "(affinity), after Zhang et al. 2015; {camera}.roll, .pitch, .yaw (installation angles, rad; with "
+                  "several cameras free them for all but the reference camera). Example for CBERS-02B: 'HRC-1.*, "
+                  "HRC-3.*' (shifts and rotations of the left and right CCDs against the middle one); 'HRC-1.*, HRC-3.*, "
                   "HRC.f=1e-5' also estimates the focal length, weighted with 10 µm. Sets the GCPs cannot separate "
-                  "from the trajectory are reported (see ON_SINGULAR). Empty: none (trajectory only).")
-        self.add_parameter(QgsProcessingParameterEnum(self.GROUND, "GCP ground coordinates",
-                                             options=["Weighted by their sigmas", "Fixed"], defaultValue=0),
-                  "Weighted: the ground coordinates are unknowns with the GCPs' sigma_xy/sigma_z as pseudo-"
-                  "observations (matched or map-derived points). Fixed: taken as exact (surveyed points).")
-        self.add_parameter(QgsProcessingParameterEnum(self.ROBUST, "Gross error detection", options=list(ROBUST_LABELS),
-                                             defaultValue=1),
-                  "Selection weights down-weight observations whose normalised residual exceeds the critical "
-                  "value (Li Deren's posterior-variance weights); data snooping removes them from the solution in "
-                  "batches (Baarda). Either way the flagged points stay in the output layer with flagged = 1.")
-        self.add_parameter(QgsProcessingParameterNumber(self.ALPHA, "Significance of the outlier test",
+                  "from the trajectory are reported (see ON_SINGULAR). Empty: none (trajectory only)."))
+        self.addParameter(ground_mode())
+        self.addParameter(robust_method())
+        self.add_parameter(QgsProcessingParameterNumber(self.ALPHA, tr("Significance of the outlier test"),
                                                QgsProcessingParameterNumber.Double, 0.001, minValue=1e-9, maxValue=0.2),
-                  "Probability of flagging a good observation (0.001: |w| > 3.29).", advanced=True)
-        self.add_parameter(QgsProcessingParameterBoolean(self.VARIANCE_COMPONENTS, "Estimate variance components",
+                  tr("Probability of flagging a good observation (0.001: |w| > 3.29)."), advanced=True)
+        self.add_parameter(QgsProcessingParameterBoolean(self.VARIANCE_COMPONENTS, tr("Estimate variance components"),
                                                          defaultValue=True),
-                  "Estimate a factor on the stated sigmas per observation group (image observations per camera, "
-                  "ground xy, ground z, onboard pseudo-observations) from the residuals and use it before the "
-                  "outlier test, so that flags and check figures do not depend on how well the sigmas were "
-                  "guessed (Förstner 1979). Off: the stated sigmas are trusted as they are.", advanced=True)
-        self.add_parameter(QgsProcessingParameterNumber(self.MAX_ROBUST_PASSES, "Robust passes at most",
+                  tr("Estimate a factor on the stated sigmas per observation group (image observations per camera, "
+                     "ground xy, ground z, onboard pseudo-observations) from the residuals and use it before the "
+                     "outlier test, so that flags and check figures do not depend on how well the sigmas were "
+                     "guessed (Förstner 1979). Off: the stated sigmas are trusted as they are."), advanced=True)
+        self.add_parameter(QgsProcessingParameterNumber(self.MAX_ROBUST_PASSES, tr("Robust passes at most"),
                                                         QgsProcessingParameterNumber.Integer, 12, minValue=1,
                                                         maxValue=100),
-                  "Passes of gross error detection and variance component estimation; a run that needs more "
-                  "says so (the flags may then be incomplete).", advanced=True)
-        self.add_parameter(QgsProcessingParameterEnum(self.ON_SINGULAR, "Non-determinable parameters",
-                                             options=["Fix one of each set and continue", "Stop with their names"],
-                                             defaultValue=0),
-                  "What to do when the GCPs cannot separate some parameters (e.g. all three CBERS CCDs' shifts "
-                  "and the attitude): fix one of each set (the middle CCD's, if involved) or stop.", advanced=True)
-        self.add_parameter(QgsProcessingParameterNumber(self.RESIDUAL_SCALE, "Residual vector exaggeration",
+                  tr("Passes of gross error detection and variance component estimation; a run that needs more "
+                     "says so (the flags may then be incomplete)."), advanced=True)
+        self.add_parameter(on_singular(), advanced=True)
+        self.add_parameter(QgsProcessingParameterNumber(self.RESIDUAL_SCALE, tr("Residual vector exaggeration"),
                                                QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0,
                                                maxValue=1e6),
-                  "Factor by which the ground residual vectors are drawn longer than they are.", advanced=True)
-        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_SCENE, "Adjusted scene",
+                  tr("Factor by which the ground residual vectors are drawn longer than they are."), advanced=True)
+        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_SCENE, tr("Adjusted scene"),
                                                         fileFilter="Scene JSON (*.json)"),
-                  "Scene JSON with the corrections, the parameters with sigmas and the settings; every algorithm "
-                  "accepts it as SCENE.")
-        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, "Report (HTML)",
+                  tr("Scene JSON with the corrections, the parameters with sigmas and the settings; every "
+                     "algorithm accepts it as SCENE."))
+        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, tr("Report (HTML)"),
                                                         fileFilter="HTML (*.html)"),
-                  "A report to read: accuracy before/after, decisions, parameters, plots. The same figures as "
-                  "JSON go beside it (same name, .json).")
-        gcp_out = QgsProcessingParameterVectorDestination(self.OUTPUT_GCPS, "Adjusted GCPs",
+                  tr("A report to read: accuracy before/after, decisions, parameters, plots. The same figures as "
+                     "JSON go beside it (same name, .json)."))
+        gcp_out = QgsProcessingParameterVectorDestination(self.OUTPUT_GCPS, tr("Adjusted GCPs"),
                                                           QgsProcessing.TypeVectorPoint)
         gcp_out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(gcp_out, "GeoPackage of the input points with the adjusted residuals (res_col, res_row, res_px, "
-                  "res_m), normalised residuals w_col/w_row, redundancy, weight and flagged (1 = gross error).")
-        vec_out = QgsProcessingParameterVectorDestination(self.OUTPUT_RESIDUALS, "Residual vectors",
+        self.add_parameter(gcp_out, tr("GeoPackage of the input points with the adjusted residuals (res_col, res_row, "
+                  "res_px, res_m), normalised residuals w_col/w_row, redundancy, weight and flagged (1 = gross "
+                  "error)."))
+        vec_out = QgsProcessingParameterVectorDestination(self.OUTPUT_RESIDUALS, tr("Residual vectors"),
                                                           QgsProcessing.TypeVectorLine)
         vec_out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(vec_out, "GeoPackage of lines from each GCP along its ground residual, exaggerated "
-                  "RESIDUAL_SCALE times (res_m holds the true length).")
-        self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, "Report (JSON)"))
+        self.add_parameter(vec_out, tr("GeoPackage of lines from each GCP along its ground residual, exaggerated "
+                  "RESIDUAL_SCALE times (res_m holds the true length)."))
+        self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, tr("Report (JSON)")))
 
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
@@ -228,20 +211,20 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         number = lambda name: self.parameterAsDouble(parameters, name, context)  # noqa: E731
         position_sigma, attitude_sigma = number(self.POSITION_SIGMA), number(self.ATTITUDE_SIGMA)
         return AdjustmentSettings(
-            position_model=MODELS[self.parameterAsEnum(parameters, self.POSITION_MODEL, context)],
+            position_model=enum_value(self, parameters, self.POSITION_MODEL, context),
             position_order=self.parameterAsInt(parameters, self.POSITION_ORDER, context),
             position_interval=number(self.POSITION_INTERVAL),
-            attitude_model=MODELS[self.parameterAsEnum(parameters, self.ATTITUDE_MODEL, context)],
+            attitude_model=enum_value(self, parameters, self.ATTITUDE_MODEL, context),
             attitude_order=self.parameterAsInt(parameters, self.ATTITUDE_ORDER, context),
             attitude_interval=number(self.ATTITUDE_INTERVAL),
             position_sigma=position_sigma or None, attitude_sigma=attitude_sigma * ARCSEC or None,
             interior=self.parameterAsString(parameters, self.INTERIOR, context),
-            ground=("weighted", "fixed")[self.parameterAsEnum(parameters, self.GROUND, context)],
-            robust=ROBUST[self.parameterAsEnum(parameters, self.ROBUST, context)],
+            ground=enum_value(self, parameters, self.GROUND, context),
+            robust=enum_value(self, parameters, self.ROBUST, context),
             alpha=number(self.ALPHA),
             variance_components=self.parameterAsBoolean(parameters, self.VARIANCE_COMPONENTS, context),
             max_robust_iterations=self.parameterAsInt(parameters, self.MAX_ROBUST_PASSES, context),
-            on_singular=("fix", "stop")[self.parameterAsEnum(parameters, self.ON_SINGULAR, context)])
+            on_singular=enum_value(self, parameters, self.ON_SINGULAR, context))
 
     def _named(self, message: str) -> str:
         """A core error found while solving, prefixed with the parameter at fault where that is clear."""

@@ -11,12 +11,13 @@ from ...core.rpcfit import dem_height_range, fit_rpc, image_vrt_with_rpc, write_
 from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       check_cancelled, core_call, dem_from_parameters, feedback_callbacks, load_scene_for,
                       processing_errors)
+from ..parameters import tr
 
 
 class ExportRpcAlgorithm(PushbroomAlgorithm):
     ID = "exportrpc"
     NAME = "Export RPC"
-    GROUP = "Products"
+    GROUP, GROUP_ID = "Products", "products"
     HELP = ("Fits an RPC00B model (third-order rational polynomials, the form GDAL, QGIS and most "
             "photogrammetric software read) to one camera of the scene's rigorous sensor model, over the whole "
             "image and the terrain's height range, and checks it on an independent grid (other image positions, "
@@ -41,47 +42,47 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         add_scene_parameters(self)
         add_dem_parameters(self)
         self.add_parameter(
-            QgsProcessingParameterNumber(self.HEIGHT_SPAN, "Height span without a DEM (± m)",
+            QgsProcessingParameterNumber(self.HEIGHT_SPAN, tr("Height span without a DEM (± m)"),
                                          QgsProcessingParameterNumber.Double, 500.0, minValue=1.0,
                                          maxValue=10000.0),
-            "Without a DEM the RPC is fitted from HEIGHT - HEIGHT_SPAN to HEIGHT + HEIGHT_SPAN (metres, "
-            "ellipsoidal); outside that range it extrapolates. With a DEM, the range is the DEM's heights over "
-            "the image plus a margin (10 % of their span, at least 50 m).")
+            tr("Without a DEM the RPC is fitted from HEIGHT - HEIGHT_SPAN to HEIGHT + HEIGHT_SPAN (metres, "
+               "ellipsoidal); outside that range it extrapolates. With a DEM, the range is the DEM's heights over "
+               "the image plus a margin (10 % of their span, at least 50 m)."))
         self.add_parameter(
-            QgsProcessingParameterNumber(self.GRID, "Fit grid nodes across and along the image",
+            QgsProcessingParameterNumber(self.GRID, tr("Fit grid nodes across and along the image"),
                                          QgsProcessingParameterNumber.Integer, 31, minValue=4, maxValue=201),
-            "The rigorous model is sampled on this many image columns and rows (image edges included) at "
-            "each height level; 31 is plenty for a cubic RPC.", advanced=True)
+            tr("The rigorous model is sampled on this many image columns and rows (image edges included) at "
+               "each height level; 31 is plenty for a cubic RPC."), advanced=True)
         self.add_parameter(
-            QgsProcessingParameterNumber(self.HEIGHT_LEVELS, "Fit height levels",
+            QgsProcessingParameterNumber(self.HEIGHT_LEVELS, tr("Fit height levels"),
                                          QgsProcessingParameterNumber.Integer, 7, minValue=4, maxValue=51),
-            "Number of heights, from the bottom to the top of the height range, at which the grid is "
-            "sampled (a cubic in height needs at least 4).", advanced=True)
+            tr("Number of heights, from the bottom to the top of the height range, at which the grid is "
+               "sampled (a cubic in height needs at least 4)."), advanced=True)
         self.add_parameter(
-            QgsProcessingParameterNumber(self.REGULARISATION, "Regularisation (Tikhonov)",
+            QgsProcessingParameterNumber(self.REGULARISATION, tr("Regularisation (Tikhonov)"),
                                          QgsProcessingParameterNumber.Double, 1e-12, minValue=0.0, maxValue=1e-2),
-            "Ridge weight, relative to the normalised normal equations, that keeps the denominators tame. "
-            "It is raised 100-fold at a time (up to 1e-4; the value used is reported) while the denominator "
-            "vanishes at a fit node or the independent check's largest error exceeds twice the fit's.",
+            tr("Ridge weight, relative to the normalised normal equations, that keeps the denominators tame. "
+               "It is raised 100-fold at a time (up to 1e-4; the value used is reported) while the denominator "
+               "vanishes at a fit node or the independent check's largest error exceeds twice the fit's."),
             advanced=True)
         self.add_parameter(
-            QgsProcessingParameterRasterLayer(self.IMAGE, "Image of this camera (optional)", optional=True),
-            "The raw image the scene's camera took (same size as the camera's image). When given, a VRT "
-            "named after OUTPUT (e.g. scene_RPC.TXT -> scene.vrt) is written beside OUTPUT: it shows the "
-            "image unchanged, with the RPC in its metadata, so GDAL and QGIS can orthorectify it. The image "
-            "file itself is never modified.")
+            QgsProcessingParameterRasterLayer(self.IMAGE, tr("Image of this camera (optional)"), optional=True),
+            tr("The raw image the scene's camera took (same size as the camera's image). When given, a VRT "
+               "named after OUTPUT (e.g. scene_RPC.TXT -> scene.vrt) is written beside OUTPUT: it shows the "
+               "image unchanged, with the RPC in its metadata, so GDAL and QGIS can orthorectify it. The image "
+               "file itself is never modified."))
         self.add_parameter(
-            QgsProcessingParameterFileDestination(self.OUTPUT, "RPC file", "RPC text (*_RPC.TXT);;RPB (*.RPB)",
+            QgsProcessingParameterFileDestination(self.OUTPUT, tr("RPC file"), "RPC text (*_RPC.TXT);;RPB (*.RPB)",
                                                   defaultValue=None),
-            "Where to write the RPC: a name ending in _RPC.TXT writes GDAL's RPC text (the DigitalGlobe "
-            "'KEY: value' layout), .RPB the RPB layout. GDAL uses it for an image called <name>.<ext> in the "
-            "same folder. The fit report is written beside it as <OUTPUT>.json.")
-        self.addOutput(QgsProcessingOutputFile(self.REPORT, "Fit report (JSON): errors overall, per CCD, at "
-                                                            "the height-range ends"))
-        self.addOutput(QgsProcessingOutputRasterLayer(self.IMAGE_WITH_RPC, "Image with RPC (VRT), when IMAGE "
-                                                                           "is given"))
-        self.addOutput(QgsProcessingOutputNumber(self.RMS_PX, "Check RMS error (px)"))
-        self.addOutput(QgsProcessingOutputNumber(self.MAX_PX, "Check maximum error (px)"))
+            tr("Where to write the RPC: a name ending in _RPC.TXT writes GDAL's RPC text (the DigitalGlobe "
+               "'KEY: value' layout), .RPB the RPB layout. GDAL uses it for an image called <name>.<ext> in the "
+               "same folder. The fit report is written beside it as <OUTPUT>.json."))
+        self.addOutput(QgsProcessingOutputFile(self.REPORT, tr("Fit report (JSON): errors overall, per CCD, "
+                                                               "at the height-range ends")))
+        self.addOutput(QgsProcessingOutputRasterLayer(self.IMAGE_WITH_RPC, tr("Image with RPC (VRT), when "
+                                                                              "IMAGE is given")))
+        self.addOutput(QgsProcessingOutputNumber(self.RMS_PX, tr("Check RMS error (px)")))
+        self.addOutput(QgsProcessingOutputNumber(self.MAX_PX, tr("Check maximum error (px)")))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         out = Path(self.output_path(parameters, context, self.OUTPUT, "image_RPC.TXT"))

@@ -7,12 +7,13 @@ from qgis.PyQt.QtCore import QVariant
 from ...core.products import footprints
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
                       core_call, dem_from_parameters, load_scene_for, style_output_on_load)
+from ..parameters import tr
 
 
 class FootprintAlgorithm(PushbroomAlgorithm):
     ID = "footprint"
     NAME = "Scene footprint"
-    GROUP = "Products"
+    GROUP, GROUP_ID = "Products", "products"
     HELP = ("Traces the border of each camera's image on the terrain (a DEM, or a constant height) with the "
             "scene's rigorous sensor model: one polygon per camera in WGS84 (EPSG:4326), densely sampled "
             "along every edge and on both sides of each CCD boundary, so that the outline stays correct "
@@ -22,15 +23,15 @@ class FootprintAlgorithm(PushbroomAlgorithm):
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
         add_dem_parameters(self)
-        samples = QgsProcessingParameterNumber(self.SAMPLES, "Points per image edge",
+        samples = QgsProcessingParameterNumber(self.SAMPLES, tr("Points per image edge"),
                                                QgsProcessingParameterNumber.Integer, 256, minValue=4,
                                                maxValue=100000)
-        samples.setHelp("How many intervals each edge of the image is divided into; 256 keeps the outline "
-                        "within centimetres of the true border for usual scenes.")
+        samples.setHelp(tr("How many intervals each edge of the image is divided into; 256 keeps the outline "
+                           "within centimetres of the true border for usual scenes."))
         self.addParameter(samples)
-        out = QgsProcessingParameterFeatureSink(self.OUTPUT, "Footprints", QgsProcessing.TypeVectorPolygon)
-        out.setHelp("Polygons (EPSG:4326), one per camera, with fields camera, cols, rows and area_km2 "
-                    "(geodesic area on the WGS84 ellipsoid).")
+        out = QgsProcessingParameterFeatureSink(self.OUTPUT, tr("Footprints"), QgsProcessing.TypeVectorPolygon)
+        out.setHelp(tr("Polygons (EPSG:4326), one per camera, with fields camera, cols, rows and area_km2 "
+                       "(geodesic area on the WGS84 ellipsoid)."))
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

@@ -1,7 +1,7 @@
 """pushbroom:groundtoimage — image coordinates (col, row) of ground points in a scene."""
 import numpy as np
 from qgis.core import (QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum, QgsProcessingParameterFeatureSink,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterFeatureSink,
                        QgsProcessingParameterFeatureSource, QgsProcessingUtils)
 from qgis.PyQt.QtCore import QVariant
 
@@ -10,10 +10,8 @@ from ...core.geodesy import geodetic_to_ecef
 from ...core.validation import PLAUSIBLE_HEIGHTS, implausible_heights
 from ..common import (STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
                       core_call, dem_from_parameters, lonlat_of, nonfinite_message, require_points,
-                      scene_camera_and_features, style_output_on_load)
-
-Z_DATUMS = ("ellipsoid", "geoid")
-Z_DATUM_LABELS = ("Ellipsoid (WGS84)", "Geoid (EGM96)")
+                      scene_camera_and_features, style_output_on_load, z_datum_of_crs)
+from ..parameters import Z_DATUM, enum_value, tr, z_datum
 
 
 class GroundToImageAlgorithm(PushbroomAlgorithm):
@@ -24,27 +22,23 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
             "of the upper-left pixel, pixel centres at half-integers) and <b>in_image</b> (1 when the point "
             "falls inside the image). Points outside the image are kept, flagged and counted in a warning. "
             "When the input already has fields named col/row, the new ones are named col_2/row_2.")
-    INPUT, USE_Z, Z_DATUM, OUTPUT = "INPUT", "USE_Z", "Z_DATUM", "OUTPUT"
+    INPUT, USE_Z, Z_DATUM, OUTPUT = "INPUT", "USE_Z", Z_DATUM, "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self)
-        source = QgsProcessingParameterFeatureSource(self.INPUT, "Ground points", [QgsProcessing.TypeVectorPoint])
-        source.setHelp("Point layer in any CRS. Heights come from the points' Z values (see USE_Z), "
-                       "else from the DEM, else from the constant HEIGHT.")
+        source = QgsProcessingParameterFeatureSource(self.INPUT, tr("Ground points"), [QgsProcessing.TypeVectorPoint])
+        source.setHelp(tr("Point layer in any CRS. Heights come from the points' Z values (see USE_Z), "
+                          "else from the DEM, else from the constant HEIGHT."))
         self.addParameter(source)
-        use_z = QgsProcessingParameterBoolean(self.USE_Z, "Use the points' Z values as heights", defaultValue=True)
-        use_z.setHelp("When checked, points that have a Z value use it as their height (see Z_DATUM); points "
-                      "without Z fall back to the DEM or HEIGHT.")
+        use_z = QgsProcessingParameterBoolean(self.USE_Z, tr("Use the points' Z values as heights"),
+                                              defaultValue=True)
+        use_z.setHelp(tr("When checked, points that have a Z value use it as their height (in Z_DATUM, which must "
+                         "then be given); points without Z fall back to the DEM or HEIGHT."))
         self.addParameter(use_z)
-        z_datum = QgsProcessingParameterEnum(self.Z_DATUM, "Datum of the Z values", options=list(Z_DATUM_LABELS),
-                                             defaultValue=0)
-        z_datum.setHelp("What the points' Z values are measured from: the WGS84 ellipsoid (GNSS surveys, "
-                        "EPSG:4979 layers such as the output of 'Image to ground') or the EGM96 geoid (mean "
-                        "sea level, heights read from maps).")
-        self.addParameter(z_datum)
+        self.addParameter(z_datum())
         add_dem_parameters(self)
-        out = QgsProcessingParameterFeatureSink(self.OUTPUT, "Image points", QgsProcessing.TypeVectorPoint)
-        out.setHelp("The input features with all their attributes plus col, row (float pixels) and in_image.")
+        out = QgsProcessingParameterFeatureSink(self.OUTPUT, tr("Image points"), QgsProcessing.TypeVectorPoint)
+        out.setHelp(tr("The input features with all their attributes plus col, row (float pixels) and in_image."))
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
@@ -100,8 +94,13 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         lon, lat = lonlat_of(self.INPUT, source.sourceCrs(), xyz[:, 0], xyz[:, 1])
         use_z = self.parameterAsBool(parameters, self.USE_Z, context) & np.isfinite(xyz[:, 2])
         h = np.empty(n)
-        datum = Z_DATUMS[self.parameterAsEnum(parameters, self.Z_DATUM, context)]
         if use_z.any():
+            datum = enum_value(self, parameters, self.Z_DATUM, context) or z_datum_of_crs(source.sourceCrs())
+            if datum is None:
+                raise QgsProcessingException(f"{self.Z_DATUM}: {int(use_z.sum())} points have Z values and the "
+                                             f"layer's CRS ({source.sourceCrs().authid()}) does not say what they "
+                                             "are measured from: give Z_DATUM=geoid or Z_DATUM=ellipsoid (or "
+                                             "USE_Z=false to take heights from the DEM or HEIGHT)")
             h[use_z] = core_call(to_ellipsoidal, lon[use_z], lat[use_z], xyz[use_z, 2], datum)
             implausible = use_z & implausible_heights(h)
             if implausible.any():

@@ -2,7 +2,7 @@
 import numpy as np
 from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry,
                        QgsPoint, QgsProcessing, QgsProcessingException, QgsProcessingParameterFeatureSink,
-                       QgsProcessingParameterFeatureSource, QgsProcessingParameterField, QgsProcessingUtils,
+                       QgsProcessingParameterFeatureSource, QgsProcessingUtils,
                        QgsWkbTypes)
 from qgis.PyQt.QtCore import QVariant
 
@@ -11,6 +11,7 @@ from ...core.geodesy import ecef_to_geodetic
 from ..common import (DEM, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
                       core_call, dem_from_parameters, nonfinite_message, scene_camera_and_features,
                       style_output_on_load)
+from ..parameters import COL_FIELD, ROW_FIELD, image_field, tr
 
 OUTPUT_CRS = "EPSG:4979"  # WGS84 longitude, latitude (deg) and ellipsoidal height (m)
 
@@ -23,24 +24,21 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
             "corner of the upper-left pixel, pixel centres at half-integers. The output points are in "
             "EPSG:4979 (WGS84 longitude/latitude with ellipsoidal Z) and carry the input attributes plus "
             "lon, lat, h_ellipsoid.")
-    INPUT, COL_FIELD, ROW_FIELD, OUTPUT = "INPUT", "COL_FIELD", "ROW_FIELD", "OUTPUT"
+    INPUT, COL_FIELD, ROW_FIELD, OUTPUT = "INPUT", COL_FIELD, ROW_FIELD, "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self)
-        source = QgsProcessingParameterFeatureSource(self.INPUT, "Image points (table or layer)",
+        source = QgsProcessingParameterFeatureSource(self.INPUT, tr("Image points (table or layer)"),
                                                      [QgsProcessing.TypeVector])
-        source.setHelp("Any table or layer (CSV, GeoPackage, ...) with numeric column and row fields; its "
-                       "geometry, if any, is ignored.")
+        source.setHelp(tr("Any table or layer (CSV, GeoPackage, ...) with numeric column and row fields; its "
+                          "geometry, if any, is ignored."))
         self.addParameter(source)
-        for name, label, default in ((self.COL_FIELD, "Column field", "col"), (self.ROW_FIELD, "Row field", "row")):
-            field = QgsProcessingParameterField(name, label, defaultValue=default, parentLayerParameterName=self.INPUT,
-                                                type=QgsProcessingParameterField.Numeric, optional=True)
-            field.setHelp(f"Numeric field holding the image {label.split()[0].lower()} coordinate in pixels "
-                          f"(GDAL convention). Default (also when left empty): '{default}'.")
-            self.addParameter(field)
+        for name in (self.COL_FIELD, self.ROW_FIELD):
+            self.addParameter(image_field(name))
         add_dem_parameters(self)
-        out = QgsProcessingParameterFeatureSink(self.OUTPUT, "Ground points", QgsProcessing.TypeVectorPoint)
-        out.setHelp("Points in EPSG:4979 with the input attributes plus lon, lat (degrees) and h_ellipsoid (m).")
+        out = QgsProcessingParameterFeatureSink(self.OUTPUT, tr("Ground points"), QgsProcessing.TypeVectorPoint)
+        out.setHelp(tr("Points in EPSG:4979 with the input attributes plus lon, lat (degrees) and h_ellipsoid "
+                       "(m)."))
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

@@ -6,24 +6,23 @@ from pathlib import Path
 
 import numpy as np
 from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessingException,
-                       QgsProcessingParameterCrs, QgsProcessingParameterEnum, QgsProcessingParameterFeatureSource,
+                       QgsProcessingParameterCrs, QgsProcessingParameterFeatureSource,
                        QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterString,
                        QgsProcessingParameterVectorDestination, QgsWkbTypes)
 
 from ...core import gcps
 from ...core.validation import check_terrain_height
-from ..common import (DEM_DATUM, DEM_DATUMS, HEIGHT, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
+from ..common import (DEM_DATUM, HEIGHT, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
                       add_scene_parameters, check_cancelled, core_call, dem_from_parameters, load_scene_for,
-                      require_points, style_output_on_load)
-
-HEIGHT_SOURCES = ("z", "dem", "constant")  # core.gcps.Heights.source, in the order of the enum
-HEIGHT_SOURCE_LABELS = ("Z values (Z_FIELD, or the layer's point Z)", "DEM", "Constant height (HEIGHT)")
+                      require_points, style_output_on_load, z_datum_of_crs)
+from ..parameters import (CAMERA, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ROW_FIELD, Z_DATUM, camera,
+                          check_fraction, enum_value, height_source, image_field, tr, z_datum)
 
 
 class ImportGcpsAlgorithm(PushbroomAlgorithm):
     ID = "importgcps"
     NAME = "Import ground control points"
-    GROUP = "Control"
+    GROUP, GROUP_ID = "Control", "control"
     HELP = ("Reads ground control points (image col/row + ground coordinates) from a CSV file, a QGIS "
             "Georeferencer <i>.points</i> file or a point layer, converts the ground coordinates to WGS84 and "
             "the heights to ellipsoidal, and checks every point against the scene's sensor model: the "
@@ -33,81 +32,78 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
             "of the upper-left pixel. In .points files the pixel y is negative downwards (QGIS shows raw "
             "images so) and is converted; disabled .points entries become check points. The output is a "
             "GeoPackage point layer in EPSG:4979 (lon, lat, ellipsoidal height) with fields id, role, "
-            "camera, col, row, h, sigma_px, sigma_xy, sigma_z, res_col, res_row, res_px, res_m, inside.")
-    CAMERA = "CAMERA"
+            "camera, col, row, h, sigma_px, sigma_xy, sigma_z, res_col, res_row, res_px, res_m, inside. "
+            "CHECK_FRACTION's check points are chosen deterministically, spread along the image; points already "
+            "'check' count.")
+    CAMERA = CAMERA
     INPUT_FILE, INPUT = "INPUT_FILE", "INPUT"
-    ID_FIELD, COL_FIELD, ROW_FIELD, X_FIELD, Y_FIELD = "ID_FIELD", "COL_FIELD", "ROW_FIELD", "X_FIELD", "Y_FIELD"
+    ID_FIELD, COL_FIELD, ROW_FIELD, X_FIELD, Y_FIELD = "ID_FIELD", COL_FIELD, ROW_FIELD, "X_FIELD", "Y_FIELD"
     Z_FIELD, ROLE_FIELD, CAMERA_FIELD = "Z_FIELD", "ROLE_FIELD", "CAMERA_FIELD"
-    GROUND_CRS, HEIGHT_SOURCE, CHECK_FRACTION = "GROUND_CRS", "HEIGHT_SOURCE", "CHECK_FRACTION"
+    GROUND_CRS, HEIGHT_SOURCE, CHECK_FRACTION, Z_DATUM = "GROUND_CRS", HEIGHT_SOURCE, CHECK_FRACTION, Z_DATUM
     SIGMA_PX, SIGMA_XY, SIGMA_Z, OUTPUT = "SIGMA_PX", "SIGMA_XY", "SIGMA_Z", "OUTPUT"
     SIGMA_FIELDS = {"sigma_px": "SIGMA_PX_FIELD", "sigma_xy": "SIGMA_XY_FIELD", "sigma_z": "SIGMA_Z_FIELD"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
-        self.add_parameter(QgsProcessingParameterString(self.CAMERA, "Camera of all points (name or index)", optional=True,
-                                               defaultValue=""),
-                  "Camera in which every point was measured, by name (e.g. NAD) or 0-based index. Empty: "
-                  "each point's CAMERA_FIELD value, or the scene's only camera.")
-        self.add_parameter(QgsProcessingParameterFile(self.INPUT_FILE, "GCP file (CSV or QGIS .points)", optional=True,
-                                             fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"),
-                  "Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas accepted "
-                  "with ; TAB |), or a QGIS Georeferencer .points file. Give this or INPUT, not both.")
-        self.add_parameter(QgsProcessingParameterFeatureSource(self.INPUT, "GCP point layer", [QgsProcessing.TypeVectorPoint],
-                                                      optional=True),
-                  "Point layer whose geometry is the ground position (its own CRS) and whose fields hold the "
-                  "image position (COL_FIELD, ROW_FIELD). Give this or INPUT_FILE, not both.")
-        fields = ((self.ID_FIELD, "Point id field", "id", "Unique point id. Empty: line number (CSV) or "
-                   "feature id (layer)."),
-                  (self.COL_FIELD, "Image column field", "col", "Image column in GDAL pixels (0 = left edge)."),
-                  (self.ROW_FIELD, "Image row field", "row", "Image row in GDAL pixels (0 = top edge)."),
-                  (self.X_FIELD, "Ground X / longitude field (CSV)", "lon", "Easting or longitude in GROUND_CRS."),
-                  (self.Y_FIELD, "Ground Y / latitude field (CSV)", "lat", "Northing or latitude in GROUND_CRS."),
-                  (self.Z_FIELD, "Height field", "", "Height in metres (datum: DEM_DATUM), used when "
-                   "HEIGHT_SOURCE is 'Z values'. Empty: the layer's point Z."),
-                  (self.ROLE_FIELD, "Role field", "", "Values control/gcp or check/cp/checkpoint (empty cell = "
-                   "control). Empty: all points are control points (see CHECK_FRACTION)."),
-                  (self.CAMERA_FIELD, "Camera field", "", "Camera name (or index) of each point, for scenes "
-                   "with several cameras. Ignored when CAMERA is set."))
+        self.addParameter(camera())
+        self.add_parameter(QgsProcessingParameterFile(self.INPUT_FILE, tr("GCP file (CSV or QGIS .points)"),
+                                                      optional=True,
+                                                      fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"),
+                  tr("Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas accepted "
+                     "with ; TAB |), or a QGIS Georeferencer .points file. Give this or INPUT, not both."))
+        self.add_parameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("GCP point layer"),
+                                                               [QgsProcessing.TypeVectorPoint], optional=True),
+                  tr("Point layer whose geometry is the ground position (its own CRS) and whose fields hold the "
+                     "image position (COL_FIELD, ROW_FIELD). Give this or INPUT_FILE, not both."))
+        self.add_parameter(QgsProcessingParameterString(self.ID_FIELD, tr("Point id field"), optional=True,
+                                                        defaultValue="id"),
+                           tr("Unique point id. Empty: line number (CSV) or feature id (layer)."))
+        self.addParameter(image_field(self.COL_FIELD))
+        self.addParameter(image_field(self.ROW_FIELD))
+        fields = ((self.X_FIELD, tr("Ground X / longitude field (CSV)"), "lon",
+                   tr("Easting or longitude in GROUND_CRS.")),
+                  (self.Y_FIELD, tr("Ground Y / latitude field (CSV)"), "lat",
+                   tr("Northing or latitude in GROUND_CRS.")),
+                  (self.Z_FIELD, tr("Height field"), "", tr("Height in metres (datum: Z_DATUM), used when "
+                   "HEIGHT_SOURCE is z. Empty: the layer's point Z.")),
+                  (self.ROLE_FIELD, tr("Role field"), "", tr("Values control/gcp or check/cp/checkpoint (empty cell "
+                   "= control). Empty: all points are control points (see CHECK_FRACTION).")),
+                  (self.CAMERA_FIELD, tr("Camera field"), "", tr("Camera name (or index) of each point, for scenes "
+                   "with several cameras. Ignored when CAMERA is set.")))
         for name, label, default, help_text in fields:
-            self.add_parameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default), help_text)
-        self.add_parameter(QgsProcessingParameterCrs(self.GROUND_CRS, "Ground CRS (CSV and .points)", optional=True,
+            self.add_parameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default),
+                               help_text)
+        self.add_parameter(QgsProcessingParameterCrs(self.GROUND_CRS, tr("Ground CRS (CSV and .points)"), optional=True,
                                             defaultValue="EPSG:4326"),
-                  "CRS of the ground coordinates in a CSV, or of a .points file without a '#CRS:' line (the "
-                  "file's own line wins). A layer brings its own CRS.")
-        self.add_parameter(QgsProcessingParameterEnum(self.HEIGHT_SOURCE, "Heights from", options=list(HEIGHT_SOURCE_LABELS),
-                                             defaultValue=0),
-                  "Where the GCP heights come from: the Z values (Z_FIELD or point Z), the DEM sampled at "
-                  "each point, or the constant HEIGHT. .points files hold no heights.")
-        add_dem_parameters(self, datum_help="What the DEM's heights and the GCPs' Z values are measured from: "
-                           "the EGM96 geoid (mean sea level, as most surveys and DEMs) or the WGS84 ellipsoid "
-                           "(GNSS heights). Geoid heights are converted with PROJ's EGM96 grid.")
-        self.add_parameter(QgsProcessingParameterNumber(self.CHECK_FRACTION, "Share of points made check points",
-                                               QgsProcessingParameterNumber.Double, 0.0, minValue=0.0, maxValue=1.0),
-                  "0 to 1: this share of all points becomes check points (never used in the adjustment), "
-                  "chosen deterministically and spread along the image. Points already 'check' count.")
+                  tr("CRS of the ground coordinates in a CSV, or of a .points file without a '#CRS:' line (the "
+                     "file's own line wins). A layer brings its own CRS."))
+        self.addParameter(height_source())
+        self.addParameter(z_datum())
+        add_dem_parameters(self)
+        self.addParameter(check_fraction())
         for name, label, default, help_text in (
-                (self.SIGMA_PX, "Image measurement sigma (px)", gcps.DEFAULT_SIGMA_PX,
-                 "A-priori standard deviation of the measured col/row, in pixels."),
-                (self.SIGMA_XY, "Ground planimetric sigma (m)", gcps.DEFAULT_SIGMA_XY,
-                 "A-priori standard deviation of the ground east/north coordinates, in metres."),
-                (self.SIGMA_Z, "Ground height sigma (m)", gcps.DEFAULT_SIGMA_Z,
-                 "A-priori standard deviation of the ground height, in metres.")):
+                (self.SIGMA_PX, tr("Image measurement sigma (px)"), gcps.DEFAULT_SIGMA_PX,
+                 tr("A-priori standard deviation of the measured col/row, in pixels.")),
+                (self.SIGMA_XY, tr("Ground planimetric sigma (m)"), gcps.DEFAULT_SIGMA_XY,
+                 tr("A-priori standard deviation of the ground east/north coordinates, in metres.")),
+                (self.SIGMA_Z, tr("Ground height sigma (m)"), gcps.DEFAULT_SIGMA_Z,
+                 tr("A-priori standard deviation of the ground height, in metres."))):
             self.add_parameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
                                                    minValue=0.0), help_text)
         for key, what, unit in (("sigma_px", "image measurement sigma", "px"),
                                 ("sigma_xy", "ground planimetric sigma", "m"), ("sigma_z", "ground height sigma", "m")):
             name = self.SIGMA_FIELDS[key]
-            self.add_parameter(QgsProcessingParameterString(name, f"Per-point {what} field ({unit})", optional=True,
+            self.add_parameter(QgsProcessingParameterString(name, tr("Per-point {} field ({})").format(what, unit), optional=True,
                                                             defaultValue=""),
                       f"Field (CSV column or layer field) holding each point's {what} in {unit}, so that "
                       "surveyed and map-digitised points can be mixed; an empty cell takes "
                       f"{key.replace('sigma_', 'SIGMA_').upper()}. Values must be > 0. Empty: every point "
                       f"takes {key.replace('sigma_', 'SIGMA_').upper()}.")
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT, "Ground control points",
+        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Ground control points"),
                                                       QgsProcessing.TypeVectorPoint)
         out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(out, "GeoPackage (.gpkg) point layer of the checked GCPs, styled so points with a large "
-                  "a-priori residual (relative to the median) and points outside the image stand out.")
+        self.add_parameter(out, tr("GeoPackage (.gpkg) point layer of the checked GCPs, styled so points with a "
+                  "large a-priori residual (relative to the median) and points outside the image stand out."))
 
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
@@ -137,7 +133,9 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         if bool(path) == (source is not None):
             raise QgsProcessingException(f"give either {self.INPUT_FILE} (CSV or .points) or {self.INPUT} "
                                          f"(point layer), not {'both' if path else 'neither'}")
-        heights = self._heights(parameters, context)
+        crs_of_points = source.sourceCrs() if source is not None else \
+            self.parameterAsCrs(parameters, self.GROUND_CRS, context)
+        heights = self._heights(parameters, context, crs_of_points)
         sigmas = {f"sigma_{k}": self.parameterAsDouble(parameters, name, context)
                   for k, name in (("px", self.SIGMA_PX), ("xy", self.SIGMA_XY), ("z", self.SIGMA_Z))}
         crs = _crs_text(self.parameterAsCrs(parameters, self.GROUND_CRS, context))
@@ -159,17 +157,22 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                   role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD], **fields)
         return core_call(gcps.read_csv, path, mapping, crs, heights, **sigmas)
 
-    def _heights(self, parameters, context) -> gcps.Heights:
-        kind = HEIGHT_SOURCES[self.parameterAsEnum(parameters, self.HEIGHT_SOURCE, context)]
-        datum = DEM_DATUMS[self.parameterAsEnum(parameters, DEM_DATUM, context)]
+    def _heights(self, parameters, context, crs) -> gcps.Heights:
+        """Where the heights come from; Z_DATUM, when not given, from the points' CRS if it says."""
+        kind = enum_value(self, parameters, self.HEIGHT_SOURCE, context)
         if kind == "constant":
             value = self.parameterAsDouble(parameters, HEIGHT, context)
             return gcps.Heights("constant", "ellipsoid", value=core_call(check_terrain_height, value, HEIGHT))
         if kind == "dem":
             dem = dem_from_parameters(self, parameters, context)
             if not hasattr(dem, "path"):
-                raise QgsProcessingException("HEIGHT_SOURCE is 'DEM' but no DEM was given")
-            return gcps.Heights("dem", datum, dem=dem)
+                raise QgsProcessingException("HEIGHT_SOURCE is dem but no DEM was given")
+            return gcps.Heights("dem", enum_value(self, parameters, DEM_DATUM, context), dem=dem)
+        datum = enum_value(self, parameters, self.Z_DATUM, context) or z_datum_of_crs(crs)
+        if datum is None:
+            raise QgsProcessingException(f"{self.Z_DATUM}: HEIGHT_SOURCE is z and the points' CRS ({crs.authid()}) "
+                                         "does not say what the Z values are measured from: give Z_DATUM=geoid or "
+                                         f"Z_DATUM=ellipsoid ({DEM_DATUM} is the DEM's datum only)")
         return gcps.Heights("z", datum)
 
     def _from_layer(self, parameters, context, source, heights, sigmas) -> gcps.GcpTable:

@@ -8,22 +8,21 @@ import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY, QgsProcessingException,
-                       QgsProcessingParameterCrs, QgsRectangle,
-                       QgsProcessingParameterEnum, QgsProcessingParameterExtent,
-                       QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
-                       QgsProcessingParameterRasterLayer)
+                       QgsProcessingParameterCrs, QgsProcessingParameterExtent, QgsProcessingParameterNumber,
+                       QgsProcessingParameterRasterDestination, QgsProcessingParameterRasterLayer, QgsRectangle)
 
 from ...core.dem import ConstantHeight
-from ...core.ortho import RESAMPLING, default_grid, orthorectify, scene_utm_crs
+from ...core.ortho import default_grid, orthorectify, scene_utm_crs
 from ...core.products import footprints
 from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       core_call, dem_from_parameters, feedback_callbacks, load_scene_for)
+from ..parameters import RESAMPLING, enum_value, resampling, tr
 
 
 class OrthorectifyAlgorithm(PushbroomAlgorithm):
     ID = "orthorectify"
     NAME = "Orthorectify"
-    GROUP = "Products"
+    GROUP, GROUP_ID = "Products", "products"
     HELP = ("Resamples a raw pushbroom image onto a north-up map grid with the scene's rigorous model (onboard "
             "or adjusted) and a DEM. Every output pixel's image position is computed exactly on a coarse grid "
             "and densified within 0.01 px (checked per tile); cells along the seams of staggered CCD arrays "
@@ -33,31 +32,30 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             "With a DEM that covers only part of the scene, give an EXTENT inside it: pixels without a height "
             "are nodata and a warning gives their share of the footprint.")
     INPUT, CRS_PARAM, RESOLUTION, RESAMPLING_PARAM, NODATA, EXTENT, OUTPUT = \
-        "INPUT", "CRS", "RESOLUTION", "RESAMPLING", "NODATA", "EXTENT", "OUTPUT"
+        "INPUT", "CRS", "RESOLUTION", RESAMPLING, "NODATA", "EXTENT", "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, "Raw image"),
-                  "The scene's raw image (any GDAL format, any number of bands and data type), of the size the "
-                  "scene's camera images, without georeferencing.")
+        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image")),
+                  tr("The scene's raw image (any GDAL format, any number of bands and data type), of the size the "
+                  "scene's camera images, without georeferencing."))
         add_scene_parameters(self)
         add_dem_parameters(self)
-        self.add_parameter(QgsProcessingParameterCrs(self.CRS_PARAM, "Output CRS", optional=True),
-                  "Projected CRS of the orthoimage. Empty: the WGS84 UTM zone of the scene's centre.")
-        self.add_parameter(QgsProcessingParameterNumber(self.RESOLUTION, "Pixel size (m)", QgsProcessingParameterNumber.Double,
-                                               optional=True, minValue=0.0),
-                  "Output pixel size in the CRS's units (metres). Empty or 0: the ground sample distance at the "
-                  "image centre.")
-        self.add_parameter(QgsProcessingParameterEnum(self.RESAMPLING_PARAM, "Resampling", options=list(RESAMPLING),
-                                             defaultValue=1),
-                  "How raw pixel values are interpolated: nearest neighbour, bilinear (default) or cubic spline.")
-        self.add_parameter(QgsProcessingParameterNumber(self.NODATA, "Nodata value", QgsProcessingParameterNumber.Double,
-                                               0.0), "Value of output pixels the image does not cover (and nodata "
-                                                     "in the GeoTIFF).")
-        self.add_parameter(QgsProcessingParameterExtent(self.EXTENT, "Extent", optional=True),
-                  "Part of the scene to produce (any CRS). Empty: the whole footprint of the image on the DEM.",
+        self.add_parameter(QgsProcessingParameterCrs(self.CRS_PARAM, tr("Output CRS"), optional=True),
+                  tr("Projected CRS of the orthoimage. Empty: the WGS84 UTM zone of the scene's centre."))
+        self.add_parameter(QgsProcessingParameterNumber(self.RESOLUTION, tr("Pixel size (m)"),
+                                                        QgsProcessingParameterNumber.Double, optional=True,
+                                                        minValue=0.0),
+                  tr("Output pixel size in the CRS's units (metres). Empty or 0: the ground sample distance at the "
+                     "image centre."))
+        self.addParameter(resampling())
+        self.add_parameter(QgsProcessingParameterNumber(self.NODATA, tr("Nodata value"),
+                                                        QgsProcessingParameterNumber.Double, 0.0),
+                           tr("Value of output pixels the image does not cover (and nodata in the GeoTIFF)."))
+        self.add_parameter(QgsProcessingParameterExtent(self.EXTENT, tr("Extent"), optional=True),
+                  tr("Part of the scene to produce (any CRS). Empty: the whole footprint of the image on the DEM."),
                   advanced=True)
-        self.add_parameter(QgsProcessingParameterRasterDestination(self.OUTPUT, "Orthoimage"),
-                  "GeoTIFF (tiled 512 x 512, DEFLATE, overviews, nodata set).")
+        self.add_parameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Orthoimage")),
+                  tr("GeoTIFF (tiled 512 x 512, DEFLATE, overviews, nodata set)."))
 
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
@@ -87,7 +85,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                           f"{grid.crs.to_string()}")
         progress, is_cancelled = feedback_callbacks(feedback)
         figures = core_call(orthorectify, scene, image, surface, output, camera, grid,
-                            list(RESAMPLING)[self.parameterAsEnum(parameters, self.RESAMPLING_PARAM, context)],
+                            enum_value(self, parameters, self.RESAMPLING_PARAM, context),
                             self.parameterAsDouble(parameters, self.NODATA, context), progress=progress,
                             is_cancelled=is_cancelled)
         feedback.pushInfo(f"written in {figures['seconds']:.1f} s; image positions densified within "

@@ -1,13 +1,13 @@
 """pushbroom:simulatescene — a simulated scene with known truth: onboard and true sensor models,
 GCPs, tie points, a DEM and optionally rendered raw images, from a preset sensor."""
 from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputRasterLayer,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterEnum,
+                       QgsProcessingParameterBoolean,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber)
 
-from ...core.simulator import PRESETS, GcpSettings, simulate
+from ...core.simulator import GcpSettings, simulate
 from ..common import PushbroomAlgorithm, core_call, feedback_callbacks
+from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_value, preset, tr
 
-DEFAULT_PRESET = "cbers02b_hrc"
 MICRO = 1e-6
 
 # Error magnitudes the user may override: (parameter, core.simulator.ErrorSettings field,
@@ -35,15 +35,14 @@ ERROR_PARAMETERS = (
      "(three-line presets)."),
 )
 
-# Measurement settings: (parameter, core.simulator.GcpSettings field, label, type, default, min, max, help).
+# Measurement settings: (parameter, core.simulator.GcpSettings field, label, type, default, min, max, help);
+# CHECK_FRACTION (field check_fraction) is the shared definition of ui.parameters.
 MEASUREMENT_PARAMETERS = (
-    ("CHECK_FRACTION", "check_fraction", "Share of check points", "d", 0.0, 0.0, 1.0,
-     "0 to 1: this share of the ground points is written with role 'check' (never used by an adjustment)."),
     ("GROUND_NOISE_XY", "ground_noise_xy", "Ground planimetric noise (m)", "d", 0.0, 0.0, 1000.0,
-     "Standard deviation of the error added to the GCPs' east and north coordinates (seed 000's matched "
-     "points: about 3 m)."),
+     "Standard deviation of the error added to the GCPs' east and north coordinates (the matched points "
+     "of Zheng et al. 2015: about 3 m)."),
     ("GROUND_NOISE_Z", "ground_noise_z", "Ground height noise (m)", "d", 0.0, 0.0, 1000.0,
-     "Standard deviation of the error added to the GCP heights (seed 000: about 10 m)."),
+     "Standard deviation of the error added to the GCP heights (Zheng et al. 2015: about 10 m)."),
     ("GROSS_FRACTION", "gross_fraction", "Share of gross errors", "d", 0.0, 0.0, 1.0,
      "0 to 1: this share of the image measurements is displaced by a gross error (flagged gross = 1 in the "
      "CSV)."),
@@ -58,7 +57,7 @@ MEASUREMENT_PARAMETERS = (
 class SimulateSceneAlgorithm(PushbroomAlgorithm):
     ID = "simulatescene"
     NAME = "Simulate a scene"
-    GROUP = "Simulation"
+    GROUP, GROUP_ID = "Simulation", "simulation"
     HELP = ("Simulates the acquisition of a scene (or a strip of scenes) by a preset sensor over synthetic "
             "terrain, with known truth: the <i>true</i> sensor model, the <i>onboard</i> one (as the satellite's "
             "own ephemeris, attitude and laboratory calibration deliver it, with realistic errors: hundreds of "
@@ -67,74 +66,71 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
             "simulation.json in the output folder records every drawn error. Advanced parameters override the "
             "preset's error magnitudes (empty = the preset's value; each drawn value is 1/3 to 1 times the "
             "magnitude, with a random sign) and set the measurement noise, check points and gross errors.")
-    PRESET, SEED, N_SCENES, N_GCPS, IMAGE_NOISE, RENDER = "PRESET", "SEED", "N_SCENES", "N_GCPS", "IMAGE_NOISE", \
+    PRESET, SEED, N_SCENES, N_GCPS, IMAGE_NOISE, RENDER = PRESET, "SEED", "N_SCENES", "N_GCPS", "IMAGE_NOISE", \
         "RENDER"
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
     ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM = "ONBOARD_SCENE", "TRUE_SCENE", "GCPS", "DEM"
     TIE_POINTS, MANIFEST, IMAGE = "TIE_POINTS", "MANIFEST", "IMAGE"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        names = list(PRESETS)
-        preset = QgsProcessingParameterEnum(self.PRESET, "Sensor preset",
-                                            options=[f"{n}: {PRESETS[n].description}" for n in names],
-                                            defaultValue=names.index(DEFAULT_PRESET))
-        preset.setHelp("The simulated sensor and orbit: " + "; ".join(f"<b>{n}</b> ({PRESETS[n].description})"
-                                                                   for n in names) + ".")
-        seed = QgsProcessingParameterNumber(self.SEED, "Random seed", QgsProcessingParameterNumber.Integer, 0,
+        seed = QgsProcessingParameterNumber(self.SEED, tr("Random seed"), QgsProcessingParameterNumber.Integer, 0,
                                             minValue=0)
-        seed.setHelp("Seed of the random errors, terrain, texture and point positions: the same seed gives the "
-                     "same simulation.")
-        n_scenes = QgsProcessingParameterNumber(self.N_SCENES, "Number of scenes along the strip",
+        seed.setHelp(tr("Seed of the random errors, terrain, texture and point positions: the same seed gives the "
+                        "same simulation."))
+        n_scenes = QgsProcessingParameterNumber(self.N_SCENES, tr("Number of scenes along the strip"),
                                                 QgsProcessingParameterNumber.Integer, 1, minValue=1, maxValue=200)
-        n_scenes.setHelp("How many consecutive scenes of one orbit strip to simulate. The strip is one image per "
-                         "camera (scenes × rows per scene) sharing one trajectory and its errors, as the scenes of "
-                         "one pass do.")
-        n_gcps = QgsProcessingParameterNumber(self.N_GCPS, "Number of ground control points",
+        n_scenes.setHelp(tr("How many consecutive scenes of one orbit strip to simulate. The strip is one image per "
+                            "camera (scenes × rows per scene) sharing one trajectory and its errors, as the scenes "
+                            "of one pass do."))
+        n_gcps = QgsProcessingParameterNumber(self.N_GCPS, tr("Number of ground control points"),
                                               QgsProcessingParameterNumber.Integer, 200, minValue=0,
                                               maxValue=2_000_000)
-        n_gcps.setHelp("How many ground points (uniform over the reference camera's image, on the terrain) to "
-                       "measure; each is measured in every camera that sees it. Written to gcps.csv.")
-        noise = QgsProcessingParameterNumber(self.IMAGE_NOISE, "Image measurement noise (px)",
+        n_gcps.setHelp(tr("How many ground points (uniform over the reference camera's image, on the terrain) to "
+                          "measure; each is measured in every camera that sees it. Written to gcps.csv."))
+        noise = QgsProcessingParameterNumber(self.IMAGE_NOISE, tr("Image measurement noise (px)"),
                                              QgsProcessingParameterNumber.Double, 0.3, minValue=0.0, maxValue=100.0)
-        noise.setHelp("Standard deviation in pixels of the random error added to the measured image "
-                      "coordinates (0: perfect measurements).")
-        render = QgsProcessingParameterBoolean(self.RENDER, "Render the images", defaultValue=False)
-        render.setHelp("Also write each camera's raw image (8-bit GeoTIFF without georeferencing, "
-                       "image_<CAMERA>.tif) rendered from a known texture over the DEM, for orthorectification. "
-                       "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB.")
-        folder = QgsProcessingParameterFolderDestination(self.OUTPUT_FOLDER, "Output folder")
-        folder.setHelp("Folder the simulated files are written to (created if missing).")
-        for p in (preset, seed, n_scenes, n_gcps, noise, render):
+        noise.setHelp(tr("Standard deviation in pixels of the random error added to the measured image "
+                         "coordinates (0: perfect measurements)."))
+        render = QgsProcessingParameterBoolean(self.RENDER, tr("Render the images"), defaultValue=False)
+        render.setHelp(tr("Also write each camera's raw image (8-bit GeoTIFF without georeferencing, "
+                          "image_<CAMERA>.tif) rendered from a known texture over the DEM, for orthorectification. "
+                          "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB."))
+        folder = QgsProcessingParameterFolderDestination(self.OUTPUT_FOLDER, tr("Output folder"))
+        folder.setHelp(tr("Folder the simulated files are written to (created if missing)."))
+        for p in (preset(), seed, n_scenes, n_gcps, noise, render):
             self.addParameter(p)
+        self.add_parameter(check_fraction(), advanced=True)
         for name, _, label, kind, default, lo, hi, help_text in MEASUREMENT_PARAMETERS:
             kind = QgsProcessingParameterNumber.Integer if kind == "i" else QgsProcessingParameterNumber.Double
-            self.add_parameter(QgsProcessingParameterNumber(name, label, kind, default, minValue=lo, maxValue=hi),
-                               help_text, advanced=True)
+            self.add_parameter(QgsProcessingParameterNumber(name, tr(label), kind, default, minValue=lo, maxValue=hi),
+                               tr(help_text), advanced=True)
         for name, _, label, _, help_text in ERROR_PARAMETERS:
-            self.add_parameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double,
+            self.add_parameter(QgsProcessingParameterNumber(name, tr(label), QgsProcessingParameterNumber.Double,
                                                             optional=True, minValue=0.0),
-                               help_text + " Empty: the preset's value (see simulation.json).", advanced=True)
+                               tr(help_text) + " " + tr("Empty: the preset's value (see simulation.json)."),
+                               advanced=True)
         self.addParameter(folder)
-        self.addOutput(QgsProcessingOutputFile(self.ONBOARD_SCENE, "Onboard scene model (scene JSON)"))
-        self.addOutput(QgsProcessingOutputFile(self.TRUE_SCENE, "True scene model (scene JSON)"))
-        self.addOutput(QgsProcessingOutputFile(self.GCPS, "Ground control points (CSV: id, role, camera, col, row, "
-                                                          "lon, lat, h ellipsoidal, sigmas, true values, gross)"))
-        self.addOutput(QgsProcessingOutputFile(self.TIE_POINTS, "Tie points (CSV), when requested"))
-        self.addOutput(QgsProcessingOutputRasterLayer(self.DEM, "DEM (GeoTIFF, EGM96 geoid heights)"))
-        self.addOutput(QgsProcessingOutputFile(self.MANIFEST, "Simulation settings and drawn errors (JSON)"))
-        self.addOutput(QgsProcessingOutputRasterLayer(self.IMAGE, "Raw image of the first camera, when rendered"))
-        self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, "Output folder"))
+        self.addOutput(QgsProcessingOutputFile(self.ONBOARD_SCENE, tr("Onboard scene model (scene JSON)")))
+        self.addOutput(QgsProcessingOutputFile(self.TRUE_SCENE, tr("True scene model (scene JSON)")))
+        self.addOutput(QgsProcessingOutputFile(self.GCPS, tr("Ground control points (CSV: id, role, camera, col, "
+                                                             "row, lon, lat, h ellipsoidal, sigmas, true values, "
+                                                             "gross)")))
+        self.addOutput(QgsProcessingOutputFile(self.TIE_POINTS, tr("Tie points (CSV), when requested")))
+        self.addOutput(QgsProcessingOutputRasterLayer(self.DEM, tr("DEM (GeoTIFF, EGM96 geoid heights)")))
+        self.addOutput(QgsProcessingOutputFile(self.MANIFEST, tr("Simulation settings and drawn errors (JSON)")))
+        self.addOutput(QgsProcessingOutputRasterLayer(self.IMAGE, tr("Raw image of the first camera, when rendered")))
+        self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, tr("Output folder")))
 
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        names = list(PRESETS)
-        preset = names[self.parameterAsEnum(parameters, self.PRESET, context)]
+        preset = enum_value(self, parameters, self.PRESET, context)
         folder = self.parameterAsString(parameters, self.OUTPUT_FOLDER, context)
         errors = {field: self.parameterAsDouble(parameters, name, context) * factor
                   for name, field, _, factor, _ in ERROR_PARAMETERS if parameters.get(name) not in (None, "")}
         measurements = {field: (self.parameterAsInt if kind == "i" else self.parameterAsDouble)(parameters, name,
                                                                                               context)
                         for name, field, _, kind, *_ in MEASUREMENT_PARAMETERS}
+        measurements["check_fraction"] = self.parameterAsDouble(parameters, CHECK_FRACTION, context)
         settings = GcpSettings(n_gcps=self.parameterAsInt(parameters, self.N_GCPS, context),
                                image_noise=self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
                                **measurements)

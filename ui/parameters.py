@@ -1,0 +1,241 @@
+"""The plugin's parameter vocabulary: one definition per concept, shared by every algorithm.
+
+A concept (the scene, its camera, the DEM and its datum, heights, check points, image
+coordinate fields, the enumerations) has one parameter name, one description, one help
+text, one default and, for enumerations, the same named values in the same order wherever
+it appears. tests/qgis/test_vocabulary.py holds every algorithm of the provider to that.
+
+Enumerations use static strings: scripts, graphical models and qgis_process pass the value
+names (``DEM_DATUM=geoid``), never option numbers. QGIS 3.22 shows the names themselves in
+the toolbox's drop-down lists (it has no separate labels for static-string values), so the
+names are short words and every help text says what each name means.
+
+User-visible texts go through :func:`tr` (one translation context for the whole plugin).
+"""
+from __future__ import annotations
+
+from qgis.core import (QgsProcessingException, QgsProcessingParameterEnum, QgsProcessingParameterFile,
+                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
+                       QgsProperty)
+from qgis.PyQt.QtCore import QCoreApplication, QVariant
+
+from ..core.ortho import RESAMPLING as CORE_RESAMPLING
+from ..core.simulator import PRESETS
+from ..core.timebasis import KINDS
+
+TR_CONTEXT = "PushbroomAdjust"
+
+SCENE, CAMERA = "SCENE", "CAMERA"
+DEM, DEM_DATUM, Z_DATUM, HEIGHT, HEIGHT_SOURCE = "DEM", "DEM_DATUM", "Z_DATUM", "HEIGHT", "HEIGHT_SOURCE"
+CHECK_FRACTION, COL_FIELD, ROW_FIELD = "CHECK_FRACTION", "COL_FIELD", "ROW_FIELD"
+POSITION_MODEL, ATTITUDE_MODEL = "POSITION_MODEL", "ATTITUDE_MODEL"
+GROUND, ROBUST, ON_SINGULAR, RESAMPLING, PRESET = "GROUND", "ROBUST", "ON_SINGULAR", "RESAMPLING", "PRESET"
+
+# Value names of the enumerations, in the order the drop-down lists show them; they are the
+# core's own names (core.dem datums, core.gcps.Heights.source, core.timebasis.KINDS, ...).
+DATUMS = ("geoid", "ellipsoid")
+HEIGHT_SOURCES = ("z", "dem", "constant")
+TRAJECTORY_MODELS = KINDS  # polynomial, lagrange, spline
+GROUND_MODES = ("weighted", "fixed")
+ROBUST_METHODS = ("none", "selection", "snooping")
+ON_SINGULAR_ACTIONS = ("fix", "stop")
+RESAMPLINGS = tuple(CORE_RESAMPLING)  # nearest, bilinear, cubic
+PRESET_NAMES = tuple(PRESETS)
+DEFAULT_PRESET = "cbers02b_hrc"
+
+
+def tr(text: str) -> str:
+    """``text`` in the user's language, when a translation is installed (else unchanged)."""
+    return QCoreApplication.translate(TR_CONTEXT, text)
+
+
+# --- enumerations -------------------------------------------------------------------------
+def enum_parameter(name: str, description: str, meanings: dict[str, str], default: str | None,
+                   help_text: str, optional: bool = False) -> QgsProcessingParameterEnum:
+    """An enumeration of named values (static strings); its help ends with what each name means."""
+    if default is not None and default not in meanings:
+        raise ValueError(f"{name}: default {default!r} is not one of {list(meanings)}")
+    parameter = QgsProcessingParameterEnum(name, description, options=list(meanings), defaultValue=default,
+                                           optional=optional, usesStaticStrings=True)
+    values = "; ".join(f"<b>{value}</b>: {meaning}" for value, meaning in meanings.items())
+    example = f"{name}={default or next(iter(meanings))}"
+    parameter.setHelp(f"{help_text} " + tr("Values, by name (e.g. {example}; option numbers are refused)").format(
+        example=example) + f": {values}.")
+    return parameter
+
+
+def _empty(value) -> bool:
+    return value is None or value == "" or (isinstance(value, QVariant) and value.isNull())
+
+
+def enum_refusal(definition: QgsProcessingParameterEnum, value) -> str | None:
+    """Why ``value`` is not a value of enumeration ``definition`` (None when it is, or when it is
+    not given). Option numbers are refused, never read as positions: the same number meant
+    different values in different algorithms before the values had names."""
+    if _empty(value) or isinstance(value, QgsProperty) or (isinstance(value, str) and value in definition.options()):
+        return None
+    name, names = definition.name(), ", ".join(definition.options())
+    if isinstance(value, (list, tuple)):
+        return f"{name}: takes one value, not a list ({value!r}); give one of: {names}"
+    text = str(value).strip()
+    if isinstance(value, (int, float)) or text.lstrip("+-").replace(".", "", 1).isdigit():
+        return (f"{name}: {text} is an option number; option numbers are not accepted (the same number meant "
+                f"different values in different algorithms), give the value's name, one of: {names}")
+    if text.lower() in definition.options():
+        return f"{name}: {text!r} is not a value; names are lower case: did you mean {text.lower()!r}? ({names})"
+    return f"{name}: {text!r} is not a value of this parameter; give one of: {names}"
+
+
+def enum_value(alg, parameters: dict, name: str, context) -> str | None:
+    """The value name given for enumeration ``name`` (its default when not given; None when it
+    is optional and has none). Anything else stops the run with the value names."""
+    definition = alg.parameterDefinition(name)
+    value = parameters.get(name)
+    if isinstance(value, QgsProperty):  # data-defined in a model: its evaluated text
+        value = alg.parameterAsString(parameters, name, context)
+    refusal = enum_refusal(definition, value)
+    if refusal:
+        raise QgsProcessingException(refusal)
+    return definition.defaultValue() if _empty(value) else value
+
+
+def datum_meanings(what: str) -> dict[str, str]:
+    return {"geoid": tr("the EGM96 geoid, mean sea level") + f" ({what})",
+            "ellipsoid": tr("the WGS84 ellipsoid (GNSS heights, EPSG:4979 layers such as the output of "
+                            "'Image to ground')")}
+
+
+def dem_datum() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        DEM_DATUM, tr("DEM height datum"),
+        datum_meanings(tr("SRTM, Copernicus DEM, most national DEMs")), "geoid",
+        tr("What the DEM's heights are measured from. Geoid heights are converted to ellipsoidal heights "
+           "with PROJ's EGM96 grid."))
+
+
+def z_datum() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        Z_DATUM, tr("Datum of the Z values"),
+        datum_meanings(tr("levelled surveys, heights read from maps")), None,
+        tr("What the points' Z values (point Z or Z_FIELD) are measured from; the two differ by up to 106 m. "
+           "Empty: what the points' CRS says (EPSG:4979: ellipsoid; a compound CRS with EGM96 heights: geoid); "
+           "when it says nothing and Z values are used, the run stops and asks for Z_DATUM. Geoid heights "
+           "are converted with PROJ's EGM96 grid."), optional=True)
+
+
+def height_source() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        HEIGHT_SOURCE, tr("Heights from"),
+        {"z": tr("the points' Z values (Z_FIELD, or the layer's point Z), in Z_DATUM"),
+         "dem": tr("the DEM (in DEM_DATUM) sampled at each point"),
+         "constant": tr("the constant ellipsoidal HEIGHT")}, "z",
+        tr("Where the GCP heights come from. QGIS .points files hold no heights."))
+
+
+def trajectory_model(name: str, what: str) -> QgsProcessingParameterEnum:
+    """POSITION_MODEL or ATTITUDE_MODEL: the same values, default and help (``what``: position/attitude)."""
+    block = name.split("_")[0]
+    return enum_parameter(
+        name, tr("{what} correction model").format(what=what.capitalize()),
+        {"polynomial": tr("one polynomial of order {block}_ORDER over the strip (systematic-error "
+                          "compensation, Zheng et al. 2015; order 2 without pseudo-observations is the quadratic "
+                          "model of Tommaselli & Marcato Junior 2012)").format(block=block),
+         "lagrange": tr("orientation images every {block}_INTERVAL seconds with 4-point Lagrange interpolation "
+                        "(Zheng et al. 2015)").format(block=block),
+         "spline": tr("quadratic pieces between knots every {block}_INTERVAL seconds, continuous in value and "
+                      "slope (Zhang et al. 2015)").format(block=block)},
+        "polynomial", tr("How the {what} correction varies in time.").format(what=what))
+
+
+def ground_mode() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        GROUND, tr("GCP ground coordinates"),
+        {"weighted": tr("unknowns with the GCPs' sigma_xy/sigma_z as pseudo-observations (matched or "
+                        "map-derived points)"),
+         "fixed": tr("taken as exact (surveyed points)")}, "weighted",
+        tr("How the adjustment treats the ground coordinates of the control points."))
+
+
+def robust_method() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        ROBUST, tr("Gross error detection"),
+        {"none": tr("no detection"),
+         "selection": tr("selection weights: observations whose normalised residual exceeds the critical value "
+                         "are down-weighted (Li Deren's posterior-variance weights)"),
+         "snooping": tr("data snooping: they are removed from the solution in batches (Baarda)")}, "selection",
+        tr("How gross errors are found. Either way the flagged points stay in the output layer with "
+           "flagged = 1."))
+
+
+def on_singular() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        ON_SINGULAR, tr("Non-determinable parameters"),
+        {"fix": tr("fix one of each set (the middle CCD's, if involved) at its input value and continue"),
+         "stop": tr("stop with their names")}, "fix",
+        tr("What to do when the GCPs cannot separate some parameters (e.g. all three CBERS CCDs' shifts and "
+           "the attitude)."))
+
+
+def resampling() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        RESAMPLING, tr("Resampling"),
+        {"nearest": tr("nearest neighbour"), "bilinear": tr("bilinear"), "cubic": tr("cubic spline")},
+        "bilinear", tr("How raw pixel values are interpolated."))
+
+
+def preset() -> QgsProcessingParameterEnum:
+    return enum_parameter(PRESET, tr("Sensor preset"), {n: PRESETS[n].description for n in PRESET_NAMES},
+                          DEFAULT_PRESET, tr("The simulated sensor and orbit."))
+
+
+# --- shared plain parameters --------------------------------------------------------------
+def scene() -> QgsProcessingParameterFile:
+    parameter = QgsProcessingParameterFile(SCENE, tr("Scene (metadata or scene JSON)"), extension="",
+                                           fileFilter="Scene files (*.json *.xml *.XML);;All files (*)")
+    parameter.setHelp(tr("The sensor model of the scene: a Pushbroom Adjust scene JSON (written by the simulator "
+                         "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, "
+                         "Maxar/DigitalGlobe *.XML)."))
+    return parameter
+
+
+def camera() -> QgsProcessingParameterString:
+    parameter = QgsProcessingParameterString(CAMERA, tr("Camera (name or index)"), optional=True, defaultValue="")
+    parameter.setHelp(tr("For scenes with several cameras (three-line and multi-CCD sensors): the camera's name "
+                         "(e.g. NAD, FWD, BWD) or its 0-based index. Empty: the first camera; when importing "
+                         "GCPs, each point's CAMERA_FIELD value (or the scene's only camera)."))
+    return parameter
+
+
+def dem() -> QgsProcessingParameterRasterLayer:
+    parameter = QgsProcessingParameterRasterLayer(DEM, tr("Digital elevation model"), optional=True)
+    parameter.setHelp(tr("Raster of terrain heights in metres (datum: DEM_DATUM), in any CRS, covering the whole "
+                         "area the algorithm works on. Leave empty to use the constant HEIGHT instead."))
+    return parameter
+
+
+def height() -> QgsProcessingParameterNumber:
+    parameter = QgsProcessingParameterNumber(HEIGHT, tr("Constant ellipsoidal height (m) instead of a DEM"),
+                                             type=QgsProcessingParameterNumber.Double, defaultValue=0.0)
+    parameter.setHelp(tr("Height in metres above the WGS84 ellipsoid of a flat terrain, used when no DEM is given "
+                         "(or HEIGHT_SOURCE is constant). Ellipsoidal height = sea-level height + geoid "
+                         "undulation (-106 m to +85 m over the Earth)."))
+    return parameter
+
+
+def check_fraction() -> QgsProcessingParameterNumber:
+    parameter = QgsProcessingParameterNumber(CHECK_FRACTION, tr("Share of points made check points"),
+                                             QgsProcessingParameterNumber.Double, 0.0, minValue=0.0, maxValue=1.0)
+    parameter.setHelp(tr("0 to 1: this share of the points gets the role 'check'. Check points are never used "
+                         "in an adjustment; they measure its accuracy."))
+    return parameter
+
+
+def image_field(name: str) -> QgsProcessingParameterString:
+    """COL_FIELD or ROW_FIELD: the name of a table's field (CSV column) holding image coordinates."""
+    axis, default, edge = ("column", "col", "left") if name == COL_FIELD else ("row", "row", "top")
+    parameter = QgsProcessingParameterString(name, tr("Image {axis} field").format(axis=axis), optional=True,
+                                             defaultValue=default)
+    parameter.setHelp(tr("Name of the field (CSV column) holding the image {axis} in pixels, GDAL convention "
+                         "(0 = {edge} edge of the image). Default: '{default}'.").format(axis=axis, edge=edge,
+                                                                                         default=default))
+    return parameter
