@@ -1,8 +1,8 @@
 """Writing vector layers with OGR: fields from parallel numpy arrays, one geometry per row.
 
 Types follow the arrays: strings -> String, booleans and integers -> Integer, floats ->
-Real (NaN written as NULL). The file is written under a temporary name and renamed, so an
-output is complete or absent.
+Real (NaN written as NULL). The file is written completely or not at all
+(:func:`core.files.atomic_output`).
 """
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import numpy as np
 from osgeo import ogr, osr
 
 from .errors import InputError
+from .files import OutputError, OutputSet, atomic_output
 
 ogr.UseExceptions()
 
@@ -34,42 +35,53 @@ def open_layer(path, layer: str | None = None):
     return ds, lyr
 
 
+def feature_count(path) -> int | None:
+    """Features in the first layer of a vector file; None when it cannot be read."""
+    try:
+        ds = ogr.Open(str(path))
+    except RuntimeError:
+        return None
+    if ds is None or ds.GetLayerCount() == 0:
+        return None
+    return ds.GetLayer(0).GetFeatureCount()
+
+
 def write_layer(path, layer: str, srs: osr.SpatialReference, geometry_type: int, columns: dict,
-                geometries, metadata: dict | None = None) -> None:
+                geometries, metadata: dict | None = None, files: OutputSet | None = None) -> None:
     """Write a GeoPackage layer: ``columns`` {name: (n,) array}, ``geometries`` n OGR
-    geometries (or WKT strings), optional layer metadata items. Replaces the file."""
+    geometries (or WKT strings), optional layer metadata items. Replaces the file, completely
+    or not at all (with ``files``, as part of that set)."""
     path = Path(path)
     if path.suffix.lower() != ".gpkg":
         raise InputError(f"{path}: layers are written as GeoPackage; use a .gpkg file name")
-    tmp = path.with_name(path.stem + ".part.gpkg")
-    drv = ogr.GetDriverByName("GPKG")
     try:
-        if tmp.exists():
-            drv.DeleteDataSource(str(tmp))
-        ds = drv.CreateDataSource(str(tmp))
-        lyr = ds.CreateLayer(layer, srs, geometry_type, options=["FID=fid"])
-        arrays = {name: np.asarray(v) for name, v in columns.items()}
-        for name, values in arrays.items():
-            lyr.CreateField(ogr.FieldDefn(name, _field_type(values)))
-        for key, value in (metadata or {}).items():
-            lyr.SetMetadataItem(key, value)
-        defn = lyr.GetLayerDefn()
-        # Python lists: OGR takes one value at a time, and numpy scalars cost more to convert.
-        values = {name: v.tolist() for name, v in arrays.items()}
-        lyr.StartTransaction()
-        for i, geom in enumerate(geometries):  # OGR writes feature by feature
-            feat = ogr.Feature(defn)
-            for name, column in values.items():
-                v = column[i]
-                if isinstance(v, str) or (v == v):  # NaN -> NULL
-                    feat.SetField(name, int(v) if isinstance(v, bool) else v)
-            feat.SetGeometry(ogr.CreateGeometryFromWkt(geom) if isinstance(geom, str) else geom)
-            lyr.CreateFeature(feat)
-        lyr.CommitTransaction()
-        ds = lyr = None
-        if path.exists():
-            drv.DeleteDataSource(str(path))
-        tmp.replace(path)
-    finally:
-        if tmp.exists():
-            drv.DeleteDataSource(str(tmp))
+        with atomic_output(path, files) as tmp:
+            ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(tmp))
+            try:
+                lyr = ds.CreateLayer(layer, srs, geometry_type, options=["FID=fid"])
+                arrays = {name: np.asarray(v) for name, v in columns.items()}
+                for name, values in arrays.items():
+                    lyr.CreateField(ogr.FieldDefn(name, _field_type(values)))
+                for key, value in (metadata or {}).items():
+                    lyr.SetMetadataItem(key, value)
+                defn = lyr.GetLayerDefn()
+                # Python lists: OGR takes one value at a time, and numpy scalars cost more to convert.
+                values = {name: v.tolist() for name, v in arrays.items()}
+                lyr.StartTransaction()
+                written = 0
+                for i, geom in enumerate(geometries):  # OGR writes feature by feature
+                    feat = ogr.Feature(defn)
+                    for name, column in values.items():
+                        v = column[i]
+                        if isinstance(v, str) or (v == v):  # NaN -> NULL
+                            feat.SetField(name, int(v) if isinstance(v, bool) else v)
+                    feat.SetGeometry(ogr.CreateGeometryFromWkt(geom) if isinstance(geom, str) else geom)
+                    lyr.CreateFeature(feat)
+                    written += 1
+                lyr.CommitTransaction()
+            finally:
+                lyr = ds = None  # closes the file before it is renamed or removed
+            if feature_count(tmp) != written:  # errors on closing are not raised
+                raise OutputError(f"cannot write {path}: the file holds {feature_count(tmp)} of {written} features")
+    except RuntimeError as exc:  # OGR: disk full, file system errors
+        raise OutputError(f"cannot write {path}: {exc}") from None

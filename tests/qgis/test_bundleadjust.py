@@ -17,7 +17,7 @@ from core.gcps import read_gpkg
 from core.geodesy import enu_rotations, geodetic_to_ecef
 from core.scene_io import load_scene
 
-from .test_qgis_process import _run_json, qgis_process  # noqa: F401 (fixture)
+from .test_qgis_process import _run_json
 
 INTERIOR = "HRC-1.*, HRC-3.*"
 NEW_FIELDS = ("res_col", "res_row", "res_px", "res_m", "w_col", "w_row", "redundancy", "weight", "flagged")

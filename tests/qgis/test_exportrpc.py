@@ -13,7 +13,7 @@ from core.dem import Dem
 from core.rpcfit import dem_height_range, fit_rpc
 from core.scene_io import load_scene
 
-from .test_qgis_process import _run_json, qgis_process  # noqa: F401 (fixture)
+from .test_qgis_process import _run_json
 
 gdal.UseExceptions()
 

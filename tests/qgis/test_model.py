@@ -16,7 +16,6 @@ from core.rpcfit import fit_rpc
 from core.scene_io import load_scene
 from tests.ortho_compare import shift_against_texture
 
-from .test_qgis_process import qgis_process  # noqa: F401 (fixture)
 
 MODEL_FILE = Path(__file__).resolve().parents[2] / "resources" / "models" / "simulate_adjust_orthorectify.model3"
 MODEL_ID = "pushbroom:Simulate, adjust, orthorectify and export RPC"

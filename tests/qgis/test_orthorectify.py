@@ -11,7 +11,7 @@ from core.scene_io import save_scene
 from tests.ortho_compare import rendered_cut
 
 from .test_algorithms import RecordingFeedback
-from .test_qgis_process import _run_json, qgis_process  # noqa: F401 (fixture)
+from .test_qgis_process import _run_json
 
 
 @pytest.fixture(scope="module")
