@@ -291,7 +291,11 @@ def atomic_output(path, files: OutputSet | None = None) -> Iterator[Path]:
     normally, removed when it raises (see the module docstring). With ``files``, the path is
     taken from that set and its owner commits it with the others."""
     with output_set(files) as own:
-        yield own.path(path)
+        tmp = own.path(path)
+        try:
+            yield tmp
+        except OSError as exc:  # a full disk, a quota: named by the destination, not the temporary path
+            raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def write_text(path, text: str, files: OutputSet | None = None, encoding: str = "utf-8") -> None:

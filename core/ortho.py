@@ -416,6 +416,7 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
     report = progress or (lambda fraction: None)
     levels = overview_levels(grid.cols, grid.rows)
     files = OutputSet()
+    failed = ""
     try:
         tmp = files.path(output_path)
         out = gdal.GetDriverByName("GTiff").Create(
@@ -462,12 +463,17 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
         out.FlushCache()
         out = None
         files.commit()
-    except RuntimeError as exc:  # GDAL: disk full, file system errors
-        raise InputError(f"cannot write {output_path}: {exc}") from None
+    except RuntimeError as exc:  # GDAL: disk full, file system errors; raised below, as this error's
+        failed = str(exc)        # traceback holds the file open
     finally:
-        out_bands = out = None
+        try:
+            out_bands = out = band = None  # closes the file
+        except RuntimeError as exc:  # flushing it failed
+            failed = failed or str(exc)
         raw.close()
         files.discard()
+    if failed:
+        raise InputError(f"cannot write {output_path}: {failed}")
     report(1.0)
     figures = {"cols": grid.cols, "rows": grid.rows, "resolution_m": grid.resolution, "crs": grid.crs.to_string(),
                "densification_error_px": worst, "max_error_px": max_error, "dem_gap_share": gaps,

@@ -54,34 +54,45 @@ def write_layer(path, layer: str, srs: osr.SpatialReference, geometry_type: int,
     path = Path(path)
     if path.suffix.lower() != ".gpkg":
         raise InputError(f"{path}: layers are written as GeoPackage; use a .gpkg file name")
+    with atomic_output(path, files) as tmp:
+        failed = _write_gpkg(tmp, layer, srs, geometry_type, columns, geometries, metadata)
+        if failed:
+            raise OutputError(f"cannot write {path}: {failed}")
+
+
+def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geometries, metadata) -> str:
+    """Write a new GeoPackage (see :func:`write_layer`) and close it; '' or OGR's error (returned,
+    not raised: the error's traceback would hold the file open)."""
+    failed, written = "", 0
     try:
-        with atomic_output(path, files) as tmp:
-            ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(tmp))
-            try:
-                lyr = ds.CreateLayer(layer, srs, geometry_type, options=["FID=fid"])
-                arrays = {name: np.asarray(v) for name, v in columns.items()}
-                for name, values in arrays.items():
-                    lyr.CreateField(ogr.FieldDefn(name, _field_type(values)))
-                for key, value in (metadata or {}).items():
-                    lyr.SetMetadataItem(key, value)
-                defn = lyr.GetLayerDefn()
-                # Python lists: OGR takes one value at a time, and numpy scalars cost more to convert.
-                values = {name: v.tolist() for name, v in arrays.items()}
-                lyr.StartTransaction()
-                written = 0
-                for i, geom in enumerate(geometries):  # OGR writes feature by feature
-                    feat = ogr.Feature(defn)
-                    for name, column in values.items():
-                        v = column[i]
-                        if isinstance(v, str) or (v == v):  # NaN -> NULL
-                            feat.SetField(name, int(v) if isinstance(v, bool) else v)
-                    feat.SetGeometry(ogr.CreateGeometryFromWkt(geom) if isinstance(geom, str) else geom)
-                    lyr.CreateFeature(feat)
-                    written += 1
-                lyr.CommitTransaction()
-            finally:
-                lyr = ds = None  # closes the file before it is renamed or removed
-            if feature_count(tmp) != written:  # errors on closing are not raised
-                raise OutputError(f"cannot write {path}: the file holds {feature_count(tmp)} of {written} features")
+        ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
+        lyr = ds.CreateLayer(layer, srs, geometry_type, options=["FID=fid"])
+        arrays = {name: np.asarray(v) for name, v in columns.items()}
+        for name, values in arrays.items():
+            lyr.CreateField(ogr.FieldDefn(name, _field_type(values)))
+        for key, value in (metadata or {}).items():
+            lyr.SetMetadataItem(key, value)
+        defn = lyr.GetLayerDefn()
+        # Python lists: OGR takes one value at a time, and numpy scalars cost more to convert.
+        values = {name: v.tolist() for name, v in arrays.items()}
+        lyr.StartTransaction()
+        for i, geom in enumerate(geometries):  # OGR writes feature by feature
+            feat = ogr.Feature(defn)
+            for name, column in values.items():
+                v = column[i]
+                if isinstance(v, str) or (v == v):  # NaN -> NULL
+                    feat.SetField(name, int(v) if isinstance(v, bool) else v)
+            feat.SetGeometry(ogr.CreateGeometryFromWkt(geom) if isinstance(geom, str) else geom)
+            lyr.CreateFeature(feat)
+            written += 1
+        lyr.CommitTransaction()
     except RuntimeError as exc:  # OGR: disk full, file system errors
-        raise OutputError(f"cannot write {path}: {exc}") from None
+        failed = str(exc)
+    finally:
+        try:
+            feat = lyr = ds = None  # closes the file
+        except RuntimeError as exc:
+            failed = failed or str(exc)
+    if not failed and feature_count(path) != written:  # errors on closing are not raised
+        failed = f"the file holds {feature_count(path)} of {written} features"
+    return failed

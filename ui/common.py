@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
-from qgis.core import (QgsCoordinateReferenceSystem, QgsFeatureSink, QgsMapLayer, QgsProcessingAlgorithm,
+from qgis.core import (QgsCoordinateReferenceSystem, QgsDataSourceUri, QgsFeatureSink, QgsMapLayer, QgsProcessingAlgorithm,
                        QgsProcessingException, QgsProcessingOutputLayerDefinition,
                        QgsProcessingParameterDefinition, QgsProcessingParameterFileDestination, QgsProcessingUtils,
                        QgsProcessingLayerPostProcessorInterface, QgsProcessingParameterEnum,
@@ -249,7 +249,7 @@ def destination_file(destination: str) -> str:
     """The file an output layer destination writes to: the path itself, the database of an
     'ogr:dbname=...' table; '' for memory layers and services."""
     if destination.startswith("ogr:"):
-        return QgsProviderRegistry.instance().decodeUri("ogr", destination[4:]).get("path") or ""
+        return QgsDataSourceUri(destination[4:]).database()
     if destination.startswith(("memory:", "postgis:", "postgres:", "spatialite:", "mssql:", "oracle:")):
         return ""
     return destination.split("|")[0]

@@ -14,6 +14,7 @@ from osgeo import ogr, osr
 from core import files as F
 from core.files import Output, OutputError, atomic_output, atomic_outputs, check_outputs, file_key, write_text
 from core.vector_io import feature_count, write_layer
+from tests.mounts import read_only_folder, tiny_disk
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -31,32 +32,19 @@ def umask():
 
 
 @pytest.fixture
-def tiny_disk(tmp_path):
-    """A 256 KiB tmpfs (needs root): a disk that fills up."""
-    folder = tmp_path / "tiny"
-    folder.mkdir()
-    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(folder)],
-                                           capture_output=True).returncode:
-        pytest.skip("mounting a tmpfs needs root")
-    yield folder
-    subprocess.run(["umount", str(folder)], check=True)
+def tiny(tmp_path):
+    """A 256 KiB disk (tests/mounts.py)."""
+    with tiny_disk(tmp_path / "tiny") as folder:
+        yield folder
 
 
 @pytest.fixture
 def read_only(tmp_path):
-    """A folder the process cannot write to: a read-only bind mount as root, else mode 0555."""
-    folder = tmp_path / "ro"
-    folder.mkdir()
-    (folder / "old.json").write_text("old")
-    if os.geteuid() != 0:
-        folder.chmod(0o555)
+    """A read-only folder holding old.json (tests/mounts.py)."""
+    (tmp_path / "ro").mkdir()
+    (tmp_path / "ro" / "old.json").write_text("old")
+    with read_only_folder(tmp_path / "ro") as folder:
         yield folder
-        folder.chmod(0o755)
-        return
-    if subprocess.run(["mount", "--bind", "-o", "ro", str(folder), str(folder)], capture_output=True).returncode:
-        pytest.skip("cannot make a read-only mount")
-    yield folder
-    subprocess.run(["umount", str(folder)], check=True)
 
 
 def _gpkg(path, n: int = 3, files=None) -> None:
@@ -159,13 +147,13 @@ def test_concurrent_writers_of_the_same_outputs_leave_one_whole_file(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
 
 
-def test_a_full_disk_is_an_error_and_keeps_the_old_file(tiny_disk):
-    (tiny_disk / "a.json").write_text("old")
+def test_a_full_disk_is_an_error_and_keeps_the_old_file(tiny):
+    (tiny / "a.json").write_text("old")
     with pytest.raises(OutputError, match="No space left"):
-        write_text(tiny_disk / "a.json", "x" * 1_000_000)
+        write_text(tiny / "a.json", "x" * 1_000_000)
     with pytest.raises(OutputError, match="b.gpkg"):
-        _gpkg(tiny_disk / "b.gpkg", n=20000)
-    assert [p.name for p in tiny_disk.iterdir()] == ["a.json"] and (tiny_disk / "a.json").read_text() == "old"
+        _gpkg(tiny / "b.gpkg", n=20000)
+    assert [p.name for p in tiny.iterdir()] == ["a.json"] and (tiny / "a.json").read_text() == "old"
 
 
 def test_a_read_only_folder_is_refused_before_writing(read_only):

@@ -176,18 +176,22 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         feedback.setProgressText("writing the outputs")
         en = core_call(ground_residuals, result.scene, table, result.points["camera"])
         with processing_errors(), atomic_outputs() as files:  # every output or none
-            save_scene(result.scene, outputs[self.OUTPUT_SCENE], files)
+            with processing_errors(f"{self.OUTPUT_SCENE}: "):
+                save_scene(result.scene, outputs[self.OUTPUT_SCENE], files)
             if report_html:
-                write_report_json(result.report, report_json, files)
-                write_report_html(result.report, result.points, report_html,
-                                  title=f"Bundle adjustment of {Path(scene_path).name}", files=files)
+                with processing_errors(f"{self.OUTPUT_REPORT}: "):
+                    write_report_json(result.report, report_json, files)
+                    write_report_html(result.report, result.points, report_html,
+                                      title=f"Bundle adjustment of {Path(scene_path).name}", files=files)
             if outputs[self.OUTPUT_GCPS]:
-                write_adjusted_gcps(table, result.points, outputs[self.OUTPUT_GCPS], en=en,
-                                    scene_path=outputs[self.OUTPUT_SCENE], source=gcp_path, source_layer=gcp_layer,
-                                    files=files)
+                with processing_errors(f"{self.OUTPUT_GCPS}: "):
+                    write_adjusted_gcps(table, result.points, outputs[self.OUTPUT_GCPS], en=en,
+                                        scene_path=outputs[self.OUTPUT_SCENE], source=gcp_path,
+                                        source_layer=gcp_layer, files=files)
             if outputs[self.OUTPUT_RESIDUALS]:
-                write_residual_vectors(result.scene, table, result.points, outputs[self.OUTPUT_RESIDUALS], scale,
-                                       en=en, files=files)
+                with processing_errors(f"{self.OUTPUT_RESIDUALS}: "):
+                    write_residual_vectors(result.scene, table, result.points, outputs[self.OUTPUT_RESIDUALS],
+                                           scale, en=en, files=files)
         style_output_on_load(context, outputs[self.OUTPUT_GCPS], STYLES / "adjusted_gcps.qml")
         style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
         self._report(result.report, feedback)
