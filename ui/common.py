@@ -22,7 +22,7 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsDataSourceUri, QgsFeatur
 from qgis.PyQt.QtGui import QIcon
 
 from ..core.errors import PushbroomError
-from ..core.files import Output, atomic_output
+from ..core.files import atomic_output
 from ..core.files import check_outputs as check_files
 
 RESOURCES = Path(__file__).resolve().parents[1] / "resources"

@@ -397,3 +397,10 @@ CLI = [
 @pytest.mark.parametrize("alg, make, texts", CLI, ids=[f"{c[0]}-{c[2][0]}" for c in CLI])
 def test_refused_from_the_command_line(qgis_process, d, alg, make, texts):
     assert_refused_cli(qgis_process, f"pushbroom:{alg}", make(d), *texts, watch=[d])
+
+
+def test_bundleadjust_from_the_command_line_with_only_the_scene_output(qgis_process, d):
+    done = qgis_process("run", "pushbroom:bundleadjust", "--", f"SCENE={d / 'scene.json'}", f"GCPS={d / 'gcps.gpkg'}",
+                        "POSITION_ORDER=0", f"OUTPUT_SCENE={d / 'out' / 'adjusted.json'}")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert os.listdir(d / "out") == ["adjusted.json"] and json.loads((d / "out" / "adjusted.json").read_text())
