@@ -212,7 +212,7 @@ class Dem:
         """This DEM sampled no finer than ``metres`` (block averages of whole DEM pixels): what a
         caller needing only the coarse terrain asks for. The DEM's own resolution if finer."""
         step = max(1, int(metres // self.pixel_size_m())) if np.isfinite(metres) else 1
-        self.height_range  # noqa: B018 -- read the overview once, shared with the coarse view
+        self.height_range
         coarse = copy.copy(self)
         coarse._step, coarse._grid, coarse._lock = step, None, threading.Lock()
         return coarse

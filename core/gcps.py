@@ -34,6 +34,7 @@ from pyproj.exceptions import CRSError
 
 from .dem import Dem, to_ellipsoidal
 from .errors import InputError
+from .files import OutputSet
 from .geodesy import geodetic_to_ecef
 from .validation import (MAX_IMAGE_COORDINATE, PLAUSIBLE_HEIGHTS, implausible_heights,
                          implausible_image_coordinates)
@@ -350,9 +351,10 @@ def per_point_sigmas(values, default: float, name: str, ids, source: str, key: s
     if bad.any():
         shown = ", ".join(f"{i}: {t!r}" for i, t in zip(ids[bad][:_MAX_LISTED], raw[bad][:_MAX_LISTED]))
         more = f" and {int(bad.sum()) - _MAX_LISTED} more" if bad.sum() > _MAX_LISTED else ""
-        raise InputError(f"{source}: per-point sigma field {name!r} must hold numbers > 0 and below {MAX_SIGMA[key]:g} (or "
-                         f"stay empty for the default {default:g}); point(s) {shown}{more}. A sigma of 0 is not possible in a weighted "
-                         "adjustment: give exact points a small sigma, or fix all ground coordinates (GROUND)")
+        raise InputError(f"{source}: per-point sigma field {name!r} must hold numbers > 0 and below "
+                         f"{MAX_SIGMA[key]:g} (or stay empty for the default {default:g}); point(s) {shown}{more}. "
+                         "A sigma of 0 is not possible in a weighted adjustment: give exact points a small sigma, "
+                         "or fix all ground coordinates (GROUND)")
     return out
 
 
@@ -578,8 +580,10 @@ def _wgs84_3d() -> osr.SpatialReference:
     return srs
 
 
-def write_gpkg(table: GcpTable, path, layer: str = GPKG_LAYER, extra: dict | None = None) -> None:
-    """Write the table as a GeoPackage point layer (replacing the file).
+def write_gpkg(table: GcpTable, path, layer: str = GPKG_LAYER, extra: dict | None = None,
+               files: OutputSet | None = None) -> None:
+    """Write the table as a GeoPackage point layer (replacing the file, completely or not at all;
+    with ``files``, as part of that set).
 
     Geometry: Point Z (lon, lat, ellipsoidal h) in EPSG:4979. Fields: id, role, camera, col, row,
     h, sigma_px, sigma_xy, sigma_z, res_col, res_row, res_px, res_m, inside (0/1; NULL = not
@@ -590,7 +594,7 @@ def write_gpkg(table: GcpTable, path, layer: str = GPKG_LAYER, extra: dict | Non
     points = (f"POINT Z ({lo!r} {la!r} {h!r})" for lo, la, h in zip(table.lon.tolist(), table.lat.tolist(),
                                                                        table.h.tolist()))
     write_layer(path, layer, _wgs84_3d(), ogr.wkbPoint25D, columns, points,
-                {SCENE_METADATA_KEY: table.scene} if table.scene else None)
+                {SCENE_METADATA_KEY: table.scene} if table.scene else None, files)
 
 
 def _gpkg_columns(table: GcpTable) -> dict:

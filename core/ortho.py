@@ -10,7 +10,7 @@ their pixels are mapped exactly, one by one, so no seam is smeared. The raw imag
 resampled (nearest, bilinear or cubic) at the image positions.
 
 Tiles are processed on a thread per core and written to a tiled, compressed GeoTIFF with
-overviews, under a temporary name renamed at the end: the output is complete or absent.
+overviews, completely or not at all (:class:`core.files.OutputSet`).
 Coordinates: image positions in the GDAL convention (pixel centres at +0.5); output pixel
 centres at the geotransform's +0.5.
 """
@@ -32,6 +32,7 @@ from scipy import ndimage
 
 from .dem import ConstantHeight
 from .errors import Cancelled, InputError
+from .files import OutputSet, check_destination
 from .geodesy import ecef_to_geodetic, geodetic_to_ecef
 from .sensor import SceneModel
 from .validation import check_nodata
@@ -414,15 +415,16 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
         check_nodata(nodata, gdal_array.GDALTypeCodeToNumericTypeCode(src.GetRasterBand(1).DataType))
     grid = grid or default_grid(scene, camera, surface)
     output_path = Path(output_path)
-    tmp = output_path.with_name(output_path.stem + ".part.tif")
-    if not output_path.parent.is_dir() or not os.access(output_path.parent, os.W_OK):
-        raise InputError(f"cannot write {output_path}: folder {output_path.parent} does not exist or is not writable")
+    check_destination(output_path)
     raw = _RawImage(image_path, src, memory_budget)
     fill = nodata if nodata is not None else 0.0
     cancelled = is_cancelled or (lambda: False)
     report = progress or (lambda fraction: None)
     levels = overview_levels(grid.cols, grid.rows)
+    files = OutputSet()
+    failed = ""
     try:
+        tmp = files.path(output_path)
         out = gdal.GetDriverByName("GTiff").Create(
             str(tmp), grid.cols, grid.rows, raw.count, raw.data_type,
             ["TILED=YES", f"BLOCKXSIZE={tile}", f"BLOCKYSIZE={tile}", "COMPRESS=DEFLATE", "PREDICTOR=2",
@@ -466,14 +468,18 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
         out_bands = None
         out.FlushCache()
         out = None
-        tmp.replace(output_path)
-    except RuntimeError as exc:  # GDAL: disk full, file system errors
-        raise InputError(f"cannot write {output_path}: {exc}") from None
+        files.commit()
+    except RuntimeError as exc:  # GDAL: disk full, file system errors; raised below, as this error's
+        failed = str(exc)        # traceback holds the file open
     finally:
-        out_bands = out = None
+        try:
+            out_bands = out = band = None  # closes the file
+        except RuntimeError as exc:  # flushing it failed
+            failed = failed or str(exc)
         raw.close()
-        if tmp.exists():
-            tmp.unlink()
+        files.discard()
+    if failed:
+        raise InputError(f"cannot write {output_path}: {failed}")
     report(1.0)
     figures = {"cols": grid.cols, "rows": grid.rows, "resolution_m": grid.resolution, "crs": grid.crs.to_string(),
                "densification_error_px": worst, "max_error_px": max_error, "dem_gap_share": gaps,

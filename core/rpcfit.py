@@ -22,12 +22,13 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 
 from .errors import InputError
+from .files import OutputSet, output_set, write_text
 from .geodesy import ecef_to_geodetic
 from .rpc import RpcModel, rpc_terms
 
@@ -371,49 +372,23 @@ def rpc_rpb(rpc: RpcModel, sat_id: str = "PUSHBROOM") -> str:
     return "\n".join(out) + "\n"
 
 
-def write_rpc(rpc: RpcModel, path, report: dict | None = None) -> Path:
+def write_rpc(rpc: RpcModel, path, report: dict | None = None, files: OutputSet | None = None) -> Path:
     """Write the model to ``path``: ``.RPB`` -> RPB layout, anything else (``*_RPC.TXT``) -> GDAL's
     RPC text layout. GDAL reads it for an image ``<name>.<ext>`` in the same folder when the file
     is called ``<name>_RPC.TXT`` or ``<name>.RPB``. With ``report``, also writes it as JSON to
-    ``<path>.json``. Each file is written under a temporary name and renamed only when all are
-    written, so a failure leaves nothing behind."""
+    ``<path>.json``. Both files are renamed into place only when both are written, so a failure
+    leaves nothing behind (with ``files``, they are part of that set, committed by its owner)."""
     path = Path(path)
-    files = [(path, rpc_rpb(rpc) if path.suffix.lower() == ".rpb" else rpc_txt(rpc))]
-    if report is not None:
-        files.append((Path(str(path) + ".json"), json.dumps(report, indent=2)))
-    staged, done = [], []
-    try:
-        for target, text in files:
-            staged.append((_stage(target, text), target))
-        for tmp, target in staged:
-            os.replace(tmp, target)
-            done.append(target)
-    except OSError as exc:
-        for target in done:  # all or nothing
-            target.unlink(missing_ok=True)
-        raise InputError(f"cannot write {exc.filename or path}: {exc.strerror or exc}") from None
-    finally:
-        for tmp, _ in staged:
-            Path(tmp).unlink(missing_ok=True)
+    with output_set(files) as out:
+        write_text(path, rpc_rpb(rpc) if path.suffix.lower() == ".rpb" else rpc_txt(rpc), out, encoding="ascii")
+        if report is not None:
+            write_text(report_path(path), json.dumps(report, indent=2), out)
     return path
 
 
-def _stage(path: Path, text: str) -> str:
-    """Write text to a temporary file beside ``path``; returns its name (removed on failure)."""
-    folder = path.parent
-    if not folder.is_dir():
-        raise InputError(f"cannot write {path}: folder {folder} does not exist")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".part", dir=folder)
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
-    try:
-        with os.fdopen(fd, "w", encoding="ascii") as f:
-            f.write(text)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return tmp
+def report_path(path) -> Path:
+    """Where :func:`write_rpc` puts the fit report of an RPC file: ``<path>.json``."""
+    return Path(f"{path}.json")
 
 
 def sidecar_path(image, kind: str = "txt") -> Path:
@@ -439,10 +414,12 @@ def set_geotiff_rpc(rpc: RpcModel, tif_path) -> None:
     ds = None
 
 
-def image_vrt_with_rpc(rpc: RpcModel, image, vrt_path, cols: int | None = None, rows: int | None = None) -> Path:
-    """A VRT at ``vrt_path`` that shows ``image`` (unchanged, referenced by path) with the model
-    in its RPC metadata, so GDAL and QGIS use the RPC for it. With cols/rows, checks that the
-    image has the camera's size (InputError otherwise). Written atomically."""
+def image_vrt_with_rpc(rpc: RpcModel, image, vrt_path, cols: int | None = None, rows: int | None = None,
+                       files: OutputSet | None = None) -> Path:
+    """A VRT at ``vrt_path`` that shows ``image`` (unchanged, referenced by path: relative to the
+    VRT's folder when it lies in or below it) with the model in its RPC metadata, so GDAL and
+    QGIS use the RPC for it. With cols/rows, checks that the image has the camera's size
+    (InputError otherwise). Written completely or not at all (with ``files``, as part of that set)."""
     from osgeo import gdal
     gdal.UseExceptions()
     vrt_path = Path(vrt_path)
@@ -453,17 +430,14 @@ def image_vrt_with_rpc(rpc: RpcModel, image, vrt_path, cols: int | None = None, 
     if cols is not None and (src.RasterXSize, src.RasterYSize) != (int(cols), int(rows)):
         raise InputError(f"image {image} is {src.RasterXSize} x {src.RasterYSize} pixels but the camera's image is "
                          f"{cols} x {rows}: it is not this camera's image")
-    if not vrt_path.parent.is_dir():
-        raise InputError(f"cannot write {vrt_path}: folder {vrt_path.parent} does not exist")
-    tmp = vrt_path.with_name(vrt_path.name + ".part.vrt")
-    try:
-        ds = gdal.Translate(str(tmp), src, format="VRT")
-        ds.SetMetadata(rpc_metadata(rpc), "RPC")
-        ds = None
-        # the VRT refers to the image relative to its own folder; the rename keeps the folder
-        os.replace(tmp, vrt_path)
-    except (RuntimeError, OSError) as exc:
-        raise InputError(f"cannot write {vrt_path}: {exc}") from None
-    finally:
-        tmp.unlink(missing_ok=True)
+    vrt = gdal.Translate("", src, format="VRT")  # in memory: its XML is written below
+    vrt.SetMetadata(rpc_metadata(rpc), "RPC")
+    xml = ElementTree.fromstring(vrt.GetMetadata("xml:VRT")[0])
+    vrt = None
+    for name in xml.iter("SourceFilename"):  # relative to the VRT's folder when the image lies in or below it
+        relative = os.path.relpath(os.path.realpath(name.text), os.path.dirname(os.path.realpath(vrt_path)))
+        if name.get("relativeToVRT") != "1" and not relative.startswith(os.pardir):
+            name.text = relative
+            name.set("relativeToVRT", "1")
+    write_text(vrt_path, ElementTree.tostring(xml, encoding="unicode"), files)
     return vrt_path

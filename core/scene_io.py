@@ -22,6 +22,7 @@ from pathlib import Path
 
 from .camera import Camera
 from .errors import MetadataError, PushbroomError
+from .files import OutputSet, write_text
 from .sensor import SceneModel
 from .trajectory import Platform
 from .validation import check_scene_dict, check_scene_model
@@ -62,12 +63,10 @@ def validate_scene(scene: SceneModel, source: str) -> SceneModel:
     return scene
 
 
-def save_scene(scene: SceneModel, path: str | Path) -> None:
-    """Write a scene JSON completely or not at all (temporary file, then rename)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(scene_to_dict(scene), indent=1))
-    tmp.replace(path)
+def save_scene(scene: SceneModel, path: str | Path, files: OutputSet | None = None) -> None:
+    """Write a scene JSON completely or not at all (:func:`core.files.write_text`; with
+    ``files``, as part of that set)."""
+    write_text(path, json.dumps(scene_to_dict(scene), indent=1), files)
 
 
 def load_scene(path: str | Path) -> SceneModel:

@@ -30,6 +30,7 @@ import csv
 import json
 import logging
 import math
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Callable
@@ -40,6 +41,7 @@ from osgeo import gdal, osr
 from .camera import Camera, Chip, LineTiming
 from .dem import Dem
 from .errors import Cancelled, InputError
+from .files import OutputError, atomic_outputs, check_folder_destination, write_text
 from .geodesy import A, ecef_to_geodetic, geodetic_to_ecef
 from .rotations import matrix_to_quat, rotation_from_angles, rot_y
 from .scene_io import save_scene
@@ -56,6 +58,7 @@ EPHEMERIS_STEP = 1.0               # s
 ATTITUDE_STEP = 0.25               # s
 TRAJECTORY_MARGIN = 30.0           # s of ephemeris/attitude beyond the imaging span
 ARCSEC = math.pi / 648000.0
+MANIFEST = "simulation.json"       # the settings and truth of a simulation, in its folder
 
 
 # --- presets ----------------------------------------------------------------------------------
@@ -523,8 +526,9 @@ def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int 
     errors: the preset's :class:`ErrorSettings` (None), or another one, or a dict overriding
     some of its fields. gcp_settings: measurement settings; n_gcps and image_noise set its
     fields when it is None. progress(fraction, message) and is_cancelled() report and stop
-    long work; on cancel or error no output file is left half-written (each is written to a
-    temporary name and renamed at the end).
+    long work; on cancel or error nothing is written (every file is renamed into place at the
+    end, :class:`core.files.OutputSet`). Files of the same names already in ``folder`` are
+    replaced only when an earlier simulation wrote them (:func:`check_folder`).
     """
     if preset not in PRESETS:
         raise InputError(f"unknown preset {preset!r} (choose one of {', '.join(PRESETS)})")
@@ -534,18 +538,41 @@ def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int 
     errors = _error_settings(spec, errors)
     settings = gcp_settings or GcpSettings(n_gcps=int(n_gcps), image_noise=float(image_noise))
     settings.validate()
+    if settings.n_tie_points and len(spec.cameras) < 2:
+        raise InputError(f"tie points need a preset with several cameras ({preset} has one)")
     report = progress or (lambda fraction, message=None: None)
     cancelled = is_cancelled or (lambda: False)
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(seed)
-    staged: list[tuple[Path, Path]] = []
+    check_folder(folder, output_names(spec, settings, render))
+    with _new_folder(folder):
+        return _simulate(spec, folder, seed, int(n_scenes), render, errors, settings, report, cancelled)
 
-    def stage(name: str) -> Path:
-        final = folder / name
-        tmp = folder / (name + ".part")
-        staged.append((tmp, final))
-        return tmp
+
+@contextmanager
+def _new_folder(folder: Path):
+    """Create ``folder`` (and missing parents) for the block; remove the ones it created, if still
+    empty, when the block raises."""
+    created = [p for p in (folder, *folder.parents) if not p.exists()]
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create the folder {folder}: {exc.strerror or exc}") from None
+    try:
+        yield
+    except BaseException:
+        for p in created:  # deepest first
+            try:
+                p.rmdir()
+            except OSError:
+                break
+        raise
+
+
+def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool, errors: ErrorSettings,
+              settings: GcpSettings, report, cancelled) -> SimulationResult:
+    """:func:`simulate` once its arguments are checked and ``folder`` exists."""
+    preset = spec.name
+    rng = np.random.default_rng(seed)
 
     def step(fraction: float, message: str) -> None:
         if cancelled():
@@ -553,11 +580,11 @@ def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int 
         report(fraction, message)
         log.info(message)
 
-    try:
+    with atomic_outputs() as files:
         step(0.0, f"building the {preset} strip of {n_scenes} scene(s)")
         geo = build_scenes(spec, int(n_scenes), errors, rng)
         step(0.1, "writing the terrain")
-        dem_tmp = stage("dem.tif")
+        dem_tmp = files.path(folder / "dem.tif")
         bounds = scene_bounds(geo.true, tuple(geo.true.height_range))
         write_dem(dem_tmp, bounds, spec.centre, spec.relief, seed)
         dem = Dem(dem_tmp, datum="geoid")
@@ -566,27 +593,25 @@ def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int 
             scene.info["height_range"] = [math.floor(lo - 50.0), math.ceil(hi + 50.0)]
         step(0.3, f"measuring {settings.n_gcps} ground control points")
         gcp_data = _gcp_columns(geo.true, dem, settings, int(n_scenes), rng)
-        gcp_tmp = stage("gcps.csv")
+        gcp_tmp = files.path(folder / "gcps.csv")
         _write_csv(gcp_tmp, GCP_COLUMNS, gcp_data)
         tie_tmp = None
         if settings.n_tie_points:
-            if len(geo.true.cameras) < 2:
-                raise InputError(f"tie points need a preset with several cameras ({preset} has one)")
             step(0.5, f"measuring {settings.n_tie_points} tie points")
             ground, _ = place_ground_points(geo.true, dem, settings.n_tie_points, rng)
             tie = measure_points(geo.true, ground, np.char.add("T", np.arange(1, ground.shape[0] + 1).astype(str)),
                                  settings, rng)
-            tie_tmp = stage("tie_points.csv")
+            tie_tmp = files.path(folder / "tie_points.csv")
             _write_csv(tie_tmp, TIE_COLUMNS, tie)
         step(0.6, "writing the scene models")
-        save_scene(geo.true, stage("true_scene.json"))
-        save_scene(geo.onboard, stage("onboard_scene.json"))
+        save_scene(geo.true, folder / "true_scene.json", files)
+        save_scene(geo.onboard, folder / "onboard_scene.json", files)
         images, frame = {}, None
         if render:
             from .render import render_image, texture_frame
             frame = texture_frame(geo.true, dem, seed)
             for k, cam in enumerate(geo.true.cameras):
-                path = stage(f"image_{cam.name}.tif")
+                path = files.path(folder / f"image_{cam.name}.tif")
                 base = 0.65 + 0.35 * k / len(geo.true.cameras)
                 step(base, f"rendering the {cam.name} image ({cam.cols} x {cam.rows})")
                 frame.setdefault("interpolation_error_px", {})[cam.name] = render_image(
@@ -602,17 +627,50 @@ def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int 
                               "gcps": "gcps.csv", "dem": "dem.tif (EGM96 geoid heights)",
                               "tie_points": "tie_points.csv" if tie_tmp else None,
                               "images": {k: v.name for k, v in images.items()}}}
-        stage("simulation.json").write_text(json.dumps(manifest, indent=1))
-        for tmp, final in staged:
-            tmp.replace(final)
-        staged.clear()
-        report(1.0, "simulation written")
-    finally:
-        for tmp, _ in staged:
-            tmp.unlink(missing_ok=True)
+        write_text(folder / MANIFEST, json.dumps(manifest, indent=1), files)
+    report(1.0, "simulation written")
     return SimulationResult(folder, folder / "onboard_scene.json", folder / "true_scene.json", folder / "gcps.csv",
-                            folder / "dem.tif", folder / "simulation.json",
+                            folder / "dem.tif", folder / MANIFEST,
                             folder / "tie_points.csv" if settings.n_tie_points else None, images)
+
+
+def output_names(spec: Preset, settings: GcpSettings, render: bool) -> list[str]:
+    """Names of the files :func:`simulate` writes into its folder with these settings."""
+    names = ["dem.tif", "gcps.csv", "true_scene.json", "onboard_scene.json", MANIFEST]
+    if settings.n_tie_points:
+        names.append("tie_points.csv")
+    return names + ([f"image_{cam.name}.tif" for cam in spec.cameras] if render else [])
+
+
+def check_folder(folder, names) -> None:
+    """OutputError unless ``folder`` (existing or not) can take the files ``names``: each one it
+    already holds must be a file an earlier simulation wrote there (listed in its
+    simulation.json) and not modified since; anything else is a user's file, never replaced."""
+    folder = Path(folder)
+    check_folder_destination(folder)
+    present = [n for n in names if (folder / n).exists() or (folder / n).is_symlink()]
+    if not present:
+        return
+    ours = _simulated_files(folder)
+    manifest_time = (folder / MANIFEST).stat().st_mtime_ns if ours else 0
+    foreign = [n for n in present if n not in ours or not (folder / n).is_file()
+               or (folder / n).stat().st_mtime_ns > manifest_time]
+    if foreign:
+        raise OutputError(f"{folder} holds {', '.join(foreign)}, which no earlier simulation there wrote (or which "
+                          "were changed since): they are not replaced; choose an empty folder or move them")
+
+
+def _simulated_files(folder: Path) -> set[str]:
+    """Names of the files an earlier simulation wrote into ``folder`` (its manifest included),
+    from its simulation.json; empty when there is none or it is not a simulator's manifest."""
+    try:
+        manifest = json.loads((folder / MANIFEST).read_text())
+        listed = manifest["files"]
+        names = [listed[k] for k in ("true_scene", "onboard_scene", "gcps", "dem", "tie_points")]
+        names += list(listed["images"].values())
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return set()
+    return {MANIFEST, *(n.split(" ")[0] for n in names if isinstance(n, str))}
 
 
 def _error_settings(spec: Preset, errors) -> ErrorSettings:

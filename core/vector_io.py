@@ -1,8 +1,8 @@
 """Writing vector layers with OGR: fields from parallel numpy arrays, one geometry per row.
 
 Types follow the arrays: strings -> String, booleans and integers -> Integer, floats ->
-Real (NaN written as NULL). The file is written under a temporary name and renamed, so an
-output is complete or absent.
+Real (NaN written as NULL). The file is written completely or not at all
+(:func:`core.files.atomic_output`).
 """
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import numpy as np
 from osgeo import ogr, osr
 
 from .errors import InputError
+from .files import OutputError, OutputSet, atomic_output
 
 ogr.UseExceptions()
 
@@ -34,19 +35,37 @@ def open_layer(path, layer: str | None = None):
     return ds, lyr
 
 
+def feature_count(path) -> int | None:
+    """Features in the first layer of a vector file; None when it cannot be read."""
+    try:
+        ds = ogr.Open(str(path))
+    except RuntimeError:
+        return None
+    if ds is None or ds.GetLayerCount() == 0:
+        return None
+    return ds.GetLayer(0).GetFeatureCount()
+
+
 def write_layer(path, layer: str, srs: osr.SpatialReference, geometry_type: int, columns: dict,
-                geometries, metadata: dict | None = None) -> None:
+                geometries, metadata: dict | None = None, files: OutputSet | None = None) -> None:
     """Write a GeoPackage layer: ``columns`` {name: (n,) array}, ``geometries`` n OGR
-    geometries (or WKT strings), optional layer metadata items. Replaces the file."""
+    geometries (or WKT strings), optional layer metadata items. Replaces the file, completely
+    or not at all (with ``files``, as part of that set)."""
     path = Path(path)
     if path.suffix.lower() != ".gpkg":
         raise InputError(f"{path}: layers are written as GeoPackage; use a .gpkg file name")
-    tmp = path.with_name(path.stem + ".part.gpkg")
-    drv = ogr.GetDriverByName("GPKG")
+    with atomic_output(path, files) as tmp:
+        failed = _write_gpkg(tmp, layer, srs, geometry_type, columns, geometries, metadata)
+        if failed:
+            raise OutputError(f"cannot write {path}: {failed}")
+
+
+def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geometries, metadata) -> str:
+    """Write a new GeoPackage (see :func:`write_layer`) and close it; '' or OGR's error (returned,
+    not raised: the error's traceback would hold the file open)."""
+    failed, written = "", 0
     try:
-        if tmp.exists():
-            drv.DeleteDataSource(str(tmp))
-        ds = drv.CreateDataSource(str(tmp))
+        ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
         lyr = ds.CreateLayer(layer, srs, geometry_type, options=["FID=fid"])
         arrays = {name: np.asarray(v) for name, v in columns.items()}
         for name, values in arrays.items():
@@ -65,11 +84,15 @@ def write_layer(path, layer: str, srs: osr.SpatialReference, geometry_type: int,
                     feat.SetField(name, int(v) if isinstance(v, bool) else v)
             feat.SetGeometry(ogr.CreateGeometryFromWkt(geom) if isinstance(geom, str) else geom)
             lyr.CreateFeature(feat)
+            written += 1
         lyr.CommitTransaction()
-        ds = lyr = None
-        if path.exists():
-            drv.DeleteDataSource(str(path))
-        tmp.replace(path)
+    except RuntimeError as exc:  # OGR: disk full, file system errors
+        failed = str(exc)
     finally:
-        if tmp.exists():
-            drv.DeleteDataSource(str(tmp))
+        try:
+            feat = lyr = ds = None  # closes the file
+        except RuntimeError as exc:
+            failed = failed or str(exc)
+    if not failed and feature_count(path) != written:  # errors on closing are not raised
+        failed = f"the file holds {feature_count(path)} of {written} features"
+    return failed

@@ -12,12 +12,17 @@ from typing import Callable
 import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
-from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingAlgorithm, QgsProcessingException,
+from qgis.core import (QgsCoordinateReferenceSystem, QgsDataSourceUri, QgsFeatureSink, QgsMapLayer,
+                       QgsProcessingAlgorithm, QgsProcessingException, QgsProcessingOutputLayerDefinition,
                        QgsProcessingParameterDefinition, QgsProcessingParameterFileDestination, QgsProcessingUtils,
-                       QgsProcessingLayerPostProcessorInterface, QgsProcessingParameterEnum)
+                       QgsProcessingLayerPostProcessorInterface, QgsProcessingParameterEnum,
+                       QgsProcessingParameterFile, QgsProcessingParameterFolderDestination,
+                       QgsProperty, QgsProviderRegistry)
 from qgis.PyQt.QtGui import QIcon
 
 from ..core.errors import PushbroomError
+from ..core.files import atomic_output
+from ..core.files import check_outputs as check_files
 from . import parameters as vocabulary
 from .parameters import CAMERA, DEM, DEM_DATUM, HEIGHT, SCENE, enum_refusal, enum_value, tr
 
@@ -68,13 +73,16 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         self.addParameter(parameter)
 
     def output_path(self, parameters, context, name: str, temporary_name: str) -> str:
-        """Where output parameter ``name`` goes; a new temporary file ``temporary_name`` when it is
-        empty (a graphical model passes that for outputs nobody asked for, which later steps
-        may still need)."""
-        if isinstance(self.parameterDefinition(name), QgsProcessingParameterFileDestination):
+        """Where output parameter ``name`` goes: '' for an optional output nobody asked for, a new
+        temporary file ``temporary_name`` for an empty required one (a graphical model passes
+        that for outputs nobody asked for, which later steps may still need)."""
+        definition = self.parameterDefinition(name)
+        if isinstance(definition, QgsProcessingParameterFileDestination):
             path = self.parameterAsFileOutput(parameters, name, context)
         else:
             path = self.parameterAsOutputLayer(parameters, name, context)
+        if not path and definition.flags() & QgsProcessingParameterDefinition.FlagOptional:
+            return ""
         return path or QgsProcessingUtils.generateTempFilename(temporary_name)
 
     def shortHelpString(self):  # noqa: N802
@@ -254,6 +262,117 @@ def dem_from_parameters(alg, parameters, context):
         dem = Dem(path, datum)
         dem.height_range  # reads the DEM's overview: implausible heights are refused before any output
         return dem
+
+
+# --- inputs and outputs: nothing lost, nothing partial ------------------------------------------
+def layer_file(layer: QgsMapLayer | None) -> str:
+    """The file behind a layer ('' for memory layers, databases and services)."""
+    if layer is None:
+        return ""
+    return QgsProviderRegistry.instance().decodeUri(layer.providerType(), layer.source()).get("path") or ""
+
+
+def destination_file(destination: str) -> str:
+    """The file an output layer destination writes to: the path itself, the database of an
+    'ogr:dbname=...' table; '' for memory layers and services."""
+    if destination.startswith("ogr:"):
+        return QgsDataSourceUri(destination[4:]).database()
+    if destination.startswith(("memory:", "postgis:", "postgres:", "spatialite:", "mssql:", "oracle:")):
+        return ""
+    return destination.split("|")[0]
+
+
+def input_files(alg, parameters, context) -> dict[str, list[str]]:
+    """{parameter: files it reads} for the input parameters given: files, and the files behind
+    layers (loaded in the project or given by path)."""
+    files = {}
+    for definition in alg.parameterDefinitions():
+        name = definition.name()
+        if definition.isDestination() or parameters.get(name) in (None, ""):
+            continue
+        if isinstance(definition, QgsProcessingParameterFile):
+            files[name] = [alg.parameterAsFile(parameters, name, context)]
+        elif definition.type() in ("raster", "vector", "source", "layer", "mesh", "pointcloud"):
+            files[name] = [layer_file(alg.parameterAsLayer(parameters, name, context))]
+        elif definition.type() == "multilayer":
+            files[name] = [layer_file(layer) for layer in alg.parameterAsLayerList(parameters, name, context)]
+    return files
+
+
+def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None:
+    """Before any work: refuse outputs that would replace an input or each other (derived files
+    included) and destinations that cannot be written, naming both parameters
+    (:func:`core.files.check_outputs`). ``outputs``: {parameter: [its file, Output(derived file,
+    label)...]} for outputs whose paths the algorithm resolved itself; every other destination
+    parameter given is checked with the file its value names."""
+    outputs = dict(outputs or {})
+    for definition in alg.destinationParameterDefinitions():
+        name = definition.name()
+        if name in outputs or parameters.get(name) in (None, ""):
+            continue
+        if isinstance(definition, QgsProcessingParameterFolderDestination):
+            continue  # the algorithm knows which files it writes there
+        if isinstance(definition, QgsProcessingParameterFileDestination):
+            outputs[name] = [alg.parameterAsFileOutput(parameters, name, context)]
+        else:
+            outputs[name] = [destination_file(alg.parameterAsOutputLayer(parameters, name, context))]
+    with processing_errors():
+        check_files(input_files(alg, parameters, context), outputs)
+
+
+class CheckedSink:
+    """A feature sink whose failures are errors: a feature the sink does not take (a full disk,
+    a format that cannot hold it) stops the algorithm with a message naming the output."""
+
+    def __init__(self, sink, parameter: str):
+        self.sink, self.parameter, self.count = sink, parameter, 0
+
+    def add(self, feature) -> None:
+        if not self.sink.addFeature(feature, QgsFeatureSink.FastInsert):
+            raise QgsProcessingException(f"{self.parameter}: the output did not take feature {self.count + 1} "
+                                         f"({self.sink.lastError() or 'write error'}); nothing was written")
+        self.count += 1
+
+
+@contextmanager
+def output_sink(alg, parameters, context, name: str, fields, wkb_type, crs):
+    """(CheckedSink, destination) of feature sink parameter ``name``, written completely or not
+    at all: a file destination is written under a temporary name in its folder
+    (:func:`core.files.atomic_output`), checked to hold every feature once closed, and renamed
+    over the destination when the block ends normally; nothing is left when it raises. Memory
+    layers and tables added to a database are written in place."""
+    final = alg.parameterAsOutputLayer(parameters, name, context)  # registers it for loading, if asked
+    path = destination_file(final) if not final.startswith("ogr:") else ""
+    if not path:
+        sink, dest = alg.parameterAsSink(parameters, name, context, fields, wkb_type, crs)
+        if sink is None:
+            raise QgsProcessingException(alg.invalidSinkError(parameters, name))
+        yield CheckedSink(sink, name), dest
+        return
+    with processing_errors(f"{name}: "), atomic_output(path) as tmp:
+        given = parameters.get(name)
+        staged = QgsProcessingOutputLayerDefinition(QgsProperty.fromValue(str(tmp)))  # not loaded: the final is
+        if isinstance(given, QgsProcessingOutputLayerDefinition):
+            staged.createOptions = given.createOptions
+        sink, _ = alg.parameterAsSink({**parameters, name: staged}, name, context, fields, wkb_type, crs)
+        if sink is None:
+            raise QgsProcessingException(alg.invalidSinkError(parameters, name))
+        checked = CheckedSink(sink, name)
+        try:
+            yield checked, final
+        finally:
+            checked.sink = sink = None  # closes the file (before it is renamed, or removed on errors)
+        _check_written(name, tmp, checked.count)
+
+
+def _check_written(name: str, path, expected: int) -> None:
+    """QgsProcessingException unless the closed output file holds ``expected`` features (a full
+    disk can lose them when the file is closed, where the sink reports nothing)."""
+    from ..core.vector_io import feature_count
+    found = feature_count(path)
+    if found != expected:
+        raise QgsProcessingException(f"{name}: the written file holds {found} of {expected} features (disk full?); "
+                                     "nothing was written")
 
 
 # --- output styling -----------------------------------------------------------------------

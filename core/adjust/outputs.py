@@ -15,6 +15,7 @@ import numpy as np
 from osgeo import ogr, osr
 
 from ..errors import InputError
+from ..files import OutputSet
 from ..gcps import GcpTable, Residuals, write_gpkg
 from ..geodesy import A, F, enu_rotations
 from ..sensor import SceneModel
@@ -46,7 +47,7 @@ def ground_residuals(scene: SceneModel, table: GcpTable, cameras=None) -> np.nda
 
 def write_adjusted_gcps(table: GcpTable, points: dict, path, scene: SceneModel | None = None, *,
                         en: np.ndarray | None = None, scene_path: str = "", source=None,
-                        source_layer: str | None = None) -> None:
+                        source_layer: str | None = None, files: OutputSet | None = None) -> None:
     """The GCP layer with the adjustment's results, as a GeoPackage Point Z layer in EPSG:4979.
 
     Fields: those of the GCP layer (:func:`core.gcps.write_gpkg`: id, role, camera, col, row, h,
@@ -58,7 +59,8 @@ def write_adjusted_gcps(table: GcpTable, points: dict, path, scene: SceneModel |
 
     points: :attr:`AdjustmentResult.points` (rows as in ``table``). res_m comes from ``en``
     (:func:`ground_residuals`), or is computed with the adjusted ``scene``; NaN without either.
-    scene_path: the adjusted scene file, kept as layer metadata PUSHBROOM_SCENE.
+    scene_path: the adjusted scene file, kept as layer metadata PUSHBROOM_SCENE. files: write as
+    part of that :class:`core.files.OutputSet` (committed by its owner).
     """
     n = len(table)
     _check_rows(points, n)
@@ -72,18 +74,19 @@ def write_adjusted_gcps(table: GcpTable, points: dict, path, scene: SceneModel |
     extra["flagged"] = np.asarray(points["flagged"]).astype(int)
     if source is not None:
         extra.update({k: v for k, v in _other_fields(source, source_layer, n).items() if k not in extra})
-    write_gpkg(replace(table, camera=cameras, residuals=res, scene=scene_path or table.scene), path, extra=extra)
+    write_gpkg(replace(table, camera=cameras, residuals=res, scene=scene_path or table.scene), path, extra=extra,
+               files=files)
 
 
 def write_residual_vectors(scene: SceneModel | None, table: GcpTable, points: dict, path, scale: float, *,
-                           en: np.ndarray | None = None) -> None:
+                           en: np.ndarray | None = None, files: OutputSet | None = None) -> None:
     """Lines (EPSG:4326), one per point whose ground residual is known, from the GCP's ground
     position along its ground residual exaggerated ``scale`` times. Fields id, role, camera,
     res_px (image residual, px), res_m (unexaggerated ground length, m), flagged (0/1). The
     scale is kept as layer metadata PUSHBROOM_SCALE.
 
     en: (n, 2) east/north ground residuals (:func:`ground_residuals`); computed with the
-    adjusted ``scene`` when not given.
+    adjusted ``scene`` when not given. files: as for :func:`write_adjusted_gcps`.
     """
     n = len(table)
     _check_rows(points, n)
@@ -109,7 +112,8 @@ def write_residual_vectors(scene: SceneModel | None, table: GcpTable, points: di
     columns = {"id": table.id[ok], "role": table.role[ok], "camera": cameras[ok],
                "res_px": np.asarray(points["res_px"], float)[ok], "res_m": np.hypot(en[ok, 0], en[ok, 1]),
                "flagged": np.asarray(points["flagged"])[ok].astype(int)}
-    write_layer(path, "residuals", srs, ogr.wkbLineString, columns, lines, {"PUSHBROOM_SCALE": repr(float(scale))})
+    write_layer(path, "residuals", srs, ogr.wkbLineString, columns, lines, {"PUSHBROOM_SCALE": repr(float(scale))},
+                files)
 
 
 def _check_rows(points: dict, n: int) -> None:

@@ -7,7 +7,7 @@ and installation parameters with their sigmas, three plots as inline PNG (image 
 vectors over the image, seed 000 Fig. 6; trajectory corrections against time, Fig. 7-11;
 residual RMSE per CCD chip), high correlations, variance components and iterations.
 
-Both files are written completely or not at all (``<path>.part``, then rename). The plots are
+Both files are written completely or not at all (:func:`core.files.write_text`). The plots are
 drawn on bare matplotlib ``Figure`` objects with the Agg canvas: no pyplot, so no global
 backend switch inside QGIS and no figure registry to leak.
 """
@@ -19,9 +19,10 @@ import io
 import json
 import logging
 import math
-from pathlib import Path
 
 import numpy as np
+
+from ..files import OutputSet, write_text
 
 log = logging.getLogger(__name__)
 
@@ -57,22 +58,11 @@ def report_to_json(report: dict) -> str:
     return json.dumps(_plain(report), indent=1, allow_nan=False)
 
 
-def write_report_json(report: dict, path) -> None:
-    """Write the report as JSON to ``path``, completely or not at all."""
-    _write_atomically(path, report_to_json(report))
+def write_report_json(report: dict, path, files: OutputSet | None = None) -> None:
+    """Write the report as JSON to ``path``, completely or not at all (with ``files``, as part of
+    that set)."""
+    write_text(path, report_to_json(report), files)
     log.info("wrote the adjustment report %s", path)
-
-
-def _write_atomically(path, text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` through ``path + '.part'`` and a rename, so that ``path``
-    is either the whole new file or untouched; the temporary file never stays behind."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".part")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 # --- HTML page ----------------------------------------------------------------------------------
@@ -83,10 +73,11 @@ _STYLE = ("body{font-family:sans-serif;max-width:1150px;margin:2em auto;color:#2
           "img{max-width:100%}")
 
 
-def write_report_html(report: dict, points: dict, path, title: str = "Bundle adjustment report") -> None:
+def write_report_html(report: dict, points: dict, path, title: str = "Bundle adjustment report",
+                      files: OutputSet | None = None) -> None:
     """Write one self-contained HTML page (plots as inline PNG) of an adjustment's ``report`` and
     per-GCP ``points`` (see :class:`core.adjust.engine.AdjustmentResult`) to ``path``,
-    completely or not at all."""
+    completely or not at all (with ``files``, as part of that set)."""
     rep = _plain(report)
     body = [f"<h1>{html.escape(title)}</h1>", _reliability_section(rep), _headline_section(rep), _settings_section(rep),
             _decisions_section(rep), _parameters_section(rep), "<h2>Plots</h2>",
@@ -95,7 +86,7 @@ def write_report_html(report: dict, points: dict, path, title: str = "Bundle adj
             _variance_components_section(rep), _iterations_section(rep)]
     page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
             f"<style>{_STYLE}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
-    _write_atomically(path, page)
+    write_text(path, page, files)
     log.info("wrote the adjustment report %s", path)
 
 

@@ -9,8 +9,8 @@ Blocks used, under ``Geometric_Data/Sensor_Model_Characteristics``:
   - ``SENSOR_LINE_PERIOD`` (ms): time of row r (1-based) = START + (r - 1) * period.
   - ``Sensor_Viewing_Model``: look angles PsiX, PsiY (rad) as polynomials in (k - 1), k the
     1-based retina column; image column c is retina column Position_In_Retina/FIRST_COL + c - 1
-    (the retina range may be wider than the image); the body line of sight is (PsiY, -PsiX, 1) with the angles themselves
-    (not their tangents), i.e. camera ux = PsiY, uy = -PsiX, installation = identity.
+    (the retina range may be wider than the image); the body line of sight is (PsiY, -PsiX, 1) with the
+    angles themselves (not their tangents), i.e. camera ux = PsiY, uy = -PsiX, installation = identity.
 The vendor's ``Geoposition/Rational_Sensor_Model/Global_RFM`` (direct image -> ground and
 inverse ground -> image rational functions, normalisation in ``RFM_Validity`` as A = scale,
 B = offset) is read by :func:`read_dimap_rfm`.

@@ -6,7 +6,6 @@ coarse footprint) gives the same footprint as the simulator's own DEM.
 """
 from __future__ import annotations
 
-import shutil
 
 import numpy as np
 import pytest

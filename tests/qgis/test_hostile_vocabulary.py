@@ -25,7 +25,7 @@ class RecordingFeedback(QgsProcessingFeedback):
         super().__init__()
         self.errors = []
 
-    def reportError(self, error, fatalError=False):  # noqa: N802, N803 (QGIS API names)
+    def reportError(self, error, fatalError=False):  # noqa: N802 (QGIS API names)
         self.errors.append(error)
         super().reportError(error, fatalError)
 

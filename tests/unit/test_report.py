@@ -12,6 +12,7 @@ import pytest
 from core import gcps as G
 from core.adjust import AdjustmentSettings, adjust
 from core.adjust.report import MAX_ARROWS, report_to_json, write_report_html, write_report_json
+from core.files import OutputError
 from core.scene_io import load_scene
 from core.simulator import GcpSettings, simulate
 
@@ -142,9 +143,9 @@ def test_no_matplotlib_figure_is_left_open(result, tmp_path):
 
 def test_an_unwritable_report_raises_and_leaves_nothing(result, tmp_path):
     missing = tmp_path / "no such folder" / "report.html"
-    with pytest.raises(OSError):
+    with pytest.raises(OutputError, match="no such folder"):
         write_report_html(result.report, result.points, missing)
-    with pytest.raises(OSError):
+    with pytest.raises(OutputError, match="no such folder"):
         write_report_json(result.report, missing.with_suffix(".json"))
     assert not (tmp_path / "no such folder").exists()
     assert list(tmp_path.iterdir()) == []

@@ -18,10 +18,11 @@ from ...core.adjust.engine import check_inputs
 from ...core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_residual_vectors
 from ...core.adjust.parameters import ParameterSet
 from ...core.errors import PushbroomError
+from ...core.files import Output, atomic_outputs
 from ...core.scene_io import save_scene
 from ...core.timebasis import TimeBasis
-from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, check_cancelled, core_call,
-                      feedback_callbacks, load_scene_for, processing_errors, style_output_on_load)
+from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, check_cancelled, check_outputs,
+                      core_call, feedback_callbacks, load_scene_for, processing_errors, style_output_on_load)
 from ..parameters import (ATTITUDE_MODEL, GROUND, ON_SINGULAR, POSITION_MODEL, ROBUST, enum_value, ground_mode,
                           on_singular, robust_method, tr, trajectory_model)
 
@@ -40,8 +41,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             "are detected and named, and one of each is fixed (or the run stops). Gross errors are found by "
             "selection weights or data snooping and flagged, never deleted. Check points are never used in "
             "the solution and give the accuracy before and after. Outputs: the adjusted scene JSON that every "
-            "other algorithm reads as SCENE, a JSON and an HTML report with plots, the GCP layer with the "
-            "adjusted residuals and flags, and ground residual vectors.")
+            "other algorithm reads as SCENE and, each when asked for, a JSON and an HTML report with plots, the "
+            "GCP layer with the adjusted residuals and flags, and ground residual vectors.")
     GCPS = "GCPS"
     POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
         POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
@@ -122,32 +123,37 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                   tr("Scene JSON with the corrections, the parameters with sigmas and the settings; every "
                      "algorithm accepts it as SCENE."))
         self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, tr("Report (HTML)"),
-                                                        fileFilter="HTML (*.html)"),
-                  tr("A report to read: accuracy before/after, decisions, parameters, plots. The same figures as "
-                     "JSON go beside it (same name, .json)."))
+                                                        fileFilter="HTML (*.html)", optional=True),
+                  tr("Optional. A report to read: accuracy before/after, decisions, parameters, plots. The same "
+                     "figures as JSON go beside it (same name, .json)."))
         gcp_out = QgsProcessingParameterVectorDestination(self.OUTPUT_GCPS, tr("Adjusted GCPs"),
-                                                          QgsProcessing.TypeVectorPoint)
+                                                          QgsProcessing.TypeVectorPoint, optional=True)
         gcp_out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(gcp_out, tr("GeoPackage of the input points with the adjusted residuals (res_col, res_row, "
-                  "res_px, res_m), normalised residuals w_col/w_row, redundancy, weight and flagged (1 = gross "
-                  "error)."))
+        self.add_parameter(gcp_out, tr("Optional. GeoPackage of the input points with the adjusted residuals "
+                  "(res_col, res_row, res_px, res_m), normalised residuals w_col/w_row, redundancy, weight and "
+                  "flagged (1 = gross error)."))
         vec_out = QgsProcessingParameterVectorDestination(self.OUTPUT_RESIDUALS, tr("Residual vectors"),
-                                                          QgsProcessing.TypeVectorLine)
+                                                          QgsProcessing.TypeVectorLine, optional=True)
         vec_out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(vec_out, tr("GeoPackage of lines from each GCP along its ground residual, exaggerated "
-                  "RESIDUAL_SCALE times (res_m holds the true length)."))
+        self.add_parameter(vec_out, tr("Optional. GeoPackage of lines from each GCP along its ground residual, "
+                  "exaggerated RESIDUAL_SCALE times (res_m holds the true length)."))
         self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, tr("Report (JSON)")))
 
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         from ...core.adjust.report import write_report_html, write_report_json
+        outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
+            (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
+            (self.OUTPUT_RESIDUALS, ".gpkg"))}  # '' for the optional ones not asked for
+        report_html = outputs[self.OUTPUT_REPORT]
+        report_json = str(Path(report_html).with_suffix(".json")) if report_html else ""
+        check_outputs(self, parameters, context, {**{name: [path] for name, path in outputs.items()},
+                                                  self.OUTPUT_REPORT: [report_html, Output(report_json,
+                                                                                           "its JSON report")]})
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         table, gcp_path, gcp_layer = self._gcps(parameters, context)
         settings = self._settings(parameters, context)
-        outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
-            (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
-            (self.OUTPUT_RESIDUALS, ".gpkg"))}
         scale = self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context)
         # Checks that name the parameter at fault before the (long) solution starts.
         core_call(settings.validate)
@@ -164,20 +170,28 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         check_cancelled(feedback)
         feedback.setProgressText("writing the outputs")
         en = core_call(ground_residuals, result.scene, table, result.points["camera"])
-        core_call(save_scene, result.scene, outputs[self.OUTPUT_SCENE])
-        report_json = str(Path(outputs[self.OUTPUT_REPORT]).with_suffix(".json"))
-        core_call(write_report_json, result.report, report_json)
-        core_call(write_report_html, result.report, result.points, outputs[self.OUTPUT_REPORT],
-                  title=f"Bundle adjustment of {Path(scene_path).name}")
-        core_call(write_adjusted_gcps, table, result.points, outputs[self.OUTPUT_GCPS], en=en,
-                  scene_path=outputs[self.OUTPUT_SCENE], source=gcp_path, source_layer=gcp_layer)
-        core_call(write_residual_vectors, result.scene, table, result.points, outputs[self.OUTPUT_RESIDUALS], scale,
-                  en=en)
+        with processing_errors(), atomic_outputs() as files:  # every output or none
+            with processing_errors(f"{self.OUTPUT_SCENE}: "):
+                save_scene(result.scene, outputs[self.OUTPUT_SCENE], files)
+            if report_html:
+                with processing_errors(f"{self.OUTPUT_REPORT}: "):
+                    write_report_json(result.report, report_json, files)
+                    write_report_html(result.report, result.points, report_html,
+                                      title=f"Bundle adjustment of {Path(scene_path).name}", files=files)
+            if outputs[self.OUTPUT_GCPS]:
+                with processing_errors(f"{self.OUTPUT_GCPS}: "):
+                    write_adjusted_gcps(table, result.points, outputs[self.OUTPUT_GCPS], en=en,
+                                        scene_path=outputs[self.OUTPUT_SCENE], source=gcp_path,
+                                        source_layer=gcp_layer, files=files)
+            if outputs[self.OUTPUT_RESIDUALS]:
+                with processing_errors(f"{self.OUTPUT_RESIDUALS}: "):
+                    write_residual_vectors(result.scene, table, result.points, outputs[self.OUTPUT_RESIDUALS],
+                                           scale, en=en, files=files)
         style_output_on_load(context, outputs[self.OUTPUT_GCPS], STYLES / "adjusted_gcps.qml")
         style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
         self._report(result.report, feedback)
         feedback.setProgress(100)
-        return {**outputs, self.OUTPUT_REPORT_JSON: report_json}
+        return {**{name: path or None for name, path in outputs.items()}, self.OUTPUT_REPORT_JSON: report_json or None}
 
     # --- parameters -------------------------------------------------------------------------
     def _gcps(self, parameters, context) -> tuple[gcps.GcpTable, str, str | None]:
@@ -235,7 +249,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
 
     def _destination(self, parameters, context, name: str, suffix: str) -> str:
         path = self.output_path(parameters, context, name, name.lower() + suffix)
-        if Path(path).suffix.lower() != suffix:
+        if path and Path(path).suffix.lower() != suffix:
             raise QgsProcessingException(f"{name}: expected a {suffix} file (got {path})")
         return path
 

@@ -7,10 +7,11 @@ from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProce
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer)
 
 from ...core.dem import ConstantHeight
-from ...core.rpcfit import dem_height_range, fit_rpc, image_vrt_with_rpc, write_rpc
+from ...core.files import Output, atomic_outputs
+from ...core.rpcfit import dem_height_range, fit_rpc, image_vrt_with_rpc, report_path, write_rpc
 from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
-                      check_cancelled, core_call, dem_from_parameters, feedback_callbacks, load_scene_for,
-                      processing_errors)
+                      check_cancelled, check_outputs, core_call, dem_from_parameters, feedback_callbacks,
+                      layer_file, load_scene_for, processing_errors)
 from ..parameters import tr
 
 
@@ -92,6 +93,11 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         if name.endswith(".txt") and not name.endswith("_rpc.txt"):
             feedback.pushWarning(f"{out.name} does not end in _RPC.TXT: GDAL will not find it beside an image "
                                  f"by itself")
+        layer = self.parameterAsRasterLayer(parameters, self.IMAGE, context)
+        stem = out.name[:-len("_RPC.TXT")] if name.endswith("_rpc.txt") else out.stem
+        vrt = out.with_name(stem + ".vrt") if layer is not None else None
+        check_outputs(self, parameters, context, {self.OUTPUT: [out, Output(report_path(out), "its fit report"),
+                                                                 Output(vrt, "the VRT of IMAGE with the RPC")]})
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         cam = scene.cameras[camera]
@@ -114,30 +120,20 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         report["scene"] = str(self.parameterAsFile(parameters, SCENE, context))
         self._log(feedback, report)
 
-        vrt = None
-        layer = self.parameterAsRasterLayer(parameters, self.IMAGE, context)
-        if layer is not None:
-            image = layer.source().split("|")[0]
-            stem = out.name[:-len("_RPC.TXT")] if name.endswith("_rpc.txt") else out.stem
-            vrt = out.with_name(stem + ".vrt")
-            if vrt.resolve() == Path(image).resolve():
-                raise QgsProcessingException(f"{self.IMAGE}: {image} would be overwritten by the VRT {vrt}; "
-                                             f"choose another OUTPUT name")
-            with processing_errors(f"{self.IMAGE}: "):
-                image_vrt_with_rpc(rpc, image, vrt, cam.cols, cam.rows)
-            report["image"] = image
-            report["image_with_rpc"] = str(vrt)
-        try:
-            with processing_errors(f"{self.OUTPUT}: "):
-                write_rpc(rpc, out, report)
-        except QgsProcessingException:
+        with processing_errors(f"{self.OUTPUT}: "), atomic_outputs() as files:  # all three files or none
             if vrt is not None:
-                vrt.unlink(missing_ok=True)
-            raise
-        feedback.pushInfo(f"RPC written to {out} (report {out}.json)" + (f"; image with RPC: {vrt}" if vrt else ""))
+                image = layer_file(layer)
+                with processing_errors(f"{self.IMAGE}: "):
+                    image_vrt_with_rpc(rpc, image, vrt, cam.cols, cam.rows, files)
+                report["image"] = image
+                report["image_with_rpc"] = str(vrt)
+            write_rpc(rpc, out, report, files)
+        feedback.pushInfo(f"RPC written to {out} (report {report_path(out)})" +
+                          (f"; image with RPC: {vrt}" if vrt else ""))
         feedback.setProgress(100.0)
         check = report["check"]
-        return {self.OUTPUT: str(out), self.REPORT: f"{out}.json", self.IMAGE_WITH_RPC: str(vrt) if vrt else None,
+        return {self.OUTPUT: str(out), self.REPORT: str(report_path(out)),
+                self.IMAGE_WITH_RPC: str(vrt) if vrt else None,
                 self.RMS_PX: check["rms_px"], self.MAX_PX: check["max_px"]}
 
     @staticmethod

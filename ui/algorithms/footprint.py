@@ -1,12 +1,13 @@
 """pushbroom:footprint — ground outline of each camera's image, as polygons."""
-from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry,
-                       QgsLineString, QgsPolygon, QgsProcessing, QgsProcessingException,
-                       QgsProcessingParameterFeatureSink, QgsProcessingParameterNumber, QgsWkbTypes)
+from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFields, QgsGeometry, QgsLineString,
+                       QgsPolygon, QgsProcessing, QgsProcessingParameterFeatureSink, QgsProcessingParameterNumber,
+                       QgsWkbTypes)
 from qgis.PyQt.QtCore import QVariant
 
 from ...core.products import footprints
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
-                      core_call, dem_from_parameters, load_scene_for, style_output_on_load)
+                      check_outputs, core_call, dem_from_parameters, load_scene_for, output_sink,
+                      style_output_on_load)
 from ..parameters import tr
 
 
@@ -35,6 +36,7 @@ class FootprintAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        check_outputs(self, parameters, context)
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         surface = dem_from_parameters(self, parameters, context)
         samples = self.parameterAsInt(parameters, self.SAMPLES, context)
@@ -43,20 +45,18 @@ class FootprintAlgorithm(PushbroomAlgorithm):
         fields.append(QgsField("cols", QVariant.Int))
         fields.append(QgsField("rows", QVariant.Int))
         fields.append(QgsField("area_km2", QVariant.Double))
-        sink, dest = self.parameterAsSink(parameters, self.OUTPUT, context, fields, QgsWkbTypes.Polygon,
-                                          QgsCoordinateReferenceSystem("EPSG:4326"))
-        if sink is None:
-            raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT))
-        n = len(scene.cameras)
-        for k in range(n):
-            check_cancelled(feedback)
-            feedback.setProgressText(f"camera {scene.cameras[k].name}")
-            (fp,) = core_call(footprints, scene, surface, cameras=[k], samples_per_edge=samples)
-            out = QgsFeature(fields)
-            ring = QgsLineString(fp.lon.tolist(), fp.lat.tolist())
-            out.setGeometry(QgsGeometry(QgsPolygon(ring)))
-            out.setAttributes([fp.camera, fp.cols, fp.rows, float(fp.area_km2)])
-            sink.addFeature(out, QgsFeatureSink.FastInsert)
-            feedback.setProgress(100.0 * (k + 1) / n)
+        with output_sink(self, parameters, context, self.OUTPUT, fields, QgsWkbTypes.Polygon,
+                         QgsCoordinateReferenceSystem("EPSG:4326")) as (sink, dest):
+            n = len(scene.cameras)
+            for k in range(n):
+                check_cancelled(feedback)
+                feedback.setProgressText(f"camera {scene.cameras[k].name}")
+                (fp,) = core_call(footprints, scene, surface, cameras=[k], samples_per_edge=samples)
+                out = QgsFeature(fields)
+                ring = QgsLineString(fp.lon.tolist(), fp.lat.tolist())
+                out.setGeometry(QgsGeometry(QgsPolygon(ring)))
+                out.setAttributes([fp.camera, fp.cols, fp.rows, float(fp.area_km2)])
+                sink.add(out)
+                feedback.setProgress(100.0 * (k + 1) / n)
         style_output_on_load(context, dest, STYLES / "footprint.qml")
         return {self.OUTPUT: dest}

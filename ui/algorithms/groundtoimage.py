@@ -1,6 +1,6 @@
 """pushbroom:groundtoimage — image coordinates (col, row) of ground points in a scene."""
 import numpy as np
-from qgis.core import (QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
+from qgis.core import (QgsFeature, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
                        QgsProcessingParameterBoolean, QgsProcessingParameterFeatureSink,
                        QgsProcessingParameterFeatureSource, QgsProcessingUtils)
 from qgis.PyQt.QtCore import QVariant
@@ -9,8 +9,8 @@ from ...core.dem import to_ellipsoidal
 from ...core.geodesy import geodetic_to_ecef
 from ...core.validation import PLAUSIBLE_HEIGHTS, implausible_heights
 from ..common import (STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
-                      core_call, dem_from_parameters, lonlat_of, nonfinite_message, require_points,
-                      scene_camera_and_features, style_output_on_load, z_datum_of_crs)
+                      check_outputs, core_call, dem_from_parameters, lonlat_of, nonfinite_message, output_sink,
+                      require_points, scene_camera_and_features, style_output_on_load, z_datum_of_crs)
 from ..parameters import Z_DATUM, enum_value, tr, z_datum
 
 
@@ -42,6 +42,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        check_outputs(self, parameters, context)
         scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT, feedback)
         require_points(self.INPUT, source)
         lon, lat, h = self._ground(parameters, context, source, features)
@@ -56,15 +57,13 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
             new.append(QgsField(name, QVariant.Double))
         new.append(QgsField("in_image", QVariant.Int))
         fields = QgsProcessingUtils.combineFields(source.fields(), new)
-        sink, dest = self.parameterAsSink(parameters, self.OUTPUT, context, fields, source.wkbType(),
-                                          source.sourceCrs())
-        if sink is None:
-            raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT))
-        for i, f in enumerate(features):
-            out = QgsFeature(fields)
-            out.setGeometry(f.geometry())
-            out.setAttributes(f.attributes() + [_number(col[i]), _number(row[i]), int(inside[i])])
-            sink.addFeature(out, QgsFeatureSink.FastInsert)
+        with output_sink(self, parameters, context, self.OUTPUT, fields, source.wkbType(),
+                         source.sourceCrs()) as (sink, dest):
+            for i, f in enumerate(features):
+                out = QgsFeature(fields)
+                out.setGeometry(f.geometry())
+                out.setAttributes(f.attributes() + [_number(col[i]), _number(row[i]), int(inside[i])])
+                sink.add(out)
         if (~inside).any():
             feedback.pushWarning(f"{int((~inside).sum())} of {len(features)} points fall outside the image of "
                                  f"camera {cam.name} ({cam.cols} x {cam.rows} px); they are kept with in_image = 0")

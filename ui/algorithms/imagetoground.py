@@ -1,6 +1,6 @@
 """pushbroom:imagetoground — ground points (lon, lat, ellipsoidal h) seen at image coordinates."""
 import numpy as np
-from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry,
+from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFields, QgsGeometry,
                        QgsPoint, QgsProcessing, QgsProcessingException, QgsProcessingParameterFeatureSink,
                        QgsProcessingParameterFeatureSource, QgsProcessingUtils,
                        QgsWkbTypes)
@@ -9,8 +9,8 @@ from qgis.PyQt.QtCore import QVariant
 from ...core.dem import ConstantHeight
 from ...core.geodesy import ecef_to_geodetic
 from ..common import (DEM, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
-                      core_call, dem_from_parameters, nonfinite_message, scene_camera_and_features,
-                      style_output_on_load)
+                      check_outputs, core_call, dem_from_parameters, nonfinite_message, output_sink,
+                      scene_camera_and_features, style_output_on_load)
 from ..parameters import COL_FIELD, ROW_FIELD, image_field, tr
 
 OUTPUT_CRS = "EPSG:4979"  # WGS84 longitude, latitude (deg) and ellipsoidal height (m)
@@ -42,6 +42,7 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        check_outputs(self, parameters, context)
         scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT, feedback)
         if not features:
             raise QgsProcessingException(f"{self.INPUT}: the table has no features")
@@ -92,15 +93,13 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
         for name in ("lon", "lat", "h_ellipsoid"):
             new.append(QgsField(name, QVariant.Double))
         fields = QgsProcessingUtils.combineFields(source.fields(), new)
-        sink, dest = self.parameterAsSink(parameters, self.OUTPUT, context, fields, QgsWkbTypes.PointZ,
-                                                QgsCoordinateReferenceSystem(OUTPUT_CRS))
-        if sink is None:
-            raise QgsProcessingException(self.invalidSinkError(parameters, self.OUTPUT))
-        for f, x, y, z in zip(features, lon, lat, h):
-            out = QgsFeature(fields)
-            out.setGeometry(QgsGeometry(QgsPoint(float(x), float(y), float(z))))
-            out.setAttributes(f.attributes() + [float(x), float(y), float(z)])
-            sink.addFeature(out, QgsFeatureSink.FastInsert)
+        with output_sink(self, parameters, context, self.OUTPUT, fields, QgsWkbTypes.PointZ,
+                         QgsCoordinateReferenceSystem(OUTPUT_CRS)) as (sink, dest):
+            for f, x, y, z in zip(features, lon, lat, h):
+                out = QgsFeature(fields)
+                out.setGeometry(QgsGeometry(QgsPoint(float(x), float(y), float(z))))
+                out.setAttributes(f.attributes() + [float(x), float(y), float(z)])
+                sink.add(out)
         style_output_on_load(context, dest, STYLES / "ground_points.qml")
         return dest
 

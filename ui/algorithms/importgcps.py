@@ -13,8 +13,8 @@ from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsProcessing, QgsPro
 from ...core import gcps
 from ...core.validation import check_terrain_height
 from ..common import (DEM_DATUM, HEIGHT, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
-                      add_scene_parameters, check_cancelled, core_call, dem_from_parameters, load_scene_for,
-                      require_points, style_output_on_load, z_datum_of_crs)
+                      add_scene_parameters, check_cancelled, check_outputs, core_call, dem_from_parameters,
+                      load_scene_for, processing_errors, require_points, style_output_on_load, z_datum_of_crs)
 from ..parameters import (CAMERA, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ROW_FIELD, Z_DATUM, camera,
                           check_fraction, enum_value, height_source, image_field, tr, z_datum)
 
@@ -107,12 +107,13 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
 
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        scene_path = self.parameterAsFile(parameters, SCENE, context)
-        scene = load_scene_for(SCENE, scene_path, feedback)
         dest = self.output_path(parameters, context, self.OUTPUT, "gcps.gpkg")
         if Path(dest).suffix.lower() != ".gpkg":
             raise QgsProcessingException(f"{self.OUTPUT}: GCP layers are written as GeoPackage; choose a .gpkg file "
                                          f"(got {dest})")
+        check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
+        scene_path = self.parameterAsFile(parameters, SCENE, context)
+        scene = load_scene_for(SCENE, scene_path, feedback)
         with _core_log_to(feedback):
             table = self._read(parameters, context)
             check_cancelled(feedback)
@@ -120,7 +121,8 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
             table = core_call(gcps.check_against_scene, table, scene, scene_path,
                               self.parameterAsString(parameters, self.CAMERA, context).strip() or None,
                               self.parameterAsDouble(parameters, self.CHECK_FRACTION, context))
-        core_call(gcps.write_gpkg, table, dest)
+        with processing_errors(f"{self.OUTPUT}: "):
+            gcps.write_gpkg(table, dest)
         self._report(table, feedback)
         style_output_on_load(context, dest, STYLES / "gcps.qml")
         feedback.setProgress(100)

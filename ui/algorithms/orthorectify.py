@@ -15,7 +15,7 @@ from ...core.dem import ConstantHeight
 from ...core.ortho import default_grid, orthorectify, scene_utm_crs
 from ...core.products import footprints
 from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
-                      core_call, dem_from_parameters, feedback_callbacks, load_scene_for)
+                      check_outputs, core_call, dem_from_parameters, feedback_callbacks, load_scene_for)
 from ..parameters import RESAMPLING, enum_value, resampling, tr
 
 
@@ -59,6 +59,11 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
 
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        output = self.output_path(parameters, context, self.OUTPUT, "orthoimage.tif")
+        if Path(output).suffix.lower() not in (".tif", ".tiff"):
+            raise QgsProcessingException(f"{self.OUTPUT}: the orthoimage is written as GeoTIFF; use a .tif file "
+                                         f"(got {output})")
+        check_outputs(self, parameters, context, {self.OUTPUT: [output]})
         layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)
         if layer is None:
             raise QgsProcessingException(f"{self.INPUT}: no raw image given")
@@ -67,10 +72,6 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         surface = dem_from_parameters(self, parameters, context)
         crs = self._crs(parameters, context)
-        output = self.output_path(parameters, context, self.OUTPUT, "orthoimage.tif")
-        if Path(output).suffix.lower() not in (".tif", ".tiff"):
-            raise QgsProcessingException(f"{self.OUTPUT}: the orthoimage is written as GeoTIFF; use a .tif file "
-                                         f"(got {output})")
         extent = None
         if parameters.get(self.EXTENT):
             crs = crs or core_call(scene_utm_crs, scene, camera, surface)  # the extent needs its CRS first

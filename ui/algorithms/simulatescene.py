@@ -4,8 +4,8 @@ from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsPr
                        QgsProcessingParameterBoolean,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber)
 
-from ...core.simulator import GcpSettings, simulate
-from ..common import PushbroomAlgorithm, core_call, feedback_callbacks
+from ...core.simulator import PRESETS, GcpSettings, check_folder, output_names, simulate
+from ..common import PushbroomAlgorithm, core_call, feedback_callbacks, processing_errors
 from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_value, preset, tr
 
 MICRO = 1e-6
@@ -96,7 +96,9 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                           "image_<CAMERA>.tif) rendered from a known texture over the DEM, for orthorectification. "
                           "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB."))
         folder = QgsProcessingParameterFolderDestination(self.OUTPUT_FOLDER, tr("Output folder"))
-        folder.setHelp(tr("Folder the simulated files are written to (created if missing)."))
+        folder.setHelp(tr("Folder the simulated files are written to (created if missing). Files there of the "
+                          "names the simulation writes are replaced only when an earlier simulation wrote them "
+                          "and they were not changed since; a user's files are never replaced (the run stops)."))
         for p in (preset(), seed, n_scenes, n_gcps, noise, render):
             self.addParameter(p)
         self.add_parameter(check_fraction(), advanced=True)
@@ -124,7 +126,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         preset = enum_value(self, parameters, self.PRESET, context)
-        folder = self.parameterAsString(parameters, self.OUTPUT_FOLDER, context)
+        folder = self.parameterAsFileOutput(parameters, self.OUTPUT_FOLDER, context)
         errors = {field: self.parameterAsDouble(parameters, name, context) * factor
                   for name, field, _, factor, _ in ERROR_PARAMETERS if parameters.get(name) not in (None, "")}
         measurements = {field: (self.parameterAsInt if kind == "i" else self.parameterAsDouble)(parameters, name,
@@ -134,6 +136,9 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         settings = GcpSettings(n_gcps=self.parameterAsInt(parameters, self.N_GCPS, context),
                                image_noise=self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
                                **measurements)
+        with processing_errors(f"{self.OUTPUT_FOLDER}: "):  # before any work: a user's files there are kept
+            check_folder(folder, output_names(PRESETS[preset], settings,
+                                              self.parameterAsBool(parameters, self.RENDER, context)))
         progress, is_cancelled = feedback_callbacks(feedback)
         result = core_call(simulate, preset, folder,
                            seed=self.parameterAsInt(parameters, self.SEED, context),
