@@ -192,7 +192,7 @@ def test_height_above_the_satellite_on_the_command_line(qgis_process, simulated,
 def test_ground_point_z_no_terrain_has(provider, simulated, files, tmp_path, z):
     assert_refused("pushbroom:groundtoimage", {"SCENE": simulated["ONBOARD_SCENE"],
                                                "INPUT": _ground_layer(tmp_path, files, z),
-                                               "OUTPUT": str(tmp_path / "i.gpkg")},
+                                               "Z_DATUM": "ellipsoid", "OUTPUT": str(tmp_path / "i.gpkg")},
                    "INPUT", "Z values", "USE_Z", watch=[tmp_path])
 
 

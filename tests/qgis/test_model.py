@@ -24,7 +24,8 @@ MODEL_ID = "pushbroom:Simulate, adjust, orthorectify and export RPC"
 def test_the_model_file_is_valid_and_in_the_toolbox(provider):
     model = QgsProcessingModelAlgorithm()
     assert model.fromFile(str(MODEL_FILE))
-    assert model.validate() == (True, [])
+    ok, problems = model.validate()
+    assert ok, problems
     assert [c.algorithmId() for c in sorted(model.childAlgorithms().values(), key=lambda c: c.position().y())] == [
         "pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:bundleadjust", "pushbroom:orthorectify",
         "pushbroom:exportrpc"]
