@@ -40,6 +40,8 @@ log = logging.getLogger(__name__)
 
 CONSTANT_HEIGHT_SPAN = 500.0  # m each side of a constant height over which the RPC is fitted
 LINE_SAMPLES = 4097           # columns at which the real detectors' image-plane coordinates are fitted
+SEAM_ZONE = 6.0               # px from a chip boundary within which both chips' positions are compared
+                              # (misaligned chips leave gaps and duplicates of up to a few px)
 
 
 def virtual_camera(cam: Camera) -> Camera:
@@ -97,7 +99,34 @@ class _VirtualMapper(_Mapper):
         ok = np.all(np.isfinite(ground), axis=1)
         if ok.any():
             col[ok], row[ok] = self.scene.ground_to_image(ground[ok], self.camera)
+            bounds = np.array([c.col_offset for c in self.cam.chips[1:]] or [np.inf])
+            near = ok & (np.abs(np.nan_to_num(col, nan=np.inf)[:, None] - bounds).min(axis=1) < SEAM_ZONE)
+            if near.any():
+                col[near], row[near] = self._across_seam(ground[near], col[near], row[near])
         return col.reshape(i.shape), row.reshape(i.shape)
+
+    def _across_seam(self, ground: np.ndarray, col: np.ndarray, row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw (col, row) of ground points (n, 3) near a seam, found at (col, row) on one chip, so that
+        resampling reads only pixels that see them: the position on the left chip when it falls
+        in or before the centre of that chip's last delivered column (b - 0.5, b the seam), else
+        on the right chip when it falls in or after the centre of that chip's first (b + 0.5), and
+        for ground in a gap between those two centres (misaligned chips) the point between them
+        that divides the gap as the ground point does (distances in each chip's own pixels; the
+        row likewise between the two chips' rows)."""
+        starts = np.array([c.col_offset for c in self.cam.chips])
+        right = np.argmin(np.abs(col[:, None] - starts[None, 1:]), axis=1) + 1
+        b = starts[right]
+        col_left, row_left = self.scene.ground_to_image_on_chip(ground, self.camera, right - 1, col, row)
+        col_right, row_right = self.scene.ground_to_image_on_chip(ground, self.camera, right, col, row)
+        past_left = col_left - (b - 0.5)      # > 0: beyond the left chip's last delivered centre
+        before_right = (b + 0.5) - col_right  # > 0: before the right chip's first delivered centre
+        with np.errstate(invalid="ignore", divide="ignore"):
+            share = past_left / (past_left + before_right)
+        left, inside = past_left <= 0, before_right <= 0
+        out_col = np.where(left, col_left, np.where(inside, col_right, b - 0.5 + share))
+        out_row = np.where(left, row_left, np.where(inside, row_right, row_left + share * (row_right - row_left)))
+        ok = np.isfinite(out_col) & np.isfinite(out_row)
+        return np.where(ok, out_col, col), np.where(ok, out_row, row)
 
 
 def output_files(output_path) -> dict[str, Path]:

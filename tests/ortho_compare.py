@@ -18,12 +18,13 @@ from core.simulator import simulate
 gdal.UseExceptions()
 
 
-def rendered_cut(folder, seed: int, rows: int, model: str = "true_scene", surface=None):
-    """A CBERS-02B scene simulated into ``folder``, its ``model`` (true_scene or onboard_scene)
-    cut to the first ``rows`` rows, and the cut's raw image rendered from the texture into
-    folder/raw.tif over ``surface`` (default: the simulated DEM). Returns (cut scene, simulation
-    result, geoid DEM, texture frame)."""
-    result = simulate("cbers02b_hrc", folder, seed=seed, n_gcps=5)
+def rendered_cut(folder, seed: int, rows: int, model: str = "true_scene", surface=None,
+                 preset: str = "cbers02b_hrc"):
+    """A scene of ``preset`` (default CBERS-02B) simulated into ``folder``, its ``model``
+    (true_scene or onboard_scene) cut to the first camera's first ``rows`` rows, and the cut's
+    raw image rendered from the texture into folder/raw.tif over ``surface`` (default: the
+    simulated DEM). Returns (cut scene, simulation result, geoid DEM, texture frame)."""
+    result = simulate(preset, folder, seed=seed, n_gcps=5)
     full = load_scene(getattr(result, model))
     scene = replace(full, cameras=[replace(full.cameras[0], rows=rows)], _guess={})
     dem = Dem(result.dem, datum="geoid")
