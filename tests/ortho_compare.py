@@ -12,7 +12,7 @@ from dataclasses import replace
 from core.dem import Dem
 from core.ortho import OrthoGrid, _Mapper
 from core.render import render_image, texture_at, texture_frame
-from core.scene_io import load_scene
+from core.scene_io import load_scene, save_scene
 from core.simulator import simulate
 
 gdal.UseExceptions()
@@ -31,6 +31,14 @@ def rendered_cut(folder, seed: int, rows: int, model: str = "true_scene", surfac
     frame = texture_frame(full, dem, seed)
     render_image(scene, 0, surface or dem, folder / "raw.tif", frame)
     return scene, result, dem, frame
+
+
+def saved_cut(folder, seed: int, rows: int) -> tuple[str, str, str]:
+    """(scene JSON, raw image, geoid DEM) paths of a :func:`rendered_cut` of the true camera,
+    the cut scene saved as folder/cut.json."""
+    scene, result, _, _ = rendered_cut(folder, seed=seed, rows=rows)
+    save_scene(scene, folder / "cut.json")
+    return str(folder / "cut.json"), str(folder / "raw.tif"), str(result.dem)
 
 
 def gdalwarp_rpc(raw, dem_path, grid: OrthoGrid, output) -> None:

@@ -29,10 +29,9 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
 from core.dem import Dem  # noqa: E402
-from core.render import render_image, texture_frame  # noqa: E402
 from core.scene_io import load_scene  # noqa: E402
 from core.sensorcorrect import sensor_correct  # noqa: E402
-from core.simulator import simulate  # noqa: E402
+from tests.bench.bench_ortho_vs_gdalwarp import prepare as prepare_ortho_bench  # noqa: E402
 
 log = logging.getLogger("bench_sensorcorrect")
 # Runs a command and prints its CPU seconds (user + system) and peak resident memory (kB) last.
@@ -44,16 +43,10 @@ MEASURE = ("import resource, subprocess, sys\n"
 
 
 def prepare(work: Path) -> dict:
-    """Simulate, write the ellipsoidal DEM, render the raw image of the true camera."""
-    t0 = time.perf_counter()
-    result = simulate("cbers02b_hrc", work / "sim", seed=0, n_gcps=5)
-    scene = load_scene(result.true_scene)
-    dem_path = Dem(result.dem, datum="geoid").write_ellipsoidal(work / "dem_ellipsoid.tif")
-    dem = Dem(dem_path, datum="ellipsoid")
-    raw = work / "raw.tif"
-    render_image(scene, 0, dem, raw, texture_frame(scene, dem, 0))
-    log.info("simulated and rendered %s in %.0f s", raw, time.perf_counter() - t0)
-    return {"scene": str(result.true_scene), "raw": str(raw), "dem": str(dem_path)}
+    """The scene of bench_ortho_vs_gdalwarp (seed 0, raw image rendered with the true model over
+    the ellipsoidal DEM), with its true camera: the staggered, misaligned CCDs."""
+    setup = prepare_ortho_bench(work)
+    return {"scene": str(Path(setup["scene"]).with_name("true_scene.json")), "raw": setup["raw"], "dem": setup["dem"]}
 
 
 def run_once(setup: dict, output: Path) -> dict:

@@ -7,7 +7,7 @@ import pytest
 from osgeo import gdal
 
 from core.scene_io import load_scene, save_scene
-from tests.ortho_compare import rendered_cut
+from tests.ortho_compare import saved_cut
 
 from .hostile import assert_refused, assert_refused_cli
 
@@ -18,9 +18,7 @@ ALG = "pushbroom:sensorcorrect"
 def sources(tmp_path_factory) -> Path:
     """A rendered 120-row cut of a CBERS-02B true camera: cut.json, raw.tif, dem.tif."""
     folder = tmp_path_factory.mktemp("sc_sources")
-    scene, result, _, _ = rendered_cut(folder, seed=6, rows=120)
-    save_scene(scene, folder / "cut.json")
-    assert result.dem == folder / "dem.tif"
+    assert saved_cut(folder, seed=6, rows=120)[2] == str(folder / "dem.tif")
     return folder
 
 

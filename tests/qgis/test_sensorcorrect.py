@@ -9,37 +9,23 @@ import pytest
 from osgeo import gdal
 
 import processing
-from core.scene_io import load_scene, save_scene
-from tests.ortho_compare import rendered_cut
+from core.scene_io import load_scene
+
+from tests.ortho_compare import saved_cut
 
 from .test_algorithms import RecordingFeedback
 from .test_qgis_process import _run_json
 
 
-class InfoFeedback(RecordingFeedback):
-    """Keeps the warnings and the information an algorithm pushes."""
-
-    def __init__(self):
-        super().__init__()
-        self.infos = []
-
-    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.infos.append(info)
-        super().pushInfo(info)
-
-
 @pytest.fixture(scope="module")
 def raw(tmp_path_factory):
     """(scene JSON, raw image, DEM) of a 300-row cut of a CBERS-02B scene's true camera, rendered."""
-    folder = tmp_path_factory.mktemp("raw")
-    scene, result, _, _ = rendered_cut(folder, seed=5, rows=300)
-    save_scene(scene, folder / "cut.json")
-    return str(folder / "cut.json"), str(folder / "raw.tif"), str(result.dem)
+    return saved_cut(tmp_path_factory.mktemp("raw"), seed=5, rows=300)
 
 
 def test_sensorcorrect_with_processing_run(provider, raw, tmp_path):
     scene, image, dem = raw
-    feedback = InfoFeedback()
+    feedback = RecordingFeedback()
     out = processing.run("pushbroom:sensorcorrect", {"INPUT": image, "SCENE": scene, "DEM": dem, "DEM_DATUM": "geoid",
                                                      "RESAMPLING": "cubic", "OUTPUT": str(tmp_path / "sc.tif"),
                                                      "OUTPUT_SCENE": str(tmp_path / "sc.json")}, feedback=feedback)
