@@ -70,17 +70,19 @@ def virtual_camera(cam: Camera) -> Camera:
 
 def virtual_scene(scene: SceneModel, camera: int, info: dict | None = None) -> SceneModel:
     """A scene of the virtual camera of ``scene``'s camera ``camera`` (:func:`virtual_camera`):
-    the same epoch, platform (with its correction) and corrections; ``info`` is the scene's with
-    ``sensor_corrected`` saying how it was made (plus ``info``'s own entries there)."""
+    the same epoch, platform (with its correction) and corrections; ``info`` is the scene's (but
+    its source file and reader warnings) with ``sensor_corrected`` saying how it was made (plus
+    ``info``'s own entries there)."""
     cam = scene.cameras[camera]
     how = {"camera": cam.name, "chips": len(cam.chips),
            "virtual_camera": "one straight distortion-free detector line fitted through the real detectors, "
                              "focal length of the camera, principal point on the optical axis, constant line "
                              "period over the same time span"}
     how.update(info or {})
+    inherited = {k: v for k, v in scene.info.items() if k not in ("source", "warnings")}  # of the real scene's file
     return SceneModel(epoch=scene.epoch, platform=scene.platform, cameras=[virtual_camera(cam)],
                       aberration=scene.aberration, refraction=scene.refraction,
-                      info={**scene.info, "sensor_corrected": how})
+                      info={**inherited, "sensor_corrected": how})
 
 
 class _VirtualMapper(_Mapper):

@@ -69,6 +69,8 @@ def test_virtual_camera_is_one_straight_line_over_the_same_span(corrected):
     assert np.max(np.abs(uy_real - uy_virtual)) / pixel < 5.0
     info = corrected["virtual"].info["sensor_corrected"]
     assert info["camera"] == cam.name and info["chips"] == 3 and "DEM" in info["surface"]
+    # its source is its own file (load_scene's), not the real scene's
+    assert corrected["virtual"].info["source"] == str(corrected["folder"] / "corrected_scene.json")
     assert virtual_camera(virtual).to_dict()["chips"][0]["pitch"] == pytest.approx(virtual.chips[0].pitch)
 
 
