@@ -405,10 +405,7 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
     densification error (px), share of the footprint without DEM heights, time."""
     import time
     t_start = time.perf_counter()
-    if resampling not in RESAMPLING:
-        raise InputError(f"resampling must be one of {', '.join(RESAMPLING)} (got {resampling!r})")
-    if tile % step or tile % OVERVIEW_FACTORS[-1]:
-        raise ValueError(f"tile ({tile}) must be a multiple of step ({step}) and of {OVERVIEW_FACTORS[-1]}")
+    check_resampling(resampling, tile, step)
     cam = scene.cameras[camera]
     src = _open_raw(image_path, cam)
     if nodata is not None:
@@ -417,26 +414,9 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
     output_path = Path(output_path)
     check_destination(output_path)
     raw = _RawImage(image_path, src, memory_budget)
-    fill = nodata if nodata is not None else 0.0
     cancelled = is_cancelled or (lambda: False)
     report = progress or (lambda fraction: None)
-    levels = overview_levels(grid.cols, grid.rows)
-    files = OutputSet()
-    failed = ""
     try:
-        tmp = files.path(output_path)
-        out = gdal.GetDriverByName("GTiff").Create(
-            str(tmp), grid.cols, grid.rows, raw.count, raw.data_type,
-            ["TILED=YES", f"BLOCKXSIZE={tile}", f"BLOCKYSIZE={tile}", "COMPRESS=DEFLATE", "PREDICTOR=2",
-             "BIGTIFF=IF_SAFER", "NUM_THREADS=ALL_CPUS"])
-        out.SetGeoTransform(grid.geotransform())
-        out.SetProjection(grid.crs.to_wkt())
-        for k in range(raw.count):
-            if nodata is not None:
-                out.GetRasterBand(k + 1).SetNoDataValue(nodata)
-        if levels:
-            out.BuildOverviews("NONE", levels)  # created empty; each tile writes its own part of them
-        out_bands = [out.GetRasterBand(k + 1) for k in range(raw.count)]
         mapper = _Mapper(scene, camera, surface, grid)
         planned = mapper.nodes(0, grid.rows, 0, grid.cols, step, is_cancelled=cancelled)
         gaps = mapper.dem_gap_share(planned)
@@ -444,42 +424,17 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
             log.warning("DEM %s gives no height for %.1f %% of the image's footprint in the output grid: those "
                         "pixels are nodata", getattr(surface, "path", ""), 100 * gaps)
         report(0.05)
-        tiles = [(r0, min(r0 + tile, grid.rows), c0, min(c0 + tile, grid.cols))
-                 for r0 in range(0, grid.rows, tile) for c0 in range(0, grid.cols, tile)]
-        order = RESAMPLING[resampling]
 
-        def work(t):
-            if cancelled():
-                raise Cancelled("orthorectification cancelled by the user")
-            r0, r1, c0, c1 = t
-            col, row, err = mapper.tile(r0, r1, c0, c1, step, max_error, planned)
-            blocks = _resample(raw, col, row, order, fill)
-            return t, blocks, [_overview_blocks(b, levels, nodata, order == 0) for b in blocks], err
+        def georeference(out) -> None:
+            out.SetGeoTransform(grid.geotransform())
+            out.SetProjection(grid.crs.to_wkt())
 
-        worst = 0.0
-        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-            for n, ((r0, r1, c0, c1), blocks, overviews, err) in enumerate(pool.map(work, tiles)):
-                for band, b, ovr in zip(out_bands, blocks, overviews):
-                    band.WriteArray(b, c0, r0)
-                    for k, (f, o) in enumerate(zip(levels, ovr)):
-                        band.GetOverview(k).WriteArray(o, c0 // f, r0 // f)
-                worst = max(worst, err)
-                report(0.05 + 0.93 * (n + 1) / len(tiles))
-        out_bands = None
-        out.FlushCache()
-        out = None
-        files.commit()
-    except RuntimeError as exc:  # GDAL: disk full, file system errors; raised below, as this error's
-        failed = str(exc)        # traceback holds the file open
+        worst = write_resampled(raw, mapper, planned, (grid.rows, grid.cols), output_path, resampling, nodata, tile,
+                                max_error,
+                                georeference=georeference, progress=lambda f: report(0.05 + 0.93 * f),
+                                is_cancelled=cancelled)
     finally:
-        try:
-            out_bands = out = band = None  # closes the file
-        except RuntimeError as exc:  # flushing it failed
-            failed = failed or str(exc)
         raw.close()
-        files.discard()
-    if failed:
-        raise InputError(f"cannot write {output_path}: {failed}")
     report(1.0)
     figures = {"cols": grid.cols, "rows": grid.rows, "resolution_m": grid.resolution, "crs": grid.crs.to_string(),
                "densification_error_px": worst, "max_error_px": max_error, "dem_gap_share": gaps,
@@ -487,3 +442,87 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
     log.info("orthoimage %d x %d at %.3f m in %.1f s; densification error <= %.2e px", grid.cols, grid.rows,
              grid.resolution, figures["seconds"], worst)
     return figures
+
+
+def check_resampling(resampling: str, tile: int, step: int) -> None:
+    """InputError for an unknown resampling; ValueError for a tile that is not a multiple of the
+    node step and of the largest overview factor."""
+    if resampling not in RESAMPLING:
+        raise InputError(f"resampling must be one of {', '.join(RESAMPLING)} (got {resampling!r})")
+    if tile % step or tile % OVERVIEW_FACTORS[-1]:
+        raise ValueError(f"tile ({tile}) must be a multiple of step ({step}) and of {OVERVIEW_FACTORS[-1]}")
+
+
+def write_resampled(raw: _RawImage, mapper: _Mapper, planned: _Nodes, shape: tuple[int, int], output_path,
+                    resampling: str,
+                    nodata: float | None, tile: int, max_error: float,
+                    georeference: Callable[[gdal.Dataset], None] | None = None,
+                    progress: Callable[[float], None] | None = None,
+                    is_cancelled: Callable[[], bool] | None = None, files: OutputSet | None = None) -> float:
+    """Resample ``raw`` through ``mapper`` (output pixel -> raw image position; any subclass of
+    :class:`_Mapper` with its own ``exact``) onto an output of ``shape`` (rows, cols), whose node
+    grid ``planned`` (:meth:`_Mapper.nodes` over the whole output) it slices, and write it as a tiled, compressed
+    GeoTIFF with overviews to ``output_path``; ``georeference(dataset)`` sets its georeferencing.
+    Tiles on a thread per core; ``progress`` gets the share of tiles done. Written completely
+    or not at all: with ``files`` as part of that set (its owner commits it). Returns the largest
+    densification error measured (px)."""
+    rows, cols = shape
+    fill = nodata if nodata is not None else 0.0
+    cancelled = is_cancelled or (lambda: False)
+    report = progress or (lambda fraction: None)
+    levels = overview_levels(cols, rows)
+    own = files is None
+    files = files or OutputSet()
+    failed = ""
+    worst = 0.0
+    try:
+        tmp = files.path(output_path)
+        out = gdal.GetDriverByName("GTiff").Create(
+            str(tmp), cols, rows, raw.count, raw.data_type,
+            ["TILED=YES", f"BLOCKXSIZE={tile}", f"BLOCKYSIZE={tile}", "COMPRESS=DEFLATE", "PREDICTOR=2",
+             "BIGTIFF=IF_SAFER", "NUM_THREADS=ALL_CPUS"])
+        if georeference is not None:
+            georeference(out)
+        for k in range(raw.count):
+            if nodata is not None:
+                out.GetRasterBand(k + 1).SetNoDataValue(nodata)
+        if levels:
+            out.BuildOverviews("NONE", levels)  # created empty; each tile writes its own part of them
+        out_bands = [out.GetRasterBand(k + 1) for k in range(raw.count)]
+        tiles = [(r0, min(r0 + tile, rows), c0, min(c0 + tile, cols))
+                 for r0 in range(0, rows, tile) for c0 in range(0, cols, tile)]
+        order = RESAMPLING[resampling]
+
+        def work(t):
+            if cancelled():
+                raise Cancelled("resampling cancelled by the user")
+            r0, r1, c0, c1 = t
+            col, row, err = mapper.tile(r0, r1, c0, c1, planned.step, max_error, planned)
+            blocks = _resample(raw, col, row, order, fill)
+            return t, blocks, [_overview_blocks(b, levels, nodata, order == 0) for b in blocks], err
+
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            for n, ((r0, r1, c0, c1), blocks, overviews, err) in enumerate(pool.map(work, tiles)):
+                for band, b, ovr in zip(out_bands, blocks, overviews):
+                    band.WriteArray(b, c0, r0)
+                    for k, (f, o) in enumerate(zip(levels, ovr)):
+                        band.GetOverview(k).WriteArray(o, c0 // f, r0 // f)
+                worst = max(worst, err)
+                report((n + 1) / len(tiles))
+        out_bands = None
+        out.FlushCache()
+        out = None
+        if own:
+            files.commit()
+    except RuntimeError as exc:  # GDAL: disk full, file system errors; raised below, as this error's
+        failed = str(exc)        # traceback holds the file open
+    finally:
+        try:
+            out_bands = out = band = None  # closes the file
+        except RuntimeError as exc:  # flushing it failed
+            failed = failed or str(exc)
+        if own:
+            files.discard()
+    if failed:
+        raise InputError(f"cannot write {output_path}: {failed}")
+    return worst

@@ -415,11 +415,13 @@ def set_geotiff_rpc(rpc: RpcModel, tif_path) -> None:
 
 
 def image_vrt_with_rpc(rpc: RpcModel, image, vrt_path, cols: int | None = None, rows: int | None = None,
-                       files: OutputSet | None = None) -> Path:
+                       files: OutputSet | None = None, shown_as=None) -> Path:
     """A VRT at ``vrt_path`` that shows ``image`` (unchanged, referenced by path: relative to the
     VRT's folder when it lies in or below it) with the model in its RPC metadata, so GDAL and
     QGIS use the RPC for it. With cols/rows, checks that the image has the camera's size
-    (InputError otherwise). Written completely or not at all (with ``files``, as part of that set)."""
+    (InputError otherwise). Written completely or not at all (with ``files``, as part of that set).
+    ``shown_as``: the path the VRT names for the image instead of ``image`` (the final name of an
+    image still being written under a temporary one)."""
     from osgeo import gdal
     gdal.UseExceptions()
     vrt_path = Path(vrt_path)
@@ -435,7 +437,7 @@ def image_vrt_with_rpc(rpc: RpcModel, image, vrt_path, cols: int | None = None, 
     xml = ElementTree.fromstring(vrt.GetMetadata("xml:VRT")[0])
     vrt = None
     for name in xml.iter("SourceFilename"):  # relative to the VRT's folder when the image lies in or below it
-        relative = os.path.relpath(os.path.realpath(name.text), os.path.dirname(os.path.realpath(vrt_path)))
+        relative = os.path.relpath(os.path.realpath(shown_as or name.text), os.path.dirname(os.path.realpath(vrt_path)))
         if name.get("relativeToVRT") != "1" and not relative.startswith(os.pardir):
             name.text = relative
             name.set("relativeToVRT", "1")

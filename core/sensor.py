@@ -387,6 +387,22 @@ class SceneModel:
         return {"origin": centre, "rot": rot, "heights": (lo, hi), "table": cells,
                 "raster": (lo_en[0], lo_en[1], step, shape), "tree": cKDTree(ens[0][good]), "nodes": nodes[good]}
 
+    def ground_to_image_on_chip(self, xyz, camera: int, chip, col, row, tol: float = 1e-5,
+                                max_iter: int = 30) -> tuple[np.ndarray, np.ndarray]:
+        """Image (col (n,), row (n,)) of ECEF points (n, 3) on the given chip(s) (index, scalar or
+        (n,)), whose detector line is extended beyond the columns the chip delivers (where two
+        chips meet, the position on each), by Newton from first guesses (col, row). NaN where
+        it fails."""
+        camera = self.camera_index(camera)
+        cam = self.cameras[camera]
+        p = np.atleast_2d(np.asarray(xyz, dtype=float))
+        self.prepare()
+        lon, lat, height = ecef_to_geodetic(p)
+        k = np.broadcast_to(np.asarray(chip, dtype=int), (p.shape[0],))
+        col, row, ok = self._newton(cam, p, up_vector(lon, lat), height, np.asarray(col, dtype=float),
+                                    np.asarray(row, dtype=float), k, tol, max_iter)
+        return np.where(ok, col, np.nan), np.where(ok, row, np.nan)
+
     # --- convenience -------------------------------------------------------------------------
     def ground_to_image_geodetic(self, lon, lat, h, camera: int = 0):
         """ground_to_image for (lon, lat) degrees and ellipsoidal heights (m)."""

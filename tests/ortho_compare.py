@@ -12,24 +12,33 @@ from dataclasses import replace
 from core.dem import Dem
 from core.ortho import OrthoGrid, _Mapper
 from core.render import render_image, texture_at, texture_frame
-from core.scene_io import load_scene
+from core.scene_io import load_scene, save_scene
 from core.simulator import simulate
 
 gdal.UseExceptions()
 
 
-def rendered_cut(folder, seed: int, rows: int, model: str = "true_scene", surface=None):
-    """A CBERS-02B scene simulated into ``folder``, its ``model`` (true_scene or onboard_scene)
-    cut to the first ``rows`` rows, and the cut's raw image rendered from the texture into
-    folder/raw.tif over ``surface`` (default: the simulated DEM). Returns (cut scene, simulation
-    result, geoid DEM, texture frame)."""
-    result = simulate("cbers02b_hrc", folder, seed=seed, n_gcps=5)
+def rendered_cut(folder, seed: int, rows: int, model: str = "true_scene", surface=None,
+                 preset: str = "cbers02b_hrc"):
+    """A scene of ``preset`` (default CBERS-02B) simulated into ``folder``, its ``model``
+    (true_scene or onboard_scene) cut to the first camera's first ``rows`` rows, and the cut's
+    raw image rendered from the texture into folder/raw.tif over ``surface`` (default: the
+    simulated DEM). Returns (cut scene, simulation result, geoid DEM, texture frame)."""
+    result = simulate(preset, folder, seed=seed, n_gcps=5)
     full = load_scene(getattr(result, model))
     scene = replace(full, cameras=[replace(full.cameras[0], rows=rows)], _guess={})
     dem = Dem(result.dem, datum="geoid")
     frame = texture_frame(full, dem, seed)
     render_image(scene, 0, surface or dem, folder / "raw.tif", frame)
     return scene, result, dem, frame
+
+
+def saved_cut(folder, seed: int, rows: int) -> tuple[str, str, str]:
+    """(scene JSON, raw image, geoid DEM) paths of a :func:`rendered_cut` of the true camera,
+    the cut scene saved as folder/cut.json."""
+    scene, result, _, _ = rendered_cut(folder, seed=seed, rows=rows)
+    save_scene(scene, folder / "cut.json")
+    return str(folder / "cut.json"), str(folder / "raw.tif"), str(result.dem)
 
 
 def gdalwarp_rpc(raw, dem_path, grid: OrthoGrid, output) -> None:

@@ -15,7 +15,8 @@ User-visible texts go through :func:`tr` (one translation context for the whole 
 from __future__ import annotations
 
 from qgis.core import (QgsProcessingException, QgsProcessingParameterEnum, QgsProcessingParameterFile,
-                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
+                       QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
                        QgsProperty)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
@@ -30,6 +31,7 @@ DEM, DEM_DATUM, Z_DATUM, HEIGHT, HEIGHT_SOURCE = "DEM", "DEM_DATUM", "Z_DATUM", 
 CHECK_FRACTION, COL_FIELD, ROW_FIELD = "CHECK_FRACTION", "COL_FIELD", "ROW_FIELD"
 POSITION_MODEL, ATTITUDE_MODEL = "POSITION_MODEL", "ATTITUDE_MODEL"
 GROUND, ROBUST, ON_SINGULAR, RESAMPLING, PRESET = "GROUND", "ROBUST", "ON_SINGULAR", "RESAMPLING", "PRESET"
+OUTPUT_SCENE = "OUTPUT_SCENE"
 
 # Value names of the enumerations, in the order the drop-down lists show them; they are the
 # core's own names (core.dem datums, core.gcps.Heights.source, core.timebasis.KINDS, ...).
@@ -195,6 +197,15 @@ def scene() -> QgsProcessingParameterFile:
     parameter.setHelp(tr("The sensor model of the scene: a Pushbroom Adjust scene JSON (written by the simulator "
                          "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, "
                          "Maxar/DigitalGlobe *.XML)."))
+    return parameter
+
+
+def output_scene() -> QgsProcessingParameterFileDestination:
+    parameter = QgsProcessingParameterFileDestination(OUTPUT_SCENE, tr("Output scene"),
+                                                      fileFilter="Scene JSON (*.json)")
+    parameter.setHelp(tr("Scene JSON of the sensor model this algorithm makes (the adjusted scene, or the virtual "
+                         "camera of a sensor-corrected image; the algorithm's help says which); every algorithm "
+                         "accepts it as SCENE."))
     return parameter
 
 

@@ -11,6 +11,7 @@ from .algorithms.groundtoimage import GroundToImageAlgorithm
 from .algorithms.imagetoground import ImageToGroundAlgorithm
 from .algorithms.importgcps import ImportGcpsAlgorithm
 from .algorithms.orthorectify import OrthorectifyAlgorithm
+from .algorithms.sensorcorrect import SensorCorrectAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .common import RESOURCES
 from .parameters import tr
@@ -18,7 +19,8 @@ from .parameters import tr
 log = logging.getLogger(__name__)
 MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
 ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, BundleAdjustAlgorithm, GroundToImageAlgorithm,
-              ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm, ExportRpcAlgorithm)
+              ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm, ExportRpcAlgorithm,
+              SensorCorrectAlgorithm)
 
 
 class PushbroomProvider(QgsProcessingProvider):

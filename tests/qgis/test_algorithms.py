@@ -21,15 +21,19 @@ RNG = np.random.default_rng(11)
 
 
 class RecordingFeedback(QgsProcessingFeedback):
-    """Keeps the warnings an algorithm pushes."""
+    """Keeps the warnings and the information an algorithm pushes."""
 
     def __init__(self):
         super().__init__()
-        self.warnings = []
+        self.warnings, self.infos = [], []
 
     def pushWarning(self, warning):  # noqa: N802 (QGIS API name)
         self.warnings.append(warning)
         super().pushWarning(warning)
+
+    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
+        self.infos.append(info)
+        super().pushInfo(info)
 
 
 @pytest.fixture(scope="session")

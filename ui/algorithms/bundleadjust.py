@@ -24,7 +24,7 @@ from ...core.timebasis import TimeBasis
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, check_cancelled, check_outputs,
                       core_call, feedback_callbacks, load_scene_for, processing_errors, style_output_on_load)
 from ..parameters import (ATTITUDE_MODEL, GROUND, ON_SINGULAR, POSITION_MODEL, ROBUST, enum_value, ground_mode,
-                          on_singular, robust_method, tr, trajectory_model)
+                          on_singular, output_scene, robust_method, tr, trajectory_model)
 
 ARCSEC = math.pi / 648000.0
 
@@ -118,10 +118,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                                                QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0,
                                                maxValue=1e6),
                   tr("Factor by which the ground residual vectors are drawn longer than they are."), advanced=True)
-        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_SCENE, tr("Adjusted scene"),
-                                                        fileFilter="Scene JSON (*.json)"),
-                  tr("Scene JSON with the corrections, the parameters with sigmas and the settings; every "
-                     "algorithm accepts it as SCENE."))
+        self.addParameter(output_scene())  # the adjusted scene: corrections, parameters with sigmas, settings
         self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, tr("Report (HTML)"),
                                                         fileFilter="HTML (*.html)", optional=True),
                   tr("Optional. A report to read: accuracy before/after, decisions, parameters, plots. The same "
