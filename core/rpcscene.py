@@ -52,6 +52,7 @@ RPB_NAMES.update(lineNumCoef="LINE_NUM_COEFF", lineDenCoef="LINE_DEN_COEFF", sam
 class RpcChip:
     """The single 'chip' of an RPC camera: the image is one continuous array."""
     col_offset: float = 0.0
+    name: str = "image"
 
 
 @dataclass

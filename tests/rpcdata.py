@@ -61,3 +61,18 @@ def rpc_files(folder: Path, rpc: RpcModel, name: str = "scene") -> dict:
     rpb = write_rpc(rpc, folder / f"{name}_b.RPB")
     tif = write_image(folder / f"{name}.tif", cols, rows, rpc)
     return {"txt": txt, "rpb": rpb, "tif": tif, "cols": cols, "rows": rows}
+
+
+def padded_dem(data: Path, path: Path, pad: int = 3) -> Path:
+    """The Pleiades DEM (ellipsoidal heights) extended by ``pad`` cells of its edge values on
+    every side: the vendor DEM ends a few hundred metres short of bilinear coverage of the
+    scene's east edge."""
+    src = gdal.Open(str(data / PLEIADES_DEM))
+    heights = np.pad(src.GetRasterBand(1).ReadAsArray().astype(np.float32), pad, mode="edge")
+    x0, dx, _, y0, _, dy = src.GetGeoTransform()
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), heights.shape[1], heights.shape[0], 1, gdal.GDT_Float32)
+    ds.SetGeoTransform((x0 - pad * dx, dx, 0.0, y0 - pad * dy, 0.0, dy))
+    ds.SetProjection(src.GetProjection())
+    ds.GetRasterBand(1).WriteArray(heights)
+    ds = None
+    return path
