@@ -22,7 +22,7 @@ from __future__ import annotations
 import logging
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -241,6 +241,29 @@ class RpcScene:
         scene = cls(rpc, camera, correction, dict(d.get("info", {})))
         check_image_size(rpc, camera.cols, camera.rows, source)
         return scene
+
+
+# --- the refined RPC --------------------------------------------------------------------------
+def refined_rpc(scene: RpcScene) -> tuple[RpcModel, str]:
+    """An RPC00B model of the corrected scene, GDAL and QGIS use directly, and how it was made:
+    'folded' when each image coordinate's correction depends on that coordinate alone (a1 = 0 on
+    rows, a2 = b1 = 0: col' = (1 + a1) col + a0 is an exact change of the sample numerator, as a
+    multiple of the numerator plus one of the denominator; likewise rows), else 'refitted' (a
+    correction mixing rows and columns, e.g. a drift of the columns along the rows, is not a ratio
+    with the same denominator: the RPC is fitted anew to the corrected scene over the whole image
+    and the RPC's height range, :func:`core.rpcfit.fit_rpc`, to about 1e-5 px)."""
+    (a0, a1, a2), (b0, b1, b2) = scene.correction
+    r = scene.rpc
+    if a2 == 0.0 and b1 == 0.0:
+        def fold(num, den, off, scale, gain, shift):
+            # model' = gain * (model - origin + 0.5) + shift + origin - 0.5 with model = num/den * scale + off
+            constant = (gain - 1.0) * off + shift - (gain - 1.0) * (r.origin - 0.5)
+            return gain * num + constant / scale * den
+        return replace(r, samp_num=fold(r.samp_num, r.samp_den, r.samp_off, r.samp_scale, 1.0 + a1, a0),
+                       line_num=fold(r.line_num, r.line_den, r.line_off, r.line_scale, 1.0 + b2, b0)), "folded"
+    from .rpcfit import fit_rpc
+    rpc, _ = fit_rpc(scene, 0, scene.height_range)
+    return rpc, "refitted"
 
 
 # --- reading RPC sources ----------------------------------------------------------------------
