@@ -30,6 +30,7 @@ DEM, DEM_DATUM, Z_DATUM, HEIGHT, HEIGHT_SOURCE = "DEM", "DEM_DATUM", "Z_DATUM", 
 CHECK_FRACTION, COL_FIELD, ROW_FIELD = "CHECK_FRACTION", "COL_FIELD", "ROW_FIELD"
 POSITION_MODEL, ATTITUDE_MODEL = "POSITION_MODEL", "ATTITUDE_MODEL"
 GROUND, ROBUST, ON_SINGULAR, RESAMPLING, PRESET = "GROUND", "ROBUST", "ON_SINGULAR", "RESAMPLING", "PRESET"
+RPC_CORRECTION = "RPC_CORRECTION"
 
 # Value names of the enumerations, in the order the drop-down lists show them; they are the
 # core's own names (core.dem datums, core.gcps.Heights.source, core.timebasis.KINDS, ...).
@@ -165,6 +166,16 @@ def robust_method() -> QgsProcessingParameterEnum:
          "snooping": tr("data snooping: they are removed from the solution in batches (Baarda)")}, "selection",
         tr("How gross errors are found. Either way the flagged points stay in the output layer with "
            "flagged = 1."))
+
+
+def rpc_correction() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        RPC_CORRECTION, tr("RPC scenes: image-space correction"),
+        {"shift": tr("a shift of columns and rows (2 parameters per image)"),
+         "drift": tr("a shift and a drift along the rows, i.e. with time (4 parameters)"),
+         "affine": tr("an affine correction of columns and rows (6 parameters)")}, "drift",
+        tr("For a SCENE given by its RPC only: the bias compensation adjusted to the GCPs (Grodecki & Dial "
+           "2003); ignored for rigorous scenes."))
 
 
 def on_singular() -> QgsProcessingParameterEnum:
