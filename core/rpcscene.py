@@ -344,8 +344,8 @@ def check_image_size(rpc: RpcModel, cols: int, rows: int, source: str) -> None:
         slack = SIZE_MARGIN * half + 1.0
         if n <= 0 or n > centre + half + 0.5 + slack or centre - half - 0.5 > slack:
             raise MetadataError(f"{source}: the image has {n} {what} but its RPC covers {what} "
-                                f"{centre - half - 0.5:.0f} to {centre + half + 0.5:.0f}: is it the image this RPC "
-                                "belongs to?")
+                                f"{round(centre - half - 0.5)} to {round(centre + half + 0.5)}: is it the image this "
+                                "RPC belongs to?")
 
 
 def size_from_rpc(rpc: RpcModel) -> tuple[int, int]:
