@@ -201,11 +201,13 @@ def preset() -> QgsProcessingParameterEnum:
 
 # --- shared plain parameters --------------------------------------------------------------
 def scene() -> QgsProcessingParameterFile:
-    parameter = QgsProcessingParameterFile(SCENE, tr("Scene (metadata or scene JSON)"), extension="",
-                                           fileFilter="Scene files (*.json *.xml *.XML);;All files (*)")
+    parameter = QgsProcessingParameterFile(SCENE, tr("Scene (metadata, RPC or scene JSON)"), extension="",
+                                           fileFilter="Scene files (*.json *.xml *.XML *.txt *.TXT *.rpb *.RPB *.tif "
+                                                      "*.ntf *.jp2);;All files (*)")
     parameter.setHelp(tr("The sensor model of the scene: a Pushbroom Adjust scene JSON (written by the simulator "
                          "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, "
-                         "Maxar/DigitalGlobe *.XML)."))
+                         "Maxar/DigitalGlobe *.XML), or an RPC alone: an image with RPC metadata GDAL reads, "
+                         "<name>_RPC.TXT, <name>.RPB or DIMAP RPC_*.XML (see the README, 'RPC scenes')."))
     return parameter
 
 
