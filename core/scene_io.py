@@ -103,7 +103,7 @@ def load_scene(path: str | Path) -> SceneModel:
     else:
         scene = rpcscene.read_rpc_image(path)
         if scene is None:
-            raise MetadataError(f"{path}: neither scene JSON, XML metadata (DIMAP v2 or Maxar), an RPC file "
-                                "(_RPC.TXT, .RPB) nor an image with RPC metadata")
+            raise MetadataError(f"{path}: neither scene JSON nor XML metadata (DIMAP v2 or Maxar), nor an RPC file "
+                                "(_RPC.TXT, .RPB) or an image with RPC metadata")
     scene.info.setdefault("source", str(path))
     return scene
