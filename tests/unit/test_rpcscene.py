@@ -120,3 +120,21 @@ def test_bad_rpc_text_is_named(pleiades, tmp_path, edit, expected):
     bad.write_text(edit(pleiades["txt"].read_text()))
     with pytest.raises(MetadataError, match=expected):
         load_scene(bad)
+
+
+def test_a_dimap_rpc_file(shared_data, tmp_path):
+    """A Pleiades RPC_*.XML (<Dimap_Document><Rational_Function_Model><Global_RFM>): the vendor RFM
+    and the image size of its validity domain."""
+    text = (shared_data / PLEIADES).read_text()
+    rfm = text[text.index("<Global_RFM>"):text.index("</Global_RFM>") + len("</Global_RFM>")]
+    path = tmp_path / "RPC_PHR1B_P_TEST.XML"
+    path.write_text(f"<?xml version='1.0'?><Dimap_Document><Rational_Function_Model>{rfm}</Rational_Function_Model>"
+                    "</Dimap_Document>")
+    scene = load_scene(path)
+    assert isinstance(scene, RpcScene) and (scene.camera.cols, scene.camera.rows) == (40000, 38248)
+    assert scene.info["warnings"] == []
+    text_scene = load_scene(write_rpc(pleiades_rpc(shared_data), tmp_path / "phr_RPC.TXT"))
+    col, row, h = _points(scene)
+    xyz = scene.image_to_ground(col, row, h)
+    c, r = text_scene.ground_to_image(xyz)
+    assert np.max(np.hypot(c - col, r - row)) < 1e-6
