@@ -1,6 +1,7 @@
 """pushbroom:bundleadjust on RPC scenes (bias compensation, Grodecki & Dial 2003) in real QGIS and
 through qgis_process: the WorldView-2 vendor RPB with a known shift and drift added to the GCPs;
 the adjusted scene JSON and the refined RPC are read back by the plugin and by GDAL."""
+import csv
 import json
 from pathlib import Path
 
@@ -18,6 +19,7 @@ from core.scene_io import load_scene
 from tests.rpcdata import worldview2_rpc
 from tests.unit.test_rpc_adjust import BIAS, NOISE, _table
 
+from .test_algorithms import _points, _values
 from .test_qgis_process import _run_json
 
 
@@ -77,3 +79,28 @@ def test_rpc_bundleadjust_from_the_command_line(qgis_process, wv2, tmp_path):
     c, r = adjusted.ground_to_image(xyz)
     c2, r2 = refined.ground_to_image(xyz)
     assert np.max(np.hypot(c2 - c, r2 - r)) < 1e-6  # a shift is folded into the numerators exactly
+
+
+def test_import_adjust_and_use_the_adjusted_scene(wv2, tmp_path):
+    """The user's path: GCPs from a CSV imported against the RPC scene, adjusted, and the adjusted
+    scene JSON given to another algorithm (groundtoimage projects the check points to their
+    measured image positions, to the noise)."""
+    scene = load_scene(wv2["scene"])
+    table, _, _ = _table(scene, BIAS)
+    path = tmp_path / "gcps.csv"
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["id", "role", "col", "row", "lon", "lat", "h"])
+        writer.writerows(zip(table.id, table.role, table.col, table.row, table.lon, table.lat, table.h))
+    gpkg = processing.run("pushbroom:importgcps", {"SCENE": wv2["scene"], "INPUT_FILE": str(path), "Z_FIELD": "h",
+                                                   "Z_DATUM": "ellipsoid", "ROLE_FIELD": "role", "SIGMA_PX": NOISE,
+                                                   "OUTPUT": str(tmp_path / "gcps.gpkg")})["OUTPUT"]
+    adjusted = processing.run("pushbroom:bundleadjust", {"SCENE": wv2["scene"], "GCPS": gpkg,
+                                                         "OUTPUT_SCENE": str(tmp_path / "adj.json")})["OUTPUT_SCENE"]
+    check = table.role == "check"
+    points = _points(table.lon[check], table.lat[check], table.h[check], crs="EPSG:4979")
+    out = processing.run("pushbroom:groundtoimage", {"SCENE": adjusted, "INPUT": points, "USE_Z": True,
+                                                     "Z_DATUM": "ellipsoid", "OUTPUT": "memory:"})["OUTPUT"]
+    c, r = _values(out, "col", "row").T
+    err = np.hypot(c - table.col[check], r - table.row[check])
+    assert np.sqrt(np.mean(err ** 2)) < 1.25 * np.sqrt(2) * NOISE
