@@ -5,16 +5,13 @@ crop of an RPC image (offsets moved, as gdal_translate -srcwin writes them) is a
 from __future__ import annotations
 
 import json
-from dataclasses import replace
-
 import numpy as np
 import pytest
 from osgeo import gdal
 
 import processing
-from core.rpcfit import write_rpc
 from core.rpcscene import RpcScene
-from core.scene_io import load_scene, save_scene
+from core.scene_io import load_scene
 from tests.qgis.hostile import assert_refused, assert_refused_cli
 from tests.rpcdata import padded_dem, pleiades_rpc, rpc_files, scaled, write_image
 
@@ -118,11 +115,3 @@ def test_a_crop_with_its_offsets_moved_is_accepted(good, tmp_path):
     res = processing.run("pushbroom:footprint", {"SCENE": str(crop), "HEIGHT": 575.0, "OUTPUT": "memory:"})
     assert res["OUTPUT"].featureCount() == 1
 
-
-def test_an_adjusted_rpc_scene_round_trips_its_correction(good, tmp_path):
-    scene = replace(load_scene(good["txt"]), correction=np.array([[1.0, 0.0, 1e-5], [-2.0, 0.0, 0.0]]))
-    save_scene(scene, tmp_path / "adj.json")
-    again = load_scene(tmp_path / "adj.json")
-    assert np.array_equal(again.correction, scene.correction)
-    write_rpc(again.rpc, tmp_path / "plain_RPC.TXT")
-    assert not load_scene(tmp_path / "plain_RPC.TXT").correction.any()  # the vendor model: no correction
