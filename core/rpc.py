@@ -66,9 +66,10 @@ class RpcModel:
         samp = (t @ self.samp_num) / (t @ self.samp_den) * self.samp_scale + self.samp_off
         return samp - self.origin + 0.5, line - self.origin + 0.5
 
-    def image_to_ground(self, col, row, h, tol: float = 1e-10, max_iter: int = 30):
+    def image_to_ground(self, col, row, h, tol: float = 1e-10, max_iter: int = 30, converged_only: bool = False):
         """(lon, lat) degrees of GDAL image points at ellipsoidal heights h, by Newton on
-        the direct model (Jacobian by finite differences)."""
+        the direct model (Jacobian by finite differences). Without convergence: ConvergenceError,
+        or with ``converged_only`` NaN for the points that did not converge."""
         col, row, h = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (col, row, h)))
         lon = np.full(col.shape, self.lon_off)
         lat = np.full(col.shape, self.lat_off)
@@ -86,6 +87,9 @@ class RpcModel:
             lon, lat = lon + dlon, lat + dlat
             if np.nanmax(np.abs(dlon) / self.lon_scale) < tol and np.nanmax(np.abs(dlat) / self.lat_scale) < tol:
                 return lon, lat
+        if converged_only:
+            late = ~((np.abs(dlon) / self.lon_scale < tol) & (np.abs(dlat) / self.lat_scale < tol))
+            return np.where(late, np.nan, lon), np.where(late, np.nan, lat)
         raise ConvergenceError("RPC inversion did not converge in %d iterations" % max_iter)
 
 

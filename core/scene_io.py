@@ -41,7 +41,11 @@ def scene_to_dict(scene: SceneModel) -> dict:
 
 def scene_from_dict(d: dict, source: str = "scene JSON") -> SceneModel:
     """The SceneModel of a scene-JSON object, checked against the schema
-    (:func:`core.validation.check_scene_dict`); MetadataError naming ``source`` and the key path."""
+    (:func:`core.validation.check_scene_dict`); MetadataError naming ``source`` and the key path.
+    An object with ``"model": "rpc"`` is an RPC scene (:class:`core.rpcscene.RpcScene`)."""
+    if isinstance(d, dict) and d.get("format") == FORMAT and d.get("model") == "rpc":
+        from .rpcscene import RpcScene
+        return RpcScene.from_dict(d, source)
     d = check_scene_dict(d, source, FORMAT, VERSION)
     try:
         corrections = d.get("corrections", {})
@@ -66,11 +70,15 @@ def validate_scene(scene: SceneModel, source: str) -> SceneModel:
 def save_scene(scene: SceneModel, path: str | Path, files: OutputSet | None = None) -> None:
     """Write a scene JSON completely or not at all (:func:`core.files.write_text`; with
     ``files``, as part of that set)."""
-    write_text(path, json.dumps(scene_to_dict(scene), indent=1), files)
+    d = scene.to_dict() if hasattr(scene, "to_dict") else scene_to_dict(scene)
+    write_text(path, json.dumps(d, indent=1), files)
 
 
 def load_scene(path: str | Path) -> SceneModel:
-    """Read any supported scene: scene JSON, Pleiades/SPOT DIMAP v2, Maxar/DigitalGlobe XML."""
+    """Read any supported scene: scene JSON, Pleiades/SPOT DIMAP v2, Maxar/DigitalGlobe XML, and
+    RPC sources (:mod:`core.rpcscene`): an RPC scene JSON, ``_RPC.TXT``, ``.RPB``, DIMAP
+    ``RPC_*.XML``, or an image with RPC metadata GDAL reads."""
+    from . import rpcscene
     path = Path(path)
     if not path.is_file():
         raise MetadataError(f"{path}: no such file")
@@ -82,11 +90,20 @@ def load_scene(path: str | Path) -> SceneModel:
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise MetadataError(f"{path}: invalid JSON ({exc})") from None
         scene = scene_from_dict(d, str(path))
-        check_scene_model(scene, str(path))
+        if isinstance(scene, SceneModel):
+            check_scene_model(scene, str(path))
+    elif head.startswith(b"<") and path.name.upper().startswith("RPC_"):
+        from .readers import parse_xml
+        scene = rpcscene.read_dimap_rpc(path, parse_xml(path))
     elif head.startswith(b"<"):
         from .readers import read_xml_scene
         scene = validate_scene(read_xml_scene(path), str(path))
+    elif rpcscene.is_rpc_text(path, head):
+        scene = rpcscene.read_rpc_text(path)
     else:
-        raise MetadataError(f"{path}: neither scene JSON nor XML metadata (DIMAP v2 or Maxar)")
+        scene = rpcscene.read_rpc_image(path)
+        if scene is None:
+            raise MetadataError(f"{path}: neither scene JSON nor XML metadata (DIMAP v2 or Maxar), nor an RPC file "
+                                "(_RPC.TXT, .RPB) or an image with RPC metadata")
     scene.info.setdefault("source", str(path))
     return scene

@@ -177,6 +177,32 @@ def check_scene_dict(d, source: str, format_name: str, version: int) -> dict:
     return d
 
 
+def check_rpc_scene_dict(d: dict, source: str) -> dict:
+    """Check an RPC scene-JSON object (``"model": "rpc"``, see :mod:`core.rpcscene`): camera
+    {name, cols, rows}, rpc {LINE_OFF ... HEIGHT_SCALE: numbers, scales non-zero; *_COEFF: 20
+    numbers}, optional correction {col, row: 3 numbers each} and info. Returns ``d``; raises
+    MetadataError naming ``source`` and the key path."""
+    from .rpcfit import _COEFFS, RPC_KEYS
+    s = _Schema(source)
+    camera = s.object(s.required(d, "camera", ""), "camera")
+    s.string(s.required(camera, "name", "camera"), "camera.name", nonempty=True)
+    s.integer(s.required(camera, "cols", "camera"), "camera.cols", 1, MAX_COLS)
+    s.integer(s.required(camera, "rows", "camera"), "camera.rows", 1, MAX_ROWS)
+    rpc = s.object(s.required(d, "rpc", ""), "rpc")
+    for key in RPC_KEYS:
+        v = s.number(s.required(rpc, key, "rpc"), f"rpc.{key}")
+        if key.endswith("_SCALE") and v == 0:
+            s.fail(f"rpc.{key}", "a scale must not be 0")
+    for key, _ in _COEFFS:
+        s.array(s.required(rpc, key, "rpc"), f"rpc.{key}", (20,))
+    correction = s.object(d.get("correction", {}), "correction")
+    for key in ("col", "row"):
+        if key in correction:
+            s.array(correction[key], f"correction.{key}", (3,))
+    s.object(d.get("info", {}), "info")
+    return d
+
+
 def _check_epoch(s: _Schema, epoch) -> None:
     text = s.string(epoch, "epoch", nonempty=True)
     try:

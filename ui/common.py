@@ -248,20 +248,31 @@ def add_dem_parameters(alg) -> None:
         alg.addParameter(p)
 
 
-def dem_from_parameters(alg, parameters, context):
-    """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one."""
+def dem_from_parameters(alg, parameters, context, scene=None, feedback=None):
+    """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one.
+
+    With an RPC ``scene`` (core.rpcscene.RpcScene), heights that do not meet the RPC's height
+    range are refused and heights partly outside it are a warning to ``feedback``."""
     from ..core.dem import ConstantHeight, Dem
     from ..core.validation import check_terrain_height
     layer = alg.parameterAsRasterLayer(parameters, DEM, context)
     if layer is None:
         with processing_errors():
-            return ConstantHeight(check_terrain_height(alg.parameterAsDouble(parameters, HEIGHT, context), HEIGHT))
-    datum = enum_value(alg, parameters, DEM_DATUM, context)
-    path = layer.source().split("|")[0]
-    with processing_errors(f"{DEM}: "):
-        dem = Dem(path, datum)
-        dem.height_range  # reads the DEM's overview: implausible heights are refused before any output
-        return dem
+            surface = ConstantHeight(check_terrain_height(alg.parameterAsDouble(parameters, HEIGHT, context), HEIGHT))
+        what = f"{HEIGHT} {surface.value:g} m"
+    else:
+        datum = enum_value(alg, parameters, DEM_DATUM, context)
+        path = layer.source().split("|")[0]
+        with processing_errors(f"{DEM}: "):
+            surface = Dem(path, datum)
+            surface.height_range  # reads the DEM's overview: implausible heights are refused before any output
+        what = f"{DEM} {path}"
+    if hasattr(scene, "check_surface"):
+        with processing_errors():
+            warning = scene.check_surface(surface.height_range, what)
+        if warning and feedback is not None:
+            feedback.pushWarning(warning)
+    return surface
 
 
 # --- inputs and outputs: nothing lost, nothing partial ------------------------------------------

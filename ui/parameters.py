@@ -32,6 +32,7 @@ CHECK_FRACTION, COL_FIELD, ROW_FIELD = "CHECK_FRACTION", "COL_FIELD", "ROW_FIELD
 POSITION_MODEL, ATTITUDE_MODEL = "POSITION_MODEL", "ATTITUDE_MODEL"
 GROUND, ROBUST, ON_SINGULAR, RESAMPLING, PRESET = "GROUND", "ROBUST", "ON_SINGULAR", "RESAMPLING", "PRESET"
 OUTPUT_SCENE = "OUTPUT_SCENE"
+RPC_CORRECTION = "RPC_CORRECTION"
 
 # Value names of the enumerations, in the order the drop-down lists show them; they are the
 # core's own names (core.dem datums, core.gcps.Heights.source, core.timebasis.KINDS, ...).
@@ -169,6 +170,16 @@ def robust_method() -> QgsProcessingParameterEnum:
            "flagged = 1."))
 
 
+def rpc_correction() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        RPC_CORRECTION, tr("RPC scenes: image-space correction"),
+        {"shift": tr("a shift of columns and rows (2 parameters per image)"),
+         "drift": tr("a shift and a drift along the rows, i.e. with time (4 parameters)"),
+         "affine": tr("an affine correction of columns and rows (6 parameters)")}, "drift",
+        tr("For a SCENE given by its RPC only: the bias compensation adjusted to the GCPs (Grodecki & Dial "
+           "2003); ignored for rigorous scenes."))
+
+
 def on_singular() -> QgsProcessingParameterEnum:
     return enum_parameter(
         ON_SINGULAR, tr("Non-determinable parameters"),
@@ -192,11 +203,13 @@ def preset() -> QgsProcessingParameterEnum:
 
 # --- shared plain parameters --------------------------------------------------------------
 def scene() -> QgsProcessingParameterFile:
-    parameter = QgsProcessingParameterFile(SCENE, tr("Scene (metadata or scene JSON)"), extension="",
-                                           fileFilter="Scene files (*.json *.xml *.XML);;All files (*)")
+    parameter = QgsProcessingParameterFile(SCENE, tr("Scene (metadata, RPC or scene JSON)"), extension="",
+                                           fileFilter="Scene files (*.json *.xml *.XML *.txt *.TXT *.rpb *.RPB *.tif "
+                                                      "*.ntf *.jp2);;All files (*)")
     parameter.setHelp(tr("The sensor model of the scene: a Pushbroom Adjust scene JSON (written by the simulator "
                          "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, "
-                         "Maxar/DigitalGlobe *.XML)."))
+                         "Maxar/DigitalGlobe *.XML), or an RPC alone: an image with RPC metadata GDAL reads, "
+                         "<name>_RPC.TXT, <name>.RPB or DIMAP RPC_*.XML (see the README, 'RPC scenes')."))
     return parameter
 
 

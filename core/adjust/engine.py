@@ -77,6 +77,7 @@ class AdjustmentSettings:
     max_iterations: int = 30
     max_robust_iterations: int = 12
     variance_components: bool = True
+    rpc_correction: str = "drift"
 
     def validate(self) -> None:
         if self.ground not in ("weighted", "fixed"):
@@ -91,6 +92,8 @@ class AdjustmentSettings:
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise InputError(f"{name} must be positive or empty (got {v})")
+        if self.rpc_correction not in ("shift", "drift", "affine"):
+            raise InputError(f"RPC correction must be shift, drift or affine (got {self.rpc_correction!r})")
 
 
 @dataclass
@@ -316,6 +319,9 @@ def non_determinable(N: np.ndarray, names: list[str], trajectory: np.ndarray) ->
         return [[names[i]] for i in dead]
     C = N / np.outer(d, d)
     t = np.nonzero(trajectory)[0]
+    if t.size == 0:  # an RPC scene's correction: no trajectory to absorb anything
+        vals, vecs = np.linalg.eigh(C)
+        return [_members(vecs[:, k], np.arange(len(names)), names) for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
     vals, vecs = np.linalg.eigh(C[np.ix_(t, t)])
     sets = [_members(vecs[:, k], t, names) for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
     if sets or trajectory.all():
@@ -659,6 +665,16 @@ def _check_spread(scene: SceneModel, table: GcpTable, control: np.ndarray) -> No
                          "(one corner); spread them over the scene")
 
 
+def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings) -> _Problem:
+    """The problem of a rigorous scene, or of an RPC scene (its image-space correction,
+    :mod:`core.adjust.rpcbias`)."""
+    from ..rpcscene import RpcScene
+    if isinstance(scene, RpcScene):
+        from .rpcbias import RpcProblem
+        return RpcProblem(scene, table, settings)
+    return _Problem(scene, table, settings)
+
+
 def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | None = None,
            progress: Callable[[float, str | None], None] | None = None,
            is_cancelled: Callable[[], bool] | None = None) -> AdjustmentResult:
@@ -668,7 +684,7 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     is_cancelled = is_cancelled or (lambda: False)
     table = check_inputs(scene, table, settings)
     progress(0.02, "setting up the observations")
-    problem = _Problem(scene, table, settings)
+    problem = _problem_for(scene, table, settings)
     n_eq = 2 * len(problem.obs) + 3 * problem.ground.shape[0] * problem.weighted + \
         sum(p.B.shape[0] for p in problem.pseudo())
     n_unknowns = problem.params.free.size + 3 * problem.ground.shape[0] * problem.weighted
@@ -825,7 +841,7 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Esti
             for ci, c in enumerate(problem.scene.cameras) for k, ch in enumerate(c.chips)},
         "check_points": {k: v for k, v in after.items() if k not in ("residuals", "en", "is_flagged")},
         "check_points_before": {k: v for k, v in before.items() if k not in ("residuals", "en", "is_flagged")},
-        "trajectory": _trajectory_curves(problem),
+        "trajectory": _trajectory_curves(problem) if problem.params.position_basis is not None else None,
     }
     return AdjustmentResult(adjusted, report, points)
 

@@ -81,7 +81,7 @@ def write_report_html(report: dict, points: dict, path, title: str = "Bundle adj
     rep = _plain(report)
     body = [f"<h1>{html.escape(title)}</h1>", _reliability_section(rep), _headline_section(rep), _settings_section(rep),
             _decisions_section(rep), _parameters_section(rep), "<h2>Plots</h2>",
-            _residual_vector_figure(points), _trajectory_figure(rep["trajectory"]),
+            _residual_vector_figure(points), _trajectory_figure(rep["trajectory"]) if rep["trajectory"] else "",
             _chip_figure(rep["control_residuals_per_chip"]), _correlations_section(rep),
             _variance_components_section(rep), _iterations_section(rep)]
     page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"

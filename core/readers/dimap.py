@@ -86,7 +86,10 @@ def read_dimap_rfm(path: str | Path, root: ElementTree.Element | None = None
     if root is None:
         from . import parse_xml
         root = parse_xml(path)
-    rfm = _find(root, GLOBAL_RFM, src, "the vendor rational function model")
+    # in the DIMAP document itself, or in an RPC_*.XML file (<Rational_Function_Model/Global_RFM>)
+    rfm = root.find(GLOBAL_RFM) if root.find(GLOBAL_RFM) is not None else root.find(".//Global_RFM")
+    if rfm is None:
+        _find(root, GLOBAL_RFM, src, "the vendor rational function model")  # names the missing element
     norm = {}
     for tag in ("Lon", "Lat", "Alt", "Col", "Row"):
         where = f"{GLOBAL_RFM}/RFM_Validity/{tag}"

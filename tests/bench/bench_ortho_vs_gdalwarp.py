@@ -120,8 +120,10 @@ def measured(cmd: list[str]) -> tuple[float, float, str]:
     return wall, int(lines[-1]) / 1024 ** 2, "\n".join(lines[:-1])
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(prepare_setup=prepare, description: str = __doc__, script: str = __file__) -> None:
+    """The benchmark on the setup ``prepare_setup(work folder)`` makes (another script's too:
+    ``script`` is re-run as the child that times our orthorectification)."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=2, help="runs of each tool, alternating (default 2)")
     parser.add_argument("--out", type=Path, help="work folder (default: a temporary one, removed)")
     parser.add_argument("--keep", action="store_true", help="keep the work folder")
@@ -135,13 +137,14 @@ def main() -> None:
     work = args.out or Path(tempfile.mkdtemp(prefix="bench_ortho_"))
     work.mkdir(parents=True, exist_ok=True)
     try:
-        setup = prepare(work)
+        setup = prepare_setup(work)
         (work / "setup.json").write_text(json.dumps(setup))
         g = setup["grid"]
-        print(f"grid {g['cols']} x {g['rows']} px at {g['resolution']:.3f} m; RPC vs rigorous (onboard model): "
-              f"{setup['rpc_check']['rms_px']:.3f} px RMS, {setup['rpc_check']['max_px']:.3f} px max")
+        print(f"grid {g['cols']} x {g['rows']} px at {g['resolution']:.3f} m; " + (
+              f"RPC vs rigorous (onboard model): {setup['rpc_check']['rms_px']:.3f} px RMS, "
+              f"{setup['rpc_check']['max_px']:.3f} px max" if "rpc_check" in setup else "the same RPC for both"))
         ours_out, gdal_out = str(work / "ours.tif"), str(work / "gdalwarp.tif")
-        ours_cmd = [sys.executable, __file__, "--ours", f"{work / 'setup.json'}:{ours_out}"]
+        ours_cmd = [sys.executable, script, "--ours", f"{work / 'setup.json'}:{ours_out}"]
         levels = overview_levels(g["cols"], g["rows"])
         times = {"ours": [], "gdalwarp": [], "gdaladdo": []}
         for k in range(args.repeats):

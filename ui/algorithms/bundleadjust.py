@@ -19,12 +19,15 @@ from ...core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_
 from ...core.adjust.parameters import ParameterSet
 from ...core.errors import PushbroomError
 from ...core.files import Output, atomic_outputs
+from ...core.rpcfit import write_rpc
+from ...core.rpcscene import RpcScene, refined_rpc
 from ...core.scene_io import save_scene
 from ...core.timebasis import TimeBasis
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, check_cancelled, check_outputs,
                       core_call, feedback_callbacks, load_scene_for, processing_errors, style_output_on_load)
-from ..parameters import (ATTITUDE_MODEL, GROUND, ON_SINGULAR, POSITION_MODEL, ROBUST, enum_value, ground_mode,
-                          on_singular, output_scene, robust_method, tr, trajectory_model)
+from ..parameters import (ATTITUDE_MODEL, GROUND, ON_SINGULAR, POSITION_MODEL, ROBUST, RPC_CORRECTION, enum_value,
+                          ground_mode, on_singular, output_scene, robust_method, rpc_correction, tr,
+                          trajectory_model)
 
 ARCSEC = math.pi / 648000.0
 
@@ -42,7 +45,10 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             "selection weights or data snooping and flagged, never deleted. Check points are never used in "
             "the solution and give the accuracy before and after. Outputs: the adjusted scene JSON that every "
             "other algorithm reads as SCENE and, each when asked for, a JSON and an HTML report with plots, the "
-            "GCP layer with the adjusted residuals and flags, and ground residual vectors.")
+            "GCP layer with the adjusted residuals and flags, and ground residual vectors. A SCENE given by its RPC "
+            "only (an image with RPC metadata, _RPC.TXT, .RPB, DIMAP RPC_*.XML) is adjusted by an image-space "
+            "correction instead (RPC_CORRECTION, Grodecki & Dial 2003), with the same statistics and outputs, "
+            "and can be written as a refined RPC (OUTPUT_RPC).")
     GCPS = "GCPS"
     POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
         POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
@@ -54,6 +60,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     OUTPUT_SCENE, OUTPUT_REPORT, OUTPUT_GCPS, OUTPUT_RESIDUALS = \
         "OUTPUT_SCENE", "OUTPUT_REPORT", "OUTPUT_GCPS", "OUTPUT_RESIDUALS"
     OUTPUT_REPORT_JSON = "OUTPUT_REPORT_JSON"
+    RPC_CORRECTION, OUTPUT_RPC = RPC_CORRECTION, "OUTPUT_RPC"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
@@ -97,6 +104,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                   "HRC-3.*' (shifts and rotations of the left and right CCDs against the middle one); 'HRC-1.*, HRC-3.*, "
                   "HRC.f=1e-5' also estimates the focal length, weighted with 10 µm. Sets the GCPs cannot separate "
                   "from the trajectory are reported (see ON_SINGULAR). Empty: none (trajectory only)."))
+        self.addParameter(rpc_correction())
         self.addParameter(ground_mode())
         self.addParameter(robust_method())
         self.add_parameter(QgsProcessingParameterNumber(self.ALPHA, tr("Significance of the outlier test"),
@@ -134,6 +142,13 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         vec_out.setSupportsNonFileBasedOutput(False)
         self.add_parameter(vec_out, tr("Optional. GeoPackage of lines from each GCP along its ground residual, "
                   "exaggerated RESIDUAL_SCALE times (res_m holds the true length)."))
+        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_RPC, tr("Refined RPC (RPC scenes)"),
+                                                                 fileFilter="RPC text (*_RPC.TXT)", optional=True),
+                           tr("Optional, for a SCENE given by its RPC: the RPC with the adjusted correction in it, "
+                              "as <image>_RPC.TXT, which GDAL and QGIS read for <image>.tif beside it. A correction "
+                              "of each coordinate by itself (shift) is folded exactly into the RPC's numerators; one "
+                              "mixing rows and columns (drift, affine) is refitted to the adjusted scene (about "
+                              "1e-5 px)."))
         self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, tr("Report (JSON)")))
 
 
@@ -141,7 +156,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         from ...core.adjust.report import write_report_html, write_report_json
         outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
             (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
-            (self.OUTPUT_RESIDUALS, ".gpkg"))}  # '' for the optional ones not asked for
+            (self.OUTPUT_RESIDUALS, ".gpkg"), (self.OUTPUT_RPC, ".txt"))}  # '' for the optional ones not asked for
         report_html = outputs[self.OUTPUT_REPORT]
         report_json = str(Path(report_html).with_suffix(".json")) if report_html else ""
         check_outputs(self, parameters, context, {**{name: [path] for name, path in outputs.items()},
@@ -149,6 +164,9 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                                                                                            "its JSON report")]})
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
+        if outputs[self.OUTPUT_RPC] and not isinstance(scene, RpcScene):
+            raise QgsProcessingException(f"{self.OUTPUT_RPC}: only for a SCENE given by its RPC; the RPC of an "
+                                         "adjusted rigorous scene is written by 'Export RPC' (pushbroom:exportrpc)")
         table, gcp_path, gcp_layer = self._gcps(parameters, context)
         settings = self._settings(parameters, context)
         scale = self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context)
@@ -170,6 +188,11 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         with processing_errors(), atomic_outputs() as files:  # every output or none
             with processing_errors(f"{self.OUTPUT_SCENE}: "):
                 save_scene(result.scene, outputs[self.OUTPUT_SCENE], files)
+            if outputs[self.OUTPUT_RPC]:
+                with processing_errors(f"{self.OUTPUT_RPC}: "):
+                    rpc, how = refined_rpc(result.scene)
+                    write_rpc(rpc, outputs[self.OUTPUT_RPC], files=files)
+                feedback.pushInfo(f"refined RPC ({how}) written to {outputs[self.OUTPUT_RPC]}")
             if report_html:
                 with processing_errors(f"{self.OUTPUT_REPORT}: "):
                     write_report_json(result.report, report_json, files)
@@ -208,6 +231,11 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     def _check_interior(self, scene, interior: str) -> None:
         """INTERIOR's names and sigmas against the scene's parameters; the error lists the
         scene's cameras and CCD chips, whose names the patterns use."""
+        if isinstance(scene, RpcScene):
+            if interior.strip():
+                raise QgsProcessingException(f"{self.INTERIOR}: an RPC scene has no interior parameters; its "
+                                             f"correction is chosen with {self.RPC_CORRECTION}")
+            return
         t_min, t_max = scene.time_span()
         basis = TimeBasis.covering("polynomial", t_min, t_max, 0)
         try:
@@ -235,7 +263,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             alpha=number(self.ALPHA),
             variance_components=self.parameterAsBoolean(parameters, self.VARIANCE_COMPONENTS, context),
             max_robust_iterations=self.parameterAsInt(parameters, self.MAX_ROBUST_PASSES, context),
-            on_singular=enum_value(self, parameters, self.ON_SINGULAR, context))
+            on_singular=enum_value(self, parameters, self.ON_SINGULAR, context),
+            rpc_correction=enum_value(self, parameters, self.RPC_CORRECTION, context))
 
     def _named(self, message: str) -> str:
         """A core error found while solving, prefixed with the parameter at fault where that is clear."""

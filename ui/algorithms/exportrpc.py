@@ -101,7 +101,7 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         cam = scene.cameras[camera]
-        surface = dem_from_parameters(self, parameters, context)
+        surface = dem_from_parameters(self, parameters, context, scene, feedback)
         if isinstance(surface, ConstantHeight):
             span = self.parameterAsDouble(parameters, self.HEIGHT_SPAN, context)
             heights = (surface.value - span, surface.value + span)

@@ -38,7 +38,7 @@ class FootprintAlgorithm(PushbroomAlgorithm):
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         check_outputs(self, parameters, context)
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
-        surface = dem_from_parameters(self, parameters, context)
+        surface = dem_from_parameters(self, parameters, context, scene, feedback)
         samples = self.parameterAsInt(parameters, self.SAMPLES, context)
         fields = QgsFields()
         fields.append(QgsField("camera", QVariant.String))

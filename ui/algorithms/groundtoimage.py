@@ -45,7 +45,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         check_outputs(self, parameters, context)
         scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT, feedback)
         require_points(self.INPUT, source)
-        lon, lat, h = self._ground(parameters, context, source, features)
+        lon, lat, h = self._ground(parameters, context, source, features, scene, feedback)
         check_cancelled(feedback)
         feedback.setProgressText(f"projecting {len(features)} points into camera {scene.cameras[camera].name}")
         col, row = core_call(scene.ground_to_image, geodetic_to_ecef(lon, lat, h), camera)
@@ -71,7 +71,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         style_output_on_load(context, dest, STYLES / "image_points.qml")
         return {self.OUTPUT: dest}
 
-    def _ground(self, parameters, context, source, features):
+    def _ground(self, parameters, context, source, features, scene, feedback):
         """(lon, lat, ellipsoidal height) of the features' points, checked for NaN and coverage."""
         n = len(features)
         ids = np.array([f.id() for f in features], dtype=np.int64)
@@ -109,7 +109,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
                     f"{', '.join(str(i) for i in ids[implausible][:5])}); uncheck {self.USE_Z} to take heights "
                     f"from the DEM or HEIGHT")
         if (~use_z).any():
-            surface = dem_from_parameters(self, parameters, context)
+            surface = dem_from_parameters(self, parameters, context, scene, feedback)
             h[~use_z] = surface.height(lon[~use_z], lat[~use_z])
             off = ~use_z & ~np.isfinite(h)
             if off.any():

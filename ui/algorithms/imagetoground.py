@@ -47,7 +47,7 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
         if not features:
             raise QgsProcessingException(f"{self.INPUT}: the table has no features")
         col, row = self._image_points(parameters, context, source, features)
-        surface = dem_from_parameters(self, parameters, context)
+        surface = dem_from_parameters(self, parameters, context, scene, feedback)
         check_cancelled(feedback)
         cam = scene.cameras[camera]
         outside = (col < 0) | (col > cam.cols) | (row < 0) | (row > cam.rows)

@@ -70,7 +70,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         image = layer.source().split("|")[0]
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
-        surface = dem_from_parameters(self, parameters, context)
+        surface = dem_from_parameters(self, parameters, context, scene, feedback)
         crs = self._crs(parameters, context)
         extent = None
         if parameters.get(self.EXTENT):

@@ -1,0 +1,117 @@
+"""Hostile RPC scenes (harness: hostile.py): broken RPC files, an image that is not the one its RPC
+describes, a DEM or height outside the RPC's height range. Each is refused with a message naming
+the file (and key) or parameter and what is wrong, inputs and output folder unchanged; a legitimate
+crop of an RPC image (offsets moved, as gdal_translate -srcwin writes them) is accepted."""
+from __future__ import annotations
+
+import json
+import numpy as np
+import pytest
+from osgeo import gdal
+
+import processing
+from core.rpcscene import RpcScene
+from core.scene_io import load_scene
+from tests.qgis.hostile import assert_refused, assert_refused_cli
+from tests.rpcdata import padded_dem, pleiades_rpc, rpc_files, scaled, write_image
+
+gdal.UseExceptions()
+
+
+@pytest.fixture(scope="module")
+def good(provider, shared_data, tmp_path_factory) -> dict:
+    folder = tmp_path_factory.mktemp("rpc_good")
+    rpc = scaled(pleiades_rpc(shared_data), 16.0)
+    files = rpc_files(folder, rpc)
+    files.update(rpc=rpc, folder=folder, text=files["txt"].read_text(),
+                 dem=str(padded_dem(shared_data, folder / "dem.tif")))
+    return files
+
+
+def _edited(good, tmp_path, edit) -> str:
+    path = tmp_path / "in" / "bad_RPC.TXT"
+    path.parent.mkdir()
+    path.write_text(edit(good["text"]))
+    return str(path)
+
+
+def _without(prefix):
+    return lambda t: "\n".join(line for line in t.splitlines() if not line.startswith(prefix))
+
+
+def _set(key, value):
+    return lambda t: "\n".join(f"{key}: {value}" if line.startswith(key + ":") else line for line in t.splitlines())
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (_without("LINE_NUM_COEFF_5:"), ("bad_RPC.TXT", "LINE_NUM_COEFF holds 19 numbers; RPC00B has 20")),
+    (_without("HEIGHT_OFF:"), ("bad_RPC.TXT", "HEIGHT_OFF is missing")),
+    (_set("SAMP_DEN_COEFF_3", "abc"), ("bad_RPC.TXT", "SAMP_DEN_COEFF is 'abc', not a number")),
+    (_set("LAT_OFF", "31,02 degrees"), ("bad_RPC.TXT", "LAT_OFF is", "not a number")),
+    (_set("LINE_NUM_COEFF_2", "nan"), ("bad_RPC.TXT", "LINE_NUM_COEFF", "not a finite number")),
+    (_set("LONG_SCALE", "0.0 degrees"), ("bad_RPC.TXT", "LONG_SCALE", "a scale must be a non-zero number")),
+    (_set("LINE_DEN_COEFF_1", "0"), ("bad_RPC.TXT", "LINE_DEN_COEFF is 0", "denominator vanishes")),
+], ids=["missing coefficient", "missing offset", "non-numeric coefficient", "comma decimal", "NaN coefficient",
+        "zero scale", "zero denominator"])
+def test_broken_rpc_text_is_refused_naming_file_and_key(good, tmp_path, edit, expected):
+    scene = _edited(good, tmp_path, edit)
+    out = tmp_path / "out"
+    out.mkdir()
+    assert_refused("pushbroom:footprint", {"SCENE": scene, "HEIGHT": 575.0, "OUTPUT": str(out / "fp.gpkg")},
+                   "SCENE", *expected, watch=[tmp_path])
+
+
+def test_rpc_scene_json_with_a_zero_scale(good, tmp_path):
+    d = RpcScene(good["rpc"], load_scene(good["txt"]).camera).to_dict()
+    d["rpc"]["LINE_SCALE"] = 0
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(d))
+    assert_refused("pushbroom:footprint", {"SCENE": str(scene), "HEIGHT": 575.0, "OUTPUT": str(tmp_path / "f.gpkg")},
+                   "s.json", "rpc.LINE_SCALE: a scale must not be 0", watch=[tmp_path])
+
+
+def test_an_image_larger_than_its_rpc_range_is_refused(good, tmp_path):
+    image = write_image(tmp_path / "big.tif", 2 * good["cols"], good["rows"], good["rpc"])
+    assert_refused("pushbroom:footprint", {"SCENE": str(image), "HEIGHT": 575.0, "OUTPUT": str(tmp_path / "f.gpkg")},
+                   "big.tif", f"the image has {2 * good['cols']} columns but its RPC covers columns 0 to 2500",
+                   watch=[tmp_path])
+
+
+def test_an_image_of_another_size_given_to_orthorectify(good, tmp_path):
+    small = write_image(tmp_path / "small.tif", 100, 100)
+    assert_refused("pushbroom:orthorectify", {"INPUT": str(small), "SCENE": str(good["txt"]), "HEIGHT": 575.0,
+                                              "RESOLUTION": 50.0, "OUTPUT": str(tmp_path / "o.tif")},
+                   "small.tif", "100 x 100", "2500 x 2390", watch=[tmp_path, good["folder"]])
+
+
+def test_a_dem_outside_the_rpc_height_range_is_refused(good, tmp_path):
+    src = gdal.Open(good["dem"])
+    high = gdal.Translate(str(tmp_path / "high.tif"), src, scaleParams=[[0, 1, 3000, 3001]],
+                          outputType=gdal.GDT_Float32)  # heights 3000 m higher
+    del high  # closes the file
+    assert_refused("pushbroom:footprint", {"SCENE": str(good["tif"]), "DEM": str(tmp_path / "high.tif"),
+                                           "DEM_DATUM": "ellipsoid", "OUTPUT": str(tmp_path / "f.gpkg")},
+                   "DEM", "high.tif", "lie outside the RPC's height range 490 to 660 m", watch=[tmp_path])
+
+
+def test_a_broken_rpc_from_the_command_line(qgis_process, good, tmp_path):
+    scene = _edited(good, tmp_path, _set("SAMP_SCALE", "0"))
+    assert_refused_cli(qgis_process, "pushbroom:footprint", {"SCENE": scene, "HEIGHT": 575.0,
+                                                             "OUTPUT": str(tmp_path / "f.gpkg")},
+                       "SAMP_SCALE", "non-zero", watch=[tmp_path])
+
+
+def test_a_crop_with_its_offsets_moved_is_accepted(good, tmp_path):
+    """gdal_translate -srcwin keeps the RPC and moves LINE_OFF/SAMP_OFF: the crop's footprint is
+    the part of the full image's it shows."""
+    crop = tmp_path / "crop.tif"
+    gdal.Translate(str(crop), str(good["tif"]), srcWin=[500, 400, 1000, 800])
+    scene = load_scene(crop)
+    assert (scene.camera.cols, scene.camera.rows) == (1000, 800)
+    full = load_scene(good["tif"])
+    xyz = scene.image_to_ground([0.0, 1000.0], [0.0, 800.0], 575.0)
+    c, r = full.ground_to_image(xyz)
+    assert np.allclose(c, [500.0, 1500.0], atol=1e-6) and np.allclose(r, [400.0, 1200.0], atol=1e-6)
+    res = processing.run("pushbroom:footprint", {"SCENE": str(crop), "HEIGHT": 575.0, "OUTPUT": "memory:"})
+    assert res["OUTPUT"].featureCount() == 1
+
