@@ -7,7 +7,9 @@ import pytest
 from osgeo import gdal
 
 from core.scene_io import load_scene, save_scene
+from tests.conftest import TEST_DATA
 from tests.ortho_compare import saved_cut
+from tests.rpcdata import pleiades_rpc, rpc_files, scaled
 
 from .hostile import assert_refused, assert_refused_cli
 
@@ -50,7 +52,14 @@ def _dem_not_covering(d: Path) -> dict:
     return {"DEM": str(d / "west.tif")}
 
 
+def _rpc_scene(d: Path) -> dict:
+    files = rpc_files(d, scaled(pleiades_rpc(TEST_DATA), 16.0), name="rpc")
+    return {"SCENE": str(files["txt"]), "INPUT": str(files["tif"])}
+
+
 CASES = {
+    # an RPC-only scene: no physical camera to correct (its image already has one smooth RPC)
+    "RPC scene": (_rpc_scene, ["SCENE", "RPC scene", "rigorous"]),
     # a raster of another size than the camera images: not this camera's image
     "raw image of another size": (_wrong_size, ["raster is 1000 x 120 px", "camera HRC"]),
     # a scene whose camera images more rows than the raster has

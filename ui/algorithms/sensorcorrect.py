@@ -10,6 +10,7 @@ from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProce
                        QgsProcessingParameterRasterLayer)
 
 from ...core.files import Output
+from ...core.sensor import SceneModel
 from ...core.sensorcorrect import output_files, sensor_correct
 from ..common import (CAMERA, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       check_outputs, core_call, dem_from_parameters, feedback_callbacks, layer_file, load_scene_for)
@@ -76,6 +77,11 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
         image = layer_file(layer) or layer.source().split("|")[0]
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
+        if not isinstance(scene, SceneModel):
+            raise QgsProcessingException(f"{SCENE}: {scene_path} is an RPC scene: it has no physical camera whose "
+                                         "chips could be resampled onto a straight line, and its image already has "
+                                         "one smooth RPC. Sensor correction needs a rigorous model (scene JSON of a "
+                                         "rigorous scene, DIMAP or Maxar metadata)")
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         surface = dem_from_parameters(self, parameters, context)
         progress, is_cancelled = feedback_callbacks(feedback)
