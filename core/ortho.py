@@ -695,6 +695,13 @@ def strip_products(scene: SceneModel, cameras: list[int]) -> list[OrthoProduct]:
     return products
 
 
+def check_images(scene: SceneModel, images: dict[int, str]) -> None:
+    """Refuse, before any work, a raw image that cannot be read or whose size is not its camera's
+    (``images``: {camera index: path})."""
+    for camera, path in images.items():
+        _open_raw(path, scene.cameras[camera])
+
+
 def orthorectify_products(scene: SceneModel, images: dict[int, str], surface, folder, products: list[OrthoProduct],
                           grids: list[OrthoGrid], progress: Callable[[float], None] | None = None,
                           **options) -> list[dict]:
