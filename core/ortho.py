@@ -16,12 +16,16 @@ centres at the geotransform's +0.5.
 """
 from __future__ import annotations
 
+import json
 import logging
 import math
 import os
+import shutil
+import tempfile
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import lru_cache, partial
 from pathlib import Path
 from typing import Callable
 
@@ -32,8 +36,9 @@ from scipy import ndimage
 
 from .dem import ConstantHeight
 from .errors import Cancelled, InputError
-from .files import OutputSet, check_destination
+from .files import OutputSet, atomic_outputs, check_destination
 from .geodesy import ecef_to_geodetic, geodetic_to_ecef
+from .scene_io import scene_to_dict
 from .sensor import SceneModel
 from .validation import check_nodata
 
@@ -44,6 +49,7 @@ RESAMPLING = {"nearest": 0, "bilinear": 1, "cubic": 3}  # spline orders of scipy
 OVERVIEW_FACTORS = (2, 4, 8, 16, 32, 64)
 MAX_OUTPUT_PIXELS = 2e9  # per band: ~2 GB at 8 bits, more than any scene needs at its own GSD
 SEAM_MARGIN = 8.0  # px from a chip boundary within which cells are mapped pixel by pixel
+SCHEDULER_TIMEOUT = 10  # s to reach a Dask scheduler
 
 
 @dataclass
@@ -73,17 +79,20 @@ def scene_utm_crs(scene: SceneModel, camera: int, surface) -> CRS:
     return utm_crs(float(lon[-1]), float(lat[-1]))
 
 
-def _image_on_surface(scene: SceneModel, camera: int, surface, footprint: bool) -> np.ndarray:
-    """ECEF points (n, 3) where the image meets the surface: with ``footprint`` 33 points along
-    each side of the border, then (always) the centre pixel and its right neighbour (without
-    ``footprint``, at the surface's mean height where the surface misses them).
-    InputError naming the DEM where they do not meet it."""
+def _image_on_surface(scene: SceneModel, camera: int, surface, footprint: bool,
+                      rows: tuple[int, int] | None = None) -> np.ndarray:
+    """ECEF points (n, 3) where the image (its ``rows`` = (first, end), default all) meets the
+    surface: with ``footprint`` 33 points along each side of the border, then (always) the
+    centre pixel and its right neighbour (without ``footprint``, at the surface's mean height
+    where the surface misses them). InputError naming the DEM where they do not meet it."""
     cam = scene.cameras[camera]
+    top, bottom = rows or (0, cam.rows)
     s = np.linspace(0.0, 1.0, 33)
-    centre_col, centre_row = np.array([cam.cols / 2, cam.cols / 2 + 1]), np.array([cam.rows / 2] * 2)
+    centre_col, centre_row = np.array([cam.cols / 2, cam.cols / 2 + 1]), np.array([(top + bottom) / 2] * 2)
     if footprint:
+        side = top + s * (bottom - top)
         col = np.concatenate([s * cam.cols, np.full_like(s, cam.cols), s * cam.cols, np.zeros_like(s), centre_col])
-        row = np.concatenate([np.zeros_like(s), s * cam.rows, np.full_like(s, cam.rows), s * cam.rows, centre_row])
+        row = np.concatenate([np.full_like(s, top), side, np.full_like(s, bottom), side, centre_row])
     else:
         col, row = centre_col, centre_row
     ground = scene.image_to_ground_dem(col, row, surface, camera)
@@ -99,11 +108,13 @@ def _image_on_surface(scene: SceneModel, camera: int, surface, footprint: bool) 
 
 
 def default_grid(scene: SceneModel, camera: int, surface, crs: CRS | None = None,
-                 resolution: float | None = None, extent: tuple | None = None) -> OrthoGrid:
+                 resolution: float | None = None, extent: tuple | None = None,
+                 rows: tuple[int, int] | None = None) -> OrthoGrid:
     """The grid covering the image's footprint on the surface (or ``extent`` = (xmin, ymin,
     xmax, ymax) in ``crs``), in ``crs`` (default: the UTM zone of the scene centre), at
-    ``resolution`` m (default: the ground sample distance at the image centre)."""
-    ground = _image_on_surface(scene, camera, surface, footprint=extent is None)
+    ``resolution`` m (default: the ground sample distance at the image centre). ``rows``:
+    (first, end) image rows of one scene of a strip (default: the whole image)."""
+    ground = _image_on_surface(scene, camera, surface, footprint=extent is None, rows=rows)
     lon, lat, _ = ecef_to_geodetic(ground)
     crs = crs or utm_crs(float(lon[-1]), float(lat[-1]))
     x, y = Transformer.from_crs(CRS.from_epsg(4326), crs, always_xy=True).transform(lon, lat)
@@ -170,11 +181,13 @@ class _RawImage:
         self.data, self._local = None, threading.local()
 
 
-def _resample(raw: _RawImage, col: np.ndarray, row: np.ndarray, order: int, fill) -> list[np.ndarray]:
+def _resample(raw: _RawImage, col: np.ndarray, row: np.ndarray, order: int, fill,
+              rows: tuple[int, int] | None = None) -> list[np.ndarray]:
     """Values of every band of the raw image at image positions (col, row) (GDAL convention,
-    arrays of the tile's shape); ``fill`` outside the image. Integer types rounded and clipped
-    to their range."""
-    outside = ~np.isfinite(col) | (col < 0) | (col > raw.cols) | (row < 0) | (row > raw.rows)
+    arrays of the tile's shape); ``fill`` outside the image (or outside its ``rows`` = (first,
+    end), one scene of a strip). Integer types rounded and clipped to their range."""
+    top, bottom = rows or (0, raw.rows)
+    outside = ~np.isfinite(col) | (col < 0) | (col > raw.cols) | (row < top) | (row > bottom)
     any_outside = outside.any()
     if any_outside and outside.all():
         return [np.full(col.shape, fill, dtype=raw.dtype) for _ in range(raw.count)]
@@ -262,10 +275,14 @@ class _Nodes:
 
 
 class _Mapper:
-    """Output pixel centres of a tile -> image positions (col, row) of the raw image."""
+    """Output pixel centres of a tile -> image positions (col, row) of the raw image; ``rows``:
+    (first, end) image rows of one scene of a strip, outside which the tile is nodata."""
 
-    def __init__(self, scene: SceneModel, camera: int, surface, grid: OrthoGrid):
-        self.scene, self.camera, self.surface, self.grid = scene, camera, surface, grid
+    rows: tuple[int, int] | None = None  # subclasses that map onto the whole raw image keep it
+
+    def __init__(self, scene: SceneModel, camera: int, surface, grid: OrthoGrid,
+                 rows: tuple[int, int] | None = None):
+        self.scene, self.camera, self.surface, self.grid, self.rows = scene, camera, surface, grid, rows
         self.to_lonlat = Transformer.from_crs(grid.crs, CRS.from_epsg(4326), always_xy=True)
         self.cam = scene.cameras[camera]
 
@@ -393,16 +410,194 @@ class _Mapper:
         col[ii, jj], row[ii, jj] = ecol, erow
 
 
+def _tile_blocks(mapper: _Mapper, raw: _RawImage, window: tuple[int, int, int, int], step: int, max_error: float,
+                 planned: "_Nodes | None", order: int, fill, levels: list[int], nodata):
+    """One tile: the bands (resampled), their parts of each overview level and the densification
+    error (px). The same computation for the threads of one process and for a distributed job."""
+    r0, r1, c0, c1 = window
+    col, row, err = mapper.tile(r0, r1, c0, c1, step, max_error, planned)
+    blocks = _resample(raw, col, row, order, fill, mapper.rows)
+    return blocks, [_overview_blocks(b, levels, nodata, order == 0) for b in blocks], err
+
+
+def _write_tile(out_bands, levels: list[int], window: tuple, blocks, overviews) -> None:
+    """A tile's bands and overview parts into the output's bands (in tile order: the file's
+    layout depends on the order blocks are written)."""
+    r0, _, c0, _ = window
+    for band, b, ovr in zip(out_bands, blocks, overviews):
+        band.WriteArray(b, c0, r0)
+        for k, (f, o) in enumerate(zip(levels, ovr)):
+            band.GetOverview(k).WriteArray(o, c0 // f, r0 // f)
+
+
+def _create_geotiff(path, cols: int, rows: int, count: int, data_type: int, levels: list[int], nodata,
+                    options: list[str]):
+    """A new GeoTIFF with empty overviews at ``levels`` (each tile writes its part of them)."""
+    out = gdal.GetDriverByName("GTiff").Create(str(path), cols, rows, count, data_type, options)
+    for k in range(count):
+        if nodata is not None:
+            out.GetRasterBand(k + 1).SetNoDataValue(nodata)
+    if levels:
+        out.BuildOverviews("NONE", levels)
+    return out
+
+
+# --- distributed work: one picklable job per tile -------------------------------------------------
+def surface_description(surface) -> dict:
+    """The terrain as plain data a job carries: {"height": m} or {"dem": path, "datum": ...}."""
+    if isinstance(surface, ConstantHeight):
+        return {"height": float(surface.value)}
+    return {"dem": str(surface.path), "datum": surface.datum}
+
+
+@dataclass(frozen=True)
+class OrthoJob:
+    """One tile of one orthoimage, as plain picklable data: a worker of a distributed engine
+    (another process or machine, with this package importable and the files reachable at the
+    same paths) runs it with :func:`run_job` and writes the tile to ``output`` (a GeoTIFF of
+    the window's size, holding the tile's part of each overview level as its own overviews).
+
+    scene: the scene model as scene JSON text; camera: its index; image: the raw image's path;
+    grid: (CRS WKT, x0, y0, resolution m, cols, rows) of the whole output; window: (r0, r1, c0,
+    c1) output rows and columns of the tile; surface: :func:`surface_description`; rows: (first,
+    end) image rows of one scene of a strip or None; nodes: the planned exact image positions of
+    the window (a ``_Nodes``), so the tile is the threaded run's to the bit."""
+    scene: str
+    camera: int
+    image: str
+    grid: tuple
+    window: tuple[int, int, int, int]
+    surface: dict
+    resampling: str
+    nodata: float | None
+    output: str
+    rows: tuple[int, int] | None = None
+    step: int = 32
+    max_error: float = 0.01
+    levels: tuple[int, ...] = ()
+    nodes: _Nodes | None = None
+
+
+@lru_cache(maxsize=4)
+def _job_mapper(scene_text: str, camera: int, grid: tuple, surface: str, rows: tuple | None) -> _Mapper:
+    """The mapper a worker builds once per orthoimage (scene JSON parsed, DEM opened)."""
+    from .dem import Dem
+    from .scene_io import scene_from_dict
+    description = json.loads(surface)
+    terrain = (ConstantHeight(description["height"]) if "height" in description
+               else Dem(description["dem"], datum=description["datum"]))
+    wkt, x0, y0, resolution, cols, n_rows = grid
+    return _Mapper(scene_from_dict(json.loads(scene_text)), camera, terrain,
+                   OrthoGrid(CRS.from_wkt(wkt), x0, y0, resolution, cols, n_rows), rows)
+
+
+def run_job(job: OrthoJob) -> float:
+    """Compute one tile (:class:`OrthoJob`) and write it to ``job.output``; returns its
+    densification error (px)."""
+    mapper = _job_mapper(job.scene, job.camera, job.grid, json.dumps(job.surface, sort_keys=True), job.rows)
+    src = gdal.Open(job.image)
+    raw = _RawImage(job.image, src, budget=0)  # read by window: a worker holds only its tiles' pixels
+    levels = list(job.levels)
+    fill = job.nodata if job.nodata is not None else 0.0
+    blocks, overviews, err = _tile_blocks(mapper, raw, job.window, job.step, job.max_error, job.nodes,
+                                          RESAMPLING[job.resampling], fill, levels, job.nodata)
+    r0, r1, c0, c1 = job.window
+    out = _create_geotiff(job.output, c1 - c0, r1 - r0, raw.count, raw.data_type, levels, job.nodata, [])
+    wkt, x0, y0, resolution, _, _ = job.grid
+    out.SetGeoTransform((x0 + c0 * resolution, resolution, 0.0, y0 - r0 * resolution, 0.0, -resolution))
+    out.SetProjection(wkt)
+    _write_tile([out.GetRasterBand(k + 1) for k in range(raw.count)], levels, (0, 0, 0, 0), blocks, overviews)
+    out = None
+    raw.close()
+    return err
+
+
+def _connect(scheduler: str):
+    """A Dask distributed client of the scheduler at ``scheduler``; InputError naming SCHEDULER
+    when Dask is missing or the scheduler does not answer."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise InputError(f"SCHEDULER: {scheduler} needs Dask distributed, which is not installed (Debian: "
+                         "python3-distributed); leave SCHEDULER empty to use this machine's cores") from None
+    try:
+        return Client(scheduler, timeout=SCHEDULER_TIMEOUT, set_as_default=False)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        raise InputError(f"SCHEDULER: cannot reach the Dask scheduler at {scheduler!r} within "
+                         f"{SCHEDULER_TIMEOUT} s ({exc}); give its address, e.g. tcp://host:8786") from None
+
+
+def _run_jobs(scheduler: str, jobs: list[OrthoJob], report, cancelled) -> float:
+    """Run ``jobs`` on the Dask scheduler (``report`` gets the share done); returns the worst
+    densification error (px)."""
+    from distributed import as_completed
+    client = _connect(scheduler)
+    try:
+        futures = client.map(run_job, jobs, pure=False)
+        worst = 0.0
+        for n, future in enumerate(as_completed(futures, loop=client.loop)):
+            if cancelled():
+                client.cancel(futures)
+                raise Cancelled("orthorectification cancelled by the user")
+            worst = max(worst, future.result())
+            report((n + 1) / len(jobs))
+        return worst
+    finally:
+        client.close()
+
+
+def _assemble(jobs: list[OrthoJob], out_bands, levels: list[int], folder: Path, report, cancelled) -> None:
+    """Write the tiles of ``jobs`` into the output in tile order: bands through a VRT mosaic of
+    the tile files (GDAL), overview parts from each tile's overviews."""
+    mosaic = gdal.BuildVRT(str(folder / "tiles.vrt"), [job.output for job in jobs])  # the tiles cover the grid
+    for n, job in enumerate(jobs):
+        if cancelled():
+            raise Cancelled("orthorectification cancelled by the user")
+        r0, r1, c0, c1 = job.window
+        tile = gdal.Open(job.output)
+        blocks = [mosaic.GetRasterBand(k + 1).ReadAsArray(c0, r0, c1 - c0, r1 - r0)
+                  for k in range(tile.RasterCount)]
+        overviews = [[tile.GetRasterBand(k + 1).GetOverview(v).ReadAsArray() for v in range(len(levels))]
+                     for k in range(tile.RasterCount)]
+        tile = None
+        _write_tile(out_bands, levels, job.window, blocks, overviews)
+        report((n + 1) / len(jobs))
+    mosaic = None
+
+
+def _tiles_on_scheduler(scheduler: str, job: Callable[[tuple, str, list[int]], OrthoJob], output_path: Path,
+                        windows: list[tuple[int, int, int, int]], out_bands, levels: list[int], report,
+                        cancelled) -> float:
+    """The ``run_tiles`` of :func:`write_resampled` on a Dask scheduler: ``job(window, tile file,
+    levels)`` for each window, run by the workers into a temporary folder beside ``output_path``
+    (removed afterwards), then assembled into ``out_bands`` in window order. Returns the worst
+    densification error (px)."""
+    folder = Path(tempfile.mkdtemp(prefix=f".{output_path.name}.", suffix=".tiles", dir=output_path.parent))
+    try:
+        jobs = [job(w, str(folder / f"tile_{w[0]}_{w[2]}.tif"), levels) for w in windows]
+        worst = _run_jobs(scheduler, jobs, lambda f: report(0.86 * f), cancelled)
+        _assemble(jobs, out_bands, levels, folder, lambda f: report(0.86 + 0.14 * f), cancelled)
+        return worst
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: int = 0, grid: OrthoGrid | None = None,
                  resampling: str = "bilinear", nodata: float | None = 0.0, tile: int = 512, step: int = 32,
                  max_error: float = 0.01, memory_budget: float = 2 ** 30,
                  progress: Callable[[float], None] | None = None,
-                 is_cancelled: Callable[[], bool] | None = None) -> dict:
+                 is_cancelled: Callable[[], bool] | None = None, rows: tuple[int, int] | None = None,
+                 scheduler: str | None = None, files: OutputSet | None = None) -> dict:
     """Orthorectify ``image_path`` (any GDAL raster, any bands and type, of the scene camera's
     size) onto ``grid`` (default :func:`default_grid`) and write a tiled, compressed GeoTIFF
     with overviews to ``output_path``. The raw image is held in memory when it takes at most
-    ``memory_budget`` bytes, else read by window for each tile. Returns figures: grid,
-    densification error (px), share of the footprint without DEM heights, time."""
+    ``memory_budget`` bytes, else read by window for each tile. ``rows``: (first, end) image
+    rows of one scene of a strip (the rest is nodata). Tiles run on a thread per core, or with
+    ``scheduler`` (a Dask distributed address, e.g. tcp://host:8786) as :class:`OrthoJob` s on
+    its workers, which write tile files in a temporary folder beside the output that are then
+    assembled here: the same bytes. With ``files`` the output joins that set (its owner commits
+    it). Returns figures: grid, densification error (px), share of the footprint without DEM
+    heights, time."""
     import time
     t_start = time.perf_counter()
     check_resampling(resampling, tile, step)
@@ -410,14 +605,17 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
     src = _open_raw(image_path, cam)
     if nodata is not None:
         check_nodata(nodata, gdal_array.GDALTypeCodeToNumericTypeCode(src.GetRasterBand(1).DataType))
-    grid = grid or default_grid(scene, camera, surface)
+    grid = grid or default_grid(scene, camera, surface, rows=rows)
     output_path = Path(output_path)
     check_destination(output_path)
-    raw = _RawImage(image_path, src, memory_budget)
+    client = _connect(scheduler) if scheduler else None  # an unreachable scheduler stops before any work
+    if client is not None:
+        client.close()
+    raw = _RawImage(image_path, src, 0 if scheduler else memory_budget)  # workers read their own windows
     cancelled = is_cancelled or (lambda: False)
     report = progress or (lambda fraction: None)
     try:
-        mapper = _Mapper(scene, camera, surface, grid)
+        mapper = _Mapper(scene, camera, surface, grid, rows)
         planned = mapper.nodes(0, grid.rows, 0, grid.cols, step, is_cancelled=cancelled)
         gaps = mapper.dem_gap_share(planned)
         if gaps > 0:
@@ -429,10 +627,21 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
             out.SetGeoTransform(grid.geotransform())
             out.SetProjection(grid.crs.to_wkt())
 
+        run_tiles = None
+        if scheduler:
+            text = json.dumps(scene_to_dict(scene))
+            plain_grid = (grid.crs.to_wkt(), grid.x0, grid.y0, grid.resolution, grid.cols, grid.rows)
+
+            def job(window: tuple[int, int, int, int], output: str, levels: list[int]) -> OrthoJob:
+                return OrthoJob(text, camera, str(image_path), plain_grid, window, surface_description(surface),
+                                resampling, nodata, output, rows, step, max_error, tuple(levels),
+                                planned.window(*window))
+
+            run_tiles = partial(_tiles_on_scheduler, scheduler, job, output_path)
         worst = write_resampled(raw, mapper, planned, (grid.rows, grid.cols), output_path, resampling, nodata, tile,
                                 max_error,
                                 georeference=georeference, progress=lambda f: report(0.05 + 0.93 * f),
-                                is_cancelled=cancelled)
+                                is_cancelled=cancelled, files=files, run_tiles=run_tiles)
     finally:
         raw.close()
     report(1.0)
@@ -458,12 +667,16 @@ def write_resampled(raw: _RawImage, mapper: _Mapper, planned: _Nodes, shape: tup
                     nodata: float | None, tile: int, max_error: float,
                     georeference: Callable[[gdal.Dataset], None] | None = None,
                     progress: Callable[[float], None] | None = None,
-                    is_cancelled: Callable[[], bool] | None = None, files: OutputSet | None = None) -> float:
+                    is_cancelled: Callable[[], bool] | None = None, files: OutputSet | None = None,
+                    run_tiles: Callable | None = None) -> float:
     """Resample ``raw`` through ``mapper`` (output pixel -> raw image position; any subclass of
     :class:`_Mapper` with its own ``exact``) onto an output of ``shape`` (rows, cols), whose node
     grid ``planned`` (:meth:`_Mapper.nodes` over the whole output) it slices, and write it as a tiled, compressed
     GeoTIFF with overviews to ``output_path``; ``georeference(dataset)`` sets its georeferencing.
-    Tiles on a thread per core; ``progress`` gets the share of tiles done. Written completely
+    Tiles on a thread per core, or by ``run_tiles(windows, out_bands, levels, progress,
+    is_cancelled)`` (e.g. :func:`_tiles_on_scheduler`), which writes every window (r0, r1, c0, c1)
+    into the output's bands with :func:`_write_tile` in the order given and returns the worst
+    densification error; ``progress`` gets the share of tiles done. Written completely
     or not at all: with ``files`` as part of that set (its owner commits it). Returns the largest
     densification error measured (px)."""
     rows, cols = shape
@@ -476,39 +689,30 @@ def write_resampled(raw: _RawImage, mapper: _Mapper, planned: _Nodes, shape: tup
     failed = ""
     worst = 0.0
     try:
-        tmp = files.path(output_path)
-        out = gdal.GetDriverByName("GTiff").Create(
-            str(tmp), cols, rows, raw.count, raw.data_type,
-            ["TILED=YES", f"BLOCKXSIZE={tile}", f"BLOCKYSIZE={tile}", "COMPRESS=DEFLATE", "PREDICTOR=2",
-             "BIGTIFF=IF_SAFER", "NUM_THREADS=ALL_CPUS"])
+        out = _create_geotiff(files.path(output_path), cols, rows, raw.count, raw.data_type, levels, nodata,
+                              ["TILED=YES", f"BLOCKXSIZE={tile}", f"BLOCKYSIZE={tile}", "COMPRESS=DEFLATE",
+                               "PREDICTOR=2", "BIGTIFF=IF_SAFER", "NUM_THREADS=ALL_CPUS"])
         if georeference is not None:
             georeference(out)
-        for k in range(raw.count):
-            if nodata is not None:
-                out.GetRasterBand(k + 1).SetNoDataValue(nodata)
-        if levels:
-            out.BuildOverviews("NONE", levels)  # created empty; each tile writes its own part of them
         out_bands = [out.GetRasterBand(k + 1) for k in range(raw.count)]
-        tiles = [(r0, min(r0 + tile, rows), c0, min(c0 + tile, cols))
-                 for r0 in range(0, rows, tile) for c0 in range(0, cols, tile)]
-        order = RESAMPLING[resampling]
+        windows = [(r0, min(r0 + tile, rows), c0, min(c0 + tile, cols))
+                   for r0 in range(0, rows, tile) for c0 in range(0, cols, tile)]
+        if run_tiles is not None:
+            worst = run_tiles(windows, out_bands, levels, report, cancelled)
+        else:
+            order = RESAMPLING[resampling]
 
-        def work(t):
-            if cancelled():
-                raise Cancelled("resampling cancelled by the user")
-            r0, r1, c0, c1 = t
-            col, row, err = mapper.tile(r0, r1, c0, c1, planned.step, max_error, planned)
-            blocks = _resample(raw, col, row, order, fill)
-            return t, blocks, [_overview_blocks(b, levels, nodata, order == 0) for b in blocks], err
+            def work(window):
+                if cancelled():
+                    raise Cancelled("resampling cancelled by the user")
+                return _tile_blocks(mapper, raw, window, planned.step, max_error, planned, order, fill, levels,
+                                    nodata)
 
-        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-            for n, ((r0, r1, c0, c1), blocks, overviews, err) in enumerate(pool.map(work, tiles)):
-                for band, b, ovr in zip(out_bands, blocks, overviews):
-                    band.WriteArray(b, c0, r0)
-                    for k, (f, o) in enumerate(zip(levels, ovr)):
-                        band.GetOverview(k).WriteArray(o, c0 // f, r0 // f)
-                worst = max(worst, err)
-                report((n + 1) / len(tiles))
+            with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+                for n, (window, (blocks, overviews, err)) in enumerate(zip(windows, pool.map(work, windows))):
+                    _write_tile(out_bands, levels, window, blocks, overviews)
+                    worst = max(worst, err)
+                    report((n + 1) / len(windows))
         out_bands = None
         out.FlushCache()
         out = None
@@ -518,7 +722,7 @@ def write_resampled(raw: _RawImage, mapper: _Mapper, planned: _Nodes, shape: tup
         failed = str(exc)        # traceback holds the file open
     finally:
         try:
-            out_bands = out = band = None  # closes the file
+            out_bands = out = None  # closes the file
         except RuntimeError as exc:  # flushing it failed
             failed = failed or str(exc)
         if own:
@@ -526,3 +730,56 @@ def write_resampled(raw: _RawImage, mapper: _Mapper, planned: _Nodes, shape: tup
     if failed:
         raise InputError(f"cannot write {output_path}: {failed}")
     return worst
+
+
+
+# --- every camera of a scene, every scene of a strip ------------------------------------------------
+@dataclass(frozen=True)
+class OrthoProduct:
+    """One orthoimage of a multi-camera run: camera index, image rows (first, end) of its scene
+    of the strip (None: the whole image) and the output file's name."""
+    camera: int
+    rows: tuple[int, int] | None
+    name: str
+
+
+def strip_products(scene: SceneModel, cameras: list[int]) -> list[OrthoProduct]:
+    """The orthoimages of ``cameras``: one per camera (``ortho_<CAMERA>.tif``), or for a strip
+    of n scenes (``info.n_scenes``, the scenes of one pass in one image per camera, equal row
+    counts) one per camera and scene (``ortho_<CAMERA>_s<k>.tif``, k = 1..n along the pass)."""
+    n = int(scene.info.get("n_scenes", 1) or 1)
+    products = []
+    for c in cameras:
+        cam = scene.cameras[c]
+        if n <= 1:
+            products.append(OrthoProduct(c, None, f"ortho_{cam.name}.tif"))
+            continue
+        products += [OrthoProduct(c, (cam.rows * k // n, cam.rows * (k + 1) // n), f"ortho_{cam.name}_s{k + 1}.tif")
+                     for k in range(n)]
+    return products
+
+
+def check_images(scene: SceneModel, images: dict[int, str]) -> None:
+    """Refuse, before any work, a raw image that cannot be read or whose size is not its camera's
+    (``images``: {camera index: path})."""
+    for camera, path in images.items():
+        _open_raw(path, scene.cameras[camera])
+
+
+def orthorectify_products(scene: SceneModel, images: dict[int, str], surface, folder, products: list[OrthoProduct],
+                          grids: list[OrthoGrid], progress: Callable[[float], None] | None = None,
+                          **options) -> list[dict]:
+    """Orthorectify every product (:func:`strip_products`) onto its grid into ``folder``,
+    completely or not at all: every orthoimage, or none when one fails or the user cancels.
+    ``images``: {camera index: raw image path}; ``options``: those of :func:`orthorectify`.
+    Progress runs over the whole run (weighted by each grid's pixels)."""
+    report = progress or (lambda fraction: None)
+    weights = np.array([g.cols * g.rows for g in grids], dtype=float)
+    starts = np.concatenate([[0.0], np.cumsum(weights)]) / weights.sum()
+    figures = []
+    with atomic_outputs() as files:
+        for k, (product, grid) in enumerate(zip(products, grids)):
+            figures.append(orthorectify(scene, images[product.camera], surface, Path(folder) / product.name,
+                                        product.camera, grid, rows=product.rows, files=files, **options,
+                                        progress=lambda f, a=starts[k], b=starts[k + 1]: report(a + (b - a) * f)))
+    return figures

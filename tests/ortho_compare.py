@@ -41,6 +41,24 @@ def saved_cut(folder, seed: int, rows: int) -> tuple[str, str, str]:
     return str(folder / "cut.json"), str(folder / "raw.tif"), str(result.dem)
 
 
+def rendered_cameras(folder, preset: str, seed: int, rows: int, n_scenes: int = 1):
+    """A ``preset`` strip of ``n_scenes`` simulated into ``folder``, its true scene cut to the
+    first ``rows`` rows of every camera (``info.n_scenes`` kept: the cut is a strip of
+    ``n_scenes`` scenes of rows / n_scenes rows), and each camera's cut rendered into
+    folder/raw_<CAMERA>.tif. Returns (cut scene, simulation result, geoid DEM, texture frame,
+    image paths by camera index)."""
+    result = simulate(preset, folder, seed=seed, n_scenes=n_scenes, n_gcps=5)
+    full = load_scene(result.true_scene)
+    scene = replace(full, cameras=[replace(cam, rows=rows) for cam in full.cameras], _guess={})
+    dem = Dem(result.dem, datum="geoid")
+    frame = texture_frame(full, dem, seed)
+    images = {}
+    for k, cam in enumerate(scene.cameras):
+        images[k] = str(folder / f"raw_{cam.name}.tif")
+        render_image(scene, k, dem, images[k], frame)
+    return scene, result, dem, frame, images
+
+
 def gdalwarp_rpc(raw, dem_path, grid: OrthoGrid, output) -> None:
     """gdalwarp with the RPC beside ``raw`` and RPC_DEM ``dem_path``, bilinear, onto ``grid``."""
     gdal.Warp(str(output), str(raw), rpc=True, transformerOptions=[f"RPC_DEM={dem_path}"],

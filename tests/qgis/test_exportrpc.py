@@ -1,5 +1,6 @@
 """pushbroom:exportrpc in real QGIS (processing.run) and on the command line (qgis_process), on the
 small simulated CBERS-02B scene (three staggered CCDs): files GDAL reads, per-CCD figures, bad input."""
+import importlib
 import json
 from pathlib import Path
 
@@ -13,6 +14,7 @@ from core.dem import Dem
 from core.rpcfit import dem_height_range, fit_rpc
 from core.scene_io import load_scene
 
+from .conftest import PLUGIN
 from .test_qgis_process import _run_json
 
 gdal.UseExceptions()
@@ -50,6 +52,11 @@ def test_export_with_a_dem_reports_every_ccd(simulated, tmp_path):
     assert [c["chip"] for c in report["check"]["chips"]] == [0, 1, 2]
     assert res["RMS_PX"] == pytest.approx(report["check"]["rms_px"])
     assert any("cannot model the steps" in w for w in feedback.warnings)
+    # the seams are missed by far more than 0.1 px: the log points to the sensor-corrected product
+    seams = report["check"]["seams"]
+    assert seams["max_px"] > 0.5
+    (hint,) = [w for w in feedback.warnings if "pushbroom:sensorcorrect" in w]
+    assert f"up to {seams['max_px']:.2f} px at the CCD seams" in hint
     assert sum("CCD" in i for i in feedback.infos) == 3
     # the same as the core with the DEM's height range
     scene = load_scene(simulated["TRUE_SCENE"])
@@ -61,6 +68,18 @@ def test_export_with_a_dem_reports_every_ccd(simulated, tmp_path):
     md = gdal.Open(str(_image(tmp_path / "hrc.tif", 16, 16))).GetMetadata("RPC")
     assert float(md["LINE_OFF"].split()[0]) == rpc.line_off
     assert md["SAMP_NUM_COEFF"].split() == [repr(float(v)) for v in rpc.samp_num]
+
+
+def test_the_sensor_corrected_hint_only_for_a_poor_fit_at_the_seams(plugin):
+    """The hint needs several chips and a seam maximum over 0.1 px; a good fit or one chip gets none."""
+    sensor_corrected_hint = importlib.import_module(f"{PLUGIN}.ui.algorithms.exportrpc").sensor_corrected_hint
+
+    def report(chips, seam_max):
+        seams = {"rms_px": seam_max / 2, "max_px": seam_max} if seam_max is not None else None
+        return {"camera": "HRC", "check": {"chips": [{}] * chips, **({"seams": seams} if seams else {})}}
+    assert "sensorcorrect" in sensor_corrected_hint(report(3, 1.7))
+    assert sensor_corrected_hint(report(3, 0.09)) is None
+    assert sensor_corrected_hint(report(1, None)) is None
 
 
 def test_export_without_a_dem_writes_an_rpb_and_a_vrt_of_the_image(simulated, tmp_path):

@@ -1,4 +1,5 @@
 """pushbroom:orthorectify in QGIS and from qgis_process, on a rendered cut of a simulated scene."""
+import json
 from pathlib import Path
 
 import numpy as np
@@ -8,7 +9,7 @@ from qgis.core import QgsProcessingException
 
 import processing
 from core.scene_io import save_scene
-from tests.ortho_compare import rendered_cut
+from tests.ortho_compare import rendered_cameras, rendered_cut
 
 from .test_algorithms import RecordingFeedback
 from .test_qgis_process import _run_json
@@ -90,3 +91,41 @@ def test_orthorectify_from_the_command_line(qgis_process, raw, tmp_path):
                         CRS="EPSG:32650", RESOLUTION=10, OUTPUT=tmp_path / "o.tif")
     ds = gdal.Open(results["OUTPUT"])
     assert ds.GetGeoTransform()[1] == 10.0 and ds.RasterCount == 1
+
+
+@pytest.fixture(scope="module")
+def three_line(tmp_path_factory):
+    """(scene JSON, images in camera order, DEM) of a rendered 96-row cut of a TH-1 three-line scene."""
+    folder = tmp_path_factory.mktemp("tlc")
+    scene, result, _, _, images = rendered_cameras(folder, "th1_tlc", seed=5, rows=96)
+    save_scene(scene, folder / "cut.json")
+    return str(folder / "cut.json"), [images[k] for k in range(3)], str(result.dem)
+
+
+def test_every_camera_in_one_run_equals_the_single_camera_runs(provider, three_line, tmp_path):
+    scene, images, dem = three_line
+    base = {"SCENE": scene, "DEM": dem, "DEM_DATUM": "geoid", "RESOLUTION": 40.0}
+    fractions = []
+    feedback = RecordingFeedback()
+    feedback.progressChanged.connect(fractions.append)
+    res = processing.run("pushbroom:orthorectify", {**base, "ALL_CAMERAS": True, "INPUTS": images,
+                                                    "ORTHO_FOLDER": str(tmp_path / "all")}, feedback=feedback)
+    names = ["ortho_NAD.tif", "ortho_FWD.tif", "ortho_BWD.tif"]
+    assert res["ORTHOIMAGES"] == [str(tmp_path / "all" / n) for n in names]
+    assert sorted(p.name for p in (tmp_path / "all").iterdir()) == sorted(names)
+    assert fractions == sorted(fractions) and fractions[-1] == 100
+    for camera, image, name in zip(("NAD", "FWD", "BWD"), images, names):
+        single = processing.run("pushbroom:orthorectify", {**base, "INPUT": image, "CAMERA": camera,
+                                                           "OUTPUT": str(tmp_path / name)})["OUTPUT"]
+        assert Path(single).read_bytes() == (tmp_path / "all" / name).read_bytes(), name
+
+
+def test_every_camera_from_the_command_line(qgis_process, three_line, tmp_path):
+    scene, images, dem = three_line
+    done = qgis_process("--json", "run", "pushbroom:orthorectify", "--", f"SCENE={scene}", f"DEM={dem}",
+                        "RESOLUTION=40", "ALL_CAMERAS=true", *(f"INPUTS={i}" for i in images),
+                        f"ORTHO_FOLDER={tmp_path}")
+    assert done.returncode == 0, done.stdout + done.stderr
+    results = json.loads(done.stdout)["results"]
+    assert [Path(p).name for p in results["ORTHOIMAGES"]] == ["ortho_NAD.tif", "ortho_FWD.tif", "ortho_BWD.tif"]
+    assert all(gdal.Open(p).GetGeoTransform()[1] == 40.0 for p in results["ORTHOIMAGES"])

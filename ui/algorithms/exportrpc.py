@@ -155,3 +155,22 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
             feedback.pushInfo(f"  seam at col {step['col']:.0f}: the rigorous model steps by {step['mean_px']:.3f} px")
         if "note" in check:
             feedback.pushWarning(check["note"])
+        hint = sensor_corrected_hint(report)
+        if hint:
+            feedback.pushWarning(hint)
+
+
+SUB_PIXEL = 0.1  # px: an RPC worse than this at the chip seams is not the sub-pixel model users expect
+
+
+def sensor_corrected_hint(report: dict) -> str | None:
+    """For a camera of several chips whose RPC misses the rigorous model at the seams by more
+    than SUB_PIXEL (max), the way to a sub-pixel RPC: the sensor-corrected product."""
+    seams = report["check"].get("seams")
+    if len(report["check"]["chips"]) < 2 or not seams or seams["max_px"] <= SUB_PIXEL:
+        return None
+    return (f"camera {report['camera']}: this RPC misses the rigorous model by up to {seams['max_px']:.2f} px at the "
+            f"CCD seams (RMS {seams['rms_px']:.2f} px), which no RPC of the raw image can avoid. For an image with "
+            "a sub-pixel RPC, make the sensor-corrected product with pushbroom:sensorcorrect: the chips resampled "
+            "through the adjusted model onto one straight virtual detector line, which one RPC describes to "
+            "hundredths of a pixel; export the RPC of that product (its own SCENE) instead")

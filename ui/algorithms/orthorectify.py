@@ -1,5 +1,6 @@
 """pushbroom:orthorectify — the raw image resampled onto a map grid with the rigorous scene
-model and a DEM: a tiled, compressed GeoTIFF with overviews."""
+model and a DEM: a tiled, compressed GeoTIFF with overviews; or every camera (and every scene
+of a strip) in one run, into a folder."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,15 +8,21 @@ from pathlib import Path
 import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
-from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY, QgsProcessingException,
-                       QgsProcessingParameterCrs, QgsProcessingParameterExtent, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterDestination, QgsProcessingParameterRasterLayer, QgsRectangle)
+from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY, QgsProcessing,
+                       QgsProcessingException, QgsProcessingOutputMultipleLayers, QgsProcessingParameterBoolean,
+                       QgsProcessingParameterCrs, QgsProcessingParameterExtent,
+                       QgsProcessingParameterFolderDestination, QgsProcessingParameterMultipleLayers,
+                       QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
+                       QgsProcessingParameterRasterLayer, QgsProcessingParameterString, QgsProcessingUtils,
+                       QgsRectangle)
 
 from ...core.dem import ConstantHeight
-from ...core.ortho import default_grid, orthorectify, scene_utm_crs
+from ...core.ortho import (check_images, default_grid, orthorectify, orthorectify_products, scene_utm_crs,
+                           strip_products)
 from ...core.products import footprints
 from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
-                      check_outputs, core_call, dem_from_parameters, feedback_callbacks, load_scene_for)
+                      check_outputs, core_call, dem_from_parameters, feedback_callbacks, layer_file, load_scene_for,
+                      processing_errors)
 from ..parameters import RESAMPLING, enum_value, resampling, tr
 
 
@@ -30,14 +37,30 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             "(raw images over 1 GiB are read window by window); "
             "writes a tiled, DEFLATE-compressed GeoTIFF with overviews and nodata, completely or not at all. "
             "With a DEM that covers only part of the scene, give an EXTENT inside it: pixels without a height "
-            "are nodata and a warning gives their share of the footprint.")
+            "are nodata and a warning gives their share of the footprint. "
+            "With ALL_CAMERAS, every camera of the scene (e.g. the forward, nadir and backward lines of a "
+            "three-line camera) is orthorectified in one run from INPUTS (one raw image per camera, in the scene's "
+            "camera order) into ORTHO_FOLDER as ortho_<CAMERA>.tif; a strip of several scenes in one image per "
+            "camera (as the simulator writes, info.n_scenes) gives one orthoimage per camera and scene, "
+            "ortho_<CAMERA>_s<k>.tif (k = 1, 2, ... along the pass), each on its own grid. All of them are "
+            "written, or none. SCHEDULER (advanced) sends the tiles to a Dask distributed cluster instead of this "
+            "machine's threads: the same bytes.")
     INPUT, CRS_PARAM, RESOLUTION, RESAMPLING_PARAM, NODATA, EXTENT, OUTPUT = \
         "INPUT", "CRS", "RESOLUTION", RESAMPLING, "NODATA", "EXTENT", "OUTPUT"
+    ALL_CAMERAS, INPUTS, ORTHO_FOLDER, ORTHOIMAGES, SCHEDULER = \
+        "ALL_CAMERAS", "INPUTS", "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image")),
+        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image"), optional=True),
                   tr("The scene's raw image (any GDAL format, any number of bands and data type), of the size the "
-                  "scene's camera images, without georeferencing."))
+                  "scene's camera images, without georeferencing. Required unless ALL_CAMERAS."))
+        self.add_parameter(QgsProcessingParameterBoolean(self.ALL_CAMERAS, tr("Every camera of the scene"), False),
+                  tr("Orthorectify every camera of the scene (and every scene of a strip) in one run, from INPUTS "
+                     "into ORTHO_FOLDER; CAMERA, INPUT and OUTPUT are then not used."))
+        self.add_parameter(QgsProcessingParameterMultipleLayers(self.INPUTS, tr("Raw images, one per camera"),
+                                                                QgsProcessing.TypeRaster, optional=True),
+                  tr("With ALL_CAMERAS: one raw image per camera of the scene, in the scene's camera order (the "
+                     "log shows which image goes to which camera); each must have its camera's size."))
         add_scene_parameters(self)
         add_dem_parameters(self)
         self.add_parameter(QgsProcessingParameterCrs(self.CRS_PARAM, tr("Output CRS"), optional=True),
@@ -54,19 +77,34 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterExtent(self.EXTENT, tr("Extent"), optional=True),
                   tr("Part of the scene to produce (any CRS). Empty: the whole footprint of the image on the DEM."),
                   advanced=True)
-        self.add_parameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Orthoimage")),
-                  tr("GeoTIFF (tiled 512 x 512, DEFLATE, overviews, nodata set)."))
+        self.add_parameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Orthoimage"), optional=True),
+                  tr("GeoTIFF (tiled 512 x 512, DEFLATE, overviews, nodata set). Not used with ALL_CAMERAS."))
+        self.add_parameter(QgsProcessingParameterFolderDestination(self.ORTHO_FOLDER, tr("Folder of the orthoimages"),
+                                                                   optional=True),
+                  tr("With ALL_CAMERAS: the folder (created when its parent exists) the orthoimages are written "
+                     "to, ortho_<CAMERA>.tif or, for a strip, ortho_<CAMERA>_s<k>.tif; files of those names there "
+                     "are replaced."))
+        self.add_parameter(QgsProcessingParameterString(self.SCHEDULER, tr("Dask scheduler address"), optional=True),
+                  tr("Empty (default): the tiles run on this machine's cores (threads). An address such as "
+                     "tcp://host:8786: the tiles run as jobs on that Dask distributed cluster, whose workers must "
+                     "import this plugin and reach the input and output files at the same paths; each writes its "
+                     "tile beside the output and the tiles are assembled here into the same bytes."), advanced=True)
+        self.addOutput(QgsProcessingOutputMultipleLayers(self.ORTHOIMAGES, tr("Orthoimages (ALL_CAMERAS)")))
 
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        output = self.output_path(parameters, context, self.OUTPUT, "orthoimage.tif")
+        if self.parameterAsBool(parameters, self.ALL_CAMERAS, context):
+            return self._all_cameras(parameters, context, feedback)
+        output = (self.output_path(parameters, context, self.OUTPUT, "orthoimage.tif")
+                  or QgsProcessingUtils.generateTempFilename("orthoimage.tif"))
         if Path(output).suffix.lower() not in (".tif", ".tiff"):
             raise QgsProcessingException(f"{self.OUTPUT}: the orthoimage is written as GeoTIFF; use a .tif file "
                                          f"(got {output})")
         check_outputs(self, parameters, context, {self.OUTPUT: [output]})
         layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)
         if layer is None:
-            raise QgsProcessingException(f"{self.INPUT}: no raw image given")
+            raise QgsProcessingException(f"{self.INPUT}: no raw image given (or set {self.ALL_CAMERAS} with "
+                                         f"{self.INPUTS} for every camera)")
         image = layer.source().split("|")[0]
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
@@ -86,15 +124,78 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                           f"{grid.crs.to_string()}")
         progress, is_cancelled = feedback_callbacks(feedback)
         figures = core_call(orthorectify, scene, image, surface, output, camera, grid,
-                            enum_value(self, parameters, self.RESAMPLING_PARAM, context),
-                            self.parameterAsDouble(parameters, self.NODATA, context), progress=progress,
-                            is_cancelled=is_cancelled)
-        feedback.pushInfo(f"written in {figures['seconds']:.1f} s; image positions densified within "
+                            is_cancelled=is_cancelled, progress=progress, **self._options(parameters, context))
+        self._report(feedback, figures)
+        return {self.OUTPUT: output}
+
+    def _options(self, parameters, context) -> dict:
+        """Resampling, nodata and scheduler for core.ortho.orthorectify."""
+        return {"resampling": enum_value(self, parameters, self.RESAMPLING_PARAM, context),
+                "nodata": self.parameterAsDouble(parameters, self.NODATA, context),
+                "scheduler": self.parameterAsString(parameters, self.SCHEDULER, context).strip() or None}
+
+    def _report(self, feedback, figures: dict, name: str = "") -> None:
+        feedback.pushInfo(f"{name}written in {figures['seconds']:.1f} s; image positions densified within "
                           f"{figures['densification_error_px']:.1e} px of the exact model")
         if figures["dem_gap_share"] > 0:
-            feedback.pushWarning(f"{DEM}: the DEM gives no height for {100 * figures['dem_gap_share']:.1f} % "
+            feedback.pushWarning(f"{DEM}: {name}the DEM gives no height for {100 * figures['dem_gap_share']:.1f} % "
                                  "of the image's footprint in the output; those pixels are nodata")
-        return {self.OUTPUT: output}
+
+    def _all_cameras(self, parameters, context, feedback) -> dict:
+        """Every camera (and scene of a strip) of SCENE from INPUTS into ORTHO_FOLDER."""
+        folder = self.parameterAsString(parameters, self.ORTHO_FOLDER, context)
+        if not folder or folder == "TEMPORARY_OUTPUT":
+            folder = QgsProcessingUtils.tempFolder()
+        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
+        layers = self.parameterAsLayerList(parameters, self.INPUTS, context)
+        names = [cam.name for cam in scene.cameras]
+        if len(layers) != len(names):
+            raise QgsProcessingException(f"{self.INPUTS}: {len(layers)} raw image(s) given, but the scene has "
+                                         f"{len(names)} camera(s) ({', '.join(names)}): give one image per camera, "
+                                         "in that order")
+        images = {k: layer_file(layer) for k, layer in enumerate(layers)}
+        products = strip_products(scene, list(range(len(names))))
+        made = not Path(folder).exists() and Path(folder).parent.is_dir()
+        if made:
+            Path(folder).mkdir()
+        try:
+            return self._write_products(parameters, context, feedback, scene, images, products, Path(folder))
+        except BaseException:
+            if made and not any(Path(folder).iterdir()):
+                Path(folder).rmdir()
+            raise
+
+    def _write_products(self, parameters, context, feedback, scene, images, products, folder: Path) -> dict:
+        outputs = [folder / p.name for p in products]
+        check_outputs(self, parameters, context, {self.ORTHO_FOLDER: outputs})
+        with processing_errors(f"{self.INPUTS}: "):
+            check_images(scene, images)
+        for k, image in images.items():
+            feedback.pushInfo(f"camera {scene.cameras[k].name}: {image}")
+        surface = dem_from_parameters(self, parameters, context)
+        crs = self._crs(parameters, context)
+        resolution = self.parameterAsDouble(parameters, self.RESOLUTION, context) or None
+        grids = []
+        feedback.setProgressText("planning the output grids")
+        for product in products:
+            extent = None
+            if parameters.get(self.EXTENT):
+                crs = crs or core_call(scene_utm_crs, scene, product.camera, surface)
+                rect = self.parameterAsExtent(parameters, self.EXTENT, context,
+                                              QgsCoordinateReferenceSystem(crs.to_wkt()))
+                extent = (rect.xMinimum(), rect.yMinimum(), rect.xMaximum(), rect.yMaximum())
+                self._check_extent(scene, product.camera, surface, crs, extent, feedback)
+            grids.append(core_call(default_grid, scene, product.camera, surface, crs, resolution, extent,
+                                   product.rows))
+            g = grids[-1]
+            feedback.pushInfo(f"{product.name}: {g.cols} x {g.rows} px at {g.resolution:.3f} m in "
+                              f"{g.crs.to_string()}")
+        progress, is_cancelled = feedback_callbacks(feedback)
+        figures = core_call(orthorectify_products, scene, images, surface, folder, products, grids,
+                            progress=progress, is_cancelled=is_cancelled, **self._options(parameters, context))
+        for product, fig in zip(products, figures):
+            self._report(feedback, fig, f"{product.name}: ")
+        return {self.ORTHO_FOLDER: str(folder), self.ORTHOIMAGES: [str(p) for p in outputs]}
 
     def _check_extent(self, scene, camera: int, surface, crs: CRS, extent: tuple, feedback) -> None:
         """Refuse an EXTENT that misses the image's footprint (traced at the terrain's mean
