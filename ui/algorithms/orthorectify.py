@@ -54,7 +54,8 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image"), optional=True),
                   tr("The scene's raw image (any GDAL format, any number of bands and data type), of the size the "
                   "scene's camera images, without georeferencing. Required unless ALL_CAMERAS."))
-        self.add_parameter(QgsProcessingParameterBoolean(self.ALL_CAMERAS, tr("Every camera of the scene"), False),
+        self.add_parameter(QgsProcessingParameterBoolean(self.ALL_CAMERAS, tr("Every camera of the scene"), False,
+                                                         optional=True),
                   tr("Orthorectify every camera of the scene (and every scene of a strip) in one run, from INPUTS "
                      "into ORTHO_FOLDER; CAMERA, INPUT and OUTPUT are then not used."))
         self.add_parameter(QgsProcessingParameterMultipleLayers(self.INPUTS, tr("Raw images, one per camera"),
