@@ -27,7 +27,8 @@ from .test_qgis_process import _run_json
 CONTENT = ("metadata.txt", "__init__.py", "plugin.py", "LICENSE", "README.md", "core", "ui", "resources")
 # What the plugin may import besides itself: the standard library and these (QGIS's Python and the
 # packages the README's set-up installs).
-THIRD_PARTY = {"numpy", "scipy", "pyproj", "osgeo", "matplotlib", "qgis", "processing"}
+THIRD_PARTY = {"numpy", "scipy", "pyproj", "osgeo", "matplotlib", "qgis", "processing",
+               "distributed"}  # distributed (Dask): optional, only for orthorectify's SCHEDULER
 MAX_UPLOAD = 25_000_000  # plugins.qgis.org refuses larger packages
 
 
