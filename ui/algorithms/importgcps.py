@@ -95,10 +95,9 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
             name = self.SIGMA_FIELDS[key]
             self.add_parameter(QgsProcessingParameterString(name, tr("Per-point {} field ({})").format(what, unit), optional=True,
                                                             defaultValue=""),
-                      f"Field (CSV column or layer field) holding each point's {what} in {unit}, so that "
-                      "surveyed and map-digitised points can be mixed; an empty cell takes "
-                      f"{key.replace('sigma_', 'SIGMA_').upper()}. Values must be > 0. Empty: every point "
-                      f"takes {key.replace('sigma_', 'SIGMA_').upper()}.")
+                      tr("Field (CSV column or layer field) holding each point's {0} in {1}, so that surveyed "
+                         "and map-digitised points can be mixed; an empty cell takes {2}. Values must be > 0. "
+                         "Empty: every point takes {2}.").format(what, unit, key.replace("sigma_", "SIGMA_").upper()))
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Ground control points"),
                                                       QgsProcessing.TypeVectorPoint)
         out.setSupportsNonFileBasedOutput(False)
