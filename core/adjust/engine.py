@@ -123,8 +123,7 @@ class _Problem:
         control = np.nonzero(table.role == "control")[0]
         ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
         sel = control[first]
-        self.ground0 = geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel])
-        self.ground = self.ground0.copy()
+        self._set_up_ground(table, sel)
         names = [c.name for c in scene.cameras]
         cams = np.searchsorted(np.array(sorted(names)), table.camera[control])
         cams = np.argsort(names)[cams]  # camera indices, vectorised
@@ -135,10 +134,6 @@ class _Problem:
         order = np.lexsort((obs.att_first, obs.pos_first, obs.chip, obs.camera))
         self.obs = obs.select(order)
         self.rows = control[order]
-        self.weighted = settings.ground == "weighted"
-        self.enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
-        self.ground_sigma = np.stack([table.sigma_xy[sel], table.sigma_xy[sel], table.sigma_z[sel]], 1) \
-            if self.weighted else np.zeros((0, 3))  # stated east, north, up sigmas (m, 3) m
         self.factor = np.ones((len(self.obs), 2))  # robust weight factors per residual row
         self.scale: dict[str, float] = {}  # variance component factor on the stated sigmas, per group
         self.rescaled()
@@ -168,6 +163,17 @@ class _Problem:
                 "attitude pseudo-observations": (s.attitude_sigma, "rad")}.get(group, (None, ""))
 
     # --- unknowns and their columns -------------------------------------------------------
+    def _set_up_ground(self, table: GcpTable, sel: np.ndarray) -> None:
+        """Ground unknowns of the points ``sel`` (rows of ``table``, one per point): start values
+        (ECEF m, (n, 3)) and, for weighted ground, their ENU rotations and stated east, north, up
+        sigmas (m, (n, 3))."""
+        self.ground0 = geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel])
+        self.ground = self.ground0.copy()
+        self.weighted = self.settings.ground == "weighted"
+        self.enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
+        self.ground_sigma = np.stack([table.sigma_xy[sel], table.sigma_xy[sel], table.sigma_z[sel]], 1) \
+            if self.weighted else np.zeros((0, 3))
+
     def structure(self) -> None:
         """Unknown numbering and each observation's columns (after a change of the free set)."""
         params = self.params

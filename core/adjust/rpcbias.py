@@ -20,7 +20,6 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..errors import InputError
-from ..geodesy import geodetic_to_ecef
 from ..rpcscene import RpcScene
 from .engine import AdjustmentSettings, _Problem
 from .normal import GroundPrior, Linearization, groups
@@ -92,15 +91,6 @@ class RpcProblem(_Problem):
         self.scale = {}
         self.rescaled()
         self.structure()
-
-    def _set_up_ground(self, table, sel: np.ndarray) -> None:
-        from ..geodesy import enu_rotations
-        self.ground0 = geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel])
-        self.ground = self.ground0.copy()
-        self.weighted = self.settings.ground == "weighted"
-        self.enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
-        self.ground_sigma = np.stack([table.sigma_xy[sel], table.sigma_xy[sel], table.sigma_z[sel]], 1) \
-            if self.weighted else np.zeros((0, 3))
 
     def structure(self) -> None:
         free = self.params.free
