@@ -8,7 +8,10 @@ Scene JSON, version 2 — one object (version 1 files, without corrections, are 
                  "attitude": {"kind": "quaternion_samples", times, quaternions (w,x,y,z), order}
                           or {"kind": "quaternion_polynomial", offset, scale, coefficients},
                  "correction" (optional, written by an adjustment): {"position": {basis, coefficients},
-                     "attitude": {basis, coefficients}} — see core.trajectory.TrajectoryCorrection}
+                     "attitude": {basis, coefficients}} — see core.trajectory.TrajectoryCorrection,
+                 "camera_corrections" (optional, written by an adjustment with one trajectory
+                     correction per camera): {camera name: correction as above}, used by that
+                     camera instead of "correction"}
     cameras     list of {name, cols, rows, timing {t0, period} or {lines, times},
                  chips [...], focal_length, principal_point, distortion, installation}
     corrections {"aberration": bool, "refraction": bool}

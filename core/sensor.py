@@ -66,9 +66,22 @@ class SceneModel:
         return min(ts), max(ts)
 
     def prepare(self) -> None:
-        """Tabulate the trajectory over the scene's time span (done once, lazily)."""
-        if self.platform._cache is None:
+        """Tabulate the trajectory over the scene's time span (done once, lazily); a camera with
+        a trajectory correction of its own (:meth:`platform_of`) gets its own table, over its
+        own lines."""
+        own = [cam for cam in self.cameras if cam.name in self.platform.camera_corrections]
+        if self.platform._cache is None and len(own) < len(self.cameras):
             self.platform.prepare(*self.time_span())
+        for cam in own:
+            platform = self.platform.for_camera(cam.name)
+            if platform._cache is None:
+                t = cam.timing.time(np.array([0.0, cam.rows]))
+                platform.prepare(t.min() + min(cam._time_offsets), t.max() + max(cam._time_offsets))
+
+    def platform_of(self, camera: int) -> Platform:
+        """The trajectory camera ``camera`` (index) sees: the platform's, or its own correction's
+        (an adjustment with one trajectory correction per camera)."""
+        return self.platform.for_camera(self.cameras[camera].name)
 
     @property
     def height_range(self) -> tuple[float, float]:
@@ -85,7 +98,7 @@ class SceneModel:
         col, row = _as_points(col, row)
         k = cam.chip_index(col)
         t = cam.timing.time(row) + cam.time_offset(k)
-        s, v, r = self.platform.state(t)
+        s, v, r = self.platform_of(camera).state(t)
         los = cam.los_camera(col, k) @ cam.installation.T
         u = np.einsum("nij,nj->ni", r, los)
         u /= np.linalg.norm(u, axis=1, keepdims=True)
@@ -268,7 +281,7 @@ class SceneModel:
         """Normalised camera-frame coordinates (ux, uy) of ECEF points p (n,3), with local up
         vectors (n,3) and ellipsoidal heights (n,), seen at image row(s) ``row`` on chip(s) k."""
         t = cam.timing.time(row) + cam.time_offset(k)
-        s, v, r = self.platform.state(t)
+        s, v, r = self.platform.for_camera(cam.name).state(t)
         g = p - s
         if self.refraction:
             hor, cos_z = corr.horizontal_direction(g / np.linalg.norm(g, axis=1, keepdims=True), up)

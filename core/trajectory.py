@@ -221,6 +221,10 @@ class Platform:
     """Ephemeris plus attitude (plus an adjustment's correction, if any), with a dense sampled
     cache for fast repeated evaluation.
 
+    ``camera_corrections`` (camera name -> correction) are written by an adjustment with one
+    trajectory correction per camera (seed 003 Plan A): a camera listed there sees the measured
+    trajectory under its own correction instead of ``correction`` (:meth:`for_camera`).
+
     The cache tabulates position, velocity and rotation every ``cache_step`` seconds over
     [t_min, t_max] and interpolates linearly: at 1 ms steps the error is below 1e-6 m and
     1e-12 rad for orbital motion, far under any image measurement. Outside the cached
@@ -230,7 +234,19 @@ class Platform:
     attitude: object
     correction: TrajectoryCorrection | None = None
     cache_step: float = 1e-3
+    camera_corrections: dict[str, TrajectoryCorrection] = field(default_factory=dict)
     _cache: tuple | None = field(default=None, repr=False, compare=False)
+    _views: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def for_camera(self, name: str) -> "Platform":
+        """The trajectory camera ``name`` sees: this platform, or (with a correction of its own)
+        the measured trajectory under that correction, made once and kept (with its own cache)."""
+        if name not in self.camera_corrections:
+            return self
+        if name not in self._views:
+            self._views[name] = Platform(self.ephemeris, self.attitude, self.camera_corrections[name],
+                                         self.cache_step)
+        return self._views[name]
 
     def prepare(self, t_min: float, t_max: float) -> None:
         """Tabulate the trajectory over [t_min, t_max] s (with a small margin)."""
@@ -274,9 +290,13 @@ class Platform:
         d = {"ephemeris": self.ephemeris.to_dict(), "attitude": self.attitude.to_dict()}
         if self.correction is not None:
             d["correction"] = self.correction.to_dict()
+        if self.camera_corrections:
+            d["camera_corrections"] = {k: v.to_dict() for k, v in self.camera_corrections.items()}
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "Platform":
         correction = TrajectoryCorrection.from_dict(d["correction"]) if d.get("correction") else None
-        return cls(Ephemeris.from_dict(d["ephemeris"]), attitude_from_dict(d["attitude"]), correction)
+        cameras = {str(k): TrajectoryCorrection.from_dict(v) for k, v in (d.get("camera_corrections") or {}).items()}
+        return cls(Ephemeris.from_dict(d["ephemeris"]), attitude_from_dict(d["attitude"]), correction,
+                   camera_corrections=cameras)

@@ -166,7 +166,12 @@ def check_scene_dict(d, source: str, format_name: str, version: int) -> dict:
     attitude = _check_attitude(s, s.object(s.required(platform, "attitude", "platform"), "platform.attitude"))
     if platform.get("correction") is not None:
         s.object(platform["correction"], "platform.correction")
-    _check_cameras(s, s.required(d, "cameras", ""))
+    names = _check_cameras(s, s.required(d, "cameras", ""))
+    for name, correction in s.object(platform.get("camera_corrections") or {}, "platform.camera_corrections").items():
+        if name not in names:
+            s.fail(f"platform.camera_corrections.{name}",
+                   f"names no camera of this scene (cameras: {', '.join(names)})")
+        s.object(correction, f"platform.camera_corrections.{name}")
     for key, value in s.object(d.get("corrections", {}), "corrections").items():
         s.boolean(value, f"corrections.{key}")
     info = s.object(d.get("info", {}), "info")
@@ -260,7 +265,8 @@ def _check_attitude(s: _Schema, a: dict) -> dict | None:
     return None
 
 
-def _check_cameras(s: _Schema, cameras) -> None:
+def _check_cameras(s: _Schema, cameras) -> dict:
+    """Check the cameras; returns their names -> index."""
     if not isinstance(cameras, list) or not cameras:
         s.fail("cameras", f"must be a non-empty list of cameras (got {_shown(cameras)})")
     names = {}
@@ -285,6 +291,7 @@ def _check_cameras(s: _Schema, cameras) -> None:
         if "installation" in cam:
             _check_rotation(s, s.array(cam["installation"], f"{path}.installation", (3, 3)), f"{path}.installation")
         _check_chips(s, s.required(cam, "chips", path), path, cols, focal)
+    return names
 
 
 def _check_timing(s: _Schema, timing: dict, path: str) -> None:
@@ -407,7 +414,7 @@ def _check_views(scene, source: str) -> None:
         col = np.array([0.0, cam.cols, 0.0, cam.cols, cam.cols / 2])
         row = np.array([0.0, 0.0, cam.rows, cam.rows, cam.rows / 2])
         # from the exact trajectory: preparing the scene's cache here would outlive later edits of the model
-        s, _, r = scene.platform.state(cam.timing.time(row) + cam.time_offset(cam.chip_index(col)))
+        s, _, r = scene.platform_of(i).state(cam.timing.time(row) + cam.time_offset(cam.chip_index(col)))
         u = np.einsum("nij,nj->ni", r, cam.los_camera(col) @ cam.installation.T)
         dist = ray_height_intersection(s, u / np.linalg.norm(u, axis=1, keepdims=True), 0.0, newton_steps=0)
         missed = ~np.isfinite(dist)

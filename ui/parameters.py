@@ -33,6 +33,7 @@ POSITION_MODEL, ATTITUDE_MODEL = "POSITION_MODEL", "ATTITUDE_MODEL"
 GROUND, ROBUST, ON_SINGULAR, RESAMPLING, PRESET = "GROUND", "ROBUST", "ON_SINGULAR", "RESAMPLING", "PRESET"
 OUTPUT_SCENE = "OUTPUT_SCENE"
 RPC_CORRECTION = "RPC_CORRECTION"
+CAMERA_TRAJECTORY = "CAMERA_TRAJECTORY"
 
 # Value names of the enumerations, in the order the drop-down lists show them; they are the
 # core's own names (core.dem datums, core.gcps.Heights.source, core.timebasis.KINDS, ...).
@@ -178,6 +179,19 @@ def rpc_correction() -> QgsProcessingParameterEnum:
          "affine": tr("an affine correction of columns and rows (6 parameters)")}, "drift",
         tr("For a SCENE given by its RPC only: the bias compensation adjusted to the GCPs (Grodecki & Dial "
            "2003); ignored for rigorous scenes."))
+
+
+def camera_trajectory() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        CAMERA_TRAJECTORY, tr("Trajectory correction of several cameras"),
+        {"shared": tr("one correction for all cameras of the platform; free the installation angles of all "
+                      "but the reference camera in INTERIOR to let each camera's mounting differ (Zhang et al. "
+                      "2024, Plans B-D by the attitude order 0, 1, 2)"),
+         "per_camera": tr("a correction of its own for each camera, each with the onboard pseudo-observations "
+                          "(Zhang et al. 2024, Plan A; installation angles are then absorbed and must stay "
+                          "fixed)")}, "shared",
+        tr("How the position and attitude corrections are shared among the cameras of a multi-camera scene "
+           "(three-line cameras). A single-camera scene has one correction either way."))
 
 
 def on_singular() -> QgsProcessingParameterEnum:

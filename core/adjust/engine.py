@@ -35,6 +35,7 @@ from .robust import (COMPONENT_TOLERANCE, breakdown, component_report, component
 log = logging.getLogger(__name__)
 
 ROBUST = ("none", "selection", "snooping")
+CAMERA_TRAJECTORY = ("shared", "per_camera")
 SINGULAR = 1e-11           # trajectory: smallest / largest eigenvalue of the correlation-scaled matrix
 STEP_TOLERANCE = 1e-3     # px: a step changing no image residual more than this is converged
 SIGMA_TOLERANCE = 1e-3    # a step below this share of every parameter's a-priori sigma is converged
@@ -52,6 +53,9 @@ class AdjustmentSettings:
     images every *_interval s) or 'spline' (piecewise quadratics every *_interval s).
     position_sigma (m) / attitude_sigma (rad): accuracy of the onboard GPS / star trackers,
     pseudo-observations of the corrections at the knots; None: no pseudo-observations.
+    camera_trajectory: 'shared' (one trajectory correction for all cameras; with installation
+    angles free in ``interior`` this is seed 003's Plans B-D, by the attitude order 0/1/2) or
+    'per_camera' (one correction per camera, each with its own pseudo-observations: Plan A).
     interior: free/weighted interior and installation parameters (see
     :func:`core.adjust.parameters.parse_interior`). ground: 'weighted' (GCP sigmas) or 'fixed'.
     robust: 'none', 'selection' or 'snooping'; alpha: significance of the outlier test.
@@ -69,6 +73,7 @@ class AdjustmentSettings:
     attitude_interval: float = 20.0
     position_sigma: float | None = 100.0
     attitude_sigma: float | None = None
+    camera_trajectory: str = "shared"
     interior: str = ""
     ground: str = "weighted"
     robust: str = "selection"
@@ -84,6 +89,9 @@ class AdjustmentSettings:
             raise InputError(f"ground must be 'weighted' or 'fixed' (got {self.ground!r})")
         if self.robust not in ROBUST:
             raise InputError(f"robust method must be one of {', '.join(ROBUST)} (got {self.robust!r})")
+        if self.camera_trajectory not in CAMERA_TRAJECTORY:
+            raise InputError(f"camera trajectory must be one of {', '.join(CAMERA_TRAJECTORY)} "
+                             f"(got {self.camera_trajectory!r})")
         if self.on_singular not in ("fix", "stop"):
             raise InputError(f"on_singular must be 'fix' or 'stop' (got {self.on_singular!r})")
         if not 0 < self.alpha < 0.5:
@@ -118,7 +126,7 @@ class _Problem:
             scene,
             TimeBasis.covering(settings.position_model, t_min, t_max, settings.position_order, settings.position_interval),
             TimeBasis.covering(settings.attitude_model, t_min, t_max, settings.attitude_order, settings.attitude_interval),
-            settings.interior)
+            settings.interior, per_camera=settings.camera_trajectory == "per_camera")
         _start_from_existing_correction(scene, self.params)
         control = np.nonzero(table.role == "control")[0]
         ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
@@ -251,10 +259,11 @@ class _Problem:
             times = basis.knot_times() if basis.kind != "polynomial" else \
                 basis.t0 + basis.scale * np.linspace(-1.0, 1.0, basis.size)
             B = basis.matrix(times)  # (k, m)
-            idx = self.params.block_indices(block)
+            idx = self.params.block_indices(block).reshape(-1, basis.size, 3)  # per trajectory (camera)
             group = f"{block} pseudo-observations"
-            for a in range(3):
-                out.append(_Pseudo(group, idx[:, a], B, 1.0 / (sigma * self.scale.get(group, 1.0)) ** 2))
+            for rows in idx:
+                for a in range(3):
+                    out.append(_Pseudo(group, rows[:, a], B, 1.0 / (sigma * self.scale.get(group, 1.0)) ** 2))
         weighted = [i for i, p in enumerate(self.params.params) if p.mode == "weighted"]
         if weighted:
             group = "interior pseudo-observations"
@@ -295,17 +304,32 @@ class _Pseudo:
 
 
 def _start_from_existing_correction(scene: SceneModel, params: ParameterSet) -> None:
-    """Re-adjusting an adjusted scene starts from its correction when the models agree."""
-    corr = scene.platform.correction
-    if corr is None:
+    """Re-adjusting an adjusted scene starts from its correction(s) when the models agree: a
+    shared correction starts every camera's of a per-camera run; corrections per camera
+    cannot start a shared one."""
+    platform = scene.platform
+    own = [cam.name for cam in scene.cameras if cam.name in platform.camera_corrections]
+    if own and not params.per_camera:
+        raise InputError(f"the scene was adjusted with a trajectory correction per camera ({', '.join(own)}); "
+                         "adjust it again with one correction per camera, or adjust the original (onboard) scene")
+    starts = [platform.for_camera(cam.name).correction for cam in scene.cameras] if params.per_camera else \
+        [platform.correction]
+    if all(corr is None for corr in starts):
         return
-    if corr.position.to_dict() != params.position_basis.to_dict() or \
-            corr.attitude.to_dict() != params.attitude_basis.to_dict():
-        raise InputError("the scene was adjusted with another trajectory model; adjust the original (onboard) "
-                         "scene, or choose the same model and interval")
+    position, attitude = params.block_values("position"), params.block_values("attitude")
+    m_p, m_a = params.position_basis.size, params.attitude_basis.size
+    for k, corr in enumerate(starts):
+        if corr is None:
+            continue
+        if corr.position.to_dict() != params.position_basis.to_dict() or \
+                corr.attitude.to_dict() != params.attitude_basis.to_dict():
+            raise InputError("the scene was adjusted with another trajectory model; adjust the original (onboard) "
+                             "scene, or choose the same model and interval")
+        position[k * m_p:(k + 1) * m_p] = corr.position_coefficients
+        attitude[k * m_a:(k + 1) * m_a] = corr.attitude_coefficients
     values = params.values()
-    values[params.block_indices("position")] = corr.position_coefficients
-    values[params.block_indices("attitude")] = corr.attitude_coefficients
+    values[params.block_indices("position")] = position
+    values[params.block_indices("attitude")] = attitude
     params.set_values(values)
 
 
@@ -875,11 +899,21 @@ def _residual_summary(v: np.ndarray) -> dict:
 
 
 def _trajectory_curves(problem: _Problem, samples: int = 200) -> dict:
-    """Corrections against time, for plots: position (m, ECEF) and attitude (rad)."""
+    """Corrections against time, for plots: position (m, ECEF) and attitude (rad); with one
+    correction per camera, the reference (first) camera's there and every camera's in
+    ``per_camera`` (camera name -> {position, attitude})."""
     t_min, t_max = problem.scene.time_span()
     t = np.linspace(t_min, t_max, samples)
-    pb, ab = problem.params.position_basis, problem.params.attitude_basis
-    return {"time": t.tolist(),
-            "position": (pb.matrix(t) @ problem.params.block_values("position")).tolist(),
-            "attitude": (ab.matrix(t) @ problem.params.block_values("attitude")).tolist(),
-            "position_knots": pb.knot_times().tolist(), "attitude_knots": ab.knot_times().tolist()}
+    params = problem.params
+    pb, ab = params.position_basis, params.attitude_basis
+
+    def curves(camera: int) -> dict:
+        corr = params.trajectory_correction(camera)
+        return {"position": (pb.matrix(t) @ corr.position_coefficients).tolist(),
+                "attitude": (ab.matrix(t) @ corr.attitude_coefficients).tolist()}
+
+    out = {"time": t.tolist(), **curves(0), "position_knots": pb.knot_times().tolist(),
+           "attitude_knots": ab.knot_times().tolist()}
+    if params.per_camera:
+        out["per_camera"] = {cam.name: curves(c) for c, cam in enumerate(problem.scene.cameras)}
+    return out

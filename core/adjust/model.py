@@ -35,7 +35,8 @@ from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 class ImageObservations:
     """Fixed data of n image observations: camera, chip, point (index of the ground point),
     d (detector index on the chip), t (s), the measured platform state pos, vel (n,3) and
-    rot (n,3,3), the trajectory basis windows (first (n,), weights (n, w)), T (n,2,2),
+    rot (n,3,3), the trajectory basis windows (first (n,) row of the position / attitude block, offset by
+    camera with one correction per camera; weights (n, w)), T (n,2,2),
     sigma (n,) px and the measured col, row (n,) px."""
     camera: np.ndarray
     chip: np.ndarray
@@ -68,8 +69,8 @@ class ImageObservations:
         measured = Platform(platform.ephemeris, platform.attitude, cache_step=platform.cache_step)
         measured.prepare(float(t.min()), float(t.max()))
         out.pos, out.vel, out.rot = measured.state(t)
-        out.pos_first, out.pos_weights = params.position_basis.window(t)
-        out.att_first, out.att_weights = params.attitude_basis.window(t)
+        out.pos_first, out.pos_weights = params.window("position", t, self.camera)
+        out.att_first, out.att_weights = params.window("attitude", t, self.camera)
         return out
 
 

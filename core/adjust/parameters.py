@@ -11,6 +11,10 @@ Blocks (values are corrections to the input scene, SI units):
 - ``camera``: per focal-plane camera the 10 terms of seed 001 eq. 7: ``f`` (its df, m),
   ``dxp, dyp`` (m), ``k1`` (1/m^2), ``k2`` (1/m^4), ``p1, p2`` (1/m), ``b1, b2, b3``.
 
+With one trajectory correction per camera (seed 003 Plan A) the position and attitude blocks
+hold one (m, 3) set per camera, camera after camera ((n_cam * m, 3) in all), named
+``<camera>.position.X.bias``; an observation's basis window then starts at ``camera * m``.
+
 Names: ``position.X.bias``, ``attitude.pitch.OI3 t=12.0s``, ``<camera>.roll``,
 ``<chip>.dx``, ``<camera>.k1``. Trajectory coefficients are always free (onboard GPS and
 star-tracker values enter as pseudo-observations); every other parameter is fixed unless
@@ -81,19 +85,24 @@ def parse_interior(spec: str | list | None) -> list[tuple[str, float | None]]:
 
 
 class ParameterSet:
-    """All unknowns of an adjustment of one scene, with the trajectory bases."""
+    """All unknowns of an adjustment of one scene, with the trajectory bases; ``per_camera``:
+    one trajectory correction per camera (a single-camera scene has one either way)."""
 
-    def __init__(self, scene: SceneModel, position: TimeBasis, attitude: TimeBasis, interior=None):
+    def __init__(self, scene: SceneModel, position: TimeBasis, attitude: TimeBasis, interior=None,
+                 per_camera: bool = False):
         self.scene = scene
         self.position_basis = position
         self.attitude_basis = attitude
+        self.per_camera = per_camera and len(scene.cameras) > 1
         self.params: list[Parameter] = []
-        for k, label in enumerate(position.labels()):
-            for a, axis in enumerate(AXES):
-                self.params.append(Parameter(f"position.{axis}.{label}", "position", mode="free", unit="m"))
-        for k, label in enumerate(attitude.labels()):
-            for a, angle in enumerate(ANGLES):
-                self.params.append(Parameter(f"attitude.{angle}.{label}", "attitude", mode="free", unit="rad"))
+        owners = list(enumerate(scene.cameras)) if self.per_camera else [(-1, None)]
+        for block, basis, terms, unit in (("position", position, AXES, "m"), ("attitude", attitude, ANGLES, "rad")):
+            for c, cam in owners:
+                prefix = f"{cam.name}." if cam is not None else ""
+                for label in basis.labels():
+                    for term in terms:
+                        self.params.append(Parameter(f"{prefix}{block}.{term}.{label}", block, mode="free", unit=unit,
+                                                     camera=c, term=term))
         for c, cam in enumerate(scene.cameras):
             for term in ANGLES:
                 self.params.append(Parameter(f"{cam.name}.{term}", "installation", unit="rad", camera=c, term=term))
@@ -148,6 +157,21 @@ class ParameterSet:
         """(m, 3) parameter indices of the position or attitude block."""
         return np.array([i for i, p in enumerate(self.params) if p.block == block], dtype=np.int64).reshape(-1, 3)
 
+    def window(self, block: str, t: np.ndarray, camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(first (n,), weights (n, w)): the rows of the position or attitude block that times t
+        (n,) s of observations in cameras ``camera`` (n,) use, and their basis weights."""
+        basis = self.position_basis if block == "position" else self.attitude_basis
+        first, weights = basis.window(t)
+        return (first + camera * basis.size if self.per_camera else first), weights
+
+    def trajectory_correction(self, camera: int = 0) -> TrajectoryCorrection:
+        """The current trajectory correction (of camera ``camera`` when there is one per camera)."""
+        rows = [slice(None), slice(None)]
+        if self.per_camera:
+            rows = [slice(camera * b.size, (camera + 1) * b.size) for b in (self.position_basis, self.attitude_basis)]
+        return TrajectoryCorrection(self.position_basis, self.block_values("position")[rows[0]],
+                                    self.attitude_basis, self.block_values("attitude")[rows[1]])
+
     def camera_indices(self, camera: int, block: str, terms) -> np.ndarray:
         """Parameter indices (len(terms),) of a camera's installation or camera terms (-1: none)."""
         return np.array([self.index.get(f"{self.scene.cameras[camera].name}.{t}", -1) for t in terms]
@@ -163,12 +187,15 @@ class ParameterSet:
     # --- the adjusted scene ------------------------------------------------------------------
     def adjusted_scene(self) -> SceneModel:
         """A copy of the input scene with the current corrections baked in: the trajectory
-        correction on the platform, chip/camera terms and installation in the cameras."""
+        correction on the platform (or one per camera among its camera corrections), chip/camera
+        terms and installation in the cameras."""
         s = self.scene
-        platform = Platform(s.platform.ephemeris, s.platform.attitude,
-                            TrajectoryCorrection(self.position_basis, self.block_values("position"),
-                                                 self.attitude_basis, self.block_values("attitude")),
-                            s.platform.cache_step)
+        if self.per_camera:
+            platform = Platform(s.platform.ephemeris, s.platform.attitude, None, s.platform.cache_step,
+                                {cam.name: self.trajectory_correction(c) for c, cam in enumerate(s.cameras)})
+        else:
+            platform = Platform(s.platform.ephemeris, s.platform.attitude, self.trajectory_correction(),
+                                s.platform.cache_step)
         cameras = []
         for c, cam in enumerate(s.cameras):
             v = {p.term: p.value for p in self.params if p.camera == c and p.block in ("installation", "camera")}

@@ -212,7 +212,7 @@ def test_qgis_process_help_lists_the_value_names(provider, qgis_process):
             for k, value in enumerate(d.options()):
                 assert f"- {k}: {value}\n" in section and f"<b>{value}</b>: " in section, (alg.id(), value)
             checked += 1
-    assert checked == 19  # every enumeration of every algorithm (DEM_DATUM in seven of them)
+    assert checked == 20  # every enumeration of every algorithm (DEM_DATUM in seven of them)
 
 
 def test_the_readme_demo_and_models_use_value_names():

@@ -25,9 +25,9 @@ from ...core.scene_io import save_scene
 from ...core.timebasis import TimeBasis
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, check_cancelled, check_outputs,
                       core_call, feedback_callbacks, load_scene_for, processing_errors, style_output_on_load)
-from ..parameters import (ATTITUDE_MODEL, GROUND, ON_SINGULAR, POSITION_MODEL, ROBUST, RPC_CORRECTION, enum_value,
-                          ground_mode, on_singular, output_scene, robust_method, rpc_correction, tr,
-                          trajectory_model)
+from ..parameters import (ATTITUDE_MODEL, CAMERA_TRAJECTORY, GROUND, ON_SINGULAR, POSITION_MODEL, ROBUST,
+                          RPC_CORRECTION, camera_trajectory, enum_value, ground_mode, on_singular, output_scene,
+                          robust_method, rpc_correction, tr, trajectory_model)
 
 ARCSEC = math.pi / 648000.0
 
@@ -48,7 +48,14 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             "GCP layer with the adjusted residuals and flags, and ground residual vectors. A SCENE given by its RPC "
             "only (an image with RPC metadata, _RPC.TXT, .RPB, DIMAP RPC_*.XML) is adjusted by an image-space "
             "correction instead (RPC_CORRECTION, Grodecki & Dial 2003), with the same statistics and outputs, "
-            "and can be written as a refined RPC (OUTPUT_RPC).")
+            "and can be written as a refined RPC (OUTPUT_RPC). "
+            "Three-line cameras (Zhang et al. 2024): Plan A, a trajectory correction per camera, is "
+            "CAMERA_TRAJECTORY=per_camera with ATTITUDE_ORDER=1 and no installation angles in INTERIOR; Plans B, C "
+            "and D, one attitude correction shared by all cameras plus the installation angles of the others "
+            "against the reference (nadir) camera, are CAMERA_TRAJECTORY=shared, INTERIOR='FWD.roll, FWD.pitch, "
+            "FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw' (the scene's camera names) and ATTITUDE_ORDER=0, 1 or 2. "
+            "The onboard attitude sigma (ATTITUDE_SIGMA) keeps Plan D's quadratic term from trading off "
+            "against the installation angles when the control is sparse.")
     GCPS = "GCPS"
     POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
         POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
@@ -61,6 +68,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         "OUTPUT_SCENE", "OUTPUT_REPORT", "OUTPUT_GCPS", "OUTPUT_RESIDUALS"
     OUTPUT_REPORT_JSON = "OUTPUT_REPORT_JSON"
     RPC_CORRECTION, OUTPUT_RPC = RPC_CORRECTION, "OUTPUT_RPC"
+    CAMERA_TRAJECTORY = CAMERA_TRAJECTORY
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
@@ -104,6 +112,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                   "HRC-3.*' (shifts and rotations of the left and right CCDs against the middle one); 'HRC-1.*, HRC-3.*, "
                   "HRC.f=1e-5' also estimates the focal length, weighted with 10 µm. Sets the GCPs cannot separate "
                   "from the trajectory are reported (see ON_SINGULAR). Empty: none (trajectory only)."))
+        self.addParameter(camera_trajectory())
         self.addParameter(rpc_correction())
         self.addParameter(ground_mode())
         self.addParameter(robust_method())
@@ -257,6 +266,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             attitude_order=self.parameterAsInt(parameters, self.ATTITUDE_ORDER, context),
             attitude_interval=number(self.ATTITUDE_INTERVAL),
             position_sigma=position_sigma or None, attitude_sigma=attitude_sigma * ARCSEC or None,
+            camera_trajectory=enum_value(self, parameters, self.CAMERA_TRAJECTORY, context),
             interior=self.parameterAsString(parameters, self.INTERIOR, context),
             ground=enum_value(self, parameters, self.GROUND, context),
             robust=enum_value(self, parameters, self.ROBUST, context),
