@@ -218,10 +218,12 @@ def _parameter_row(p: dict, fixed_by_determinability: set) -> list[str]:
 
 
 def _trajectory_summary_rows(params: list[dict]) -> list[list[str]]:
-    """Per trajectory axis (e.g. position.X): coefficient count, largest |value| and largest sigma."""
+    """Per trajectory axis (e.g. position.X, or FWD.position.X with a correction per camera):
+    coefficient count, largest |value| and largest sigma."""
     axes: dict[str, list[dict]] = {}
     for p in params:
-        axes.setdefault(".".join(p["name"].split(".")[:2]), []).append(p)
+        parts = p["name"].split(".")
+        axes.setdefault(".".join(parts[:2] if parts[0] == p["block"] else parts[:3]), []).append(p)
     rows = []
     for axis, ps in axes.items():
         unit = _display_value(0.0, ps[0]["unit"], ps[0]["block"])[1]
@@ -391,16 +393,20 @@ def _trajectory_figure(trajectory: dict) -> str:
     """Plot (b): position corrections (m, ECEF X/Y/Z) and attitude corrections (arcsec, roll/pitch/
     yaw) against time (s), knot times (for polynomials the reference time t0) as grey lines."""
     t = np.asarray(trajectory["time"], dtype=float)
-    pos = np.asarray(trajectory["position"], dtype=float).reshape(-1, 3)
-    att = np.asarray(trajectory["attitude"], dtype=float).reshape(-1, 3) * ARCSEC_PER_RAD
+    # one set of curves, or one per camera (a trajectory correction per camera), told by line style
+    sets = trajectory.get("per_camera") or {"": trajectory}
     fig = _new_figure(10, 7)
     axes = fig.subplots(2, 1, sharex=True)
-    for ax, values, names, knots in ((axes[0], pos, ("X", "Y", "Z"), trajectory["position_knots"]),
-                                     (axes[1], att, ("roll", "pitch", "yaw"), trajectory["attitude_knots"])):
+    for ax, key, scale, names, knots in (
+            (axes[0], "position", 1.0, ("X", "Y", "Z"), trajectory["position_knots"]),
+            (axes[1], "attitude", ARCSEC_PER_RAD, ("roll", "pitch", "yaw"), trajectory["attitude_knots"])):
         for k, knot in enumerate(knots):
             ax.axvline(knot, color="#aaa", lw=0.8, ls="--", zorder=0, label="knots" if k == 0 else None)
-        for a, name in enumerate(names):
-            ax.plot(t, values[:, a], lw=1.5, label=name)
+        for c, (camera, curves) in enumerate(sets.items()):
+            values = np.asarray(curves[key], dtype=float).reshape(-1, 3) * scale
+            for a, name in enumerate(names):
+                ax.plot(t, values[:, a], lw=1.5, ls=("-", "--", ":", "-.")[c % 4], color=f"C{a}",
+                        label=f"{camera} {name}".strip())
         ax.grid(alpha=0.3)
         ax.legend(loc="best", fontsize="small", ncol=4)
     axes[0].set_ylabel("position correction (m, ECEF)")
