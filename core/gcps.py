@@ -310,11 +310,7 @@ def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpT
     source = str(path)
 
     def text(name: str | None):
-        if name is None:
-            return None
-        if name not in header:
-            raise InputError(f"{source}: no column {name!r} (columns: {', '.join(header)})")
-        return np.char.strip(cells[:, header.index(name)])
+        return None if name is None else csv_column(header, cells, name, source)
 
     ids = text(mapping.id) if mapping.id else np.arange(1, len(cells) + 1).astype(str)
 
@@ -375,6 +371,14 @@ def _read_delimited(path: Path) -> tuple[list[str], np.ndarray]:
     if delimiter != ",":
         values = np.char.replace(values, ",", ".")
     return header, values
+
+
+def csv_column(header: list[str], cells: np.ndarray, name: str, source: str) -> np.ndarray:
+    """The stripped text (n,) of column ``name`` of :func:`_read_delimited`'s cells; InputError
+    naming the file and listing its columns when there is none of that name."""
+    if name not in header:
+        raise InputError(f"{source}: no column {name!r} (columns: {', '.join(header)})")
+    return np.char.strip(cells[:, header.index(name)])
 
 
 def _numbers(values, name: str, ids, source: str) -> np.ndarray:
