@@ -206,10 +206,10 @@ def _require_finite(ids, source: str, **columns) -> None:
 
 
 def _require_unique(ids, camera, source: str) -> None:
-    keys = np.char.add(np.char.add(ids, "\x00"), camera)
+    keys = np.char.add(np.char.add(ids, "\x1f"), camera)  # numpy strings drop NUL characters
     uniq, counts = np.unique(keys, return_counts=True)
     if (counts > 1).any():
-        dup = [k.split("\x00")[0] for k in uniq[counts > 1]]
+        dup = list(dict.fromkeys(k.split("\x1f")[0] for k in uniq[counts > 1]))
         raise InputError(f"{source}: point id(s) {_listed(dup)} occur more than once for the same camera")
 
 
