@@ -5,9 +5,8 @@ import csv
 import shutil
 
 import pytest
-from qgis.core import QgsProcessingFeedback
 
-from .hostile import assert_refused, assert_refused_cli
+from .hostile import LogFeedback, assert_refused, assert_refused_cli
 
 
 def _rows(three_line):
@@ -116,21 +115,12 @@ def test_camera_the_scene_lacks_through_qgis_process(three_line, qgis_process, t
                         "OUTPUT": tmp_path / "o.gpkg"}, "camera 'PAN'", watch=[tmp_path])
 
 
-class _Log(QgsProcessingFeedback):
-    def __init__(self):
-        super().__init__()
-        self.warnings = []
-
-    def pushWarning(self, warning):  # noqa: N802 (QGIS API name)
-        self.warnings.append(warning)
-
-
 def test_a_point_seen_in_one_camera_is_kept_with_a_warning(three_line, tmp_path):
     """Legitimate input (the other cameras' measurements failed): imported, named, not intersected."""
     rows = [r for r in _rows(three_line) if not (r["id"] == "T2" and r["camera"] != "NAD")]
     source = _csv(tmp_path / "ties.csv", rows)
     import processing
-    log = _Log()
+    log = LogFeedback()
     out = processing.run("pushbroom:importtiepoints", {"SCENE": three_line["ONBOARD_SCENE"],
                                                        "INPUT_FILE": str(source), "CAMERA_FIELD": "camera",
                                                        "OUTPUT": str(tmp_path / "o.gpkg")}, feedback=log)["OUTPUT"]

@@ -5,10 +5,11 @@ import importlib
 
 import numpy as np
 import pytest
-from qgis.core import (QgsFeature, QgsField, QgsProcessingFeedback, QgsRenderContext, QgsVectorLayer)
+from qgis.core import (QgsFeature, QgsField, QgsRenderContext, QgsVectorLayer)
 from qgis.PyQt.QtCore import QVariant
 
 from .conftest import PLUGIN
+from .hostile import LogFeedback
 
 FIELDS = ["id", "camera", "col", "row", "sigma_px", "scene", "rays", "res_col", "res_row", "res_px"]
 
@@ -18,18 +19,6 @@ def tiepoints(plugin):
     return importlib.import_module(f"{PLUGIN}.core.tiepoints")
 
 
-class _Log(QgsProcessingFeedback):
-    def __init__(self):
-        super().__init__()
-        self.lines = []
-
-    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.lines.append(info)
-
-    def pushWarning(self, warning):  # noqa: N802
-        self.lines.append(warning)
-
-
 def _run(params, feedback=None):
     import processing
     return processing.run("pushbroom:importtiepoints", params, feedback=feedback)
@@ -37,7 +26,7 @@ def _run(params, feedback=None):
 
 def test_the_simulators_tie_points_import_as_they_are(three_line, tiepoints, tmp_path):
     rows = list(csv.DictReader(open(three_line["TIE_POINTS"])))
-    log = _Log()
+    log = LogFeedback()
     out = _run({"SCENE": three_line["ONBOARD_SCENE"], "INPUT_FILE": three_line["TIE_POINTS"],
                 "CAMERA_FIELD": "camera", "SIGMA_PX": 0.3, "OUTPUT": str(tmp_path / "ties.gpkg")}, log)["OUTPUT"]
     layer = QgsVectorLayer(out, "ties", "ogr")
