@@ -206,10 +206,10 @@ def _require_finite(ids, source: str, **columns) -> None:
 
 
 def _require_unique(ids, camera, source: str) -> None:
-    keys = np.char.add(np.char.add(ids, "\x00"), camera)
+    keys = np.char.add(np.char.add(ids, "\x1f"), camera)  # numpy strings drop NUL characters
     uniq, counts = np.unique(keys, return_counts=True)
     if (counts > 1).any():
-        dup = [k.split("\x00")[0] for k in uniq[counts > 1]]
+        dup = list(dict.fromkeys(k.split("\x1f")[0] for k in uniq[counts > 1]))
         raise InputError(f"{source}: point id(s) {_listed(dup)} occur more than once for the same camera")
 
 
@@ -310,11 +310,7 @@ def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpT
     source = str(path)
 
     def text(name: str | None):
-        if name is None:
-            return None
-        if name not in header:
-            raise InputError(f"{source}: no column {name!r} (columns: {', '.join(header)})")
-        return np.char.strip(cells[:, header.index(name)])
+        return None if name is None else csv_column(header, cells, name, source)
 
     ids = text(mapping.id) if mapping.id else np.arange(1, len(cells) + 1).astype(str)
 
@@ -375,6 +371,14 @@ def _read_delimited(path: Path) -> tuple[list[str], np.ndarray]:
     if delimiter != ",":
         values = np.char.replace(values, ",", ".")
     return header, values
+
+
+def csv_column(header: list[str], cells: np.ndarray, name: str, source: str) -> np.ndarray:
+    """The stripped text (n,) of column ``name`` of :func:`_read_delimited`'s cells; InputError
+    naming the file and listing its columns when there is none of that name."""
+    if name not in header:
+        raise InputError(f"{source}: no column {name!r} (columns: {', '.join(header)})")
+    return np.char.strip(cells[:, header.index(name)])
 
 
 def _numbers(values, name: str, ids, source: str) -> np.ndarray:

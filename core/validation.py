@@ -462,6 +462,28 @@ def implausible_image_coordinates(col, row) -> np.ndarray:
         return ~((np.abs(col) <= MAX_IMAGE_COORDINATE) & (np.abs(row) <= MAX_IMAGE_COORDINATE))
 
 
+# Points must reach beyond this share of the image in one direction at least (below it in both
+# they sit in one corner), and their second principal spread must exceed this share of the first
+# (below it they lie on a line). The adjustment's control-point check uses the same rule.
+MIN_IMAGE_SPAN = 0.1
+MIN_SPREAD_RATIO = 0.01
+
+
+def spread_problem(x, y, what: str) -> str | None:
+    """Why points at image fractions x, y ((n,) 0..1: col / cols, row / rows) cannot hold an
+    image's geometry, or None: all in one corner (span below MIN_IMAGE_SPAN across and along),
+    or on a line. ``what`` names the points in the message ('the tie points')."""
+    xy = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=1)
+    span = xy.max(axis=0) - xy.min(axis=0)
+    if span[0] < MIN_IMAGE_SPAN and span[1] < MIN_IMAGE_SPAN:
+        return (f"{what} cover only {100 * span[0]:.0f}% x {100 * span[1]:.0f}% of the image (one corner); "
+                "spread them over the scene")
+    singular = np.linalg.svd(xy - xy.mean(axis=0), compute_uv=False)
+    if singular[1] < MIN_SPREAD_RATIO * singular[0]:
+        return f"{what} lie on a line; the scene's rotation about it cannot be determined. Add points off that line."
+    return None
+
+
 def check_nodata(value: float, dtype) -> None:
     """A nodata value must be representable in the output data type ``dtype`` (numpy): a whole
     number in its range for integer types; NaN or a number in range for floating-point ones."""

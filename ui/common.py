@@ -5,6 +5,7 @@ The core knows nothing of QGIS; everything that adapts one to the other lives he
 """
 from __future__ import annotations
 
+import logging
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
@@ -12,7 +13,7 @@ from typing import Callable
 import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
-from qgis.core import (QgsCoordinateReferenceSystem, QgsDataSourceUri, QgsFeatureSink, QgsMapLayer,
+from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsDataSourceUri, QgsFeatureSink, QgsMapLayer,
                        QgsProcessingAlgorithm, QgsProcessingException, QgsProcessingOutputLayerDefinition,
                        QgsProcessingParameterDefinition, QgsProcessingParameterFileDestination, QgsProcessingUtils,
                        QgsProcessingLayerPostProcessorInterface, QgsProcessingParameterEnum,
@@ -216,6 +217,59 @@ def nonfinite_message(parameter_name: str, what: str, ids, bad) -> str:
     """Message naming (some of) the features whose values are NaN, missing or infinite."""
     first = ", ".join(str(i) for i in np.asarray(ids)[bad][:5])
     return f"{parameter_name}: {int(np.sum(bad))} features have missing or non-finite {what} (feature ids {first}...)"
+
+
+def field_values(alg, parameters, context, source, features) -> Callable[[str, bool], list | None]:
+    """column(param, required): the values of ``features`` in the field of ``source`` that string
+    parameter ``param`` names; None when the parameter is empty and not required. Errors name
+    the parameter (and list the layer's fields)."""
+    names = source.fields().names()
+
+    def column(param: str, required: bool):
+        name = alg.parameterAsString(parameters, param, context).strip()
+        if not name:
+            if required:
+                raise QgsProcessingException(f"{param}: name the field of the layer that holds it")
+            return None
+        if name not in names:
+            raise QgsProcessingException(f"{param}: the layer has no field {name!r} (fields: {', '.join(names)})")
+        return [f[name] for f in features]
+
+    return column
+
+
+def attribute_floats(values) -> np.ndarray:
+    """Attribute values as floats; NULL and non-numeric text become NaN (reported with ids by the core)."""
+    def number(v):
+        try:
+            return float(v)
+        except (TypeError, ValueError):
+            return np.nan
+    return np.array([number(v) for v in values], dtype=float)
+
+
+def attribute_texts(values):
+    """Attribute values as stripped strings (NULL -> ''); None (no field) stays None."""
+    return None if values is None else ["" if v is None or v == NULL else str(v).strip() for v in values]
+
+
+@contextmanager
+def core_log_to(feedback, logger_name: str):
+    """Show a core module's log messages (warnings about the input) in the Processing log."""
+    class _ToFeedback(logging.Handler):
+        def emit(self, record):
+            (feedback.pushWarning if record.levelno >= logging.WARNING else feedback.pushInfo)(record.getMessage())
+
+    logger = logging.getLogger(logger_name)
+    handler = _ToFeedback(logging.INFO)
+    logger.addHandler(handler)
+    previous = logger.level
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(previous)
 
 
 # --- feedback -----------------------------------------------------------------------------

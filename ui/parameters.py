@@ -20,6 +20,7 @@ from qgis.core import (QgsProcessingException, QgsProcessingParameterEnum, QgsPr
                        QgsProperty)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
+from ..core.gcps import DEFAULT_SIGMA_PX
 from ..core.ortho import RESAMPLING as CORE_RESAMPLING
 from ..core.simulator import PRESETS
 from ..core.timebasis import KINDS
@@ -276,4 +277,45 @@ def image_field(name: str) -> QgsProcessingParameterString:
     parameter.setHelp(tr("Name of the field (CSV column) holding the image {axis} in pixels, GDAL convention "
                          "(0 = {edge} edge of the image). Default: '{default}'.").format(axis=axis, edge=edge,
                                                                                          default=default))
+    return parameter
+
+
+ID_FIELD, CAMERA_FIELD, SIGMA_PX = "ID_FIELD", "CAMERA_FIELD", "SIGMA_PX"
+SIGMA_FIELDS = {"sigma_px": "SIGMA_PX_FIELD", "sigma_xy": "SIGMA_XY_FIELD", "sigma_z": "SIGMA_Z_FIELD"}
+
+
+def id_field() -> QgsProcessingParameterString:
+    """ID_FIELD of the point imports: rows with one id are one ground point."""
+    parameter = QgsProcessingParameterString(ID_FIELD, tr("Point id field"), optional=True, defaultValue="id")
+    parameter.setHelp(tr("Point id; rows with the same id are one ground point seen in several cameras. Empty: "
+                         "the line number (CSV) or feature id (layer), every row a point of its own."))
+    return parameter
+
+
+def camera_field() -> QgsProcessingParameterString:
+    """CAMERA_FIELD of the point imports."""
+    parameter = QgsProcessingParameterString(CAMERA_FIELD, tr("Camera field"), optional=True, defaultValue="")
+    parameter.setHelp(tr("Camera name (or 0-based index) of each row, for scenes with several cameras (e.g. "
+                         "CAMERA_FIELD=camera). Empty: the scene's only camera. A CAMERA parameter, where the "
+                         "algorithm has one, overrides it."))
+    return parameter
+
+
+def sigma_px() -> QgsProcessingParameterNumber:
+    """SIGMA_PX: the image measurement sigma of imported points."""
+    parameter = QgsProcessingParameterNumber(SIGMA_PX, tr("Image measurement sigma (px)"),
+                                             QgsProcessingParameterNumber.Double, DEFAULT_SIGMA_PX, minValue=0.0)
+    parameter.setHelp(tr("A-priori standard deviation of the measured col/row, in pixels."))
+    return parameter
+
+
+def sigma_field(key: str) -> QgsProcessingParameterString:
+    """SIGMA_PX_FIELD, SIGMA_XY_FIELD or SIGMA_Z_FIELD (``key`` sigma_px, sigma_xy, sigma_z): per-point sigmas."""
+    what, unit = {"sigma_px": ("image measurement sigma", "px"), "sigma_xy": ("ground planimetric sigma", "m"),
+                  "sigma_z": ("ground height sigma", "m")}[key]
+    parameter = QgsProcessingParameterString(SIGMA_FIELDS[key], tr("Per-point {} field ({})").format(what, unit),
+                                             optional=True, defaultValue="")
+    parameter.setHelp(tr("Field (CSV column or layer field) holding each point's {0} in {1}, so that surveyed "
+                         "and map-digitised points can be mixed; an empty cell takes {2}. Values must be > 0. "
+                         "Empty: every point takes {2}.").format(what, unit, key.replace("sigma_", "SIGMA_").upper()))
     return parameter

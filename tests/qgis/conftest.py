@@ -79,3 +79,14 @@ def qgis_process(plugin_path, tmp_path_factory):
     enabled = run("plugins", "enable", PLUGIN)
     assert enabled.returncode == 0, enabled.stdout + enabled.stderr
     return run
+
+
+@pytest.fixture(scope="session")
+def three_line(provider, tmp_path_factory) -> dict:
+    """A small simulated TH-1 three-line scene with 40 tie points (tie_points.csv), made once
+    through pushbroom:simulatescene; its results (ONBOARD_SCENE, TRUE_SCENE, TIE_POINTS, ...)."""
+    import processing
+    out = tmp_path_factory.mktemp("th1")
+    return processing.run("pushbroom:simulatescene", {"PRESET": "th1_tlc", "SEED": 3, "N_SCENES": 1, "N_GCPS": 10,
+                                                      "N_TIE_POINTS": 40, "IMAGE_NOISE": 0.3, "RENDER": False,
+                                                      "OUTPUT_FOLDER": str(out)})

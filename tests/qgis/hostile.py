@@ -65,3 +65,18 @@ def assert_refused_cli(qgis_process, alg_id: str, params: dict, *contains: str, 
         assert t.lower() in text.lower(), f"{t!r} not in the output: {text}"
     assert_unchanged(before, watch)
     return text
+
+
+class LogFeedback(QgsProcessingFeedback):
+    """Feedback that keeps the algorithm's log: ``lines`` (info and warnings, in order), ``warnings``."""
+
+    def __init__(self):
+        super().__init__()
+        self.lines, self.warnings = [], []
+
+    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
+        self.lines.append(info)
+
+    def pushWarning(self, warning):  # noqa: N802
+        self.lines.append(warning)
+        self.warnings.append(warning)

@@ -17,8 +17,9 @@ from qgis.core import (QgsProcessingContext, QgsProcessingModelAlgorithm, QgsPro
 from .conftest import PLUGIN, REPO
 
 # QGIS's convention (native:buffer, gdal:warpreproject): the algorithm's main input and output,
-# whose type is the algorithm's own (a raster for orthorectify, a point layer for groundtoimage).
-GENERIC = {"INPUT", "OUTPUT"}
+# whose type is the algorithm's own (a raster for orthorectify, a point layer for groundtoimage);
+# INPUT_FILE is the main input given as a file (GCPs: CSV or .points; tie points: CSV).
+GENERIC = {"INPUT", "INPUT_FILE", "OUTPUT"}
 VALUE_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 # What must agree between a model's input and the algorithm parameter of the same name; a
 # shipped model is a worked example with its own defaults and explanations (N_GCPS 2000).
@@ -77,7 +78,7 @@ def vocabulary_problems(algorithms) -> list[str]:
 
 def test_the_provider_speaks_one_vocabulary(provider):
     algorithms = provider.algorithms()
-    assert len(algorithms) == 10  # 9 algorithms and the shipped model
+    assert len(algorithms) == 11  # 10 algorithms and the shipped model
     assert vocabulary_problems(algorithms) == []
 
 
@@ -87,10 +88,12 @@ def test_shared_concepts_are_shared(provider):
     for alg in provider.algorithms():
         for definition in alg.parameterDefinitions():
             counts[definition.name()] = counts.get(definition.name(), 0) + 1
-    assert counts["DEM_DATUM"] == 7 and counts["HEIGHT"] == 7 and counts["SCENE"] == 8
+    assert counts["DEM_DATUM"] == 7 and counts["HEIGHT"] == 7 and counts["SCENE"] == 9
     assert counts["Z_DATUM"] == 2 and counts["CAMERA"] == 6 and counts["CHECK_FRACTION"] == 2
     assert counts["RESAMPLING"] == 2 and counts["OUTPUT_SCENE"] == 2
-    assert counts["COL_FIELD"] == 2 and counts["ROW_FIELD"] == 2
+    assert counts["COL_FIELD"] == 3 and counts["ROW_FIELD"] == 3
+    assert counts["ID_FIELD"] == 2 and counts["CAMERA_FIELD"] == 2 and counts["SIGMA_PX"] == 2
+    assert counts["SIGMA_PX_FIELD"] == 2
 
 
 def _copy_of_groundtoimage(plugin, change):

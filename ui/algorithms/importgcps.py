@@ -1,11 +1,9 @@
 """pushbroom:importgcps — ground control points from CSV, QGIS .points or a point layer,
 checked against a scene and written as the GeoPackage GCP layer the adjustment reads."""
-import logging
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessingException,
+from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessingException,
                        QgsProcessingParameterCrs, QgsProcessingParameterFeatureSource,
                        QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterString,
                        QgsProcessingParameterVectorDestination, QgsWkbTypes)
@@ -13,10 +11,12 @@ from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsProcessing, QgsPro
 from ...core import gcps
 from ...core.validation import check_terrain_height
 from ..common import (DEM_DATUM, HEIGHT, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
-                      add_scene_parameters, check_cancelled, check_outputs, core_call, dem_from_parameters,
-                      load_scene_for, processing_errors, require_points, style_output_on_load, z_datum_of_crs)
-from ..parameters import (CAMERA, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ROW_FIELD, Z_DATUM, camera,
-                          check_fraction, enum_value, height_source, image_field, tr, z_datum)
+                      add_scene_parameters, attribute_floats, attribute_texts, check_cancelled, check_outputs,
+                      core_call, core_log_to, dem_from_parameters, field_values, load_scene_for, processing_errors,
+                      require_points, style_output_on_load, z_datum_of_crs)
+from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD,
+                          SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction, enum_value,
+                          height_source, id_field, image_field, sigma_field, sigma_px, tr, z_datum)
 
 
 class ImportGcpsAlgorithm(PushbroomAlgorithm):
@@ -37,11 +37,11 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
             "'check' count.")
     CAMERA = CAMERA
     INPUT_FILE, INPUT = "INPUT_FILE", "INPUT"
-    ID_FIELD, COL_FIELD, ROW_FIELD, X_FIELD, Y_FIELD = "ID_FIELD", COL_FIELD, ROW_FIELD, "X_FIELD", "Y_FIELD"
-    Z_FIELD, ROLE_FIELD, CAMERA_FIELD = "Z_FIELD", "ROLE_FIELD", "CAMERA_FIELD"
+    ID_FIELD, COL_FIELD, ROW_FIELD, X_FIELD, Y_FIELD = ID_FIELD, COL_FIELD, ROW_FIELD, "X_FIELD", "Y_FIELD"
+    Z_FIELD, ROLE_FIELD, CAMERA_FIELD = "Z_FIELD", "ROLE_FIELD", CAMERA_FIELD
     GROUND_CRS, HEIGHT_SOURCE, CHECK_FRACTION, Z_DATUM = "GROUND_CRS", HEIGHT_SOURCE, CHECK_FRACTION, Z_DATUM
-    SIGMA_PX, SIGMA_XY, SIGMA_Z, OUTPUT = "SIGMA_PX", "SIGMA_XY", "SIGMA_Z", "OUTPUT"
-    SIGMA_FIELDS = {"sigma_px": "SIGMA_PX_FIELD", "sigma_xy": "SIGMA_XY_FIELD", "sigma_z": "SIGMA_Z_FIELD"}
+    SIGMA_PX, SIGMA_XY, SIGMA_Z, OUTPUT = SIGMA_PX, "SIGMA_XY", "SIGMA_Z", "OUTPUT"
+    SIGMA_FIELDS = SIGMA_FIELDS
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
@@ -55,9 +55,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                                                [QgsProcessing.TypeVectorPoint], optional=True),
                   tr("Point layer whose geometry is the ground position (its own CRS) and whose fields hold the "
                      "image position (COL_FIELD, ROW_FIELD). Give this or INPUT_FILE, not both."))
-        self.add_parameter(QgsProcessingParameterString(self.ID_FIELD, tr("Point id field"), optional=True,
-                                                        defaultValue="id"),
-                           tr("Unique point id. Empty: line number (CSV) or feature id (layer)."))
+        self.addParameter(id_field())
         self.addParameter(image_field(self.COL_FIELD))
         self.addParameter(image_field(self.ROW_FIELD))
         fields = ((self.X_FIELD, tr("Ground X / longitude field (CSV)"), "lon",
@@ -67,12 +65,11 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                   (self.Z_FIELD, tr("Height field"), "", tr("Height in metres (datum: Z_DATUM), used when "
                    "HEIGHT_SOURCE is z. Empty: the layer's point Z.")),
                   (self.ROLE_FIELD, tr("Role field"), "", tr("Values control/gcp or check/cp/checkpoint (empty cell "
-                   "= control). Empty: all points are control points (see CHECK_FRACTION).")),
-                  (self.CAMERA_FIELD, tr("Camera field"), "", tr("Camera name (or index) of each point, for scenes "
-                   "with several cameras. Ignored when CAMERA is set.")))
+                   "= control). Empty: all points are control points (see CHECK_FRACTION).")))
         for name, label, default, help_text in fields:
             self.add_parameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default),
                                help_text)
+        self.addParameter(camera_field())
         self.add_parameter(QgsProcessingParameterCrs(self.GROUND_CRS, tr("Ground CRS (CSV and .points)"), optional=True,
                                             defaultValue="EPSG:4326"),
                   tr("CRS of the ground coordinates in a CSV, or of a .points file without a '#CRS:' line (the "
@@ -81,23 +78,16 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         self.addParameter(z_datum())
         add_dem_parameters(self)
         self.addParameter(check_fraction())
+        self.addParameter(sigma_px())
         for name, label, default, help_text in (
-                (self.SIGMA_PX, tr("Image measurement sigma (px)"), gcps.DEFAULT_SIGMA_PX,
-                 tr("A-priori standard deviation of the measured col/row, in pixels.")),
                 (self.SIGMA_XY, tr("Ground planimetric sigma (m)"), gcps.DEFAULT_SIGMA_XY,
                  tr("A-priori standard deviation of the ground east/north coordinates, in metres.")),
                 (self.SIGMA_Z, tr("Ground height sigma (m)"), gcps.DEFAULT_SIGMA_Z,
                  tr("A-priori standard deviation of the ground height, in metres."))):
             self.add_parameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
                                                    minValue=0.0), help_text)
-        for key, what, unit in (("sigma_px", "image measurement sigma", "px"),
-                                ("sigma_xy", "ground planimetric sigma", "m"), ("sigma_z", "ground height sigma", "m")):
-            name = self.SIGMA_FIELDS[key]
-            self.add_parameter(QgsProcessingParameterString(name, tr("Per-point {} field ({})").format(what, unit), optional=True,
-                                                            defaultValue=""),
-                      tr("Field (CSV column or layer field) holding each point's {0} in {1}, so that surveyed "
-                         "and map-digitised points can be mixed; an empty cell takes {2}. Values must be > 0. "
-                         "Empty: every point takes {2}.").format(what, unit, key.replace("sigma_", "SIGMA_").upper()))
+        for key in self.SIGMA_FIELDS:
+            self.addParameter(sigma_field(key))
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Ground control points"),
                                                       QgsProcessing.TypeVectorPoint)
         out.setSupportsNonFileBasedOutput(False)
@@ -113,7 +103,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
-        with _core_log_to(feedback):
+        with core_log_to(feedback, gcps.__name__):
             table = self._read(parameters, context)
             check_cancelled(feedback)
             feedback.setProgressText(f"checking {len(table)} points against {scene_path}")
@@ -182,34 +172,25 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         features = list(source.getFeatures())
         if not features:
             raise QgsProcessingException(f"{self.INPUT}: the layer has no features")
-        names = source.fields().names()
-
-        def column(param: str, required: bool):
-            name = self.parameterAsString(parameters, param, context).strip()
-            if not name:
-                if required:
-                    raise QgsProcessingException(f"{param}: name the field of the layer that holds it")
-                return None
-            if name not in names:
-                raise QgsProcessingException(f"{param}: the layer has no field {name!r} (fields: {', '.join(names)})")
-            return [f[name] for f in features]
-
+        column = field_values(self, parameters, context, source, features)
         xyz = np.array([_point_xyz(f) for f in features], dtype=float)
         ids = column(self.ID_FIELD, False) or [f.id() for f in features]
         for key, name in self.SIGMA_FIELDS.items():
             values = column(name, False)
             if values is not None:
-                sigmas[key] = core_call(gcps.per_point_sigmas, _texts(values), sigmas[key],
+                sigmas[key] = core_call(gcps.per_point_sigmas, attribute_texts(values), sigmas[key],
                                         self.parameterAsString(parameters, name, context).strip(),
                                         [str(i) for i in ids], f"{self.INPUT} layer", key)
         z = column(self.Z_FIELD, False)
         if z is None and QgsWkbTypes.hasZ(source.wkbType()):
             z = xyz[:, 2]
-        return core_call(gcps.build_table, [str(i) for i in ids], _floats(column(self.COL_FIELD, True)),
-                         _floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
+        return core_call(gcps.build_table, [str(i) for i in ids], attribute_floats(column(self.COL_FIELD, True)),
+                         attribute_floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
                          crs=_crs_text(source.sourceCrs()), heights=heights,
-                         z=None if z is None else _floats(z), role=_texts(column(self.ROLE_FIELD, False)),
-                         camera=_texts(column(self.CAMERA_FIELD, False)), source=f"{self.INPUT} layer", **sigmas)
+                         z=None if z is None else attribute_floats(z),
+                         role=attribute_texts(column(self.ROLE_FIELD, False)),
+                         camera=attribute_texts(column(self.CAMERA_FIELD, False)), source=f"{self.INPUT} layer",
+                         **sigmas)
 
     # --- report ---------------------------------------------------------------------------
     @staticmethod
@@ -237,37 +218,3 @@ def _point_xyz(feature) -> tuple[float, float, float]:
         return np.nan, np.nan, np.nan
     p = g.vertexAt(0)
     return p.x(), p.y(), p.z()
-
-
-def _floats(values) -> np.ndarray:
-    """Attribute values as floats; NULL and non-numeric text become NaN (reported with ids by the core)."""
-    def number(v):
-        try:
-            return float(v)
-        except (TypeError, ValueError):
-            return np.nan
-    return np.array([number(v) for v in values], dtype=float)
-
-
-def _texts(values):
-    """Attribute values as stripped strings (NULL -> ''); None (no field) stays None."""
-    return None if values is None else ["" if v is None or v == NULL else str(v).strip() for v in values]
-
-
-@contextmanager
-def _core_log_to(feedback):
-    """Show the GCP core's log warnings (e.g. disabled .points entries) in the Processing log."""
-    class _ToFeedback(logging.Handler):
-        def emit(self, record):
-            (feedback.pushWarning if record.levelno >= logging.WARNING else feedback.pushInfo)(record.getMessage())
-
-    logger = logging.getLogger(gcps.__name__)
-    handler = _ToFeedback(logging.INFO)
-    logger.addHandler(handler)
-    previous = logger.level
-    logger.setLevel(logging.INFO)
-    try:
-        yield
-    finally:
-        logger.removeHandler(handler)
-        logger.setLevel(previous)
