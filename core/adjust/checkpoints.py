@@ -118,6 +118,11 @@ def model_error_message(after: dict) -> str:
             "accuracy; figures without them would hide the error")
 
 
+def without_label(points: int) -> str:
+    """The label of the figures without the points that have a blunder."""
+    return f"after, without the {points} point{'s' * (points != 1)} with blunders"
+
+
 def summary_lines(before: dict, after: dict) -> list[str]:
     """Log lines of the check figures: monoplotted per observation and 3D per point, before and
     after, and without the points with blunders unless that would hide a model error."""
@@ -127,7 +132,7 @@ def summary_lines(before: dict, after: dict) -> list[str]:
     n_obs = after["observations"]
     rows = [("before", before, n_obs), ("after", after, n_obs)]
     if clean:
-        rows.append((f"after, without the {after['blunder_points']} points with blunders", after["without_blunders"],
+        rows.append((without_label(after["blunder_points"]), after["without_blunders"],
                      n_obs - after["blunders"]))
     lines = [f"monoplotted, per observation, {label}: RMSE {c['image']['rmse']:.3f} px, {c['ground']['rmse']:.2f} m "
              f"(CE90 {c['ground']['ce90']:.2f} m) over {n} observations" for label, c, n in rows if c.get("ground")]
@@ -135,7 +140,7 @@ def summary_lines(before: dict, after: dict) -> list[str]:
     if inter.get("intersected"):
         rows = [("before", before["intersection"], inter["intersected"]), ("after", inter, inter["intersected"])]
         if clean and inter.get("blunder_points"):
-            rows.append((f"after, without the {inter['blunder_points']} points with blunders",
+            rows.append((without_label(inter["blunder_points"]),
                          inter["without_blunders"], inter["intersected"] - inter["blunder_points"]))
         lines += [f"3D intersection, {label}: RMSE east {f['rmse_east']:.2f} m, north {f['rmse_north']:.2f} m, "
                   f"plan {f['rmse_plan']:.2f} m, height {f['rmse_height']:.2f} m; CE90 {f['ce90']:.2f} m, "

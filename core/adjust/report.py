@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from ..files import OutputSet, write_text
-from .checkpoints import model_error_message
+from .checkpoints import model_error_message, without_label
 
 log = logging.getLogger(__name__)
 
@@ -181,7 +181,7 @@ def _intersection_section(before: dict, after: dict) -> str:
     rows = [_intersection_row("before (input scene)", prior, prior.get("intersected")),
             _intersection_row("after adjustment", inter, n)]
     if inter.get("blunder_points") and not after.get("model_error"):
-        rows.append(_intersection_row(f"after, without the {inter['blunder_points']} points with blunders",
+        rows.append(_intersection_row(without_label(inter["blunder_points"]),
                                       inter["without_blunders"], n - inter["blunder_points"]))
     out.append(_table(["", "points", "RMSE east m", "RMSE north m", "RMSE plan m", "RMSE height m", "max plan m",
                        "max height m", "CE90 m", "LE90 m"], rows))
@@ -216,7 +216,7 @@ def _headline_section(rep: dict) -> str:
     rows = [_check_point_row("before (input scene)", before, n_obs),
             _check_point_row("after adjustment", after, n_obs)]
     if after.get("blunders") and not after.get("model_error"):
-        rows.append(_check_point_row(f"after, without the {after['blunder_points']} points with blunders",
+        rows.append(_check_point_row(without_label(after["blunder_points"]),
                                      after["without_blunders"], n_obs - after["blunders"]))
     out.append(f"<h3>Monoplotted, per observation ({after['points']} points, {n_obs} observations)</h3>")
     out.append(_table(["", "observations", "RMSE col px", "RMSE row px", "RMSE px", "max px", "RMSE east m",
