@@ -26,6 +26,7 @@ from ..gcps import GcpTable, resolve_cameras
 from ..geodesy import enu_rotations, geodetic_to_ecef, up_vector
 from ..sensor import SceneModel
 from ..timebasis import TimeBasis
+from .checkpoints import blunder_test, intersection_accuracy, model_error_message, summary_lines
 from .model import Jacobian, Model, build_observations
 from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, sum_by_point
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
@@ -575,13 +576,18 @@ def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float,
     """Check-point accuracy of a scene: ground -> image residuals (px) and image -> ground at
     the known height in a local east-north frame (m): RMSE per axis, max, CE90.
 
-    Figures over all check points, and again without the blunders: check points whose image
-    residual exceeds the critical value (at ``alpha``) of what their own sigmas allow (image
-    sigma, planimetric ground sigma over the GSD and the image shift of a height error of
+    The figures are per observation (a point seen in three cameras counts three times), each
+    monoplotted on its own. ``points``: distinct check point ids; ``observations``: rows.
+
+    Figures over all check observations, and again without the blunders: observations whose
+    image residual exceeds the critical value (at ``alpha``) of what their own sigmas allow
+    (image sigma, planimetric ground sigma over the GSD and the image shift of a height error of
     sigma_z, per axis), each times its group's variance component factor in ``scale`` (the
     check points are measured as the control points are: the factors estimated on those make
-    the test independent of the stated sigmas' scale). A model error makes many points exceed
-    it: compare both figures before trusting either.
+    the test independent of the stated sigmas' scale). ``blunders`` counts those observations,
+    ``blunder_points`` the points with any. A model error makes many exceed it:
+    ``blunder_test`` (:func:`core.adjust.checkpoints.blunder_test`) decides, and with
+    ``model_error`` the figures without them are not meaningful.
     """
     scale = scale or {}
     if rows.size == 0:
@@ -608,7 +614,10 @@ def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float,
         sigma_xy = sub.sigma_xy[m] * scale.get("ground_xy", 1.0)
         allowed[m] = crit * np.sqrt(sigma_px ** 2 + (sigma_xy / _gsd(scene, c)) ** 2 + relief ** 2)
     flagged = ~(np.abs(res) <= allowed[:, None]).all(axis=1)
-    return {"points": int(rows.size), **_figures(res, en), "blunders": int(flagged.sum()),
+    test = blunder_test(int(flagged.sum()), rows.size, alpha)
+    return {"points": int(np.unique(sub.id).size), "observations": int(rows.size), **_figures(res, en),
+            "blunders": int(flagged.sum()), "blunder_points": int(np.unique(sub.id[flagged]).size),
+            "blunder_test": test, "model_error": test["model_error"],
             "without_blunders": _figures(res[~flagged], en[~flagged]),
             "residuals": res, "en": en, "is_flagged": flagged}
 
@@ -833,6 +842,9 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Esti
     if checks.size:
         points["res_col"][checks], points["res_row"][checks] = after["residuals"][:, 0], after["residuals"][:, 1]
         points["flagged"][checks] = after["is_flagged"]
+    after["intersection"] = intersection_accuracy(adjusted, table, checks, after.get("is_flagged"))
+    before["intersection"] = intersection_accuracy(problem.scene, table, checks)
+    _log_check_points(before, after)
     points["res_px"] = np.hypot(points["res_col"], points["res_row"])
     # Robust runs leave their flagged observations out of the residual figures; plain ones keep all.
     good = ~flagged if problem.settings.robust != "none" else np.ones_like(flagged)
@@ -869,11 +881,26 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Esti
             f"{c.name}/{ch.name or k + 1}": _residual_summary(st.v[good & (problem.obs.camera == ci)
                                                                     & (problem.obs.chip == k)])
             for ci, c in enumerate(problem.scene.cameras) for k, ch in enumerate(c.chips)},
-        "check_points": {k: v for k, v in after.items() if k not in ("residuals", "en", "is_flagged")},
-        "check_points_before": {k: v for k, v in before.items() if k not in ("residuals", "en", "is_flagged")},
+        "check_points": _check_point_report(after),
+        "check_points_before": _check_point_report(before),
         "trajectory": _trajectory_curves(problem) if problem.params.position_basis is not None else None,
     }
     return AdjustmentResult(adjusted, report, points)
+
+
+def _check_point_report(figures: dict) -> dict:
+    """The JSON part of :func:`accuracy`'s figures (with their ``intersection``): no per-row arrays."""
+    out = {k: v for k, v in figures.items() if k not in ("residuals", "en", "is_flagged")}
+    out["intersection"] = {k: v for k, v in figures["intersection"].items() if k != "errors"}
+    return out
+
+
+def _log_check_points(before: dict, after: dict) -> None:
+    """The check figures, and a model error where it is found."""
+    if after.get("model_error"):
+        log.warning("%s", model_error_message(after))
+    for line in summary_lines(before, after):
+        log.info("check points %s", line)
 
 
 def correlated_pairs(corr: np.ndarray, params: list) -> list[dict]:

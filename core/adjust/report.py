@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from ..files import OutputSet, write_text
+from .checkpoints import model_error_message, without_label
 
 log = logging.getLogger(__name__)
 
@@ -131,17 +132,70 @@ def _sigma0_sentence(rep: dict) -> str:
             f"{_fmt(lo)}–{_fmt(hi)}): {verdict}.</p>")
 
 
-def _check_point_row(label: str, figures: dict, points) -> list[str]:
-    """One row of the check point table: image RMSE (px) and ground RMSE, CE90 (m)."""
+def _check_point_row(label: str, figures: dict, count) -> list[str]:
+    """One row of the monoplotted check table: image RMSE (px) and ground RMSE, CE90 (m)."""
     img, gnd = figures.get("image") or {}, figures.get("ground") or {}
-    return [html.escape(label), str(points), _fmt(img.get("rmse_col")), _fmt(img.get("rmse_row")),
+    return [html.escape(label), str(count), _fmt(img.get("rmse_col")), _fmt(img.get("rmse_row")),
             _fmt(img.get("rmse")), _fmt(img.get("max"), ".2f"), _fmt(gnd.get("rmse_east"), ".2f"),
             _fmt(gnd.get("rmse_north"), ".2f"), _fmt(gnd.get("rmse"), ".2f"), _fmt(gnd.get("ce90"), ".2f"),
             _fmt(gnd.get("max"), ".2f")]
 
 
+def _intersection_row(label: str, figures: dict, count) -> list[str]:
+    """One row of the 3D intersection table (m)."""
+    keys = ("rmse_east", "rmse_north", "rmse_plan", "rmse_height", "max_plan", "max_height", "ce90", "le90")
+    return [html.escape(label), str(count)] + [_fmt(figures.get(k), ".2f") for k in keys]
+
+
+def _model_error_note(after: dict) -> str:
+    """Why the check points that exceed their sigmas are not left out (empty without a model error)."""
+    text = model_error_message(after)
+    return f"<p class='big bad'><b>{html.escape(text[:1].upper() + text[1:])}.</b></p>" if text else ""
+
+
+def _blunder_note(after: dict) -> str:
+    """How many check points were left out of the 'without blunders' rows, and why."""
+    if not after.get("blunders") or after.get("model_error"):
+        return ""
+    return (f"<p>{after['blunder_points']} of {after['points']} check points ({after['blunders']} observations) "
+            "have residuals beyond what their own sigmas allow: blunders in the check data (few enough not to "
+            "point to a model error). The rows 'without' leave those points out; compare them with the rows "
+            "over all points.</p>")
+
+
+def _intersection_section(before: dict, after: dict) -> str:
+    """3D check figures: points seen in two or more cameras, intersected (empty when there are none)."""
+    inter, prior = after.get("intersection") or {}, before.get("intersection") or {}
+    if not inter.get("points"):
+        return ""
+    n = inter["intersected"]
+    notes = []
+    if inter.get("single_camera"):
+        notes.append(f"{inter['single_camera']} of {inter['points']} check points are seen in one camera only "
+                     "and are not intersected")
+    if inter.get("failed"):
+        notes.append(f"{inter['failed']} could not be intersected")
+    if not n:
+        return f"<p>3D intersection: no check point is intersected ({'; '.join(notes)}).</p>"
+    out = [f"<h3>3D intersection ({n} points in &gt;= 2 cameras)</h3>"]
+    rows = [_intersection_row("before (input scene)", prior, prior.get("intersected")),
+            _intersection_row("after adjustment", inter, n)]
+    if inter.get("blunder_points") and not after.get("model_error"):
+        rows.append(_intersection_row(without_label(inter["blunder_points"]),
+                                      inter["without_blunders"], n - inter["blunder_points"]))
+    out.append(_table(["", "points", "RMSE east m", "RMSE north m", "RMSE plan m", "RMSE height m", "max plan m",
+                       "max height m", "CE90 m", "LE90 m"], rows))
+    out.append("<p>Each point intersected from all its cameras with the model, compared with its known position "
+               "in a local east/north/up frame; one value per point. Plan error = horizontal distance; CE90 / "
+               "LE90: 90 % of the points have a smaller plan / absolute height error. Intersection geometry: "
+               f"median {_fmt(inter.get('median_condition'), '.2f')} m of point error per px of image error"
+               + "".join(f"; {x}" for x in notes) + ".</p>")
+    return "\n".join(out)
+
+
 def _headline_section(rep: dict) -> str:
-    """sigma0 and its test, the control residuals and the check points before and after (px and m)."""
+    """sigma0 and its test, the control residuals and the check points before and after (px and m):
+    monoplotted per observation, and intersected in 3D per point."""
     obs, ctl = rep["observations"], rep["control_residuals"]
     left_out = ", flagged observations left out" if rep["robust"]["method"] != "none" else ""
     out = [_sigma0_sentence(rep),
@@ -156,17 +210,21 @@ def _headline_section(rep: dict) -> str:
     if not after.get("points"):
         out.append("<p>No check points: the accuracy of the result is not measured independently.</p>")
         return "\n".join(out)
-    rows = [_check_point_row("before (input scene)", before, before["points"]),
-            _check_point_row("after adjustment", after, after["points"])]
-    if after.get("blunders"):
-        rows.append(_check_point_row(f"after, without the {after['blunders']} blunders",
-                                     after["without_blunders"], after["points"] - after["blunders"]))
-    out.append(_table(["", "points", "RMSE col px", "RMSE row px", "RMSE px", "max px", "RMSE east m",
+    out.append(_model_error_note(after))
+    out.append(_intersection_section(before, after))
+    n_obs = after.get("observations", after["points"])
+    rows = [_check_point_row("before (input scene)", before, n_obs),
+            _check_point_row("after adjustment", after, n_obs)]
+    if after.get("blunders") and not after.get("model_error"):
+        rows.append(_check_point_row(without_label(after["blunder_points"]),
+                                     after["without_blunders"], n_obs - after["blunders"]))
+    out.append(f"<h3>Monoplotted, per observation ({after['points']} points, {n_obs} observations)</h3>")
+    out.append(_table(["", "observations", "RMSE col px", "RMSE row px", "RMSE px", "max px", "RMSE east m",
                        "RMSE north m", "RMSE m", "CE90 m", "max m"], rows))
-    if after.get("blunders"):
-        out.append(f"<p>{after['blunders']} check points have residuals beyond what their own sigmas allow "
-                   "(blunders in the check data, or a model error when many do): compare both rows.</p>")
-    return "\n".join(out)
+    out.append("<p>Each observation on its own: image residual of the known ground point (px), and the image "
+               "position projected to the ground at the known height (m, plan only).</p>")
+    out.append(_blunder_note(after))
+    return "\n".join(x for x in out if x)
 
 
 def _settings_section(rep: dict) -> str:

@@ -98,7 +98,10 @@ def test_check_points_before_and_after(chain):
     assert abs(report["sigma0"] - 1.0) < 0.15 and report["robust"]["flagged"] > 0  # measured 0.94
     # the headline figures went to the log
     text = "\n".join(log.info)
-    assert "sigma0" in text and "check points before: RMSE" in text and "check points after: RMSE" in text
+    assert "sigma0" in text and "check points monoplotted, per observation, before: RMSE" in text
+    assert f"check points monoplotted, per observation, after: RMSE {report['check_points']['image']['rmse']:.3f} px" \
+        in text
+    assert "check points 3D intersection: 0 of 300 check points intersected" in text  # one camera
     assert f"{report['robust']['flagged']} observations flagged" in text
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from core import gcps as G
 from core.adjust import AdjustmentSettings, adjust
+from core.adjust.checkpoints import without_label
 from core.adjust.report import MAX_ARROWS, report_to_json, write_report_html, write_report_json
 from core.files import OutputError
 from core.scene_io import load_scene
@@ -81,8 +82,10 @@ def test_html_leads_with_sigma0_control_and_check_point_accuracy(result, page):
     assert f"<td>{checks['ground']['ce90']:.2f}</td>" in row
     before = rep["check_points_before"]
     assert f"<td>{before['image']['rmse_col']:.3f}</td>" in page
-    if checks["blunders"]:
-        assert f"without the {checks['blunders']} blunders" in page
+    assert checks["blunders"] and not checks["model_error"]  # 5 % gross errors: blunders, not a model error
+    assert without_label(checks["blunder_points"]) in page and checks["blunder_points"] > 1
+    assert "Monoplotted, per observation" in page and "Model error" not in page
+    assert "3D intersection" in page and "no check point is intersected" in page  # one camera: no 3D figures
 
 
 def test_html_names_the_fixed_parameters_and_the_flagged_count(result, page):
@@ -159,3 +162,25 @@ def test_a_failing_report_leaves_the_previous_file_untouched(result, tmp_path):
         write_report_html(broken, result.points, path)
     assert path.read_text() == "previous report"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]
+
+
+def test_html_has_the_3d_intersection_table(tmp_path):
+    """TH-1 three-line block: check points in all three cameras get a 3D row block with the
+    figures of the JSON report, before and after."""
+    sim = simulate("th1_tlc", tmp_path / "th1", seed=2, gcp_settings=GcpSettings(n_gcps=60, check_fraction=0.5))
+    table = G.read_csv(sim.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
+                       G.Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.01, sigma_z=0.01)
+    out = adjust(load_scene(sim.onboard_scene), table, AdjustmentSettings())
+    path = tmp_path / "report.html"
+    write_report_html(out.report, out.points, path)
+    page = path.read_text(encoding="utf-8")
+    inter = out.report["check_points"]["intersection"]
+    assert inter["intersected"] == inter["points"] == 30
+    assert "<h3>3D intersection (30 points in &gt;= 2 cameras)</h3>" in page
+    row = re.search(r"<h3>3D intersection.*?<tr><td class='l'>after adjustment</td>(.*?)</tr>", page, re.S).group(1)
+    assert row.startswith("<td>30</td>")
+    for key in ("rmse_east", "rmse_north", "rmse_plan", "rmse_height", "max_plan", "max_height", "ce90", "le90"):
+        assert f"<td>{inter[key]:.2f}</td>" in row
+    before = out.report["check_points_before"]["intersection"]
+    assert f"<td>{before['le90']:.2f}</td>" in page and before["le90"] > 5 * inter["le90"]
+    assert "(30 points, 90 observations)" in page

@@ -15,6 +15,7 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutpu
 from ...core import gcps
 from ...core.adjust import AdjustmentSettings, adjust
 from ...core.adjust.engine import check_inputs
+from ...core.adjust.checkpoints import model_error_message, summary_lines
 from ...core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_residual_vectors
 from ...core.adjust.parameters import ParameterSet
 from ...core.errors import PushbroomError
@@ -313,12 +314,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                           f"the 95 % test); control residuals RMSE col {ctl.get('rmse_col', float('nan')):.3f} px, "
                           f"row {ctl.get('rmse_row', float('nan')):.3f} px; {rep['robust']['flagged']} observations "
                           "flagged as gross errors")
-        after = rep["check_points"]
-        lines = [("before", rep["check_points_before"], after.get("points")), ("after", after, after.get("points"))]
-        if after.get("blunders"):
-            lines.append((f"after, without their {after['blunders']} blunders", after["without_blunders"],
-                          after["points"] - after["blunders"]))
-        for label, c, n in lines:
-            if c and c.get("ground"):
-                feedback.pushInfo(f"check points {label}: RMSE {c['image']['rmse']:.3f} px, "
-                                  f"{c['ground']['rmse']:.2f} m (CE90 {c['ground']['ce90']:.2f} m) over {n} points")
+        before, after = rep["check_points_before"], rep["check_points"]
+        if after.get("model_error"):
+            feedback.pushWarning(model_error_message(after))
+        for line in summary_lines(before, after):
+            feedback.pushInfo(f"check points {line}")
