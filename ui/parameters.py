@@ -44,6 +44,7 @@ TRAJECTORY_MODELS = KINDS  # polynomial, lagrange, spline
 GROUND_MODES = ("weighted", "fixed")
 ROBUST_METHODS = ("none", "selection", "snooping")
 ON_SINGULAR_ACTIONS = ("fix", "stop")
+INTERIOR_SELECTION = "INTERIOR_SELECTION"
 RESAMPLINGS = tuple(CORE_RESAMPLING)  # nearest, bilinear, cubic
 PRESET_NAMES = tuple(PRESETS)
 DEFAULT_PRESET = "cbers02b_hrc"
@@ -202,6 +203,21 @@ def on_singular() -> QgsProcessingParameterEnum:
          "stop": tr("stop with their names")}, "fix",
         tr("What to do when the GCPs cannot separate some parameters (e.g. all three CBERS CCDs' shifts and "
            "the attitude)."))
+
+
+def interior_selection() -> QgsProcessingParameterEnum:
+    return enum_parameter(
+        INTERIOR_SELECTION, tr("Interior parameter selection"),
+        {"significant": tr("after the solution, interior parameters that are not significant (|value| < 1.96 "
+                           "sigma), correlated with another unknown (|r| > 0.98) or left with under 2 % of their "
+                           "information once the other unknowns are free are fixed at 0, a few at a time, and the "
+                           "block re-solved; then self-calibration is kept only if an F-test shows it fits "
+                           "significantly better than no interior parameters, else the run falls back to the "
+                           "conventional adjustment and says so"),
+         "keep": tr("estimate every INTERIOR parameter as given (with few GCPs a free set can overfit)")},
+        "significant",
+        tr("What to do with interior parameters the control at hand cannot support; the report lists the removed "
+           "ones with the reason and the kept ones."))
 
 
 def resampling() -> QgsProcessingParameterEnum:

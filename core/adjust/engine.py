@@ -30,6 +30,7 @@ from .checkpoints import blunder_test, intersection_accuracy, model_error_messag
 from .model import Jacobian, Model, build_observations
 from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, sum_by_point
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
+from .selection import SELECTION, interior_free, select_interior
 from .robust import (COMPONENT_TOLERANCE, breakdown, component_report, components, critical as _critical, image_group,
                      inliers, rescale, robust_scale, robust_weights, stated_sigma0, truncation)
 
@@ -64,7 +65,9 @@ class AdjustmentSettings:
     max_iterations: Gauss-Newton iterations per solution; max_robust_iterations: passes of
     the robust / variance component loop. variance_components: estimate a factor on the stated
     sigmas per observation group and test outliers against it (see :mod:`core.adjust.robust`);
-    False trusts the stated sigmas.
+    False trusts the stated sigmas. interior_selection: 'significant' removes interior
+    parameters the control cannot support and falls back to no self-calibration when it is
+    not significantly better (:mod:`core.adjust.selection`); 'keep' keeps the set as given.
     """
     position_model: str = "polynomial"
     position_order: int = 1
@@ -84,6 +87,7 @@ class AdjustmentSettings:
     max_robust_iterations: int = 12
     variance_components: bool = True
     rpc_correction: str = "drift"
+    interior_selection: str = "significant"
 
     def validate(self) -> None:
         if self.ground not in ("weighted", "fixed"):
@@ -103,6 +107,9 @@ class AdjustmentSettings:
                 raise InputError(f"{name} must be positive or empty (got {v})")
         if self.rpc_correction not in ("shift", "drift", "affine"):
             raise InputError(f"RPC correction must be shift, drift or affine (got {self.rpc_correction!r})")
+        if self.interior_selection not in SELECTION:
+            raise InputError(f"interior_selection must be one of {', '.join(SELECTION)} "
+                             f"(got {self.interior_selection!r})")
 
 
 @dataclass
@@ -734,10 +741,14 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     _, system = problem.system()
     determinability = check_determinability(problem, system)
     est = _estimate(problem, progress, is_cancelled)
+    selection = None
+    if settings.interior_selection == "significant" and interior_free(problem).size:
+        problem, est, selection = select_interior(problem, est, lambda p: _estimate(p, progress, is_cancelled))
     progress(0.92, "evaluating check points")
     adjusted = problem.params.adjusted_scene()
     out = _result(problem, table, adjusted, est, determinability)
     rep = out.report
+    rep["interior_selection"] = selection
     adjusted.info["adjustment"] = {
         "settings": asdict(settings), "sigma0": rep["sigma0"],
         "variance_components": {k: {f: v[f] for f in ("apriori_sigma", "estimated_sigma", "unit", "estimated")}
@@ -745,7 +756,7 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
         "reliable": rep["reliability"]["reliable"], "robust_stopped_at_limit": rep["robust"]["stopped_at_limit"],
         "parameters": [{k: p[k] for k in ("name", "value", "sigma", "unit", "mode")}
                        for p in out.report["parameters"] if p["mode"] != "fixed" or p["value"] != 0.0],
-        "determinability": determinability,
+        "determinability": determinability, "interior_selection": selection,
         "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
     return out
 

@@ -23,6 +23,7 @@ the settings make it free or weighted (a pseudo-observation of value 0 with a si
 from __future__ import annotations
 
 import fnmatch
+import logging
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -33,6 +34,8 @@ from ..rotations import rotation_from_angles
 from ..sensor import SceneModel
 from ..timebasis import TimeBasis
 from ..trajectory import Platform, TrajectoryCorrection
+
+log = logging.getLogger(__name__)
 
 AXES = ("X", "Y", "Z")
 ANGLES = ("roll", "pitch", "yaw")
@@ -59,10 +62,22 @@ class Parameter:
     term: str = ""
 
 
-def parse_interior(spec: str | list | None) -> list[tuple[str, float | None]]:
+SIGMA_UNITS = ("px", "arcsec")  # besides the parameter's SI unit (no suffix)
+ARCSEC = np.pi / 648000.0
+# INTERIOR=default (see :func:`default_selection`): priors of the preset, in image terms.
+DEFAULT_CAMERA_PX = 3.0
+DEFAULT_CHIP_PX = 2.0
+DEFAULT_INSTALLATION_ARCSEC = 30.0
+
+
+def parse_interior(spec: str | list | None) -> list[tuple[str, float | None, str]]:
     """Interior/installation selections: comma-separated ``pattern`` (free) or
     ``pattern=sigma`` (weighted), patterns with shell wildcards matched against parameter
-    names, e.g. ``"HRC-1.*, HRC-3.*, HRC.f=1e-5"``."""
+    names, e.g. ``"HRC-1.*, HRC-3.*, HRC.f=1e-5"``. The sigma is in the parameter's SI unit,
+    or in image terms with a unit suffix: ``px`` (the parameter's largest displacement at the
+    ends of the detector array, see :func:`image_effect`) or ``arcsec`` (angles only), e.g.
+    ``NAD.k1=2px, FWD.roll=30arcsec``. The word ``default`` stands for
+    :func:`default_selection`. Returns (pattern, sigma or None, unit: '' (SI), 'px' or 'arcsec')."""
     if spec is None:
         return []
     items = spec if isinstance(spec, list) else [s for s in str(spec).replace(";", ",").split(",")]
@@ -71,17 +86,122 @@ def parse_interior(spec: str | list | None) -> list[tuple[str, float | None]]:
         if not item:
             continue
         pattern, _, sigma = item.partition("=")
-        if sigma:
-            try:
-                value = float(sigma)
-            except ValueError:
-                raise InputError(f"interior parameter {item!r}: the sigma after '=' must be a number") from None
-            if not value > 0:
-                raise InputError(f"interior parameter {item!r}: the sigma must be positive")
-            out.append((pattern.strip(), value))
-        else:
-            out.append((pattern.strip(), None))
+        sigma = sigma.strip().replace(" ", "")
+        if not sigma:
+            out.append((pattern.strip(), None, ""))
+            continue
+        unit = next((u for u in SIGMA_UNITS if sigma.lower().endswith(u)), "")
+        try:
+            value = float(sigma[:len(sigma) - len(unit)])
+        except ValueError:
+            raise InputError(f"interior parameter {item!r}: the sigma after '=' must be a number, optionally "
+                             f"followed by px or arcsec (e.g. 2px, 30arcsec, 1e-5)") from None
+        if not value > 0 or not np.isfinite(value):
+            raise InputError(f"interior parameter {item!r}: the sigma must be positive")
+        out.append((pattern.strip(), value, unit))
     return out
+
+
+def default_selection(scene: SceneModel) -> list[tuple[str, float | None, str]]:
+    """``INTERIOR=default``: every focal-plane camera's 10 terms (Zhang et al. 2015, eq. 7)
+    weighted with DEFAULT_CAMERA_PX px at the array end; the installation angles of every
+    camera but the first (the reference, as the nadir camera in Zhang et al. 2024) with
+    DEFAULT_INSTALLATION_ARCSEC arcsec; the shifts and rotation of every chip of a
+    multi-chip focal plane but its middle (reference) one, DEFAULT_CHIP_PX px (Zheng et al.
+    2015). Magnitudes: seed 001's principal-point and decentring terms displace the image by
+    one to a few pixels at the array end and seed 000's CCD shifts by a few pixels; seed 003's
+    installation corrections are tens of arcseconds. The priors are wide enough not to bias
+    such values and keep weak terms from running away with a handful of GCPs."""
+    out: list[tuple[str, float | None, str]] = []
+    for c, cam in enumerate(scene.cameras):
+        if c > 0:
+            out += [(f"{cam.name}.{a}", DEFAULT_INSTALLATION_ARCSEC, "arcsec") for a in ANGLES]
+        if all(ch.kind == "focal_plane" for ch in cam.chips):
+            out += [(f"{cam.name}.{t}", DEFAULT_CAMERA_PX, "px") for t in CAMERA_TERMS]
+        if len(cam.chips) > 1:
+            out += [(f"{ch.name or f'{cam.name}-{k + 1}'}.{t}", DEFAULT_CHIP_PX, "px")
+                    for k, ch in enumerate(cam.chips) if k != len(cam.chips) // 2
+                    for t in (CHIP_TERMS if ch.kind == "focal_plane" else LOOK_TERMS)]
+    return out
+
+
+def _px_per_normalised(cam, chip) -> float:
+    """Pixels per unit of normalised image coordinate on a chip: the focal length over the
+    pitch (focal plane), or one over the angle between neighbouring detectors at the chip's
+    middle (look angles)."""
+    if chip.kind == "focal_plane":
+        return cam.focal_length / chip.pitch
+    d = np.array([0.5 * chip.n_pixels, 0.5 * chip.n_pixels + 1.0])
+    ux, uy = chip.look(d)
+    return 1.0 / float(np.hypot(ux[1] - ux[0], uy[1] - uy[0]))
+
+
+def _array_ends(cam) -> list[tuple[object, np.ndarray]]:
+    """(chip, detector indices of its two ends (2,)) for every chip of a camera."""
+    return [(ch, np.array([0.0, float(ch.n_pixels)])) for ch in cam.chips]
+
+
+def image_effect(scene: SceneModel, p: Parameter) -> float:
+    """Pixels by which a change of one SI unit of ``p`` moves the image point where it moves
+    it most among the end detectors of the array (each chip's first and last detector):
+
+    - camera terms (f m, dxp/dyp m, k1 1/m^2, k2 1/m^4, p1/p2 1/m, b1-b3 1): the length of
+      their column of d(ux, uy)/d(term) (Zhang et al. 2015, eq. 7, as in the adjustment)
+      times f / pitch; e.g. k1: r^3 / pitch, f: r / pitch with r the end's distance from
+      the principal point on the focal plane (m);
+    - chip terms: dx, dy (m on the focal plane): about 1 / pitch; theta (rad): the chip's
+      length in px at its last detector (the rotation is about the first); look-angle
+      ux0/uy0 and ux1/uy1 (rad): one over the detector angle (ux1 acts fully at the last
+      detector);
+    - installation roll/pitch/yaw (rad, camera axes): the change of the end detectors' rays
+      under a rotation about that axis, in px (f / pitch for roll and pitch, the array's
+      half length in px for yaw at a centred array).
+    A value of 0 means the parameter does not move any end detector (e.g. b1 on an array
+    through the principal point)."""
+    from .model import _focal_plane  # the adjustment's own derivatives (model imports this module)
+    cam = scene.cameras[p.camera]
+    effects = []
+    for k, (chip, d) in enumerate(_array_ends(cam)):
+        if p.block == "chip" and k != p.chip:
+            continue
+        scale = _px_per_normalised(cam, chip)
+        if chip.kind == "look_angle":
+            if p.block == "chip":
+                effects.append(scale)  # ux0/uy0 everywhere, ux1/uy1 (times d / n) at the last detector
+                continue
+            ux, uy = chip.look(d)
+        else:
+            u, jc, jk = _focal_plane(cam, chip, np.zeros(3), np.zeros(len(CAMERA_TERMS)), d, True)
+            ux, uy = u[:, 0], u[:, 1]
+            if p.block == "camera":
+                effects += list(scale * np.hypot(*jk[:, :, CAMERA_TERMS.index(p.term)].T))
+                continue
+            if p.block == "chip":
+                effects += list(scale * np.hypot(*jc[:, :, CHIP_TERMS.index(p.term)].T))
+                continue
+        if p.block == "installation":
+            v = np.stack([ux, uy, np.ones_like(ux)], axis=1)
+            dv = np.cross(np.eye(3)[ANGLES.index(p.term)], v)     # (2, 3) ray change per rad
+            du = dv[:, :2] - v[:, :2] * dv[:, 2:3]                # projected back to w2 = 1
+            effects += list(scale * np.hypot(du[:, 0], du[:, 1]))
+    return float(max(effects, default=0.0))
+
+
+def sigma_in_si(scene: SceneModel, p: Parameter, value: float, unit: str) -> float:
+    """A prior sigma given in ``unit`` ('' SI, 'px' at the array end, 'arcsec') in the
+    parameter's SI unit (``p.unit``): px / :func:`image_effect`, arcsec * pi / 648000."""
+    if unit == "":
+        return value
+    if unit == "arcsec":
+        if p.unit != "rad":
+            raise InputError(f"interior parameter {p.name}: arcsec applies to angles only (its unit is "
+                             f"{p.unit or 'none'}); give px or its SI unit")
+        return value * ARCSEC
+    effect = image_effect(scene, p)
+    if not effect > 1e-12:
+        raise InputError(f"interior parameter {p.name} does not move the image at the array ends; a sigma in px "
+                         "cannot be converted (leave it out or give its SI unit)")
+    return value / effect
 
 
 class ParameterSet:
@@ -124,13 +244,21 @@ class ParameterSet:
 
     def _select(self, selections) -> None:
         selectable = [p for p in self.params if p.block not in ("position", "attitude")]
-        for pattern, sigma in selections:
+        expanded = []  # (pattern, sigma, unit, from the default set)
+        for pattern, sigma, unit in selections:
+            expanded += [(*d, True) for d in default_selection(self.scene)] \
+                if pattern.lower() == "default" and sigma is None else [(pattern, sigma, unit, False)]
+        for pattern, sigma, unit, default in expanded:
             hits = [p for p in selectable if fnmatch.fnmatchcase(p.name, pattern)]
             if not hits:
                 raise InputError(f"interior parameter {pattern!r} matches none of this scene's parameters "
                                  f"(e.g. {', '.join(p.name for p in selectable[:12])}, ...)")
             for p in hits:
-                p.mode, p.sigma = ("weighted", sigma) if sigma else ("free", 0.0)
+                if default and unit == "px" and not image_effect(self.scene, p) > 1e-12:
+                    p.mode, p.sigma = "fixed", 0.0  # e.g. b1 of an array through the principal point
+                    log.info("%s does not move this camera's image at the array ends: left fixed", p.name)
+                    continue
+                p.mode, p.sigma = ("weighted", sigma_in_si(self.scene, p, sigma, unit)) if sigma else ("free", 0.0)
 
     # --- the unknown vector ------------------------------------------------------------------
     @property

@@ -239,6 +239,7 @@ def _decisions_section(rep: dict) -> str:
              f"<b>{html.escape(d['fixed'])}</b> was fixed.</li>" if d.get("fixed") else
              f"<li>Not determinable together: {html.escape(', '.join(d['parameters']))}; "
              "nothing was fixed.</li>" for d in rep["determinability"]]
+    items += _selection_items(rep.get("interior_selection"))
     rob = rep["robust"]
     if rob["method"] == "none":
         items.append("<li>No gross error detection (robust = none): every observation kept its full weight.</li>")
@@ -250,6 +251,22 @@ def _decisions_section(rep: dict) -> str:
                      f"rescaled by the variance components) in {len(rob['passes'])} passes{limit}; they stay in "
                      "the GCP layer, marked" + (f": {html.escape(ids)}" if ids else "") + ".</li>")
     return "<h2>Decisions</h2><ul>" + "".join(items) + "</ul>"
+
+
+def _selection_items(sel: dict | None) -> list[str]:
+    """Interior parameter selection: removed parameters and why, kept ones, the guard's verdict."""
+    if not sel:
+        return []
+    items = [f"<li>Interior parameter removed: <b>{html.escape(r['name'])}</b> "
+             f"({html.escape('; '.join(r['fails']))}).</li>" for r in sel["removed"]]
+    kept = ", ".join(f"{k['name']} (t = {k['t']:.1f})" for k in sel["kept"]) or "none"
+    items.append(f"<li>Interior parameters kept after {sel['rounds']} removal rounds: {html.escape(kept)}.</li>")
+    g = sel["guard"]
+    items.append("<li>Self-calibration kept: it fits significantly better than no interior parameters "
+                 f"(F = {_fmt(g['F'], '.3g')} &gt; {_fmt(g['F_critical'], '.3g')}).</li>" if g["self_calibration_kept"]
+                 else "<li><b>Fell back to the conventional adjustment</b> (no interior parameters): "
+                 f"{html.escape(g['reason'])}.</li>")
+    return items
 
 
 def _display_value(value, unit: str, block: str) -> tuple[float | None, str]:

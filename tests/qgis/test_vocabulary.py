@@ -215,13 +215,13 @@ def test_qgis_process_help_lists_the_value_names(provider, qgis_process):
             for k, value in enumerate(d.options()):
                 assert f"- {k}: {value}\n" in section and f"<b>{value}</b>: " in section, (alg.id(), value)
             checked += 1
-    assert checked == 20  # every enumeration of every algorithm (DEM_DATUM in seven of them)
+    assert checked == 21  # every enumeration of every algorithm (DEM_DATUM in seven of them)
 
 
 def test_the_readme_demo_and_models_use_value_names():
     """No enumeration is passed by number in the README's command lines, the demo or the models."""
     names = ("DEM_DATUM", "Z_DATUM", "HEIGHT_SOURCE", "POSITION_MODEL", "ATTITUDE_MODEL", "GROUND", "ROBUST",
-             "ON_SINGULAR", "RESAMPLING", "PRESET")
+             "ON_SINGULAR", "RESAMPLING", "PRESET", "INTERIOR_SELECTION")
     by_number = re.compile(r"\b(" + "|".join(names) + r")=\d")
     for path in [REPO / "README.md", REPO / "scripts" / "demo.sh"]:
         assert by_number.findall(path.read_text()) == [], path

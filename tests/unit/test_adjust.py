@@ -126,7 +126,8 @@ def test_all_ten_parameters_are_reported_non_determinable_and_the_middle_chip_fi
     """Seed 000 Table II schemes 1-2: f and all three chips together cannot be determined;
     each chip term of the middle chip trades with an attitude angle."""
     _, scene, table, manifest = cbers
-    out = adjust(scene, table, AdjustmentSettings(interior="HRC.f, HRC-1.*, HRC-2.*, HRC-3.*", robust="none"))
+    out = adjust(scene, table, AdjustmentSettings(interior="HRC.f, HRC-1.*, HRC-2.*, HRC-3.*", robust="none",
+                                                  interior_selection="keep"))  # f is not significant here
     found = out.report["determinability"]
     assert [d["fixed"] for d in found] == ["HRC-2.dx", "HRC-2.dy", "HRC-2.theta"]
     assert {"HRC-1.dx", "HRC-3.dx", "attitude.pitch.bias"} <= set(found[0]["parameters"])
@@ -158,7 +159,7 @@ def test_three_line_installation_angles_with_weighted_ground(tmp_path):
     truth = json.loads(result.manifest.read_text())["truth"]["interior"]
     out = adjust(load_scene(result.onboard_scene), _table(result, 0.5, 2.0, 3.0),
                  AdjustmentSettings(interior="FWD.roll, FWD.pitch, FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw",
-                                    robust="none"))
+                                    robust="none", interior_selection="keep"))  # every angle, significant or not
     rep = out.report
     assert rep["sigma0"] == pytest.approx(1.0, abs=0.08)
     for group in ("image FWD", "image NAD", "image BWD", "ground_xy", "ground_z"):

@@ -26,9 +26,9 @@ from ...core.scene_io import save_scene
 from ...core.timebasis import TimeBasis
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, check_cancelled, check_outputs,
                       core_call, feedback_callbacks, load_scene_for, processing_errors, style_output_on_load)
-from ..parameters import (ATTITUDE_MODEL, CAMERA_TRAJECTORY, GROUND, ON_SINGULAR, POSITION_MODEL, ROBUST,
-                          RPC_CORRECTION, camera_trajectory, enum_value, ground_mode, on_singular, output_scene,
-                          robust_method, rpc_correction, tr, trajectory_model)
+from ..parameters import (ATTITUDE_MODEL, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR, POSITION_MODEL,
+                          ROBUST, RPC_CORRECTION, camera_trajectory, enum_value, ground_mode, interior_selection,
+                          on_singular, output_scene, robust_method, rpc_correction, tr, trajectory_model)
 
 ARCSEC = math.pi / 648000.0
 
@@ -101,18 +101,27 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterString(self.INTERIOR, tr("Interior parameters to estimate"),
                                                         optional=True, defaultValue=""),
                   tr("Interior and installation parameters to estimate, comma-separated; every other one stays "
-                  "at the scene's value. A name alone makes the parameter free; 'name=sigma' makes it weighted "
-                  "(a pseudo-observation of 0 correction with that sigma, in the parameter's SI unit). Shell "
+                  "at the scene's value. 'default' estimates the usual set with priors: every camera's 10 terms "
+                  "with 3 px, the installation angles of every camera but the first with 30 arcsec, the shifts "
+                  "and rotation of every CCD chip but the middle one with 2 px (later items override it, e.g. "
+                  "'default, NAD.k2=0.5px'). A name alone makes the parameter free; 'name=sigma' makes it weighted "
+                  "(a pseudo-observation of 0 correction with that sigma), the sigma in image terms: 'px' is the "
+                  "largest displacement the parameter causes at the ends of the detector array, in detector "
+                  "pitches (e.g. NAD.k1=2px, HRC.f=1px), 'arcsec' for angles (FWD.roll=30arcsec); a bare number is "
+                  "in the parameter's SI unit. Shell "
                   "wildcards match several names: * any text, ? one character. Names use the scene's chip and "
                   "camera names (CBERS-02B: camera HRC, chips HRC-1, HRC-2, HRC-3): {chip}.dx, .dy (CCD shift on "
                   "the focal plane, m) and .theta (CCD rotation, rad), after Zheng et al. 2015; {chip}.ux0, .ux1, "
                   ".uy0, .uy1 (rad) for detectors given by look angles; {camera}.f (focal length correction, m), .dxp, "
-                  ".dyp (principal point, m), .k1, .k2 (radial distortion), .p1, .p2 (decentring), .b1, .b2, .b3 "
-                  "(affinity), after Zhang et al. 2015; {camera}.roll, .pitch, .yaw (installation angles, rad; with "
-                  "several cameras free them for all but the reference camera). Example for CBERS-02B: 'HRC-1.*, "
-                  "HRC-3.*' (shifts and rotations of the left and right CCDs against the middle one); 'HRC-1.*, HRC-3.*, "
-                  "HRC.f=1e-5' also estimates the focal length, weighted with 10 µm. Sets the GCPs cannot separate "
-                  "from the trajectory are reported (see ON_SINGULAR). Empty: none (trajectory only)."))
+                  ".dyp (principal point, m), .k1, .k2 (radial distortion, 1/m2, 1/m4), .p1, .p2 (decentring, 1/m), "
+                  ".b1, .b2, .b3 (affinity), after Zhang et al. 2015; {camera}.roll, .pitch, .yaw (installation "
+                  "angles, rad; with several cameras free them for all but the reference camera). Example for "
+                  "CBERS-02B: 'HRC-1.*, HRC-3.*' (shifts and rotations of the left and right CCDs against the middle "
+                  "one); 'HRC-1.*, HRC-3.*, HRC.f=1px' also estimates the focal length, weighted with 1 px at the "
+                  "array end. Sets the GCPs cannot separate from the trajectory are reported (see ON_SINGULAR); "
+                  "parameters the control cannot support are removed (see INTERIOR_SELECTION). Empty: none "
+                  "(trajectory only)."))
+        self.add_parameter(interior_selection())
         self.addParameter(camera_trajectory())
         self.addParameter(rpc_correction())
         self.addParameter(ground_mode())
@@ -269,6 +278,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             position_sigma=position_sigma or None, attitude_sigma=attitude_sigma * ARCSEC or None,
             camera_trajectory=enum_value(self, parameters, self.CAMERA_TRAJECTORY, context),
             interior=self.parameterAsString(parameters, self.INTERIOR, context),
+            interior_selection=enum_value(self, parameters, INTERIOR_SELECTION, context),
             ground=enum_value(self, parameters, self.GROUND, context),
             robust=enum_value(self, parameters, self.ROBUST, context),
             alpha=number(self.ALPHA),

@@ -1,0 +1,170 @@
+"""Automatic removal of interior parameters the control at hand cannot support.
+
+After a solution with free or weighted interior parameters (camera terms, chip terms,
+installation angles), the weakest ones are fixed at 0 a few at a time and the block is
+re-solved, until every kept parameter passes three tests (their figures go in the report):
+
+- significance: |value| >= T_CRITICAL * sigma (sigma a posteriori, 95 % two-sided);
+- correlation: |r| <= MAX_CORRELATION with every other unknown (trajectory included): above
+  it the two trade against each other and the split is decided by noise;
+- information: at least MIN_INFORMATION of the parameter's information from the
+  observations is left once the other unknowns are free (1 / Q_ii against N_ii, both
+  without its own prior): below it the other unknowns would absorb it.
+
+Then a guard: the conventional adjustment (no interior parameters) of the same
+observations is solved too, and self-calibration is kept only when it lowers the weighted
+squared residuals significantly, by the F-test of nested models (Koch 1999; the test of
+additional parameters in Förstner 1979 / Grün 1978): F = ((C0 - C1) / q) / (C1 / dof1) against
+F(q, dof1) at GUARD_ALPHA, C0 and C1 the costs of the two solutions with the same weights (the
+conventional run's variance components and robust weights), q the kept parameters, dof1 the
+conventional redundancy minus q. Parameters that only fit noise, or that the control cannot
+separate from the trajectory, do not pass it, and the run falls back to the conventional
+solution and says so. The test needs no check points and no extra solutions beyond one
+(a leave-one-out cross-validation of the control points would need one per GCP and leaves
+too few points for 4-GCP blocks).
+"""
+from __future__ import annotations
+
+import copy
+import logging
+import math
+from typing import Callable
+
+import numpy as np
+from scipy import stats
+
+log = logging.getLogger(__name__)
+
+T_CRITICAL = 1.96        # |value| / sigma below this: not significant (alpha 0.05, two-sided)
+MAX_CORRELATION = 0.98   # |r| with another unknown above this: the control cannot split them
+MIN_INFORMATION = 0.02   # share of its observation information left with the others free
+GUARD_ALPHA = 0.05       # significance of the F-test against the conventional adjustment
+SELECTION = ("keep", "significant")
+
+
+def interior_free(problem) -> np.ndarray:
+    """Indices (into params.params) of the free or weighted interior parameters."""
+    return np.array([i for i in problem.params.free if problem.params.params[i].block
+                     in ("installation", "chip", "camera")], dtype=np.int64)
+
+
+def _tests(problem, est) -> list[dict]:
+    """Each free interior parameter's value, sigma, t, largest correlation (with whom) and
+    information share, and the tests it fails (list of reasons)."""
+    params, st = problem.params, est.st
+    system = est.result["system"]
+    free = params.free
+    column = {int(i): k for k, i in enumerate(free)}
+    d = np.sqrt(np.diag(st.Q))
+    corr = st.Q / np.outer(d, d)
+    out = []
+    for i in interior_free(problem):
+        p, k = params.params[i], column[int(i)]
+        sigma = float(st.sigma0 * d[k])
+        t = abs(p.value) / sigma if sigma > 0 else math.inf
+        r = np.abs(corr[k]).copy()
+        r[k] = 0.0
+        j = int(np.argmax(r))
+        prior = 1.0 / p.sigma ** 2 if p.mode == "weighted" else 0.0
+        data = system.N[k, k] - prior
+        info = float((1.0 / st.Q[k, k] - prior) / data) if data > 0 else 0.0
+        fails = []
+        if info < MIN_INFORMATION:
+            fails.append(f"non-determinable with this control: keeps {100 * max(info, 0.0):.2g} % of its "
+                         "information once the other unknowns are free")
+        if r[j] > MAX_CORRELATION:
+            fails.append(f"correlated with {params.params[free[j]].name} at r = {corr[k, j]:+.4f}")
+        if t < T_CRITICAL:
+            fails.append(f"not significant: value {p.value:.4g} {p.unit}, sigma {sigma:.3g}, t = {t:.2f} "
+                         f"< {T_CRITICAL}")
+        out.append({"name": p.name, "index": int(i), "value": p.value, "sigma": sigma, "unit": p.unit, "t": t,
+                    "correlation": float(corr[k, j]), "correlated_with": params.params[free[j]].name,
+                    "information": info, "fails": fails})
+    return out
+
+
+def _fix(problem, indices) -> None:
+    for i in indices:
+        p = problem.params.params[i]
+        p.mode, p.value = "fixed", 0.0
+    problem.structure()
+
+
+def _same_weight_cost(problem, like) -> float:
+    """The weighted squared residuals of ``problem``'s solution with the weights of ``like``
+    (same observations in the same order): its variance components and robust weights."""
+    saved = problem.scale, problem.factor
+    problem.scale, problem.factor = dict(like.scale), like.factor
+    problem.rescaled()
+    try:
+        return problem.cost()
+    finally:
+        problem.scale, problem.factor = saved
+        problem.rescaled()
+
+
+def select_interior(problem, est, estimate: Callable) -> tuple[object, object, dict]:
+    """Remove failing interior parameters and guard against the conventional adjustment.
+
+    problem, est: the solved problem (engine._Problem) and its estimate (engine._Estimate);
+    estimate(problem) re-solves. Returns the problem and estimate to report (the conventional
+    ones when self-calibration is not significantly better) and the report section."""
+    conventional = copy.deepcopy(problem)
+    removed, rounds = [], 0
+    while True:
+        tests = _tests(problem, est)
+        failing = sorted((x for x in tests if x["fails"]), key=lambda x: (len(x["fails"]) < 2, x["t"]))
+        if not failing:
+            break
+        batch = failing[:max(1, len(failing) // 3)]
+        for x in batch:
+            log.info("interior parameter %s removed: %s", x["name"], "; ".join(x["fails"]))
+            removed.append({k: v for k, v in x.items() if k != "index"} | {"round": rounds + 1})
+        _fix(problem, [x["index"] for x in batch])
+        rounds += 1
+        if interior_free(problem).size == 0:
+            tests = []
+            break
+        est = estimate(problem)
+    kept = [{k: v for k, v in x.items() if k not in ("index", "fails")} for x in tests]
+    report = {"method": "significant", "t_critical": T_CRITICAL, "max_correlation": MAX_CORRELATION,
+              "min_information": MIN_INFORMATION, "rounds": rounds, "removed": removed, "kept": kept}
+    _fix(conventional, interior_free(conventional))
+    conventional.factor = np.ones_like(conventional.factor)
+    conventional.scale = {}
+    conventional.rescaled()
+    est0 = estimate(conventional)
+    guard = _guard(problem, est, conventional, est0, len(kept))
+    report["guard"] = guard
+    if guard["self_calibration_kept"]:
+        log.info("self-calibration kept: %d interior parameters (%s); F = %.3g > %.3g", len(kept),
+                 ", ".join(x["name"] for x in kept), guard["F"], guard["F_critical"])
+        report["outcome"] = "self-calibration"
+        return problem, est, report
+    log.warning("self-calibration fell back to the conventional adjustment (no interior parameters): %s",
+                guard["reason"])
+    report["outcome"] = "conventional"
+    return conventional, est0, report
+
+
+def _guard(problem, est, conventional, est0, q: int) -> dict:
+    """The F-test of the kept interior parameters against the conventional solution."""
+    c0 = conventional.cost()
+    c1 = _same_weight_cost(problem, conventional)
+    dof1 = est0.st.dof - q
+    out = {"kept_parameters": q, "cost_conventional": c0, "cost_self_calibrated": c1, "dof": [q, dof1],
+           "alpha": GUARD_ALPHA, "F": None, "F_critical": None}
+    if q == 0:
+        return out | {"self_calibration_kept": False, "reason": "no interior parameter passed its tests"}
+    if dof1 <= 0:
+        return out | {"self_calibration_kept": False,
+                      "reason": f"no redundancy left for {q} interior parameters ({est0.st.dof:.0f} before them)"}
+    f = ((c0 - c1) / q) / (c1 / dof1)
+    crit = float(stats.f.ppf(1.0 - GUARD_ALPHA, q, dof1))
+    out |= {"F": float(f), "F_critical": crit}
+    if f > crit:
+        return out | {"self_calibration_kept": True, "reason": ""}
+    return out | {"self_calibration_kept": False,
+                  "reason": f"the {q} kept interior parameters do not lower the weighted squared residuals "
+                            f"significantly (F = {f:.3g} <= {crit:.3g} at alpha {GUARD_ALPHA}: "
+                            f"{c1:.4g} against {c0:.4g} without them)"}
