@@ -99,6 +99,7 @@ class GroundLines:
             setattr(self, name, np.asarray(getattr(self, name), dtype=float))
         for name in ("sigma_across", "sigma_h"):
             setattr(self, name, np.broadcast_to(np.asarray(getattr(self, name), dtype=float), (k,)).copy())
+        _require_layout(self.start, k, self.lon.size)
 
     def __len__(self) -> int:
         return int(self.id.size)
@@ -133,6 +134,7 @@ class ImageLines:
         self.start = np.asarray(self.start, dtype=np.int64)
         self.col, self.row = np.asarray(self.col, dtype=float), np.asarray(self.row, dtype=float)
         self.sigma_px = np.broadcast_to(np.asarray(self.sigma_px, dtype=float), self.col.shape).copy()
+        _require_layout(self.start, self.line_id.size, self.col.size)
 
     def __len__(self) -> int:
         return int(self.line_id.size)
@@ -140,6 +142,11 @@ class ImageLines:
     def vertex_part(self) -> np.ndarray:
         """(V,) index of each vertex's part."""
         return np.repeat(np.arange(len(self)), np.diff(self.start))
+
+
+def _require_layout(start: np.ndarray, parts: int, vertices: int) -> None:
+    if start.shape != (parts + 1,) or start[0] != 0 or start[-1] != vertices or np.any(np.diff(start) < 0):
+        raise ValueError(f"vertex offsets {start[:5]}... do not describe {parts} parts of {vertices} vertices")
 
 
 def _offsets(parts) -> np.ndarray:
@@ -448,8 +455,11 @@ def coplanarity_residual(scene, camera, col, row, p1: np.ndarray, p2: np.ndarray
     """Seed 002 eq. 4 for image points (col, row) (n,) of camera ``camera``: the sine of the
     angle (rad) between each point's ray and the plane through the perspective centre PC and
     the straight ground line p1 -> p2 (ECEF, (3,) or (n,3)): N . u / |N| with
-    N = (p2 - p1) x (PC - p1), u the unit ray (apparent direction)."""
-    _, pc, _, u = scene.line_of_sight(col, row, scene.camera_index(camera))
+    N = (p2 - p1) x (PC - p1), u the unit ray (the geometric direction: velocity aberration
+    removed, as eq. 4 is a condition on straight rays; refraction, a few microradians off
+    nadir, is left in)."""
+    _, pc, v, u = scene.line_of_sight(col, row, scene.camera_index(camera))
+    u = scene._geometric_ray(pc, v, u, np.linalg.norm(np.asarray(p1, float) - pc, axis=-1))
     normal = np.cross(np.asarray(p2, float) - p1, pc - np.asarray(p1, float))
     return np.einsum("ni,ni->n", normal, u) / np.linalg.norm(normal, axis=1)
 
