@@ -143,12 +143,15 @@ def render_image(scene: SceneModel, camera: int, dem, path, frame: dict,
                  is_cancelled: Callable[[], bool] | None = None) -> float:
     """Render camera ``camera`` of ``scene`` over ``dem`` into an 8-bit GeoTIFF at ``path``
     (no georeferencing: raw image geometry), with the texture of ``frame`` (see
-    :func:`texture_frame`). Returns the largest interpolation error of the ground position
-    measured on sample pixels, in pixels (ground metres / GSD).
+    :func:`texture_frame`) and its roads (``frame['roads']``, :mod:`core.roads`). Returns the
+    largest interpolation error of the ground position measured on sample pixels, in pixels
+    (ground metres / GSD).
     """
     cam = scene.cameras[camera]
     centre, gsd, seed = tuple(frame["centre"]), float(frame["gsd_m"]), int(frame["seed"])
     grids = [_ChipGrid(scene, camera, k, dem, centre) for k in range(len(cam.chips))]
+    from .roads import painter_for  # roads import this module
+    roads = painter_for(frame)
     ds = gdal.GetDriverByName("GTiff").Create(str(path), cam.cols, cam.rows, 1, gdal.GDT_Byte,
                                               ["TILED=YES", "COMPRESS=DEFLATE", "PREDICTOR=2", "BIGTIFF=IF_SAFER"])
     ds.SetMetadata({"PUSHBROOM_CAMERA": cam.name, "PUSHBROOM_TEXTURE_SEED": str(seed)})
@@ -164,7 +167,8 @@ def render_image(scene: SceneModel, camera: int, dem, path, frame: dict,
         for g in grids:
             x, y = g.plane(rows)
             c0 = int(g.cols[0])
-            out[:, c0:c0 + g.cols.size] = to_digital_numbers(texture(x, y, gsd, seed))
+            value = texture(x, y, gsd, seed)
+            out[:, c0:c0 + g.cols.size] = to_digital_numbers(value if roads is None else roads.paint(x, y, value))
         return out
 
     try:

@@ -18,7 +18,8 @@ camera set images it. Two scene models are written:
 Outputs in the folder: ``onboard_scene.json``, ``true_scene.json``, ``gcps.csv`` (ground
 control and check points), ``tie_points.csv`` (multi-camera presets), ``dem.tif`` (EGM96
 geoid heights), ``simulation.json`` (settings and truth), and with ``render=True`` one raw
-image per camera ``image_<CAMERA>.tif`` (see :mod:`core.render`).
+image per camera ``image_<CAMERA>.tif`` (see :mod:`core.render`). With roads (``n_lines``),
+``lines.gpkg`` (road map and image lines) and ``line_points.csv`` (see :mod:`core.roads`).
 
 Frames: ECEF metres, times in seconds from the epoch, image coordinates GDAL (col, row).
 The focal-plane chips run from right to left across track (nominal theta = pi), so that a
@@ -43,6 +44,7 @@ from .dem import Dem
 from .errors import Cancelled, InputError
 from .files import OutputError, atomic_outputs, check_folder_destination, write_text
 from .geodesy import A, ecef_to_geodetic, geodetic_to_ecef
+from .roads import LINES_FILE, POINTS_FILE, RoadSettings, simulate_roads
 from .rotations import matrix_to_quat, rotation_from_angles, rot_y
 from .scene_io import save_scene
 from .sensor import SceneModel
@@ -158,6 +160,7 @@ class SimulationResult:
     manifest: Path
     tie_points: Path | None = None
     images: dict = field(default_factory=dict)
+    lines: Path | None = None
 
 
 # --- orbit and attitude ----------------------------------------------------------------------
@@ -520,7 +523,8 @@ def _write_csv(path: Path, columns: tuple[str, ...], data: dict) -> None:
 def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int = 200, image_noise: float = 0.3,
              render: bool = False, errors: ErrorSettings | dict | None = None,
              gcp_settings: GcpSettings | None = None, progress: Callable[[float, str | None], None] | None = None,
-             is_cancelled: Callable[[], bool] | None = None) -> SimulationResult:
+             is_cancelled: Callable[[], bool] | None = None, n_lines: int = 0,
+             road_settings: RoadSettings | None = None) -> SimulationResult:
     """Simulate a strip of ``n_scenes`` scenes of ``preset`` into ``folder`` (created).
 
     errors: the preset's :class:`ErrorSettings` (None), or another one, or a dict overriding
@@ -529,6 +533,8 @@ def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int 
     long work; on cancel or error nothing is written (every file is renamed into place at the
     end, :class:`core.files.OutputSet`). Files of the same names already in ``folder`` are
     replaced only when an earlier simulation wrote them (:func:`check_folder`).
+    n_lines / road_settings: simulated roads, control lines with their truth (:mod:`core.roads`);
+    n_lines sets the number of roads when road_settings is None.
     """
     if preset not in PRESETS:
         raise InputError(f"unknown preset {preset!r} (choose one of {', '.join(PRESETS)})")
@@ -542,10 +548,12 @@ def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int 
         raise InputError(f"tie points need a preset with several cameras ({preset} has one)")
     report = progress or (lambda fraction, message=None: None)
     cancelled = is_cancelled or (lambda: False)
+    roads = road_settings or RoadSettings(n_lines=int(n_lines))
+    roads.validate()
     folder = Path(folder)
-    check_folder(folder, output_names(spec, settings, render))
+    check_folder(folder, output_names(spec, settings, render) + ([LINES_FILE, POINTS_FILE] if roads.n_lines else []))
     with _new_folder(folder):
-        return _simulate(spec, folder, seed, int(n_scenes), render, errors, settings, report, cancelled)
+        return _simulate(spec, folder, seed, int(n_scenes), render, errors, settings, report, cancelled, roads)
 
 
 @contextmanager
@@ -569,7 +577,7 @@ def _new_folder(folder: Path):
 
 
 def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool, errors: ErrorSettings,
-              settings: GcpSettings, report, cancelled) -> SimulationResult:
+              settings: GcpSettings, report, cancelled, roads: RoadSettings) -> SimulationResult:
     """:func:`simulate` once its arguments are checked and ``folder`` exists."""
     preset = spec.name
     rng = np.random.default_rng(seed)
@@ -603,6 +611,10 @@ def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool
                                  settings, rng)
             tie_tmp = files.path(folder / "tie_points.csv")
             _write_csv(tie_tmp, TIE_COLUMNS, tie)
+        road_truth = None
+        if roads.n_lines:
+            step(0.55, f"drawing {roads.n_lines} roads (control lines)")
+            road_truth = simulate_roads(geo.true, dem, roads, seed, folder, files)
         step(0.6, "writing the scene models")
         save_scene(geo.true, folder / "true_scene.json", files)
         save_scene(geo.onboard, folder / "onboard_scene.json", files)
@@ -610,6 +622,7 @@ def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool
         if render:
             from .render import render_image, texture_frame
             frame = texture_frame(geo.true, dem, seed)
+            frame["roads"] = road_truth
             for k, cam in enumerate(geo.true.cameras):
                 path = files.path(folder / f"image_{cam.name}.tif")
                 base = 0.65 + 0.35 * k / len(geo.true.cameras)
@@ -621,17 +634,19 @@ def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool
                 images[cam.name] = folder / f"image_{cam.name}.tif"
         manifest = {"preset": preset, "seed": seed, "n_scenes": int(n_scenes), "epoch": EPOCH,
                     "errors": asdict(errors), "measurements": asdict(settings), "truth": geo.truth,
-                    "texture": frame,
+                    "texture": frame, "roads": road_truth,
                     "conventions": __doc__.split("\n\n")[1].strip(),
                     "files": {"true_scene": "true_scene.json", "onboard_scene": "onboard_scene.json",
                               "gcps": "gcps.csv", "dem": "dem.tif (EGM96 geoid heights)",
                               "tie_points": "tie_points.csv" if tie_tmp else None,
+                              "lines": LINES_FILE if road_truth else None, "line_points": POINTS_FILE if road_truth else None,
                               "images": {k: v.name for k, v in images.items()}}}
         write_text(folder / MANIFEST, json.dumps(manifest, indent=1), files)
     report(1.0, "simulation written")
     return SimulationResult(folder, folder / "onboard_scene.json", folder / "true_scene.json", folder / "gcps.csv",
                             folder / "dem.tif", folder / MANIFEST,
-                            folder / "tie_points.csv" if settings.n_tie_points else None, images)
+                            folder / "tie_points.csv" if settings.n_tie_points else None, images,
+                            folder / LINES_FILE if road_truth else None)
 
 
 def output_names(spec: Preset, settings: GcpSettings, render: bool) -> list[str]:
@@ -668,6 +683,7 @@ def _simulated_files(folder: Path) -> set[str]:
         listed = manifest["files"]
         names = [listed[k] for k in ("true_scene", "onboard_scene", "gcps", "dem", "tie_points")]
         names += list(listed["images"].values())
+        names += [listed.get("lines"), listed.get("line_points")]
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return set()
     return {MANIFEST, *(n.split(" ")[0] for n in names if isinstance(n, str))}

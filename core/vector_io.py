@@ -6,6 +6,7 @@ Real (NaN written as NULL). The file is written completely or not at all
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -46,26 +47,47 @@ def feature_count(path) -> int | None:
     return ds.GetLayer(0).GetFeatureCount()
 
 
+@dataclass
+class LayerData:
+    """One layer to write: name, CRS, OGR geometry type, columns {name: (n,) array}, n OGR
+    geometries (or WKT strings), optional layer metadata items."""
+    name: str
+    srs: osr.SpatialReference | None
+    geometry_type: int
+    columns: dict
+    geometries: object
+    metadata: dict | None = None
+
+
 def write_layer(path, layer: str, srs: osr.SpatialReference, geometry_type: int, columns: dict,
                 geometries, metadata: dict | None = None, files: OutputSet | None = None) -> None:
     """Write a GeoPackage layer: ``columns`` {name: (n,) array}, ``geometries`` n OGR
     geometries (or WKT strings), optional layer metadata items. Replaces the file, completely
     or not at all (with ``files``, as part of that set)."""
+    write_layers(path, [LayerData(layer, srs, geometry_type, columns, geometries, metadata)], files)
+
+
+def write_layers(path, layers: list[LayerData], files: OutputSet | None = None) -> None:
+    """Write a GeoPackage holding ``layers``; replaces the file, completely or not at all."""
     path = Path(path)
     if path.suffix.lower() != ".gpkg":
         raise InputError(f"{path}: layers are written as GeoPackage; use a .gpkg file name")
     with atomic_output(path, files) as tmp:
-        failed = _write_gpkg(tmp, layer, srs, geometry_type, columns, geometries, metadata)
+        failed = ""
+        for layer in layers:
+            failed = failed or _write_gpkg(tmp, layer.name, layer.srs, layer.geometry_type, layer.columns,
+                                           layer.geometries, layer.metadata)
         if failed:
             raise OutputError(f"cannot write {path}: {failed}")
 
 
 def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geometries, metadata) -> str:
-    """Write a new GeoPackage (see :func:`write_layer`) and close it; '' or OGR's error (returned,
-    not raised: the error's traceback would hold the file open)."""
+    """Write a layer into a GeoPackage (created when absent; see :func:`write_layer`) and close
+    it; '' or OGR's error (returned, not raised: the error's traceback would hold the file open)."""
     failed, written = "", 0
     try:
-        ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
+        exists = Path(path).exists()
+        ds = ogr.Open(str(path), update=1) if exists else ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
         lyr = ds.CreateLayer(layer, srs, geometry_type, options=["FID=fid"])
         arrays = {name: np.asarray(v) for name, v in columns.items()}
         for name, values in arrays.items():
@@ -93,6 +115,15 @@ def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geomet
             feat = lyr = ds = None  # closes the file
         except RuntimeError as exc:
             failed = failed or str(exc)
-    if not failed and feature_count(path) != written:  # errors on closing are not raised
-        failed = f"the file holds {feature_count(path)} of {written} features"
+    if not failed and _layer_count(path, layer) != written:  # errors on closing are not raised
+        failed = f"the layer {layer} holds {_layer_count(path, layer)} of {written} features"
     return failed
+
+
+def _layer_count(path, layer: str) -> int | None:
+    try:
+        ds = ogr.Open(str(path))
+        lyr = ds.GetLayerByName(layer) if ds is not None else None
+    except RuntimeError:
+        return None
+    return None if lyr is None else lyr.GetFeatureCount()
