@@ -23,14 +23,16 @@ from scipy import linalg, stats
 
 from ..errors import Cancelled, ConvergenceError, InputError
 from ..gcps import GcpTable, resolve_cameras
-from ..geodesy import enu_rotations, geodetic_to_ecef, up_vector
+from ..geodesy import ecef_to_geodetic, enu_rotations, geodetic_to_ecef, up_vector
 from ..sensor import SceneModel
+from ..tiepoints import TieTable
 from ..timebasis import TimeBasis
 from .checkpoints import blunder_test, intersection_accuracy, model_error_message, summary_lines
 from .model import Jacobian, Model, build_observations
-from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, sum_by_point
+from .normal import GroundPrior, Linearization, System, assemble, back_substitute, coupling, groups
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 from .selection import SELECTION, interior_free, select_interior
+from .ties import TieSetUp, camera_indices, check_ties, datum, set_up_ties
 from .robust import (COMPONENT_TOLERANCE, breakdown, component_report, components, critical as _critical, image_group,
                      inliers, rescale, robust_scale, robust_weights, stated_sigma0, truncation)
 
@@ -118,17 +120,23 @@ class AdjustmentResult:
     (control and check) arrays: id, role, camera, col, row, res_col, res_row (px,
     predicted - measured), res_px, w_col, w_row (normalised residuals), redundancy, weight
     (final weight factor), flagged (bool); for check points the residuals are those of the
-    adjusted scene's ground -> image."""
+    adjusted scene's ground -> image. tie_points: per input tie observation (input order)
+    arrays: id, camera, col, row, res_col, res_row (px), w_col, w_row, weight, flagged, and the
+    adjusted ground position of its point lon, lat (deg), h (ellipsoidal m); NaN for the
+    observations of points left out (empty without tie points)."""
     scene: SceneModel
     report: dict
     points: dict = field(default_factory=dict)
+    tie_points: dict = field(default_factory=dict)
 
 
 class _Problem:
     """The data and unknowns of one adjustment, and one linearisation of it."""
 
-    def __init__(self, scene: SceneModel, table: GcpTable, settings: AdjustmentSettings):
+    def __init__(self, scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
+                 ties: TieSetUp | None = None):
         self.scene, self.settings = scene, settings
+        ties = ties or TieSetUp.empty()
         t_min, t_max = scene.time_span()
         self.params = ParameterSet(
             scene,
@@ -139,17 +147,21 @@ class _Problem:
         control = np.nonzero(table.role == "control")[0]
         ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
         sel = control[first]
-        self._set_up_ground(table, sel)
-        names = [c.name for c in scene.cameras]
-        cams = np.searchsorted(np.array(sorted(names)), table.camera[control])
-        cams = np.argsort(names)[cams]  # camera indices, vectorised
-        obs = build_observations(scene, self.params, cams, table.col[control], table.row[control], point,
-                                 table.sigma_px[control], self.ground)
+        self._set_up_ground(table, sel, ties.ground)
+        # GCP observations, then tie observations (their points after the GCPs')
+        is_tie = np.r_[np.zeros(control.size, bool), np.ones(len(ties), bool)]
+        obs = build_observations(scene, self.params, np.r_[camera_indices(scene, table.camera[control]), ties.camera],
+                                 np.r_[table.col[control], ties.table.col[ties.rows]],
+                                 np.r_[table.row[control], ties.table.row[ties.rows]],
+                                 np.r_[point, sel.size + ties.point],
+                                 np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows]], self.ground)
         # Observations sorted by what decides their parameter columns, so that observations
         # sharing columns are contiguous whatever the free parameters: groups are slices.
         order = np.lexsort((obs.att_first, obs.pos_first, obs.chip, obs.camera))
         self.obs = obs.select(order)
-        self.rows = control[order]
+        self.is_tie = is_tie[order]
+        self.rows = np.r_[control, ties.rows][order]  # rows of the GCP table, or of the tie table for ties
+        self.ties = ties
         self.factor = np.ones((len(self.obs), 2))  # robust weight factors per residual row
         self.scale: dict[str, float] = {}  # variance component factor on the stated sigmas, per group
         self.rescaled()
@@ -179,16 +191,31 @@ class _Problem:
                 "attitude pseudo-observations": (s.attitude_sigma, "rad")}.get(group, (None, ""))
 
     # --- unknowns and their columns -------------------------------------------------------
-    def _set_up_ground(self, table: GcpTable, sel: np.ndarray) -> None:
-        """Ground unknowns of the points ``sel`` (rows of ``table``, one per point): start values
-        (ECEF m, (n, 3)) and, for weighted ground, their ENU rotations and stated east, north, up
-        sigmas (m, (n, 3))."""
-        self.ground0 = geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel])
+    def _set_up_ground(self, table: GcpTable, sel: np.ndarray, tie_ground: np.ndarray | None = None) -> None:
+        """Ground points: the control points ``sel`` (rows of ``table``, one per point), then the
+        tie points (start values ``tie_ground`` (t, 3) ECEF m). ground0 / ground (m, 3) ECEF m:
+        measured (start) and current positions; for weighted ground the control points' ENU
+        rotations and stated east, north, up sigmas (m, (n, 3)). The ground unknowns are the
+        weighted control points and all tie points (which have no prior): ``estimated`` (k,)
+        their indices in ground, ``ground_point`` (m,) each point's unknown index or -1."""
+        tie_ground = np.zeros((0, 3)) if tie_ground is None else tie_ground
+        self.n_control = int(sel.size)
+        self.ground0 = np.concatenate([geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel]).reshape(-1, 3),
+                                       tie_ground])
         self.ground = self.ground0.copy()
         self.weighted = self.settings.ground == "weighted"
         self.enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
         self.ground_sigma = np.stack([table.sigma_xy[sel], table.sigma_xy[sel], table.sigma_z[sel]], 1) \
             if self.weighted else np.zeros((0, 3))
+        self.estimated = np.arange(self.n_control * (not self.weighted), self.ground0.shape[0])
+        self.ground_point = -np.ones(self.ground0.shape[0], np.int64)
+        self.ground_point[self.estimated] = np.arange(self.estimated.size)
+
+    def counts(self) -> tuple[int, int]:
+        """(equations, unknowns): image rows, ground priors and pseudo-observations against the
+        free parameters and the ground unknowns."""
+        n_eq = 2 * len(self.obs) + 3 * self.enu.shape[0] + sum(p.B.shape[0] for p in self.pseudo())
+        return n_eq, int(self.params.free.size) + 3 * int(self.estimated.size)
 
     def structure(self) -> None:
         """Unknown numbering and each observation's columns (after a change of the free set)."""
@@ -240,10 +267,16 @@ class _Problem:
 
     def linearize(self) -> tuple[Linearization, GroundPrior | None]:
         r, jac = Model(self.scene, self.params).linearize(self.obs, self.ground[self.obs.point])
-        lin = Linearization(r, self.weights(), self.columns, self.values(jac), jac.ground,
-                            self.obs.point if self.weighted else -np.ones(len(self.obs), np.int64))
-        prior = GroundPrior(self.ground_weight, self.ground - self.ground0) if self.weighted else None
-        return lin, prior
+        return Linearization(r, self.weights(), self.columns, self.values(jac), jac.ground,
+                             self.ground_point[self.obs.point]), self.ground_prior()
+
+    def ground_prior(self) -> GroundPrior | None:
+        """The ground unknowns' prior: the weighted control points' stated weights, zero for tie
+        points (None without ground unknowns)."""
+        if self.estimated.size == 0:
+            return None
+        weight = np.concatenate([self.ground_weight, np.zeros((self.estimated.size - self.enu.shape[0], 3, 3))])
+        return GroundPrior(weight, (self.ground - self.ground0)[self.estimated])
 
     def residuals(self) -> np.ndarray:
         return Model(self.scene, self.params).residuals(self.obs, self.ground[self.obs.point])
@@ -252,7 +285,7 @@ class _Problem:
         r = self.residuals()
         c = float(np.sum(self.weights() * r * r))
         if self.weighted:
-            e = self.ground - self.ground0
+            e = (self.ground - self.ground0)[:self.n_control]
             c += float(np.einsum("mi,mij,mj->", e, self.ground_weight, e))
         return c + sum(float(np.sum(p.weight * p.misfit(self.params) ** 2)) for p in self.pseudo())
 
@@ -295,8 +328,9 @@ class _Problem:
         values = self.params.values()
         values[self.params.free] += dx
         self.params.set_values(values)
-        if self.weighted:
-            self.ground = self.ground + back_substitute(lin, system, dx)
+        if self.estimated.size:
+            self.ground = self.ground.copy()
+            self.ground[self.estimated] += back_substitute(lin, system, dx)
 
 
 @dataclass
@@ -522,14 +556,7 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
     Q = linalg.cho_solve(linalg.cho_factor(system.N, check_finite=False), np.eye(n_unknowns), check_finite=False)
     P = np.zeros((lin.r.shape[0], 2, 2))
     P[:, 0, 0], P[:, 1, 1] = lin.p[:, 0], lin.p[:, 1]
-    h = np.zeros_like(lin.r)
     weighted = lin.point >= 0
-    B = np.zeros_like(P)
-    if weighted.any():
-        k = system.K[lin.point[weighted]]
-        jg = lin.jg[weighted]
-        B[weighted] = jg @ k @ np.swapaxes(jg, 1, 2) @ P[weighted]
-        h[weighted] = np.einsum("nij,njk,nik->ni", jg, k, jg)
     G = np.zeros_like(P)
     for idx in problem.groups:
         keep = lin.columns[idx.start] >= 0
@@ -539,16 +566,17 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
         A = lin.values[idx][:, :, keep]
         AQ = (A.reshape(-1, c.size) @ Q[np.ix_(c, c)]).reshape(A.shape)
         G[idx] = np.einsum("nkq,nlq->nkl", AQ, A)
-    eye = np.eye(2)
-    h += np.einsum("nij,njk,nik->ni", eye - B, G, eye - B)
+    h = np.einsum("nkk->nk", G)
+    qgg = system.K
+    if weighted.any():
+        h[weighted], qgg = _ground_leverage(lin, system, Q, G, weighted)
     redundancy = np.clip(1.0 - h * lin.p, 0.0, 1.0)
     v = lin.r
     ground_pvv, r_g = np.zeros((0, 3)), np.zeros((0, 3))
-    if problem.weighted:
-        m = np.einsum("nij,njk->nik", system.K[np.maximum(lin.point, 0)], np.einsum("nki,nkl->nil", lin.jg, P))
-        qgg = system.K + sum_by_point(lin.point[weighted], (m @ G @ np.swapaxes(m, 1, 2))[weighted],
-                                      system.K.shape[0])
-        e = np.einsum("mij,mj->mi", problem.enu, problem.ground - problem.ground0)
+    if problem.weighted and problem.n_control:
+        # the weighted control points are the first ground unknowns
+        qgg = qgg[:problem.n_control]
+        e = np.einsum("mij,mj->mi", problem.enu, (problem.ground - problem.ground0)[:problem.n_control])
         w_enu = np.einsum("mii->mi", np.einsum("mij,mjk,mlk->mil", problem.enu, problem.ground_weight, problem.enu))
         r_g = np.clip(1.0 - np.einsum("mij,mjk,mik->mi", problem.enu, qgg, problem.enu) * w_enu, 0.0, 1.0)
         ground_pvv = w_enu * e * e
@@ -559,15 +587,40 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
         hp = np.einsum("kq,qr,kr->k", p.B, Q[np.ix_(cols, cols)], p.B) * p.weight
         old = pseudo.get(p.group, (0.0, 0.0, 0))
         pseudo[p.group] = (old[0] + float(np.sum(p.weight * m * m)), old[1] + float(np.sum(1 - hp)), old[2] + m.size)
-    total_rows = 2 * len(problem.obs) + 3 * problem.ground.shape[0] * problem.weighted + \
-        sum(p.B.shape[0] for p in problem.pseudo())
-    dof = float(total_rows - n_unknowns - 3 * problem.ground.shape[0] * problem.weighted)
+    total_rows, total_unknowns = problem.counts()
+    dof = float(total_rows - total_unknowns)
     if dof <= 0:
-        raise InputError(f"too few observations: {total_rows} equations for "
-                         f"{n_unknowns + 3 * problem.ground.shape[0] * problem.weighted} unknowns")
+        raise InputError(f"too few observations: {total_rows} equations for {total_unknowns} unknowns")
     sigma0 = math.sqrt(system.cost / dof)
     w = normalised(problem, v, redundancy)
     return Statistics(Q, sigma0, dof, redundancy, w, v, lin.p * v * v, ground_pvv, r_g, pseudo)
+
+
+def _ground_leverage(lin: Linearization, system: System, Q: np.ndarray, G: np.ndarray,
+                     weighted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Diagonals (k,2) of the predicted observations' cofactors for the observations with a
+    ground unknown, and the ground unknowns' cofactors (m,3,3).
+
+    With M_p = sum over the point's observations of J_g' P A (3 x u) and K its eliminated
+    block, the ground estimate is dg = -K (b_g + M_p dx): its cofactor is K + K M_p Q M_p' K,
+    and an observation's prediction A dx + J_g dg has the cofactor
+    J_g K J_g' + (A - J_g K M_p) Q (A - J_g K M_p)'. Every observation of a point enters M_p
+    (a tie point's rays share its ground unknowns)."""
+    n_points = system.K.shape[0]
+    u = Q.shape[0]
+    m = coupling(lin, weighted, u, n_points).T.tocsr()                           # M (3m,u)
+    mq = (m @ Q).reshape(n_points, 3, u)                                          # M Q (m,3,u)
+    s = np.einsum("mau,mbu->mab", mq, m.toarray().reshape(n_points, 3, u))       # M Q M' (m,3,3)
+    point = lin.point[weighted]
+    k = system.K[point]
+    jk = lin.jg[weighted] @ k                                                     # J_g K (k,2,3)
+    cols = lin.columns[weighted]
+    aqm = np.einsum("nkq,ngq->nkg", lin.values[weighted],
+                    np.where(cols[:, None, :] >= 0, mq[point[:, None, None], np.arange(3)[None, :, None],
+                                                        np.maximum(cols, 0)[:, None, :]], 0.0))  # A Q M' (k,2,3)
+    h = np.einsum("nkg,nkg->nk", jk, lin.jg[weighted]) + np.einsum("nkk->nk", G[weighted]) \
+        - 2.0 * np.einsum("nkg,nkg->nk", aqm, jk) + np.einsum("nkg,ngh,nkh->nk", jk, s[point], jk)
+    return h, system.K + system.K @ s @ system.K
 
 
 def normalised(problem: _Problem, v: np.ndarray, redundancy: np.ndarray) -> np.ndarray:
@@ -650,9 +703,13 @@ def _gsd(scene: SceneModel, camera: int) -> float:
 
 
 # --- the whole adjustment ----------------------------------------------------------------------------------
-def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings) -> GcpTable:
-    """Cameras resolved and the GCPs checked before anything is solved: finite values, points
-    in this scene's images, enough of them, and spread over the image."""
+def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
+                 ties: TieTable | None = None) -> GcpTable:
+    """Cameras resolved and the GCPs (and tie points) checked before anything is solved:
+    finite values, points in this scene's images, enough of them, and spread over the image.
+    Without tie points at least 3 control points are needed; with tie points fewer (0, 1, 2)
+    when the onboard pseudo-observations hold what they leave of the datum (see
+    :func:`core.adjust.ties.datum`)."""
     settings.validate()
     table = resolve_cameras(table, scene)
     bad = ~np.all(np.isfinite(np.stack([table.col, table.row, table.lon, table.lat, table.h, table.sigma_px,
@@ -663,18 +720,32 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
                                        (np.any(table.sigma_xy <= 0) or np.any(table.sigma_z <= 0))):
         raise InputError("GCP sigmas must be positive (sigma_px, and sigma_xy, sigma_z for weighted ground)")
     control = table.role == "control"
+    with_ties = ties is not None and len(ties) > 0
+    if with_ties:
+        check_ties(scene, ties, table.id)
     inside = np.zeros(len(table), bool)
     for c, cam in enumerate(scene.cameras):
         m = table.camera == cam.name
         inside[m] = (table.col[m] >= 0) & (table.col[m] <= cam.cols) & (table.row[m] >= 0) & (table.row[m] <= cam.rows)
-    if not inside[control].any():
+    if not inside[control].any() and not (with_ties and not control.any()):
         raise InputError("no control point lies inside this scene's images: is the GCP layer from another scene?")
     if (~inside[control]).sum() > 0.5 * control.sum():
         raise InputError(f"{int((~inside[control]).sum())} of {int(control.sum())} control points lie outside the "
                          "scene's images: is the GCP layer from another scene?")
-    _check_seen_by_scene(scene, table.select(control))
-    _check_spread(scene, table, control)
+    if control.any():
+        _check_seen_by_scene(scene, table.select(control))
+    if not with_ties or np.unique(table.id[control]).size >= 3:
+        _check_spread(scene, table, control)
+    _datum(table, settings, ties)
     return table
+
+
+def _datum(table: GcpTable, settings: AdjustmentSettings, ties: TieTable | None) -> dict | None:
+    """How the datum of a block with tie points is held (None without tie points; InputError
+    naming a datum defect)."""
+    if ties is None or len(ties) == 0:
+        return None
+    return datum(np.unique(table.id[table.role == "control"]).size, settings.position_sigma, settings.attitude_sigma)
 
 
 def _check_seen_by_scene(scene: SceneModel, control: GcpTable) -> None:
@@ -711,29 +782,34 @@ def _check_spread(scene: SceneModel, table: GcpTable, control: np.ndarray) -> No
                          "(one corner); spread them over the scene")
 
 
-def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings) -> _Problem:
+def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings, ties: TieSetUp) -> _Problem:
     """The problem of a rigorous scene, or of an RPC scene (its image-space correction,
     :mod:`core.adjust.rpcbias`)."""
     from ..rpcscene import RpcScene
     if isinstance(scene, RpcScene):
+        if len(ties):
+            raise InputError("tie points need a rigorous (physical) scene model with several cameras; an RPC "
+                             "scene is one image")
         from .rpcbias import RpcProblem
         return RpcProblem(scene, table, settings)
-    return _Problem(scene, table, settings)
+    return _Problem(scene, table, settings, ties)
 
 
 def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | None = None,
            progress: Callable[[float, str | None], None] | None = None,
-           is_cancelled: Callable[[], bool] | None = None) -> AdjustmentResult:
-    """Adjust ``scene`` to the control points of ``table``; evaluate its check points."""
+           is_cancelled: Callable[[], bool] | None = None, ties: TieTable | None = None) -> AdjustmentResult:
+    """Adjust ``scene`` to the control points of ``table`` and the tie points ``ties``
+    (optional); evaluate its check points. With tie points the control may be sparse or absent
+    when the onboard pseudo-observations hold the datum (report["datum"] says how it is held)."""
     settings = settings or AdjustmentSettings()
     progress = progress or (lambda fraction, message=None: None)
     is_cancelled = is_cancelled or (lambda: False)
-    table = check_inputs(scene, table, settings)
+    table = check_inputs(scene, table, settings, ties)
+    held = _datum(table, settings, ties)
     progress(0.02, "setting up the observations")
-    problem = _problem_for(scene, table, settings)
-    n_eq = 2 * len(problem.obs) + 3 * problem.ground.shape[0] * problem.weighted + \
-        sum(p.B.shape[0] for p in problem.pseudo())
-    n_unknowns = problem.params.free.size + 3 * problem.ground.shape[0] * problem.weighted
+    tie_set = set_up_ties(scene, ties) if ties is not None and len(ties) else TieSetUp.empty()
+    problem = _problem_for(scene, table, settings, tie_set)
+    n_eq, n_unknowns = problem.counts()
     if n_eq <= n_unknowns:
         raise InputError(f"too few GCPs for the chosen model: {len(problem.obs)} image observations give {n_eq} "
                          f"equations for {n_unknowns} unknowns; add GCPs or choose a simpler trajectory model "
@@ -749,6 +825,9 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     out = _result(problem, table, adjusted, est, determinability)
     rep = out.report
     rep["interior_selection"] = selection
+    if held is not None:
+        rep["datum"] = held
+        log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")
     adjusted.info["adjustment"] = {
         "settings": asdict(settings), "sigma0": rep["sigma0"],
         "variance_components": {k: {f: v[f] for f in ("apriori_sigma", "estimated_sigma", "unit", "estimated")}
@@ -836,17 +915,18 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Esti
             log.warning("%s and %s are correlated %.4f: the GCPs hardly separate them (their sigmas say by how "
                         "much); onboard sigmas (pseudo-observations) would", pair["a"], pair["b"], pair["r"])
     flagged = np.abs(st.w).max(axis=1) > crit
-    rows = problem.rows
+    gcp = ~problem.is_tie
+    rows = problem.rows[gcp]
     n = len(table)
     points = {"id": table.id, "role": table.role, "camera": table.camera, "col": table.col, "row": table.row,
               "res_col": np.full(n, np.nan), "res_row": np.full(n, np.nan), "w_col": np.full(n, np.nan),
               "w_row": np.full(n, np.nan), "redundancy": np.full(n, np.nan), "weight": np.full(n, np.nan),
               "flagged": np.zeros(n, bool)}
-    points["res_col"][rows], points["res_row"][rows] = st.v[:, 0], st.v[:, 1]
-    points["w_col"][rows], points["w_row"][rows] = st.w[:, 0], st.w[:, 1]
-    points["redundancy"][rows] = st.redundancy.mean(axis=1)
-    points["weight"][rows] = problem.factor[:, 0]
-    points["flagged"][rows] = flagged
+    points["res_col"][rows], points["res_row"][rows] = st.v[gcp, 0], st.v[gcp, 1]
+    points["w_col"][rows], points["w_row"][rows] = st.w[gcp, 0], st.w[gcp, 1]
+    points["redundancy"][rows] = st.redundancy[gcp].mean(axis=1)
+    points["weight"][rows] = problem.factor[gcp, 0]
+    points["flagged"][rows] = flagged[gcp]
     checks = np.nonzero(table.role == "check")[0]
     after = accuracy(adjusted, table, checks, problem.settings.alpha, problem.scale)
     before = accuracy(problem.scene, table, checks, problem.settings.alpha, problem.scale)
@@ -870,14 +950,16 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Esti
         log.warning("%s%s", p["message"], "" if p["reliable"] else "; the result is not reliable")
     report = {
         "settings": asdict(problem.settings),
-        "observations": {"control_points": int(problem.ground.shape[0]), "image_observations": len(problem.obs),
+        "observations": {"control_points": problem.n_control, "image_observations": int(gcp.sum()),
                          "check_points": int(checks.size), "unknowns": int(free.size),
-                         "ground_unknowns": int(3 * problem.ground.shape[0] * problem.weighted),
+                         "ground_unknowns": int(3 * problem.estimated.size),
+                         "tie_points": problem.ties.counts(), "tie_observations": int(problem.is_tie.sum()),
                          "degrees_of_freedom": st.dof},
         "iterations": result["iterations"],
         "robust": {"method": problem.settings.robust, "passes": est.passes, "critical_w": crit,
                    "stopped_at_limit": est.at_limit, "flagged": int(flagged.sum()),
-                   "flagged_ids": [str(i) for i in table.id[rows][flagged][:1000]]},
+                   "flagged_ids": [str(i) for i in table.id[rows][flagged[gcp]][:1000]],
+                   "flagged_tie_ids": [str(i) for i in problem.ties.table.id[problem.rows[~gcp]][flagged[~gcp]][:1000]]},
         "reliability": {"reliable": reliable, "problems": problems},
         "sigma0": sigma0,
         "sigma0_adjusted": st.sigma0,
@@ -887,16 +969,52 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Esti
         "determinability": determinability,
         "parameters": parameters,
         "high_correlations": pairs,
-        "control_residuals": _residual_summary(st.v[good]),
+        "control_residuals": _residual_summary(st.v[good & gcp]),
         "control_residuals_per_chip": {
-            f"{c.name}/{ch.name or k + 1}": _residual_summary(st.v[good & (problem.obs.camera == ci)
+            f"{c.name}/{ch.name or k + 1}": _residual_summary(st.v[good & gcp & (problem.obs.camera == ci)
                                                                     & (problem.obs.chip == k)])
             for ci, c in enumerate(problem.scene.cameras) for k, ch in enumerate(c.chips)},
         "check_points": _check_point_report(after),
         "check_points_before": _check_point_report(before),
         "trajectory": _trajectory_curves(problem) if problem.params.position_basis is not None else None,
     }
-    return AdjustmentResult(adjusted, report, points)
+    if len(problem.ties.table):
+        report["tie_points"], ties = _tie_points(problem, st, flagged, good)
+    else:
+        ties = {}
+    return AdjustmentResult(adjusted, report, points, ties)
+
+
+def _tie_points(problem: _Problem, st: Statistics, flagged: np.ndarray, good: np.ndarray) -> tuple[dict, dict]:
+    """The tie points' report entry and per input observation arrays (see AdjustmentResult).
+
+    Their adjusted ground positions are no absolute accuracy (no known truth; with few GCPs
+    they share the datum's error): the relative accuracy is told by the image residuals."""
+    tie = problem.is_tie
+    table = problem.ties.table
+    n = len(table)
+    rows = problem.rows[tie]
+    out = {"id": table.id, "camera": table.camera, "col": table.col, "row": table.row}
+    for name, values in (("res_col", st.v[tie, 0]), ("res_row", st.v[tie, 1]), ("w_col", st.w[tie, 0]),
+                         ("w_row", st.w[tie, 1]), ("weight", problem.factor[tie, 0])):
+        out[name] = np.full(n, np.nan)
+        out[name][rows] = values
+    out["flagged"] = np.zeros(n, bool)
+    out["flagged"][rows] = flagged[tie]
+    lon, lat, h = (np.full(n, np.nan) for _ in range(3))
+    point = problem.obs.point[tie]
+    lon[rows], lat[rows], h[rows] = ecef_to_geodetic(problem.ground[point])
+    out.update(lon=lon, lat=lat, h=h)
+    cams = problem.scene.cameras
+    report = {**problem.ties.counts(),
+              "flagged": int(flagged[tie].sum()),
+              "residuals": _residual_summary(st.v[tie & good]),
+              "residuals_per_camera": {c.name: _residual_summary(st.v[tie & good & (problem.obs.camera == ci)])
+                                       for ci, c in enumerate(cams)},
+              "relative_accuracy": "image residuals of the tie observations (px, flagged ones left out) measure the "
+                                   "block's relative accuracy; the tie points' adjusted ground positions carry the "
+                                   "datum's error as well and are no absolute accuracy figure"}
+    return report, out
 
 
 def _check_point_report(figures: dict) -> dict:

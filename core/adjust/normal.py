@@ -10,7 +10,8 @@ once this folds into the observation itself:
     K = (J_g' P J_g + P_G)^-1,   P~ = P - P J_g K J_g' P,   r~ = r - J_g K b_g,
     N += J_p' P~ J_p,            b += J_p' P r~,             b_g = J_g' P r + P_G e
 
-(e = current ground minus measured ground). Observations touching the same parameter
+(e = current ground minus measured ground). Tie points have no prior (P_G = 0): their
+rays alone fix them, two or more per point. Observations touching the same parameter
 columns (same camera, chip and trajectory knots) are stacked and multiplied with BLAS, so
 assembly costs one dense product per group. Points seen in several cameras (three-line
 scenes) are eliminated with sparse products over all their observations.
@@ -21,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
+
+RIDGE = 1e-9  # share of a point's normal-matrix trace added to its diagonal (see assemble)
 
 
 @dataclass
@@ -84,7 +87,13 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
         ngg = prior.weight + sum_by_point(lin.point[seen], (jtp @ lin.jg)[seen], n_points)
         bg = np.einsum("mij,mj->mi", prior.weight, prior.misfit) + \
             sum_by_point(lin.point[seen], np.einsum("nil,nl->ni", jtp, lin.r)[seen], n_points)
-        K = inverse3(ngg)
+        # A ridge far below any ray's weight: a tie point (no prior) whose rays are all but one
+        # down-weighted to zero keeps a finite K (it stays put along its last ray); one with
+        # no weight left at all keeps K = 0 (it stays put).
+        trace = np.trace(ngg, axis1=1, axis2=2)
+        dead = trace <= 0
+        K = inverse3(ngg + np.where(dead, 1.0, RIDGE * trace)[:, None, None] * np.eye(3))
+        K[dead] = 0.0
         single = (lin.point >= 0) & (counts[np.maximum(lin.point, 0)] == 1)
         if single.any():
             k = K[lin.point[single]]
@@ -114,7 +123,7 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
         c = cols[keep]
         N[np.ix_(c, c)] += a.T @ a
     if multi.any():
-        _subtract_shared_points(N, b, lin, multi, K, bg, P, n_unknowns)
+        _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns)
     return System(N, b, K, bg, cost)
 
 
@@ -158,20 +167,25 @@ def _chol2(p: np.ndarray) -> np.ndarray:
     return out
 
 
-def _subtract_shared_points(N, b, lin, multi, K, bg, P, n_unknowns) -> None:
-    """Schur complement of points observed several times: N -= N_pg K N_gp, b -= N_pg K b_g,
-    with N_pg = J_p' P J_g assembled sparse over the points' observations."""
-    idx = np.nonzero(multi)[0]
+def coupling(lin: Linearization, mask: np.ndarray, n_unknowns: int, n_points: int) -> sparse.csr_matrix:
+    """N_pg = sum of J_p' P J_g over the observations ``mask`` (n,) (their points >= 0):
+    sparse (n_unknowns, 3 n_points), the coupling of the parameters with the ground unknowns."""
+    idx = np.nonzero(mask)[0]
     q = lin.columns.shape[1]
     cols = lin.columns[idx]
     # J_p' P J_g per observation: (n, q, 3)
-    block = np.einsum("nkq,nkl,nlg->nqg", lin.values[idx], P[idx], lin.jg[idx])
-    pts = lin.point[idx]
+    block = np.einsum("nkq,nk,nkg->nqg", lin.values[idx], lin.p[idx], lin.jg[idx])
     rows = np.repeat(cols[:, :, None], 3, axis=2)
-    gcol = np.repeat((3 * pts[:, None, None] + np.arange(3)[None, None, :]), q, axis=1)
+    gcol = np.repeat((3 * lin.point[idx][:, None, None] + np.arange(3)[None, None, :]), q, axis=1)
     keep = rows >= 0
-    n_pg = sparse.csr_matrix((block[keep], (rows[keep], gcol[keep])), shape=(n_unknowns, 3 * K.shape[0]))
-    used = np.unique(pts)
+    return sparse.csr_matrix((block[keep], (rows[keep], gcol[keep])), shape=(n_unknowns, 3 * n_points))
+
+
+def _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns) -> None:
+    """Schur complement of points observed several times: N -= N_pg K N_gp, b -= N_pg K b_g,
+    with N_pg = J_p' P J_g assembled sparse over the points' observations."""
+    n_pg = coupling(lin, multi, n_unknowns, K.shape[0])
+    used = np.unique(lin.point[multi])
     m = K.shape[0]
     base = 3 * np.arange(m)[:, None, None]
     k_rows = np.broadcast_to(base + np.arange(3)[None, :, None], (m, 3, 3))

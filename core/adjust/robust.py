@@ -123,9 +123,9 @@ def _sums(problem: "_Problem", st: "Statistics", inlier: np.ndarray) -> dict[str
         m = inlier & (problem.obs.camera == c)
         if m.any():
             out[image_group(cam.name)] = (float(st.pvv[m].sum()), float(st.redundancy[m].sum()), 2 * int(m.sum()))
-    if problem.weighted:
+    if problem.weighted and problem.n_control:
         n_points = problem.ground.shape[0]
-        good = np.bincount(problem.obs.point, weights=~inlier, minlength=n_points) == 0
+        good = (np.bincount(problem.obs.point, weights=~inlier, minlength=n_points) == 0)[:problem.n_control]
         for name, axes in (("ground_xy", slice(0, 2)), ("ground_z", slice(2, 3))):
             pvv, r = st.ground_pvv[good, axes], st.ground_redundancy[good, axes]
             out[name] = (float(pvv.sum()), float(r.sum()), int(pvv.size))

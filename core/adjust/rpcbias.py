@@ -24,6 +24,7 @@ from ..rpcscene import RpcScene
 from .engine import AdjustmentSettings, _Problem
 from .normal import GroundPrior, Linearization, groups
 from .parameters import Parameter, ParameterSet
+from .ties import TieSetUp
 
 TERMS = ("a0", "a1", "a2", "b0", "b1", "b2")
 MODES = {"shift": ("a0", "b0"), "drift": ("a0", "a2", "b0", "b2"), "affine": TERMS}
@@ -87,6 +88,8 @@ class RpcProblem(_Problem):
                                    np.asarray(table.sigma_px[control], dtype=float), table.col[control],
                                    table.row[control])
         self.rows = control
+        self.is_tie = np.zeros(n, bool)
+        self.ties = TieSetUp.empty()
         self.factor = np.ones((n, 2))
         self.scale = {}
         self.rescaled()
@@ -130,7 +133,5 @@ class RpcProblem(_Problem):
         one, zero = np.ones_like(c0), np.zeros_like(c0)
         full = np.stack([np.stack([one, c0, r0, zero, zero, zero], axis=1),
                          np.stack([zero, zero, zero, one, c0, r0], axis=1)], axis=1)  # (n, 2, 6)
-        lin = Linearization(res, self.weights(), self.columns, full[:, :, self.slots], jg,
-                            self.obs.point if self.weighted else -np.ones(len(self.obs), np.int64))
-        prior = GroundPrior(self.ground_weight, self.ground - self.ground0) if self.weighted else None
-        return lin, prior
+        return Linearization(res, self.weights(), self.columns, full[:, :, self.slots], jg,
+                             self.ground_point[self.obs.point]), self.ground_prior()

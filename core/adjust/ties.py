@@ -1,0 +1,183 @@
+"""Tie points in the bundle adjustment: which observations enter, their ground start values,
+and how the datum of a block with few or no GCPs is held.
+
+A tie point is a ground point of unknown position measured in two or more cameras (or
+scenes of a strip). It enters the adjustment as three ground unknowns without a prior
+(zero ground weight), eliminated per point like a weighted GCP (:mod:`core.adjust.normal`),
+started from the forward intersection of its onboard rays (:mod:`core.intersection`).
+A point seen once carries no geometric information (its ray fixes no ground position), and a
+point whose a-priori intersection fails (NaN) has no start value: both are left out, named.
+
+Datum (seed 001 with 1 GCP; seed 003 sec. 3.2 with 0 or 4 GCPs): tie points fix the shape of
+the block, not where it is. The seven datum components (shift X/Y/Z, three rotations, scale)
+must each be held by GCPs or by the onboard pseudo-observations (:func:`datum`); a component
+held by neither is a datum defect, refused with its name rather than left to drift.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..intersection import intersect
+from ..sensor import SceneModel
+from ..tiepoints import TieTable
+
+log = logging.getLogger(__name__)
+
+SHIFTS = ("shift X", "shift Y", "shift Z")
+ROTATIONS = ("roll (rotation about the flight line)", "pitch", "yaw")
+SCALE = ("scale",)
+LISTED = 10  # ids named in a message
+
+
+@dataclass
+class TieSetUp:
+    """The tie observations that enter the adjustment. table: the input TieTable (n obs);
+    rows (k,) indices into it of the observations used; camera (k,) camera indices; point
+    (k,) index into ids / ground; ids (p,) the points used; ground (p,3) ECEF m start values
+    (forward intersection on the input scene); left_out: reason -> ids of the points left out
+    (``single_ray``: seen by one camera; ``not_intersected``: a-priori intersection failed)."""
+    table: TieTable
+    rows: np.ndarray
+    camera: np.ndarray
+    point: np.ndarray
+    ids: np.ndarray
+    ground: np.ndarray
+    left_out: dict
+
+    @classmethod
+    def empty(cls) -> "TieSetUp":
+        none = np.zeros(0, np.int64)
+        table = TieTable(np.zeros(0, str), np.zeros(0, str), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, str))
+        return cls(table, none, none, none, np.zeros(0, str), np.zeros((0, 3)), {})
+
+    def __len__(self) -> int:
+        return int(self.rows.size)
+
+    def counts(self) -> dict:
+        """Points and observations used and left out (with reasons), for the report."""
+        return {"points": int(self.ids.size), "observations": int(self.rows.size),
+                "input_observations": len(self.table),
+                "left_out": {reason: {"points": int(ids.size), "ids": [str(i) for i in ids[:1000]]}
+                             for reason, ids in self.left_out.items() if ids.size}}
+
+
+def _listed(ids) -> str:
+    ids = [str(i) for i in ids]
+    return ", ".join(ids[:LISTED]) + (f" and {len(ids) - LISTED} more" if len(ids) > LISTED else "")
+
+
+def camera_indices(scene: SceneModel, names: np.ndarray) -> np.ndarray:
+    """Indices (n,) of the camera names (n,) in ``scene`` (all names must be the scene's)."""
+    cams = [c.name for c in scene.cameras]
+    order = np.argsort(cams)
+    return order[np.searchsorted(np.asarray(cams)[order], names)]
+
+
+def check_ties(scene: SceneModel, ties: TieTable, gcp_ids: np.ndarray) -> None:
+    """Refuse tie observations the adjustment cannot use, naming them: cameras the scene
+    lacks, positions outside the camera's image, the same point twice in one camera, and ids
+    that are also GCP ids (one id is one ground point: known or unknown, not both)."""
+    names = [c.name for c in scene.cameras]
+    unknown = ~np.isin(ties.camera, names)
+    if unknown.any():
+        raise InputError(f"tie points: camera(s) {_listed(np.unique(ties.camera[unknown]))} of point(s) "
+                         f"{_listed(np.unique(ties.id[unknown]))} not in the scene (cameras: {', '.join(names)})")
+    cam = camera_indices(scene, ties.camera)
+    cols = np.array([c.cols for c in scene.cameras])[cam]
+    rows = np.array([c.rows for c in scene.cameras])[cam]
+    outside = (ties.col < 0) | (ties.col > cols) | (ties.row < 0) | (ties.row > rows)
+    if outside.any():
+        raise InputError(f"tie points: {int(outside.sum())} observation(s) of point(s) "
+                         f"{_listed(np.unique(ties.id[outside]))} lie outside their camera's image")
+    pairs, counts = np.unique(np.stack([ties.id, ties.camera], axis=1), axis=0, return_counts=True)
+    if (counts > 1).any():
+        twice = np.unique(pairs[counts > 1, 0])
+        raise InputError(f"tie points: point(s) {_listed(twice)} are observed more than once in the same camera "
+                         "(duplicate observations); keep one observation per point and camera")
+    shared = np.intersect1d(ties.id, gcp_ids)
+    if shared.size:
+        raise InputError(f"tie points: id(s) {_listed(shared)} are also GCP ids; a tie point is a point of unknown "
+                         "ground position: give it another id, or measure it as a GCP")
+
+
+def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
+    """The tie observations used and their points' start values (see the module docstring);
+    warns naming the points left out and why."""
+    if ties is None or len(ties) == 0:
+        return TieSetUp.empty()
+    ids, point = ties.points()
+    camera = camera_indices(scene, ties.camera)
+    start = intersect(scene, camera, ties.col, ties.row, point, ids.size)
+    single = start.rays < 2
+    failed = ~single & ~np.all(np.isfinite(start.ground), axis=1)
+    left_out = {"single_ray": ids[single], "not_intersected": ids[failed]}
+    if single.any():
+        log.warning("%d tie point(s) seen by one camera only are left out (one ray fixes no ground position): %s",
+                    int(single.sum()), _listed(ids[single]))
+    if failed.any():
+        log.warning("%d tie point(s) whose onboard rays could not be intersected are left out: %s",
+                    int(failed.sum()), _listed(ids[failed]))
+    keep = ~(single | failed)
+    new_index = np.cumsum(keep) - 1
+    rows = np.nonzero(keep[point])[0]
+    return TieSetUp(ties, rows, camera[rows], new_index[point[rows]], ids[keep], start.ground[keep], left_out)
+
+
+def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | None) -> dict:
+    """How the datum (shift X/Y/Z, roll, pitch, yaw, scale) of a block with tie points is held,
+    for ``n_control`` control points (at least 3 are checked for spread elsewhere) and the
+    onboard pseudo-observations. Raises InputError naming the components nothing holds.
+
+    Control points: 3 or more well spread hold all; 2 all but the rotation about the line
+    through them; 1 the shifts. Onboard positions (pseudo-observations of the orbit, hundreds
+    of km above the ground) hold the shifts, the scale, pitch and yaw; roll about the flight
+    line leaves them in place, so it needs a GCP (off that line) or the attitude. Onboard
+    attitude holds the three rotations."""
+    held: dict[str, list[str]] = {c: [] for c in SHIFTS + ROTATIONS + SCALE}
+    extra_missing = []
+
+    def hold(source: str, components) -> None:
+        for c in components:
+            held[c].append(source)
+
+    if n_control >= 2:
+        hold("control points", SHIFTS + ROTATIONS + SCALE)
+    elif n_control == 1:
+        hold("control points", SHIFTS)
+    if position_sigma is not None:
+        hold("onboard positions", SHIFTS + SCALE + ROTATIONS[1:] + (ROTATIONS[:1] if n_control else ()))
+    if attitude_sigma is not None:
+        hold("onboard attitude", ROTATIONS)
+    if n_control == 2 and position_sigma is None and attitude_sigma is None:
+        extra_missing.append("rotation about the line through the 2 control points")
+    missing = [c for c, sources in held.items() if not sources] + extra_missing
+    if missing:
+        need = []
+        if any(c in SHIFTS + SCALE for c in missing):
+            need.append("POSITION_SIGMA (onboard position accuracy, m)")
+        if any(c not in SHIFTS + SCALE for c in missing):
+            need.append("ATTITUDE_SIGMA (onboard attitude accuracy)")
+        pseudo = [name for name, s in (("positions", position_sigma), ("attitude", attitude_sigma)) if s is not None]
+        given = "onboard pseudo-observations of the " + " and ".join(pseudo) if pseudo else \
+            "no onboard pseudo-observations"
+        raise InputError(
+            f"datum defect: with {n_control} control point(s) and {given}, the tie points fix the block's shape "
+            f"but not {', '.join(missing)}; the adjustment would drift freely in them. Give "
+            f"{' and '.join(need)}, or at least 3 well spread GCPs")
+    sources = sorted({s for v in held.values() for s in v})
+    gcps = "control points" in sources
+    onboard = [s for s in sources if s.startswith("onboard")]
+    by = "control points and onboard pseudo-observations" if gcps and onboard else \
+        "control points" if gcps else "onboard pseudo-observations"
+    out = {"held_by": by, "control_points": n_control, "components": held}
+    if not gcps:
+        out["note"] = ("no control points: the tie points fix the block's relative geometry only; its absolute "
+                       "accuracy is that of the onboard orbit and attitude (the pseudo-observations' sigmas)")
+    elif n_control < 3:
+        out["note"] = (f"{n_control} control point(s): the datum components they do not hold are held by the onboard "
+                       "pseudo-observations, at the onboard accuracy")
+    return out
