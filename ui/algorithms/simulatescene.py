@@ -29,7 +29,7 @@ ERROR_PARAMETERS = (
      "4096-px chip's far end by 4 px)."),
     ("FOCAL_ERROR", "focal", "Focal length error at the array end (px)", 1.0,
      "Error of the laboratory focal length of each camera, given as the displacement it causes at the end of "
-     "the detector line (until version 0.4 this parameter was in µm)."),
+     "the detector line (in earlier versions this parameter was in µm)."),
     ("DISTORTION", "radial_k1", "Radial distortion k1 at the array end (px)", 1.0,
      "Radial lens distortion (k1), given as the displacement it causes at the end of the detector line."),
     ("PRINCIPAL_POINT_X_ERROR", "principal_point_x", "Principal point error along track (px)", 1.0,
