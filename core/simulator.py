@@ -11,8 +11,10 @@ camera set images it. Two scene models are written:
     onboard attitude(t) = true attitude(t) @ R(a(t)),  a(t) = a0 + a1 (t - t_c) + a2 (t - t_c)^2,
                           R = rotation_from_angles(roll, pitch, yaw) in the body frame (rad)
     onboard camera      = the nominal (laboratory) design; the true camera has per-chip
-                          shifts (dx, dy), rotations dtheta, a focal-length error, radial lens
-                          distortion (k1) and, for multi-camera sets, installation errors.
+                          shifts (dx, dy), rotations dtheta, the 10 camera terms of Zhang et
+                          al. 2015 eq. 7 (principal point, focal length, radial k1 k2,
+                          decentring p1 p2, affinity b1 b2 b3) and, for multi-camera sets,
+                          installation errors.
   t_c is the strip's mid time. Every drawn value is in ``simulation.json``.
 
 Outputs in the folder: ``onboard_scene.json``, ``true_scene.json``, ``gcps.csv`` (ground
@@ -39,6 +41,7 @@ from typing import Callable
 import numpy as np
 from osgeo import gdal, osr
 
+from .adjust.parameters import CAMERA_TERMS, UNITS
 from .camera import Camera, Chip, LineTiming
 from .dem import Dem
 from .errors import Cancelled, InputError
@@ -91,9 +94,17 @@ class ErrorSettings:
     position_bias (m), position_drift (m/s), position_quadratic (m/s^2): per ECEF axis.
     attitude_bias (rad), attitude_drift (rad/s), attitude_quadratic (rad/s^2): per body axis.
     ccd_shift (px, x and y) and ccd_rotation (rad, about the chip's first detector): every
-    chip but the middle (reference) one. focal_error (m). distortion (px): radial k1 giving
-    this displacement at the end of the array. installation (rad): per axis, every camera
-    but the reference (nadir) one.
+    chip but the middle (reference) one. installation (rad): per axis, every camera but the
+    reference (nadir) one.
+
+    The 10 camera terms of seed 001 eq. 7, per camera, in px: the image displacement each
+    causes at the end of the detector array (half the array length r from the principal point,
+    on the line x = 0; :func:`camera_term`): principal_point_x / _y (dxp, dyp), focal (the
+    focal-length error), radial_k1 / radial_k2, decentring_p1 (along track, p1 r^2) /
+    decentring_p2 (across, 3 p2 r^2), affinity_b1 (b1 x, quoted at x = r: a detector line
+    through the principal point does not see it), affinity_b2 (along track, b2 y), affinity_b3
+    (across, b3 y). Seed 001's CCD bending (dx = b y r^2, cubic along track) is not a term of
+    :class:`core.camera.Camera` and is not simulated; its low-order part is what p1 and b2 model.
     """
     position_bias: float = 0.0
     position_drift: float = 0.0
@@ -103,9 +114,38 @@ class ErrorSettings:
     attitude_quadratic: float = 0.0
     ccd_shift: float = 0.0
     ccd_rotation: float = 0.0
-    focal_error: float = 0.0
-    distortion: float = 0.0
     installation: float = 0.0
+    principal_point_x: float = 0.0
+    principal_point_y: float = 0.0
+    focal: float = 0.0
+    radial_k1: float = 0.0
+    radial_k2: float = 0.0
+    decentring_p1: float = 0.0
+    decentring_p2: float = 0.0
+    affinity_b1: float = 0.0
+    affinity_b2: float = 0.0
+    affinity_b3: float = 0.0
+
+
+# ErrorSettings fields of the camera terms -> the terms' names in the adjustment
+# (core.adjust.parameters.CAMERA_TERMS: 'f' is the focal length, the others Camera.distortion).
+CAMERA_ERRORS = {"principal_point_x": "dxp", "principal_point_y": "dyp", "focal": "f", "radial_k1": "k1",
+                 "radial_k2": "k2", "decentring_p1": "p1", "decentring_p2": "p2", "affinity_b1": "b1",
+                 "affinity_b2": "b2", "affinity_b3": "b3"}
+# Error settings of earlier versions: 'distortion' was radial_k1 (px at the array end);
+# 'focal_error' was in metres, which no longer says how far a camera's image moves.
+RENAMED_ERRORS = {"distortion": "radial_k1"}
+REPLACED_ERRORS = {"focal_error": "focal (px at the array end)"}
+
+
+def camera_term(term: str, px, pitch: float, half_length: float, focal_length: float):
+    """The SI value of camera term ``term`` (a :data:`CAMERA_ERRORS` value) that displaces the
+    image point at the array end by ``px`` pixels of size ``pitch`` (m): half_length (m) is r,
+    the array end's distance from the principal point (seed 001 eq. 7 with x = 0, y = r)."""
+    r, d = half_length, px * pitch
+    scale = {"dxp": 1.0, "dyp": 1.0, "f": r / focal_length, "k1": r ** 3, "k2": r ** 5, "p1": r ** 2,
+             "p2": 3.0 * r ** 2, "b1": r, "b2": r, "b3": r}[term]
+    return d / scale
 
 
 @dataclass(frozen=True)
@@ -123,6 +163,23 @@ class Preset:
     relief: float = 1200.0
 
 
+# Three-line cameras: GPS-grade orbits, star-tracker attitude with bias, drift and a quadratic
+# term, installation errors of the forward and backward cameras.
+_TLC_TRAJECTORY = ErrorSettings(position_bias=10.0, position_drift=0.02, attitude_bias=1e-4, attitude_drift=5e-7,
+                                attitude_quadratic=1e-9, installation=20 * ARCSEC)
+# TH-1 (seed 001): lens and CCD errors that a conventional adjustment (attitude only) leaves
+# as systematic check errors of about 4 px (20 m at 5 m GSD) and self-calibration removes.
+# Seed 001 names the principal point and decentring distortion the dominant terms, the focal
+# length not negligible (1-2 um), b1 and b2 negligible (~1e-14); see the magnitudes' notes in
+# README (Simulate a scene).
+TH1_ERRORS = replace(_TLC_TRAJECTORY, principal_point_x=10.0, principal_point_y=10.0, focal=4.0, radial_k1=5.0,
+                     radial_k2=1.5, decentring_p1=8.0, decentring_p2=7.0, affinity_b3=3.0)
+# ZY-3 (seed 003): the cameras are calibrated in orbit (their lines of sight are given as
+# look-angle tables); what remains of the interior is sub-pixel (tie-point residuals of 0.25
+# px after adjustment) beside the CCD alignment.
+ZY3_ERRORS = replace(_TLC_TRAJECTORY, ccd_shift=1.0, ccd_rotation=2e-4, principal_point_x=0.3, principal_point_y=0.3,
+                     focal=0.3, radial_k1=0.3, decentring_p1=0.2, decentring_p2=0.2)
+
 PRESETS: dict[str, Preset] = {
     "cbers02b_hrc": Preset(
         "cbers02b_hrc", "CBERS-02B HRC, 778 km, 3 staggered TDI-CCDs of 4096 px, 2.36 m GSD", 778e3,
@@ -134,18 +191,13 @@ PRESETS: dict[str, Preset] = {
         (CameraSpec("NAD", 1.0, 10e-6, 1, 12000),
          CameraSpec("FWD", 1.0, 10e-6, 1, 12000, tilt=math.radians(25.0)),
          CameraSpec("BWD", 1.0, 10e-6, 1, 12000, tilt=math.radians(-25.0))), 12000,
-        ErrorSettings(position_bias=10.0, position_drift=0.02, attitude_bias=1e-4, attitude_drift=5e-7,
-                      attitude_quadratic=1e-9, focal_error=20e-6, distortion=1.0, installation=20 * ARCSEC),
-        inclination=math.radians(97.3), centre=(113.5, 35.0)),
+        TH1_ERRORS, inclination=math.radians(97.3), centre=(113.5, 35.0)),
     "zy3_tlc": Preset(
         "zy3_tlc", "ZY-3 three-line camera, 505 km, nadir 2.1 m, forward/backward 3.5 m at +-22 deg", 505e3,
         (CameraSpec("NAD", 1.7, 7e-6, 3, 8192),
          CameraSpec("FWD", 1.7, 10e-6, 4, 4096, tilt=math.radians(22.0)),
          CameraSpec("BWD", 1.7, 10e-6, 4, 4096, tilt=math.radians(-22.0))), 24576,
-        ErrorSettings(position_bias=10.0, position_drift=0.02, attitude_bias=1e-4, attitude_drift=5e-7,
-                      attitude_quadratic=1e-9, ccd_shift=1.0, ccd_rotation=2e-4, focal_error=20e-6,
-                      distortion=1.0, installation=20 * ARCSEC),
-        inclination=math.radians(97.4), centre=(115.0, 40.0)),
+        ZY3_ERRORS, inclination=math.radians(97.4), centre=(115.0, 40.0)),
 }
 
 
@@ -239,7 +291,10 @@ def perturbed_camera(nominal: Camera, errors: ErrorSettings, reference: bool, rn
     """The true camera: the nominal one with drawn interior errors, and a dict of them.
 
     The middle chip is the reference of a multi-chip array (no shift or rotation); the
-    reference camera of a camera set has no installation error.
+    reference camera of a camera set has no installation error. The camera terms are drawn
+    in px at the array end (:class:`ErrorSettings`) and converted with :func:`camera_term`;
+    the truth holds both: camera_terms (SI, units in camera_terms_units; 'f' is the focal
+    length's error, the adjustment's name) and camera_terms_px.
     """
     ref_chip = len(nominal.chips) // 2
     chips, chip_truth = [], []
@@ -251,14 +306,23 @@ def perturbed_camera(nominal: Camera, errors: ErrorSettings, reference: bool, rn
                              theta=chip.theta + dtheta))
         chip_truth.append({"chip": chip.name, "dx_px": float(dx), "dy_px": float(dy), "dx_m": float(dx * chip.pitch),
                            "dy_m": float(dy * chip.pitch), "dtheta_rad": dtheta})
-    df = float(_draw(rng, errors.focal_error))
-    r_max = 0.5 * nominal.cols * nominal.chips[0].pitch
-    k1 = float(_draw(rng, errors.distortion)) * nominal.chips[0].pitch / r_max ** 3
+    pitch = nominal.chips[0].pitch
+    half_length = 0.5 * nominal.cols * pitch
+    # focal and k1 are drawn first and always, the other terms only when asked for, so that
+    # simulations without them draw the random numbers they drew before those terms existed.
+    px = {"focal": float(_draw(rng, errors.focal)), "radial_k1": float(_draw(rng, errors.radial_k1))}
     angles = _draw(rng, errors.installation, 3) if not reference else np.zeros(3)
-    true = replace(nominal, chips=chips, focal_length=nominal.focal_length + df,
-                   distortion={"k1": k1} if k1 else {},
+    px.update({name: float(_draw(rng, getattr(errors, name))) if getattr(errors, name) else 0.0
+               for name in CAMERA_ERRORS if name not in px})
+    terms = {CAMERA_ERRORS[name]: float(camera_term(CAMERA_ERRORS[name], v, pitch, half_length, nominal.focal_length))
+             for name, v in px.items()}
+    distortion = {t: v for t, v in terms.items() if t != "f" and v}
+    true = replace(nominal, chips=chips, focal_length=nominal.focal_length + terms["f"], distortion=distortion,
                    installation=nominal.installation @ rotation_from_angles(*angles))
-    truth = {"camera": nominal.name, "chips": chip_truth, "focal_error_m": df, "k1_per_m2": k1,
+    truth = {"camera": nominal.name, "chips": chip_truth,
+             "camera_terms": {t: terms[t] for t in CAMERA_TERMS},
+             "camera_terms_px": {CAMERA_ERRORS[name]: px[name] for name in CAMERA_ERRORS},
+             "camera_terms_units": {t: UNITS[t] for t in CAMERA_TERMS},
              "installation_error_rad": [float(a) for a in angles]}
     return true, truth
 
@@ -481,7 +545,8 @@ def _ground_noise(ground: np.ndarray, settings: GcpSettings, rng: np.random.Gene
 
 GCP_COLUMNS = ("id", "role", "camera", "col", "row", "lon", "lat", "h", "sigma_px", "sigma_xy", "sigma_z",
                "col_true", "row_true", "lon_true", "lat_true", "h_true", "gross", "scene")
-TIE_COLUMNS = ("id", "camera", "col", "row", "col_true", "row_true", "lon_true", "lat_true", "h_true", "gross")
+TIE_COLUMNS = ("id", "camera", "col", "row", "col_true", "row_true", "lon_true", "lat_true", "h_true", "gross",
+               "scene")
 
 
 def measure_points(scene: SceneModel, ground: np.ndarray, ids: np.ndarray, settings: GcpSettings,
@@ -609,6 +674,11 @@ def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool
             ground, _ = place_ground_points(geo.true, dem, settings.n_tie_points, rng)
             tie = measure_points(geo.true, ground, np.char.add("T", np.arange(1, ground.shape[0] + 1).astype(str)),
                                  settings, rng)
+            # the scene of each observation: where a tie point's cameras see it in neighbouring
+            # scenes, it ties them
+            names, camera = np.unique(tie["camera"], return_inverse=True)
+            rows = np.array([geo.true.cameras[geo.true.camera_index(n)].rows for n in names])[camera]
+            tie["scene"] = scene_of_rows(tie["row_true"], rows, n_scenes)
             tie_tmp = files.path(folder / "tie_points.csv")
             _write_csv(tie_tmp, TIE_COLUMNS, tie)
         road_truth = None
@@ -690,10 +760,18 @@ def _simulated_files(folder: Path) -> set[str]:
 
 
 def _error_settings(spec: Preset, errors) -> ErrorSettings:
+    """The error settings of a simulation: the preset's, ``errors`` (ErrorSettings), or the
+    preset's with the fields of the dict ``errors`` overridden (the names of earlier
+    versions are translated: :data:`RENAMED_ERRORS`; 'focal_error' only as 0, off)."""
     if errors is None:
         return spec.errors
     if isinstance(errors, ErrorSettings):
         return errors
+    replaced = {k: v for k, v in errors.items() if k in REPLACED_ERRORS and v != 0}
+    if replaced:
+        raise InputError("error setting(s) " + ", ".join(f"{k} (now {REPLACED_ERRORS[k]})" for k in replaced)
+                         + " replaced: give the new setting instead")
+    errors = {RENAMED_ERRORS.get(k, "focal" if k in REPLACED_ERRORS else k): v for k, v in errors.items()}
     unknown = set(errors) - set(ErrorSettings.__dataclass_fields__)
     if unknown:
         raise InputError(f"unknown error setting(s) {sorted(unknown)} (known: {', '.join(ErrorSettings.__dataclass_fields__)})")
@@ -719,5 +797,11 @@ def _gcp_columns(scene: SceneModel, dem: Dem, settings: GcpSettings, n_scenes: i
     data["sigma_px"] = np.full(n, max(settings.image_noise, 1e-3))
     data["sigma_xy"] = np.full(n, max(settings.ground_noise_xy, 1e-3))
     data["sigma_z"] = np.full(n, max(settings.ground_noise_z, 1e-3))
-    data["scene"] = 1 + np.minimum((placed_row[idx] * n_scenes / scene.cameras[0].rows).astype(int), n_scenes - 1)
+    data["scene"] = scene_of_rows(placed_row[idx], scene.cameras[0].rows, n_scenes)
     return data
+
+
+def scene_of_rows(row: np.ndarray, rows, n_scenes: int) -> np.ndarray:
+    """The scene (1..n_scenes) that row coordinates (n,) fall in, in a strip of ``rows`` image
+    rows (a number, or (n,): each row's camera's)."""
+    return 1 + np.clip((np.asarray(row) * n_scenes / rows).astype(int), 0, n_scenes - 1)

@@ -12,7 +12,7 @@ from core.adjust.engine import _Problem, check_inputs
 from core.adjust.model import Model
 from core.errors import ConvergenceError, InputError
 from core.scene_io import load_scene, save_scene
-from core.simulator import GcpSettings, simulate
+from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
 
 CBERS_CHIPS = "HRC-1.*, HRC-3.*"
 
@@ -153,7 +153,7 @@ def test_without_interior_parameters_the_residuals_stay_large(cbers):
 
 
 def test_three_line_installation_angles_with_weighted_ground(tmp_path):
-    result = simulate("th1_tlc", tmp_path, seed=4, errors={"distortion": 0.0, "focal_error": 0.0},
+    result = simulate("th1_tlc", tmp_path, seed=4, errors=dict.fromkeys(CAMERA_ERRORS, 0.0),
                       gcp_settings=GcpSettings(n_gcps=800, image_noise=0.5, check_fraction=0.5, ground_noise_xy=2.0,
                                                ground_noise_z=3.0))
     truth = json.loads(result.manifest.read_text())["truth"]["interior"]

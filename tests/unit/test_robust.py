@@ -12,7 +12,7 @@ from core.adjust import AdjustmentSettings, adjust
 from core.adjust.robust import rayleigh_p, truncation
 from core.errors import InputError
 from core.scene_io import load_scene
-from core.simulator import GcpSettings, simulate
+from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
 
 IMAGE_NOISE, GROUND_XY, GROUND_Z = 0.7, 3.0, 10.0
 CHIPS = "HRC-1.*, HRC-3.*"
@@ -68,7 +68,7 @@ def test_variance_components_recover_the_simulated_noise(clean, image, ground):
 def test_three_line_components_are_separated_per_camera(tmp_path):
     """Seen in three cameras, image and ground components separate: the nadir camera's
     stated sigma is 3x too small, the others right; only its component moves."""
-    result = simulate("th1_tlc", tmp_path, seed=4, errors={"distortion": 0.0, "focal_error": 0.0},
+    result = simulate("th1_tlc", tmp_path, seed=4, errors=dict.fromkeys(CAMERA_ERRORS, 0.0),
                       gcp_settings=GcpSettings(n_gcps=600, image_noise=0.5, ground_noise_xy=2.0, ground_noise_z=3.0))
     table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
                        G.Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=2.0, sigma_z=3.0)

@@ -14,7 +14,8 @@ from core.errors import Cancelled, InputError
 from core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from core.render import render_image, texture_at, texture_frame, to_digital_numbers
 from core.scene_io import load_scene
-from core.simulator import PRESETS, GcpSettings, simulate
+from core.simulator import (CAMERA_ERRORS, PRESETS, ErrorSettings, GcpSettings, camera_term, nominal_camera,
+                            perturbed_camera, simulate)
 from tests.seams import round_trip_errors
 
 
@@ -123,7 +124,7 @@ def test_manifest_records_the_differences_between_the_models(sim):
     true, onboard, truth = sim["true"], sim["onboard"], sim["manifest"]["truth"]
     for cam_t, cam_o, rec in zip(true.cameras, onboard.cameras, truth["interior"]):
         assert rec["camera"] == cam_t.name
-        assert cam_t.focal_length - cam_o.focal_length == pytest.approx(rec["focal_error_m"], abs=1e-15)
+        assert cam_t.focal_length - cam_o.focal_length == pytest.approx(rec["camera_terms"]["f"], abs=1e-15)
         for chip_t, chip_o, c in zip(cam_t.chips, cam_o.chips, rec["chips"]):
             assert (chip_t.x0 - chip_o.x0) / chip_o.pitch == pytest.approx(c["dx_px"], abs=1e-9)
             assert (chip_t.y0 - chip_o.y0) / chip_o.pitch == pytest.approx(c["dy_px"], abs=1e-9)
@@ -139,6 +140,76 @@ def test_manifest_records_the_differences_between_the_models(sim):
                          ("position_bias", "position_drift", "position_quadratic"))
     diff = onboard.platform.ephemeris.position(t) - true.platform.ephemeris.position(t)
     assert np.allclose(diff, bias + drift * t[:, None] + quad * t[:, None] ** 2, atol=1e-6)
+
+
+@pytest.mark.parametrize("preset", ["th1_tlc", "zy3_tlc"])
+@pytest.mark.parametrize("field", list(CAMERA_ERRORS))
+def test_each_camera_term_moves_the_array_end_by_its_px(preset, field):
+    """One term at a time: the true camera's image point at the end of the detector line (for
+    b1, which a line through the principal point does not see: half the array's length along
+    track) lies the drawn px from the nominal camera's, and the drawn px is 1/3..1 of the magnitude."""
+    spec = PRESETS[preset].cameras[1]
+    nominal = nominal_camera(spec, 1000, 0.0, 1e-3)
+    pitch, half = nominal.chips[0].pitch, 0.5 * nominal.cols * nominal.chips[0].pitch
+    for seed in range(5):
+        true, truth = perturbed_camera(nominal, ErrorSettings(**{field: 3.0}), reference=True,
+                                       rng=np.random.default_rng(seed))
+        term = CAMERA_ERRORS[field]
+        px = truth["camera_terms_px"][term]
+        assert 1.0 <= abs(px) <= 3.0
+        assert [t for t, v in truth["camera_terms_px"].items() if v] == [term]
+        if term == "b1":
+            point = (half, 0.0)  # focal-plane x, y (m)
+            moved = np.subtract(true._focal_plane_to_normalised(*point), nominal._focal_plane_to_normalised(*point))
+        else:  # column 0 is the array end: y = +half on the nominal focal plane
+            moved = np.subtract(true.image_plane(0.0), nominal.image_plane(0.0))[:, 0]
+        shift = np.hypot(*moved) * nominal.focal_length / pitch
+        assert shift == pytest.approx(abs(px), rel=1e-3), (field, seed)  # focal: first order in df/f
+        assert truth["camera_terms"][term] == pytest.approx(camera_term(term, px, pitch, half, spec.focal_length),
+                                                            rel=1e-12)
+
+
+def test_preset_camera_terms_round_trip_through_simulation_json(sim):
+    """The true scene's cameras carry exactly the SI terms simulation.json records, and those are
+    the recorded px converted at each camera's array end."""
+    true, onboard = sim["true"], sim["onboard"]
+    errors = sim["manifest"]["errors"]
+    for cam_t, cam_o, rec in zip(true.cameras, onboard.cameras, sim["manifest"]["truth"]["interior"]):
+        si, px = rec["camera_terms"], rec["camera_terms_px"]
+        assert cam_o.distortion == {}
+        assert cam_t.distortion == {t: v for t, v in si.items() if t != "f" and v}
+        assert cam_t.focal_length - cam_o.focal_length == pytest.approx(si["f"], abs=1e-15)
+        pitch = cam_o.chips[0].pitch
+        for name, term in CAMERA_ERRORS.items():
+            assert si[term] == pytest.approx(camera_term(term, px[term], pitch, 0.5 * cam_o.cols * pitch,
+                                                         cam_o.focal_length), rel=1e-12, abs=0)
+            assert errors[name] / 3 - 1e-12 <= abs(px[term]) <= errors[name] + 1e-12 or px[term] == errors[name] == 0
+        assert rec["camera_terms_units"]["k2"] == "1/m4"
+
+
+def test_three_line_presets_draw_the_seed_dominant_terms():
+    """TH-1 (Zhang et al. 2015): principal point and decentring the largest, focal length next,
+    b1 and b2 off (their estimates are ~1e-14); ZY-3 (Zhang et al. 2024): calibrated lines of
+    sight, sub-pixel interior terms; both keep the trajectory errors of the earlier presets."""
+    th1, zy3 = PRESETS["th1_tlc"].errors, PRESETS["zy3_tlc"].errors
+    assert min(th1.principal_point_x, th1.principal_point_y, th1.decentring_p1) > max(th1.focal, th1.radial_k1,
+                                                                                      th1.affinity_b3) > 0
+    assert th1.affinity_b1 == th1.affinity_b2 == 0
+    assert max(getattr(zy3, name) for name in CAMERA_ERRORS) < 0.5
+    for e in (th1, zy3):
+        assert (e.position_bias, e.position_drift, e.attitude_bias, e.attitude_drift, e.attitude_quadratic,
+                e.installation) == (10.0, 0.02, 1e-4, 5e-7, 1e-9, 20 * math.pi / 648000)
+
+
+def test_error_names_of_earlier_versions(tmp_path):
+    """'distortion' is radial_k1 under its old name; 'focal_error' was in metres and is refused
+    unless 0 (off), which the earlier tests and scripts use."""
+    a = simulate("th1_tlc", tmp_path / "a", seed=3, n_gcps=5, errors={"distortion": 2.0, "focal_error": 0.0})
+    errors = json.loads(a.manifest.read_text())["errors"]
+    assert errors["radial_k1"] == 2.0 and errors["focal"] == 0.0
+    with pytest.raises(InputError, match=r"focal_error \(now focal \(px at the array end\)\) replaced"):
+        simulate("th1_tlc", tmp_path / "b", seed=3, n_gcps=5, errors={"focal_error": 20e-6})
+    assert not (tmp_path / "b").exists()
 
 
 def test_round_trip_over_the_whole_image(sim):
@@ -186,6 +257,30 @@ def test_tie_points_are_seen_by_several_cameras(tmp_path):
         m = t["camera"] == cam.name
         col, row = scene.ground_to_image(ground[m], k)
         assert np.max(np.abs(col - t["col_true"][m].astype(float))) < 1e-6
+    # every camera that sees a point measures it: none is missing inside an image
+    for k, cam in enumerate(scene.cameras):
+        col, row = scene.ground_to_image(ground, k)
+        inside = (col >= 0) & (col <= cam.cols) & (row >= 0) & (row <= cam.rows)
+        assert set(t["id"][inside]) == set(t["id"][t["camera"] == cam.name]), cam.name
+    assert set(t["scene"]) == {"1"}
+
+
+def test_tie_points_have_gross_errors_and_tie_neighbouring_scenes(tmp_path):
+    settings = GcpSettings(n_gcps=10, n_tie_points=1500, image_noise=0.5, gross_fraction=0.05)
+    result = simulate("th1_tlc", tmp_path, seed=4, n_scenes=2, gcp_settings=settings)
+    t = _read(result.tie_points)
+    col, row, c0, r0 = _floats(t, "col", "row", "col_true", "row_true")
+    gross = t["gross"].astype(int) == 1
+    assert gross.sum() == round(0.05 * t["id"].size)
+    assert np.min(np.hypot(col - c0, row - r0)[gross]) > 5.0 - 4 * 0.5
+    assert np.std((col - c0)[~gross]) == pytest.approx(0.5, rel=0.08)
+    # the scene of each observation is the one its (true) row falls in, in its own camera
+    scene = load_scene(result.true_scene)
+    rows = np.array([scene.cameras[scene.camera_index(c)].rows for c in t["camera"]])
+    assert np.array_equal(t["scene"].astype(int), np.where(r0 < rows / 2, 1, 2))
+    # points near the scene boundary are seen in scene 1 by one camera and scene 2 by another
+    spans = {i: set(t["scene"][t["id"] == i]) for i in np.unique(t["id"])}
+    assert sum(len(s) == 2 for s in spans.values()) >= 10  # measured 33
 
 
 def _numbers(obj) -> np.ndarray:

@@ -27,9 +27,29 @@ ERROR_PARAMETERS = (
     ("CCD_ROTATION", "ccd_rotation", "CCD rotation (µrad)", MICRO,
      "In-plane rotation of every CCD chip but the middle one, about its first detector (1000 µrad turns a "
      "4096-px chip's far end by 4 px)."),
-    ("FOCAL_ERROR", "focal_error", "Focal length error (µm)", MICRO, "Error of the laboratory focal length."),
-    ("DISTORTION", "distortion", "Radial distortion at the array end (px)", 1.0,
+    ("FOCAL_ERROR", "focal", "Focal length error at the array end (px)", 1.0,
+     "Error of the laboratory focal length of each camera, given as the displacement it causes at the end of "
+     "the detector line (in earlier versions this parameter was in µm)."),
+    ("DISTORTION", "radial_k1", "Radial distortion k1 at the array end (px)", 1.0,
      "Radial lens distortion (k1), given as the displacement it causes at the end of the detector line."),
+    ("PRINCIPAL_POINT_X_ERROR", "principal_point_x", "Principal point error along track (px)", 1.0,
+     "Shift of each camera's principal point along track (dxp of Zhang et al. 2015)."),
+    ("PRINCIPAL_POINT_Y_ERROR", "principal_point_y", "Principal point error across track (px)", 1.0,
+     "Shift of each camera's principal point across track (dyp of Zhang et al. 2015)."),
+    ("RADIAL_K2_ERROR", "radial_k2", "Radial distortion k2 at the array end (px)", 1.0,
+     "Second radial lens distortion term (k2), given as the displacement it causes at the end of the detector "
+     "line."),
+    ("DECENTRING_P1_ERROR", "decentring_p1", "Decentring distortion p1 at the array end (px)", 1.0,
+     "Decentring lens distortion p1: an along-track bow of the detector line's image, given at its end."),
+    ("DECENTRING_P2_ERROR", "decentring_p2", "Decentring distortion p2 at the array end (px)", 1.0,
+     "Decentring lens distortion p2: a quadratic across-track displacement, given at the end of the line."),
+    ("AFFINITY_B1_ERROR", "affinity_b1", "Affinity b1 (px at the array half-length)", 1.0,
+     "Along-track scale b1 (b1·x): a detector line through the principal point does not see it; given as the "
+     "displacement at an along-track distance of half the array's length."),
+    ("AFFINITY_B2_ERROR", "affinity_b2", "Affinity b2 at the array end (px)", 1.0,
+     "Along-track shear b2 (b2·y, an in-plane rotation of the line), given at the end of the line."),
+    ("AFFINITY_B3_ERROR", "affinity_b3", "Affinity b3 at the array end (px)", 1.0,
+     "Across-track scale b3 (b3·y, pixel size), given at the end of the line."),
     ("INSTALLATION", "installation", "Installation angle error (µrad)", MICRO,
      "Error of each camera's mounting angles relative to the reference (nadir) camera, per axis "
      "(three-line presets)."),
@@ -65,7 +85,9 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
             "(EGM96 geoid heights) and, on request, the raw images rendered from a known ground texture. "
             "simulation.json in the output folder records every drawn error. Advanced parameters override the "
             "preset's error magnitudes (empty = the preset's value; each drawn value is 1/3 to 1 times the "
-            "magnitude, with a random sign) and set the measurement noise, check points and gross errors.")
+            "magnitude, with a random sign) and set the measurement noise, check points and gross errors. The "
+            "camera's lens and CCD terms (the 10 parameters of Zhang et al. 2015) are given in pixels: the "
+            "displacement each causes at the end of the detector line.")
     PRESET, SEED, N_SCENES, N_GCPS, IMAGE_NOISE, RENDER = PRESET, "SEED", "N_SCENES", "N_GCPS", "IMAGE_NOISE", \
         "RENDER"
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
