@@ -11,6 +11,7 @@ from .algorithms.groundtoimage import GroundToImageAlgorithm
 from .algorithms.imagetoground import ImageToGroundAlgorithm
 from .algorithms.importgcps import ImportGcpsAlgorithm
 from .algorithms.orthorectify import OrthorectifyAlgorithm
+from .algorithms.preparedigitising import PrepareDigitisingAlgorithm
 from .algorithms.sensorcorrect import SensorCorrectAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .common import RESOURCES
@@ -20,7 +21,7 @@ log = logging.getLogger(__name__)
 MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
 ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, BundleAdjustAlgorithm, GroundToImageAlgorithm,
               ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm, ExportRpcAlgorithm,
-              SensorCorrectAlgorithm)
+              SensorCorrectAlgorithm, PrepareDigitisingAlgorithm)
 
 
 class PushbroomProvider(QgsProcessingProvider):
