@@ -44,6 +44,13 @@ class PushbroomAdjustPlugin:
         self.dock.raise_()
 
     def unload(self):
+        self.remove_gui()
+        if self.provider is not None:
+            QgsApplication.processingRegistry().removeProvider(self.provider)
+            self.provider = None
+
+    def remove_gui(self):
+        """Remove the action, its menu entry and the dock."""
         if self.action is not None:
             self.iface.removePluginMenu(MENU, self.action)
             self.iface.removeToolBarIcon(self.action)
@@ -52,6 +59,3 @@ class PushbroomAdjustPlugin:
             self.iface.removeDockWidget(self.dock)
             self.dock.deleteLater()
             self.dock = None
-        if self.provider is not None:
-            QgsApplication.processingRegistry().removeProvider(self.provider)
-            self.provider = None
