@@ -72,5 +72,7 @@ def test_prepare_digitising_refuses_through_the_command_line(case, qgis_process)
     folder, params = case
     # QGIS saves approximate statistics beside a raster layer it loads without any (raw.tif.aux.xml,
     # GDAL's side file, not written by the plugin): computed here first, QGIS leaves them alone
-    gdal.Open(params["INPUT"]).GetRasterBand(1).ComputeStatistics(True)
+    raw = gdal.Open(params["INPUT"])  # kept open while its band is used
+    raw.GetRasterBand(1).ComputeStatistics(True)
+    raw = None
     assert_refused_cli(qgis_process, ALG, {**params, "CAMERA": "NAD"}, "CAMERA", "not in this scene", watch=[folder])
