@@ -12,6 +12,7 @@ from .algorithms.imagetoground import ImageToGroundAlgorithm
 from .algorithms.importgcps import ImportGcpsAlgorithm
 from .algorithms.importtiepoints import ImportTiePointsAlgorithm
 from .algorithms.orthorectify import OrthorectifyAlgorithm
+from .algorithms.preparedigitising import PrepareDigitisingAlgorithm
 from .algorithms.sensorcorrect import SensorCorrectAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .common import RESOURCES
@@ -21,7 +22,7 @@ log = logging.getLogger(__name__)
 MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
 ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, ImportTiePointsAlgorithm, BundleAdjustAlgorithm,
               GroundToImageAlgorithm, ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm,
-              ExportRpcAlgorithm, SensorCorrectAlgorithm)
+              ExportRpcAlgorithm, SensorCorrectAlgorithm, PrepareDigitisingAlgorithm)
 
 
 class PushbroomProvider(QgsProcessingProvider):

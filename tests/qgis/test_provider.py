@@ -8,7 +8,7 @@ from .conftest import PLUGIN
 ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:importtiepoints",
               "pushbroom:bundleadjust", "pushbroom:groundtoimage",
               "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",
-              "pushbroom:exportrpc", "pushbroom:sensorcorrect"]
+              "pushbroom:exportrpc", "pushbroom:sensorcorrect", "pushbroom:preparedigitising"]
 MODELS = ["pushbroom:Simulate, adjust, orthorectify and export RPC"]  # resources/models/*.model3
 
 

@@ -78,7 +78,7 @@ def vocabulary_problems(algorithms) -> list[str]:
 
 def test_the_provider_speaks_one_vocabulary(provider):
     algorithms = provider.algorithms()
-    assert len(algorithms) == 11  # 10 algorithms and the shipped model
+    assert len(algorithms) == 12  # 11 algorithms and the shipped model
     assert vocabulary_problems(algorithms) == []
 
 
@@ -89,7 +89,7 @@ def test_shared_concepts_are_shared(provider):
         for definition in alg.parameterDefinitions():
             counts[definition.name()] = counts.get(definition.name(), 0) + 1
     assert counts["DEM_DATUM"] == 7 and counts["HEIGHT"] == 7 and counts["SCENE"] == 9
-    assert counts["Z_DATUM"] == 2 and counts["CAMERA"] == 6 and counts["CHECK_FRACTION"] == 2
+    assert counts["Z_DATUM"] == 2 and counts["CAMERA"] == 7 and counts["CHECK_FRACTION"] == 2
     assert counts["RESAMPLING"] == 2 and counts["OUTPUT_SCENE"] == 2
     assert counts["COL_FIELD"] == 3 and counts["ROW_FIELD"] == 3
     assert counts["ID_FIELD"] == 2 and counts["CAMERA_FIELD"] == 2 and counts["SIGMA_PX"] == 2

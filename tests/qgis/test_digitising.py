@@ -1,0 +1,189 @@
+"""The digitising dock in QGIS, driven with mouse events on real map canvases: prepare the display
+copy (pushbroom:preparedigitising), digitise two image lines on the dock's canvas, undo a vertex,
+pair each with its ground line on the main canvas, predict the ground lines, save; the saved
+layer reads back through core.lines with the clicked pixels and the ids."""
+import csv
+
+import numpy as np
+import pytest
+from osgeo import gdal, ogr
+from qgis.core import QgsApplication, QgsCoordinateReferenceSystem, QgsProject, QgsVectorLayer
+from qgis.PyQt.QtCore import QPoint, Qt
+from qgis.PyQt.QtTest import QTest
+
+import processing
+
+CLICK_TOLERANCE_PX = 0.5
+
+
+def blank_raw_image(path, cols: int, rows: int):
+    """A raw image of the camera's size (sparse: blocks never written take no disk)."""
+    gdal.GetDriverByName("GTiff").Create(str(path), cols, rows, 1, gdal.GDT_Byte,
+                                         options=["SPARSE_OK=TRUE", "TILED=YES"])  # closed when released
+    return path
+
+
+@pytest.fixture(scope="module")
+def roads(plugin, tmp_path_factory):
+    """A CBERS-02B HRC scene with 6 roads, its raw image (blank) and its display copy."""
+    from pushbroom_adjust.core.scene_io import load_scene
+    from pushbroom_adjust.core.simulator import simulate
+    folder = tmp_path_factory.mktemp("roads")
+    result = simulate("cbers02b_hrc", folder / "sim", seed=5, n_gcps=12, n_lines=6)
+    camera = load_scene(result.true_scene).cameras[0]
+    raw = blank_raw_image(folder / "raw.tif", camera.cols, camera.rows)
+    with open(result.folder / "line_points.csv", newline="") as f:
+        points = list(csv.DictReader(f))
+    return {"result": result, "raw": raw, "folder": folder, "points": points, "camera": camera}
+
+
+@pytest.fixture(scope="module")
+def prepared(provider, roads):
+    out = roads["folder"]
+    done = processing.run("pushbroom:preparedigitising", {
+        "INPUT": str(roads["raw"]), "SCENE": str(roads["result"].true_scene), "CAMERA": "HRC",
+        "OUTPUT": str(out / "display.vrt"), "OUTPUT_LINES": str(out / "empty.gpkg")})
+    return done
+
+
+def test_prepare_writes_the_display_copy_and_an_empty_layer(prepared, roads):
+    from pushbroom_adjust.core.display import read_display_source
+    ds = gdal.Open(prepared["OUTPUT"])
+    assert ds.GetGeoTransform() == (0.0, 1.0, 0.0, 0.0, 0.0, -1.0)
+    assert (ds.RasterXSize, ds.RasterYSize) == (roads["camera"].cols, roads["camera"].rows)
+    source = read_display_source(prepared["OUTPUT"])
+    assert (source.scene, source.camera, source.image) == (str(roads["result"].true_scene), "HRC", str(roads["raw"]))
+    lines = ogr.Open(prepared["OUTPUT_LINES"])
+    assert lines.GetLayerByName("image_lines").GetFeatureCount() == 0
+    from qgis.core import QgsRasterLayer
+    layer = QgsRasterLayer(prepared["OUTPUT"], "display")
+    assert layer.isValid() and "Pushbroom image pixels" in layer.crs().toWkt()
+    assert layer.extent().xMaximum() == roads["camera"].cols and layer.extent().yMinimum() == -roads["camera"].rows
+
+
+def _true_points(roads, line_id):
+    return np.array([[float(p["col_true"]), float(p["row_true"])] for p in roads["points"]
+                     if p["line_id"] == line_id])
+
+
+def _click(canvas, x, y, button=Qt.LeftButton):
+    QTest.mouseClick(canvas.viewport(), button, Qt.NoModifier, QPoint(int(x), int(y)))
+
+
+def _digitise(dock, pixels) -> np.ndarray:
+    """Click the screen pixels nearest to image pixels (col, row) on the dock's canvas; returns
+    the image positions the clicks stand for (through the canvas transform)."""
+    transform = dock.canvas.getCoordinateTransform()
+    clicked = []
+    for col, row in pixels:
+        screen = transform.transform(col, -row)
+        x, y = round(screen.x()), round(screen.y())
+        _click(dock.canvas, x, y)
+        at = transform.toMapCoordinates(x, y)
+        clicked.append((at.x(), -at.y()))
+    return np.array(clicked)
+
+
+def _zoom_to(canvas, pixels, margin=20.0):
+    from qgis.core import QgsRectangle
+    canvas.setExtent(QgsRectangle(pixels[:, 0].min() - margin, -pixels[:, 1].max() - margin,
+                                  pixels[:, 0].max() + margin, -pixels[:, 1].min() + margin))
+    canvas.refresh()
+
+
+def _pick(main, lon, lat):
+    """Click the main canvas (EPSG:4326) at (lon, lat)."""
+    screen = main.getCoordinateTransform().transform(lon, lat)
+    _click(main, screen.x(), screen.y())
+
+
+@pytest.fixture()
+def ground_layer(roads, qgis_canvas, qgis_new_project):
+    layer = QgsVectorLayer(f"{roads['result'].lines}|layername=ground_lines", "roads", "ogr")
+    assert layer.isValid()
+    QgsProject.instance().addMapLayer(layer)
+    qgis_canvas.resize(800, 800)
+    qgis_canvas.setDestinationCrs(QgsCoordinateReferenceSystem("EPSG:4326"))
+    qgis_canvas.setLayers([layer])
+    qgis_canvas.setExtent(layer.extent())
+    qgis_canvas.refresh()
+    return layer
+
+
+def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground_layer, qgis_iface, qgis_canvas,
+                                                 tmp_path):
+    from pushbroom_adjust.core.lines import read_image_lines
+    from pushbroom_adjust.ui.digitising.dock import DigitisingDock
+    dock = DigitisingDock(qgis_iface)  # the Python reference keeps the widget alive
+    dock.resize(600, 900)
+    dock.show()
+    assert dock.open_image(prepared["OUTPUT"])
+    assert dock.scene is not None and dock.camera_edit.text() == "HRC"
+    dock.ground_combo.setLayer(ground_layer)
+    dock.id_combo.setField("line_id")
+    ground = {f["line_id"]: np.array(f.geometry().asPolyline()) for f in ground_layer.getFeatures()}
+
+    expected = {}
+    for line_id in ("R1", "R2"):
+        truth = _true_points(roads, line_id)[::3]
+        _zoom_to(dock.canvas, truth)
+        clicked = _digitise(dock, truth)
+        _click(dock.canvas, 400, 300)  # a stray vertex ...
+        assert len(dock.editor.current) == len(truth) + 1
+        QTest.mouseClick(dock.undo_button, Qt.LeftButton)  # ... undone
+        _click(dock.canvas, 10, 10, Qt.RightButton)  # right click finishes the line
+        assert dock.editor.current == [] and dock.editor.selected == len(expected)
+        QTest.mouseClick(dock.pair_button, Qt.LeftButton)
+        middle = ground[line_id][len(ground[line_id]) // 2]
+        _pick(qgis_canvas, middle[0], middle[1])
+        assert dock.editor.lines[-1].line_id == line_id, dock.message_label.text()
+        expected[line_id] = clicked
+        # the clicks stand for points within a screen pixel of the road's true image
+        assert np.abs(clicked - truth).max() <= dock.canvas.mapUnitsPerPixel()
+
+    dock.height_combo.setCurrentText("z")
+    QTest.mouseClick(dock.predict_button, Qt.LeftButton)
+    assert len(dock.predicted) == 6 and len(dock.bands) >= 6 + 2
+    from tests.unit.test_digitising import _distances
+    r1 = next(p for p in dock.predicted if p.line_id == "R1")
+    assert _distances(_true_points(roads, "R1"), r1.runs()).max() < 1.6
+
+    # a third, unpaired line is refused on saving and leaves no file; deleted, the rest saves
+    dock.add_vertex(5000.0, 5000.0)
+    dock.add_vertex(5100.0, 5050.0)
+    QTest.mouseClick(dock.finish_button, Qt.LeftButton)
+    assert not dock.save(str(tmp_path / "lines.gpkg")) and "3 are not paired" in dock.message_label.text()
+    assert not (tmp_path / "lines.gpkg").exists()
+    QTest.mouseClick(dock.delete_button, Qt.LeftButton)
+    assert dock.save(str(tmp_path / "lines.gpkg")), dock.message_label.text()
+
+    back = read_image_lines(tmp_path / "lines.gpkg")
+    assert back.line_id.tolist() == ["R1", "R2"] and back.camera.tolist() == ["HRC", "HRC"]
+    for i, line_id in enumerate(("R1", "R2")):
+        sl = slice(back.start[i], back.start[i + 1])
+        got = np.c_[back.col[sl], back.row[sl]]
+        assert got.shape == expected[line_id].shape
+        assert np.abs(got - expected[line_id]).max() < CLICK_TOLERANCE_PX
+    moved = QPoint(200, 200)
+    QTest.mouseMove(dock.canvas.viewport(), moved)
+    at = dock.canvas.getCoordinateTransform().toMapCoordinates(moved)
+    assert dock.pixel_label.text() == f"col {at.x():.1f}, row {-at.y():.1f} px"
+    dock.close()
+
+
+def test_plugin_action_opens_the_dock(plugin_instance, qgis_iface, monkeypatch):
+    from unittest.mock import Mock
+
+    from pushbroom_adjust.ui.digitising.dock import DigitisingDock
+    for name in ("removePluginMenu", "removeDockWidget"):  # not in pytest-qgis's interface
+        monkeypatch.setattr(qgis_iface, name, Mock(), raising=False)
+    plugin_instance.initGui()  # the provider is registered already: only the action is added
+    try:
+        assert plugin_instance.action.text() == "Digitise control lines on the raw image"
+        plugin_instance.action.trigger()
+        assert isinstance(plugin_instance.dock, DigitisingDock) and not plugin_instance.dock.isHidden()
+    finally:
+        plugin_instance.remove_gui()
+    assert plugin_instance.action is None and plugin_instance.dock is None
+    qgis_iface.removePluginMenu.assert_called_once()
+    assert QgsApplication.processingRegistry().providerById("pushbroom") is not None

@@ -1,0 +1,1 @@
+"""The digitising dock: control lines drawn on the raw image (see dock.py)."""

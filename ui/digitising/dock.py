@@ -1,0 +1,337 @@
+"""The dock 'Digitise control lines on the raw image': its own map canvas showing a display copy
+(pushbroom:preparedigitising) in the pixel frame x = col, y = -row, a map tool that digitises
+image lines, pairing with ground lines picked on the main map canvas, ground lines predicted into
+the image by the scene model, and Save to an ``image_lines`` GeoPackage layer.
+
+The logic lives in :mod:`core.digitising` (vertices, undo, pairing, prediction); this module
+turns mouse events and buttons into its calls and draws its state.
+"""
+from __future__ import annotations
+
+import numpy as np
+from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform, QgsGeometry, QgsMapLayerProxyModel,
+                       QgsPointXY, QgsProject, QgsRasterLayer, QgsWkbTypes)
+from qgis.gui import (QgsFieldComboBox, QgsMapCanvas, QgsMapLayerComboBox, QgsMapTool, QgsMapToolEmitPoint,
+                      QgsRubberBand)
+from qgis.PyQt.QtCore import Qt
+from qgis.PyQt.QtGui import QColor
+from qgis.PyQt.QtWidgets import (QComboBox, QDockWidget, QDoubleSpinBox, QFileDialog, QFormLayout, QHBoxLayout,
+                                 QLabel, QLineEdit, QListWidget, QPushButton, QVBoxLayout, QWidget)
+
+from ...core.digitising import LineEditor, nearest_line, predict_lines
+from ...core.display import read_display_source
+from ...core.errors import PushbroomError
+from ...core.gcps import Heights
+from ...core.lines import write_gpkg
+from ...core.scene_io import load_scene
+from ..parameters import DATUMS, HEIGHT_SOURCES, tr
+
+LINE_COLOUR, CURRENT_COLOUR, SELECTED_COLOUR, PREDICTED_COLOUR = (QColor(0, 200, 255), QColor(255, 220, 0),
+                                                                    QColor(255, 60, 60), QColor(255, 0, 255))
+PREDICTION_STEP_M = 20.0  # ground spacing of predicted points: a few pixels of a 2-5 m GSD image
+
+
+def pixel_of(point: QgsPointXY) -> tuple[float, float]:
+    """(col, row) px of a point of the pixel frame (x = col, y = -row)."""
+    return point.x(), -point.y()
+
+
+def point_of(col: float, row: float) -> QgsPointXY:
+    return QgsPointXY(col, -row)
+
+
+class ImageLineTool(QgsMapTool):
+    """On the dock's canvas: left click adds a vertex, right click finishes the line; moving
+    shows the pixel under the cursor."""
+
+    def __init__(self, dock: "DigitisingDock"):
+        super().__init__(dock.canvas)
+        self.dock = dock
+
+    def canvasMoveEvent(self, event):  # noqa: N802 (QGIS API name)
+        self.dock.show_pixel(*pixel_of(event.mapPoint()))
+
+    def canvasReleaseEvent(self, event):  # noqa: N802
+        if event.button() == Qt.LeftButton:
+            self.dock.add_vertex(*pixel_of(event.mapPoint()))
+        elif event.button() == Qt.RightButton:
+            self.dock.finish_line()
+
+
+class DigitisingDock(QDockWidget):
+    """The dock. ``iface``: the QGIS interface (its mapCanvas() is where ground lines are picked)."""
+
+    def __init__(self, iface, parent=None):
+        super().__init__(tr("Digitise control lines on the raw image"), parent)
+        self.setObjectName("PushbroomDigitisingDock")
+        self.iface = iface
+        self.editor = LineEditor()
+        self.layer: QgsRasterLayer | None = None
+        self.scene, self.camera_name, self.predicted = None, "", []
+        self.bands: list[QgsRubberBand] = []
+        self.previous_main_tool = None
+        self._build()
+        self.tool = ImageLineTool(self)
+        self.canvas.setMapTool(self.tool)
+        self.pick_tool = QgsMapToolEmitPoint(iface.mapCanvas())
+        self.pick_tool.canvasClicked.connect(self.pair_at)
+
+    # --- widgets -------------------------------------------------------------------------------
+    def _build(self) -> None:
+        body = QWidget()
+        layout = QVBoxLayout(body)
+        form = QFormLayout()
+        self.image_button = QPushButton(tr("Open display copy…"))
+        self.image_button.clicked.connect(self._choose_image)
+        form.addRow(tr("Image"), self.image_button)
+        self.scene_edit, self.camera_edit = QLineEdit(), QLineEdit()
+        self.scene_edit.editingFinished.connect(self._load_scene)
+        form.addRow(tr("Scene"), self.scene_edit)
+        form.addRow(tr("Camera"), self.camera_edit)
+        self.ground_combo = QgsMapLayerComboBox()
+        self.ground_combo.setFilters(QgsMapLayerProxyModel.LineLayer)
+        self.id_combo = QgsFieldComboBox()
+        self.ground_combo.layerChanged.connect(self.id_combo.setLayer)
+        self.id_combo.setLayer(self.ground_combo.currentLayer())
+        form.addRow(tr("Ground lines"), self.ground_combo)
+        form.addRow(tr("Line id field"), self.id_combo)
+        self.height_combo = QComboBox()
+        self.height_combo.addItems(HEIGHT_SOURCES)
+        self.height_combo.setToolTip(tr("Heights of the ground lines for the prediction: z = the lines' Z "
+                                        "values, dem = the DEM below, constant = the height below"))
+        self.dem_combo = QgsMapLayerComboBox()
+        self.dem_combo.setFilters(QgsMapLayerProxyModel.RasterLayer)
+        self.dem_combo.setAllowEmptyLayer(True)
+        self.datum_combo = QComboBox()
+        self.datum_combo.addItems(DATUMS)
+        self.height_spin = QDoubleSpinBox()
+        self.height_spin.setRange(-500.0, 9000.0)
+        form.addRow(tr("Heights from"), self.height_combo)
+        form.addRow(tr("DEM"), self.dem_combo)
+        form.addRow(tr("Height datum"), self.datum_combo)
+        form.addRow(tr("Constant height (m)"), self.height_spin)
+        layout.addLayout(form)
+        buttons = QHBoxLayout()
+        for attr, text, slot in (("finish_button", tr("Finish"), self.finish_line),
+                                 ("undo_button", tr("Undo"), self.undo),
+                                 ("delete_button", tr("Delete"), self.delete_selected),
+                                 ("pair_button", tr("Pair"), self.start_pairing),
+                                 ("predict_button", tr("Predict"), self.predict),
+                                 ("save_button", tr("Save…"), self._choose_save)):
+            button = QPushButton(text)
+            button.clicked.connect(slot)
+            setattr(self, attr, button)
+            buttons.addWidget(button)
+        layout.addLayout(buttons)
+        self.canvas = QgsMapCanvas()
+        self.canvas.setMinimumHeight(250)
+        layout.addWidget(self.canvas, 1)
+        self.line_list = QListWidget()
+        self.line_list.setMaximumHeight(110)
+        self.line_list.currentRowChanged.connect(self._list_selected)
+        layout.addWidget(self.line_list)
+        self.pixel_label, self.message_label = QLabel(), QLabel()
+        self.message_label.setWordWrap(True)
+        layout.addWidget(self.pixel_label)
+        layout.addWidget(self.message_label)
+        self.setWidget(body)
+
+    def tell(self, text: str) -> None:
+        self.message_label.setText(text)
+
+    def show_pixel(self, col: float, row: float) -> None:
+        """Pixel coordinates under the cursor, in the dock's status line."""
+        self.pixel_label.setText(tr("col {col:.1f}, row {row:.1f} px").format(col=col, row=row))
+
+    # --- image and scene ------------------------------------------------------------------------
+    def _choose_image(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, tr("Display copy"), "", "Virtual raster (*.vrt);;All files (*)")
+        if path:
+            self.open_image(path)
+
+    def open_image(self, path: str) -> bool:
+        """Show a display copy (or any raster in the pixel frame) and take the scene and camera it
+        names; False (with a message) when it cannot be read."""
+        try:
+            source = read_display_source(path)
+        except PushbroomError as exc:
+            self.tell(str(exc))
+            return False
+        layer = QgsRasterLayer(path, tr("Display copy"))
+        if not layer.isValid():
+            self.tell(tr("{path}: QGIS cannot show this raster").format(path=path))
+            return False
+        self.layer = layer
+        self.canvas.setDestinationCrs(layer.crs())
+        self.canvas.setLayers([layer])
+        self.canvas.setExtent(layer.extent())
+        self.canvas.refresh()
+        self.scene_edit.setText(source.scene)
+        self.camera_edit.setText(source.camera)
+        self._load_scene()
+        return True
+
+    def _load_scene(self) -> None:
+        path = self.scene_edit.text().strip()
+        self.scene = None
+        if not path:
+            self.tell(tr("No scene: give the scene file to see predicted ground lines"))
+            return
+        try:
+            self.scene = load_scene(path)
+        except PushbroomError as exc:
+            self.tell(str(exc))
+
+    def camera_index(self) -> int:
+        text = self.camera_edit.text().strip()
+        return self.scene.camera_index(int(text) if text.isdigit() else text) if text else 0
+
+    # --- digitising -----------------------------------------------------------------------------
+    def add_vertex(self, col: float, row: float) -> None:
+        self.editor.add_vertex(col, row)
+        self.redraw()
+
+    def finish_line(self) -> None:
+        try:
+            index = self.editor.finish()
+        except PushbroomError as exc:
+            self.tell(str(exc))
+            return
+        self.tell(tr("Line {n} finished: press Pair, then click its ground line on the map").format(n=index + 1))
+        self.redraw()
+
+    def undo(self) -> None:
+        removed = self.editor.undo()
+        self.tell({"vertex": tr("Last vertex removed"), "line": tr("Last line removed"),
+                   "": tr("Nothing to undo")}[removed])
+        self.redraw()
+
+    def delete_selected(self) -> None:
+        self.tell(tr("Line deleted") if self.editor.delete_selected() else tr("Select a line in the list first"))
+        self.redraw()
+
+    def _list_selected(self, row: int) -> None:
+        if 0 <= row < len(self.editor.lines) and self.editor.selected != row:
+            self.editor.select(row)
+            self.redraw()
+
+    # --- pairing with ground lines ------------------------------------------------------------
+    def start_pairing(self) -> None:
+        """Next click on the main map canvas picks the selected line's ground line."""
+        if self.editor.selected is None:
+            self.tell(tr("Select an image line first (in the list), then press Pair"))
+            return
+        main = self.iface.mapCanvas()
+        self.previous_main_tool = main.mapTool()
+        main.setMapTool(self.pick_tool)
+        self.tell(tr("Click the matching ground line on the map"))
+
+    def ground_parts(self, crs: QgsCoordinateReferenceSystem) -> tuple[list[str], list[np.ndarray]]:
+        """(ids, parts [(n, 2|3)]) of the chosen ground layer's lines, x, y in ``crs`` (z kept)."""
+        layer, field = self.ground_combo.currentLayer(), self.id_combo.currentField()
+        if layer is None or not field:
+            raise ValueError(tr("choose a ground line layer and its line id field"))
+        transform = QgsCoordinateTransform(layer.crs(), crs, QgsProject.instance())
+        ids, parts = [], []
+        for feature in layer.getFeatures():
+            geometry = QgsGeometry(feature.geometry())
+            if geometry.isEmpty():
+                continue
+            geometry.transform(transform)
+            for part in geometry.constParts():
+                points = [(p.x(), p.y(), p.z()) for p in part.vertices()]
+                xyz = np.array(points, dtype=float)
+                parts.append(xyz if QgsWkbTypes.hasZ(layer.wkbType()) else xyz[:, :2])
+                ids.append(str(feature[field]))
+        return ids, parts
+
+    def pair_at(self, point: QgsPointXY, button=None) -> None:
+        """Pair the selected image line with the ground line nearest to ``point`` (main canvas CRS)."""
+        main = self.iface.mapCanvas()
+        if self.previous_main_tool is not None:
+            main.setMapTool(self.previous_main_tool)
+        try:
+            ids, parts = self.ground_parts(main.mapSettings().destinationCrs())
+            index, _ = nearest_line(parts, point.x(), point.y())
+            self.editor.pair_selected(ids[index])
+        except (PushbroomError, ValueError) as exc:
+            self.tell(str(exc))
+            return
+        self.tell(tr("Line {n} paired with ground line {id}").format(n=self.editor.selected + 1, id=ids[index]))
+        self.redraw()
+
+    # --- prediction ---------------------------------------------------------------------------
+    def heights(self) -> Heights:
+        dem = self.dem_combo.currentLayer()
+        return Heights(self.height_combo.currentText(), self.datum_combo.currentText(),
+                       dem.source().split("|")[0] if dem is not None else None, self.height_spin.value())
+
+    def predict(self) -> None:
+        """Draw the chosen ground lines as the scene model sees them in this camera."""
+        if self.scene is None:
+            self.tell(tr("No scene: give the scene file first"))
+            return
+        try:
+            ids, parts = self.ground_parts(QgsCoordinateReferenceSystem("EPSG:4326"))
+            self.predicted = predict_lines(self.scene, self.camera_index(), ids, parts, self.heights(),
+                                           PREDICTION_STEP_M)
+        except (PushbroomError, ValueError) as exc:
+            self.tell(str(exc))
+            return
+        shown = sum(bool(p.runs()) for p in self.predicted)
+        self.tell(tr("{shown} of {n} ground lines predicted into the image").format(shown=shown,
+                                                                                     n=len(self.predicted)))
+        self.redraw()
+
+    # --- saving -------------------------------------------------------------------------------
+    def _choose_save(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, tr("Save image lines"), "", "GeoPackage (*.gpkg)")
+        if path:
+            self.save(path)
+
+    def save(self, path: str) -> bool:
+        """Write the lines to layer ``image_lines`` of GeoPackage ``path`` (replaced whole, or not at
+        all); False (with the reason shown) when they cannot be saved."""
+        try:
+            write_gpkg(path, image=self.editor.image_lines(self.camera_edit.text().strip()))
+        except PushbroomError as exc:
+            self.tell(str(exc))
+            return False
+        self.tell(tr("{n} image lines saved to {path}").format(n=len(self.editor.lines), path=path))
+        return True
+
+    # --- drawing ------------------------------------------------------------------------------
+    def _band(self, vertices, colour: QColor, width: int, dashed: bool = False) -> None:
+        band = QgsRubberBand(self.canvas, QgsWkbTypes.LineGeometry)
+        band.setColor(colour)
+        band.setWidth(width)
+        if dashed:
+            band.setLineStyle(Qt.DashLine)
+        band.setToGeometry(QgsGeometry.fromPolylineXY([point_of(c, r) for c, r in vertices]), None)
+        self.bands.append(band)
+
+    def redraw(self) -> None:
+        """Rubber bands and the list from the editor's state and the prediction."""
+        for band in self.bands:
+            self.canvas.scene().removeItem(band)
+        self.bands = []
+        for line in self.predicted:
+            for run in line.runs():
+                self._band(run.tolist(), PREDICTED_COLOUR, 1, dashed=True)
+        for i, line in enumerate(self.editor.lines):
+            self._band(line.vertices, SELECTED_COLOUR if i == self.editor.selected else LINE_COLOUR, 2)
+        if self.editor.current:
+            self._band(self.editor.current, CURRENT_COLOUR, 2)
+        self.line_list.blockSignals(True)
+        self.line_list.clear()
+        for i, line in enumerate(self.editor.lines):
+            self.line_list.addItem(tr("{n}: {id} ({v} vertices)").format(
+                n=i + 1, id=line.line_id or tr("not paired"), v=len(line.vertices)))
+        self.line_list.setCurrentRow(-1 if self.editor.selected is None else self.editor.selected)
+        self.line_list.blockSignals(False)
+
+    def closeEvent(self, event):  # noqa: N802 (Qt API name)
+        main = self.iface.mapCanvas()
+        if main.mapTool() is self.pick_tool:
+            main.unsetMapTool(self.pick_tool)
+        super().closeEvent(event)
