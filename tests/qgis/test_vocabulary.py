@@ -88,7 +88,7 @@ def test_shared_concepts_are_shared(provider):
     for alg in provider.algorithms():
         for definition in alg.parameterDefinitions():
             counts[definition.name()] = counts.get(definition.name(), 0) + 1
-    assert counts["DEM_DATUM"] == 7 and counts["HEIGHT"] == 7 and counts["SCENE"] == 9
+    assert counts["DEM_DATUM"] == 7 and counts["HEIGHT"] == 7 and counts["SCENE"] == 10
     assert counts["Z_DATUM"] == 2 and counts["CAMERA"] == 7 and counts["CHECK_FRACTION"] == 2
     assert counts["RESAMPLING"] == 2 and counts["OUTPUT_SCENE"] == 2
     assert counts["COL_FIELD"] == 3 and counts["ROW_FIELD"] == 3
