@@ -1,0 +1,236 @@
+"""Zhang et al. 2024 (seed 003) on a simulated ZY-3 three-line strip: Plans A-D in one run each,
+with 4 corner GCPs, 16 spread GCPs and no GCP, tie points in all cameras. Prints figures (no
+assertions); tests/unit/test_seed003.py asserts the key ones.
+
+Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_seed003_zy3.py
+      [--quick] [--seed 3] [--scenes 4] [--ties 300] [--preset-errors]
+
+Plans (seed 003 sec. 3.2): A one first-order trajectory correction per camera
+(camera_trajectory='per_camera'); B, C, D one correction shared by the cameras, attitude
+order 0, 1, 2, plus the installation angles of FWD and BWD against NAD (free, and kept with
+interior_selection='keep' so that all six can be compared with the truth; the default
+'significant' removes the non-significant ones: its choice for Plan D is printed too).
+
+The strip: --scenes ZY-3 scenes (NAD 24576 x 24576 rows each), GCPs measured in all three
+cameras, 0.3 px image noise, 0.1 m ground noise (static GPS, as the seed's). Control: the 4
+points nearest the corners of the whole strip (seed 003 sec. 3.3), or 16 on a 2 x 8 grid;
+check points: all other GCPs, the same for every run. The onboard GPS (position_sigma 10 m)
+and star trackers (attitude_sigma 1e-4 rad, 21") enter as pseudo-observations in every run:
+with no GCP they alone hold the datum. The simulated errors are the preset's trajectory
+(position bias/drift, attitude bias/drift/quadratic) and installation errors; its sub-pixel
+camera terms and CCD alignment errors (which no plan models: ZY-3's lines of sight are
+calibrated in orbit) are left out unless --preset-errors.
+
+Figures: check points intersected from all their cameras with the adjusted model, RMSE east,
+north, plan and height (m; seed 003 Tables 3 and 5); tie-point image residuals per camera, RMSE
+across (col, the scanning direction) and along track (row, the flight direction) in px (Tables 2
+and 4: the relative accuracy); installation angles minus truth in sigmas. Without GCPs the
+absolute error is set beside the onboard trajectory's own: the check points intersected with
+the onboard trajectory and the true cameras.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+
+from core import gcps as G  # noqa: E402
+from core.adjust import AdjustmentSettings, adjust  # noqa: E402
+from core.adjust.checkpoints import intersection_accuracy  # noqa: E402
+from core.adjust.parameters import ANGLES, ARCSEC  # noqa: E402
+from core.scene_io import load_scene  # noqa: E402
+from core.sensor import SceneModel  # noqa: E402
+from core.simulator import CAMERA_ERRORS, GcpSettings, simulate  # noqa: E402
+from core.tiepoints import CsvMapping, TieTable, read_csv  # noqa: E402
+
+NOISE_PX, GROUND_M = 0.3, 0.1
+INSTALLATION = ", ".join(f"{cam}.{a}" for cam in ("FWD", "BWD") for a in ANGLES)
+# the preset's interior errors that no plan models (see the module docstring)
+NO_CAMERA_ERRORS = {"ccd_shift": 0.0, "ccd_rotation": 0.0, **dict.fromkeys(CAMERA_ERRORS, 0.0)}
+BASE = AdjustmentSettings(position_sigma=10.0, attitude_sigma=1e-4, robust="none")
+PLANS = {"A": {"camera_trajectory": "per_camera", "attitude_order": 1},
+         "B": {"interior": INSTALLATION, "attitude_order": 0, "interior_selection": "keep"},
+         "C": {"interior": INSTALLATION, "attitude_order": 1, "interior_selection": "keep"},
+         "D": {"interior": INSTALLATION, "attitude_order": 2, "interior_selection": "keep"}}
+GRID = [(x, y) for x in (0.25, 0.75) for y in np.linspace(1 / 16, 15 / 16, 8)]
+CORNERS = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+
+
+@dataclass
+class Strip:
+    """A simulated strip: onboard scene, GCPs (all 'control' as simulated), tie points, the
+    onboard trajectory with the true cameras (its errors alone), and the true installation
+    angles (camera -> (roll, pitch, yaw) rad)."""
+    scene: SceneModel
+    table: G.GcpTable
+    ties: TieTable
+    onboard_trajectory: SceneModel
+    installation: dict
+
+
+def simulate_strip(folder: Path, seed: int, scenes: int, gcps: int, ties: int, preset_errors: bool) -> Strip:
+    result = simulate("zy3_tlc", folder, seed=seed, n_scenes=scenes, errors=None if preset_errors else NO_CAMERA_ERRORS,
+                      gcp_settings=GcpSettings(n_gcps=gcps, image_noise=NOISE_PX, ground_noise_xy=GROUND_M,
+                                               ground_noise_z=GROUND_M, n_tie_points=ties))
+    table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
+                       G.Heights("z", datum="ellipsoid"), sigma_px=NOISE_PX, sigma_xy=GROUND_M, sigma_z=GROUND_M)
+    onboard, true = load_scene(result.onboard_scene), load_scene(result.true_scene)
+    truth = json.loads(result.manifest.read_text())["truth"]
+    return Strip(onboard, table, read_csv(result.tie_points, CsvMapping(), sigma_px=NOISE_PX),
+                 replace(onboard, cameras=true.cameras, _guess={}),
+                 {t["camera"]: t["installation_error_rad"] for t in truth["interior"]})
+
+
+def control_layouts(strip: Strip) -> dict[int, np.ndarray]:
+    """GCP ids per layout: 0, 4 (nearest the strip's corners in the NAD image) and 16 (nearest
+    a 2 x 8 grid); candidates are the points seen in all cameras."""
+    table, nad = strip.table, strip.scene.cameras[0]
+    ids, counts = np.unique(table.id, return_counts=True)
+    m = (table.camera == nad.name) & np.isin(table.id, ids[counts == len(strip.scene.cameras)])
+    xy = np.stack([table.col[m] / nad.cols, table.row[m] / nad.rows], axis=1)
+
+    def nearest(targets) -> np.ndarray:
+        return table.id[m][[int(np.argmin(np.linalg.norm(xy - np.array(t), axis=1))) for t in targets]]
+
+    return {0: np.array([], str), 4: nearest(CORNERS), 16: nearest(GRID)}
+
+
+def gcp_table(strip: Strip, layouts: dict, n: int) -> G.GcpTable:
+    """The GCPs of layout ``n`` as control and every GCP of no layout as check point (the same
+    check points for all layouts)."""
+    used = np.concatenate(list(layouts.values()))
+    control = np.isin(strip.table.id, layouts[n])
+    sub = strip.table.select(control | ~np.isin(strip.table.id, used))
+    sub.role = np.where(np.isin(sub.id, layouts[n]), "control", "check")
+    return sub
+
+
+def figures(strip: Strip, out, table: G.GcpTable) -> dict:
+    """What a run is judged by: 3D check RMSE (east, north, plan, height m), tie residual RMSE
+    per camera (col, row px), installation angles (name -> estimate, sigma, (estimate - truth)
+    / sigma, in arcsec), the datum sentence, the interior selection, the per-point 3D errors."""
+    rep = out.report
+    inter = rep["check_points"]["intersection"]
+    ties = {cam: (r["rmse_col"], r["rmse_row"]) for cam, r in rep["tie_points"]["residuals_per_camera"].items()}
+    installation = {}
+    for p in rep["parameters"]:
+        if p["block"] == "installation" and p["sigma"]:
+            cam, angle = p["name"].split(".")
+            true = strip.installation[cam][ANGLES.index(angle)]
+            installation[p["name"]] = (p["value"] / ARCSEC, p["sigma"] / ARCSEC, (p["value"] - true) / p["sigma"])
+    datum = rep.get("datum") or {}
+    checks = np.nonzero(table.role == "check")[0]
+    return {"check": {k: inter[f"rmse_{k}"] for k in ("east", "north", "plan", "height")},
+            "check_points": inter["intersected"], "ties": ties,
+            "tie_points": rep["tie_points"]["points"], "installation": installation,
+            "datum": f"datum held by {datum.get('held_by')}" + (f": {datum['note']}" if "note" in datum else ""),
+            "determinability": rep["determinability"], "selection": rep.get("interior_selection"),
+            "errors": intersection_accuracy(out.scene, table, checks)["errors"]}
+
+
+def run(strip: Strip, table: G.GcpTable, plan: str, **extra) -> dict:
+    """Adjust ``strip`` with ``table`` and the tie points by ``plan`` (A-D); its :func:`figures`."""
+    out = adjust(strip.scene, table, replace(BASE, **{**PLANS[plan], **extra}), ties=strip.ties)
+    return figures(strip, out, table)
+
+
+def onboard_error(strip: Strip, table: G.GcpTable) -> np.ndarray:
+    """(m, 3) east/north/up m: check points intersected with the onboard trajectory and the true
+    cameras against their known positions, the error the onboard orbit and attitude alone leave."""
+    return intersection_accuracy(strip.onboard_trajectory, table, np.nonzero(table.role == "check")[0])["errors"]
+
+
+def rmse(errors: np.ndarray) -> tuple[float, float, float, float]:
+    """RMSE east, north, plan, height (m) of (m, 3) east/north/up errors."""
+    e, n, u = np.sqrt(np.mean(errors ** 2, axis=0))
+    return float(e), float(n), float(np.hypot(e, n)), float(u)
+
+
+# --- printing ----------------------------------------------------------------------------------
+def _check_row(label: str, f: dict) -> str:
+    c = f["check"]
+    ties = "  ".join(f"{cam} {col:.3f}/{row:.3f}" for cam, (col, row) in f["ties"].items())
+    return f"{label:<14} {c['east']:7.2f} {c['north']:7.2f} {c['plan']:7.2f} {c['height']:7.2f}   {ties}"
+
+
+def _installation_rows(label: str, f: dict) -> list[str]:
+    fixed = [d["fixed"] for d in f["determinability"]]
+    rows = [f"{label:<14} " + "  ".join(f"{name} {v:+6.1f}\"±{s:4.1f} ({z:+.1f}σ)" for name, (v, s, z)
+                                        in f["installation"].items())]
+    if fixed:
+        rows.append(f"{'':<14} not determinable, fixed at 0: {', '.join(fixed)}")
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="2 scenes, 60 GCPs, 150 tie points")
+    parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument("--scenes", type=int, default=4)
+    parser.add_argument("--gcps", type=int, default=150, help="simulated GCPs (control and check)")
+    parser.add_argument("--ties", type=int, default=300)
+    parser.add_argument("--preset-errors", action="store_true",
+                        help="keep the preset's camera and CCD errors (no plan models them)")
+    args = parser.parse_args()
+    if args.quick:
+        args.scenes, args.gcps, args.ties = 2, 60, 150
+    logging.basicConfig(level=logging.ERROR)
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        strip = simulate_strip(Path(tmp), args.seed, args.scenes, args.gcps, args.ties, args.preset_errors)
+        layouts = control_layouts(strip)
+        tables = {n: gcp_table(strip, layouts, n) for n in layouts}
+        results = {(n, p): run(strip, tables[n], p) for n in (4, 16, 0) for p in PLANS}
+        default_d = {n: run(strip, tables[n], "D", interior_selection="significant") for n in (4, 0)}
+        seconds = time.perf_counter() - start
+    any_run = results[(4, "D")]
+    print(f"ZY-3 strip of {args.scenes} scenes (seed {args.seed}), {any_run['tie_points']} tie points, "
+          f"{any_run['check_points']} check points, {NOISE_PX} px image noise; "
+          f"{'preset errors' if args.preset_errors else 'trajectory and installation errors only'}; "
+          f"{seconds:.0f} s for {len(results) + len(default_d)} adjustments")
+    print("\nCheck points, 3D RMSE (m) and tie-point image RMSE col/row (px) per camera")
+    print(f"{'GCPs, plan':<14} {'east':>7} {'north':>7} {'plan':>7} {'height':>7}   tie points")
+    for (n, p), f in results.items():
+        print(_check_row(f"{n:>2} GCPs, {p}", f))
+    print("\nInstallation angles (interior_selection='keep'): estimate ± sigma (arcsec), (estimate - truth) / sigma")
+    for (n, p), f in results.items():
+        if p != "A":
+            for line in _installation_rows(f"{n:>2} GCPs, {p}", f):
+                print(line)
+    print("\nPlan D with the default interior_selection='significant':")
+    for n, f in default_d.items():
+        sel = f["selection"] or {}
+        kept = ", ".join(x["name"] for x in sel.get("kept", [])) or "none"
+        removed = ", ".join(x["name"] for x in sel.get("removed", [])) or "none"
+        print(f"  {n:>2} GCPs: outcome {sel.get('outcome')}; kept {kept}; removed {removed}; "
+              f"check plan {f['check']['plan']:.2f} m, height {f['check']['height']:.2f} m")
+    d4, d16 = results[(4, "D")]["check"], results[(16, "D")]["check"]
+    print("\nPlan D, 4 against 16 GCPs: " + ", ".join(
+        f"{k} {d4[k]:.2f} / {d16[k]:.2f} m ({100 * (d4[k] / d16[k] - 1):+.0f} %)" for k in ("plan", "height")))
+    angles = [z for (n, p), f in results.items() if n and p != "A" for _, _, z in f["installation"].values()]
+    print(f"Installation angles with GCPs (Plans B-D, 4 and 16 GCPs): largest |estimate - truth| "
+          f"{max(abs(z) for z in angles):.1f} sigma over {len(angles)} angles")
+    print("\nNo GCP: " + results[(0, "D")]["datum"])
+    onboard = onboard_error(strip, tables[0])
+    e, n_, pl, h = rmse(onboard)
+    print(f"  onboard trajectory alone (true cameras): RMSE east {e:.2f}, north {n_:.2f}, plan {pl:.2f}, "
+          f"height {h:.2f} m; mean offset E/N/U {', '.join(f'{v:+.1f}' for v in onboard.mean(axis=0))} m")
+    for p in PLANS:
+        errors = results[(0, p)]["errors"]
+        print(f"  Plan {p}: mean offset E/N/U {', '.join(f'{v:+.1f}' for v in errors.mean(axis=0))} m; "
+              f"RMSE about the onboard error: plan {rmse(errors - onboard)[2]:.2f}, "
+              f"height {rmse(errors - onboard)[3]:.2f} m")
+
+
+if __name__ == "__main__":
+    main()
