@@ -432,7 +432,12 @@ def check_determinability(problem: _Problem, system: System) -> list[dict]:
     for _ in range(len(problem.params.params)):
         free = problem.params.free
         names = [problem.params.params[i].name for i in free]
-        trajectory = np.array([problem.params.params[i].block in ("position", "attitude") for i in free])
+        # A weighted interior parameter is determined by its prior (to at most its sigma) whatever
+        # the observations say: like the trajectory it may absorb the others, it is not tested.
+        # Its prior is a small share of the information the image observations give it, so the
+        # share test would call it non-determinable and fix it at 0, discarding the prior.
+        trajectory = np.array([problem.params.params[i].block in ("position", "attitude")
+                               or problem.params.params[i].mode == "weighted" for i in free])
         sets = non_determinable(system.N, names, trajectory)
         if not sets:
             return found

@@ -47,14 +47,16 @@ sys.path.insert(0, str(REPO))
 from core import gcps as G  # noqa: E402
 from core.adjust import AdjustmentSettings, adjust  # noqa: E402
 from core.adjust.checkpoints import intersection_accuracy  # noqa: E402
-from core.adjust.parameters import ANGLES, ARCSEC  # noqa: E402
+from core.adjust.parameters import ANGLES, ARCSEC, DEFAULT_INSTALLATION_ARCSEC  # noqa: E402
 from core.scene_io import load_scene  # noqa: E402
 from core.sensor import SceneModel  # noqa: E402
-from core.simulator import CAMERA_ERRORS, GcpSettings, simulate  # noqa: E402
+from core.simulator import CAMERA_ERRORS, PRESETS, GcpSettings, simulate  # noqa: E402
 from core.tiepoints import CsvMapping, TieTable, read_csv  # noqa: E402
 
 NOISE_PX, GROUND_M = 0.3, 0.1
 INSTALLATION = ", ".join(f"{cam}.{a}" for cam in ("FWD", "BWD") for a in ANGLES)
+# the laboratory installation as a prior (INTERIOR=default's 30"): holds what no GCP does
+WEIGHTED = ", ".join(f"{name}={DEFAULT_INSTALLATION_ARCSEC:g}arcsec" for name in INSTALLATION.split(", "))
 # the preset's interior errors that no plan models (see the module docstring)
 NO_CAMERA_ERRORS = {"ccd_shift": 0.0, "ccd_rotation": 0.0, **dict.fromkeys(CAMERA_ERRORS, 0.0)}
 BASE = AdjustmentSettings(position_sigma=10.0, attitude_sigma=1e-4, robust="none")
@@ -192,12 +194,14 @@ def main() -> None:
         tables = {n: gcp_table(strip, layouts, n) for n in layouts}
         results = {(n, p): run(strip, tables[n], p) for n in (4, 16, 0) for p in PLANS}
         default_d = {n: run(strip, tables[n], "D", interior_selection="significant") for n in (4, 0)}
+        weighted = {p: run(strip, tables[0], p, interior=WEIGHTED) for p in "BCD"}
+        onboard = onboard_error(strip, tables[0])
         seconds = time.perf_counter() - start
     any_run = results[(4, "D")]
     print(f"ZY-3 strip of {args.scenes} scenes (seed {args.seed}), {any_run['tie_points']} tie points, "
           f"{any_run['check_points']} check points, {NOISE_PX} px image noise; "
           f"{'preset errors' if args.preset_errors else 'trajectory and installation errors only'}; "
-          f"{seconds:.0f} s for {len(results) + len(default_d)} adjustments")
+          f"{seconds:.0f} s for {len(results) + len(default_d) + len(weighted)} adjustments")
     print("\nCheck points, 3D RMSE (m) and tie-point image RMSE col/row (px) per camera")
     print(f"{'GCPs, plan':<14} {'east':>7} {'north':>7} {'plan':>7} {'height':>7}   tie points")
     for (n, p), f in results.items():
@@ -207,6 +211,9 @@ def main() -> None:
         if p != "A":
             for line in _installation_rows(f"{n:>2} GCPs, {p}", f):
                 print(line)
+    for p, f in weighted.items():
+        for line in _installation_rows(f" 0 GCPs, {p}, {DEFAULT_INSTALLATION_ARCSEC:g}\" prior", f):
+            print(line)
     print("\nPlan D with the default interior_selection='significant':")
     for n, f in default_d.items():
         sel = f["selection"] or {}
@@ -221,16 +228,21 @@ def main() -> None:
     print(f"Installation angles with GCPs (Plans B-D, 4 and 16 GCPs): largest |estimate - truth| "
           f"{max(abs(z) for z in angles):.1f} sigma over {len(angles)} angles")
     print("\nNo GCP: " + results[(0, "D")]["datum"])
-    onboard = onboard_error(strip, tables[0])
+    held = BASE.attitude_sigma * PRESETS["zy3_tlc"].altitude
+    print(f"  the pseudo-observations hold the datum to about {held:.0f} m (attitude sigma "
+          f"{BASE.attitude_sigma / ARCSEC:.0f}\" at {PRESETS['zy3_tlc'].altitude / 1e3:.0f} km) and "
+          f"{BASE.position_sigma:.0f} m (position sigma), 1 sigma per axis")
     e, n_, pl, h = rmse(onboard)
     print(f"  onboard trajectory alone (true cameras): RMSE east {e:.2f}, north {n_:.2f}, plan {pl:.2f}, "
           f"height {h:.2f} m; mean offset E/N/U {', '.join(f'{v:+.1f}' for v in onboard.mean(axis=0))} m")
-    for p in PLANS:
-        errors = results[(0, p)]["errors"]
-        print(f"  Plan {p}: mean offset E/N/U {', '.join(f'{v:+.1f}' for v in errors.mean(axis=0))} m; "
-              f"RMSE about the onboard error: plan {rmse(errors - onboard)[2]:.2f}, "
-              f"height {rmse(errors - onboard)[3]:.2f} m")
-
+    runs = [(f"Plan {p}", results[(0, p)]) for p in PLANS] + \
+        [(f"Plan {p}, {DEFAULT_INSTALLATION_ARCSEC:g}\" prior", f) for p, f in weighted.items()]
+    for label, f in runs:
+        errors = f["errors"]
+        c = f["check"]
+        print(f"  {label:<18} check RMSE plan {c['plan']:6.2f}, height {c['height']:6.2f} m; mean offset E/N/U "
+              f"{', '.join(f'{v:+6.1f}' for v in errors.mean(axis=0))} m; tie RMSE col/row "
+              + "  ".join(f"{cam} {col:.2f}/{row:.2f}" for cam, (col, row) in f["ties"].items()))
 
 if __name__ == "__main__":
     main()
