@@ -28,8 +28,8 @@ from ...core.rpcscene import RpcScene, refined_rpc
 from ...core.scene_io import save_scene
 from ...core.timebasis import TimeBasis
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, attribute_floats, attribute_texts,
-                      check_cancelled, check_outputs, core_call, feedback_callbacks, load_scene_for, processing_errors,
-                      style_output_on_load)
+                      check_cancelled, check_outputs, core_call, core_log_to, feedback_callbacks, load_scene_for,
+                      processing_errors, style_output_on_load)
 from ..parameters import (ATTITUDE_MODEL, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR, POSITION_MODEL,
                           ROBUST, RPC_CORRECTION, camera_trajectory, enum_value, ground_mode, interior_selection,
                           on_singular, output_scene, robust_method, rpc_correction, tr, trajectory_model)
@@ -202,7 +202,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         if outputs[self.OUTPUT_RPC] and not isinstance(scene, RpcScene):
             raise QgsProcessingException(f"{self.OUTPUT_RPC}: only for a SCENE given by its RPC; the RPC of an "
                                          "adjusted rigorous scene is written by 'Export RPC' (pushbroom:exportrpc)")
-        ties = self._ties(parameters, context, scene_path, feedback)
+        ties = self._ties(parameters, context, scene, scene_path, feedback)
         table, gcp_path, gcp_layer = self._gcps(parameters, context, ties is not None)
         self._check_tie_outputs(outputs, ties, gcp_path)
         settings = self._settings(parameters, context)
@@ -252,7 +252,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
         style_output_on_load(context, outputs[self.OUTPUT_TIE_POINTS], STYLES / "adjusted_tie_points.qml")
         self._report(result.report, feedback)
-        self._report_ties(result.report, feedback)
+        self._report_ties(result.report, ties, feedback)
         feedback.setProgress(100)
         return {**{name: path or None for name, path in outputs.items()}, self.OUTPUT_REPORT_JSON: report_json or None}
 
@@ -286,7 +286,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                                    "- measured), w_col, w_row (normalised residuals), weight (final robust weight "
                                    "factor), flagged (1 = gross error, drawn red)."))
 
-    def _ties(self, parameters, context, scene_path: str, feedback) -> tiepoints.TieTable | None:
+    def _ties(self, parameters, context, scene, scene_path: str, feedback) -> tiepoints.TieTable | None:
         """The observations of TIE_POINTS (None when not given): a file layer read by
         core.tiepoints.read_gpkg, any other layer from its features. A layer whose scene
         metadata names another scene file gets a warning."""
@@ -296,6 +296,9 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         if layer is None:
             raise QgsProcessingException(f"{self.TIE_POINTS}: {parameters[self.TIE_POINTS]} is not a vector layer "
                                          "or table; give the layer written by 'Import tie points'")
+        if isinstance(scene, RpcScene):
+            raise QgsProcessingException(f"{self.TIE_POINTS}: tie points need a rigorous (physical) scene model with "
+                                         "several cameras; this SCENE is given by its RPC (one image)")
         with processing_errors(f"{self.TIE_POINTS}: "):
             table = tiepoints.read_gpkg(*_ogr_source(layer)) if layer.providerType() == "ogr" else \
                 self._ties_from_features(layer)
@@ -304,7 +307,9 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             feedback.pushWarning(f"{self.TIE_POINTS}: the layer was checked against the scene {made_for}, not "
                                  f"SCENE {scene_path}; its cameras and image positions must be this scene's")
         feedback.pushInfo(f"{len(table)} tie observations from {layer.source()}")
-        return table
+        # the checks of 'Import tie points' against this scene (cameras, duplicates, image, spread)
+        with core_log_to(feedback, tiepoints.__name__), processing_errors(f"{self.TIE_POINTS}: "):
+            return tiepoints.check_against_scene(table, scene, scene_path, source=layer.source())
 
     def _ties_from_features(self, layer) -> tiepoints.TieTable:
         """A tie table from a layer's fields id, camera, col, row (optional sigma_px, scene)."""
@@ -337,10 +342,12 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         except PushbroomError as exc:
             raise QgsProcessingException(self._named(str(exc), self.GCPS)) from None
 
-    @staticmethod
-    def _report_ties(rep: dict, feedback) -> None:
+    def _report_ties(self, rep: dict, ties, feedback) -> None:
         """The tie-point figures and how the datum is held, in the log."""
         from ...core.adjust.report import datum_sentence, tie_point_lines
+        if ties is not None and not rep.get("tie_points"):
+            feedback.pushWarning(f"{self.TIE_POINTS}: none of the {len(ties)} tie observations entered the adjustment "
+                                 "(no point is seen in two or more cameras); the GCPs alone adjusted the block")
         for text, warning in tie_point_lines(rep["tie_points"]) if rep.get("tie_points") else ():
             (feedback.pushWarning if warning else feedback.pushInfo)(text)
         if rep.get("datum"):
