@@ -86,7 +86,7 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     use = ok[point]
     iterations, converged = 0, not use.any()
     normal = np.zeros((m, 3, 3))
-    for iterations in range(1, ITERATIONS + 1):
+    for iterations in range(1, ITERATIONS + 1 if use.any() else 1):  # none to iterate without a 2-ray point
         x = ground[point[use]]
         cam = camera[use]
         base = _project(scene, cam, x)

@@ -279,10 +279,14 @@ def write_gpkg(table: TieTable, path, layer: str = GPKG_LAYER, files: OutputSet 
                "sigma_px": table.sigma_px, "scene": table.scene,
                "rays": nan if a is None else a.rays.astype(int),
                **{k: nan if a is None else getattr(a, k) for k in ("res_col", "res_row", "res_px")}}
-    points = (f"POINT Z ({lo!r} {la!r} {h!r})" if np.isfinite(h) else "POINT Z EMPTY"
-              for lo, la, h in zip(*(v.tolist() for v in ground)))
-    write_layer(path, layer, _wgs84_3d(), ogr.wkbPoint25D, columns, points,
+    write_layer(path, layer, _wgs84_3d(), ogr.wkbPoint25D, columns, point_wkt(*ground),
                 {SCENE_METADATA_KEY: table.scene_path} if table.scene_path else None, files)
+
+
+def point_wkt(lon, lat, h):
+    """WKT Point Z per (n,) lon, lat (deg), h (m); POINT Z EMPTY where h is NaN (no ground position)."""
+    return (f"POINT Z ({lo!r} {la!r} {z!r})" if np.isfinite(z) else "POINT Z EMPTY"
+            for lo, la, z in zip(*(np.asarray(v, float).tolist() for v in (lon, lat, h))))
 
 
 def read_gpkg(path, layer: str | None = GPKG_LAYER) -> TieTable:

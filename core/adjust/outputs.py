@@ -1,6 +1,7 @@
-"""Output layers of an adjustment: the GCP layer with the adjusted residuals and flags, and
-ground residual vectors. GeoPackage via OGR (no QGIS), each written under a temporary name and
-renamed (:func:`core.vector_io.write_layer`), so an output is complete or absent.
+"""Output layers of an adjustment: the GCP layer with the adjusted residuals and flags, the
+tie-point layer at the adjusted ground positions, and ground residual vectors. GeoPackage via
+OGR (no QGIS), each written under a temporary name and renamed
+(:func:`core.vector_io.write_layer`), so an output is complete or absent.
 
 Conventions: image residuals are predicted minus measured (col, row) in GDAL pixels, as in
 :class:`core.adjust.engine.AdjustmentResult`; the ground residual of a point is where the
@@ -16,9 +17,10 @@ from osgeo import ogr, osr
 
 from ..errors import InputError
 from ..files import OutputSet
-from ..gcps import GcpTable, Residuals, write_gpkg
+from ..gcps import SCENE_METADATA_KEY, GcpTable, Residuals, _wgs84_3d, write_gpkg
 from ..geodesy import A, F, enu_rotations
 from ..sensor import SceneModel
+from ..tiepoints import GPKG_LAYER, point_wkt
 from ..vector_io import open_layer, write_layer
 
 ogr.UseExceptions()
@@ -76,6 +78,30 @@ def write_adjusted_gcps(table: GcpTable, points: dict, path, scene: SceneModel |
         extra.update({k: v for k, v in _other_fields(source, source_layer, n).items() if k not in extra})
     write_gpkg(replace(table, camera=cameras, residuals=res, scene=scene_path or table.scene), path, extra=extra,
                files=files)
+
+
+TIE_FIELDS = ("id", "camera", "col", "row", "res_col", "res_row", "res_px", "w_col", "w_row", "weight", "flagged")
+
+
+def write_adjusted_tie_points(tie_points: dict, path, *, scene_path: str = "", files: OutputSet | None = None) -> None:
+    """The tie observations with the adjustment's results, as a GeoPackage Point Z layer
+    'tie_points' in EPSG:4979, one feature per input observation (input order) at its point's
+    adjusted ground position (lon, lat, ellipsoidal h; empty geometry for a point left out).
+
+    Fields :data:`TIE_FIELDS`: id, camera, col, row (GDAL px), res_col, res_row, res_px (px,
+    predicted - measured), w_col, w_row (normalised residuals), weight (final robust weight
+    factor), flagged (1 = gross error); residuals NULL for the observations left out.
+    tie_points: :attr:`AdjustmentResult.tie_points`. scene_path: the adjusted scene file, kept as
+    layer metadata PUSHBROOM_SCENE. files: as for :func:`write_adjusted_gcps`."""
+    missing = [k for k in (*TIE_FIELDS, "lon", "lat", "h") if k != "res_px" and k not in tie_points]
+    if missing:
+        raise InputError(f"adjustment results lack the tie-point arrays {', '.join(missing)}")
+    columns = {k: np.hypot(np.asarray(tie_points["res_col"], float), np.asarray(tie_points["res_row"], float))
+               if k == "res_px" else np.asarray(tie_points[k]) for k in TIE_FIELDS}
+    columns["flagged"] = columns["flagged"].astype(int)
+    ground = point_wkt(*(tie_points[k] for k in ("lon", "lat", "h")))
+    write_layer(path, GPKG_LAYER, _wgs84_3d(), ogr.wkbPoint25D, columns, ground,
+                {SCENE_METADATA_KEY: scene_path} if scene_path else None, files)
 
 
 def write_residual_vectors(scene: SceneModel | None, table: GcpTable, points: dict, path, scale: float, *,

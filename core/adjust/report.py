@@ -80,8 +80,9 @@ def write_report_html(report: dict, points: dict, path, title: str = "Bundle adj
     per-GCP ``points`` (see :class:`core.adjust.engine.AdjustmentResult`) to ``path``,
     completely or not at all (with ``files``, as part of that set)."""
     rep = _plain(report)
-    body = [f"<h1>{html.escape(title)}</h1>", _reliability_section(rep), _headline_section(rep), _settings_section(rep),
-            _decisions_section(rep), _parameters_section(rep), "<h2>Plots</h2>",
+    body = [f"<h1>{html.escape(title)}</h1>", _reliability_section(rep), _headline_section(rep),
+            _tie_point_section(rep), _settings_section(rep), _decisions_section(rep), _parameters_section(rep),
+            "<h2>Plots</h2>",
             _residual_vector_figure(points), _trajectory_figure(rep["trajectory"]) if rep["trajectory"] else "",
             _chip_figure(rep["control_residuals_per_chip"]), _correlations_section(rep),
             _variance_components_section(rep), _iterations_section(rep)]
@@ -225,6 +226,48 @@ def _headline_section(rep: dict) -> str:
                "position projected to the ground at the known height (m, plan only).</p>")
     out.append(_blunder_note(after))
     return "\n".join(x for x in out if x)
+
+
+LEFT_OUT_REASONS = {"single_ray": "seen by one camera only (one ray fixes no ground position)",
+                    "not_intersected": "their onboard rays could not be intersected"}
+
+
+def datum_sentence(datum: dict) -> str:
+    """How the datum of a block with tie points is held (``report["datum"]``), in one sentence."""
+    return f"datum held by {datum['held_by']}" + (f": {datum['note']}" if datum.get("note") else "")
+
+
+def tie_point_lines(ties: dict) -> list[tuple[str, bool]]:
+    """The tie-point figures of ``report["tie_points"]`` as (sentence, is_warning): points and
+    observations used, those left out and why, flagged observations, image residual RMS per camera."""
+    lines = [(f"tie points: {ties['points']} points, {ties['observations']} of {ties['input_observations']} "
+              f"observations used; {ties['flagged']} observations flagged as gross errors", False)]
+    for reason, left in ties.get("left_out", {}).items():
+        named = ", ".join(left["ids"][:10]) + (" ..." if left["points"] > 10 else "")
+        lines.append((f"tie points left out: {left['points']} {LEFT_OUT_REASONS.get(reason, reason)}: {named}", True))
+    res = ties["residuals"]
+    if res.get("count"):
+        per = "; ".join(f"{cam} {r['rmse_col']:.3f} / {r['rmse_row']:.3f} px ({r['count']})"
+                        for cam, r in ties["residuals_per_camera"].items() if r.get("count"))
+        lines.append((f"tie residuals RMSE col / row {res['rmse_col']:.3f} / {res['rmse_row']:.3f} px "
+                       f"(largest {res['max']:.2f} px, flagged left out); per camera: {per}", False))
+    return lines
+
+
+def _tie_point_section(rep: dict) -> str:
+    """Tie points used and left out, their image residuals per camera and how the datum is held
+    (empty without tie points)."""
+    ties = rep.get("tie_points")
+    if not ties:
+        return ""
+    items = [f"<li>{html.escape(text)}</li>" for text, _ in tie_point_lines(ties)]
+    if rep.get("datum"):
+        items.append(f"<li>{html.escape(datum_sentence(rep['datum']))}</li>")
+    rows = [[html.escape(cam), str(r.get("count", 0)), _fmt(r.get("rmse_col")), _fmt(r.get("rmse_row")),
+             _fmt(r.get("max"), ".2f")] for cam, r in ties["residuals_per_camera"].items()]
+    return ("<h2>Tie points</h2><ul>" + "".join(items) + "</ul>"
+            + _table(["camera", "observations", "RMSE col px", "RMSE row px", "max px"], rows)
+            + f"<p>{html.escape(ties['relative_accuracy'])}.</p>")
 
 
 def _settings_section(rep: dict) -> str:

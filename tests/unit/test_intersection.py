@@ -57,3 +57,10 @@ def test_onboard_model_is_off_by_its_trajectory_error(th1):
     out = intersect(onboard, camera, d["col_true"], d["row_true"], point)
     error = np.linalg.norm(out.ground[point] - truth, axis=1)
     assert 1.0 < np.median(error) < 500.0
+
+
+def test_single_rays_only_give_no_point_and_no_error(tmp_path):
+    """Every point seen once (e.g. a tie layer of one camera): nothing to intersect, NaN, no error."""
+    scene = load_scene(simulate("th1_tlc", tmp_path, seed=1, n_gcps=3).onboard_scene)
+    found = intersect(scene, [0, 1, 2], [100.0, 200.0, 300.0], [50.0, 60.0, 70.0], [0, 1, 2], 3)
+    assert found.rays.tolist() == [1, 1, 1] and np.isnan(found.ground).all() and found.iterations == 0

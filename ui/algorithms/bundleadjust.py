@@ -1,10 +1,12 @@
-"""pushbroom:bundleadjust — self-calibrating bundle adjustment of a scene from its GCP layer:
-the adjusted scene JSON, JSON and HTML reports, the GCP layer with residuals and flags, and
-residual vectors."""
+"""pushbroom:bundleadjust — self-calibrating bundle adjustment of a scene from its GCP layer
+and tie points: the adjusted scene JSON, JSON and HTML reports, the GCP and tie-point layers
+with residuals and flags, and residual vectors."""
 from __future__ import annotations
 
 import math
 from pathlib import Path
+
+import numpy as np
 
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutputFile,
                        QgsProcessingParameterBoolean,
@@ -12,20 +14,22 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutpu
                        QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
                        QgsProcessingParameterVectorLayer)
 
-from ...core import gcps
+from ...core import gcps, tiepoints
 from ...core.adjust import AdjustmentSettings, adjust
 from ...core.adjust.engine import check_inputs
 from ...core.adjust.checkpoints import model_error_message, summary_lines
-from ...core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_residual_vectors
+from ...core.adjust.outputs import (ground_residuals, write_adjusted_gcps, write_adjusted_tie_points,
+                                    write_residual_vectors)
 from ...core.adjust.parameters import ParameterSet
-from ...core.errors import PushbroomError
+from ...core.errors import InputError, PushbroomError
 from ...core.files import Output, atomic_outputs
 from ...core.rpcfit import write_rpc
 from ...core.rpcscene import RpcScene, refined_rpc
 from ...core.scene_io import save_scene
 from ...core.timebasis import TimeBasis
-from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, check_cancelled, check_outputs,
-                      core_call, feedback_callbacks, load_scene_for, processing_errors, style_output_on_load)
+from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, attribute_floats, attribute_texts,
+                      check_cancelled, check_outputs, core_call, core_log_to, feedback_callbacks, load_scene_for,
+                      processing_errors, style_output_on_load)
 from ..parameters import (ATTITUDE_MODEL, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR, POSITION_MODEL,
                           ROBUST, RPC_CORRECTION, camera_trajectory, enum_value, ground_mode, interior_selection,
                           on_singular, output_scene, robust_method, rpc_correction, tr, trajectory_model)
@@ -57,7 +61,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             "FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw' (the scene's camera names) and ATTITUDE_ORDER=0, 1 or 2. "
             "The onboard attitude sigma (ATTITUDE_SIGMA) keeps Plan D's quadratic term from trading off "
             "against the installation angles when the control is sparse.")
-    GCPS = "GCPS"
+    GCPS, TIE_POINTS, OUTPUT_TIE_POINTS = "GCPS", "TIE_POINTS", "OUTPUT_TIE_POINTS"
     POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
         POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
     ATTITUDE_MODEL, ATTITUDE_ORDER, ATTITUDE_INTERVAL, ATTITUDE_SIGMA = \
@@ -74,9 +78,20 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
         self.add_parameter(QgsProcessingParameterVectorLayer(self.GCPS, tr("Ground control points (GeoPackage)"),
-                                                    [QgsProcessing.TypeVectorPoint]),
+                                                    [QgsProcessing.TypeVectorPoint], optional=True),
                   tr("The GCP layer written by 'Import ground control points' (GeoPackage): image col/row, "
-                     "ground position, role control/check, camera and sigmas of every point."))
+                     "ground position, role control/check, camera and sigmas of every point. A point seen in "
+                     "several cameras is one id in several rows: every camera it is seen in is used. May be left "
+                     "out when TIE_POINTS are given and the onboard pseudo-observations hold the datum."))
+        self.add_parameter(QgsProcessingParameterVectorLayer(self.TIE_POINTS, tr("Tie points"),
+                                                             [QgsProcessing.TypeVector], optional=True),
+                           tr("Optional. The tie-point layer written by 'Import tie points' (GeoPackage), or any "
+                              "layer or table with the fields id, camera, col, row (optional sigma_px, scene): "
+                              "image positions of ground points of unknown position seen in two or more cameras "
+                              "(Zhang et al. 2015, Zhang et al. 2024). With them the control may be sparse or "
+                              "absent (0, 1 or 2 GCPs) when the onboard pseudo-observations (POSITION_SIGMA, "
+                              "ATTITUDE_SIGMA) hold what the GCPs leave of the datum; a datum nothing holds is "
+                              "named and refused. Points seen in one camera only are left out, named."))
         for block, what, default_order, default_sigma, unit, sigma_help in (
                 ("POSITION", tr("position"), 1, 100.0, "m", tr(
                     "Accuracy of the onboard orbit (GPS), metres per axis: the position corrections at the knots "
@@ -161,6 +176,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         vec_out.setSupportsNonFileBasedOutput(False)
         self.add_parameter(vec_out, tr("Optional. GeoPackage of lines from each GCP along its ground residual, "
                   "exaggerated RESIDUAL_SCALE times (res_m holds the true length)."))
+        self._add_tie_output()
         self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_RPC, tr("Refined RPC (RPC scenes)"),
                                                                  fileFilter="RPC text (*_RPC.TXT)", optional=True),
                            tr("Optional, for a SCENE given by its RPC: the RPC with the adjusted correction in it, "
@@ -175,7 +191,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         from ...core.adjust.report import write_report_html, write_report_json
         outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
             (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
-            (self.OUTPUT_RESIDUALS, ".gpkg"), (self.OUTPUT_RPC, ".txt"))}  # '' for the optional ones not asked for
+            (self.OUTPUT_RESIDUALS, ".gpkg"), (self.OUTPUT_TIE_POINTS, ".gpkg"), (self.OUTPUT_RPC, ".txt"))}  # '' for the optional ones not asked for
         report_html = outputs[self.OUTPUT_REPORT]
         report_json = str(Path(report_html).with_suffix(".json")) if report_html else ""
         check_outputs(self, parameters, context, {**{name: [path] for name, path in outputs.items()},
@@ -186,19 +202,21 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         if outputs[self.OUTPUT_RPC] and not isinstance(scene, RpcScene):
             raise QgsProcessingException(f"{self.OUTPUT_RPC}: only for a SCENE given by its RPC; the RPC of an "
                                          "adjusted rigorous scene is written by 'Export RPC' (pushbroom:exportrpc)")
-        table, gcp_path, gcp_layer = self._gcps(parameters, context)
+        ties = self._ties(parameters, context, scene, scene_path, feedback)
+        table, gcp_path, gcp_layer = self._gcps(parameters, context, ties is not None)
+        self._check_tie_outputs(outputs, ties, gcp_path)
         settings = self._settings(parameters, context)
         scale = self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context)
         # Checks that name the parameter at fault before the (long) solution starts.
         core_call(settings.validate)
-        with processing_errors(f"{self.GCPS}: "):
-            check_inputs(scene, table, settings)
+        self._check_inputs(scene, table, settings, ties)
         self._check_interior(scene, settings.interior)
-        feedback.pushInfo(f"{len(table)} points from {gcp_path}: {int((table.role == 'control').sum())} control, "
-                          f"{int((table.role == 'check').sum())} check")
+        if gcp_path:
+            feedback.pushInfo(f"{len(table)} points from {gcp_path}: {int((table.role == 'control').sum())} "
+                              f"control, {int((table.role == 'check').sum())} check")
         progress, is_cancelled = feedback_callbacks(feedback)
         try:
-            result = adjust(scene, table, settings, progress, is_cancelled)
+            result = adjust(scene, table, settings, progress, is_cancelled, ties=ties)
         except PushbroomError as exc:
             raise QgsProcessingException(self._named(str(exc))) from None
         check_cancelled(feedback)
@@ -226,26 +244,114 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                 with processing_errors(f"{self.OUTPUT_RESIDUALS}: "):
                     write_residual_vectors(result.scene, table, result.points, outputs[self.OUTPUT_RESIDUALS],
                                            scale, en=en, files=files)
+            if outputs[self.OUTPUT_TIE_POINTS]:
+                with processing_errors(f"{self.OUTPUT_TIE_POINTS}: "):
+                    write_adjusted_tie_points(result.tie_points, outputs[self.OUTPUT_TIE_POINTS],
+                                              scene_path=outputs[self.OUTPUT_SCENE], files=files)
         style_output_on_load(context, outputs[self.OUTPUT_GCPS], STYLES / "adjusted_gcps.qml")
         style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
+        style_output_on_load(context, outputs[self.OUTPUT_TIE_POINTS], STYLES / "adjusted_tie_points.qml")
         self._report(result.report, feedback)
+        self._report_ties(result.report, ties, feedback)
         feedback.setProgress(100)
         return {**{name: path or None for name, path in outputs.items()}, self.OUTPUT_REPORT_JSON: report_json or None}
 
     # --- parameters -------------------------------------------------------------------------
-    def _gcps(self, parameters, context) -> tuple[gcps.GcpTable, str, str | None]:
-        """The GCP table, the GeoPackage's path and its layer name (None: the first layer)."""
+    def _gcps(self, parameters, context, with_ties: bool = False) -> tuple[gcps.GcpTable, str, str | None]:
+        """The GCP table, the GeoPackage's path and its layer name (None: the first layer); with
+        tie points and no GCP layer, an empty table and path ''."""
         layer = self.parameterAsVectorLayer(parameters, self.GCPS, context)
+        if layer is None and with_ties:
+            none = np.zeros(0)
+            return gcps.GcpTable(*(np.zeros(0, str),) * 3, *(none,) * 8), "", None
         if layer is None:
-            raise QgsProcessingException(f"{self.GCPS}: no GCP layer given")
+            raise QgsProcessingException(f"{self.GCPS}: no GCP layer given (it may be left out only with "
+                                         f"{self.TIE_POINTS})")
+        path, name = _ogr_source(layer)
         source = layer.source()
-        path, _, options = source.partition("|")
-        name = dict(o.split("=", 1) for o in options.split("|") if "=" in o).get("layername")
         if layer.providerType() != "ogr" or not path.lower().endswith(".gpkg"):
             raise QgsProcessingException(f"{self.GCPS}: {source} is not a GeoPackage; write the GCPs with 'Import "
                                          "ground control points' (pushbroom:importgcps) first")
         with processing_errors(f"{self.GCPS}: "):
             return gcps.read_gpkg(path, name), path, name
+
+    # --- tie points ---------------------------------------------------------------------------
+    def _add_tie_output(self) -> None:
+        out = QgsProcessingParameterVectorDestination(self.OUTPUT_TIE_POINTS, tr("Adjusted tie points"),
+                                                      QgsProcessing.TypeVectorPoint, optional=True)
+        out.setSupportsNonFileBasedOutput(False)
+        self.add_parameter(out, tr("Optional, with TIE_POINTS. GeoPackage point layer (EPSG:4979), one feature per "
+                                   "tie observation at its point's adjusted ground position (empty geometry for "
+                                   "points left out): id, camera, col, row, res_col, res_row, res_px (px, predicted "
+                                   "- measured), w_col, w_row (normalised residuals), weight (final robust weight "
+                                   "factor), flagged (1 = gross error, drawn red)."))
+
+    def _ties(self, parameters, context, scene, scene_path: str, feedback) -> tiepoints.TieTable | None:
+        """The observations of TIE_POINTS (None when not given): a file layer read by
+        core.tiepoints.read_gpkg, any other layer from its features. A layer whose scene
+        metadata names another scene file gets a warning."""
+        if parameters.get(self.TIE_POINTS) in (None, ""):
+            return None
+        layer = self.parameterAsVectorLayer(parameters, self.TIE_POINTS, context)
+        if layer is None:
+            raise QgsProcessingException(f"{self.TIE_POINTS}: {parameters[self.TIE_POINTS]} is not a vector layer "
+                                         "or table; give the layer written by 'Import tie points'")
+        if isinstance(scene, RpcScene):
+            raise QgsProcessingException(f"{self.TIE_POINTS}: tie points need a rigorous (physical) scene model with "
+                                         "several cameras; this SCENE is given by its RPC (one image)")
+        with processing_errors(f"{self.TIE_POINTS}: "):
+            table = tiepoints.read_gpkg(*_ogr_source(layer)) if layer.providerType() == "ogr" else \
+                self._ties_from_features(layer)
+        made_for = table.scene_path
+        if made_for and Path(made_for).resolve() != Path(scene_path).resolve():
+            feedback.pushWarning(f"{self.TIE_POINTS}: the layer was checked against the scene {made_for}, not "
+                                 f"SCENE {scene_path}; its cameras and image positions must be this scene's")
+        feedback.pushInfo(f"{len(table)} tie observations from {layer.source()}")
+        # the checks of 'Import tie points' against this scene (cameras, duplicates, image, spread)
+        with core_log_to(feedback, tiepoints.__name__), processing_errors(f"{self.TIE_POINTS}: "):
+            return tiepoints.check_against_scene(table, scene, scene_path, source=layer.source())
+
+    def _ties_from_features(self, layer) -> tiepoints.TieTable:
+        """A tie table from a layer's fields id, camera, col, row (optional sigma_px, scene)."""
+        names = layer.fields().names()
+        missing = [f for f in ("id", "camera", "col", "row") if f not in names]
+        if missing:
+            raise InputError(f"{layer.source()} lacks tie-point field(s) {', '.join(missing)} (fields: "
+                             f"{', '.join(names)})")
+        features = list(layer.getFeatures())
+        column = {f: [feature[f] for feature in features] if f in names else None
+                  for f in ("id", "camera", "col", "row", "sigma_px", "scene")}
+        sigma = attribute_floats(column["sigma_px"] or [None] * len(features))
+        return tiepoints.build_table(attribute_texts(column["id"]), attribute_texts(column["camera"]),
+                                     attribute_floats(column["col"]), attribute_floats(column["row"]),
+                                     scene=attribute_texts(column["scene"]), source=layer.source(),
+                                     sigma_px=np.where(np.isfinite(sigma), sigma, tiepoints.DEFAULT_SIGMA_PX))
+
+    def _check_tie_outputs(self, outputs: dict, ties, gcp_path: str) -> None:
+        """Outputs that need an input that was not given."""
+        if outputs[self.OUTPUT_TIE_POINTS] and ties is None:
+            raise QgsProcessingException(f"{self.OUTPUT_TIE_POINTS}: the adjusted tie points need {self.TIE_POINTS}")
+        for name in (self.OUTPUT_GCPS, self.OUTPUT_RESIDUALS):
+            if outputs[name] and not gcp_path:
+                raise QgsProcessingException(f"{name}: there are no GCPs to write (no {self.GCPS} given)")
+
+    def _check_inputs(self, scene, table, settings, ties) -> None:
+        """core check_inputs, its error prefixed with the parameter at fault (GCPS by default)."""
+        try:
+            check_inputs(scene, table, settings, ties)
+        except PushbroomError as exc:
+            raise QgsProcessingException(self._named(str(exc), self.GCPS)) from None
+
+    def _report_ties(self, rep: dict, ties, feedback) -> None:
+        """The tie-point figures and how the datum is held, in the log."""
+        from ...core.adjust.report import datum_sentence, tie_point_lines
+        if ties is not None and not rep.get("tie_points"):
+            feedback.pushWarning(f"{self.TIE_POINTS}: none of the {len(ties)} tie observations entered the adjustment "
+                                 "(no point is seen in two or more cameras); the GCPs alone adjusted the block")
+        for text, warning in tie_point_lines(rep["tie_points"]) if rep.get("tie_points") else ():
+            (feedback.pushWarning if warning else feedback.pushInfo)(text)
+        if rep.get("datum"):
+            feedback.pushInfo(datum_sentence(rep["datum"]))
 
     def _check_interior(self, scene, interior: str) -> None:
         """INTERIOR's names and sigmas against the scene's parameters; the error lists the
@@ -287,12 +393,15 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             on_singular=enum_value(self, parameters, self.ON_SINGULAR, context),
             rpc_correction=enum_value(self, parameters, self.RPC_CORRECTION, context))
 
-    def _named(self, message: str) -> str:
-        """A core error found while solving, prefixed with the parameter at fault where that is clear."""
-        for start, name in (("too few GCPs", self.GCPS), ("the scene was adjusted with another", SCENE)):
+    def _named(self, message: str, default: str = "") -> str:
+        """A core error, prefixed with the parameter at fault where that is clear (else ``default``;
+        a datum defect names the parameters that would hold it)."""
+        for start, name in (("too few GCPs", self.GCPS), ("the scene was adjusted with another", SCENE),
+                            ("tie points", self.TIE_POINTS), ("datum defect", "")):
             if message.startswith(start):
-                return f"{name}: {message}"
-        return message
+                default = name
+                break
+        return f"{default}: {message}" if default else message
 
     def _destination(self, parameters, context, name: str, suffix: str) -> str:
         path = self.output_path(parameters, context, name, name.lower() + suffix)
@@ -329,3 +438,9 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             feedback.pushWarning(model_error_message(after))
         for line in summary_lines(before, after):
             feedback.pushInfo(f"check points {line}")
+
+
+def _ogr_source(layer) -> tuple[str, str | None]:
+    """(file path, layer name or None for the first) of an OGR layer's source."""
+    path, _, options = layer.source().partition("|")
+    return path, dict(o.split("=", 1) for o in options.split("|") if "=" in o).get("layername")
