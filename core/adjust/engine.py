@@ -28,7 +28,7 @@ from ..sensor import SceneModel
 from ..tiepoints import TieTable
 from ..timebasis import TimeBasis
 from .model import Jacobian, Model, build_observations
-from .normal import GroundPrior, Linearization, System, assemble, back_substitute, coupling, groups
+from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, point_couplings
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 from .ties import TieSetUp, camera_indices, check_ties, datum, set_up_ties
 from .robust import (COMPONENT_TOLERANCE, breakdown, component_report, components, critical as _critical, image_group,
@@ -576,16 +576,17 @@ def _ground_leverage(lin: Linearization, system: System, Q: np.ndarray, G: np.nd
     (a tie point's rays share its ground unknowns)."""
     n_points = system.K.shape[0]
     u = Q.shape[0]
-    m = coupling(lin, weighted, u, n_points).T.tocsr()                           # M (3m,u)
-    mq = (m @ Q).reshape(n_points, 3, u)                                          # M Q (m,3,u)
-    s = np.einsum("mau,mbu->mab", mq, m.toarray().reshape(n_points, 3, u))       # M Q M' (m,3,3)
+    s = np.zeros((n_points, 3, 3))                                                # M Q M'
+    aqm = np.zeros((lin.r.shape[0], 2, 3))                                        # A Q M' per observation
+    for first, last, obs, M in point_couplings(lin, weighted, u, n_points):
+        mq = (M.reshape(-1, u) @ Q).reshape(M.shape)
+        s[first:last] = np.einsum("cau,cbu->cab", mq, M)
+        cols = lin.columns[obs]
+        mine = mq[(lin.point[obs] - first)[:, None, None], np.arange(3)[None, :, None], np.maximum(cols, 0)[:, None, :]]
+        aqm[obs] = np.einsum("nkq,ngq->nkg", lin.values[obs], np.where(cols[:, None, :] >= 0, mine, 0.0))
     point = lin.point[weighted]
-    k = system.K[point]
-    jk = lin.jg[weighted] @ k                                                     # J_g K (k,2,3)
-    cols = lin.columns[weighted]
-    aqm = np.einsum("nkq,ngq->nkg", lin.values[weighted],
-                    np.where(cols[:, None, :] >= 0, mq[point[:, None, None], np.arange(3)[None, :, None],
-                                                        np.maximum(cols, 0)[:, None, :]], 0.0))  # A Q M' (k,2,3)
+    aqm = aqm[weighted]
+    jk = lin.jg[weighted] @ system.K[point]                                       # J_g K (k,2,3)
     h = np.einsum("nkg,nkg->nk", jk, lin.jg[weighted]) + np.einsum("nkk->nk", G[weighted]) \
         - 2.0 * np.einsum("nkg,nkg->nk", aqm, jk) + np.einsum("nkg,ngh,nkh->nk", jk, s[point], jk)
     return h, system.K + system.K @ s @ system.K

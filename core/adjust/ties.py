@@ -31,6 +31,7 @@ SHIFTS = ("shift X", "shift Y", "shift Z")
 ROTATIONS = ("roll (rotation about the flight line)", "pitch", "yaw")
 SCALE = ("scale",)
 LISTED = 10  # ids named in a message
+EDGE = 2.0   # px: measurement noise may put a point at the image border this far outside
 
 
 @dataclass
@@ -79,7 +80,7 @@ def camera_indices(scene: SceneModel, names: np.ndarray) -> np.ndarray:
 
 def check_ties(scene: SceneModel, ties: TieTable, gcp_ids: np.ndarray) -> None:
     """Refuse tie observations the adjustment cannot use, naming them: cameras the scene
-    lacks, positions outside the camera's image, the same point twice in one camera, and ids
+    lacks, positions outside the camera's image (beyond EDGE px), the same point twice in one camera, and ids
     that are also GCP ids (one id is one ground point: known or unknown, not both)."""
     names = [c.name for c in scene.cameras]
     unknown = ~np.isin(ties.camera, names)
@@ -89,10 +90,11 @@ def check_ties(scene: SceneModel, ties: TieTable, gcp_ids: np.ndarray) -> None:
     cam = camera_indices(scene, ties.camera)
     cols = np.array([c.cols for c in scene.cameras])[cam]
     rows = np.array([c.rows for c in scene.cameras])[cam]
-    outside = (ties.col < 0) | (ties.col > cols) | (ties.row < 0) | (ties.row > rows)
+    outside = (ties.col < -EDGE) | (ties.col > cols + EDGE) | (ties.row < -EDGE) | (ties.row > rows + EDGE)
     if outside.any():
         raise InputError(f"tie points: {int(outside.sum())} observation(s) of point(s) "
-                         f"{_listed(np.unique(ties.id[outside]))} lie outside their camera's image")
+                         f"{_listed(np.unique(ties.id[outside]))} lie outside their camera's image (by more than "
+                         f"{EDGE:g} px)")
     pairs, counts = np.unique(np.stack([ties.id, ties.camera], axis=1), axis=0, return_counts=True)
     if (counts > 1).any():
         twice = np.unique(pairs[counts > 1, 0])

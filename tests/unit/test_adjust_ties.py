@@ -220,3 +220,30 @@ def test_bad_tie_input_is_refused_with_names(th1):
     clash.id[ties.id == ties.id[0]] = control.id[0]
     with pytest.raises(InputError, match=rf"id\(s\) {control.id[0]} are also GCP ids"):
         adjust(scene, control, settings, ties=clash)
+
+
+def test_redundancy_numbers_of_multi_ray_points_sum_to_the_degrees_of_freedom(th1):
+    """The leverage of a tie point's rays includes their coupling through the shared ground
+    unknowns: the redundancy numbers of all observations add up to the degrees of freedom
+    (taking only each ray's own share gave too small redundancies and false gross errors)."""
+    scene, table, ties, _ = th1
+    out = adjust(scene, _corner_control(table, 4),
+                 AdjustmentSettings(position_sigma=100.0, robust="none", variance_components=False), ties=ties)
+    rep = out.report
+    total = sum(v["redundancy"] for v in rep["variance_components"].values())
+    assert total == pytest.approx(rep["observations"]["degrees_of_freedom"], abs=1e-3)
+    assert rep["sigma0"] == pytest.approx(1.0, abs=0.15)
+
+
+def test_html_report_tells_the_datum_and_tie_points(th1, tmp_path):
+    from core.adjust.report import write_report_html
+    scene, table, ties, _ = th1
+    lonely = ties.select(~np.isin(np.arange(len(ties)), np.nonzero(ties.id == ties.id[0])[0][1:]))
+    out = adjust(scene, table.select(table.role == "check"),
+                 AdjustmentSettings(position_sigma=20.0, attitude_sigma=1e-4), ties=lonely)
+    write_report_html(out.report, out.points, tmp_path / "r.html")
+    text = (tmp_path / "r.html").read_text()
+    assert "Datum held by onboard pseudo-observations (0 control points)" in text
+    assert "absolute accuracy is that of the onboard orbit and attitude" in text
+    assert f"99 tie points ({len(lonely) - 1} of {len(lonely)} image observations); 1 left out (seen by one camera " \
+           f"only: {ties.id[0]})" in text
