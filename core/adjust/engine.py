@@ -583,7 +583,7 @@ def _ground_leverage(lin: Linearization, system: System, Q: np.ndarray, G: np.nd
         s[first:last] = np.einsum("cau,cbu->cab", mq, M)
         cols = lin.columns[obs]
         mine = mq[(lin.point[obs] - first)[:, None, None], np.arange(3)[None, :, None], np.maximum(cols, 0)[:, None, :]]
-        aqm[obs] = np.einsum("nkq,ngq->nkg", lin.values[obs], np.where(cols[:, None, :] >= 0, mine, 0.0))
+        aqm[obs] = np.matmul(lin.values[obs], np.where(cols[:, None, :] >= 0, mine, 0.0).transpose(0, 2, 1))
     point = lin.point[weighted]
     aqm = aqm[weighted]
     jk = lin.jg[weighted] @ system.K[point]                                       # J_g K (k,2,3)
@@ -782,9 +782,6 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     adjusted = problem.params.adjusted_scene()
     out = _result(problem, table, adjusted, est, determinability)
     rep = out.report
-    if held is not None:
-        rep["datum"] = held
-        log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")
     adjusted.info["adjustment"] = {
         "settings": asdict(settings), "sigma0": rep["sigma0"],
         "variance_components": {k: {f: v[f] for f in ("apriori_sigma", "estimated_sigma", "unit", "estimated")}
@@ -794,6 +791,11 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
                        for p in out.report["parameters"] if p["mode"] != "fixed" or p["value"] != 0.0],
         "determinability": determinability,
         "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
+    if held is not None:
+        rep["datum"] = held
+        log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")
+        adjusted.info["adjustment"]["datum"] = {k: held[k] for k in ("held_by", "control_points", "note") if k in held}
+        adjusted.info["adjustment"]["tie_points"] = int(problem.ties.ids.size)
     return out
 
 
@@ -841,9 +843,11 @@ def _estimate(problem: _Problem, progress, is_cancelled) -> _Estimate:
         log.info("%ssigma0 %.3f, %d observations down-weighted, variance components changed by %.1f %%", label,
                  st.sigma0, int(after.sum()), 100 * component_change)
         # Done when no observation changes side (the weights of the down-weighted ones then only
-        # follow their already large residuals and no longer move the solution) and no variance
-        # component changes by more than its tolerance.
-        settled = change < 1e-3 or (k > 0 and np.array_equal(before, after))
+        # follow their already large residuals and no longer move the solution), or when the
+        # last re-weighting no longer moved the solution measurably (with tens of thousands of
+        # observations some always sit at the critical value and change side back and forth),
+        # and no variance component changes by more than its tolerance.
+        settled = change < 1e-3 or (k > 0 and (np.array_equal(before, after) or not result["iterations"]))
         if not iterate or (settled and component_change < COMPONENT_TOLERANCE):
             return _Estimate(result, st, passes, False, comps, inlier, kappa)
     log.warning("robust estimation stopped at its limit of %d passes; the flags may be incomplete", len(passes))

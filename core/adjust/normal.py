@@ -180,7 +180,8 @@ def point_couplings(lin: Linearization, mask: np.ndarray, n_unknowns: int, n_poi
         last = min(first + step, n_points)
         a, b = np.searchsorted(pts, [first, last])
         obs = idx[a:b]
-        block = np.einsum("nkq,nk,nkg->ngq", lin.values[obs], lin.p[obs], lin.jg[obs])  # J_g' P J_p (k,3,q)
+        pj = lin.p[obs][:, :, None] * lin.jg[obs]                                     # P J_g (k,2,3)
+        block = np.matmul(pj.transpose(0, 2, 1), lin.values[obs])                    # J_g' P J_p (k,3,q)
         cols = lin.columns[obs][:, None, :]
         flat = ((pts[a:b] - first)[:, None, None] * 3 + np.arange(3)[None, :, None]) * n_unknowns + cols
         keep = np.broadcast_to(cols >= 0, flat.shape)

@@ -101,6 +101,9 @@ def main() -> None:
     rep = out.report
     t = out.tie_points
     error = np.linalg.norm(geodetic_to_ecef(t["lon"], t["lat"], t["h"]) - truth, axis=1)
+    for p in rep["robust"]["passes"]:
+        print(f"  pass {p['pass']}: sigma0 {p['sigma0']:.3f}, {p['down_weighted']} down-weighted, largest weight "
+              f"change {p['largest_change']:.3g}, largest component change {100 * p['component_change']:.2f} %")
     load = os.getloadavg()
     print(f"strip: {args.scenes} ZY-3 scenes ({scene.cameras[0].rows} rows), {rep['observations']['control_points']} "
           f"GCPs ({rep['observations']['image_observations']} image observations), "
