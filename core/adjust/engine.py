@@ -966,6 +966,7 @@ def _tie_points(problem: _Problem, st: Statistics, flagged: np.ndarray, good: np
     cams = problem.scene.cameras
     report = {**problem.ties.counts(),
               "flagged": int(flagged[tie].sum()),
+              "span": problem.ties.span(problem.scene),
               "residuals": _residual_summary(st.v[tie & good]),
               "residuals_per_camera": {c.name: _residual_summary(st.v[tie & good & (problem.obs.camera == ci)])
                                        for ci, c in enumerate(cams)},

@@ -32,6 +32,7 @@ ROTATIONS = ("roll (rotation about the flight line)", "pitch", "yaw")
 SCALE = ("scale",)
 LISTED = 10  # ids named in a message
 EDGE = 2.0   # px: measurement noise may put a point at the image border this far outside
+BUNCHED = 0.1  # tie points within this share of the image in both directions are in one corner
 
 
 @dataclass
@@ -57,6 +58,15 @@ class TieSetUp:
 
     def __len__(self) -> int:
         return int(self.rows.size)
+
+    def span(self, scene: SceneModel) -> tuple[float, float] | None:
+        """Share of the reference camera's image (columns, rows) the used tie observations in it
+        cover (None: none there)."""
+        mine = self.camera == 0
+        if not mine.any():
+            return None
+        cam, rows = scene.cameras[0], self.rows[mine]
+        return (float(np.ptp(self.table.col[rows])) / cam.cols, float(np.ptp(self.table.row[rows])) / cam.rows)
 
     def counts(self) -> dict:
         """Points and observations used and left out (with reasons), for the report."""
@@ -126,7 +136,13 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
     keep = ~(single | failed)
     new_index = np.cumsum(keep) - 1
     rows = np.nonzero(keep[point])[0]
-    return TieSetUp(ties, rows, camera[rows], new_index[point[rows]], ids[keep], start.ground[keep], left_out)
+    out = TieSetUp(ties, rows, camera[rows], new_index[point[rows]], ids[keep], start.ground[keep], left_out)
+    span = out.span(scene)
+    if span is not None and max(span) < BUNCHED:
+        log.warning("the tie points cover only %.0f%% x %.0f%% of the %s image (one corner): they tie the block "
+                    "there only; the rest follows the onboard trajectory and the GCPs", 100 * span[0], 100 * span[1],
+                    scene.cameras[0].name)
+    return out
 
 
 def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | None) -> dict:

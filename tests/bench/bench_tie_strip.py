@@ -5,7 +5,7 @@ Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_
       [--scenes 20] [--ties 20000] [--gcps 100] [--out DIR]
 
 The strip (one scene model of --scenes x 24 576 rows; the preset's trajectory and installation
-errors, no chip or lens errors) is simulated into DIR (kept, reused when
+errors, no chip or lens errors; 0.5 px image and 0.5 m GCP ground noise) is simulated into DIR (kept, reused when
 it is there: simulating is not what is timed). Then, in this process: reading the scene, GCPs
 and tie points (the set-up), and the adjustment alone (forward intersection of the tie points'
 onboard rays, observations, robust selection-weight passes with variance components). For
@@ -41,6 +41,7 @@ from core.simulator import GcpSettings, simulate  # noqa: E402
 from core.tiepoints import TieTable  # noqa: E402
 
 NOISE = 0.5  # px
+GROUND = 0.5  # m: GCP ground noise, east, north and up
 # The preset's trajectory and installation errors, which the settings below model: a speed
 # bench of a converging block (chip and lens errors left unmodelled would add robust passes).
 NO_CHIP_ERRORS = {"ccd_shift": 0.0, "ccd_rotation": 0.0, "focal_error": 0.0, "distortion": 0.0}
@@ -77,18 +78,19 @@ def main() -> None:
     ap.add_argument("--out", default="out/bench_tie_strip")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    folder = Path(args.out) / f"zy3_{args.scenes}_{args.ties}_{args.gcps}_trajectory"
+    folder = Path(args.out) / f"zy3_{args.scenes}_{args.ties}_{args.gcps}_v2"
     if not (folder / "tie_points.csv").exists():
         t0 = time.perf_counter()
         simulate("zy3_tlc", folder, seed=2, n_scenes=args.scenes, errors=NO_CHIP_ERRORS,
-                 gcp_settings=GcpSettings(n_gcps=args.gcps, image_noise=NOISE, n_tie_points=args.ties))
+                 gcp_settings=GcpSettings(n_gcps=args.gcps, image_noise=NOISE, ground_noise_xy=GROUND,
+                                          ground_noise_z=GROUND, n_tie_points=args.ties))
         print(f"simulated the strip in {time.perf_counter() - t0:.1f} s (not timed below)")
     logging.getLogger().setLevel(logging.WARNING)
     reset_peak()
     t0 = time.perf_counter()
     scene = load_scene(folder / "onboard_scene.json")
     gcps = G.read_csv(folder / "gcps.csv", G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                      G.Heights("z", datum="ellipsoid"), sigma_px=NOISE, sigma_xy=0.5, sigma_z=0.5)
+                      G.Heights("z", datum="ellipsoid"), sigma_px=NOISE, sigma_xy=GROUND, sigma_z=GROUND)
     ties, truth = read_ties(folder / "tie_points.csv")
     setup_time, setup_peak = time.perf_counter() - t0, peak_mb()
     settings = AdjustmentSettings(position_model="lagrange", position_interval=20.0, attitude_model="lagrange",

@@ -247,3 +247,18 @@ def test_html_report_tells_the_datum_and_tie_points(th1, tmp_path):
     assert "absolute accuracy is that of the onboard orbit and attitude" in text
     assert f"99 tie points ({len(lonely) - 1} of {len(lonely)} image observations); 1 left out (seen by one camera " \
            f"only: {ties.id[0]})" in text
+
+
+def test_tie_points_in_one_corner_adjust_with_a_warning(th1, caplog):
+    scene, table, ties, truth = th1
+    nad = ties.camera == "NAD"
+    corner = np.unique(ties.id[nad & (ties.col < 1100) & (ties.row < 1100)])
+    assert corner.size >= 2
+    some = ties.select(np.isin(ties.id, corner))
+    with caplog.at_level(logging.WARNING):
+        out = adjust(scene, _corner_control(table, 4), AdjustmentSettings(position_sigma=100.0), ties=some)
+    assert "the tie points cover only" in caplog.text and "(one corner)" in caplog.text
+    span = out.report["tie_points"]["span"]
+    assert max(span) < 0.1
+    error = np.linalg.norm(_tie_errors(out, truth[np.isin(ties.id, corner)]), axis=1)
+    assert np.median(error) < 5.0
