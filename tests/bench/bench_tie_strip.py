@@ -106,6 +106,9 @@ def main() -> None:
     for p in rep["robust"]["passes"]:
         print(f"  pass {p['pass']}: sigma0 {p['sigma0']:.3f}, {p['down_weighted']} down-weighted, largest weight "
               f"change {p['largest_change']:.3g}, largest component change {100 * p['component_change']:.2f} %")
+    for group, c in rep["variance_components"].items():
+        print(f"  variance component {group}: sigma0 {c['sigma0']:.3f}, redundancy {c['redundancy']:.1f}"
+              + ("" if c["estimated"] else " (not estimated)"))
     load = os.getloadavg()
     print(f"strip: {args.scenes} ZY-3 scenes ({scene.cameras[0].rows} rows), {rep['observations']['control_points']} "
           f"GCPs ({rep['observations']['image_observations']} image observations), "

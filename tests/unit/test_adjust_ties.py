@@ -262,3 +262,13 @@ def test_tie_points_in_one_corner_adjust_with_a_warning(th1, caplog):
     assert max(span) < 0.1
     error = np.linalg.norm(_tie_errors(out, truth[np.isin(ties.id, corner)]), axis=1)
     assert np.median(error) < 5.0
+
+
+def test_fixed_ground_gcps_with_tie_unknowns(th1):
+    """Fixed GCPs (no ground unknowns) next to the tie points' unknowns (no prior)."""
+    scene, table, ties, truth = th1
+    out = adjust(scene, _corner_control(table, 4), AdjustmentSettings(position_sigma=100.0, ground="fixed"), ties=ties)
+    assert out.report["observations"]["ground_unknowns"] == 3 * 100
+    error = np.linalg.norm(_tie_errors(out, truth), axis=1)
+    assert np.median(error) < 3.5     # measured 2.95 m, as with weighted ground (sigma 0.01 m)
+    assert out.report["sigma0"] == pytest.approx(1.0, abs=0.15)
