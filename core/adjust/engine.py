@@ -1,4 +1,5 @@
-"""Self-calibrating bundle adjustment of one scene (or strip) from ground control points.
+"""Self-calibrating bundle adjustment of one scene (or strip) from ground control points and
+tie points (ground points of unknown position, :mod:`core.adjust.ties`).
 
 Gauss-Newton with Levenberg-Marquardt damping on the reduced normal equations (ground
 points eliminated, :mod:`core.adjust.normal`), analytic derivatives (:mod:`core.adjust.model`).
