@@ -9,7 +9,8 @@ errors, no chip or lens errors; 0.5 px image and 0.5 m GCP ground noise) is simu
 it is there: simulating is not what is timed). Then, in this process: reading the scene, GCPs
 and tie points (the set-up), and the adjustment alone (forward intersection of the tie points'
 onboard rays, observations, robust selection-weight passes with variance components). For
-each: wall time, and peak resident memory (ru_maxrss; the peak is reset between the two
+each: wall time (and CPU time of the adjustment, which other work on the machine changes
+less), and peak resident memory (ru_maxrss; the peak is reset between the two
 through /proc/self/clear_refs, so the adjustment's figure is its own). The machine's load
 average is printed with the figures: other work on the machine slows the wall times.
 
@@ -97,9 +98,9 @@ def main() -> None:
                                   attitude_interval=20.0, position_sigma=20.0, attitude_sigma=1e-4,
                                   interior="FWD.roll, FWD.pitch, FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw")
     reset_ok = reset_peak()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     out = adjust(scene, gcps, settings, ties=ties)
-    adjust_time, adjust_peak = time.perf_counter() - t0, peak_mb()
+    adjust_time, adjust_cpu, adjust_peak = time.perf_counter() - t0, time.process_time() - c0, peak_mb()
     rep = out.report
     t = out.tie_points
     error = np.linalg.norm(geodetic_to_ecef(t["lon"], t["lat"], t["h"]) - truth, axis=1)
@@ -115,7 +116,7 @@ def main() -> None:
           f"{rep['tie_points']['points']} tie points ({rep['tie_points']['observations']} observations), "
           f"{rep['observations']['unknowns']} parameters, {rep['observations']['ground_unknowns']} ground unknowns")
     print(f"set-up (reading scene, GCPs, tie points): {setup_time:.1f} s, peak {setup_peak:.0f} MB")
-    print(f"adjustment: {adjust_time:.1f} s, peak {adjust_peak:.0f} MB"
+    print(f"adjustment: {adjust_time:.1f} s wall ({adjust_cpu:.1f} s CPU, all threads), peak {adjust_peak:.0f} MB"
           + ("" if reset_ok else " (peak not reset: includes the set-up)")
           + f"; {len(rep['robust']['passes'])} robust passes, {len(rep['iterations'])} iterations in the last")
     print(f"sigma0 {rep['sigma0']:.3f}; tie residual RMSE col {rep['tie_points']['residuals']['rmse_col']:.3f} px, "
