@@ -783,6 +783,9 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     adjusted = problem.params.adjusted_scene()
     out = _result(problem, table, adjusted, est, determinability)
     rep = out.report
+    if held is not None:
+        rep["datum"] = held
+        log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")
     adjusted.info["adjustment"] = {
         "settings": asdict(settings), "sigma0": rep["sigma0"],
         "variance_components": {k: {f: v[f] for f in ("apriori_sigma", "estimated_sigma", "unit", "estimated")}
@@ -793,8 +796,6 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
         "determinability": determinability,
         "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
     if held is not None:
-        rep["datum"] = held
-        log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")
         adjusted.info["adjustment"]["datum"] = {k: held[k] for k in ("held_by", "control_points", "note") if k in held}
         adjusted.info["adjustment"]["tie_points"] = int(problem.ties.ids.size)
     return out
