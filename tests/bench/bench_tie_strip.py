@@ -27,6 +27,7 @@ import os
 import resource
 import sys
 import time
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -38,14 +39,15 @@ from core import gcps as G  # noqa: E402
 from core.adjust import AdjustmentSettings, adjust  # noqa: E402
 from core.geodesy import geodetic_to_ecef  # noqa: E402
 from core.scene_io import load_scene  # noqa: E402
-from core.simulator import GcpSettings, simulate  # noqa: E402
+from core.simulator import ErrorSettings, GcpSettings, simulate  # noqa: E402
 from core.tiepoints import TieTable  # noqa: E402
 
 NOISE = 0.5  # px
 GROUND = 0.5  # m: GCP ground noise, east, north and up
 # The preset's trajectory and installation errors, which the settings below model: a speed
 # bench of a converging block (chip and lens errors left unmodelled would add robust passes).
-NO_CHIP_ERRORS = {"ccd_shift": 0.0, "ccd_rotation": 0.0, "focal_error": 0.0, "distortion": 0.0}
+NO_CHIP_ERRORS = {f.name: 0.0 for f in fields(ErrorSettings)
+                  if not f.name.startswith(("position", "attitude", "installation"))}
 log = logging.getLogger("bench_tie_strip")
 
 

@@ -3,7 +3,7 @@ truth recovery with 4 and 1 GCPs, free networks held by the onboard pseudo-obser
 datum defect named, single rays left out, gross errors flagged, multi-camera GCPs."""
 import csv
 import logging
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
@@ -15,12 +15,12 @@ from core.errors import InputError
 from core.geodesy import geodetic_to_ecef
 from core.intersection import intersect
 from core.scene_io import load_scene
-from core.simulator import GcpSettings, simulate
+from core.simulator import ErrorSettings, GcpSettings, simulate
 from core.tiepoints import TieTable
 
 NOISE = 0.3  # px
 # the simulated trajectory errors only: the interior is exact, so the figures are the engine's
-TRAJECTORY_ONLY = {"focal_error": 0.0, "distortion": 0.0, "installation": 0.0}
+TRAJECTORY_ONLY = {f.name: 0.0 for f in fields(ErrorSettings) if not f.name.startswith(("position", "attitude"))}
 
 
 def _ties(path, sigma=NOISE) -> tuple[TieTable, np.ndarray]:
