@@ -1,4 +1,5 @@
-"""Self-calibrating bundle adjustment of one scene (or strip) from ground control points.
+"""Self-calibrating bundle adjustment of one scene (or strip) from ground control points and
+tie points (ground points of unknown position, :mod:`core.adjust.ties`).
 
 Gauss-Newton with Levenberg-Marquardt damping on the reduced normal equations (ground
 points eliminated, :mod:`core.adjust.normal`), analytic derivatives (:mod:`core.adjust.model`).
@@ -29,7 +30,7 @@ from ..tiepoints import TieTable
 from ..timebasis import TimeBasis
 from .checkpoints import blunder_test, intersection_accuracy, model_error_message, summary_lines
 from .model import Jacobian, Model, build_observations
-from .normal import GroundPrior, Linearization, System, assemble, back_substitute, coupling, groups
+from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, point_couplings
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 from .selection import SELECTION, interior_free, select_interior
 from .ties import TieSetUp, camera_indices, check_ties, datum, set_up_ties
@@ -613,16 +614,17 @@ def _ground_leverage(lin: Linearization, system: System, Q: np.ndarray, G: np.nd
     (a tie point's rays share its ground unknowns)."""
     n_points = system.K.shape[0]
     u = Q.shape[0]
-    m = coupling(lin, weighted, u, n_points).T.tocsr()                           # M (3m,u)
-    mq = (m @ Q).reshape(n_points, 3, u)                                          # M Q (m,3,u)
-    s = np.einsum("mau,mbu->mab", mq, m.toarray().reshape(n_points, 3, u))       # M Q M' (m,3,3)
+    s = np.zeros((n_points, 3, 3))                                                # M Q M'
+    aqm = np.zeros((lin.r.shape[0], 2, 3))                                        # A Q M' per observation
+    for first, last, obs, M in point_couplings(lin, weighted, u, n_points):
+        mq = (M.reshape(-1, u) @ Q).reshape(M.shape)
+        s[first:last] = np.einsum("cau,cbu->cab", mq, M)
+        cols = lin.columns[obs]
+        mine = mq[(lin.point[obs] - first)[:, None, None], np.arange(3)[None, :, None], np.maximum(cols, 0)[:, None, :]]
+        aqm[obs] = np.matmul(lin.values[obs], np.where(cols[:, None, :] >= 0, mine, 0.0).transpose(0, 2, 1))
     point = lin.point[weighted]
-    k = system.K[point]
-    jk = lin.jg[weighted] @ k                                                     # J_g K (k,2,3)
-    cols = lin.columns[weighted]
-    aqm = np.einsum("nkq,ngq->nkg", lin.values[weighted],
-                    np.where(cols[:, None, :] >= 0, mq[point[:, None, None], np.arange(3)[None, :, None],
-                                                        np.maximum(cols, 0)[:, None, :]], 0.0))  # A Q M' (k,2,3)
+    aqm = aqm[weighted]
+    jk = lin.jg[weighted] @ system.K[point]                                       # J_g K (k,2,3)
     h = np.einsum("nkg,nkg->nk", jk, lin.jg[weighted]) + np.einsum("nkk->nk", G[weighted]) \
         - 2.0 * np.einsum("nkg,nkg->nk", aqm, jk) + np.einsum("nkg,ngh,nkh->nk", jk, s[point], jk)
     return h, system.K + system.K @ s @ system.K
@@ -842,6 +844,9 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
                        for p in out.report["parameters"] if p["mode"] != "fixed" or p["value"] != 0.0],
         "determinability": determinability, "interior_selection": selection,
         "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
+    if held is not None:
+        adjusted.info["adjustment"]["datum"] = {k: held[k] for k in ("held_by", "control_points", "note") if k in held}
+        adjusted.info["adjustment"]["tie_points"] = int(problem.ties.ids.size)
     return out
 
 
@@ -889,9 +894,11 @@ def _estimate(problem: _Problem, progress, is_cancelled) -> _Estimate:
         log.info("%ssigma0 %.3f, %d observations down-weighted, variance components changed by %.1f %%", label,
                  st.sigma0, int(after.sum()), 100 * component_change)
         # Done when no observation changes side (the weights of the down-weighted ones then only
-        # follow their already large residuals and no longer move the solution) and no variance
-        # component changes by more than its tolerance.
-        settled = change < 1e-3 or (k > 0 and np.array_equal(before, after))
+        # follow their already large residuals and no longer move the solution), or when the
+        # last re-weighting no longer moved the solution measurably (with tens of thousands of
+        # observations some always sit at the critical value and change side back and forth),
+        # and no variance component changes by more than its tolerance.
+        settled = change < 1e-3 or (k > 0 and (np.array_equal(before, after) or not result["iterations"]))
         if not iterate or (settled and component_change < COMPONENT_TOLERANCE):
             return _Estimate(result, st, passes, False, comps, inlier, kappa)
     log.warning("robust estimation stopped at its limit of %d passes; the flags may be incomplete", len(passes))
@@ -1013,6 +1020,7 @@ def _tie_points(problem: _Problem, st: Statistics, flagged: np.ndarray, good: np
     cams = problem.scene.cameras
     report = {**problem.ties.counts(),
               "flagged": int(flagged[tie].sum()),
+              "span": problem.ties.span(problem.scene),
               "residuals": _residual_summary(st.v[tie & good]),
               "residuals_per_camera": {c.name: _residual_summary(st.v[tie & good & (problem.obs.camera == ci)])
                                        for ci, c in enumerate(cams)},

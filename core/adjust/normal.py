@@ -14,16 +14,16 @@ once this folds into the observation itself:
 rays alone fix them, two or more per point. Observations touching the same parameter
 columns (same camera, chip and trajectory knots) are stacked and multiplied with BLAS, so
 assembly costs one dense product per group. Points seen in several cameras (three-line
-scenes) are eliminated with sparse products over all their observations.
+scenes, tie points) are eliminated with dense products over ranges of points.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import sparse
 
 RIDGE = 1e-9  # share of a point's normal-matrix trace added to its diagonal (see assemble)
+POINT_BLOCK = 5_000_000  # numbers in one dense block of point couplings (40 MB)
 
 
 @dataclass
@@ -167,35 +167,37 @@ def _chol2(p: np.ndarray) -> np.ndarray:
     return out
 
 
-def coupling(lin: Linearization, mask: np.ndarray, n_unknowns: int, n_points: int) -> sparse.csr_matrix:
-    """N_pg = sum of J_p' P J_g over the observations ``mask`` (n,) (their points >= 0):
-    sparse (n_unknowns, 3 n_points), the coupling of the parameters with the ground unknowns."""
+def point_couplings(lin: Linearization, mask: np.ndarray, n_unknowns: int, n_points: int):
+    """The coupling of the ground unknowns with the parameters, M_p = sum of J_g' P J_p over
+    the observations ``mask`` (n,) of point p (3 x n_unknowns, dense), for consecutive ranges
+    of points (at most POINT_BLOCK numbers at a time). Yields (first, last, obs, M): points
+    first..last-1, the indices (k,) of their observations in ``mask``, M (last-first, 3, u)."""
     idx = np.nonzero(mask)[0]
-    q = lin.columns.shape[1]
-    cols = lin.columns[idx]
-    # J_p' P J_g per observation: (n, q, 3)
-    block = np.einsum("nkq,nk,nkg->nqg", lin.values[idx], lin.p[idx], lin.jg[idx])
-    rows = np.repeat(cols[:, :, None], 3, axis=2)
-    gcol = np.repeat((3 * lin.point[idx][:, None, None] + np.arange(3)[None, None, :]), q, axis=1)
-    keep = rows >= 0
-    return sparse.csr_matrix((block[keep], (rows[keep], gcol[keep])), shape=(n_unknowns, 3 * n_points))
+    idx = idx[np.argsort(lin.point[idx], kind="stable")]
+    pts = lin.point[idx]
+    step = max(1, POINT_BLOCK // (3 * max(n_unknowns, 1)))
+    for first in range(0, n_points, step):
+        last = min(first + step, n_points)
+        a, b = np.searchsorted(pts, [first, last])
+        obs = idx[a:b]
+        pj = lin.p[obs][:, :, None] * lin.jg[obs]                                     # P J_g (k,2,3)
+        block = np.matmul(pj.transpose(0, 2, 1), lin.values[obs])                    # J_g' P J_p (k,3,q)
+        cols = lin.columns[obs][:, None, :]
+        flat = ((pts[a:b] - first)[:, None, None] * 3 + np.arange(3)[None, :, None]) * n_unknowns + cols
+        keep = np.broadcast_to(cols >= 0, flat.shape)
+        M = np.bincount(flat[keep], weights=block[keep], minlength=(last - first) * 3 * n_unknowns)
+        yield first, last, obs, M.reshape(last - first, 3, n_unknowns)
 
 
 def _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns) -> None:
-    """Schur complement of points observed several times: N -= N_pg K N_gp, b -= N_pg K b_g,
-    with N_pg = J_p' P J_g assembled sparse over the points' observations."""
-    n_pg = coupling(lin, multi, n_unknowns, K.shape[0])
-    used = np.unique(lin.point[multi])
-    m = K.shape[0]
-    base = 3 * np.arange(m)[:, None, None]
-    k_rows = np.broadcast_to(base + np.arange(3)[None, :, None], (m, 3, 3))
-    k_cols = np.broadcast_to(base + np.arange(3)[None, None, :], (m, 3, 3))
-    k_blocks = sparse.csr_matrix((K.ravel(), (k_rows.ravel(), k_cols.ravel())), shape=(3 * m, 3 * m))
-    w = n_pg @ k_blocks
-    N -= (w @ n_pg.T).toarray()
-    g = np.zeros(3 * K.shape[0])
-    g.reshape(-1, 3)[used] = bg[used]
-    b -= w @ g
+    """Schur complement of points observed several times: N -= sum of M_p' K_p M_p,
+    b -= sum of M_p' K_p b_g, with M_p their couplings (:func:`point_couplings`); one dense
+    product per range of points."""
+    for first, last, _, M in point_couplings(lin, multi, n_unknowns, K.shape[0]):
+        KM = K[first:last] @ M                                                   # (c,3,u)
+        product = M.reshape(-1, n_unknowns).T @ KM.reshape(-1, n_unknowns)
+        N -= 0.5 * (product + product.T)
+        b -= np.einsum("cau,ca->u", KM, bg[first:last])
 
 
 def back_substitute(lin: Linearization, system: System, dx: np.ndarray) -> np.ndarray:

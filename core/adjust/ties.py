@@ -31,6 +31,8 @@ SHIFTS = ("shift X", "shift Y", "shift Z")
 ROTATIONS = ("roll (rotation about the flight line)", "pitch", "yaw")
 SCALE = ("scale",)
 LISTED = 10  # ids named in a message
+EDGE = 2.0   # px: measurement noise may put a point at the image border this far outside
+BUNCHED = 0.1  # tie points within this share of the image in both directions are in one corner
 
 
 @dataclass
@@ -57,6 +59,15 @@ class TieSetUp:
     def __len__(self) -> int:
         return int(self.rows.size)
 
+    def span(self, scene: SceneModel) -> tuple[float, float] | None:
+        """Share of the reference camera's image (columns, rows) the used tie observations in it
+        cover (None: none there)."""
+        mine = self.camera == 0
+        if not mine.any():
+            return None
+        cam, rows = scene.cameras[0], self.rows[mine]
+        return (float(np.ptp(self.table.col[rows])) / cam.cols, float(np.ptp(self.table.row[rows])) / cam.rows)
+
     def counts(self) -> dict:
         """Points and observations used and left out (with reasons), for the report."""
         return {"points": int(self.ids.size), "observations": int(self.rows.size),
@@ -79,7 +90,7 @@ def camera_indices(scene: SceneModel, names: np.ndarray) -> np.ndarray:
 
 def check_ties(scene: SceneModel, ties: TieTable, gcp_ids: np.ndarray) -> None:
     """Refuse tie observations the adjustment cannot use, naming them: cameras the scene
-    lacks, positions outside the camera's image, the same point twice in one camera, and ids
+    lacks, positions outside the camera's image (beyond EDGE px), the same point twice in one camera, and ids
     that are also GCP ids (one id is one ground point: known or unknown, not both)."""
     names = [c.name for c in scene.cameras]
     unknown = ~np.isin(ties.camera, names)
@@ -89,10 +100,11 @@ def check_ties(scene: SceneModel, ties: TieTable, gcp_ids: np.ndarray) -> None:
     cam = camera_indices(scene, ties.camera)
     cols = np.array([c.cols for c in scene.cameras])[cam]
     rows = np.array([c.rows for c in scene.cameras])[cam]
-    outside = (ties.col < 0) | (ties.col > cols) | (ties.row < 0) | (ties.row > rows)
+    outside = (ties.col < -EDGE) | (ties.col > cols + EDGE) | (ties.row < -EDGE) | (ties.row > rows + EDGE)
     if outside.any():
         raise InputError(f"tie points: {int(outside.sum())} observation(s) of point(s) "
-                         f"{_listed(np.unique(ties.id[outside]))} lie outside their camera's image")
+                         f"{_listed(np.unique(ties.id[outside]))} lie outside their camera's image (by more than "
+                         f"{EDGE:g} px)")
     pairs, counts = np.unique(np.stack([ties.id, ties.camera], axis=1), axis=0, return_counts=True)
     if (counts > 1).any():
         twice = np.unique(pairs[counts > 1, 0])
@@ -124,7 +136,13 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
     keep = ~(single | failed)
     new_index = np.cumsum(keep) - 1
     rows = np.nonzero(keep[point])[0]
-    return TieSetUp(ties, rows, camera[rows], new_index[point[rows]], ids[keep], start.ground[keep], left_out)
+    out = TieSetUp(ties, rows, camera[rows], new_index[point[rows]], ids[keep], start.ground[keep], left_out)
+    span = out.span(scene)
+    if span is not None and max(span) < BUNCHED:
+        log.warning("the tie points cover only %.0f%% x %.0f%% of the %s image (one corner): they tie the block "
+                    "there only; the rest follows the onboard trajectory and the GCPs", 100 * span[0], 100 * span[1],
+                    scene.cameras[0].name)
+    return out
 
 
 def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | None) -> dict:
