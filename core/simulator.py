@@ -18,7 +18,8 @@ camera set images it. Two scene models are written:
 Outputs in the folder: ``onboard_scene.json``, ``true_scene.json``, ``gcps.csv`` (ground
 control and check points), ``tie_points.csv`` (multi-camera presets), ``dem.tif`` (EGM96
 geoid heights), ``simulation.json`` (settings and truth), and with ``render=True`` one raw
-image per camera ``image_<CAMERA>.tif`` (see :mod:`core.render`).
+image per camera ``image_<CAMERA>.tif`` (see :mod:`core.render`) and the reference orthoimage
+``reference.tif`` of the same ground (see :mod:`core.reference`).
 
 Frames: ECEF metres, times in seconds from the epoch, image coordinates GDAL (col, row).
 The focal-plane chips run from right to left across track (nominal theta = pi), so that a
@@ -158,6 +159,7 @@ class SimulationResult:
     manifest: Path
     tie_points: Path | None = None
     images: dict = field(default_factory=dict)
+    reference: Path | None = None
 
 
 # --- orbit and attitude ----------------------------------------------------------------------
@@ -619,6 +621,10 @@ def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool
                     progress=lambda f, b=base: report(b + f * 0.35 / len(geo.true.cameras), None),
                     is_cancelled=cancelled)
                 images[cam.name] = folder / f"image_{cam.name}.tif"
+            from .reference import REFERENCE_NAME, write_reference
+            step(0.99, "writing the reference orthoimage")
+            frame["reference"] = write_reference(geo.true, dem, frame, files.path(folder / REFERENCE_NAME), seed,
+                                                 is_cancelled=cancelled)
         manifest = {"preset": preset, "seed": seed, "n_scenes": int(n_scenes), "epoch": EPOCH,
                     "errors": asdict(errors), "measurements": asdict(settings), "truth": geo.truth,
                     "texture": frame,
@@ -626,12 +632,14 @@ def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool
                     "files": {"true_scene": "true_scene.json", "onboard_scene": "onboard_scene.json",
                               "gcps": "gcps.csv", "dem": "dem.tif (EGM96 geoid heights)",
                               "tie_points": "tie_points.csv" if tie_tmp else None,
-                              "images": {k: v.name for k, v in images.items()}}}
+                              "images": {k: v.name for k, v in images.items()},
+                              "reference": frame["reference"]["file"] if render else None}}
         write_text(folder / MANIFEST, json.dumps(manifest, indent=1), files)
     report(1.0, "simulation written")
     return SimulationResult(folder, folder / "onboard_scene.json", folder / "true_scene.json", folder / "gcps.csv",
                             folder / "dem.tif", folder / MANIFEST,
-                            folder / "tie_points.csv" if settings.n_tie_points else None, images)
+                            folder / "tie_points.csv" if settings.n_tie_points else None, images,
+                            folder / "reference.tif" if render else None)
 
 
 def output_names(spec: Preset, settings: GcpSettings, render: bool) -> list[str]:
@@ -639,7 +647,7 @@ def output_names(spec: Preset, settings: GcpSettings, render: bool) -> list[str]
     names = ["dem.tif", "gcps.csv", "true_scene.json", "onboard_scene.json", MANIFEST]
     if settings.n_tie_points:
         names.append("tie_points.csv")
-    return names + ([f"image_{cam.name}.tif" for cam in spec.cameras] if render else [])
+    return names + ([f"image_{cam.name}.tif" for cam in spec.cameras] + ["reference.tif"] if render else [])
 
 
 def check_folder(folder, names) -> None:
@@ -667,7 +675,7 @@ def _simulated_files(folder: Path) -> set[str]:
         manifest = json.loads((folder / MANIFEST).read_text())
         listed = manifest["files"]
         names = [listed[k] for k in ("true_scene", "onboard_scene", "gcps", "dem", "tie_points")]
-        names += list(listed["images"].values())
+        names += list(listed["images"].values()) + [listed.get("reference")]
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return set()
     return {MANIFEST, *(n.split(" ")[0] for n in names if isinstance(n, str))}

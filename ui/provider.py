@@ -10,6 +10,7 @@ from .algorithms.footprint import FootprintAlgorithm
 from .algorithms.groundtoimage import GroundToImageAlgorithm
 from .algorithms.imagetoground import ImageToGroundAlgorithm
 from .algorithms.importgcps import ImportGcpsAlgorithm
+from .algorithms.matchgcps import MatchGcpsAlgorithm
 from .algorithms.orthorectify import OrthorectifyAlgorithm
 from .algorithms.sensorcorrect import SensorCorrectAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
@@ -18,9 +19,9 @@ from .parameters import tr
 
 log = logging.getLogger(__name__)
 MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
-ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, BundleAdjustAlgorithm, GroundToImageAlgorithm,
-              ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm, ExportRpcAlgorithm,
-              SensorCorrectAlgorithm)
+ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, MatchGcpsAlgorithm, BundleAdjustAlgorithm,
+              GroundToImageAlgorithm, ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm,
+              ExportRpcAlgorithm, SensorCorrectAlgorithm)
 
 
 class PushbroomProvider(QgsProcessingProvider):
