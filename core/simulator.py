@@ -519,11 +519,12 @@ def _write_csv(path: Path, columns: tuple[str, ...], data: dict) -> None:
 
 
 # --- the whole simulation ----------------------------------------------------------------------
-def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int = 200, image_noise: float = 0.3,
+def simulate(preset: "str | Preset", folder, seed: int = 0, n_scenes: int = 1, n_gcps: int = 200, image_noise: float = 0.3,
              render: bool = False, errors: ErrorSettings | dict | None = None,
              gcp_settings: GcpSettings | None = None, progress: Callable[[float, str | None], None] | None = None,
              is_cancelled: Callable[[], bool] | None = None) -> SimulationResult:
-    """Simulate a strip of ``n_scenes`` scenes of ``preset`` into ``folder`` (created).
+    """Simulate a strip of ``n_scenes`` scenes of ``preset`` (a name of PRESETS, or a Preset of
+    one's own, e.g. a small scene for tests) into ``folder`` (created).
 
     errors: the preset's :class:`ErrorSettings` (None), or another one, or a dict overriding
     some of its fields. gcp_settings: measurement settings; n_gcps and image_noise set its
@@ -532,11 +533,11 @@ def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int 
     end, :class:`core.files.OutputSet`). Files of the same names already in ``folder`` are
     replaced only when an earlier simulation wrote them (:func:`check_folder`).
     """
-    if preset not in PRESETS:
+    if not isinstance(preset, Preset) and preset not in PRESETS:
         raise InputError(f"unknown preset {preset!r} (choose one of {', '.join(PRESETS)})")
     if not 1 <= int(n_scenes) <= 200:
         raise InputError(f"n_scenes must be between 1 and 200 (got {n_scenes})")
-    spec = PRESETS[preset]
+    spec = preset if isinstance(preset, Preset) else PRESETS[preset]
     errors = _error_settings(spec, errors)
     settings = gcp_settings or GcpSettings(n_gcps=int(n_gcps), image_noise=float(image_noise))
     settings.validate()
