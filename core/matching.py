@@ -42,7 +42,7 @@ import scipy.fft
 from osgeo import gdal
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
-from scipy.ndimage import gaussian_filter, map_coordinates
+from scipy.ndimage import gaussian_filter
 
 from .errors import Cancelled, InputError
 from .gcps import GcpTable
@@ -159,16 +159,33 @@ class Reference:
         gt = self.geotransform
         return (np.asarray(x) - gt[0]) / gt[1] - 0.5, (np.asarray(y) - gt[3]) / gt[5] - 0.5
 
-    def window(self, x0: int, y0: int, x1: int, y1: int) -> tuple[np.ndarray, int, int]:
-        """Float32 pixels of [x0, x1) x [y0, y1) clipped to the raster, nodata as NaN; and the origin."""
-        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, self.cols), min(y1, self.rows)
+    def window(self, x: np.ndarray, y: np.ndarray, pad: int) -> tuple[np.ndarray, int, int]:
+        """Pixels covering array positions (x, y) + ``pad``, clipped to the raster, in its own data
+        type (the whole array when in memory: sample() indexes it flat, without a copy), and
+        their origin."""
+        x0, y0 = max(int(np.floor(np.nanmin(x))) - pad, 0), max(int(np.floor(np.nanmin(y))) - pad, 0)
+        x1 = min(int(np.ceil(np.nanmax(x))) + pad + 1, self.cols)
+        y1 = min(int(np.ceil(np.nanmax(y))) + pad + 1, self.rows)
         if x1 <= x0 or y1 <= y0:
             return np.full((1, 1), np.nan, np.float32), 0, 0
-        a = (self.data[y0:y1, x0:x1] if self.data is not None else
-             self.dataset().GetRasterBand(1).ReadAsArray(x0, y0, x1 - x0, y1 - y0)).astype(np.float32)
-        if self.nodata is not None:
-            a[a == self.nodata] = np.nan
-        return a, x0, y0
+        if self.data is not None:
+            return self.data, 0, 0
+        return self.dataset().GetRasterBand(1).ReadAsArray(x0, y0, x1 - x0, y1 - y0), x0, y0
+
+    def float_window(self, x: np.ndarray, y: np.ndarray, pad: int) -> tuple[np.ndarray, int, int]:
+        """Like :meth:`window`, only the covering pixels, as float32 with nodata NaN."""
+        a, ox, oy = self.window(x, y, pad)
+        x0, y0 = max(int(np.floor(np.nanmin(x))) - pad - ox, 0), max(int(np.floor(np.nanmin(y))) - pad - oy, 0)
+        x1, y1 = int(np.ceil(np.nanmax(x))) + pad + 1 - ox, int(np.ceil(np.nanmax(y))) + pad + 1 - oy
+        return _blanked(a[y0:y1, x0:x1], self.nodata), ox + x0, oy + y0
+
+
+def _blanked(a: np.ndarray, nodata) -> np.ndarray:
+    """Float32 copy of ``a`` with its nodata pixels NaN."""
+    a = a.astype(np.float32)
+    if nodata is not None:
+        a[a == nodata] = np.nan
+    return a
 
 
 def check_not_constant(what: str, path: str, a: np.ndarray) -> None:
@@ -202,18 +219,34 @@ def predicted_positions(scene: SceneModel, camera: int, dem, ref: Reference, col
     return px, py, ground.reshape(n, 9, 3)[:, 4]
 
 
-def sample(image: np.ndarray, x0: int, y0: int, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Cubic-spline samples of ``image`` (origin (x0, y0); NaN = no data) at array positions
-    (x, y); NaN where a position lies outside the image or next to its no-data pixels."""
-    u, v = x - x0, y - y0
+def _keys(t: np.ndarray) -> list[np.ndarray]:
+    """Keys cubic convolution weights (a = -0.5) of the taps -1, 0, 1, 2 at fractions t."""
+    t2, t3 = t * t, t * t * t
+    return [(-t3 + 2 * t2 - t) / 2, (3 * t3 - 5 * t2 + 2) / 2, (-3 * t3 + 4 * t2 + t) / 2, (t3 - t2) / 2]
+
+
+def sample(image: np.ndarray, x0: int, y0: int, x: np.ndarray, y: np.ndarray, nodata=None) -> np.ndarray:
+    """Cubic convolution samples (Keys) of ``image`` (origin (x0, y0)) at array positions (x, y);
+    NaN where a position lies outside the image or one of its 4 x 4 taps is ``nodata`` or NaN.
+    A local kernel, so no prefilter of the image: the cost is per sample, not per image."""
     h, w = image.shape
-    blank = ~np.isfinite(image)
-    filled = np.where(blank, np.nanmean(image) if not blank.all() else 0.0, image)
-    out = map_coordinates(filled, [v, u], order=3, mode="nearest")
-    bad = (u < 0) | (v < 0) | (u > w - 1) | (v > h - 1) | ~np.isfinite(u) | ~np.isfinite(v)
-    if blank.any():
-        bad |= map_coordinates(blank.astype(np.float32), [v, u], order=1, mode="constant", cval=1.0) > 0
-    return np.where(bad, np.nan, out)
+    u, v = np.asarray(x, np.float64) - x0, np.asarray(y, np.float64) - y0
+    iu, iv = np.floor(u), np.floor(v)
+    inside = (iu >= 1) & (iv >= 1) & (iu <= w - 3) & (iv <= h - 3)
+    iu, iv = np.where(inside, iu, 1).astype(np.intp), np.where(inside, iv, 1).astype(np.intp)
+    wu, wv = _keys((u - iu).astype(np.float32)), _keys((v - iv).astype(np.float32))
+    flat = image.ravel()
+    base = iv * w + iu
+    out = np.zeros(u.shape, np.float32)
+    for a in range(4):
+        row = np.zeros(u.shape, np.float32)
+        for b in range(4):
+            tap = flat[base + (a - 1) * w + (b - 1)]
+            if nodata is not None:
+                inside &= tap != nodata
+            row += wu[b] * tap
+        out += wv[a] * row
+    return np.where(inside & np.isfinite(out), out, np.nan)
 
 
 # --- correlation ---------------------------------------------------------------------------------
@@ -335,8 +368,7 @@ def coarse_offsets(scene: SceneModel, camera: int, dem, ref: Reference, raw: _Ra
             templates.append(None)
             searches.append(None)
             continue
-        x0, y0 = int(np.floor(px[k].min())) - 4, int(np.floor(py[k].min())) - 4
-        win, wx, wy = ref.window(x0, y0, int(np.ceil(px[k].max())) + 5, int(np.ceil(py[k].max())) + 5)
+        win, wx, wy = ref.float_window(px[k], py[k], 4)
         templates.append(sample(gaussian_filter(win, smooth) if smooth > 0.3 else win, wx, wy, px[k], py[k]))
         sx, sy = int(np.floor(cc[k] - half)), int(np.floor(rr[k] - half))
         searches.append(_block_mean(raw.window(sy, sy + span, sx, sx + span)[0].astype(np.float32), f))
@@ -393,9 +425,8 @@ def _fine_batch(px, py, col, row, shift_c, shift_r, ref: Reference, raw: _RawIma
     w, r = settings.window, settings.fine_radius
     s = w + 2 * r
     b = col.size
-    x0, y0 = int(np.floor(np.nanmin(px))) - 1, int(np.floor(np.nanmin(py))) - 1
-    win, wx, wy = ref.window(x0, y0, int(np.ceil(np.nanmax(px))) + 2, int(np.ceil(np.nanmax(py))) + 2)
-    templates = sample(win, wx, wy, px, py)
+    win, wx, wy = ref.window(px, py, 3)
+    templates = sample(win, wx, wy, px, py, ref.nodata)
     # raw search areas: upper-left pixel index of each
     sc = (np.floor(col) + shift_c - (s - 1) / 2).astype(int)
     sr = (np.floor(row) + shift_r - (s - 1) / 2).astype(int)
@@ -472,30 +503,31 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
         raise InputError(f"no grid point fits in the image ({cam.cols} x {cam.rows} px) with window "
                          f"{settings.window} px and spacing {settings.spacing:g} px")
     shift_c, shift_r = (np.rint(v).astype(int) for v in _plane(coarse, cam, col, row))
-    report(0.1, f"predicting {col.size} reference chips through the scene model")
-    px, py, ground = predicted_positions(scene, camera, dem, ref, col, row, half, settings.window, 1.0)
-    off_dem = ~np.isfinite(ground).all(axis=1) | ~np.isfinite(px).all(axis=(1, 2))
     order = np.argsort(np.floor(row / (settings.spacing * 8)) * cam.cols + col, kind="stable")
     batches = [order[i:i + settings.batch] for i in range(0, order.size, settings.batch)]
     workers = settings.workers or os.cpu_count() or 1
     out = {k: np.full(col.size, np.nan) for k in ("col", "row", "value", "ratio", "sigma")}
+    ground = np.full((col.size, 3), np.nan)
     reasons = np.full(col.size, 2)
 
-    def run(idx: np.ndarray) -> tuple[np.ndarray, dict]:
+    def run(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Predict and match one batch of grid points (indices idx)."""
         if cancelled():
             raise Cancelled("matching cancelled by the user")
-        idx = idx[~off_dem[idx]]
-        if idx.size == 0:
-            return idx, {}
-        return idx, _fine_batch(px[idx], py[idx], col[idx], row[idx], shift_c[idx], shift_r[idx], ref, raw,
-                                nodata, settings, 1)
+        px, py, g = predicted_positions(scene, camera, dem, ref, col[idx], row[idx], half, settings.window, 1.0)
+        on_dem = np.isfinite(g).all(axis=1) & np.isfinite(px).all(axis=(1, 2))
+        if not on_dem.any():
+            return idx[:0], g[:0], {}
+        return idx[on_dem], g[on_dem], _fine_batch(px[on_dem], py[on_dem], col[idx[on_dem]], row[idx[on_dem]],
+                                                   shift_c[idx[on_dem]], shift_r[idx[on_dem]], ref, raw, nodata,
+                                                   settings, 1)
 
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        for n, (idx, res) in enumerate(pool.map(run, batches)):
+        for n, (idx, g, res) in enumerate(pool.map(run, batches)):
             if idx.size:
                 for k in out:
                     out[k][idx] = res[k]
-                reasons[idx] = res["reasons"]
+                reasons[idx], ground[idx] = res["reasons"], g
             report(0.1 + 0.85 * (n + 1) / len(batches), None)
     seconds = time.perf_counter() - start
     ok = reasons < 0
@@ -541,8 +573,6 @@ def _check_overlap(scene: SceneModel, camera: int, dem, ref: Reference, search: 
                          f"{ref.crs.name} lies apart from the image footprint "
                          f"(lon {np.min(lon):.4f}..{np.max(lon):.4f}, lat {np.min(lat):.4f}..{np.max(lat):.4f})")
     step = max(1, int(max(ref.cols, ref.rows) // 512))
-    a = (ref.data[::step, ::step] if ref.data is not None else ref.dataset().GetRasterBand(1).ReadAsArray(
-        buf_xsize=max(ref.cols // step, 1), buf_ysize=max(ref.rows // step, 1))).astype(np.float32)
-    if ref.nodata is not None:
-        a[a == ref.nodata] = np.nan
-    check_not_constant("reference", ref.path, a)
+    a = ref.data[::step, ::step] if ref.data is not None else ref.dataset().GetRasterBand(1).ReadAsArray(
+        buf_xsize=max(ref.cols // step, 1), buf_ysize=max(ref.rows // step, 1))
+    check_not_constant("reference", ref.path, _blanked(a, ref.nodata))
