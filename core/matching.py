@@ -115,8 +115,9 @@ class MatchResult:
 
 # --- rasters -------------------------------------------------------------------------------------
 class Reference:
-    """A north-up reference orthoimage: its CRS, geotransform and pixels (in memory when they
-    fit in ``budget`` bytes, else read by window through a GDAL dataset per thread)."""
+    """A north-up reference orthoimage (any projected or geographic CRS): its CRS, geotransform and
+    pixels (in memory when they fit in ``budget`` bytes, else read by window through a GDAL
+    dataset per thread)."""
 
     def __init__(self, path, budget: float = MEMORY_BUDGET):
         self.path = str(path)
@@ -137,13 +138,21 @@ class Reference:
         if gt[2] != 0 or gt[4] != 0 or not (gt[1] > 0 and gt[5] < 0):
             raise InputError(f"reference {self.path}: the geotransform {gt} is rotated or not north-up; warp it "
                              "north-up first (gdalwarp)")
-        if self.crs.is_geographic:
-            raise InputError(f"reference {self.path}: the CRS {self.crs.name} is geographic; a projected CRS in "
-                             "metres (e.g. UTM) is expected: warp it (gdalwarp -t_srs)")
+        if not (self.crs.is_projected or self.crs.is_geographic):
+            raise InputError(f"reference {self.path}: its coordinate reference system ({self.crs.name}) is neither "
+                             "projected nor geographic, so its place on the Earth is unknown; assign the right CRS")
         self.geotransform = gt
         self.nodata = ds.GetRasterBand(1).GetNoDataValue()
         self.to_map = Transformer.from_crs(CRS.from_epsg(4326), self.crs, always_xy=True)
-        self.gsd = float(gt[1] * self.crs.axis_info[0].unit_conversion_factor)
+        centre = Transformer.from_crs(self.crs, CRS.from_epsg(4326), always_xy=True).transform(
+            gt[0] + gt[1] * self.cols / 2, gt[3] + gt[5] * self.rows / 2)
+        # pixel size on the ground (m): degrees of a geographic CRS at the raster's centre
+        unit = (math.radians(6378137.0) * math.cos(math.radians(centre[1])) if self.crs.is_geographic
+                else self.crs.axis_info[0].unit_conversion_factor)
+        self.gsd = float(gt[1] * unit)
+        if not (np.all(np.isfinite(centre)) and 1e-3 <= self.gsd <= 1e4):
+            raise InputError(f"reference {self.path}: implausible georeferencing (pixel size {self.gsd:g} m in "
+                             f"{self.crs.name}); expected an orthoimage with pixels of 1 mm to 10 km")
         self._local = threading.local()
         self.data = ds.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
         ds = None
