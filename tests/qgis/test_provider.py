@@ -5,7 +5,8 @@ from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 
 from .conftest import PLUGIN
 
-ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:bundleadjust", "pushbroom:groundtoimage",
+ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:matchgcps",
+              "pushbroom:bundleadjust", "pushbroom:groundtoimage",
               "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",
               "pushbroom:exportrpc", "pushbroom:sensorcorrect"]
 MODELS = ["pushbroom:Simulate, adjust, orthorectify and export RPC"]  # resources/models/*.model3
