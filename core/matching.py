@@ -69,7 +69,7 @@ class MatchSettings:
     window (px, odd), min_correlation, max_peak_ratio, min_texture (DN), search (m: largest
     onboard error looked for), fine_radius (px around the coarse prediction), batch (chips
     per FFT batch), workers (threads; 0 = all cores), sigma_xy / sigma_z (m, ground sigmas
-    written to the GCPs)."""
+    written to the GCPs; sigma_xy None = half a reference pixel)."""
     spacing: float = 200.0
     count: int = 0
     window: int = 31
@@ -80,7 +80,7 @@ class MatchSettings:
     fine_radius: int = 8
     batch: int = 256
     workers: int = 0
-    sigma_xy: float = 2.0
+    sigma_xy: float | None = None
     sigma_z: float = 5.0
 
     def validate(self) -> None:
@@ -89,7 +89,8 @@ class MatchSettings:
                   "min_correlation": 0 < self.min_correlation < 1, "max_peak_ratio": 0 < self.max_peak_ratio <= 1,
                   "min_texture": self.min_texture >= 0, "search": 0 < self.search <= 50_000,
                   "fine_radius": 2 <= self.fine_radius <= 64, "batch": self.batch >= 1,
-                  "workers": self.workers >= 0, "sigma_xy": self.sigma_xy >= 0, "sigma_z": self.sigma_z >= 0}
+                  "workers": self.workers >= 0, "sigma_xy": self.sigma_xy is None or self.sigma_xy >= 0,
+                  "sigma_z": self.sigma_z >= 0}
         bad = [k for k, ok in checks.items() if not ok]
         if bad:
             raise InputError(f"matching settings out of range: {', '.join(f'{k}={getattr(self, k)}' for k in bad)} "
@@ -545,7 +546,8 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
     n = int(ok.sum())
     table = GcpTable(id=np.char.add("M", (np.nonzero(ok)[0] + 1).astype(str)), role="control", camera=cam.name,
                      col=out["col"][ok], row=out["row"][ok], lon=lon, lat=lat, h=h, sigma_px=out["sigma"][ok],
-                     sigma_xy=settings.sigma_xy, sigma_z=settings.sigma_z)
+                     sigma_xy=0.5 * ref.gsd if settings.sigma_xy is None else settings.sigma_xy,
+                     sigma_z=settings.sigma_z)
     if n == 0:
         raise InputError(f"no point of {col.size + near_seam} matched: " + _reason_text(rejected) +
                          ". Lower the quality threshold, enlarge the window, or check the reference")

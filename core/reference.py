@@ -117,10 +117,8 @@ def write_reference(scene: SceneModel, dem, frame: dict, path, seed: int,
         x, y = np.meshgrid(x0 + (np.arange(cols) + 0.5) * res, y0 - (np.arange(ra, rb) + 0.5) * res)
         lon, lat = to_lonlat.transform(x, y)
         v = texture_at(lon, lat, centre, gsd_raw, tex_seed).astype(np.float32)
-        w = _disc_weight(x, y, changed, soft=False)
-        if w.any():
-            other = texture_at(lon, lat, centre, gsd_raw, tex_seed + CHANGED_SEED_OFFSET).astype(np.float32)
-            v = np.where(w > 0, other, v)
+        inside = _disc_weight(x, y, changed, soft=False) > 0
+        v[inside] = texture_at(lon[inside], lat[inside], centre, gsd_raw, tex_seed + CHANGED_SEED_OFFSET)
         cloud = _disc_weight(x, y, clouds, soft=True)
         v = v + cloud * (1.05 - v)
         dn = settings.offset + settings.gain * (20.0 + 215.0 * np.clip(v, 0.0, 1.0) ** settings.gamma)
