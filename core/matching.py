@@ -49,6 +49,7 @@ from .gcps import GcpTable
 from .geodesy import ecef_to_geodetic
 from .ortho import _image_on_surface, _open_raw, _RawImage
 from .sensor import SceneModel
+from .tiepoints import TieTable
 
 gdal.UseExceptions()
 log = logging.getLogger(__name__)
@@ -163,6 +164,11 @@ class Reference:
             self._local.ds = gdal.Open(self.path)
         return self._local.ds
 
+    def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional array indices (x, y) of ECEF points (n, 3)."""
+        lon, lat, _ = ecef_to_geodetic(ground)
+        return self.pixel(lon, lat)
+
     def pixel(self, lon, lat) -> tuple[np.ndarray, np.ndarray]:
         """Fractional array indices (x = column, y = row; pixel centres at integers) of (lon, lat)."""
         x, y = self.to_map.transform(lon, lat)
@@ -188,6 +194,24 @@ class Reference:
         x0, y0 = max(int(np.floor(np.nanmin(x))) - pad - ox, 0), max(int(np.floor(np.nanmin(y))) - pad - oy, 0)
         x1, y1 = int(np.ceil(np.nanmax(x))) + pad + 1 - ox, int(np.ceil(np.nanmax(y))) + pad + 1 - oy
         return _blanked(a[y0:y1, x0:x1], self.nodata), ox + x0, oy + y0
+
+
+class ImageReference(Reference):
+    """Another camera's raw image as the reference (tie points): ground -> its image through the
+    scene model. Pixels as :class:`Reference`'s."""
+
+    def __init__(self, scene: SceneModel, camera: int, image_path, gsd: float, budget: float = MEMORY_BUDGET):
+        cam = scene.cameras[camera]
+        src = _open_raw(image_path, cam)
+        self.scene, self.camera, self.path, self.gsd = scene, camera, str(image_path), gsd
+        self.cols, self.rows = cam.cols, cam.rows
+        self.nodata = src.GetRasterBand(1).GetNoDataValue()
+        self.data = src.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
+        self._local = threading.local()
+
+    def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        col, row = self.scene.ground_to_image(ground, self.camera)
+        return col - 0.5, row - 0.5
 
 
 def _blanked(a: np.ndarray, nodata) -> np.ndarray:
@@ -221,8 +245,7 @@ def predicted_positions(scene: SceneModel, camera: int, dem, ref: Reference, col
     nc = (col[:, None, None] + d[None, None, :]) + 0 * d[None, :, None]
     nr = (row[:, None, None] + d[None, :, None]) + 0 * d[None, None, :]
     ground = scene.image_to_ground_dem(nc.ravel(), nr.ravel(), dem, camera)
-    lon, lat, _ = ecef_to_geodetic(ground)
-    x, y = (v.reshape(n, 3, 3) for v in ref.pixel(lon, lat))
+    x, y = (v.reshape(n, 3, 3) for v in ref.ground_pixel(ground))
     w = _LAGRANGE(step * (np.arange(size) - (size - 1) / 2) / half)  # (size, 3)
     px = np.einsum("ia,jb,nab->nij", w, w, x)
     py = np.einsum("ia,jb,nab->nij", w, w, y)
@@ -240,6 +263,8 @@ def sample(image: np.ndarray, x0: int, y0: int, x: np.ndarray, y: np.ndarray, no
     NaN where a position lies outside the image or one of its 4 x 4 taps is ``nodata`` or NaN.
     A local kernel, so no prefilter of the image: the cost is per sample, not per image."""
     h, w = image.shape
+    if h < 4 or w < 4:
+        return np.full(np.shape(x), np.nan)
     u, v = np.asarray(x, np.float64) - x0, np.asarray(y, np.float64) - y0
     iu, iv = np.floor(u), np.floor(v)
     inside = (iu >= 1) & (iv >= 1) & (iu <= w - 3) & (iv <= h - 3)
@@ -480,27 +505,43 @@ def _reasons(outside, no_ref, texture, p: Peaks, settings: MatchSettings) -> np.
     return reason
 
 
-def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
-               settings: MatchSettings = MatchSettings(),
-               progress: Callable[[float, str | None], None] | None = None,
-               is_cancelled: Callable[[], bool] | None = None) -> MatchResult:
-    """Ground control points for camera ``camera`` of ``scene`` by matching its raw image
-    (``image_path``) against a reference orthoimage over ``dem`` (core.dem.Dem or
-    ConstantHeight; heights of the GCPs come from it). See the module docstring."""
-    import time
-    settings.validate()
-    report = progress or (lambda fraction, message=None: None)
-    cancelled = is_cancelled or (lambda: False)
+def _open_checked(scene: SceneModel, camera: int, image_path):
+    """(raw image in memory or by window, its nodata) after checking its size and contrast."""
     cam = scene.cameras[camera]
     src = _open_raw(image_path, cam)
     band = src.GetRasterBand(1)
     step = max(1, min(cam.cols, cam.rows) // 256)
     check_not_constant("image", str(image_path), band.ReadAsArray(buf_xsize=cam.cols // step,
                                                                   buf_ysize=cam.rows // step).astype(np.float32))
-    nodata = band.GetNoDataValue()
-    ref = Reference(reference_path)
-    gsd = float(scene.info.get("gsd_m") or _gsd(scene, camera, dem))
-    _check_overlap(scene, camera, dem, ref, settings.search)
+    return src, band.GetNoDataValue()
+
+
+@dataclass
+class _GridMatch:
+    """Per grid point (n,): its position (col, row), the matched position, correlation, peak
+    ratio, sigma, the reference position matching the grid point itself (ref_col, ref_row: GDAL
+    px of the reference's array; the local affine map applied to the match's offset), the ECEF
+    ground (n, 3) of the grid point and the reason index (-1: passed)."""
+    col: np.ndarray
+    row: np.ndarray
+    out: dict
+    ground: np.ndarray
+    reasons: np.ndarray
+    near_seam: int
+    coarse: dict
+    seconds: float
+
+    def rejected(self) -> dict:
+        return {REASONS[0]: self.near_seam,
+                **{REASONS[i]: int((self.reasons == i).sum()) for i in range(1, len(REASONS))}}
+
+
+def _match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, gsd: float,
+                settings: MatchSettings, report, cancelled) -> _GridMatch:
+    """Match the grid of camera ``camera``'s raw image against ``ref`` (coarse, then fine pass)."""
+    import time
+    cam = scene.cameras[camera]
+    src, nodata = _open_checked(scene, camera, image_path)
     report(0.01, "reading the images")
     raw = _RawImage(image_path, src, MEMORY_BUDGET)
     start = time.perf_counter()
@@ -508,6 +549,7 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
     coarse = coarse_offsets(scene, camera, dem, ref, raw, gsd, settings)
     log.info("coarse offset plane: col %s, row %s px", coarse["col_plane_px"], coarse["row_plane_px"])
     half = (settings.window - 1) / 2
+    h = int(half)
     col, row, near_seam = grid_points(cam, settings, int(half + settings.fine_radius + 1))
     if col.size == 0:
         raise InputError(f"no grid point fits in the image ({cam.cols} x {cam.rows} px) with window "
@@ -516,7 +558,7 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
     order = np.argsort(np.floor(row / (settings.spacing * 8)) * cam.cols + col, kind="stable")
     batches = [order[i:i + settings.batch] for i in range(0, order.size, settings.batch)]
     workers = settings.workers or os.cpu_count() or 1
-    out = {k: np.full(col.size, np.nan) for k in ("col", "row", "value", "ratio", "sigma")}
+    out = {k: np.full(col.size, np.nan) for k in ("col", "row", "value", "ratio", "sigma", "ref_col", "ref_row")}
     ground = np.full((col.size, 3), np.nan)
     reasons = np.full(col.size, 2)
 
@@ -525,12 +567,18 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
         if cancelled():
             raise Cancelled("matching cancelled by the user")
         px, py, g = predicted_positions(scene, camera, dem, ref, col[idx], row[idx], half, settings.window, 1.0)
-        on_dem = np.isfinite(g).all(axis=1) & np.isfinite(px).all(axis=(1, 2))
-        if not on_dem.any():
+        ok = np.isfinite(g).all(axis=1) & np.isfinite(px).all(axis=(1, 2)) & np.isfinite(py).all(axis=(1, 2))
+        if not ok.any():
             return idx[:0], g[:0], {}
-        return idx[on_dem], g[on_dem], _fine_batch(px[on_dem], py[on_dem], col[idx[on_dem]], row[idx[on_dem]],
-                                                   shift_c[idx[on_dem]], shift_r[idx[on_dem]], ref, raw, nodata,
-                                                   settings, 1)
+        px, py, idx = px[ok], py[ok], idx[ok]
+        res = _fine_batch(px, py, col[idx], row[idx], shift_c[idx], shift_r[idx], ref, raw, nodata, settings, 1)
+        # the reference position of the grid point's own match: centre minus the local map of the offset
+        dc, dr = res["col"] - col[idx], res["row"] - row[idx]
+        jx = ((px[:, h, h + 1] - px[:, h, h - 1]) / 2, (px[:, h + 1, h] - px[:, h - 1, h]) / 2)
+        jy = ((py[:, h, h + 1] - py[:, h, h - 1]) / 2, (py[:, h + 1, h] - py[:, h - 1, h]) / 2)
+        res["ref_col"] = px[:, h, h] + 0.5 - jx[0] * dc - jx[1] * dr
+        res["ref_row"] = py[:, h, h] + 0.5 - jy[0] * dc - jy[1] * dr
+        return idx, g[ok], res
 
     with ThreadPoolExecutor(max_workers=workers) as pool:
         for n, (idx, g, res) in enumerate(pool.map(run, batches)):
@@ -539,23 +587,78 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
                     out[k][idx] = res[k]
                 reasons[idx], ground[idx] = res["reasons"], g
             report(0.1 + 0.85 * (n + 1) / len(batches), None)
-    seconds = time.perf_counter() - start
-    ok = reasons < 0
-    rejected = {REASONS[0]: near_seam, **{REASONS[i]: int((reasons == i).sum()) for i in range(1, len(REASONS))}}
-    lon, lat, h = ecef_to_geodetic(ground[ok])
-    n = int(ok.sum())
+    return _GridMatch(col, row, out, ground, reasons, near_seam, coarse, time.perf_counter() - start)
+
+
+def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
+               settings: MatchSettings = MatchSettings(),
+               progress: Callable[[float, str | None], None] | None = None,
+               is_cancelled: Callable[[], bool] | None = None) -> MatchResult:
+    """Ground control points for camera ``camera`` of ``scene`` by matching its raw image
+    (``image_path``) against a reference orthoimage over ``dem`` (core.dem.Dem or
+    ConstantHeight; heights of the GCPs come from it). See the module docstring."""
+    settings.validate()
+    report = progress or (lambda fraction, message=None: None)
+    cancelled = is_cancelled or (lambda: False)
+    cam = scene.cameras[camera]
+    ref = Reference(reference_path)
+    gsd = float(scene.info.get("gsd_m") or _gsd(scene, camera, dem))
+    _check_overlap(scene, camera, dem, ref, settings.search)
+    m = _match_grid(scene, camera, image_path, ref, dem, gsd, settings, report, cancelled)
+    ok = m.reasons < 0
+    rejected = m.rejected()
+    n, total = int(ok.sum()), int(m.col.size + m.near_seam)
+    if n == 0:
+        raise InputError(f"no point of {total} matched: " + _reason_text(rejected) +
+                         ". Lower the quality threshold, enlarge the window, or check the reference")
+    lon, lat, h = ecef_to_geodetic(m.ground[ok])
     table = GcpTable(id=np.char.add("M", (np.nonzero(ok)[0] + 1).astype(str)), role="control", camera=cam.name,
-                     col=out["col"][ok], row=out["row"][ok], lon=lon, lat=lat, h=h, sigma_px=out["sigma"][ok],
+                     col=m.out["col"][ok], row=m.out["row"][ok], lon=lon, lat=lat, h=h, sigma_px=m.out["sigma"][ok],
                      sigma_xy=0.5 * ref.gsd if settings.sigma_xy is None else settings.sigma_xy,
                      sigma_z=settings.sigma_z)
-    if n == 0:
-        raise InputError(f"no point of {col.size + near_seam} matched: " + _reason_text(rejected) +
-                         ". Lower the quality threshold, enlarge the window, or check the reference")
-    log.info("matched %d of %d grid points in %.2f s; rejected: %s", n, col.size + near_seam, seconds,
-             _reason_text(rejected))
-    return MatchResult(table, out["value"][ok], out["ratio"][ok],
-                       np.stack([out["col"][ok] - col[ok], out["row"][ok] - row[ok]], axis=1),
-                       int(col.size + near_seam), rejected, coarse, seconds)
+    log.info("matched %d of %d grid points in %.2f s; rejected: %s", n, total, m.seconds, _reason_text(rejected))
+    return MatchResult(table, m.out["value"][ok], m.out["ratio"][ok],
+                       np.stack([m.out["col"][ok] - m.col[ok], m.out["row"][ok] - m.row[ok]], axis=1),
+                       total, rejected, m.coarse, m.seconds)
+
+
+def match_tiepoints(scene: SceneModel, images: dict, dem, settings: MatchSettings = MatchSettings(search=300.0),
+                    base: int = 0, progress: Callable[[float, str | None], None] | None = None,
+                    is_cancelled: Callable[[], bool] | None = None) -> tuple[TieTable, dict]:
+    """Tie points between camera ``base`` of ``scene`` and every other camera of ``images``
+    ({camera index: raw image path}). Each other camera's image is resampled into the base
+    image's geometry through the onboard model on ``dem`` (the common ground geometry, so the
+    view angles do not defeat correlation) and matched like a reference; a grid point that
+    matches in k cameras is one tie point observed k + 1 times (its base position is the grid
+    point itself, the others the matched positions mapped back to it through the local map
+    base -> camera). ``search`` (m) bounds the
+    cameras' relative error. Returns the table and {camera name: rejected counts by reason}."""
+    settings.validate()
+    report = progress or (lambda fraction, message=None: None)
+    cancelled = is_cancelled or (lambda: False)
+    if base not in images or len(images) < 2:
+        raise InputError("tie points need the base camera's image and at least one other camera's")
+    gsd = float(scene.info.get("gsd_m") or _gsd(scene, base, dem))
+    observations, rejected = [], {}
+    others = [k for k in sorted(images) if k != base]
+    for n, k in enumerate(others):
+        ref = ImageReference(scene, k, images[k], gsd)
+        check_not_constant("image", ref.path, ref.data[::16, ::16].astype(np.float32) if ref.data is not None
+                           else np.array([0.0, 1.0]))
+        m = _match_grid(scene, base, images[base], ref, dem, gsd, settings,
+                        lambda f, msg=None, n=n: report((n + f) / len(others), msg), cancelled)
+        ok = m.reasons < 0
+        rejected[scene.cameras[k].name] = m.rejected()
+        ids = np.char.add("T", (np.nonzero(ok)[0] + 1).astype(str))
+        observations.append((ids, scene.cameras[k].name, m.out["ref_col"][ok], m.out["ref_row"][ok],
+                             m.out["sigma"][ok]))
+        observations.append((ids, scene.cameras[base].name, m.col[ok], m.row[ok], m.out["sigma"][ok]))
+    ids, cams, col, row, sigma = (np.concatenate([np.broadcast_to(o[i], o[0].shape) for o in observations])
+                                  for i in range(5))
+    # the base observation of a point matched in several cameras once
+    _, first = np.unique(np.char.add(np.char.add(ids, "|"), cams), return_index=True)
+    keep = np.sort(first)
+    return TieTable(ids[keep], cams[keep], col[keep], row[keep], sigma[keep], ""), rejected
 
 
 def _reason_text(rejected: dict) -> str:

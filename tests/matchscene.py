@@ -32,3 +32,16 @@ def true_errors(folder: Path, table) -> np.ndarray:
 
 def manifest(folder: Path) -> dict:
     return json.loads((Path(folder) / "simulation.json").read_text())
+
+
+MINI_TLC = Preset("mini_tlc", "TH-1 three-line geometry cut down to 1500 px x 1200 rows", 500e3,
+                  (CameraSpec("NAD", 1.0, 10e-6, 1, 1500),
+                   CameraSpec("FWD", 1.0, 10e-6, 1, 1500, tilt=0.436332),
+                   CameraSpec("BWD", 1.0, 10e-6, 1, 1500, tilt=-0.436332)), 1200,
+                  ErrorSettings(position_bias=10.0, attitude_bias=1e-4, focal_error=20e-6, installation=1e-4),
+                  inclination=1.698, centre=(113.5, 35.0))
+
+
+def mini_tlc_scene(folder: Path, seed: int = 7) -> SimulationResult:
+    """Simulate and render the three-line mini scene (a 12 km strip of 5 m pixels) into ``folder``."""
+    return simulate(MINI_TLC, folder, seed=seed, n_gcps=20, render=True)

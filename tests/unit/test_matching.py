@@ -97,3 +97,25 @@ def test_grid_count_and_settings_are_checked(mini):
     few = match_gcps(scene, 0, mini.images["HRC"], mini.reference, Dem(mini.dem, "geoid"),
                      MatchSettings(count=100, search=SEARCH))
     assert 70 <= few.grid_points <= 130
+
+
+def test_tie_points_between_the_three_cameras_of_a_line_scanner(tmp_path):
+    """TH-1-like three-line scene: FWD and BWD (+-25 deg) matched to NAD in NAD's geometry; each
+    observation against the true scene's projection of the NAD point's true ground."""
+    from core.matching import match_tiepoints
+    from tests.matchscene import mini_tlc_scene
+    sim = mini_tlc_scene(tmp_path)
+    onboard, true, dem = load_scene(sim.onboard_scene), load_scene(sim.true_scene), Dem(sim.dem, "geoid")
+    images = {k: sim.images[c.name] for k, c in enumerate(onboard.cameras)}
+    table, rejected = match_tiepoints(onboard, images, dem, MatchSettings(spacing=50, search=300.0))
+    base = table.camera == "NAD"
+    where = {i: k for k, i in enumerate(table.id[base])}
+    assert np.unique(table.id[base]).size == base.sum()  # one NAD observation per tie point
+    for k, name in ((1, "FWD"), (2, "BWD")):
+        sel = table.camera == name
+        b = np.array([where[i] for i in table.id[sel]])
+        ground = true.image_to_ground_dem(table.col[base][b], table.row[base][b], dem, 0)
+        col, row = true.ground_to_image(ground, k)
+        e = np.hypot(col - table.col[sel], row - table.row[sel])
+        assert sel.sum() >= 400 and np.median(e) <= 0.1 and np.mean(e > 1) <= 0.03, (name, np.median(e))
+        assert sum(rejected[name].values()) + sel.sum() == 667  # every grid point (23 x 29) matched or counted
