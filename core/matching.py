@@ -22,6 +22,10 @@ For each point p0 (col, row; GDAL pixel centres) of a grid over the raw image:
    clouds, changed land cover, water), ambiguous (second peak / first peak > ``max_peak_ratio``)
    or on the border of the search area.
 
+Tie points (:func:`match_tiepoints`) use the same machinery with another camera's raw image
+as the reference (ground -> its image through the scene model): the images are compared in
+the base camera's geometry, so different view angles do not defeat the correlation.
+
 A match says: the ground point G0 the onboard model sees at p0 (on the DEM) is seen in the
 raw image at p0 + d. So the GCP is ground G0 (lon, lat, ellipsoidal h) at image p0 + d.
 Its sigma (px) follows least-squares matching precision: sigma^2 = (1 - rho) / sum(g'^2) per
@@ -33,6 +37,7 @@ import logging
 import math
 import os
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable
@@ -202,10 +207,9 @@ class ImageReference(Reference):
 
     def __init__(self, scene: SceneModel, camera: int, image_path, gsd: float, budget: float = MEMORY_BUDGET):
         cam = scene.cameras[camera]
-        src = _open_raw(image_path, cam)
+        src, self.nodata = _open_checked(scene, camera, image_path)
         self.scene, self.camera, self.path, self.gsd = scene, camera, str(image_path), gsd
         self.cols, self.rows = cam.cols, cam.rows
-        self.nodata = src.GetRasterBand(1).GetNoDataValue()
         self.data = src.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
         self._local = threading.local()
 
@@ -539,7 +543,6 @@ class _GridMatch:
 def _match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, gsd: float,
                 settings: MatchSettings, report, cancelled) -> _GridMatch:
     """Match the grid of camera ``camera``'s raw image against ``ref`` (coarse, then fine pass)."""
-    import time
     cam = scene.cameras[camera]
     src, nodata = _open_checked(scene, camera, image_path)
     report(0.01, "reading the images")
@@ -631,8 +634,8 @@ def match_tiepoints(scene: SceneModel, images: dict, dem, settings: MatchSetting
     view angles do not defeat correlation) and matched like a reference; a grid point that
     matches in k cameras is one tie point observed k + 1 times (its base position is the grid
     point itself, the others the matched positions mapped back to it through the local map
-    base -> camera). ``search`` (m) bounds the
-    cameras' relative error. Returns the table and {camera name: rejected counts by reason}."""
+    base -> camera). ``search`` (m) bounds the cameras' relative error. Returns the table and
+    {camera name: rejected counts by reason} ('outside the reference': outside that camera's image)."""
     settings.validate()
     report = progress or (lambda fraction, message=None: None)
     cancelled = is_cancelled or (lambda: False)
@@ -643,8 +646,6 @@ def match_tiepoints(scene: SceneModel, images: dict, dem, settings: MatchSetting
     others = [k for k in sorted(images) if k != base]
     for n, k in enumerate(others):
         ref = ImageReference(scene, k, images[k], gsd)
-        check_not_constant("image", ref.path, ref.data[::16, ::16].astype(np.float32) if ref.data is not None
-                           else np.array([0.0, 1.0]))
         m = _match_grid(scene, base, images[base], ref, dem, gsd, settings,
                         lambda f, msg=None, n=n: report((n + f) / len(others), msg), cancelled)
         ok = m.reasons < 0
