@@ -25,7 +25,7 @@ from typing import Callable
 import numpy as np
 from osgeo import gdal
 from pyproj import CRS, Transformer
-from scipy.ndimage import gaussian_filter
+from scipy.ndimage import gaussian_filter, map_coordinates
 
 from .errors import Cancelled, InputError
 from .ortho import default_grid, utm_crs
@@ -36,6 +36,7 @@ gdal.UseExceptions()
 
 REFERENCE_NAME = "reference.tif"
 TILE_ROWS = 512
+NODE_STEP = 32               # px between exactly projected nodes of the reference grid
 CHANGED_SEED_OFFSET = 7919   # texture seed of changed land cover: another ground, same statistics
 
 
@@ -85,6 +86,17 @@ def _disc_weight(x: np.ndarray, y: np.ndarray, discs: np.ndarray, soft: bool) ->
     return w
 
 
+def _lonlat(to_lonlat: Transformer, x: np.ndarray, y: np.ndarray, step: int = NODE_STEP):
+    """(lon, lat) of the map grid (x, y) (2-D, regular): exact every ``step`` pixels and bilinear
+    between (the map projection's curvature over a few hundred metres is far below a millimetre)."""
+    rows, cols = x.shape
+    i, j = np.r_[0:rows:step, rows - 1], np.r_[0:cols:step, cols - 1]
+    lon, lat = to_lonlat.transform(x[np.ix_(i, j)], y[np.ix_(i, j)])
+    fi, fj = np.interp(np.arange(rows), i, np.arange(i.size)), np.interp(np.arange(cols), j, np.arange(j.size))
+    where = np.meshgrid(fi, fj, indexing="ij")
+    return (map_coordinates(np.asarray(lon), where, order=1), map_coordinates(np.asarray(lat), where, order=1))
+
+
 def write_reference(scene: SceneModel, dem, frame: dict, path, seed: int,
                     settings: ReferenceSettings = ReferenceSettings(),
                     is_cancelled: Callable[[], bool] | None = None) -> dict:
@@ -115,7 +127,7 @@ def write_reference(scene: SceneModel, dem, frame: dict, path, seed: int,
             raise Cancelled("simulation cancelled by the user")
         ra, rb = max(r0 - halo, 0), min(r0 + TILE_ROWS + halo, rows)
         x, y = np.meshgrid(x0 + (np.arange(cols) + 0.5) * res, y0 - (np.arange(ra, rb) + 0.5) * res)
-        lon, lat = to_lonlat.transform(x, y)
+        lon, lat = _lonlat(to_lonlat, x, y)
         v = texture_at(lon, lat, centre, gsd_raw, tex_seed).astype(np.float32)
         inside = _disc_weight(x, y, changed, soft=False) > 0
         v[inside] = texture_at(lon[inside], lat[inside], centre, gsd_raw, tex_seed + CHANGED_SEED_OFFSET)
