@@ -4,7 +4,7 @@ the raw image against (a national orthophoto, a Sentinel-2 scene, an earlier pro
 It shows the same ground texture as the raw images (:mod:`core.render`), on a north-up grid
 in the UTM zone of the scene centre, and differs from them like a real reference does:
 
-- another ground sample distance (default 5 m) and an optical blur (Gaussian, sigma in
+- another ground sample distance (default 5 m, at least twice the scene's) and an optical blur (Gaussian, sigma in
   reference pixels);
 - another radiometry: DN = offset + gain * (20 + 215 * v ** gamma), plus Gaussian noise (DN);
 - patches of changed land cover (discs where the texture has another seed) and clouds (bright
@@ -55,7 +55,7 @@ class ReferenceSettings:
     changed: float = 0.04
     cloud: float = 0.03
     patch_radius: tuple[float, float] = (150.0, 500.0)
-    margin: float = 3000.0
+    margin: float = 2000.0
 
     def validate(self) -> None:
         if not (self.gsd > 0 and self.blur >= 0 and self.gain > 0 and self.gamma > 0 and self.noise >= 0
@@ -98,11 +98,14 @@ def _lonlat(to_lonlat: Transformer, x: np.ndarray, y: np.ndarray, step: int = NO
 
 
 def write_reference(scene: SceneModel, dem, frame: dict, path, seed: int,
-                    settings: ReferenceSettings = ReferenceSettings(),
+                    settings: ReferenceSettings | None = None,
                     is_cancelled: Callable[[], bool] | None = None) -> dict:
     """Write the reference orthoimage of ``scene``'s ground (the true scene; every camera's
     footprint on ``dem`` plus the margin) with the texture of ``frame`` (core.render) into an
-    8-bit GeoTIFF at ``path``. Returns its description (CRS, geotransform, settings, discs)."""
+    8-bit GeoTIFF at ``path``. Default settings: :class:`ReferenceSettings` with pixels of 5 m
+    or twice the scene's GSD, whichever is larger (a 60 km TH-1 scene stays at 44 Mpx).
+    Returns its description (CRS, geotransform, settings, discs)."""
+    settings = settings or ReferenceSettings(gsd=max(5.0, 2.0 * float(frame["gsd_m"])))
     settings.validate()
     cancelled = is_cancelled or (lambda: False)
     centre = tuple(frame["centre"])

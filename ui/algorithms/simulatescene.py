@@ -95,7 +95,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         render.setHelp(tr("Also write each camera's raw image (8-bit GeoTIFF without georeferencing, "
                           "image_<CAMERA>.tif) rendered from a known texture over the DEM, for orthorectification. "
                           "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB. With the images comes "
-                          "reference.tif, a reference orthoimage of the same ground (UTM, 5 m, blurred, another "
+                          "reference.tif, a reference orthoimage of the same ground (UTM, 5 m or twice the GSD, blurred, another "
                           "radiometry, noise, patches of changed land cover and cloud) for pushbroom:matchgcps."))
         folder = QgsProcessingParameterFolderDestination(self.OUTPUT_FOLDER, tr("Output folder"))
         folder.setHelp(tr("Folder the simulated files are written to (created if missing). Files there of the "
