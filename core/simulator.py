@@ -20,7 +20,8 @@ camera set images it. Two scene models are written:
 Outputs in the folder: ``onboard_scene.json``, ``true_scene.json``, ``gcps.csv`` (ground
 control and check points), ``tie_points.csv`` (multi-camera presets), ``dem.tif`` (EGM96
 geoid heights), ``simulation.json`` (settings and truth), and with ``render=True`` one raw
-image per camera ``image_<CAMERA>.tif`` (see :mod:`core.render`). With roads (``n_lines``),
+image per camera ``image_<CAMERA>.tif`` (see :mod:`core.render`) and the reference orthoimage
+``reference.tif`` of the same ground (see :mod:`core.reference`). With roads (``n_lines``),
 ``lines.gpkg`` (road map and image lines) and ``line_points.csv`` (see :mod:`core.roads`).
 
 Frames: ECEF metres, times in seconds from the epoch, image coordinates GDAL (col, row).
@@ -213,6 +214,7 @@ class SimulationResult:
     tie_points: Path | None = None
     images: dict = field(default_factory=dict)
     lines: Path | None = None
+    reference: Path | None = None
 
 
 # --- orbit and attitude ----------------------------------------------------------------------
@@ -585,12 +587,13 @@ def _write_csv(path: Path, columns: tuple[str, ...], data: dict) -> None:
 
 
 # --- the whole simulation ----------------------------------------------------------------------
-def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int = 200, image_noise: float = 0.3,
+def simulate(preset: "str | Preset", folder, seed: int = 0, n_scenes: int = 1, n_gcps: int = 200, image_noise: float = 0.3,
              render: bool = False, errors: ErrorSettings | dict | None = None,
              gcp_settings: GcpSettings | None = None, progress: Callable[[float, str | None], None] | None = None,
              is_cancelled: Callable[[], bool] | None = None, n_lines: int = 0,
              road_settings: RoadSettings | None = None) -> SimulationResult:
-    """Simulate a strip of ``n_scenes`` scenes of ``preset`` into ``folder`` (created).
+    """Simulate a strip of ``n_scenes`` scenes of ``preset`` (a name of PRESETS, or a Preset of
+    one's own, e.g. a small scene for tests) into ``folder`` (created).
 
     errors: the preset's :class:`ErrorSettings` (None), or another one, or a dict overriding
     some of its fields. gcp_settings: measurement settings; n_gcps and image_noise set its
@@ -601,11 +604,11 @@ def simulate(preset: str, folder, seed: int = 0, n_scenes: int = 1, n_gcps: int 
     n_lines / road_settings: simulated roads, control lines with their truth (:mod:`core.roads`);
     n_lines sets the number of roads when road_settings is None.
     """
-    if preset not in PRESETS:
+    if not isinstance(preset, Preset) and preset not in PRESETS:
         raise InputError(f"unknown preset {preset!r} (choose one of {', '.join(PRESETS)})")
     if not 1 <= int(n_scenes) <= 200:
         raise InputError(f"n_scenes must be between 1 and 200 (got {n_scenes})")
-    spec = PRESETS[preset]
+    spec = preset if isinstance(preset, Preset) else PRESETS[preset]
     errors = _error_settings(spec, errors)
     settings = gcp_settings or GcpSettings(n_gcps=int(n_gcps), image_noise=float(image_noise))
     settings.validate()
@@ -702,6 +705,10 @@ def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool
                     progress=lambda f, b=base: report(b + f * 0.35 / len(geo.true.cameras), None),
                     is_cancelled=cancelled)
                 images[cam.name] = folder / f"image_{cam.name}.tif"
+            from .reference import REFERENCE_NAME, write_reference
+            step(0.99, "writing the reference orthoimage")
+            frame["reference"] = write_reference(geo.true, dem, frame, files.path(folder / REFERENCE_NAME), seed,
+                                                 is_cancelled=cancelled)
         manifest = {"preset": preset, "seed": seed, "n_scenes": int(n_scenes), "epoch": EPOCH,
                     "errors": asdict(errors), "measurements": asdict(settings), "truth": geo.truth,
                     "texture": frame, "roads": road_truth,
@@ -710,13 +717,15 @@ def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool
                               "gcps": "gcps.csv", "dem": "dem.tif (EGM96 geoid heights)",
                               "tie_points": "tie_points.csv" if tie_tmp else None,
                               "lines": LINES_FILE if road_truth else None, "line_points": POINTS_FILE if road_truth else None,
-                              "images": {k: v.name for k, v in images.items()}}}
+                              "images": {k: v.name for k, v in images.items()},
+                              "reference": frame["reference"]["file"] if render else None}}
         write_text(folder / MANIFEST, json.dumps(manifest, indent=1), files)
     report(1.0, "simulation written")
     return SimulationResult(folder, folder / "onboard_scene.json", folder / "true_scene.json", folder / "gcps.csv",
                             folder / "dem.tif", folder / MANIFEST,
                             folder / "tie_points.csv" if settings.n_tie_points else None, images,
-                            folder / LINES_FILE if road_truth else None)
+                            folder / LINES_FILE if road_truth else None,
+                            folder / "reference.tif" if render else None)
 
 
 def output_names(spec: Preset, settings: GcpSettings, render: bool) -> list[str]:
@@ -724,7 +733,7 @@ def output_names(spec: Preset, settings: GcpSettings, render: bool) -> list[str]
     names = ["dem.tif", "gcps.csv", "true_scene.json", "onboard_scene.json", MANIFEST]
     if settings.n_tie_points:
         names.append("tie_points.csv")
-    return names + ([f"image_{cam.name}.tif" for cam in spec.cameras] if render else [])
+    return names + ([f"image_{cam.name}.tif" for cam in spec.cameras] + ["reference.tif"] if render else [])
 
 
 def check_folder(folder, names) -> None:
@@ -752,7 +761,7 @@ def _simulated_files(folder: Path) -> set[str]:
         manifest = json.loads((folder / MANIFEST).read_text())
         listed = manifest["files"]
         names = [listed[k] for k in ("true_scene", "onboard_scene", "gcps", "dem", "tie_points")]
-        names += list(listed["images"].values())
+        names += list(listed["images"].values()) + [listed.get("reference")]
         names += [listed.get("lines"), listed.get("line_points")]
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return set()

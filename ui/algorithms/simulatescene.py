@@ -92,7 +92,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         "RENDER"
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
     ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM = "ONBOARD_SCENE", "TRUE_SCENE", "GCPS", "DEM"
-    TIE_POINTS, MANIFEST, IMAGE = "TIE_POINTS", "MANIFEST", "IMAGE"
+    TIE_POINTS, MANIFEST, IMAGE, REFERENCE = "TIE_POINTS", "MANIFEST", "IMAGE", "REFERENCE"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         seed = QgsProcessingParameterNumber(self.SEED, tr("Random seed"), QgsProcessingParameterNumber.Integer, 0,
@@ -116,7 +116,9 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         render = QgsProcessingParameterBoolean(self.RENDER, tr("Render the images"), defaultValue=False)
         render.setHelp(tr("Also write each camera's raw image (8-bit GeoTIFF without georeferencing, "
                           "image_<CAMERA>.tif) rendered from a known texture over the DEM, for orthorectification. "
-                          "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB."))
+                          "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB. With the images comes "
+                          "reference.tif, a reference orthoimage of the same ground (UTM, 5 m or twice the GSD, blurred, another "
+                          "radiometry, noise, patches of changed land cover and cloud) for pushbroom:matchgcps."))
         folder = QgsProcessingParameterFolderDestination(self.OUTPUT_FOLDER, tr("Output folder"))
         folder.setHelp(tr("Folder the simulated files are written to (created if missing). Files there of the "
                           "names the simulation writes are replaced only when an earlier simulation wrote them "
@@ -143,6 +145,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputRasterLayer(self.DEM, tr("DEM (GeoTIFF, EGM96 geoid heights)")))
         self.addOutput(QgsProcessingOutputFile(self.MANIFEST, tr("Simulation settings and drawn errors (JSON)")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.IMAGE, tr("Raw image of the first camera, when rendered")))
+        self.addOutput(QgsProcessingOutputRasterLayer(self.REFERENCE, tr("Reference orthoimage, when rendered")))
         self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, tr("Output folder")))
 
 
@@ -174,4 +177,5 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                 self.TRUE_SCENE: str(result.true_scene), self.GCPS: str(result.gcps), self.DEM: str(result.dem),
                 self.TIE_POINTS: str(result.tie_points) if result.tie_points else None,
                 self.MANIFEST: str(result.manifest),
-                self.IMAGE: str(next(iter(result.images.values()))) if result.images else None}
+                self.IMAGE: str(next(iter(result.images.values()))) if result.images else None,
+                self.REFERENCE: str(result.reference) if result.reference else None}

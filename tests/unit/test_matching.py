@@ -1,0 +1,121 @@
+"""core.matching and core.reference on a small rendered scene with known truth (tests/matchscene.py)."""
+import numpy as np
+import pytest
+from osgeo import gdal
+from pyproj import CRS, Transformer
+
+from core.dem import Dem
+from core.errors import InputError
+from core.matching import REASONS, MatchSettings, find_peaks, match_gcps, ncc
+from core.render import texture_at
+from core.scene_io import load_scene
+from tests.matchscene import SEARCH, manifest, mini_scene, true_errors
+
+
+@pytest.fixture(scope="module")
+def mini(tmp_path_factory):
+    return mini_scene(tmp_path_factory.mktemp("mini"))
+
+
+@pytest.fixture(scope="module")
+def matched(mini):
+    scene = load_scene(mini.onboard_scene)
+    return match_gcps(scene, 0, mini.images["HRC"], mini.reference, Dem(mini.dem, "geoid"),
+                      MatchSettings(spacing=60, search=SEARCH))
+
+
+def test_ncc_recovers_a_known_subpixel_shift():
+    yy, xx = np.mgrid[0:47, 0:47].astype(float)
+    shift = np.array([[2.3, -1.7], [-4.6, 3.2], [0.0, 0.5]])  # (dx, dy) of the search content
+    search = np.stack([texture_at(xx * 1e-5, yy * 1e-5, (0.0, 0.0), 0.3, 4) for _ in shift]) * 200
+    templates = np.stack([texture_at((xx[8:39, 8:39] + dx) * 1e-5, (yy[8:39, 8:39] + dy) * 1e-5, (0.0, 0.0), 0.3, 4)
+                          for dx, dy in shift]) * 200
+    peaks = find_peaks(ncc(templates, search), 4)
+    # the template taken at (8 + d) of the search is found at offset 8 + d
+    np.testing.assert_allclose(peaks.dx - 8, shift[:, 0], atol=0.08)
+    np.testing.assert_allclose(peaks.dy - 8, shift[:, 1], atol=0.08)
+    assert np.all(peaks.value > 0.9) and not peaks.border.any()
+
+
+def test_reference_shows_the_rendered_ground_at_its_geotransform(mini):
+    frame = manifest(mini.folder)["texture"]
+    info = frame["reference"]
+    ds = gdal.Open(str(mini.reference))
+    gt, a = ds.GetGeoTransform(), ds.ReadAsArray().astype(float)
+    assert gt[1] == 5.0 and list(gt) == info["geotransform"]
+    crs = CRS.from_wkt(ds.GetProjection())
+    assert crs.to_epsg() == 32600 + int((frame["centre"][0] + 180) // 6) + 1  # the UTM zone of the centre
+    rng = np.random.default_rng(0)
+    i, j = rng.integers(0, a.shape[0], 4000), rng.integers(0, a.shape[1], 4000)
+    x, y = gt[0] + (j + 0.5) * gt[1], gt[3] + (i + 0.5) * gt[5]
+    lon, lat = Transformer.from_crs(crs, CRS.from_epsg(4326), always_xy=True).transform(x, y)
+    expected = texture_at(lon, lat, frame["centre"], frame["gsd_m"], frame["seed"])
+    s = info["settings"]
+    changed = np.zeros(i.size, bool)
+    for cx, cy, r in info["changed_discs_utm_m"] + info["cloud_discs_utm_m"]:
+        changed |= np.hypot(x - cx, y - cy) < r
+    dn = s["offset"] + s["gain"] * (20 + 215 * expected ** s["gamma"])
+    diff = a[i, j] - dn
+    # the blur (0.6 px) and noise (2 DN) make the difference; patches differ wholly
+    assert np.median(np.abs(diff[~changed])) < 4.0
+    assert np.median(np.abs(diff[changed])) > 8.0
+    assert 0.02 < changed.mean() < 0.15
+
+
+def test_matched_gcps_are_accurate_against_the_truth(mini, matched):
+    e = true_errors(mini.folder, matched.table)
+    assert len(matched.table) >= 400
+    assert np.median(e) <= 0.1
+    assert np.mean(e > 1.0) <= 0.03
+    # every grid point is either matched or counted under one reason
+    assert sum(matched.rejected.values()) + len(matched.table) == matched.grid_points
+    assert set(matched.rejected) == set(REASONS)
+    assert matched.rejected["low correlation"] > 0  # clouds and changed land cover are seen
+    assert np.all(matched.table.sigma_px >= 0.1) and np.all(matched.quality >= 0.6)
+    # the onboard model is ~200 m off: the matches found it, not a local optimum near zero
+    assert np.hypot(*np.median(matched.offset, axis=0)) > 50
+
+
+def test_sigma_and_quality_rank_the_errors(mini, matched):
+    """Points the matcher calls weaker (lower correlation) are really less accurate."""
+    e = true_errors(mini.folder, matched.table)
+    weak = matched.quality < np.median(matched.quality)
+    assert np.median(e[weak]) > np.median(e[~weak])
+
+
+def test_an_onboard_error_beyond_the_search_range_is_named(mini):
+    scene = load_scene(mini.onboard_scene)
+    with pytest.raises(InputError, match="increase the search range"):
+        match_gcps(scene, 0, mini.images["HRC"], mini.reference, Dem(mini.dem, "geoid"),
+                   MatchSettings(spacing=60, search=60.0))
+
+
+def test_grid_count_and_settings_are_checked(mini):
+    scene = load_scene(mini.onboard_scene)
+    with pytest.raises(InputError, match="window"):
+        match_gcps(scene, 0, mini.images["HRC"], mini.reference, Dem(mini.dem, "geoid"), MatchSettings(window=30))
+    few = match_gcps(scene, 0, mini.images["HRC"], mini.reference, Dem(mini.dem, "geoid"),
+                     MatchSettings(count=100, search=SEARCH))
+    assert 70 <= few.grid_points <= 130
+
+
+def test_tie_points_between_the_three_cameras_of_a_line_scanner(tmp_path):
+    """TH-1-like three-line scene: FWD and BWD (+-25 deg) matched to NAD in NAD's geometry; each
+    observation against the true scene's projection of the NAD point's true ground."""
+    from core.matching import match_tiepoints
+    from tests.matchscene import mini_tlc_scene
+    sim = mini_tlc_scene(tmp_path)
+    onboard, true, dem = load_scene(sim.onboard_scene), load_scene(sim.true_scene), Dem(sim.dem, "geoid")
+    images = {k: sim.images[c.name] for k, c in enumerate(onboard.cameras)}
+    table, rejected = match_tiepoints(onboard, images, dem, MatchSettings(spacing=50, search=300.0))
+    base = table.camera == "NAD"
+    where = {i: k for k, i in enumerate(table.id[base])}
+    assert np.unique(table.id[base]).size == base.sum()  # one NAD observation per tie point
+    for k, name in ((1, "FWD"), (2, "BWD")):
+        sel = table.camera == name
+        b = np.array([where[i] for i in table.id[sel]])
+        ground = true.image_to_ground_dem(table.col[base][b], table.row[base][b], dem, 0)
+        col, row = true.ground_to_image(ground, k)
+        e = np.hypot(col - table.col[sel], row - table.row[sel])
+        assert sel.sum() >= 400 and np.median(e) <= 0.1 and np.mean(e > 1) <= 0.03, (name, np.median(e))
+        assert sum(rejected[name].values()) + sel.sum() == 667  # every grid point (23 x 29) matched or counted

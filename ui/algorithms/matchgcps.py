@@ -1,0 +1,116 @@
+"""pushbroom:matchgcps — ground control points matched automatically between the raw image and
+a reference orthoimage through the scene model, written as the GCP layer the adjustment reads."""
+from pathlib import Path
+
+import numpy as np
+from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterNumber,
+                       QgsProcessingParameterRasterLayer, QgsProcessingParameterVectorDestination)
+
+from ...core import gcps
+from ...core.matching import MatchSettings, match_gcps
+from ..common import (CAMERA, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
+                      check_outputs, core_call, dem_from_parameters, feedback_callbacks, load_scene_for,
+                      processing_errors, style_output_on_load)
+from ..parameters import CHECK_FRACTION, check_fraction, tr
+
+
+class MatchGcpsAlgorithm(PushbroomAlgorithm):
+    ID = "matchgcps"
+    NAME = "Match ground control points"
+    GROUP, GROUP_ID = "Control", "control"
+    HELP = ("Finds ground control points without a click, as Zheng et al. 2015 did for CBERS-02B: a grid of points "
+            "over the raw image is matched against a reference orthoimage (a national orthophoto, a Sentinel-2 "
+            "scene, an earlier adjusted product; any projected CRS and GSD) through the scene's model and the DEM. "
+            "For each point the reference is resampled into the raw image's geometry (the onboard model maps each "
+            "pixel of the window to the DEM), correlated with the raw image (normalised cross-correlation by FFT) "
+            "and refined to sub-pixel. A coarse pass at low resolution first finds onboard errors of hundreds of "
+            "metres, up to SEARCH_RANGE. Weak matches are rejected and counted by reason (low texture, low "
+            "correlation: clouds, water, changed land cover; ambiguous peaks; windows leaving the image or the "
+            "reference); what passes may still hold a few gross errors, which the adjustment's robust estimation "
+            "removes. Each GCP is the ground point the onboard model sees at a grid point (lon, lat and the "
+            "DEM's ellipsoidal height) at the matched image position, with fields quality (the correlation "
+            "peak), peak_ratio (second peak / first) and sigma_px (from the correlation and the image "
+            "gradients, at least 0.1 px). The output is the GeoPackage layer pushbroom:importgcps writes, "
+            "read directly by pushbroom:bundleadjust (use robust estimation).")
+    INPUT, REFERENCE, SPACING, N_POINTS, WINDOW = "INPUT", "REFERENCE", "SPACING", "N_POINTS", "WINDOW"
+    MIN_CORRELATION, SEARCH_RANGE, OUTPUT = "MIN_CORRELATION", "SEARCH_RANGE", "OUTPUT"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
+        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image")),
+                           tr("The scene's raw image (first band matched), of the size the scene's camera images."))
+        add_scene_parameters(self)
+        self.add_parameter(QgsProcessingParameterRasterLayer(self.REFERENCE, tr("Reference orthoimage")),
+                           tr("A north-up orthoimage of the scene's ground in a projected CRS (metres), any GSD "
+                              "(first band matched; its nodata value is honoured). It must overlap the scene."))
+        add_dem_parameters(self)
+        number = QgsProcessingParameterNumber
+        for name, label, kind, default, lo, hi, help_text in (
+                (self.SPACING, tr("Grid spacing (px)"), number.Double, 200.0, 8.0, 1e5,
+                 tr("Distance in raw image pixels between the grid points matched (used when N_POINTS is 0).")),
+                (self.N_POINTS, tr("Number of points (0: use the spacing)"), number.Integer, 0, 0, 10_000_000,
+                 tr("About this many grid points, evenly spread over the image; 0: SPACING decides.")),
+                (self.WINDOW, tr("Matching window (px)"), number.Integer, 31, 9, 257,
+                 tr("Side of the square window correlated, in raw image pixels (odd). Larger: fewer ambiguous "
+                    "matches on weak texture, slower.")),
+                (self.MIN_CORRELATION, tr("Quality threshold (correlation)"), number.Double, 0.6, 0.05, 0.99,
+                 tr("Matches whose correlation peak is below this value are rejected (clouds, water, changed "
+                    "land cover). The second-to-first peak ratio must also be below 0.85.")),
+                (self.SEARCH_RANGE, tr("Search range (m)"), number.Double, 1000.0, 10.0, 50_000.0,
+                 tr("Largest onboard position error looked for, in metres on the ground. When the run says no "
+                    "consistent match was found, a larger value (about twice the expected error) may find it."))):
+            self.add_parameter(number(name, label, kind, default, minValue=lo, maxValue=hi), help_text)
+        self.addParameter(check_fraction())
+        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Matched ground control points"),
+                                                      QgsProcessing.TypeVectorPoint)
+        out.setSupportsNonFileBasedOutput(False)
+        self.add_parameter(out, tr("GeoPackage (.gpkg) point layer of the matched GCPs in EPSG:4979 with the fields "
+                                   "of pushbroom:importgcps plus quality and peak_ratio."))
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        dest = self.output_path(parameters, context, self.OUTPUT, "matched_gcps.gpkg")
+        if Path(dest).suffix.lower() != ".gpkg":
+            raise QgsProcessingException(f"{self.OUTPUT}: GCP layers are written as GeoPackage; choose a .gpkg file "
+                                         f"(got {dest})")
+        check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
+        image, reference = (self._raster(parameters, context, name) for name in (self.INPUT, self.REFERENCE))
+        scene_path = self.parameterAsFile(parameters, SCENE, context)
+        scene = load_scene_for(SCENE, scene_path, feedback)
+        camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
+        surface = dem_from_parameters(self, parameters, context, scene, feedback)
+        with processing_errors():
+            settings = MatchSettings(spacing=self.parameterAsDouble(parameters, self.SPACING, context),
+                                     count=self.parameterAsInt(parameters, self.N_POINTS, context),
+                                     window=self.parameterAsInt(parameters, self.WINDOW, context),
+                                     min_correlation=self.parameterAsDouble(parameters, self.MIN_CORRELATION, context),
+                                     search=self.parameterAsDouble(parameters, self.SEARCH_RANGE, context))
+            settings.validate()
+        progress, is_cancelled = feedback_callbacks(feedback)
+        result = core_call(match_gcps, scene, camera, image, reference, surface, settings, progress, is_cancelled)
+        table = core_call(gcps.check_against_scene, result.table, scene, scene_path, None,
+                          self.parameterAsDouble(parameters, CHECK_FRACTION, context))
+        with processing_errors(f"{self.OUTPUT}: "):
+            gcps.write_gpkg(table, dest, extra={"quality": result.quality, "peak_ratio": result.peak_ratio})
+        self._report(result, feedback)
+        style_output_on_load(context, dest, STYLES / "gcps.qml")
+        feedback.setProgress(100)
+        return {self.OUTPUT: dest}
+
+    def _raster(self, parameters, context, name: str) -> str:
+        layer = self.parameterAsRasterLayer(parameters, name, context)
+        if layer is None:
+            raise QgsProcessingException(f"{name}: no raster given")
+        return layer.source().split("|")[0]
+
+    @staticmethod
+    def _report(result, feedback) -> None:
+        n = len(result.table)
+        feedback.pushInfo(f"matched {n} of {result.grid_points} grid points in {result.seconds:.1f} s "
+                          f"({n / max(result.seconds, 1e-9):.0f} points/s)")
+        rejected = ", ".join(f"{v} {k}" for k, v in result.rejected.items() if v)
+        feedback.pushInfo(f"rejected: {rejected or 'none'}")
+        c = result.coarse
+        feedback.pushInfo(f"coarse pass (1:{c['factor']}): {c['consistent']} of {c['chips']} chips agree; onboard "
+                          f"offset at the image centre {c['col_plane_px'][0]:.1f} px across, "
+                          f"{c['row_plane_px'][0]:.1f} px along track")
+        feedback.pushInfo(f"quality (correlation) median {np.median(result.quality):.3f}; sigma_px median "
+                          f"{np.median(result.table.sigma_px):.2f} px")
