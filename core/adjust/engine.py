@@ -219,7 +219,9 @@ class _Problem:
         their indices in ground, ``ground_point`` (m,) each point's unknown index or -1."""
         tie_ground = np.zeros((0, 3)) if tie_ground is None else tie_ground
         self.lines = lines or LineSetUp.empty()
-        self.line_flagged = np.zeros(self.lines.obs.keys.size, bool)  # lines named wrong as a whole
+        # lines named wrong as a whole (released); grossly wrong ones from the start
+        self.line_flagged = linepoints.screen(self.scene, self.lines) if len(self.lines) else \
+            np.zeros(0, bool)
         self.n_control = int(sel.size)
         self.line_first = int(sel.size + tie_ground.shape[0])
         self.ground0 = np.concatenate([geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel]).reshape(-1, 3),

@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import stats
 
-from ..geodesy import ecef_to_geodetic
+from ..geodesy import ecef_to_geodetic, enu_rotations
 from ..lines import (GroundLines, ImageLines, LineConstraint, LineObservations, LineSegments, azimuths,
                      check_image_lines, check_in_scene, direction_check, line_constraints, nearest_segments, pair,
                      start_points)
@@ -57,6 +57,8 @@ log = logging.getLogger(__name__)
 ACROSS_GROUP = "lines_across"
 HEIGHT_GROUP = "lines_height"
 RELEASE = 1e4          # factor on sigma_across of a line named wrong
+SCREEN_MADS = 10.0      # a-priori screening: robust standard deviations of the lines' misfits
+SCREEN_MIN_M = 50.0     # m: and at least this
 WRONG_SHARE = 0.5       # a line with more than this share of its points failing the point test is wrong
 
 
@@ -130,6 +132,35 @@ def _subset(ground: GroundLines, keep: np.ndarray) -> GroundLines:
     counts = np.diff(ground.start)[keep]
     return GroundLines(ground.id[keep], np.r_[0, np.cumsum(counts)], ground.lon[vertex], ground.lat[vertex],
                        ground.h[vertex], ground.sigma_across[keep], ground.sigma_h[keep])
+
+
+def screen(scene, setup: LineSetUp) -> np.ndarray:
+    """(K,) lines whose a-priori misfit is grossly wrong (a line paired to a road kilometres off
+    would otherwise pull the first solution far enough to hide itself among the others): the
+    points' a-priori across-line offsets (rays through the onboard ``scene``, m) are fitted
+    by an affine horizontal displacement field (the onboard error: shift, rotation, scale),
+    iteratively trimmed; a line whose median residual exceeds SCREEN_MADS robust standard
+    deviations of the lines' medians (and SCREEN_MIN_M) starts released. It comes back in the
+    first pass where it fits (:func:`flag_lines`)."""
+    offsets = ray_offsets(scene, setup)[:, 0]
+    c = line_constraints(setup.seg, setup.obs.key, setup.ground)
+    lon, lat, _ = ecef_to_geodetic(c.foot)
+    east_north = np.einsum("nij,nj->ni", enu_rotations(lon, lat), c.across)[:, :2]
+    p = np.einsum("nij,nj->ni", enu_rotations(lon[:1], lat[:1])[0][None], c.foot - c.foot[:1])[:, :2] / 1e4
+    design = np.concatenate([east_north, east_north[:, :1] * p, east_north[:, 1:] * p], axis=1)  # (n, 6)
+    key, k = setup.obs.key, setup.obs.keys.size
+    keep = np.ones(offsets.size, bool)
+    for _ in range(5):
+        coef, *_ = np.linalg.lstsq(design[keep], offsets[keep], rcond=None)
+        residual = offsets - design @ coef
+        median = np.array([np.median(np.abs(residual[key == j])) if (key == j).any() else 0.0 for j in range(k)])
+        spread = 1.4826 * np.median(median)
+        gross = median > max(SCREEN_MADS * spread, SCREEN_MIN_M)
+        keep = ~gross[key]
+    if gross.any():
+        log.info("control lines %s start released: their a-priori misfit is grossly larger than the others'",
+                 _listed(setup.obs.keys[gross]))
+    return gross
 
 
 # --- statistics ------------------------------------------------------------------------------------
@@ -289,7 +320,6 @@ def results(problem: "_Problem", adjusted, st: "Statistics", flagged: np.ndarray
               "across_rmse_m": rms(offsets[good, 0]), "height_rmse_m": rms(offsets[good, 1]),
               "across_rmse_before_m": rms(before[good, 0]),
               "image_residuals_px": {"rmse_col": rms(points["res_col"][good]), "rmse_row": rms(points["res_row"][good])},
-              "directions": direction,
-              "per_line": {k: v.tolist() for k, v in table.items()}}
+              "directions": direction, "per_line": {k: v.tolist() for k, v in table.items()}}
     return report, points
 
