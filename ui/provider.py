@@ -11,6 +11,7 @@ from .algorithms.groundtoimage import GroundToImageAlgorithm
 from .algorithms.imagetoground import ImageToGroundAlgorithm
 from .algorithms.importgcps import ImportGcpsAlgorithm
 from .algorithms.importtiepoints import ImportTiePointsAlgorithm
+from .algorithms.importlines import ImportLinesAlgorithm
 from .algorithms.orthorectify import OrthorectifyAlgorithm
 from .algorithms.preparedigitising import PrepareDigitisingAlgorithm
 from .algorithms.sensorcorrect import SensorCorrectAlgorithm
@@ -20,9 +21,9 @@ from .parameters import tr
 
 log = logging.getLogger(__name__)
 MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
-ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, ImportTiePointsAlgorithm, BundleAdjustAlgorithm,
-              GroundToImageAlgorithm, ImageToGroundAlgorithm, FootprintAlgorithm, OrthorectifyAlgorithm,
-              ExportRpcAlgorithm, SensorCorrectAlgorithm, PrepareDigitisingAlgorithm)
+ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, ImportTiePointsAlgorithm, ImportLinesAlgorithm,
+              BundleAdjustAlgorithm, GroundToImageAlgorithm, ImageToGroundAlgorithm, FootprintAlgorithm,
+              OrthorectifyAlgorithm, ExportRpcAlgorithm, SensorCorrectAlgorithm, PrepareDigitisingAlgorithm)
 
 
 class PushbroomProvider(QgsProcessingProvider):

@@ -41,12 +41,14 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from osgeo import ogr
 from scipy import stats
 
 from ..geodesy import ecef_to_geodetic, enu_rotations
-from ..lines import (GroundLines, ImageLines, LineConstraint, LineObservations, LineSegments, azimuths,
-                     check_image_lines, check_in_scene, direction_check, line_constraints, nearest_segments, pair,
-                     start_points)
+from ..lines import (GroundLines, ImageLines, LineConstraint, LineObservations, LineSegments, _wgs84_3d, azimuths,
+                     check_image_lines, check_in_scene, direction_check, ground_layer, line_constraints, lines_outside,
+                     nearest_segments, pair, start_points)
+from ..vector_io import LayerData, write_layers
 from .ties import _listed
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -319,7 +321,44 @@ def results(problem: "_Problem", adjusted, st: "Statistics", flagged: np.ndarray
               "flagged_points": int((~good).sum()),
               "across_rmse_m": rms(offsets[good, 0]), "height_rmse_m": rms(offsets[good, 1]),
               "across_rmse_before_m": rms(before[good, 0]),
-              "image_residuals_px": {"rmse_col": rms(points["res_col"][good]), "rmse_row": rms(points["res_row"][good])},
+              "image_residuals_px": {"rmse_col": rms(points["res_col"][good]),
+                                     "rmse_row": rms(points["res_row"][good])},
               "directions": direction, "per_line": {k: v.tolist() for k, v in table.items()}}
     return report, points
 
+
+
+def check_against_scene(scene, lines: ControlLines) -> tuple[dict, dict, np.ndarray]:
+    """What ``pushbroom:importlines`` writes: the lines checked (InputError as
+    :func:`check_image_lines` / :func:`core.lines.pair`), per image vertex (n,) the a-priori
+    across-line and height offsets (m, rays through ``scene``) and per ground line (K of the
+    paired lines) their RMS and max, and the ids of ground lines outside every camera's
+    footprint (sorted; legitimate when no image line pairs them)."""
+    check_lines(scene, lines)
+    setup = set_up_lines(scene, lines)
+    offsets = ray_offsets(scene, setup)
+    points = {"line_id": setup.line_ids(), "across_m": offsets[:, 0], "height_m": offsets[:, 1]}
+    table = per_line(setup, offsets[:, 0], np.zeros(len(setup), bool))
+    return points, table, lines_outside(lines.ground, scene)
+
+
+def write_line_residuals(path, lines: ControlLines, points: dict, report: dict, files=None) -> None:
+    """One GeoPackage: layer ``line_points`` (points at their adjusted ground, EPSG:4979: per
+    line point line_id, camera, col, row, res_col, res_row (px), across_m, height_m (m, the
+    ray's distance from the line through the adjusted scene), across_before_m, flagged,
+    line_flagged) and layer ``ground_lines`` (the paired lines with points, rms_across_m,
+    max_across_m, points_flagged, flagged = named wrong as a whole)."""
+    geoms = [f"POINT Z ({a!r} {b!r} {c!r})" for a, b, c in zip(points["lon"].tolist(), points["lat"].tolist(),
+                                                                  points["h"].tolist())]
+    columns = {k: points[k] for k in ("line_id", "camera", "col", "row", "res_col", "res_row", "across_m", "height_m",
+                                      "across_before_m")}
+    columns.update(flagged=points["flagged"].astype(int), line_flagged=points["line_flagged"].astype(int))
+    per = report["per_line"]
+    used = np.isin(lines.ground.id, per["line_id"])
+    ground = _subset(lines.ground, used)
+    index = {i: k for k, i in enumerate(per["line_id"])}
+    k = [index[i] for i in ground.id]
+    extra = {name: np.asarray(per[name])[k] for name in ("points", "rms_across_m", "max_across_m", "points_flagged")}
+    extra["flagged"] = np.asarray(per["flagged"], dtype=int)[k]
+    write_layers(path, [LayerData("line_points", _wgs84_3d(), ogr.wkbPoint25D, columns, geoms),
+                        ground_layer(ground, extra)], files)
