@@ -62,7 +62,8 @@ def test_bundleadjust_with_lines_names_the_wrong_ones(provider, roads):
         "OUTPUT_LINE_RESIDUALS": str(residuals)})
     import json
     rep = json.loads(open(res["OUTPUT_REPORT_JSON"]).read())
-    wrong = {f.GetField("line_id") for f in ogr.Open(str(result.lines)).GetLayer("ground_lines")
+    truth = ogr.Open(str(result.lines))
+    wrong = {f.GetField("line_id") for f in truth.GetLayer("ground_lines")
              if (f.GetField("kind") or "correct") != "correct"}
     assert wrong and set(rep["lines"]["flagged_line_ids"]) == wrong
     assert rep["check_points"]["ground"]["rmse"] < 5.0
@@ -80,4 +81,5 @@ def test_importlines_runs_from_qgis_process(qgis_process, roads, tmp_path):
                         f"IMAGE_LINES={result.lines}|layername=image_lines", "HEIGHT_SOURCE=z",
                         "Z_DATUM=ellipsoid", f"OUTPUT={out}")
     assert done.returncode == 0, done.stderr + done.stdout
-    assert ogr.Open(str(out)).GetLayer("ground_lines").GetFeatureCount() == 20
+    ds = ogr.Open(str(out))
+    assert ds.GetLayer("ground_lines").GetFeatureCount() == 20
