@@ -5,7 +5,7 @@ from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 
 from .conftest import PLUGIN
 
-ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:importtiepoints",
+ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:importtiepoints", "pushbroom:importlines",
               "pushbroom:bundleadjust", "pushbroom:groundtoimage",
               "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",
               "pushbroom:exportrpc", "pushbroom:sensorcorrect", "pushbroom:preparedigitising"]

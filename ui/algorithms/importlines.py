@@ -43,7 +43,7 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
             "and image_lines (with the a-priori across-line offsets through the scene's onboard model, m), "
             "which 'Bundle adjustment' reads as LINES.")
     INPUT, IMAGE_LINES, OUTPUT = "INPUT", "IMAGE_LINES", "OUTPUT"
-    ID_FIELD, IMAGE_ID_FIELD = "ID_FIELD", "IMAGE_ID_FIELD"
+    ID_FIELD, IMAGE_ID_FIELD = "LINE_ID_FIELD", "IMAGE_ID_FIELD"
     SIGMA_ACROSS, SIGMA_H = "SIGMA_ACROSS", "SIGMA_H"
     HEIGHT_SOURCE, Z_DATUM = "HEIGHT_SOURCE", "Z_DATUM"
 
