@@ -234,6 +234,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
         style_output_on_load(context, outputs[self.OUTPUT_LINE_RESIDUALS], STYLES / "control_lines.qml")
         self._report(result.report, feedback)
+        self._report_lines(result.report.get("lines"), feedback)
         feedback.setProgress(100)
         return {**{name: path or None for name, path in outputs.items()}, self.OUTPUT_REPORT_JSON: report_json or None}
 
@@ -266,6 +267,20 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         path, _ = ogr_source(self.LINES, layer, "control lines")
         with processing_errors(f"{self.LINES}: "):
             return ControlLines(core_lines.read_ground_lines(path), core_lines.read_image_lines(path))
+
+    @staticmethod
+    def _report_lines(rep: dict | None, feedback) -> None:
+        if rep is None:
+            return
+        feedback.pushInfo(f"control lines: {rep['lines']} lines, {rep['points']} points (2 constraints each); "
+                          f"across-line RMSE {rep['across_rmse_m'] or float('nan'):.2f} m (before "
+                          f"{rep['across_rmse_before_m'] or float('nan'):.1f} m), {rep['flagged_points']} points "
+                          "flagged")
+        if rep["flagged_lines"]:
+            feedback.pushWarning(f"{rep['flagged_lines']} control line(s) do not fit as a whole (a wrong road or a "
+                                 "shifted map line) and were released: " + ", ".join(rep["flagged_line_ids"][:50]))
+        if not rep["directions"]["determined"]:
+            feedback.pushWarning(f"control lines: {rep['directions']['message']}")
 
     def _write_line_residuals(self, lines, result, path: str, files) -> None:
         from ...core.adjust.linepoints import write_line_residuals
