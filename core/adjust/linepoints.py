@@ -155,7 +155,7 @@ def screen(scene, setup: LineSetUp) -> np.ndarray:
     for _ in range(5):
         coef, *_ = np.linalg.lstsq(design[keep], offsets[keep], rcond=None)
         residual = offsets - design @ coef
-        median = np.array([np.median(np.abs(residual[key == j])) if (key == j).any() else 0.0 for j in range(k)])
+        median = group_median(np.abs(residual), key, k)
         spread = 1.4826 * np.median(median)
         gross = median > max(SCREEN_MADS * spread, SCREEN_MIN_M)
         keep = ~gross[key]
@@ -163,6 +163,17 @@ def screen(scene, setup: LineSetUp) -> np.ndarray:
         log.info("control lines %s start released: their a-priori misfit is grossly larger than the others'",
                  _listed(setup.obs.keys[gross]))
     return gross
+
+
+def group_median(values: np.ndarray, key: np.ndarray, k: int) -> np.ndarray:
+    """Median (k,) of values (n,) per group key (n,) in [0, k) (0 for empty groups)."""
+    order = np.lexsort((values, key))
+    count = np.bincount(key, minlength=k)
+    start = np.r_[0, np.cumsum(count)[:-1]]
+    ordered = values[order]
+    low = ordered[np.minimum(start + (count - 1) // 2, max(values.size - 1, 0))]
+    high = ordered[np.minimum(start + count // 2, max(values.size - 1, 0))]
+    return np.where(count > 0, 0.5 * (low + high), 0.0)
 
 
 # --- statistics ------------------------------------------------------------------------------------

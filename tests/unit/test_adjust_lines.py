@@ -171,3 +171,14 @@ def test_lines_on_an_rpc_scene_or_pairing_nothing_are_refused(clean):
                        image.col, image.row, image.sigma_px)
     with pytest.raises(InputError, match="NOPE"):
         adjust(scene, _control(table, 8), AdjustmentSettings(**SETTINGS), lines=ControlLines(lines.ground, stray))
+
+
+def test_group_median_matches_numpy():
+    from core.adjust.linepoints import group_median
+    rng = np.random.default_rng(1)
+    key = rng.integers(0, 7, 200)
+    key[key == 3] = 4                                     # an empty group
+    values = rng.normal(size=200)
+    got = group_median(values, key, 7)
+    want = [np.median(values[key == j]) if (key == j).any() else 0.0 for j in range(7)]
+    assert np.allclose(got, want, rtol=0, atol=1e-15)
