@@ -78,7 +78,7 @@ def vocabulary_problems(algorithms) -> list[str]:
 
 def test_the_provider_speaks_one_vocabulary(provider):
     algorithms = provider.algorithms()
-    assert len(algorithms) == 13  # 12 algorithms and the shipped model
+    assert len(algorithms) == 14  # 12 algorithms and the two shipped models
     assert vocabulary_problems(algorithms) == []
 
 
@@ -88,7 +88,7 @@ def test_shared_concepts_are_shared(provider):
     for alg in provider.algorithms():
         for definition in alg.parameterDefinitions():
             counts[definition.name()] = counts.get(definition.name(), 0) + 1
-    assert counts["DEM_DATUM"] == 8 and counts["HEIGHT"] == 8 and counts["SCENE"] == 11
+    assert counts["DEM_DATUM"] == 8 and counts["HEIGHT"] == 8 and counts["SCENE"] == 12
     assert counts["Z_DATUM"] == 3 and counts["CAMERA"] == 7 and counts["CHECK_FRACTION"] == 2
     assert counts["RESAMPLING"] == 2 and counts["OUTPUT_SCENE"] == 2
     assert counts["COL_FIELD"] == 3 and counts["ROW_FIELD"] == 3
