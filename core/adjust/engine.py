@@ -891,6 +891,9 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
                        for p in out.report["parameters"] if p["mode"] != "fixed" or p["value"] != 0.0],
         "determinability": determinability, "interior_selection": selection,
         "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
+    if "lines" in rep:
+        adjusted.info["adjustment"]["lines"] = {k: rep["lines"][k] for k in ("lines", "points", "flagged_line_ids",
+                                                                             "across_rmse_m", "directions")}
     return out
 
 

@@ -70,6 +70,8 @@ def test_lines_make_8_gcps_usable(runs):
     assert rep["flagged_lines"] == 0 and rep["lines"] == 30
     assert rep["across_rmse_m"] < 4.0 and rep["across_rmse_before_m"] > 50.0  # 3.4 m after, hundreds before
     assert rep["directions"]["determined"]
+    # the adjusted scene records what the lines did
+    assert runs["lines"].scene.info["adjustment"]["lines"]["lines"] == 30
 
 
 def test_degrees_of_freedom_count_two_constraints_per_line_point(runs):
