@@ -83,3 +83,19 @@ def test_importlines_runs_from_qgis_process(qgis_process, roads, tmp_path):
     assert done.returncode == 0, done.stderr + done.stdout
     ds = ogr.Open(str(out))
     assert ds.GetLayer("ground_lines").GetFeatureCount() == 20
+
+
+def test_bundleadjust_with_lines_runs_from_qgis_process(provider, qgis_process, roads, tmp_path):
+    import json
+    result, folder = roads
+    lines, gcps = tmp_path / "cl.gpkg", tmp_path / "gcps.gpkg"
+    _import(provider, result, lines)
+    _gcps(provider, result, gcps)
+    done = qgis_process("run", "pushbroom:bundleadjust", "--", f"SCENE={result.onboard_scene}", f"GCPS={gcps}",
+                        f"LINES={lines}", "POSITION_MODEL=polynomial", "POSITION_ORDER=1",
+                        "ATTITUDE_MODEL=polynomial", "ATTITUDE_ORDER=2", f"OUTPUT_SCENE={tmp_path / 'a.json'}",
+                        f"OUTPUT_REPORT={tmp_path / 'r.html'}", f"OUTPUT_LINE_RESIDUALS={tmp_path / 'lr.gpkg'}")
+    assert done.returncode == 0, done.stderr + done.stdout
+    assert "control lines:" in done.stdout and "released" in done.stdout + done.stderr
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["lines"]["flagged_lines"] == 2 and (tmp_path / "lr.gpkg").is_file()
