@@ -11,6 +11,7 @@ from .algorithms.groundtoimage import GroundToImageAlgorithm
 from .algorithms.imagetoground import ImageToGroundAlgorithm
 from .algorithms.importgcps import ImportGcpsAlgorithm
 from .algorithms.importtiepoints import ImportTiePointsAlgorithm
+from .algorithms.importlines import ImportLinesAlgorithm
 from .algorithms.matchgcps import MatchGcpsAlgorithm
 from .algorithms.orthorectify import OrthorectifyAlgorithm
 from .algorithms.preparedigitising import PrepareDigitisingAlgorithm
@@ -21,7 +22,8 @@ from .parameters import tr
 
 log = logging.getLogger(__name__)
 MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
-ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, ImportTiePointsAlgorithm, MatchGcpsAlgorithm,
+ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, ImportTiePointsAlgorithm, ImportLinesAlgorithm,
+              MatchGcpsAlgorithm,
               BundleAdjustAlgorithm, GroundToImageAlgorithm, ImageToGroundAlgorithm, FootprintAlgorithm,
               OrthorectifyAlgorithm, ExportRpcAlgorithm, SensorCorrectAlgorithm, PrepareDigitisingAlgorithm)
 

@@ -34,6 +34,8 @@ from .normal import GroundPrior, Linearization, System, assemble, back_substitut
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 from .selection import SELECTION, interior_free, select_interior
 from .ties import TieSetUp, camera_indices, check_ties, datum, set_up_ties
+from . import linepoints
+from .linepoints import ControlLines, LineSetUp, check_lines, flag_lines, line_statistics, set_up_lines
 from .robust import (COMPONENT_TOLERANCE, breakdown, component_report, components, critical as _critical, image_group,
                      inliers, rescale, robust_scale, robust_weights, stated_sigma0, truncation)
 
@@ -124,20 +126,27 @@ class AdjustmentResult:
     adjusted scene's ground -> image. tie_points: per input tie observation (input order)
     arrays: id, camera, col, row, res_col, res_row (px), w_col, w_row, weight, flagged, and the
     adjusted ground position of its point lon, lat (deg), h (ellipsoidal m); NaN for the
-    observations of points left out (empty without tie points)."""
+    observations of points left out (empty without tie points). lines: per line point (one per
+    image-line vertex) arrays: line_id, camera, col, row, res_col, res_row (px), w_col, w_row,
+    weight, across_m / height_m (m: where the point's ray through the adjusted scene meets its
+    line's height, across the line and in height), across_before_m (the same through the input
+    scene), flagged (the point or its line), line_flagged, lon, lat, h of its adjusted ground
+    point; per line in report["lines"]["per_line"] (empty without lines)."""
     scene: SceneModel
     report: dict
     points: dict = field(default_factory=dict)
     tie_points: dict = field(default_factory=dict)
+    lines: dict = field(default_factory=dict)
 
 
 class _Problem:
     """The data and unknowns of one adjustment, and one linearisation of it."""
 
     def __init__(self, scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
-                 ties: TieSetUp | None = None):
+                 ties: TieSetUp | None = None, lines: LineSetUp | None = None):
         self.scene, self.settings = scene, settings
         ties = ties or TieSetUp.empty()
+        lines = lines or LineSetUp.empty()
         t_min, t_max = scene.time_span()
         self.params = ParameterSet(
             scene,
@@ -148,20 +157,25 @@ class _Problem:
         control = np.nonzero(table.role == "control")[0]
         ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
         sel = control[first]
-        self._set_up_ground(table, sel, ties.ground)
-        # GCP observations, then tie observations (their points after the GCPs')
-        is_tie = np.r_[np.zeros(control.size, bool), np.ones(len(ties), bool)]
-        obs = build_observations(scene, self.params, np.r_[camera_indices(scene, table.camera[control]), ties.camera],
-                                 np.r_[table.col[control], ties.table.col[ties.rows]],
-                                 np.r_[table.row[control], ties.table.row[ties.rows]],
-                                 np.r_[point, sel.size + ties.point],
-                                 np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows]], self.ground)
+        self._set_up_ground(table, sel, ties.ground, lines)
+        # GCP observations, then tie observations (their points after the GCPs'), then line points
+        kind = np.repeat([0, 1, 2], [control.size, len(ties), len(lines)])
+        obs = build_observations(scene, self.params,
+                                 np.r_[camera_indices(scene, table.camera[control]), ties.camera, lines.camera],
+                                 np.r_[table.col[control], ties.table.col[ties.rows], lines.obs.col],
+                                 np.r_[table.row[control], ties.table.row[ties.rows], lines.obs.row],
+                                 np.r_[point, sel.size + ties.point, self.line_first + np.arange(len(lines))],
+                                 np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows], lines.obs.sigma_px],
+                                 self.ground)
         # Observations sorted by what decides their parameter columns, so that observations
         # sharing columns are contiguous whatever the free parameters: groups are slices.
         order = np.lexsort((obs.att_first, obs.pos_first, obs.chip, obs.camera))
         self.obs = obs.select(order)
-        self.is_tie = is_tie[order]
-        self.rows = np.r_[control, ties.rows][order]  # rows of the GCP table, or of the tie table for ties
+        self.is_tie, self.is_line = kind[order] == 1, kind[order] == 2
+        # rows of the GCP table, of the tie table for ties, of the line points for lines
+        self.rows = np.r_[control, ties.rows, np.arange(len(lines))][order]
+        self.line_obs = np.empty(len(lines), np.int64)  # each line point's observation
+        self.line_obs[self.rows[self.is_line]] = np.nonzero(self.is_line)[0]
         self.ties = ties
         self.factor = np.ones((len(self.obs), 2))  # robust weight factors per residual row
         self.scale: dict[str, float] = {}  # variance component factor on the stated sigmas, per group
@@ -187,22 +201,32 @@ class _Problem:
                 return float(np.median(self.obs.sigma[self.obs.camera == c])), "px"
         if group.startswith("ground"):
             return float(np.median(self.ground_sigma[:, 2 if group == "ground_z" else 0])), "m"
+        if group in (linepoints.ACROSS_GROUP, linepoints.HEIGHT_GROUP):
+            seg = self.lines.seg
+            return float(np.median(seg.sigma_across if group == linepoints.ACROSS_GROUP else seg.sigma_h)), "m"
         s = self.settings
         return {"position pseudo-observations": (s.position_sigma, "m"),
                 "attitude pseudo-observations": (s.attitude_sigma, "rad")}.get(group, (None, ""))
 
     # --- unknowns and their columns -------------------------------------------------------
-    def _set_up_ground(self, table: GcpTable, sel: np.ndarray, tie_ground: np.ndarray | None = None) -> None:
+    def _set_up_ground(self, table: GcpTable, sel: np.ndarray, tie_ground: np.ndarray | None = None,
+                       lines: LineSetUp | None = None) -> None:
         """Ground points: the control points ``sel`` (rows of ``table``, one per point), then the
-        tie points (start values ``tie_ground`` (t, 3) ECEF m). ground0 / ground (m, 3) ECEF m:
+        tie points (start values ``tie_ground`` (t, 3) ECEF m), then the line points of ``lines``
+        (from ``line_first``; their prior is the lines', :meth:`ground_prior`). ground0 / ground (m, 3) ECEF m:
         measured (start) and current positions; for weighted ground the control points' ENU
         rotations and stated east, north, up sigmas (m, (n, 3)). The ground unknowns are the
         weighted control points and all tie points (which have no prior): ``estimated`` (k,)
         their indices in ground, ``ground_point`` (m,) each point's unknown index or -1."""
         tie_ground = np.zeros((0, 3)) if tie_ground is None else tie_ground
+        self.lines = lines or LineSetUp.empty()
+        # lines named wrong as a whole (released); grossly wrong ones from the start
+        self.line_flagged = linepoints.screen(self.scene, self.lines) if len(self.lines) else \
+            np.zeros(0, bool)
         self.n_control = int(sel.size)
+        self.line_first = int(sel.size + tie_ground.shape[0])
         self.ground0 = np.concatenate([geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel]).reshape(-1, 3),
-                                       tie_ground])
+                                       tie_ground, self.lines.ground])
         self.ground = self.ground0.copy()
         self.weighted = self.settings.ground == "weighted"
         self.enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
@@ -215,7 +239,8 @@ class _Problem:
     def counts(self) -> tuple[int, int]:
         """(equations, unknowns): image rows, ground priors and pseudo-observations against the
         free parameters and the ground unknowns."""
-        n_eq = 2 * len(self.obs) + 3 * self.enu.shape[0] + sum(p.B.shape[0] for p in self.pseudo())
+        n_eq = 2 * len(self.obs) + 3 * self.enu.shape[0] + 2 * len(self.lines) + \
+            sum(p.B.shape[0] for p in self.pseudo())
         return n_eq, int(self.params.free.size) + 3 * int(self.estimated.size)
 
     def structure(self) -> None:
@@ -273,11 +298,20 @@ class _Problem:
 
     def ground_prior(self) -> GroundPrior | None:
         """The ground unknowns' prior: the weighted control points' stated weights, zero for tie
-        points (None without ground unknowns)."""
+        points, the rank-2 line constraints at the current ground for line points (the nearest
+        segment refreshed) (None without ground unknowns)."""
         if self.estimated.size == 0:
             return None
         weight = np.concatenate([self.ground_weight, np.zeros((self.estimated.size - self.enu.shape[0], 3, 3))])
-        return GroundPrior(weight, (self.ground - self.ground0)[self.estimated])
+        misfit = (self.ground - self.ground0)[self.estimated]
+        if len(self.lines):
+            c = self.lines.constraints(self.line_ground(), self.scale, self.line_flagged)
+            weight[-len(self.lines):], misfit[-len(self.lines):] = c.weight, c.misfit
+        return GroundPrior(weight, misfit)
+
+    def line_ground(self) -> np.ndarray:
+        """(n, 3) ECEF m: the line points' current ground positions."""
+        return self.ground[self.line_first:]
 
     def residuals(self) -> np.ndarray:
         return Model(self.scene, self.params).residuals(self.obs, self.ground[self.obs.point])
@@ -288,6 +322,9 @@ class _Problem:
         if self.weighted:
             e = (self.ground - self.ground0)[:self.n_control]
             c += float(np.einsum("mi,mij,mj->", e, self.ground_weight, e))
+        if len(self.lines):
+            line = self.lines.constraints(self.line_ground(), self.scale, self.line_flagged)
+            c += float(np.einsum("mi,mij,mj->", line.misfit, line.weight, line.misfit))
         return c + sum(float(np.sum(p.weight * p.misfit(self.params) ** 2)) for p in self.pseudo())
 
     def pseudo(self) -> list["_Pseudo"]:
@@ -542,7 +579,7 @@ class Statistics:
     times their group's factor), the residuals v (n,2) px and p v^2 (n,2) with the current
     weights; per control point p e^2 (m,3) and redundancy (m,3) of its east, north, up ground
     coordinates (weighted ground; else (0,3)); per pseudo-observation group (sum of p v^2,
-    redundancy, count)."""
+    redundancy, count); lines: the line points' constraint statistics (None without lines)."""
     Q: np.ndarray
     sigma0: float
     dof: float
@@ -553,6 +590,7 @@ class Statistics:
     ground_pvv: np.ndarray
     ground_redundancy: np.ndarray
     pseudo: dict
+    lines: linepoints.LineStatistics | None = None
 
 
 def statistics(problem: _Problem, lin: Linearization, system: System) -> Statistics:
@@ -578,6 +616,8 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
         h[weighted], qgg = _ground_leverage(lin, system, Q, G, weighted)
     redundancy = np.clip(1.0 - h * lin.p, 0.0, 1.0)
     v = lin.r
+    # the line points are the last ground unknowns
+    lines = line_statistics(problem, qgg[qgg.shape[0] - len(problem.lines):]) if len(problem.lines) else None
     ground_pvv, r_g = np.zeros((0, 3)), np.zeros((0, 3))
     if problem.weighted and problem.n_control:
         # the weighted control points are the first ground unknowns
@@ -599,7 +639,7 @@ def statistics(problem: _Problem, lin: Linearization, system: System) -> Statist
         raise InputError(f"too few observations: {total_rows} equations for {total_unknowns} unknowns")
     sigma0 = math.sqrt(system.cost / dof)
     w = normalised(problem, v, redundancy)
-    return Statistics(Q, sigma0, dof, redundancy, w, v, lin.p * v * v, ground_pvv, r_g, pseudo)
+    return Statistics(Q, sigma0, dof, redundancy, w, v, lin.p * v * v, ground_pvv, r_g, pseudo, lines)
 
 
 def _ground_leverage(lin: Linearization, system: System, Q: np.ndarray, G: np.ndarray,
@@ -711,12 +751,14 @@ def _gsd(scene: SceneModel, camera: int) -> float:
 
 # --- the whole adjustment ----------------------------------------------------------------------------------
 def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
-                 ties: TieTable | None = None) -> GcpTable:
+                 ties: TieTable | None = None, lines: ControlLines | None = None) -> GcpTable:
     """Cameras resolved and the GCPs (and tie points) checked before anything is solved:
     finite values, points in this scene's images, enough of them, and spread over the image.
     Without tie points at least 3 control points are needed; with tie points fewer (0, 1, 2)
     when the onboard pseudo-observations hold what they leave of the datum (see
-    :func:`core.adjust.ties.datum`)."""
+    :func:`core.adjust.ties.datum`); with control lines (checked against the scene) fewer too:
+    lines in several directions hold the datum as points do (the report's lines/directions
+    says when they do not)."""
     settings.validate()
     table = resolve_cameras(table, scene)
     bad = ~np.all(np.isfinite(np.stack([table.col, table.row, table.lon, table.lat, table.h, table.sigma_px,
@@ -730,18 +772,26 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
     with_ties = ties is not None and len(ties) > 0
     if with_ties:
         check_ties(scene, ties, table.id)
+    with_lines = lines is not None and len(lines.image) > 0
+    if with_lines:
+        from ..rpcscene import RpcScene
+        if isinstance(scene, RpcScene):
+            raise InputError("control lines need a rigorous (physical) scene model; an RPC scene's correction is "
+                             "adjusted from GCPs")
+        check_lines(scene, lines)
+    sparse_control = with_ties or with_lines
     inside = np.zeros(len(table), bool)
     for c, cam in enumerate(scene.cameras):
         m = table.camera == cam.name
         inside[m] = (table.col[m] >= 0) & (table.col[m] <= cam.cols) & (table.row[m] >= 0) & (table.row[m] <= cam.rows)
-    if not inside[control].any() and not (with_ties and not control.any()):
+    if not inside[control].any() and not (sparse_control and not control.any()):
         raise InputError("no control point lies inside this scene's images: is the GCP layer from another scene?")
     if (~inside[control]).sum() > 0.5 * control.sum():
         raise InputError(f"{int((~inside[control]).sum())} of {int(control.sum())} control points lie outside the "
                          "scene's images: is the GCP layer from another scene?")
     if control.any():
         _check_seen_by_scene(scene, table.select(control))
-    if not with_ties or np.unique(table.id[control]).size >= 3:
+    if not sparse_control or np.unique(table.id[control]).size >= 3:
         _check_spread(scene, table, control)
     _datum(table, settings, ties)
     return table
@@ -789,7 +839,8 @@ def _check_spread(scene: SceneModel, table: GcpTable, control: np.ndarray) -> No
                          "(one corner); spread them over the scene")
 
 
-def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings, ties: TieSetUp) -> _Problem:
+def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings, ties: TieSetUp,
+                 lines: LineSetUp | None = None) -> _Problem:
     """The problem of a rigorous scene, or of an RPC scene (its image-space correction,
     :mod:`core.adjust.rpcbias`)."""
     from ..rpcscene import RpcScene
@@ -799,23 +850,26 @@ def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings, ties: Tie
                              "scene is one image")
         from .rpcbias import RpcProblem
         return RpcProblem(scene, table, settings)
-    return _Problem(scene, table, settings, ties)
+    return _Problem(scene, table, settings, ties, lines)
 
 
 def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | None = None,
            progress: Callable[[float, str | None], None] | None = None,
-           is_cancelled: Callable[[], bool] | None = None, ties: TieTable | None = None) -> AdjustmentResult:
-    """Adjust ``scene`` to the control points of ``table`` and the tie points ``ties``
-    (optional); evaluate its check points. With tie points the control may be sparse or absent
-    when the onboard pseudo-observations hold the datum (report["datum"] says how it is held)."""
+           is_cancelled: Callable[[], bool] | None = None, ties: TieTable | None = None,
+           lines: ControlLines | None = None) -> AdjustmentResult:
+    """Adjust ``scene`` to the control points of ``table``, the tie points ``ties`` and the
+    control lines ``lines`` (both optional); evaluate its check points. With tie points the
+    control may be sparse or absent when the onboard pseudo-observations hold the datum
+    (report["datum"] says how it is held); with lines too (report["lines"]["directions"] says
+    whether they determine both horizontal directions)."""
     settings = settings or AdjustmentSettings()
     progress = progress or (lambda fraction, message=None: None)
     is_cancelled = is_cancelled or (lambda: False)
-    table = check_inputs(scene, table, settings, ties)
+    table = check_inputs(scene, table, settings, ties, lines)
     held = _datum(table, settings, ties)
     progress(0.02, "setting up the observations")
     tie_set = set_up_ties(scene, ties) if ties is not None and len(ties) else TieSetUp.empty()
-    problem = _problem_for(scene, table, settings, tie_set)
+    problem = _problem_for(scene, table, settings, tie_set, set_up_lines(scene, lines))
     n_eq, n_unknowns = problem.counts()
     if n_eq <= n_unknowns:
         raise InputError(f"too few GCPs for the chosen model: {len(problem.obs)} image observations give {n_eq} "
@@ -847,6 +901,9 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     if held is not None:
         adjusted.info["adjustment"]["datum"] = {k: held[k] for k in ("held_by", "control_points", "note") if k in held}
         adjusted.info["adjustment"]["tie_points"] = int(problem.ties.ids.size)
+    if "lines" in rep:
+        adjusted.info["adjustment"]["lines"] = {k: rep["lines"][k] for k in ("lines", "points", "flagged_line_ids",
+                                                                             "across_rmse_m", "directions")}
     return out
 
 
@@ -887,7 +944,10 @@ def _estimate(problem: _Problem, progress, is_cancelled) -> _Estimate:
             component_change = rescale(problem, comps, kappa)
             st.w, scale = normalised(problem, st.v, st.redundancy), 1.0
         before = problem.factor[:, 0] < 1.0
+        lines_before = problem.line_flagged.copy()
         change = robust_weights(problem, st, scale) if robust else 0.0
+        if robust:
+            change = max(change, flag_lines(problem, st, scale, crit))
         after = problem.factor[:, 0] < 1.0
         passes.append({"pass": k + 1, "sigma0": st.sigma0, "down_weighted": int(after.sum()),
                        "largest_change": change, "component_change": component_change})
@@ -897,8 +957,9 @@ def _estimate(problem: _Problem, progress, is_cancelled) -> _Estimate:
         # follow their already large residuals and no longer move the solution), or when the
         # last re-weighting no longer moved the solution measurably (with tens of thousands of
         # observations some always sit at the critical value and change side back and forth),
-        # and no variance component changes by more than its tolerance.
-        settled = change < 1e-3 or (k > 0 and (np.array_equal(before, after) or not result["iterations"]))
+        # no control line changes side, and no variance component changes by more than its tolerance.
+        settled = (change < 1e-3 or (k > 0 and (np.array_equal(before, after) or not result["iterations"]))) and \
+            np.array_equal(lines_before, problem.line_flagged)
         if not iterate or (settled and component_change < COMPONENT_TOLERANCE):
             return _Estimate(result, st, passes, False, comps, inlier, kappa)
     log.warning("robust estimation stopped at its limit of %d passes; the flags may be incomplete", len(passes))
@@ -927,7 +988,7 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Esti
             log.warning("%s and %s are correlated %.4f: the GCPs hardly separate them (their sigmas say by how "
                         "much); onboard sigmas (pseudo-observations) would", pair["a"], pair["b"], pair["r"])
     flagged = np.abs(st.w).max(axis=1) > crit
-    gcp = ~problem.is_tie
+    gcp = ~(problem.is_tie | problem.is_line)
     rows = problem.rows[gcp]
     n = len(table)
     points = {"id": table.id, "role": table.role, "camera": table.camera, "col": table.col, "row": table.row,
@@ -966,12 +1027,13 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Esti
                          "check_points": int(checks.size), "unknowns": int(free.size),
                          "ground_unknowns": int(3 * problem.estimated.size),
                          "tie_points": problem.ties.counts(), "tie_observations": int(problem.is_tie.sum()),
+                         "line_points": int(problem.is_line.sum()),
                          "degrees_of_freedom": st.dof},
         "iterations": result["iterations"],
         "robust": {"method": problem.settings.robust, "passes": est.passes, "critical_w": crit,
                    "stopped_at_limit": est.at_limit, "flagged": int(flagged.sum()),
                    "flagged_ids": [str(i) for i in table.id[rows][flagged[gcp]][:1000]],
-                   "flagged_tie_ids": [str(i) for i in problem.ties.table.id[problem.rows[~gcp]][flagged[~gcp]][:1000]]},
+                   "flagged_tie_ids": [str(i) for i in problem.ties.table.id[problem.rows[problem.is_tie]][flagged[problem.is_tie]][:1000]]},
         "reliability": {"reliable": reliable, "problems": problems},
         "sigma0": sigma0,
         "sigma0_adjusted": st.sigma0,
@@ -994,7 +1056,10 @@ def _result(problem: _Problem, table: GcpTable, adjusted: SceneModel, est: _Esti
         report["tie_points"], ties = _tie_points(problem, st, flagged, good)
     else:
         ties = {}
-    return AdjustmentResult(adjusted, report, points, ties)
+    lines = {}
+    if len(problem.lines):
+        report["lines"], lines = linepoints.results(problem, adjusted, st, flagged)
+    return AdjustmentResult(adjusted, report, points, ties, lines)
 
 
 def _tie_points(problem: _Problem, st: Statistics, flagged: np.ndarray, good: np.ndarray) -> tuple[dict, dict]:

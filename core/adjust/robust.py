@@ -66,6 +66,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import stats
 
+from .linepoints import line_group_sums
+
 if TYPE_CHECKING:  # pragma: no cover
     from .engine import Statistics, _Problem
 
@@ -130,6 +132,7 @@ def _sums(problem: "_Problem", st: "Statistics", inlier: np.ndarray) -> dict[str
             pvv, r = st.ground_pvv[good, axes], st.ground_redundancy[good, axes]
             out[name] = (float(pvv.sum()), float(r.sum()), int(pvv.size))
     out.update(st.pseudo)
+    out.update(line_group_sums(problem, st, inlier))
     return out
 
 

@@ -88,7 +88,7 @@ class RpcProblem(_Problem):
                                    np.asarray(table.sigma_px[control], dtype=float), table.col[control],
                                    table.row[control])
         self.rows = control
-        self.is_tie = np.zeros(n, bool)
+        self.is_tie = self.is_line = np.zeros(n, bool)
         self.ties = TieSetUp.empty()
         self.factor = np.ones((n, 2))
         self.scale = {}

@@ -185,13 +185,15 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                               "mixing rows and columns (drift, affine) is refitted to the adjusted scene (about "
                               "1e-5 px)."))
         self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, tr("Report (JSON)")))
+        self._add_line_parameters()
 
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         from ...core.adjust.report import write_report_html, write_report_json
         outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
             (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
-            (self.OUTPUT_RESIDUALS, ".gpkg"), (self.OUTPUT_TIE_POINTS, ".gpkg"), (self.OUTPUT_RPC, ".txt"))}  # '' for the optional ones not asked for
+            (self.OUTPUT_RESIDUALS, ".gpkg"), (self.OUTPUT_TIE_POINTS, ".gpkg"), (self.OUTPUT_RPC, ".txt"),
+            (self.OUTPUT_LINE_RESIDUALS, ".gpkg"))}  # '' for the optional ones not asked for
         report_html = outputs[self.OUTPUT_REPORT]
         report_json = str(Path(report_html).with_suffix(".json")) if report_html else ""
         check_outputs(self, parameters, context, {**{name: [path] for name, path in outputs.items()},
@@ -209,14 +211,15 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         scale = self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context)
         # Checks that name the parameter at fault before the (long) solution starts.
         core_call(settings.validate)
-        self._check_inputs(scene, table, settings, ties)
+        lines = self._lines(parameters, context)
+        self._check_inputs(scene, table, settings, ties, lines)
         self._check_interior(scene, settings.interior)
         if gcp_path:
             feedback.pushInfo(f"{len(table)} points from {gcp_path}: {int((table.role == 'control').sum())} "
                               f"control, {int((table.role == 'check').sum())} check")
         progress, is_cancelled = feedback_callbacks(feedback)
         try:
-            result = adjust(scene, table, settings, progress, is_cancelled, ties=ties)
+            result = adjust(scene, table, settings, progress, is_cancelled, ties=ties, lines=lines)
         except PushbroomError as exc:
             raise QgsProcessingException(self._named(str(exc))) from None
         check_cancelled(feedback)
@@ -240,6 +243,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                     write_adjusted_gcps(table, result.points, outputs[self.OUTPUT_GCPS], en=en,
                                         scene_path=outputs[self.OUTPUT_SCENE], source=gcp_path,
                                         source_layer=gcp_layer, files=files)
+            if outputs[self.OUTPUT_LINE_RESIDUALS]:
+                self._write_line_residuals(lines, result, outputs[self.OUTPUT_LINE_RESIDUALS], files)
             if outputs[self.OUTPUT_RESIDUALS]:
                 with processing_errors(f"{self.OUTPUT_RESIDUALS}: "):
                     write_residual_vectors(result.scene, table, result.points, outputs[self.OUTPUT_RESIDUALS],
@@ -251,10 +256,63 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         style_output_on_load(context, outputs[self.OUTPUT_GCPS], STYLES / "adjusted_gcps.qml")
         style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
         style_output_on_load(context, outputs[self.OUTPUT_TIE_POINTS], STYLES / "adjusted_tie_points.qml")
+        style_output_on_load(context, outputs[self.OUTPUT_LINE_RESIDUALS], STYLES / "control_lines.qml")
         self._report(result.report, feedback)
         self._report_ties(result.report, ties, feedback)
+        self._report_lines(result.report.get("lines"), feedback)
         feedback.setProgress(100)
         return {**{name: path or None for name, path in outputs.items()}, self.OUTPUT_REPORT_JSON: report_json or None}
+
+    # --- control lines ---------------------------------------------------------------------
+    LINES, OUTPUT_LINE_RESIDUALS = "LINES", "OUTPUT_LINE_RESIDUALS"
+
+    def _add_line_parameters(self) -> None:
+        self.add_parameter(QgsProcessingParameterVectorLayer(self.LINES, tr("Control lines (GeoPackage)"),
+                                                             [QgsProcessing.TypeVectorLine], optional=True),
+                           tr("The control lines written by 'Import control lines' (pushbroom:importlines): "
+                              "ground lines and the image lines paired to them (Tommaselli & Marcato Junior 2012). "
+                              "Each image-line point constrains its ground point to its line across it and in "
+                              "height; lines that do not fit as a whole are named and released."))
+        out = QgsProcessingParameterVectorDestination(self.OUTPUT_LINE_RESIDUALS, tr("Line residuals"),
+                                                      QgsProcessing.TypeVectorPoint, optional=True,
+                                                      createByDefault=False)
+        out.setSupportsNonFileBasedOutput(False)
+        self.add_parameter(out, tr("GeoPackage with layer line_points (each image-line point at its adjusted "
+                                   "ground, its image residual and across-line offset in m) and ground_lines (per "
+                                   "line RMS and max across-line offset, flagged = 1 for lines named wrong)."))
+
+    def _lines(self, parameters, context):
+        """ControlLines of the LINES GeoPackage (None without)."""
+        from ...core import lines as core_lines
+        from ...core.adjust.linepoints import ControlLines
+        from .importlines import ogr_source
+        layer = self.parameterAsVectorLayer(parameters, self.LINES, context)
+        if layer is None:
+            return None
+        path, _ = ogr_source(self.LINES, layer, "control lines")
+        with processing_errors(f"{self.LINES}: "):
+            return ControlLines(core_lines.read_ground_lines(path), core_lines.read_image_lines(path))
+
+    @staticmethod
+    def _report_lines(rep: dict | None, feedback) -> None:
+        if rep is None:
+            return
+        feedback.pushInfo(f"control lines: {rep['lines']} lines, {rep['points']} points (2 constraints each); "
+                          f"across-line RMSE {rep['across_rmse_m'] or float('nan'):.2f} m (before "
+                          f"{rep['across_rmse_before_m'] or float('nan'):.1f} m), {rep['flagged_points']} points "
+                          "flagged")
+        if rep["flagged_lines"]:
+            feedback.pushWarning(f"{rep['flagged_lines']} control line(s) do not fit as a whole (a wrong road or a "
+                                 "shifted map line) and were released: " + ", ".join(rep["flagged_line_ids"][:50]))
+        if not rep["directions"]["determined"]:
+            feedback.pushWarning(f"control lines: {rep['directions']['message']}")
+
+    def _write_line_residuals(self, lines, result, path: str, files) -> None:
+        from ...core.adjust.linepoints import write_line_residuals
+        if lines is None:
+            raise QgsProcessingException(f"{self.OUTPUT_LINE_RESIDUALS}: no LINES given")
+        with processing_errors(f"{self.OUTPUT_LINE_RESIDUALS}: "):
+            write_line_residuals(path, lines, result.lines, result.report["lines"], files)
 
     # --- parameters -------------------------------------------------------------------------
     def _gcps(self, parameters, context, with_ties: bool = False) -> tuple[gcps.GcpTable, str, str | None]:
@@ -335,10 +393,10 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             if outputs[name] and not gcp_path:
                 raise QgsProcessingException(f"{name}: there are no GCPs to write (no {self.GCPS} given)")
 
-    def _check_inputs(self, scene, table, settings, ties) -> None:
+    def _check_inputs(self, scene, table, settings, ties, lines) -> None:
         """core check_inputs, its error prefixed with the parameter at fault (GCPS by default)."""
         try:
-            check_inputs(scene, table, settings, ties)
+            check_inputs(scene, table, settings, ties, lines)
         except PushbroomError as exc:
             raise QgsProcessingException(self._named(str(exc), self.GCPS)) from None
 
