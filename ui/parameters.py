@@ -209,9 +209,10 @@ def interior_selection() -> QgsProcessingParameterEnum:
     return enum_parameter(
         INTERIOR_SELECTION, tr("Interior parameter selection"),
         {"significant": tr("after the solution, interior parameters that are not significant (|value| < 1.96 "
-                           "sigma), correlated with another unknown (|r| > 0.98) or left with under 2 % of their "
-                           "information once the other unknowns are free are fixed at 0, a few at a time, and the "
-                           "block re-solved; then self-calibration is kept only if an F-test shows it fits "
+                           "sigma), correlated with another unknown (|r| > 0.98) or left with under 0.01 % of their "
+                           "information once the trajectory and the stronger interior parameters are free (of "
+                           "parameters the control cannot separate one is kept) are fixed at 0, a few at a time, "
+                           "and the block re-solved; then self-calibration is kept only if an F-test shows it fits "
                            "significantly better than no interior parameters, else the run falls back to the "
                            "conventional adjustment and says so"),
          "keep": tr("estimate every INTERIOR parameter as given (with few GCPs a free set can overfit)")},

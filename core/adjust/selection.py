@@ -9,11 +9,18 @@ re-solved, until every kept parameter passes three tests (their figures go in th
   the parameter is clearly determined all the same (t >= T_CORRELATED): above it the two
   trade against each other and a weakly determined split is decided by noise;
 - information: at least MIN_INFORMATION of the parameter's information from the
-  observations is left once the other unknowns are free (1 / Q_ii against N_ii, both
-  without its own prior): below it the other unknowns would absorb it. Installation angles
-  against a shared attitude correction keep only ~0.1 % by construction (the attitude bias
-  takes the rest; the cameras' time separation decides) and are still well determined
-  (Zhang et al. 2024), so the threshold is that of non-determinability.
+  observations is left once the trajectory and the interior parameters kept before it are
+  free: below it they would absorb it. The interior parameters are taken strongest first (a
+  pivoted Cholesky decomposition of the observations' information, trajectory eliminated),
+  so of two or more that the control cannot separate (the focal length and b3 of a line
+  array, a camera's principal point and installation roll) one is kept and the others are
+  removed; testing each against all the others free would fail every member and remove the
+  whole group, and with it an error the group models (the across-track scale). Installation
+  angles against a shared attitude correction keep only ~0.1 % by construction (the attitude
+  bias takes the rest; the cameras' time separation decides) and are still well determined
+  (Zhang et al. 2024), so the threshold is that of non-determinability. A round that finds
+  non-determinable parameters removes only those (they are removable together) and tests the
+  others again once they are gone.
 
 Then a guard: the conventional adjustment (no interior parameters) of the same
 observations is solved too, and self-calibration is kept only when it lowers the weighted
@@ -62,21 +69,21 @@ def _tests(problem, est) -> list[dict]:
     column = {int(i): k for k, i in enumerate(free)}
     d = np.sqrt(np.diag(st.Q))
     corr = st.Q / np.outer(d, d)
+    interior = interior_free(problem)
+    shares = information_shares(system.N, np.array([column[int(i)] for i in interior], dtype=np.int64),
+                                np.array([_prior(params.params[i]) for i in interior]))
     out = []
-    for i in interior_free(problem):
+    for i, info in zip(interior, shares):
         p, k = params.params[i], column[int(i)]
         sigma = float(st.sigma0 * d[k])
         t = abs(p.value) / sigma if sigma > 0 else math.inf
         r = np.abs(corr[k]).copy()
         r[k] = 0.0
         j = int(np.argmax(r))
-        prior = 1.0 / p.sigma ** 2 if p.mode == "weighted" else 0.0
-        data = system.N[k, k] - prior
-        info = float((1.0 / st.Q[k, k] - prior) / data) if data > 0 else 0.0
         fails = []
         if info < MIN_INFORMATION:
             fails.append(f"non-determinable with this control: keeps {100 * max(info, 0.0):.2g} % of its "
-                         "information once the other unknowns are free")
+                         "information once the trajectory and the stronger interior parameters are free")
         if r[j] > MAX_CORRELATION and t < T_CORRELATED:
             fails.append(f"correlated with {params.params[free[j]].name} at r = {corr[k, j]:+.4f}")
         if t < T_CRITICAL:
@@ -88,6 +95,63 @@ def _tests(problem, est) -> list[dict]:
     return out
 
 
+def _prior(p) -> float:
+    """The information (1 / sigma^2, SI) of a parameter's own pseudo-observation (0 when free)."""
+    return 1.0 / p.sigma ** 2 if p.mode == "weighted" else 0.0
+
+
+def information_shares(N: np.ndarray, interior: np.ndarray, prior: np.ndarray) -> np.ndarray:
+    """Per interior unknown, the share (k,) of its information from the observations that is
+    left once the other unknowns (trajectory) and the interior unknowns stronger than it are
+    free: a pivoted Cholesky decomposition of the Schur complement of the other unknowns,
+    scaled by its diagonal, taking the largest remaining share first.
+
+    N: (n, n) normal matrix of the free unknowns (with the priors); interior: (k,) its columns
+    of the interior unknowns; prior: (k,) their priors' information, taken out (the share is of
+    the observations' information). Shares after the first below MIN_INFORMATION are those left
+    given every stronger unknown (all of them non-determinable)."""
+    n = N.shape[0]
+    other = np.setdiff1d(np.arange(n), interior)
+    data = N.copy()
+    data[interior, interior] -= prior
+    own = np.diag(data)[interior]
+    S = data[np.ix_(interior, interior)]
+    if other.size:
+        coupling = data[np.ix_(other, interior)]
+        S = S - coupling.T @ np.linalg.solve(data[np.ix_(other, other)], coupling)
+    scale = np.sqrt(np.where(own > 0, own, np.inf))
+    S = S / np.outer(scale, scale)
+    shares = np.zeros(interior.size)
+    todo = np.ones(interior.size, bool)
+    while todo.any():
+        left = np.where(todo, np.diag(S), -np.inf)
+        j = int(np.argmax(left))
+        shares[j], todo[j] = max(left[j], 0.0), False
+        if left[j] < MIN_INFORMATION:
+            shares[todo] = np.maximum(np.diag(S)[todo], 0.0)
+            break
+        S = S - np.outer(S[:, j], S[j, :]) / S[j, j]
+    return shares
+
+
+def _batch(failing: list[dict]) -> list[dict]:
+    """The failing parameters to remove in one round (weakest first): every non-determinable
+    one when there are any (:func:`information_shares` keeps the determinable rest), else up
+    to a third of them, never both of a correlated pair (removing one may leave the other
+    clearly determined: k1 and k2 of a short array; it is tested again next round)."""
+    undetermined = [x for x in failing if x["information"] < MIN_INFORMATION]
+    if undetermined:
+        return undetermined
+    batch, partners = [], set()
+    for x in failing[:max(1, len(failing) // 3)]:
+        if x["name"] in partners:
+            continue
+        batch.append(x)
+        if abs(x["correlation"]) > MAX_CORRELATION:
+            partners.add(x["correlated_with"])
+    return batch
+
+
 def _fix(problem, indices) -> None:
     for i in indices:
         p = problem.params.params[i]
@@ -96,16 +160,17 @@ def _fix(problem, indices) -> None:
 
 
 def _same_weight_cost(problem, like) -> float:
-    """The weighted squared residuals of ``problem``'s solution with the weights of ``like``
-    (same observations in the same order): its variance components and robust weights."""
-    saved = problem.scale, problem.factor
-    problem.scale, problem.factor = dict(like.scale), like.factor
-    problem.rescaled()
-    try:
-        return problem.cost()
-    finally:
-        problem.scale, problem.factor = saved
-        problem.rescaled()
+    """The least weighted squared residuals of ``problem``'s model with the weights of ``like``
+    (same observations in the same order): its variance components and robust weights. The
+    self-calibrated solution minimises its own weights' cost; under the conventional run's
+    weights it is not the minimum (by far when the two runs' variance components or flags
+    differ, e.g. many tie points), so it is re-solved from there (Gauss-Newton, weights held)."""
+    from .engine import solve  # the adjustment's own iterations (the engine imports this module)
+    same = copy.deepcopy(problem)
+    same.scale, same.factor = dict(like.scale), like.factor.copy()
+    same.rescaled()
+    solve(same, lambda *a: None, lambda: False, "guard: ")
+    return same.cost()
 
 
 def select_interior(problem, est, estimate: Callable) -> tuple[object, object, dict]:
@@ -121,7 +186,7 @@ def select_interior(problem, est, estimate: Callable) -> tuple[object, object, d
         failing = sorted((x for x in tests if x["fails"]), key=lambda x: (len(x["fails"]) < 2, x["t"]))
         if not failing:
             break
-        batch = failing[:max(1, len(failing) // 3)]
+        batch = _batch(failing)
         for x in batch:
             log.info("interior parameter %s removed: %s", x["name"], "; ".join(x["fails"]))
             removed.append({k: v for k, v in x.items() if k != "index"} | {"round": rounds + 1})

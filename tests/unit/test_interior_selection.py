@@ -9,9 +9,10 @@ import pytest
 from core import gcps as G
 from core.adjust import AdjustmentSettings, adjust
 from core.adjust.parameters import ARCSEC, ParameterSet, parse_interior, sigma_in_si
+from core.adjust.selection import _batch, information_shares
 from core.errors import InputError
 from core.scene_io import load_scene
-from core.simulator import GcpSettings, simulate
+from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
 from core.timebasis import TimeBasis
 
 FREE_SET = "*.f, *.dxp, *.dyp, *.k1, *.k2, *.p1, *.p2, *.b1, *.b2, *.b3, FWD.roll, FWD.pitch, FWD.yaw, " \
@@ -154,9 +155,21 @@ def test_removal_never_ends_worse_than_conventional(blocks):
             assert b["free_selected"] <= TOLERANCE * b["conventional"], b
 
 
-def test_the_free_set_overfits_without_removal(blocks):
-    ratios = [b["free"] / b["conventional"] for b in blocks if b["free"] is not None]
-    assert ratios and max(ratios) > 2.0, ratios
+def test_the_free_set_overfits_without_removal(tmp_path):
+    """Where the onboard interior is right (the preset without its camera errors), 9 GCPs cannot
+    carry the free set: kept as given it overfits (measured: 7.9 px at the check points against
+    0.93 px conventional); removal brings it back (0.84 px), and so does INTERIOR=default (0.80
+    px). With the preset's camera errors the free set is better than none (0.60 against 2.67 px
+    on block (1, 9) above): the errors are large enough for 9 GCPs to see."""
+    result = simulate("th1_tlc", tmp_path, seed=1, errors=dict.fromkeys(CAMERA_ERRORS, 0.0),
+                      gcp_settings=GcpSettings(n_gcps=300, check_fraction=291 / 300, image_noise=0.3))
+    scene, table = load_scene(result.onboard_scene), _table(result)
+    rmse = {name: adjust(scene, table, AdjustmentSettings(**kw)).report["check_points"]["image"]["rmse"]
+            for name, kw in (("conventional", {}), ("free", {"interior": FREE_SET, "interior_selection": "keep"}),
+                             ("free_selected", {"interior": FREE_SET}), ("default", {"interior": "default"}))}
+    assert rmse["free"] > 4.0 * rmse["conventional"], rmse
+    assert rmse["free_selected"] <= TOLERANCE * rmse["conventional"], rmse
+    assert rmse["default"] <= TOLERANCE * rmse["conventional"], rmse
 
 
 def test_the_report_names_removed_and_kept_parameters(blocks):
@@ -172,3 +185,38 @@ def test_the_report_names_removed_and_kept_parameters(blocks):
         else:
             assert sel["guard"]["F"] > sel["guard"]["F_critical"]
             assert all(k["t"] >= 1.96 and abs(k["correlation"]) <= 0.98 for k in sel["kept"])
+
+
+def test_self_calibration_is_kept_where_it_helps(blocks):
+    """The guard compares the self-calibrated model re-solved under the conventional weights (its
+    own solution is not their minimum): on blocks whose interior errors 7-9 GCPs can see it keeps
+    self-calibration (measured: 2.67 -> 0.63 px, 3.63 -> 0.65 px at the check points)."""
+    for b in blocks:
+        if b["seed"] in (1, 5):
+            assert b["selection"]["outcome"] == "self-calibration", b
+            assert b["default"] < 0.35 * b["conventional"], b
+
+
+def test_information_shares_keep_one_of_an_inseparable_pair():
+    """Two interior unknowns with the same effect (f and b3 of a line array) and one the trajectory
+    absorbs: one of the pair keeps its information, the other none, the absorbed one none."""
+    rng = np.random.default_rng(0)
+    trajectory = rng.normal(size=(40, 2))
+    a = rng.normal(size=40)
+    design = np.column_stack([trajectory, a, 2.0 * a, trajectory @ [1.0, -0.5], rng.normal(size=40)])
+    N = design.T @ design
+    prior = np.array([1e-3, 0.0, 0.0, 0.0])
+    N[[2, 3, 4, 5], [2, 3, 4, 5]] += prior
+    shares = information_shares(N, np.array([2, 3, 4, 5]), prior)
+    assert sorted(shares[:2]) == [pytest.approx(0.0, abs=1e-9), pytest.approx(1.0, rel=0.2)]
+    assert shares[2] == pytest.approx(0.0, abs=1e-9)
+    assert 0.5 < shares[3] <= 1.0
+
+
+def test_a_round_never_removes_both_of_a_correlated_pair():
+    fail = lambda name, partner, r, info=1.0: {"name": name, "correlated_with": partner,  # noqa: E731
+                                               "correlation": r, "information": info, "t": 0.5}
+    failing = [fail("NAD.k1", "NAD.k2", 0.99), fail("NAD.k2", "NAD.k1", 0.99), fail("FWD.b2", "NAD.k1", 0.3),
+               fail("BWD.b2", "x", 0.1), fail("FWD.k1", "FWD.k2", -0.99), fail("FWD.k2", "FWD.k1", -0.99)]
+    assert [x["name"] for x in _batch(failing)] == ["NAD.k1"]  # a third of six: two, NAD.k2 skipped
+    assert [x["name"] for x in _batch([failing[0], failing[3], fail("NAD.b3", "NAD.f", 1.0, 0.0)])] == ["NAD.b3"]
