@@ -209,7 +209,8 @@ def interior_selection() -> QgsProcessingParameterEnum:
     return enum_parameter(
         INTERIOR_SELECTION, tr("Interior parameter selection"),
         {"significant": tr("after the solution, interior parameters that are not significant (|value| < 1.96 "
-                           "sigma), correlated with another unknown (|r| > 0.98) or left with under 0.01 % of their "
+                           "sigma), correlated with another unknown (|r| > 0.98) unless clearly determined all "
+                           "the same (|value| >= 5 sigma), or left with under 0.01 % of their "
                            "information once the trajectory and the stronger interior parameters are free (of "
                            "parameters the control cannot separate one is kept) are fixed at 0, a few at a time, "
                            "and the block re-solved; then self-calibration is kept only if an F-test shows it fits "

@@ -15,7 +15,7 @@ from core.adjust.checkpoints import without_label
 from core.adjust.report import MAX_ARROWS, report_to_json, write_report_html, write_report_json
 from core.files import OutputError
 from core.scene_io import load_scene
-from core.simulator import GcpSettings, simulate
+from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 IMAGES = re.compile(r"data:image/png;base64,([A-Za-z0-9+/=]+)")
@@ -166,8 +166,11 @@ def test_a_failing_report_leaves_the_previous_file_untouched(result, tmp_path):
 
 def test_html_has_the_3d_intersection_table(tmp_path):
     """TH-1 three-line block: check points in all three cameras get a 3D row block with the
-    figures of the JSON report, before and after."""
-    sim = simulate("th1_tlc", tmp_path / "th1", seed=2, gcp_settings=GcpSettings(n_gcps=60, check_fraction=0.5))
+    figures of the JSON report, before and after. The preset's camera errors are switched off: the
+    default adjustment does not self-calibrate, and with them its LE90 (28.2 m) is no better than
+    the onboard model's (21.6 m); measured without them: 103.6 m -> 4.38 m."""
+    sim = simulate("th1_tlc", tmp_path / "th1", seed=2, errors=dict.fromkeys(CAMERA_ERRORS, 0.0),
+                   gcp_settings=GcpSettings(n_gcps=60, check_fraction=0.5))
     table = G.read_csv(sim.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
                        G.Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.01, sigma_z=0.01)
     out = adjust(load_scene(sim.onboard_scene), table, AdjustmentSettings())

@@ -9,13 +9,18 @@ from core import tiepoints as tp
 from core.errors import InputError
 from core.geodesy import geodetic_to_ecef
 from core.scene_io import load_scene
-from core.simulator import GcpSettings, simulate
+from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
 
 
 @pytest.fixture(scope="module")
 def th1(tmp_path_factory):
+    """A TH-1 block with the preset's trajectory and installation errors but no camera (interior)
+    errors: these tests are about reading and checking tie points, and the a-priori check flags a
+    point against the cameras' common error. With the preset's interior errors (principal point
+    10 px, decentring 7-8 px, different per camera) the onboard residuals are 9.7 px rms, not
+    3.3, and a 40 px mismatch is no longer outstanding (its point's residual 19 px vs 28 px)."""
     folder = tmp_path_factory.mktemp("th1")
-    res = simulate("th1_tlc", folder, seed=3, n_gcps=10,
+    res = simulate("th1_tlc", folder, seed=3, n_gcps=10, errors=dict.fromkeys(CAMERA_ERRORS, 0.0),
                    gcp_settings=GcpSettings(n_gcps=10, image_noise=0.3, n_tie_points=60))
     with open(res.tie_points) as f:
         rows = list(csv.DictReader(f))
@@ -80,6 +85,7 @@ def test_onboard_apriori_residuals_and_summary(th1):
     t = tp.check_against_scene(tp.read_csv(th1["csv"]), th1["onboard"], th1["onboard_path"])
     s = tp.summary(t)
     # the onboard model's errors are mostly common to the three cameras: a few px per point
+    # (measured: 177 observations, 3.31 px rms, median a-priori ground error 85.5 m)
     assert s["points"] == 60 and s["observations"] == 177 and s["single"] == 0
     assert s["cameras_per_point"] == {2: 3, 3: 57} and s["cameras"] == {"BWD": 59, "FWD": 58, "NAD": 60}
     assert 2.0 < s["rms_px"] < 8.0 and s["suspect"] == 0
