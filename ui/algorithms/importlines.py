@@ -12,7 +12,7 @@ from ...core import lines as core_lines
 from ...core.adjust.linepoints import ControlLines, check_against_scene
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
                       check_outputs, load_scene_for, processing_errors, style_output_on_load)
-from ..parameters import height_source, tr, z_datum
+from ..parameters import height_source, image_lines, tr, z_datum
 from .importgcps import ImportGcpsAlgorithm
 
 
@@ -56,11 +56,7 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterString(self.ID_FIELD, tr("Ground line id field"), optional=True,
                                                         defaultValue="line_id"),
                            tr("Field with each ground line's id (what image lines pair to). Empty: feature ids."))
-        self.add_parameter(QgsProcessingParameterVectorLayer(self.IMAGE_LINES, tr("Image lines"),
-                                                             [QgsProcessing.TypeVectorLine]),
-                           tr("The image lines digitised on the raw image (layer image_lines of 'Prepare "
-                              "digitising'): x = column, y = -row, fields line_id, camera, sigma_px (M values: "
-                              "per-vertex sigmas)."))
+        self.addParameter(image_lines())
         self.add_parameter(QgsProcessingParameterString(self.IMAGE_ID_FIELD, tr("Image line id field"),
                                                         defaultValue="line_id"),
                            tr("Field of the image lines naming the ground line each shows."))
