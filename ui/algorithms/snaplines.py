@@ -79,7 +79,7 @@ class SnapLinesAlgorithm(PushbroomAlgorithm):
                                 search=self.parameterAsDouble(parameters, self.SEARCH, context),
                                 reach=self.parameterAsDouble(parameters, self.REACH, context),
                                 max_sigma=self.parameterAsDouble(parameters, self.MAX_SIGMA, context))
-        with processing_errors():
+        with processing_errors(f"{self.WIDTH}, {self.SEARCH}, {self.REACH}, {self.MAX_SIGMA}: "):
             settings.validate()
         with processing_errors(f"{self.IMAGE_LINES}: "):
             lines = core_lines.read_image_lines(path, name)
