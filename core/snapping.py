@@ -41,6 +41,9 @@ gdal.UseExceptions()
 log = logging.getLogger(__name__)
 
 
+MODES = ("centre", "edge")
+
+
 @dataclass(frozen=True)
 class SnapSettings:
     """See the module docstring; lengths in px."""
@@ -56,7 +59,7 @@ class SnapSettings:
     max_sigma: float = 0.5
 
     def validate(self) -> None:
-        if self.mode not in ("centre", "edge"):
+        if self.mode not in MODES:
             raise InputError(f"snapping mode must be 'centre' or 'edge' (got {self.mode!r})")
         if self.polarity not in (1, -1):
             raise InputError(f"polarity must be 1 (bright feature) or -1 (dark) (got {self.polarity})")
