@@ -41,28 +41,18 @@ def _params(f, **extra):
     return {"INPUT": f["image"], "IMAGE_LINES": f["lines"], "OUTPUT": str(f["out"] / "snapped.gpkg"), **extra}
 
 
-def _points(path):
+def _layer(path, wkt: str, geom_type, epsg: int | None = None):
+    """A GeoPackage layer image_lines with one feature ``wkt`` (line_id R1), CRS ``epsg`` or none."""
+    srs = None
+    if epsg is not None:
+        srs = osr.SpatialReference()
+        srs.ImportFromEPSG(epsg)
     ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
-    lyr = ds.CreateLayer("image_lines", None, ogr.wkbPoint)
+    lyr = ds.CreateLayer("image_lines", srs, geom_type)
     lyr.CreateField(ogr.FieldDefn("line_id", ogr.OFTString))
     f = ogr.Feature(lyr.GetLayerDefn())
     f.SetField("line_id", "R1")
-    f.SetGeometry(ogr.CreateGeometryFromWkt("POINT (100 -50)"))
-    lyr.CreateFeature(f)
-    ds = None
-    return str(path)
-
-
-def _geographic(path):
-    """The line in lon/lat (y > 0): not the pixel frame."""
-    srs = osr.SpatialReference()
-    srs.ImportFromEPSG(4326)
-    ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
-    lyr = ds.CreateLayer("image_lines", srs, ogr.wkbLineString)
-    lyr.CreateField(ogr.FieldDefn("line_id", ogr.OFTString))
-    f = ogr.Feature(lyr.GetLayerDefn())
-    f.SetField("line_id", "R1")
-    f.SetGeometry(ogr.CreateGeometryFromWkt("LINESTRING (10.1 45.2, 10.2 45.3)"))
+    f.SetGeometry(ogr.CreateGeometryFromWkt(wkt))
     lyr.CreateFeature(f)
     ds = None
     return str(path)
@@ -72,9 +62,11 @@ CASES = {
     "an image of the wrong size": (lambda f, d: _params(f, INPUT=_image(d / "small.tif", rows=100, cols=100)),
                                    ["INPUT", "outside", "R1", "100 columns"]),
     "a blank image": (lambda f, d: _params(f, INPUT=_image(d / "blank.tif", blank=True)), ["INPUT", "blank"]),
-    "a point layer as image lines": (lambda f, d: _params(f, IMAGE_LINES=_points(d / "points.gpkg")),
+    "a point layer as image lines": (lambda f, d: _params(f, IMAGE_LINES=_layer(
+        d / "points.gpkg", "POINT (100 -50)", ogr.wkbPoint)),
                                      ["IMAGE_LINES"]),
-    "image lines not in the pixel frame": (lambda f, d: _params(f, IMAGE_LINES=_geographic(d / "geo.gpkg")),
+    "image lines not in the pixel frame": (lambda f, d: _params(f, IMAGE_LINES=_layer(
+        d / "geo.gpkg", "LINESTRING (10.1 45.2, 10.2 45.3)", ogr.wkbLineString, 4326)),
                                            ["IMAGE_LINES", "y > 0"]),
     "OUTPUT is the IMAGE_LINES file": (lambda f, d: _params(f, OUTPUT=f["lines"]), ["OUTPUT", "IMAGE_LINES"]),
     "OUTPUT not a GeoPackage": (lambda f, d: _params(f, OUTPUT=str(f["out"] / "snapped.shp")),

@@ -28,6 +28,16 @@ def ogr_source(alg_name: str, layer, what: str) -> tuple[str, str | None]:
     return path, name
 
 
+def gpkg_output(alg, parameters, context, what: str, temporary_name: str) -> str:
+    """The OUTPUT GeoPackage of a line algorithm, refused when not .gpkg, checked against the
+    inputs (:func:`ui.common.check_outputs`)."""
+    dest = alg.output_path(parameters, context, "OUTPUT", temporary_name)
+    if Path(dest).suffix.lower() != ".gpkg":
+        raise QgsProcessingException(f"OUTPUT: {what} are written as GeoPackage; choose a .gpkg file (got {dest})")
+    check_outputs(alg, parameters, context, {"OUTPUT": [dest]})
+    return dest
+
+
 class ImportLinesAlgorithm(PushbroomAlgorithm):
     ID = "importlines"
     NAME = "Import control lines"
@@ -73,11 +83,7 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
         self.add_parameter(out, tr("GeoPackage (.gpkg) with the layers ground_lines and image_lines."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = self.output_path(parameters, context, self.OUTPUT, "control_lines.gpkg")
-        if Path(dest).suffix.lower() != ".gpkg":
-            raise QgsProcessingException(f"{self.OUTPUT}: control lines are written as GeoPackage; choose a .gpkg "
-                                         f"file (got {dest})")
-        check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
+        dest = gpkg_output(self, parameters, context, "control lines", "control_lines.gpkg")
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         lines = self._read(parameters, context)

@@ -1,16 +1,14 @@
 """pushbroom:snaplines — image lines digitised on a raw image refined to the road's centre or an
 edge with sub-pixel profiles across them (core.snapping)."""
-from pathlib import Path
-
 import numpy as np
-from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterNumber,
+from qgis.core import (QgsProcessing, QgsProcessingParameterNumber,
                        QgsProcessingParameterRasterLayer, QgsProcessingParameterVectorDestination)
 
 from ...core import lines as core_lines
 from ...core.snapping import SnapSettings, kept_reasons, snap_lines
-from ..common import PushbroomAlgorithm, check_outputs, layer_file, processing_errors
+from ..common import PushbroomAlgorithm, layer_file, processing_errors
 from ..parameters import enum_parameter, enum_value, image_lines, tr
-from .importlines import ogr_source
+from .importlines import gpkg_output, ogr_source
 
 DEFAULTS = SnapSettings()
 
@@ -65,11 +63,7 @@ class SnapLinesAlgorithm(PushbroomAlgorithm):
                                    "refined (field refined); 'Import control lines' reads it as IMAGE_LINES."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = self.output_path(parameters, context, self.OUTPUT, "snapped_lines.gpkg")
-        if Path(dest).suffix.lower() != ".gpkg":
-            raise QgsProcessingException(f"{self.OUTPUT}: snapped lines are written as GeoPackage; choose a .gpkg "
-                                         f"file (got {dest})")
-        check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
+        dest = gpkg_output(self, parameters, context, "snapped lines", "snapped_lines.gpkg")
         image = layer_file(self.parameterAsRasterLayer(parameters, self.INPUT, context))
         path, name = ogr_source(self.IMAGE_LINES, self.parameterAsVectorLayer(parameters, self.IMAGE_LINES, context),
                                 "image line layer")
