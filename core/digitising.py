@@ -16,25 +16,30 @@ from .errors import InputError
 from .gcps import Heights, _heights
 from .geodesy import geodetic_to_ecef
 from .lines import DEFAULT_SIGMA_PX, ImageLines, build_image_lines
+from .snapping import SnapSettings, snap_lines
 
 _M_PER_DEG = 111320.0
 
 
 @dataclass
 class DigitisedLine:
-    """One image line: vertices [(col, row)] px and the id of the ground line it shows ('' =
-    not paired yet)."""
+    """One image line: vertices [(col, row)] px, the id of the ground line it shows ('' = not
+    paired yet) and each vertex's sigma px once snapped or loaded (None: the default)."""
     vertices: list[tuple[float, float]]
     line_id: str = ""
+    sigmas: list[float] | None = None
 
 
 @dataclass
 class LineEditor:
     """Image lines being digitised: finished ``lines``, the vertices of the line being drawn
-    (``current``) and the ``selected`` line's index (None: none)."""
+    (``current``) and the ``selected`` line's index (None: none). ``history``: the finished
+    lines and snaps, in order, for undo: (line, None) a finished line, (line, (vertices,
+    sigmas)) a snap and what the line held before it."""
     lines: list[DigitisedLine] = field(default_factory=list)
     current: list[tuple[float, float]] = field(default_factory=list)
     selected: int | None = None
+    history: list[tuple[DigitisedLine, tuple | None]] = field(default_factory=list)
 
     def add_vertex(self, col: float, row: float) -> None:
         """Add a vertex (px) to the line being drawn (a repeated click is ignored)."""
@@ -51,21 +56,48 @@ class LineEditor:
             raise InputError(f"a line needs at least two vertices (this one has {len(self.current)}); "
                              "click more points or undo")
         self.lines.append(DigitisedLine(self.current))
+        self.history.append((self.lines[-1], None))
         self.current = []
         self.selected = len(self.lines) - 1
         return self.selected
 
     def undo(self) -> str:
-        """Remove the last vertex of the line being drawn, or the last finished line when none
-        is being drawn; what was removed ('vertex', 'line' or '' when nothing was left)."""
+        """Remove the last vertex of the line being drawn, or else undo the last finish or snap
+        of a line still held (lines loaded or without history: the last line); what was undone
+        ('vertex', 'line', 'snap' or '' when nothing was left)."""
         if self.current:
             self.current.pop()
             return "vertex"
-        if self.lines:
+        while self.history:
+            line, before = self.history.pop()
+            if not any(line is held for held in self.lines):
+                continue  # deleted since
+            if before is not None:
+                line.vertices, line.sigmas = before
+                return "snap"
+            self.lines = [held for held in self.lines if held is not line]
+            break
+        else:
+            if not self.lines:
+                return ""
             self.lines.pop()
-            self.selected = None if self.selected is None or self.selected >= len(self.lines) else self.selected
-            return "line"
-        return ""
+        self.selected = None if self.selected is None or self.selected >= len(self.lines) else self.selected
+        return "line"
+
+    def snap_selected(self, image, settings: SnapSettings) -> tuple[int, int]:
+        """Snap the selected line to the feature of ``image`` (raster path or array,
+        :func:`core.snapping.snap_lines`), undoable; (vertices refined, vertices)."""
+        if self.selected is None:
+            raise InputError("select an image line first (click it in the list), then snap it")
+        line = self.lines[self.selected]
+        v = np.array(line.vertices, dtype=float)
+        sigma = line.sigmas if line.sigmas is not None else DEFAULT_SIGMA_PX
+        result = snap_lines(image, ImageLines([line.line_id], "", [0, len(v)], v[:, 0], v[:, 1], sigma), settings)
+        if result.refined.any():
+            self.history.append((line, (line.vertices, line.sigmas)))
+            line.vertices = list(zip(result.lines.col.tolist(), result.lines.row.tolist()))
+            line.sigmas = result.lines.sigma_px.tolist()
+        return int(result.refined.sum()), len(v)
 
     def delete_selected(self) -> bool:
         """Delete the selected line; False when none is selected."""
@@ -101,15 +133,18 @@ class LineEditor:
         if unpaired:
             raise InputError(f"image line(s) {', '.join(unpaired)} are not paired with a ground line: select each "
                              "and pick its ground line on the map")
+        sigmas = [np.full(len(line.vertices), sigma_px) if line.sigmas is None else np.array(line.sigmas)
+                  for line in self.lines]
         return build_image_lines([line.line_id for line in self.lines],
-                                 [np.array(line.vertices) for line in self.lines], camera, sigma_px,
+                                 [np.array(line.vertices) for line in self.lines], camera, sigmas,
                                  source="digitised lines")
 
     def load(self, image: ImageLines) -> None:
         """Continue editing saved lines (replaces the lines held)."""
-        self.lines = [DigitisedLine(list(zip(image.col[a:b].tolist(), image.row[a:b].tolist())), str(i))
+        self.lines = [DigitisedLine(list(zip(image.col[a:b].tolist(), image.row[a:b].tolist())), str(i),
+                                    image.sigma_px[a:b].tolist())
                       for i, a, b in zip(image.line_id, image.start[:-1], image.start[1:])]
-        self.current, self.selected = [], None
+        self.current, self.selected, self.history = [], None, []
 
 
 # --- ground lines --------------------------------------------------------------------------------

@@ -20,7 +20,8 @@ leaves on a rendered road: 0.09 px RMS in tests/unit/test_snapping.py). Two pass
 second with the refined directions and half the search.
 A vertex with fewer than ``min_stations`` usable profiles, or whose fit is worse than
 ``max_sigma`` px (a junction, a CCD seam where the image of the road jumps, texture that
-looks like the feature), keeps its position and sigma and is reported as not refined.
+looks like the feature), keeps its position and sigma and is reported as not refined
+(:func:`kept_reasons` counts which). Lines with vertices outside the image are refused.
 Pixel coordinates are GDAL's (col, row; pixel centres at +0.5).
 All profiles of a line are computed at once (arrays (vertices, stations, samples)).
 """
@@ -40,6 +41,9 @@ gdal.UseExceptions()
 log = logging.getLogger(__name__)
 
 
+MODES = ("centre", "edge")
+
+
 @dataclass(frozen=True)
 class SnapSettings:
     """See the module docstring; lengths in px."""
@@ -55,7 +59,7 @@ class SnapSettings:
     max_sigma: float = 0.5
 
     def validate(self) -> None:
-        if self.mode not in ("centre", "edge"):
+        if self.mode not in MODES:
             raise InputError(f"snapping mode must be 'centre' or 'edge' (got {self.mode!r})")
         if self.polarity not in (1, -1):
             raise InputError(f"polarity must be 1 (bright feature) or -1 (dark) (got {self.polarity})")
@@ -69,7 +73,8 @@ class SnapSettings:
 class SnapResult:
     """lines: the refined image lines (col, row, sigma_px per vertex); refined (V,) bool:
     vertices moved to the feature (the others are unchanged); moved (V,) px: how far each
-    vertex moved; stations (V,): profiles used per vertex."""
+    vertex moved; stations (V,): profiles used per vertex (for a vertex not refined, the
+    usable profiles of the last pass)."""
     lines: ImageLines
     refined: np.ndarray
     moved: np.ndarray
@@ -82,10 +87,12 @@ def snap_lines(image, lines: ImageLines, settings: SnapSettings = SnapSettings()
     settings.validate()
     ds = gdal.Open(str(image)) if not isinstance(image, np.ndarray) else None
     shape = (ds.RasterYSize, ds.RasterXSize) if ds is not None else image.shape
+    _require_inside(lines, shape, str(image) if ds is not None else "the image")
     col, row, sigma = lines.col.copy(), lines.row.copy(), lines.sigma_px.copy()
     refined = np.zeros(col.size, bool)
     stations = np.zeros(col.size, np.int64)
     margin = int(np.ceil(settings.search + settings.reach + settings.width + 4))
+    blank = 0
     for i in range(len(lines)):  # one window read per line; the profiles of a line are vectorised
         sl = slice(lines.start[i], lines.start[i + 1])
         c0 = max(int(np.floor(col[sl].min())) - margin, 0)
@@ -96,8 +103,14 @@ def snap_lines(image, lines: ImageLines, settings: SnapSettings = SnapSettings()
             continue
         window = (ds.GetRasterBand(band).ReadAsArray(c0, r0, c1 - c0, r1 - r0) if ds is not None
                   else image[r0:r1, c0:c1]).astype(float)
+        if np.ptp(window) == 0:
+            blank += 1
+            continue
         out = snap_polyline(window, col[sl] - c0, row[sl] - r0, sigma[sl], settings)
         col[sl], row[sl], sigma[sl], refined[sl], stations[sl] = out[0] + c0, out[1] + r0, out[2], out[3], out[4]
+    if len(lines) and blank == len(lines):
+        raise InputError(f"{image if ds is not None else 'the image'} is blank (one value) under every line: "
+                         "nothing to snap to")
     moved = np.hypot(col - lines.col, row - lines.row)
     log.info("snapped %d of %d vertices (median move %.2f px)", int(refined.sum()), refined.size,
              float(np.median(moved[refined])) if refined.any() else 0.0)
@@ -116,8 +129,30 @@ def snap_polyline(window: np.ndarray, col: np.ndarray, row: np.ndarray, sigma: n
         normal = _normals(c, r)
         c = np.where(good, c + across * normal[:, 0], c)
         r = np.where(good, r + across * normal[:, 1], r)
-        s_out, ok, used = np.where(good, sd, s_out), good | ok, np.where(good, n, used)
+        s_out, ok, used = np.where(good, sd, s_out), good | ok, np.where(good | ~ok, n, used)
     return c, r, s_out, ok, used
+
+
+def _require_inside(lines: ImageLines, shape, source: str) -> None:
+    """Refuse lines with vertices outside an image of ``shape`` (rows, cols): the lines were
+    digitised on another image (or one of another size)."""
+    outside = (lines.col < 0) | (lines.row < 0) | (lines.col > shape[1]) | (lines.row > shape[0])
+    if outside.any():
+        parts = np.unique(lines.vertex_part()[outside])
+        raise InputError(f"{outside.sum()} vertices of image line(s) {', '.join(lines.line_id[parts][:10])} lie "
+                         f"outside {source} ({shape[1]} columns x {shape[0]} rows): lines digitised on another "
+                         "image?")
+
+
+def kept_reasons(result: SnapResult, settings: SnapSettings) -> dict[str, int]:
+    """Why the vertices not refined kept their position: {reason: count} (empty when all moved)."""
+    kept = ~result.refined
+    few = kept & (result.stations < settings.min_stations)
+    return {reason: int(n) for reason, n in (
+        (f"fewer than {settings.min_stations} profiles found the feature (none there, a junction, the "
+         "image edge)", few.sum()),
+        (f"the feature's position across the line was worse than {settings.max_sigma} px (texture, a seam, "
+         "a bend)", (kept & ~few).sum())) if n}
 
 
 def _normals(c: np.ndarray, r: np.ndarray) -> np.ndarray:

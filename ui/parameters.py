@@ -14,10 +14,10 @@ User-visible texts go through :func:`tr` (one translation context for the whole 
 """
 from __future__ import annotations
 
-from qgis.core import (QgsProcessingException, QgsProcessingParameterEnum, QgsProcessingParameterFile,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
-                       QgsProperty)
+from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterEnum,
+                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer,
+                       QgsProcessingParameterString, QgsProcessingParameterVectorLayer, QgsProperty)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
 from ..core.gcps import DEFAULT_SIGMA_PX
@@ -336,4 +336,12 @@ def sigma_field(key: str) -> QgsProcessingParameterString:
     parameter.setHelp(tr("Field (CSV column or layer field) holding each point's {0} in {1}, so that surveyed "
                          "and map-digitised points can be mixed; an empty cell takes {2}. Values must be > 0. "
                          "Empty: every point takes {2}.").format(what, unit, key.replace("sigma_", "SIGMA_").upper()))
+    return parameter
+
+
+def image_lines() -> QgsProcessingParameterVectorLayer:
+    """IMAGE_LINES: image lines digitised on a raw image (pixel frame)."""
+    parameter = QgsProcessingParameterVectorLayer("IMAGE_LINES", tr("Image lines"), [QgsProcessing.TypeVectorLine])
+    parameter.setHelp(tr("The image lines digitised on the raw image (layer image_lines of 'Prepare digitising'): "
+                         "x = column, y = -row, fields line_id, camera, sigma_px (M values: per-vertex sigmas)."))
     return parameter

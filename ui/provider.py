@@ -17,6 +17,7 @@ from .algorithms.orthorectify import OrthorectifyAlgorithm
 from .algorithms.preparedigitising import PrepareDigitisingAlgorithm
 from .algorithms.sensorcorrect import SensorCorrectAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
+from .algorithms.snaplines import SnapLinesAlgorithm
 from .common import RESOURCES
 from .parameters import tr
 
@@ -25,7 +26,8 @@ MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plu
 ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, ImportTiePointsAlgorithm, ImportLinesAlgorithm,
               MatchGcpsAlgorithm,
               BundleAdjustAlgorithm, GroundToImageAlgorithm, ImageToGroundAlgorithm, FootprintAlgorithm,
-              OrthorectifyAlgorithm, ExportRpcAlgorithm, SensorCorrectAlgorithm, PrepareDigitisingAlgorithm)
+              OrthorectifyAlgorithm, ExportRpcAlgorithm, SensorCorrectAlgorithm, PrepareDigitisingAlgorithm,
+              SnapLinesAlgorithm)
 
 
 class PushbroomProvider(QgsProcessingProvider):

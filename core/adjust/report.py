@@ -81,7 +81,8 @@ def write_report_html(report: dict, points: dict, path, title: str = "Bundle adj
     completely or not at all (with ``files``, as part of that set)."""
     rep = _plain(report)
     body = [f"<h1>{html.escape(title)}</h1>", _reliability_section(rep), _headline_section(rep),
-            _tie_point_section(rep), _settings_section(rep), _decisions_section(rep), _parameters_section(rep),
+            _tie_point_section(rep), _lines_section(rep), _settings_section(rep), _decisions_section(rep),
+            _parameters_section(rep),
             "<h2>Plots</h2>",
             _residual_vector_figure(points), _trajectory_figure(rep["trajectory"]) if rep["trajectory"] else "",
             _chip_figure(rep["control_residuals_per_chip"]), _correlations_section(rep),
@@ -268,6 +269,43 @@ def _tie_point_section(rep: dict) -> str:
     return ("<h2>Tie points</h2><ul>" + "".join(items) + "</ul>"
             + _table(["camera", "observations", "RMSE col px", "RMSE row px", "max px"], rows)
             + f"<p>{html.escape(ties['relative_accuracy'])}.</p>")
+
+
+MAX_LISTED_LINES = 200  # per-line rows listed at most (the rest counted; all are in OUTPUT_LINE_RESIDUALS)
+
+
+def _lines_section(rep: dict) -> str:
+    """Control lines (Tommaselli & Marcato Junior 2012): lines and points used, across-line RMSE
+    before and after, lines named wrong as a whole, whether the lines' directions determine both
+    horizontal directions, and per line its figures (empty without lines)."""
+    lines = rep.get("lines")
+    if not lines:
+        return ""
+    directions = lines["directions"]
+    wrong = lines["flagged_line_ids"]
+    items = [f"{lines['lines']} lines, {lines['points']} line points (each {lines['constraints_per_point']} "
+             f"constraints: across the line and in height); {lines['flagged_points']} points flagged",
+             f"across-line RMSE {_fmt(lines['across_rmse_before_m'], '.2f')} m before (onboard model), "
+             f"{_fmt(lines['across_rmse_m'], '.2f')} m after; height RMSE {_fmt(lines['height_rmse_m'], '.2f')} m "
+             "(points not flagged)",
+             f"{lines['flagged_lines']} lines do not fit as a whole (wrong road or shifted in the map; their "
+             "constraints released)" + (": " + ", ".join(wrong[:30]) + (" …" if len(wrong) > 30 else "")
+                                        if wrong else "")]
+    note = (f"directions: lines run along {_fmt(directions['azimuth_deg'], '.0f')}° with a spread of "
+            f"{_fmt(directions['spread_deg'], '.1f')}°" + ("; both horizontal directions determined"
+                                                           if directions["determined"] else
+                                                           f" — {directions['message']}"))
+    per = lines["per_line"]
+    order = sorted(range(len(per["line_id"])), key=lambda i: (not per["flagged"][i], str(per["line_id"][i])))
+    rows = [[html.escape(str(per["line_id"][i])), str(per["points"][i]), _fmt(per["rms_across_m"][i], ".2f"),
+             _fmt(per["max_across_m"][i], ".2f"), str(per["points_flagged"][i]),
+             "<b>wrong</b>" if per["flagged"][i] else ""] for i in order[:MAX_LISTED_LINES]]
+    more = (f"<p>{len(order) - MAX_LISTED_LINES} more lines not listed (all are in the line residuals "
+            "output).</p>" if len(order) > MAX_LISTED_LINES else "")
+    warn = "" if directions["determined"] else " class='bad'"
+    return ("<h2>Control lines</h2><ul>" + "".join(f"<li>{html.escape(t)}</li>" for t in items)
+            + f"<li{warn}>{html.escape(note)}</li></ul>"
+            + _table(["line", "points", "RMS across m", "max across m", "points flagged", ""], rows) + more)
 
 
 def _settings_section(rep: dict) -> str:

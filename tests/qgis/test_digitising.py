@@ -168,6 +168,7 @@ def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground
     QTest.mouseMove(dock.canvas.viewport(), moved)
     at = dock.canvas.getCoordinateTransform().toMapCoordinates(moved)
     assert dock.pixel_label.text() == f"col {at.x():.1f}, row {-at.y():.1f} px"
+    _snap_in(dock, tmp_path)
     dock.close()
 
 
@@ -187,3 +188,56 @@ def test_plugin_action_opens_the_dock(plugin_instance, qgis_iface, monkeypatch):
     assert plugin_instance.action is None and plugin_instance.dock is None
     qgis_iface.removePluginMenu.assert_called_once()
     assert QgsApplication.processingRegistry().providerById("pushbroom") is not None
+
+
+def _snap_in(dock, tmp_path):
+    """Clicks 2 px off a rendered road, Snap: within 0.3 px RMS across the road's true image,
+    each vertex with its own sigma; Undo restores the clicks; the snapped sigmas are saved.
+    (In the dock of the test above, with a second display copy.)"""
+    from pushbroom_adjust.core.display import write_display_vrt
+    from pushbroom_adjust.core.lines import read_image_lines
+    from tests.unit.test_snapping import _across_error, _clicks, rendered
+    path, scene, truth = rendered.__wrapped__(_Factory(tmp_path))
+    write_display_vrt(path, tmp_path / "display.vrt")
+    dock.editor.lines.clear()
+    dock.editor.selected = None
+    assert dock.open_image(str(tmp_path / "display.vrt")) and dock.raw_image == str(path)
+    clicks = _clicks(truth[:1], 40.0, 2.0, np.random.default_rng(3), scene.cameras[0].cols)
+    pixels = np.c_[clicks.col, clicks.row]
+    _zoom_to(dock.canvas, pixels)
+    clicked = _digitise(dock, pixels)
+    _click(dock.canvas, 10, 10, Qt.RightButton)
+    clicked_lines = type(clicks)(["R0"], "HRC", [0, len(clicked)], clicked[:, 0], clicked[:, 1], 1.0)
+    before = _across_error(clicked_lines, truth[:1])
+    QTest.mouseClick(dock.snap_button, Qt.LeftButton)
+    assert "vertices snapped" in dock.message_label.text(), dock.message_label.text()
+    line = dock.editor.lines[0]
+    snapped = type(clicks)(["R0"], "HRC", [0, len(clicked)], *np.array(line.vertices).T, line.sigmas)
+    after = _across_error(snapped, truth[:1])
+    refined = np.array(line.sigmas) != 1.0
+    print(f"dock snap: {refined.sum()} of {len(clicked)} vertices, RMS across {np.sqrt(np.mean(before ** 2)):.2f} "
+          f"-> {np.sqrt(np.mean(after[refined] ** 2)):.3f} px")
+    assert np.sqrt(np.mean(before ** 2)) > 1.0 and refined.mean() >= 0.9
+    assert np.sqrt(np.mean(after[refined] ** 2)) <= 0.3
+    QTest.mouseClick(dock.undo_button, Qt.LeftButton)
+    assert dock.message_label.text() == "Snap undone" and len(dock.editor.lines) == 1
+    assert np.abs(np.array(dock.editor.lines[0].vertices) - clicked).max() < 1e-9
+    QTest.mouseClick(dock.snap_button, Qt.LeftButton)
+    dock.editor.pair_selected("R0")
+    assert dock.save(str(tmp_path / "snapped.gpkg")), dock.message_label.text()
+    back = read_image_lines(tmp_path / "snapped.gpkg")
+    np.testing.assert_allclose(back.sigma_px, dock.editor.lines[0].sigmas)
+    assert np.all((back.sigma_px[refined] >= 0.1) & (back.sigma_px[refined] < 0.5))  # the fit's, per vertex
+    assert np.all(back.sigma_px[~refined] == 1.0)
+
+
+class _Factory:
+    """A stand-in for pytest's tmp_path_factory (the fixture of tests/unit/test_snapping.py
+    called directly)."""
+
+    def __init__(self, folder):
+        self.folder = folder
+
+    def mktemp(self, name):
+        (self.folder / name).mkdir()
+        return self.folder / name

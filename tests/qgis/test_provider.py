@@ -9,7 +9,8 @@ ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:impo
               "pushbroom:matchgcps",
               "pushbroom:bundleadjust", "pushbroom:groundtoimage",
               "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",
-              "pushbroom:exportrpc", "pushbroom:sensorcorrect", "pushbroom:preparedigitising"]
+              "pushbroom:exportrpc", "pushbroom:sensorcorrect", "pushbroom:preparedigitising",
+              "pushbroom:snaplines"]
 MODELS = ["pushbroom:Simulate, adjust, orthorectify and export RPC", "pushbroom:Adjust with GCPs and control lines"]  # resources/models/*.model3
 
 

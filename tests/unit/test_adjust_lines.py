@@ -184,3 +184,34 @@ def test_group_median_matches_numpy():
     got = group_median(values, key, 7)
     want = [np.median(values[key == j]) if (key == j).any() else 0.0 for j in range(7)]
     assert np.allclose(got, want, rtol=0, atol=1e-15)
+
+
+def test_html_report_lists_the_control_lines(runs, tmp_path):
+    from core.adjust.report import write_report_html
+    out = runs["lines"]
+    rep = out.report["lines"]
+    write_report_html(out.report, out.points, tmp_path / "r.html")
+    text = (tmp_path / "r.html").read_text()
+    assert "<h2>Control lines</h2>" in text
+    assert f"{rep['lines']} lines, {rep['points']} line points (each 2 constraints" in text
+    assert (f"across-line RMSE {rep['across_rmse_before_m']:.2f} m before (onboard model), "
+            f"{rep['across_rmse_m']:.2f} m after") in text
+    assert "both horizontal directions determined" in text
+    for line_id, rms in zip(rep["per_line"]["line_id"], rep["per_line"]["rms_across_m"]):
+        assert f"<td class='l'>{line_id}</td><td>" in text and f"<td>{rms:.2f}</td>" in text
+    write_report_html(runs["points"].report, runs["points"].points, tmp_path / "p.html")
+    assert "Control lines" not in (tmp_path / "p.html").read_text()
+
+
+def test_html_report_names_wrong_lines_and_a_free_direction(runs, tmp_path):
+    from core.adjust.report import _lines_section
+    rep = dict(runs["lines"].report["lines"])
+    per = {k: list(v) for k, v in rep["per_line"].items()}
+    per["flagged"][1] = True
+    rep.update(per_line=per, flagged_lines=1, flagged_line_ids=[per["line_id"][1]],
+               directions={**rep["directions"], "determined": False, "message": "the lines all run along 12°"})
+    text = _lines_section({"lines": rep})
+    assert f"1 lines do not fit as a whole (wrong road or shifted in the map; their constraints released): " \
+           f"{per['line_id'][1]}" in text
+    assert "<li class='bad'>" in text and "the lines all run along 12°" in text
+    assert text.index(f"<td class='l'>{per['line_id'][1]}</td>") < text.index(f"<td class='l'>{per['line_id'][0]}</td>")

@@ -202,3 +202,26 @@ def test_saved_lines_read_back(tmp_path):
     again = LineEditor()
     again.load(back)
     assert again.lines[0].vertices == editor.lines[0].vertices and again.lines[0].line_id == "R7"
+
+
+def test_editor_snaps_the_selected_line_undoably_and_saves_its_sigmas():
+    """A line clicked 2 px beside a bright 3 px band: snapped onto it with per-vertex sigmas,
+    Undo restores the clicks, the sigmas reach the saved ImageLines."""
+    from core.snapping import SnapSettings
+    image = np.full((200, 200), 60.0) + np.random.default_rng(0).normal(0, 3, (200, 200))
+    image[:, 99:102] = 200.0                 # the band's centre: col 100.5
+    editor = LineEditor()
+    clicks = [(102.5, 30.0), (98.0, 80.0), (103.0, 130.0), (101.5, 170.0)]
+    for col, row in clicks:
+        editor.add_vertex(col, row)
+    editor.finish()
+    refined, total = editor.snap_selected(image, SnapSettings())
+    line = editor.lines[0]
+    assert (refined, total) == (4, 4)
+    np.testing.assert_allclose([c for c, _ in line.vertices], 100.5, atol=0.1)
+    assert all(0.1 <= s < 0.5 for s in line.sigmas)
+    assert editor.undo() == "snap" and line.vertices == clicks and line.sigmas is None
+    editor.snap_selected(image, SnapSettings())
+    editor.pair_selected("R1")
+    np.testing.assert_allclose(editor.image_lines("HRC").sigma_px, line.sigmas)
+    assert editor.undo() == "snap" and editor.undo() == "line" and editor.lines == []

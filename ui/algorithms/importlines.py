@@ -12,7 +12,7 @@ from ...core import lines as core_lines
 from ...core.adjust.linepoints import ControlLines, check_against_scene
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
                       check_outputs, load_scene_for, processing_errors, style_output_on_load)
-from ..parameters import height_source, tr, z_datum
+from ..parameters import height_source, image_lines, tr, z_datum
 from .importgcps import ImportGcpsAlgorithm
 
 
@@ -26,6 +26,16 @@ def ogr_source(alg_name: str, layer, what: str) -> tuple[str, str | None]:
         raise QgsProcessingException(f"{alg_name}: {layer.source()} is not a file-based vector layer; save the "
                                      f"{what} to a GeoPackage or shapefile first")
     return path, name
+
+
+def gpkg_output(alg, parameters, context, what: str, temporary_name: str) -> str:
+    """The OUTPUT GeoPackage of a line algorithm, refused when not .gpkg, checked against the
+    inputs (:func:`ui.common.check_outputs`)."""
+    dest = alg.output_path(parameters, context, "OUTPUT", temporary_name)
+    if Path(dest).suffix.lower() != ".gpkg":
+        raise QgsProcessingException(f"OUTPUT: {what} are written as GeoPackage; choose a .gpkg file (got {dest})")
+    check_outputs(alg, parameters, context, {"OUTPUT": [dest]})
+    return dest
 
 
 class ImportLinesAlgorithm(PushbroomAlgorithm):
@@ -56,11 +66,7 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterString(self.ID_FIELD, tr("Ground line id field"), optional=True,
                                                         defaultValue="line_id"),
                            tr("Field with each ground line's id (what image lines pair to). Empty: feature ids."))
-        self.add_parameter(QgsProcessingParameterVectorLayer(self.IMAGE_LINES, tr("Image lines"),
-                                                             [QgsProcessing.TypeVectorLine]),
-                           tr("The image lines digitised on the raw image (layer image_lines of 'Prepare "
-                              "digitising'): x = column, y = -row, fields line_id, camera, sigma_px (M values: "
-                              "per-vertex sigmas)."))
+        self.addParameter(image_lines())
         self.add_parameter(QgsProcessingParameterString(self.IMAGE_ID_FIELD, tr("Image line id field"),
                                                         defaultValue="line_id"),
                            tr("Field of the image lines naming the ground line each shows."))
@@ -77,11 +83,7 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
         self.add_parameter(out, tr("GeoPackage (.gpkg) with the layers ground_lines and image_lines."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = self.output_path(parameters, context, self.OUTPUT, "control_lines.gpkg")
-        if Path(dest).suffix.lower() != ".gpkg":
-            raise QgsProcessingException(f"{self.OUTPUT}: control lines are written as GeoPackage; choose a .gpkg "
-                                         f"file (got {dest})")
-        check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
+        dest = gpkg_output(self, parameters, context, "control lines", "control_lines.gpkg")
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         lines = self._read(parameters, context)

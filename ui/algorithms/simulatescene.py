@@ -4,6 +4,7 @@ from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsPr
                        QgsProcessingParameterBoolean,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber)
 
+from ...core.roads import LINES_FILE, POINTS_FILE, RoadSettings
 from ...core.simulator import PRESETS, GcpSettings, check_folder, output_names, simulate
 from ..common import PushbroomAlgorithm, core_call, feedback_callbacks, processing_errors
 from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_value, preset, tr
@@ -87,9 +88,14 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
             "preset's error magnitudes (empty = the preset's value; each drawn value is 1/3 to 1 times the "
             "magnitude, with a random sign) and set the measurement noise, check points and gross errors. The "
             "camera's lens and CCD terms (the 10 parameters of Zhang et al. 2015) are given in pixels: the "
-            "displacement each causes at the end of the detector line.")
+            "displacement each causes at the end of the detector line. With N_LINES, roads are simulated as control "
+            "lines (Tommaselli & Marcato Junior 2012): lines.gpkg holds the road map (ground_lines, a share "
+            "WRONG_LINE_FRACTION of them shifted or turned 20-200 m off as a real map's can be), the measured "
+            "image lines (image_lines) and a user's clicks with 2 px error (image_clicks); line_points.csv the "
+            "truth; with RENDER the roads are drawn into the raw images.")
     PRESET, SEED, N_SCENES, N_GCPS, IMAGE_NOISE, RENDER = PRESET, "SEED", "N_SCENES", "N_GCPS", "IMAGE_NOISE", \
         "RENDER"
+    N_LINES, WRONG_LINE_FRACTION, LINES = "N_LINES", "WRONG_LINE_FRACTION", "LINES"
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
     ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM = "ONBOARD_SCENE", "TRUE_SCENE", "GCPS", "DEM"
     TIE_POINTS, MANIFEST, IMAGE, REFERENCE = "TIE_POINTS", "MANIFEST", "IMAGE", "REFERENCE"
@@ -119,13 +125,24 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                           "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB. With the images comes "
                           "reference.tif, a reference orthoimage of the same ground (UTM, 5 m or twice the GSD, blurred, another "
                           "radiometry, noise, patches of changed land cover and cloud) for pushbroom:matchgcps."))
+        n_lines = QgsProcessingParameterNumber(self.N_LINES, tr("Number of roads (control lines)"),
+                                               QgsProcessingParameterNumber.Integer, 0, minValue=0, maxValue=10000)
+        n_lines.setHelp(tr("How many roads (straight and curved, 2-6 km, on the terrain) to simulate as control "
+                           "lines: written to lines.gpkg (layers ground_lines, image_lines, image_clicks) and "
+                           "line_points.csv; drawn into the raw images with RENDER. 0: none."))
         folder = QgsProcessingParameterFolderDestination(self.OUTPUT_FOLDER, tr("Output folder"))
         folder.setHelp(tr("Folder the simulated files are written to (created if missing). Files there of the "
                           "names the simulation writes are replaced only when an earlier simulation wrote them "
                           "and they were not changed since; a user's files are never replaced (the run stops)."))
-        for p in (preset(), seed, n_scenes, n_gcps, noise, render):
+        for p in (preset(), seed, n_scenes, n_gcps, noise, render, n_lines):
             self.addParameter(p)
         self.add_parameter(check_fraction(), advanced=True)
+        self.add_parameter(QgsProcessingParameterNumber(self.WRONG_LINE_FRACTION, tr("Share of wrong map lines"),
+                                                        QgsProcessingParameterNumber.Double, 0.0, minValue=0.0,
+                                                        maxValue=1.0),
+                           tr("0 to 1: this share of the simulated road map is wrong, shifted as a whole or turned "
+                              "about one of its points so that it ends 20-200 m off (fields kind and shift_m of "
+                              "ground_lines; truth, not read by the adjustment)."), advanced=True)
         for name, _, label, kind, default, lo, hi, help_text in MEASUREMENT_PARAMETERS:
             kind = QgsProcessingParameterNumber.Integer if kind == "i" else QgsProcessingParameterNumber.Double
             self.add_parameter(QgsProcessingParameterNumber(name, tr(label), kind, default, minValue=lo, maxValue=hi),
@@ -143,6 +160,8 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                                                              "gross)")))
         self.addOutput(QgsProcessingOutputFile(self.TIE_POINTS, tr("Tie points (CSV), when requested")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.DEM, tr("DEM (GeoTIFF, EGM96 geoid heights)")))
+        self.addOutput(QgsProcessingOutputFile(self.LINES, tr("Control lines (GeoPackage: ground_lines, image_lines, "
+                                                              "image_clicks), when requested")))
         self.addOutput(QgsProcessingOutputFile(self.MANIFEST, tr("Simulation settings and drawn errors (JSON)")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.IMAGE, tr("Raw image of the first camera, when rendered")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.REFERENCE, tr("Reference orthoimage, when rendered")))
@@ -161,21 +180,25 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         settings = GcpSettings(n_gcps=self.parameterAsInt(parameters, self.N_GCPS, context),
                                image_noise=self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
                                **measurements)
+        roads = RoadSettings(n_lines=self.parameterAsInt(parameters, self.N_LINES, context),
+                             wrong_fraction=self.parameterAsDouble(parameters, self.WRONG_LINE_FRACTION, context))
         with processing_errors(f"{self.OUTPUT_FOLDER}: "):  # before any work: a user's files there are kept
             check_folder(folder, output_names(PRESETS[preset], settings,
-                                              self.parameterAsBool(parameters, self.RENDER, context)))
+                                              self.parameterAsBool(parameters, self.RENDER, context))
+                         + ([LINES_FILE, POINTS_FILE] if roads.n_lines else []))
         progress, is_cancelled = feedback_callbacks(feedback)
         result = core_call(simulate, preset, folder,
                            seed=self.parameterAsInt(parameters, self.SEED, context),
                            n_scenes=self.parameterAsInt(parameters, self.N_SCENES, context),
                            render=self.parameterAsBool(parameters, self.RENDER, context),
-                           errors=errors, gcp_settings=settings, progress=progress, is_cancelled=is_cancelled)
+                           errors=errors, gcp_settings=settings, road_settings=roads, progress=progress,
+                           is_cancelled=is_cancelled)
         feedback.pushInfo(f"simulated {preset} into {folder}: " + ", ".join(
             p.name for p in (result.onboard_scene, result.true_scene, result.gcps, result.dem,
-                             result.tie_points, *result.images.values()) if p is not None))
+                             result.tie_points, result.lines, *result.images.values()) if p is not None))
         return {self.OUTPUT_FOLDER: folder, self.ONBOARD_SCENE: str(result.onboard_scene),
                 self.TRUE_SCENE: str(result.true_scene), self.GCPS: str(result.gcps), self.DEM: str(result.dem),
                 self.TIE_POINTS: str(result.tie_points) if result.tie_points else None,
-                self.MANIFEST: str(result.manifest),
+                self.LINES: str(result.lines) if result.lines else None, self.MANIFEST: str(result.manifest),
                 self.IMAGE: str(next(iter(result.images.values()))) if result.images else None,
                 self.REFERENCE: str(result.reference) if result.reference else None}

@@ -1,7 +1,9 @@
 """The dock 'Digitise control lines on the raw image': its own map canvas showing a display copy
 (pushbroom:preparedigitising) in the pixel frame x = col, y = -row, a map tool that digitises
 image lines, pairing with ground lines picked on the main map canvas, ground lines predicted into
-the image by the scene model, and Save to an ``image_lines`` GeoPackage layer.
+the image by the scene model, Snap (the selected line to the road's centre or an edge of the raw
+image the display copy shows, :mod:`core.snapping`, undoable) and Save to an ``image_lines``
+GeoPackage layer.
 
 The logic lives in :mod:`core.digitising` (vertices, undo, pairing, prediction); this module
 turns mouse events and buttons into its calls and draws its state.
@@ -24,6 +26,8 @@ from ...core.errors import PushbroomError
 from ...core.gcps import Heights
 from ...core.lines import write_gpkg
 from ...core.scene_io import load_scene
+from ...core.snapping import MODES as SNAP_MODES
+from ...core.snapping import SnapSettings
 from ..parameters import DATUMS, HEIGHT_SOURCES, tr
 
 LINE_COLOUR, CURRENT_COLOUR, SELECTED_COLOUR, PREDICTED_COLOUR = (QColor(0, 200, 255), QColor(255, 220, 0),
@@ -67,6 +71,7 @@ class DigitisingDock(QDockWidget):
         self.iface = iface
         self.editor = LineEditor()
         self.layer: QgsRasterLayer | None = None
+        self.raw_image = ""  # the raw image the display copy shows (snapping reads its pixels)
         self.scene, self.camera_name, self.predicted = None, "", []
         self.bands: list[QgsRubberBand] = []
         self.previous_main_tool = None
@@ -110,12 +115,25 @@ class DigitisingDock(QDockWidget):
         form.addRow(tr("DEM"), self.dem_combo)
         form.addRow(tr("Height datum"), self.datum_combo)
         form.addRow(tr("Constant height (m)"), self.height_spin)
+        self.snap_mode_combo = QComboBox()
+        self.snap_mode_combo.addItems(SNAP_MODES)
+        self.snap_mode_combo.setToolTip(tr("Snap moves the selected line's vertices across it to the centre of a "
+                                           "bright band (a road) or to the strongest edge"))
+        self.snap_width_spin = QDoubleSpinBox()
+        self.snap_width_spin.setRange(0.5, 19.5)
+        self.snap_width_spin.setValue(SnapSettings().width)
+        snapping = QHBoxLayout()
+        snapping.addWidget(self.snap_mode_combo)
+        snapping.addWidget(QLabel(tr("band width (px)")))
+        snapping.addWidget(self.snap_width_spin)
+        form.addRow(tr("Snap to"), snapping)
         layout.addLayout(form)
         buttons = QHBoxLayout()
         for attr, text, slot in (("finish_button", tr("Finish"), self.finish_line),
                                  ("undo_button", tr("Undo"), self.undo),
                                  ("delete_button", tr("Delete"), self.delete_selected),
                                  ("pair_button", tr("Pair"), self.start_pairing),
+                                 ("snap_button", tr("Snap"), self.snap),
                                  ("predict_button", tr("Predict"), self.predict),
                                  ("save_button", tr("Save…"), self._choose_save)):
             button = QPushButton(text)
@@ -161,9 +179,9 @@ class DigitisingDock(QDockWidget):
         if not layer.isValid():
             self.tell(tr("{path}: QGIS cannot show this raster").format(path=path))
             return False
-        self.layer = layer
         self.canvas.setDestinationCrs(layer.crs())
         self.canvas.setLayers([layer])
+        self.layer, self.raw_image = layer, source.image
         self.canvas.setExtent(layer.extent())
         self.canvas.refresh()
         self.scene_edit.setText(source.scene)
@@ -203,7 +221,22 @@ class DigitisingDock(QDockWidget):
     def undo(self) -> None:
         removed = self.editor.undo()
         self.tell({"vertex": tr("Last vertex removed"), "line": tr("Last line removed"),
-                   "": tr("Nothing to undo")}[removed])
+                   "snap": tr("Snap undone"), "": tr("Nothing to undo")}[removed])
+        self.redraw()
+
+    def snap(self) -> None:
+        """Snap the selected line to the raw image's feature across it (undoable)."""
+        if not self.raw_image:
+            self.tell(tr("Open the display copy first"))
+            return
+        try:
+            refined, total = self.editor.snap_selected(self.raw_image, SnapSettings(
+                mode=self.snap_mode_combo.currentText(), width=self.snap_width_spin.value()))
+        except PushbroomError as exc:
+            self.tell(str(exc))
+            return
+        self.tell(tr("{refined} of {total} vertices snapped (Undo restores them); the others found no clear "
+                     "feature and kept their place").format(refined=refined, total=total))
         self.redraw()
 
     def delete_selected(self) -> None:
