@@ -336,28 +336,7 @@ def _decisions_section(rep: dict) -> str:
         d = rep["datum"]
         items.append(f"<li>Datum held by {html.escape(d['held_by'])} ({d['control_points']} control points)"
                      + (f": {html.escape(d['note'])}" if d.get("note") else "") + ".</li>")
-    return "<h2>Decisions</h2><ul>" + "".join(items) + "</ul>" + _tie_section(rep)
-
-
-def _tie_section(rep: dict) -> str:
-    """Tie points: counts (used, left out and why), flagged observations, image residuals per
-    camera (the block's relative accuracy)."""
-    tie = rep.get("tie_points")
-    if not tie:
-        return ""
-    left = "; ".join(f"{v['points']} left out ({_LEFT_OUT.get(reason, reason)}: "
-                     f"{html.escape(', '.join(v['ids'][:10]))}{', …' if v['points'] > 10 else ''})"
-                     for reason, v in tie["left_out"].items())
-    rows = [[html.escape(cam), str(r.get("count", 0)), _fmt(r.get("rmse_col")), _fmt(r.get("rmse_row")),
-             _fmt(r.get("max"), ".2f")] for cam, r in tie["residuals_per_camera"].items()]
-    return (f"<h2>Tie points</h2><p>{tie['points']} tie points ({tie['observations']} of "
-            f"{tie['input_observations']} image observations){'; ' + left if left else ''}; "
-            f"{tie['flagged']} observations flagged as gross errors (down-weighted, kept in the output).</p>"
-            + _table(["camera", "observations", "RMSE col px", "RMSE row px", "max px"], rows)
-            + f"<p>{html.escape(tie['relative_accuracy'])}.</p>")
-
-
-_LEFT_OUT = {"single_ray": "seen by one camera only", "not_intersected": "onboard rays not intersected"}
+    return "<h2>Decisions</h2><ul>" + "".join(items) + "</ul>"
 
 
 def _selection_items(sel: dict | None) -> list[str]:

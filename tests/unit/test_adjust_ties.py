@@ -245,8 +245,9 @@ def test_html_report_tells_the_datum_and_tie_points(th1, tmp_path):
     text = (tmp_path / "r.html").read_text()
     assert "Datum held by onboard pseudo-observations (0 control points)" in text
     assert "absolute accuracy is that of the onboard orbit and attitude" in text
-    assert f"99 tie points ({len(lonely) - 1} of {len(lonely)} image observations); 1 left out (seen by one camera " \
-           f"only: {ties.id[0]})" in text
+    assert f"tie points: 99 points, {len(lonely) - 1} of {len(lonely)} observations used" in text
+    assert f"tie points left out: 1 seen by one camera only (one ray fixes no ground position): {ties.id[0]}" in text
+    assert text.count("<h2>Tie points</h2>") == 1
 
 
 def test_tie_points_in_one_corner_adjust_with_a_warning(th1, caplog):
