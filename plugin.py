@@ -57,5 +57,6 @@ class PushbroomAdjustPlugin:
             self.action = None
         if self.dock is not None:
             self.iface.removeDockWidget(self.dock)
+            self.dock.dispose()
             self.dock.deleteLater()
             self.dock = None

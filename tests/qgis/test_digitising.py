@@ -169,7 +169,7 @@ def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground
     at = dock.canvas.getCoordinateTransform().toMapCoordinates(moved)
     assert dock.pixel_label.text() == f"col {at.x():.1f}, row {-at.y():.1f} px"
     _snap_in(dock, tmp_path)
-    dock.close()
+    dock.dispose()
 
 
 def test_plugin_action_opens_the_dock(plugin_instance, qgis_iface, monkeypatch):

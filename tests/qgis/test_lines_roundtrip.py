@@ -40,7 +40,7 @@ def test_dock_lines_round_trip_through_importlines_and_bundleadjust(plugin, prep
         digitised.append(line_id)
     saved = tmp_path / "digitised.gpkg"
     assert dock.save(str(saved)), dock.message_label.text()
-    dock.close()
+    dock.dispose()
     assert len(digitised) >= 4
 
     result = roads["result"]

@@ -368,3 +368,14 @@ class DigitisingDock(QDockWidget):
         if main.mapTool() is self.pick_tool:
             main.unsetMapTool(self.pick_tool)
         super().closeEvent(event)
+
+    def dispose(self) -> None:
+        """Release the canvas's layer and rubber bands while QGIS is alive: a render job or a
+        raster layer outliving QGIS's exit frees a raster pipe whose provider is gone (a crash)."""
+        self.close()
+        self.canvas.stopRendering()
+        self.canvas.setLayers([])
+        for band in self.bands:
+            self.canvas.scene().removeItem(band)
+        self.bands = []
+        self.layer = None
