@@ -38,7 +38,7 @@ MINI_TLC = Preset("mini_tlc", "TH-1 three-line geometry cut down to 1500 px x 12
                   (CameraSpec("NAD", 1.0, 10e-6, 1, 1500),
                    CameraSpec("FWD", 1.0, 10e-6, 1, 1500, tilt=0.436332),
                    CameraSpec("BWD", 1.0, 10e-6, 1, 1500, tilt=-0.436332)), 1200,
-                  ErrorSettings(position_bias=10.0, attitude_bias=1e-4, focal_error=20e-6, installation=1e-4),
+                  ErrorSettings(position_bias=10.0, attitude_bias=1e-4, focal=1.0, installation=1e-4),
                   inclination=1.698, centre=(113.5, 35.0))
 
 

@@ -6,7 +6,7 @@ from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 from .conftest import PLUGIN
 
 ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:importtiepoints",
-              "pushbroom:matchgcps",
+              "pushbroom:matchgcps", "pushbroom:matchtiepoints",
               "pushbroom:bundleadjust", "pushbroom:groundtoimage",
               "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",
               "pushbroom:exportrpc", "pushbroom:sensorcorrect", "pushbroom:preparedigitising"]

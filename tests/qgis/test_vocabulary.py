@@ -78,7 +78,7 @@ def vocabulary_problems(algorithms) -> list[str]:
 
 def test_the_provider_speaks_one_vocabulary(provider):
     algorithms = provider.algorithms()
-    assert len(algorithms) == 13  # 12 algorithms and the shipped model
+    assert len(algorithms) == 14  # 13 algorithms and the shipped model
     assert vocabulary_problems(algorithms) == []
 
 
@@ -88,12 +88,13 @@ def test_shared_concepts_are_shared(provider):
     for alg in provider.algorithms():
         for definition in alg.parameterDefinitions():
             counts[definition.name()] = counts.get(definition.name(), 0) + 1
-    assert counts["DEM_DATUM"] == 8 and counts["HEIGHT"] == 8 and counts["SCENE"] == 11
+    assert counts["DEM_DATUM"] == 9 and counts["HEIGHT"] == 9 and counts["SCENE"] == 12
     assert counts["Z_DATUM"] == 2 and counts["CAMERA"] == 8 and counts["CHECK_FRACTION"] == 3
     assert counts["RESAMPLING"] == 2 and counts["OUTPUT_SCENE"] == 2
     assert counts["COL_FIELD"] == 3 and counts["ROW_FIELD"] == 3
     assert counts["ID_FIELD"] == 2 and counts["CAMERA_FIELD"] == 2 and counts["SIGMA_PX"] == 2
     assert counts["SIGMA_PX_FIELD"] == 2
+    assert counts["INPUTS"] == 2 and counts["SEARCH_RANGE"] == 2 and counts["WINDOW"] == 2
 
 
 def _copy_of_groundtoimage(plugin, change):
@@ -215,7 +216,7 @@ def test_qgis_process_help_lists_the_value_names(provider, qgis_process):
             for k, value in enumerate(d.options()):
                 assert f"- {k}: {value}\n" in section and f"<b>{value}</b>: " in section, (alg.id(), value)
             checked += 1
-    assert checked == 22  # every enumeration of every algorithm (DEM_DATUM in eight of them)
+    assert checked == 23  # every enumeration of every algorithm (DEM_DATUM in nine of them)
 
 
 def test_the_readme_demo_and_models_use_value_names():
