@@ -397,6 +397,17 @@ def input_files(alg, parameters, context) -> dict[str, list[str]]:
     return files
 
 
+def geopackage_output(alg, parameters, context, name: str, temporary_name: str, what: str) -> str:
+    """The file of vector output ``name``, a GeoPackage (``what``: the layers' kind, for the
+    message), checked against the inputs (:func:`check_outputs`) before any work."""
+    dest = alg.output_path(parameters, context, name, temporary_name)
+    if Path(dest).suffix.lower() != ".gpkg":
+        raise QgsProcessingException(f"{name}: {what} layers are written as GeoPackage; choose a .gpkg file "
+                                     f"(got {dest})")
+    check_outputs(alg, parameters, context, {name: [dest]})
+    return dest
+
+
 def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None:
     """Before any work: refuse outputs that would replace an input or each other (derived files
     included) and destinations that cannot be written, naming both parameters

@@ -10,7 +10,8 @@ ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:impo
               "pushbroom:bundleadjust", "pushbroom:groundtoimage",
               "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",
               "pushbroom:exportrpc", "pushbroom:sensorcorrect", "pushbroom:preparedigitising"]
-MODELS = ["pushbroom:Simulate, adjust, orthorectify and export RPC"]  # resources/models/*.model3
+MODELS = ["pushbroom:Simulate, adjust, orthorectify and export RPC",  # resources/models/*.model3
+          "pushbroom:Simulate, match GCPs, adjust, orthorectify and export RPC"]
 
 
 def test_provider_lists_its_algorithms(provider):

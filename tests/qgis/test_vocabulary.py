@@ -78,7 +78,7 @@ def vocabulary_problems(algorithms) -> list[str]:
 
 def test_the_provider_speaks_one_vocabulary(provider):
     algorithms = provider.algorithms()
-    assert len(algorithms) == 14  # 13 algorithms and the shipped model
+    assert len(algorithms) == 15  # 13 algorithms and the two shipped models
     assert vocabulary_problems(algorithms) == []
 
 

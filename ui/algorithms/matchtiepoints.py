@@ -1,18 +1,16 @@
 """pushbroom:matchtiepoints — tie points between the cameras of a three-line scene (or strip)
 matched automatically in a common ground geometry, written as the tie-point layer the
 adjustment reads."""
-from pathlib import Path
-
 from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParameterVectorDestination
 
 from ...core import tiepoints
 from ...core.matching import match_tiepoints
 from ...core.ortho import check_images
-from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters,
-                      camera_images_for, check_cancelled, check_outputs, core_call, core_log_to, dem_from_parameters,
-                      feedback_callbacks, load_scene_for, matching_settings, processing_errors, style_output_on_load)
+from ..common import (SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_images_for,
+                      check_cancelled, core_call, core_log_to, dem_from_parameters, feedback_callbacks,
+                      geopackage_output, load_scene_for, matching_settings, processing_errors)
 from ..parameters import INPUTS, camera_images, matching_parameters, tr
-from .importtiepoints import ImportTiePointsAlgorithm
+from .importtiepoints import write_tie_layer
 
 
 class MatchTiePointsAlgorithm(PushbroomAlgorithm):
@@ -51,11 +49,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
                                    "number of cameras seeing each point."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = self.output_path(parameters, context, self.OUTPUT, "matched_tie_points.gpkg")
-        if Path(dest).suffix.lower() != ".gpkg":
-            raise QgsProcessingException(f"{self.OUTPUT}: tie-point layers are written as GeoPackage; choose a .gpkg "
-                                         f"file (got {dest})")
-        check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
+        dest = geopackage_output(self, parameters, context, self.OUTPUT, "matched_tie_points.gpkg", "tie-point")
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         if len(scene.cameras) < 2:
@@ -78,12 +72,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
         with core_log_to(feedback, tiepoints.__name__):
             table = core_call(tiepoints.check_against_scene, table, scene, scene_path, "matched tie points")
         check_cancelled(feedback)
-        with processing_errors(f"{self.OUTPUT}: "):
-            tiepoints.write_gpkg(table, dest)
-        ImportTiePointsAlgorithm._report(table, feedback)
-        style_output_on_load(context, dest, STYLES / "tie_points.qml")
-        feedback.setProgress(100)
-        return {self.OUTPUT: dest}
+        return write_tie_layer(table, self.OUTPUT, dest, context, feedback)
 
     @staticmethod
     def _report_matching(scene, table, rejected: dict, feedback) -> None:
