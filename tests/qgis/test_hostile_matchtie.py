@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from osgeo import gdal
+from osgeo import gdal, osr
 
 import processing
 from core import tiepoints
@@ -51,9 +51,19 @@ def _images(sim, **replaced) -> list[str]:
 
 
 def _gpkg_raster(sim, path: Path) -> str:
-    """The nadir image as a GeoPackage raster (a legitimate input format)."""
-    gdal.Translate(str(path), str(sim.images["NAD"]), format="GPKG")
+    """The nadir image as a GeoPackage raster (a legitimate input format; GeoPackage rasters need a
+    georeference, which a raw image's reader ignores)."""
+    mem = gdal.GetDriverByName("MEM").CreateCopy("", gdal.Open(str(sim.images["NAD"])))
+    mem.SetGeoTransform((0.0, 1.0, 0.0, 0.0, 0.0, -1.0))
+    mem.SetProjection(_mercator())
+    gdal.GetDriverByName("GPKG").CreateCopy(str(path), mem)
     return str(path)
+
+
+def _mercator() -> str:
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(3857)
+    return srs.ExportToWkt()
 
 
 def _output_is_an_input(sim, tmp: Path) -> dict:
@@ -65,16 +75,19 @@ CASES = {
     # name: (build(sim, tmp) -> parameter overrides, texts the message must hold)
     "image_of_the_wrong_size": (
         lambda s, t: {"INPUTS": _images(s, BWD=_raster(t / "small.tif", 1000, 800, 9))},
-        ("INPUTS", "1000 x 800", "camera BWD", "1500 x 1200")),
+        ("INPUTS", "small.tif", "1000 x 800", "camera BWD", "1500 x 986")),
     "fewer_images_than_cameras": (lambda s, t: {"INPUTS": _images(s)[:2]},
                                   ("INPUTS", "2 raw image(s) given", "3 camera(s) (NAD, FWD, BWD)")),
     "more_images_than_cameras": (lambda s, t: {"INPUTS": _images(s) + [str(s.images["NAD"])]},
                                  ("INPUTS", "4 raw image(s) given", "one image per camera")),
     "no_image": (lambda s, t: {"INPUTS": []}, ("INPUTS", "0 raw image(s) given")),
-    "blank_image": (lambda s, t: {"INPUTS": _images(s, FWD=_raster(t / "blank.tif", 1500, 1200, 0))},
+    "blank_image": (lambda s, t: {"INPUTS": _images(s, FWD=_raster(t / "blank.tif", 1500, 986, 0))},
                     ("blank.tif", "blank or constant")),
-    "images_in_the_wrong_order": (
+    "images_in_the_wrong_order": (  # the mini scene's FWD and BWD images have 986 rows, NAD 1200
         lambda s, t: {"INPUTS": [str(s.images[c]) for c in ("FWD", "NAD", "BWD")]},
+        ("INPUTS", "image_FWD.tif", "1500 x 986 px but camera NAD", "is it the scene's image")),
+    "two_cameras_swapped_of_one_size": (  # FWD and BWD have the same size: the matching finds no agreement
+        lambda s, t: {"INPUTS": [str(s.images[c]) for c in ("NAD", "BWD", "FWD")]},
         ("no consistent match", "increase the search range")),
     "output_is_an_input": (_output_is_an_input, ("OUTPUT", "INPUTS")),
     "output_not_geopackage": (lambda s, t: {"OUTPUT": str(t / "ties.csv")}, ("OUTPUT", "GeoPackage")),
