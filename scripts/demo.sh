@@ -29,8 +29,9 @@ run() {  # run ALGORITHM PARAM=VALUE... ; full log in out/logs/ALGORITHM.log
         echo "demo: pushbroom:$alg failed (log: out/logs/$alg.log)" >&2
         exit 1
     fi
-    grep -E "^(WARNING|[a-z].*residuals|[0-9]+ points|sigma0|check points|orthoimage|written in|check on|  CCD|matched|rejected)" \
-        "$OUT/logs/$alg.log" || true
+    # qgis_process prints its progress dots before an algorithm's first line: strip them
+    sed -E 's/^[.0-9]*\.\.//' "$OUT/logs/$alg.log" |
+        grep -E "^(WARNING|[a-z].*residuals|[0-9]+ points|sigma0|check points|orthoimage|written in|check on|  CCD|matched|rejected|coarse pass \()" || true
 }
 
 SIM="$OUT/simulation"
