@@ -61,6 +61,7 @@ log = logging.getLogger(__name__)
 
 REASONS = ("near a CCD seam", "outside the image", "off the DEM", "outside the reference", "low texture",
            "low correlation", "ambiguous peak", "peak on the search border")
+OUTSIDE_OTHER = "outside the other camera's image"  # REASONS[3] for tie points
 COARSE_TEMPLATE = 64      # coarse chip size (coarse px)
 COARSE_RADIUS = 40        # coarse search radius (coarse px): sets the block-averaging factor
 COARSE_GRID = 5           # coarse chips per side
@@ -635,7 +636,9 @@ def match_tiepoints(scene: SceneModel, images: dict, dem, settings: MatchSetting
     matches in k cameras is one tie point observed k + 1 times (its base position is the grid
     point itself, the others the matched positions mapped back to it through the local map
     base -> camera). ``search`` (m) bounds the cameras' relative error. Returns the table and
-    {camera name: rejected counts by reason} ('outside the reference': outside that camera's image)."""
+    {camera name: rejected counts by reason} (REASONS, 'outside the reference' named
+    OUTSIDE_OTHER: the window leaves that camera's image). InputError when no grid point
+    matches in any camera, with the counts."""
     settings.validate()
     report = progress or (lambda fraction, message=None: None)
     cancelled = is_cancelled or (lambda: False)
@@ -649,11 +652,16 @@ def match_tiepoints(scene: SceneModel, images: dict, dem, settings: MatchSetting
         m = _match_grid(scene, base, images[base], ref, dem, gsd, settings,
                         lambda f, msg=None, n=n: report((n + f) / len(others), msg), cancelled)
         ok = m.reasons < 0
-        rejected[scene.cameras[k].name] = m.rejected()
+        rejected[scene.cameras[k].name] = {OUTSIDE_OTHER if r == REASONS[3] else r: v for r, v in m.rejected().items()}
         ids = np.char.add("T", (np.nonzero(ok)[0] + 1).astype(str))
+        observations.append((ids, scene.cameras[base].name, m.col[ok], m.row[ok], m.out["sigma"][ok]))
         observations.append((ids, scene.cameras[k].name, m.out["ref_col"][ok], m.out["ref_row"][ok],
                              m.out["sigma"][ok]))
-        observations.append((ids, scene.cameras[base].name, m.col[ok], m.row[ok], m.out["sigma"][ok]))
+    if not any(o[0].size for o in observations):
+        raise InputError("no tie point matched between camera " + scene.cameras[base].name + " and the others: "
+                         + "; ".join(f"{name}: {_reason_text(r)}" for name, r in rejected.items())
+                         + ". Lower the quality threshold, enlarge the window or the search range, or check that "
+                           "the images are the scene's")
     ids, cams, col, row, sigma = (np.concatenate([np.broadcast_to(o[i], o[0].shape) for o in observations])
                                   for i in range(5))
     # the base observation of a point matched in several cameras once

@@ -244,13 +244,20 @@ def suspect_points(table: TieTable) -> np.ndarray:
 def summary(table: TieTable) -> dict:
     """Figures for the log: points, observations, cameras_per_point {rays: points}, single (points
     with one ray, left out), suspect (points likely mismatched), rms_px (a-priori residual RMS over
-    the observations of intersected points, px; NaN without any), cameras {name: observations}."""
+    the observations of intersected points, px; NaN without any), cameras {name: observations},
+    pairs {"A-B": points seen by both cameras A and B} (cameras in the table's order of appearance)."""
     ids, point = table.points()
     rays = np.bincount(point, minlength=ids.size)
+    names, camera = np.unique(table.camera, return_inverse=True)
+    seen = np.zeros((ids.size, names.size), bool)
+    seen[point, camera] = True
+    shared = seen.T.astype(int) @ seen.astype(int)  # (cameras, cameras): points seen by both
+    order = sorted(range(names.size), key=lambda k: int(np.argmax(camera == k)))
     out = {"points": int(ids.size), "observations": len(table),
            "cameras_per_point": {int(k): int(v) for k, v in zip(*np.unique(rays, return_counts=True))},
            "single": int(np.sum(rays < 2)), "cameras": dict(zip(*np.unique(table.camera, return_counts=True))),
-           "suspect": 0, "rms_px": float("nan")}
+           "suspect": 0, "rms_px": float("nan"),
+           "pairs": {f"{names[a]}-{names[b]}": int(shared[a, b]) for i, a in enumerate(order) for b in order[i + 1:]}}
     if table.apriori is not None:
         res = table.apriori.res_px[np.isfinite(table.apriori.res_px)]
         out["suspect"] = int(suspect_points(table).size)

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# The main job on the command line: simulate the default CBERS-02B HRC scene with its raw image,
-# import its GCPs, adjust the onboard model to them (calibrating the CCDs), orthorectify the raw
-# image with the adjusted model, export the adjusted model as an RPC, trace the footprint and
-# project the GCPs into the image, all through qgis_process, into ./out/.
+# The main job on the command line, without a manual point: simulate the default CBERS-02B HRC
+# scene with its raw image and a reference orthoimage, match GCPs between the two, adjust the
+# onboard model to them (calibrating the CCDs), orthorectify the raw image with the adjusted model,
+# export the adjusted model as an RPC, trace the footprint and project the GCPs into the image,
+# all through qgis_process, into ./out/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -28,18 +29,18 @@ run() {  # run ALGORITHM PARAM=VALUE... ; full log in out/logs/ALGORITHM.log
         echo "demo: pushbroom:$alg failed (log: out/logs/$alg.log)" >&2
         exit 1
     fi
-    grep -E "^(WARNING|[a-z].*residuals|[0-9]+ points|sigma0|check points|orthoimage|written in|check on|  CCD)" \
-        "$OUT/logs/$alg.log" || true
+    # qgis_process prints its progress dots before an algorithm's first line: strip them
+    sed -E 's/^[.0-9]*\.\.//' "$OUT/logs/$alg.log" |
+        grep -E "^(WARNING|[a-z].*residuals|[0-9]+ points|sigma0|check points|orthoimage|written in|check on|  CCD|matched|rejected|coarse pass \()" || true
 }
 
 SIM="$OUT/simulation"
-run simulatescene SEED=0 N_GCPS=2000 IMAGE_NOISE=0.5 CHECK_FRACTION=0.5 GROUND_NOISE_XY=1 GROUND_NOISE_Z=1 \
-    GROSS_FRACTION=0.02 RENDER=true OUTPUT_FOLDER="$SIM"
-run importgcps SCENE="$SIM/onboard_scene.json" INPUT_FILE="$SIM/gcps.csv" X_FIELD=lon Y_FIELD=lat Z_FIELD=h ROLE_FIELD=role \
-    Z_DATUM=ellipsoid OUTPUT="$OUT/gcps.gpkg"
+run simulatescene SEED=0 N_GCPS=20 RENDER=true OUTPUT_FOLDER="$SIM"
+run matchgcps INPUT="$SIM/image_HRC.tif" SCENE="$SIM/onboard_scene.json" REFERENCE="$SIM/reference.tif" \
+    DEM="$SIM/dem.tif" DEM_DATUM=geoid SPACING=200 CHECK_FRACTION=0.2 OUTPUT="$OUT/gcps.gpkg"
 run bundleadjust SCENE="$SIM/onboard_scene.json" GCPS="$OUT/gcps.gpkg" INTERIOR="HRC-1.*, HRC-3.*" POSITION_ORDER=0 \
     OUTPUT_SCENE="$OUT/adjusted_scene.json" OUTPUT_REPORT="$OUT/adjustment.html" \
-    OUTPUT_GCPS="$OUT/adjusted_gcps.gpkg" OUTPUT_RESIDUALS="$OUT/residuals.gpkg"
+    INTERIOR_SELECTION=keep OUTPUT_GCPS="$OUT/adjusted_gcps.gpkg" OUTPUT_RESIDUALS="$OUT/residuals.gpkg"
 run orthorectify INPUT="$SIM/image_HRC.tif" SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=geoid \
     OUTPUT="$OUT/orthoimage.tif"
 run exportrpc SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=geoid IMAGE="$SIM/image_HRC.tif" \
@@ -50,9 +51,10 @@ run groundtoimage SCENE="$OUT/adjusted_scene.json" INPUT="$OUT/gcps.gpkg" OUTPUT
 cat <<END
 
 Results in $OUT:
-  simulation/         simulated scene: onboard_scene.json, true_scene.json, gcps.csv, dem.tif, simulation.json,
-                      image_HRC.tif (the raw 12246 x 12246 image)
-  gcps.gpkg           the GCPs checked against the onboard model (a-priori residuals res_col, res_row, res_m)
+  simulation/         simulated scene: onboard_scene.json, true_scene.json, dem.tif, simulation.json,
+                      image_HRC.tif (the raw 12246 x 12246 image), reference.tif (the reference orthoimage)
+  gcps.gpkg           the GCPs matched between the raw image and the reference (quality, peak_ratio, sigma_px;
+                      a fifth of them check points; a-priori residuals res_col, res_row, res_m)
   adjusted_scene.json the adjusted scene (any algorithm's SCENE); adjustment.html / .json its report
   adjusted_gcps.gpkg  the GCPs with adjusted residuals and gross-error flags; residuals.gpkg as vectors
   orthoimage.tif      the raw image orthorectified with the adjusted model (UTM, 2.36 m, overviews)

@@ -329,6 +329,39 @@ def dem_from_parameters(alg, parameters, context, scene=None, feedback=None):
     return surface
 
 
+# --- raw images and matching settings -----------------------------------------------------------
+def camera_images_for(alg, parameters, context, scene) -> dict[int, str]:
+    """{camera index: file} of INPUTS, one raw image per camera of ``scene`` in its camera order;
+    QgsProcessingException naming the cameras when the count differs or a layer is not a file."""
+    layers = alg.parameterAsLayerList(parameters, vocabulary.INPUTS, context)
+    names = [cam.name for cam in scene.cameras]
+    if len(layers) != len(names):
+        raise QgsProcessingException(f"{vocabulary.INPUTS}: {len(layers)} raw image(s) given, but the scene has "
+                                     f"{len(names)} camera(s) ({', '.join(names)}): give one image per camera, "
+                                     "in that order")
+    images = {k: layer_file(layer) for k, layer in enumerate(layers)}
+    missing = [names[k] for k, path in images.items() if not path]
+    if missing:
+        raise QgsProcessingException(f"{vocabulary.INPUTS}: the image(s) of camera(s) {', '.join(missing)} are not "
+                                     "files (memory or service layers); save them as GeoTIFF first")
+    return images
+
+
+def matching_settings(alg, parameters, context, **fixed):
+    """core.matching.MatchSettings of the matching parameters (ui.parameters.matching_parameters),
+    checked; ``fixed``: other MatchSettings fields."""
+    from ..core.matching import MatchSettings
+    with processing_errors():
+        settings = MatchSettings(spacing=alg.parameterAsDouble(parameters, vocabulary.SPACING, context),
+                                 count=alg.parameterAsInt(parameters, vocabulary.N_POINTS, context),
+                                 window=alg.parameterAsInt(parameters, vocabulary.WINDOW, context),
+                                 min_correlation=alg.parameterAsDouble(parameters, vocabulary.MIN_CORRELATION,
+                                                                       context),
+                                 search=alg.parameterAsDouble(parameters, vocabulary.SEARCH_RANGE, context), **fixed)
+        settings.validate()
+    return settings
+
+
 # --- inputs and outputs: nothing lost, nothing partial ------------------------------------------
 def layer_file(layer: QgsMapLayer | None) -> str:
     """The file behind a layer ('' for memory layers, databases and services)."""
@@ -362,6 +395,17 @@ def input_files(alg, parameters, context) -> dict[str, list[str]]:
         elif definition.type() == "multilayer":
             files[name] = [layer_file(layer) for layer in alg.parameterAsLayerList(parameters, name, context)]
     return files
+
+
+def geopackage_output(alg, parameters, context, name: str, temporary_name: str, what: str) -> str:
+    """The file of vector output ``name``, a GeoPackage (``what``: the layers' kind, for the
+    message), checked against the inputs (:func:`check_outputs`) before any work."""
+    dest = alg.output_path(parameters, context, name, temporary_name)
+    if Path(dest).suffix.lower() != ".gpkg":
+        raise QgsProcessingException(f"{name}: {what} layers are written as GeoPackage; choose a .gpkg file "
+                                     f"(got {dest})")
+    check_outputs(alg, parameters, context, {name: [dest]})
+    return dest
 
 
 def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None:

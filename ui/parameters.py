@@ -14,10 +14,10 @@ User-visible texts go through :func:`tr` (one translation context for the whole 
 """
 from __future__ import annotations
 
-from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterEnum,
-                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer,
-                       QgsProcessingParameterString, QgsProcessingParameterVectorLayer, QgsProperty)
+from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterEnum, QgsProcessingParameterFile,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterMultipleLayers,
+                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
+                       QgsProcessingParameterVectorLayer, QgsProperty)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
 from ..core.gcps import DEFAULT_SIGMA_PX
@@ -35,6 +35,9 @@ GROUND, ROBUST, ON_SINGULAR, RESAMPLING, PRESET = "GROUND", "ROBUST", "ON_SINGUL
 OUTPUT_SCENE = "OUTPUT_SCENE"
 RPC_CORRECTION = "RPC_CORRECTION"
 CAMERA_TRAJECTORY = "CAMERA_TRAJECTORY"
+INPUTS = "INPUTS"
+SPACING, N_POINTS, WINDOW, MIN_CORRELATION, SEARCH_RANGE = \
+    "SPACING", "N_POINTS", "WINDOW", "MIN_CORRELATION", "SEARCH_RANGE"
 
 # Value names of the enumerations, in the order the drop-down lists show them; they are the
 # core's own names (core.dem datums, core.gcps.Heights.source, core.timebasis.KINDS, ...).
@@ -277,6 +280,42 @@ def height() -> QgsProcessingParameterNumber:
                          "(or HEIGHT_SOURCE is constant). Ellipsoidal height = sea-level height + geoid "
                          "undulation (-106 m to +85 m over the Earth)."))
     return parameter
+
+
+def camera_images() -> QgsProcessingParameterMultipleLayers:
+    """INPUTS: one raw image per camera of a scene (orthorectify ALL_CAMERAS, matchtiepoints)."""
+    parameter = QgsProcessingParameterMultipleLayers(INPUTS, tr("Raw images, one per camera"),
+                                                     QgsProcessing.TypeRaster, optional=True)
+    parameter.setHelp(tr("One raw image per camera of the scene, in the scene's camera order (the log shows which "
+                         "image goes to which camera); each must have its camera's size. Used by orthorectify "
+                         "with ALL_CAMERAS."))
+    return parameter
+
+
+def matching_parameters() -> list[QgsProcessingParameterNumber]:
+    """The image matching settings (core.matching.MatchSettings): SPACING, N_POINTS, WINDOW,
+    MIN_CORRELATION, SEARCH_RANGE."""
+    number = QgsProcessingParameterNumber
+    out = []
+    for name, label, kind, default, lo, hi, help_text in (
+            (SPACING, tr("Grid spacing (px)"), number.Double, 200.0, 8.0, 1e5,
+             tr("Distance in raw image pixels between the grid points matched (used when N_POINTS is 0).")),
+            (N_POINTS, tr("Number of points (0: use the spacing)"), number.Integer, 0, 0, 10_000_000,
+             tr("About this many grid points, evenly spread over the image; 0: SPACING decides.")),
+            (WINDOW, tr("Matching window (px)"), number.Integer, 31, 9, 257,
+             tr("Side of the square window correlated, in raw image pixels (odd). Larger: fewer ambiguous "
+                "matches on weak texture, slower.")),
+            (MIN_CORRELATION, tr("Quality threshold (correlation)"), number.Double, 0.6, 0.05, 0.99,
+             tr("Matches whose correlation peak is below this value are rejected (clouds, water, changed "
+                "land cover). The second-to-first peak ratio must also be below 0.85.")),
+            (SEARCH_RANGE, tr("Search range (m)"), number.Double, 1000.0, 10.0, 50_000.0,
+             tr("Largest onboard position error looked for, in metres on the ground (for tie points: the "
+                "largest disagreement between the cameras). When the run says no consistent match was found, "
+                "a larger value (about twice the expected error) may find it."))):
+        parameter = number(name, label, kind, default, minValue=lo, maxValue=hi)
+        parameter.setHelp(help_text)
+        out.append(parameter)
+    return out
 
 
 def check_fraction() -> QgsProcessingParameterNumber:

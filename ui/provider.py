@@ -13,6 +13,7 @@ from .algorithms.importgcps import ImportGcpsAlgorithm
 from .algorithms.importtiepoints import ImportTiePointsAlgorithm
 from .algorithms.importlines import ImportLinesAlgorithm
 from .algorithms.matchgcps import MatchGcpsAlgorithm
+from .algorithms.matchtiepoints import MatchTiePointsAlgorithm
 from .algorithms.orthorectify import OrthorectifyAlgorithm
 from .algorithms.preparedigitising import PrepareDigitisingAlgorithm
 from .algorithms.sensorcorrect import SensorCorrectAlgorithm
@@ -24,7 +25,7 @@ from .parameters import tr
 log = logging.getLogger(__name__)
 MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
 ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, ImportTiePointsAlgorithm, ImportLinesAlgorithm,
-              MatchGcpsAlgorithm,
+              MatchGcpsAlgorithm, MatchTiePointsAlgorithm,
               BundleAdjustAlgorithm, GroundToImageAlgorithm, ImageToGroundAlgorithm, FootprintAlgorithm,
               OrthorectifyAlgorithm, ExportRpcAlgorithm, SensorCorrectAlgorithm, PrepareDigitisingAlgorithm,
               SnapLinesAlgorithm)

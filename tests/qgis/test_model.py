@@ -1,7 +1,8 @@
-"""The shipped graphical model (resources/models/*.model3): it loads, is valid, appears in the
-toolbox and from qgis_process, and runs the whole chain — simulate (with the raw image) ->
+"""The shipped graphical models (resources/models/*.model3): they load, are valid, appear in the
+toolbox and from qgis_process, and run the whole chain — simulate (with the raw image) ->
 import GCPs -> adjust -> orthorectify -> export RPC — to an orthoimage that lies on the known
-ground texture, and an RPC GDAL reads."""
+ground texture, and an RPC GDAL reads; the variant without a manual point matches its GCPs
+against the simulated reference orthoimage instead of importing them."""
 import json
 from pathlib import Path
 
@@ -19,17 +20,21 @@ from tests.ortho_compare import shift_against_texture
 
 MODEL_FILE = Path(__file__).resolve().parents[2] / "resources" / "models" / "simulate_adjust_orthorectify.model3"
 MODEL_ID = "pushbroom:Simulate, adjust, orthorectify and export RPC"
+MATCH_MODEL_FILE = MODEL_FILE.with_name("simulate_match_adjust_orthorectify.model3")
+MATCH_MODEL_ID = "pushbroom:Simulate, match GCPs, adjust, orthorectify and export RPC"
 
 
-def test_the_model_file_is_valid_and_in_the_toolbox(provider):
+@pytest.mark.parametrize("path, model_id, gcps", [(MODEL_FILE, MODEL_ID, "pushbroom:importgcps"),
+                                                   (MATCH_MODEL_FILE, MATCH_MODEL_ID, "pushbroom:matchgcps")])
+def test_the_model_file_is_valid_and_in_the_toolbox(provider, path, model_id, gcps):
     model = QgsProcessingModelAlgorithm()
-    assert model.fromFile(str(MODEL_FILE))
+    assert model.fromFile(str(path))
     ok, problems = model.validate()
     assert ok, problems
     assert [c.algorithmId() for c in sorted(model.childAlgorithms().values(), key=lambda c: c.position().y())] == [
-        "pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:bundleadjust", "pushbroom:orthorectify",
+        "pushbroom:simulatescene", gcps, "pushbroom:bundleadjust", "pushbroom:orthorectify",
         "pushbroom:exportrpc"]
-    alg = QgsApplication.processingRegistry().algorithmById(MODEL_ID)
+    alg = QgsApplication.processingRegistry().algorithmById(model_id)
     assert alg is not None and alg.group() == "Workflows" and "orthorectify" in alg.shortHelpString()
 
 
@@ -92,3 +97,23 @@ def test_the_model_runs_from_qgis_process(qgis_process, tmp_path):
     ds = gdal.Open(str(tmp_path / "o.tif"))
     assert ds.RasterCount == 1 and ds.GetRasterBand(1).GetOverviewCount() > 0
     assert (tmp_path / "image_HRC.vrt").is_file()
+
+
+def test_the_matching_model_adjusts_without_a_manual_point(provider, tmp_path):
+    """Simulate -> matchgcps -> bundleadjust -> orthorectify -> exportrpc: the orthoimage lies on the
+    ground texture and the adjusted model on the true one, from matched GCPs alone."""
+    from core.dem import Dem
+    results = processing.run(MATCH_MODEL_ID, {
+        "SEED": 1, "N_GCPS": 20, "simulate:Simulation folder": str(tmp_path / "sim"),
+        "adjust:Adjusted scene": str(tmp_path / "adjusted.json"), "adjust:Adjustment report": "TEMPORARY_OUTPUT",
+        "ortho:Orthoimage": str(tmp_path / "ortho.tif"), "rpc:RPC file": str(tmp_path / "image_HRC_RPC.TXT")})
+    frame = json.loads((tmp_path / "sim" / "simulation.json").read_text())["texture"]
+    shift, used = shift_against_texture(results["ortho:Orthoimage"], frame)
+    assert used == 400_000 and np.hypot(*shift) < 0.1, shift
+    true, adjusted = load_scene(tmp_path / "sim" / "true_scene.json"), load_scene(tmp_path / "adjusted.json")
+    cc, rr = (a.ravel() for a in np.meshgrid(np.linspace(100, 12100, 15), np.linspace(100, 12100, 15)))
+    ground = true.image_to_ground_dem(cc, rr, Dem(tmp_path / "sim" / "dem.tif", "geoid"), 0)
+    col, row = adjusted.ground_to_image(ground, 0)
+    error = np.hypot(col - cc, row - rr)
+    assert np.sqrt(np.mean(error ** 2)) <= 0.3, (np.sqrt(np.mean(error ** 2)), error.max())
+    assert Path(results["rpc:RPC file"]).is_file() and (tmp_path / "image_HRC.vrt").is_file()

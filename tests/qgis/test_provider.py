@@ -6,12 +6,14 @@ from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 from .conftest import PLUGIN
 
 ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:importtiepoints", "pushbroom:importlines",
-              "pushbroom:matchgcps",
+              "pushbroom:matchgcps", "pushbroom:matchtiepoints",
               "pushbroom:bundleadjust", "pushbroom:groundtoimage",
               "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",
               "pushbroom:exportrpc", "pushbroom:sensorcorrect", "pushbroom:preparedigitising",
               "pushbroom:snaplines"]
-MODELS = ["pushbroom:Simulate, adjust, orthorectify and export RPC", "pushbroom:Adjust with GCPs and control lines"]  # resources/models/*.model3
+MODELS = ["pushbroom:Simulate, adjust, orthorectify and export RPC",  # resources/models/*.model3
+          "pushbroom:Simulate, match GCPs, adjust, orthorectify and export RPC",
+          "pushbroom:Adjust with GCPs and control lines"]
 
 
 def test_provider_lists_its_algorithms(provider):

@@ -1,8 +1,6 @@
 """pushbroom:importtiepoints — tie points (image observations of unknown ground points) from CSV
 or a layer, checked against a scene, intersected with its onboard model and written as the
 GeoPackage tie-point layer."""
-from pathlib import Path
-
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterFeatureSource,
                        QgsProcessingParameterFile, QgsProcessingParameterString,
                        QgsProcessingParameterVectorDestination)
@@ -10,7 +8,7 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
 from ...core import tiepoints
 from ...core.gcps import per_point_sigmas
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, attribute_floats, attribute_texts,
-                      check_cancelled, check_outputs, core_call, core_log_to, field_values, load_scene_for,
+                      check_cancelled, core_call, core_log_to, field_values, geopackage_output, load_scene_for,
                       processing_errors, style_output_on_load)
 from ..parameters import (CAMERA_FIELD, COL_FIELD, ID_FIELD, ROW_FIELD, SIGMA_FIELDS, SIGMA_PX, camera_field,
                           id_field, image_field, sigma_field, sigma_px, tr)
@@ -62,11 +60,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
                                    "of cameras seeing each point, with likely mismatches standing out."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = self.output_path(parameters, context, self.OUTPUT, "tie_points.gpkg")
-        if Path(dest).suffix.lower() != ".gpkg":
-            raise QgsProcessingException(f"{self.OUTPUT}: tie-point layers are written as GeoPackage; choose a .gpkg "
-                                         f"file (got {dest})")
-        check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
+        dest = geopackage_output(self, parameters, context, self.OUTPUT, "tie_points.gpkg", "tie-point")
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         feedback.setProgress(10)
@@ -78,12 +72,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
             table = core_call(tiepoints.check_against_scene, table, scene, scene_path)
         check_cancelled(feedback)
         feedback.setProgress(80)
-        with processing_errors(f"{self.OUTPUT}: "):
-            tiepoints.write_gpkg(table, dest)
-        self._report(table, feedback)
-        style_output_on_load(context, dest, STYLES / "tie_points.qml")
-        feedback.setProgress(100)
-        return {self.OUTPUT: dest}
+        return write_tie_layer(table, self.OUTPUT, dest, context, feedback)
 
     def _read(self, parameters, context) -> tiepoints.TieTable:
         path = self.parameterAsFile(parameters, self.INPUT_FILE, context)
@@ -136,3 +125,14 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
             feedback.pushInfo(f"a-priori intersection residuals (onboard model, {s['points'] - s['single']} "
                               f"intersected points): RMS {s['rms_px']:.2f} px; {s['suspect']} point(s) likely "
                               "mismatched")
+
+
+def write_tie_layer(table: tiepoints.TieTable, name: str, dest: str, context, feedback) -> dict:
+    """Write the checked table to output ``name`` (file ``dest``), report it, style it on load;
+    the algorithm's results."""
+    with processing_errors(f"{name}: "):
+        tiepoints.write_gpkg(table, dest)
+    ImportTiePointsAlgorithm._report(table, feedback)
+    style_output_on_load(context, dest, STYLES / "tie_points.qml")
+    feedback.setProgress(100)
+    return {name: dest}

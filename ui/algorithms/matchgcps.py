@@ -3,15 +3,15 @@ a reference orthoimage through the scene model, written as the GCP layer the adj
 from pathlib import Path
 
 import numpy as np
-from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterLayer, QgsProcessingParameterVectorDestination)
+from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterRasterLayer,
+                       QgsProcessingParameterVectorDestination)
 
 from ...core import gcps
-from ...core.matching import MatchSettings, match_gcps
+from ...core.matching import match_gcps
 from ..common import (CAMERA, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       check_outputs, core_call, dem_from_parameters, feedback_callbacks, load_scene_for,
-                      processing_errors, style_output_on_load)
-from ..parameters import CHECK_FRACTION, check_fraction, tr
+                      matching_settings, processing_errors, style_output_on_load)
+from ..parameters import CHECK_FRACTION, check_fraction, matching_parameters, tr
 
 
 class MatchGcpsAlgorithm(PushbroomAlgorithm):
@@ -32,8 +32,7 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
             "peak), peak_ratio (second peak / first) and sigma_px (from the correlation and the image "
             "gradients, at least 0.1 px). The output is the GeoPackage layer pushbroom:importgcps writes, "
             "read directly by pushbroom:bundleadjust (use robust estimation).")
-    INPUT, REFERENCE, SPACING, N_POINTS, WINDOW = "INPUT", "REFERENCE", "SPACING", "N_POINTS", "WINDOW"
-    MIN_CORRELATION, SEARCH_RANGE, OUTPUT = "MIN_CORRELATION", "SEARCH_RANGE", "OUTPUT"
+    INPUT, REFERENCE, OUTPUT = "INPUT", "REFERENCE", "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image")),
@@ -43,22 +42,8 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
                            tr("A north-up orthoimage of the scene's ground in a projected CRS (metres), any GSD "
                               "(first band matched; its nodata value is honoured). It must overlap the scene."))
         add_dem_parameters(self)
-        number = QgsProcessingParameterNumber
-        for name, label, kind, default, lo, hi, help_text in (
-                (self.SPACING, tr("Grid spacing (px)"), number.Double, 200.0, 8.0, 1e5,
-                 tr("Distance in raw image pixels between the grid points matched (used when N_POINTS is 0).")),
-                (self.N_POINTS, tr("Number of points (0: use the spacing)"), number.Integer, 0, 0, 10_000_000,
-                 tr("About this many grid points, evenly spread over the image; 0: SPACING decides.")),
-                (self.WINDOW, tr("Matching window (px)"), number.Integer, 31, 9, 257,
-                 tr("Side of the square window correlated, in raw image pixels (odd). Larger: fewer ambiguous "
-                    "matches on weak texture, slower.")),
-                (self.MIN_CORRELATION, tr("Quality threshold (correlation)"), number.Double, 0.6, 0.05, 0.99,
-                 tr("Matches whose correlation peak is below this value are rejected (clouds, water, changed "
-                    "land cover). The second-to-first peak ratio must also be below 0.85.")),
-                (self.SEARCH_RANGE, tr("Search range (m)"), number.Double, 1000.0, 10.0, 50_000.0,
-                 tr("Largest onboard position error looked for, in metres on the ground. When the run says no "
-                    "consistent match was found, a larger value (about twice the expected error) may find it."))):
-            self.add_parameter(number(name, label, kind, default, minValue=lo, maxValue=hi), help_text)
+        for parameter in matching_parameters():
+            self.addParameter(parameter)
         self.addParameter(check_fraction())
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Matched ground control points"),
                                                       QgsProcessing.TypeVectorPoint)
@@ -77,13 +62,7 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
         scene = load_scene_for(SCENE, scene_path, feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         surface = dem_from_parameters(self, parameters, context, scene, feedback)
-        with processing_errors():
-            settings = MatchSettings(spacing=self.parameterAsDouble(parameters, self.SPACING, context),
-                                     count=self.parameterAsInt(parameters, self.N_POINTS, context),
-                                     window=self.parameterAsInt(parameters, self.WINDOW, context),
-                                     min_correlation=self.parameterAsDouble(parameters, self.MIN_CORRELATION, context),
-                                     search=self.parameterAsDouble(parameters, self.SEARCH_RANGE, context))
-            settings.validate()
+        settings = matching_settings(self, parameters, context)
         progress, is_cancelled = feedback_callbacks(feedback)
         result = core_call(match_gcps, scene, camera, image, reference, surface, settings, progress, is_cancelled)
         table = core_call(gcps.check_against_scene, result.table, scene, scene_path, None,

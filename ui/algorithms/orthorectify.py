@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
-from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY, QgsProcessing,
+from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY,
                        QgsProcessingException, QgsProcessingOutputMultipleLayers, QgsProcessingParameterBoolean,
                        QgsProcessingParameterCrs, QgsProcessingParameterExtent,
-                       QgsProcessingParameterFolderDestination, QgsProcessingParameterMultipleLayers,
+                       QgsProcessingParameterFolderDestination,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
                        QgsProcessingParameterRasterLayer, QgsProcessingParameterString, QgsProcessingUtils,
                        QgsRectangle)
@@ -21,9 +21,9 @@ from ...core.ortho import (check_images, default_grid, orthorectify, orthorectif
                            strip_products)
 from ...core.products import footprints
 from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
-                      check_outputs, core_call, dem_from_parameters, feedback_callbacks, layer_file, load_scene_for,
-                      processing_errors)
-from ..parameters import RESAMPLING, enum_value, resampling, tr
+                      camera_images_for, check_outputs, core_call, dem_from_parameters, feedback_callbacks,
+                      load_scene_for, processing_errors)
+from ..parameters import INPUTS, RESAMPLING, camera_images, enum_value, resampling, tr
 
 
 class OrthorectifyAlgorithm(PushbroomAlgorithm):
@@ -48,7 +48,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
     INPUT, CRS_PARAM, RESOLUTION, RESAMPLING_PARAM, NODATA, EXTENT, OUTPUT = \
         "INPUT", "CRS", "RESOLUTION", RESAMPLING, "NODATA", "EXTENT", "OUTPUT"
     ALL_CAMERAS, INPUTS, ORTHO_FOLDER, ORTHOIMAGES, SCHEDULER = \
-        "ALL_CAMERAS", "INPUTS", "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER"
+        "ALL_CAMERAS", INPUTS, "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image"), optional=True),
@@ -58,10 +58,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                                                          optional=True),
                   tr("Orthorectify every camera of the scene (and every scene of a strip) in one run, from INPUTS "
                      "into ORTHO_FOLDER; CAMERA, INPUT and OUTPUT are then not used."))
-        self.add_parameter(QgsProcessingParameterMultipleLayers(self.INPUTS, tr("Raw images, one per camera"),
-                                                                QgsProcessing.TypeRaster, optional=True),
-                  tr("With ALL_CAMERAS: one raw image per camera of the scene, in the scene's camera order (the "
-                     "log shows which image goes to which camera); each must have its camera's size."))
+        self.addParameter(camera_images())
         add_scene_parameters(self)
         add_dem_parameters(self)
         self.add_parameter(QgsProcessingParameterCrs(self.CRS_PARAM, tr("Output CRS"), optional=True),
@@ -148,14 +145,8 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         if not folder or folder == "TEMPORARY_OUTPUT":
             folder = QgsProcessingUtils.tempFolder()
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
-        layers = self.parameterAsLayerList(parameters, self.INPUTS, context)
-        names = [cam.name for cam in scene.cameras]
-        if len(layers) != len(names):
-            raise QgsProcessingException(f"{self.INPUTS}: {len(layers)} raw image(s) given, but the scene has "
-                                         f"{len(names)} camera(s) ({', '.join(names)}): give one image per camera, "
-                                         "in that order")
-        images = {k: layer_file(layer) for k, layer in enumerate(layers)}
-        products = strip_products(scene, list(range(len(names))))
+        images = camera_images_for(self, parameters, context, scene)
+        products = strip_products(scene, list(images))
         made = not Path(folder).exists() and Path(folder).parent.is_dir()
         if made:
             Path(folder).mkdir()

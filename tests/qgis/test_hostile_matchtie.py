@@ -1,0 +1,136 @@
+"""Hostile inputs of pushbroom:matchtiepoints (harness: hostile.py): each bad image set, scene or
+parameter is refused with a message naming it and what was expected, every given file and the
+output folder unchanged; an image in another GDAL format is legitimate and matches."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from osgeo import gdal, osr
+
+import processing
+from core import tiepoints
+from tests.matchscene import mini_tlc_scene
+from tests.qgis.hostile import assert_refused, assert_refused_cli
+
+gdal.UseExceptions()
+ALG = "pushbroom:matchtiepoints"
+CAMERAS = ("NAD", "FWD", "BWD")
+
+
+@pytest.fixture(scope="module")
+def tlc(provider, tmp_path_factory):
+    return mini_tlc_scene(tmp_path_factory.mktemp("tlc_hostile"))
+
+
+def _params(sim, out: Path, **kw) -> dict:
+    return {"SCENE": str(sim.onboard_scene), "INPUTS": [str(sim.images[c]) for c in CAMERAS], "DEM": str(sim.dem),
+            "DEM_DATUM": "geoid", "SPACING": 100, "SEARCH_RANGE": 300, "OUTPUT": str(out / "ties.gpkg"), **kw}
+
+
+def _watched(sim, out: Path, overrides: dict) -> list:
+    """The scene's files (but QGIS's own raster statistics caches, <raster>.aux.xml), the files a
+    case adds and the output folder."""
+    given = [p for p in sim.folder.iterdir() if not p.name.endswith(".aux.xml")]
+    extra = [v for value in overrides.values() for v in (value if isinstance(value, list) else [value])
+             if isinstance(v, str) and Path(v).is_file() and Path(v).parent != sim.folder]
+    return given + extra + [out]
+
+
+def _raster(path: Path, cols: int, rows: int, value: int = 0) -> str:
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), cols, rows, 1, gdal.GDT_Byte)
+    ds.GetRasterBand(1).Fill(value)
+    ds = None
+    return str(path)
+
+
+def _images(sim, **replaced) -> list[str]:
+    """The three cameras' images in camera order, some replaced ({camera: path})."""
+    return [replaced.get(c, str(sim.images[c])) for c in CAMERAS]
+
+
+def _gpkg_raster(sim, path: Path) -> str:
+    """The nadir image as a GeoPackage raster (a legitimate input format; GeoPackage rasters need a
+    georeference, which a raw image's reader ignores)."""
+    mem = gdal.GetDriverByName("MEM").CreateCopy("", gdal.Open(str(sim.images["NAD"])))
+    mem.SetGeoTransform((0.0, 1.0, 0.0, 0.0, 0.0, -1.0))
+    mem.SetProjection(_mercator())
+    gdal.GetDriverByName("GPKG").CreateCopy(str(path), mem)
+    return str(path)
+
+
+def _mercator() -> str:
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(3857)
+    return srs.ExportToWkt()
+
+
+def _output_is_an_input(sim, tmp: Path) -> dict:
+    nadir = _gpkg_raster(sim, tmp / "nadir.gpkg")
+    return {"INPUTS": _images(sim, NAD=nadir), "OUTPUT": nadir}
+
+
+CASES = {
+    # name: (build(sim, tmp) -> parameter overrides, texts the message must hold)
+    "image_of_the_wrong_size": (
+        lambda s, t: {"INPUTS": _images(s, BWD=_raster(t / "small.tif", 1000, 800, 9))},
+        ("INPUTS", "small.tif", "1000 x 800", "camera BWD", "1500 x 986")),
+    "fewer_images_than_cameras": (lambda s, t: {"INPUTS": _images(s)[:2]},
+                                  ("INPUTS", "2 raw image(s) given", "3 camera(s) (NAD, FWD, BWD)")),
+    "more_images_than_cameras": (lambda s, t: {"INPUTS": _images(s) + [str(s.images["NAD"])]},
+                                 ("INPUTS", "4 raw image(s) given", "one image per camera")),
+    "no_image": (lambda s, t: {"INPUTS": []}, ("INPUTS", "0 raw image(s) given")),
+    "blank_image": (lambda s, t: {"INPUTS": _images(s, FWD=_raster(t / "blank.tif", 1500, 986, 0))},
+                    ("blank.tif", "blank or constant")),
+    "images_in_the_wrong_order": (  # the mini scene's FWD and BWD images have 986 rows, NAD 1200
+        lambda s, t: {"INPUTS": [str(s.images[c]) for c in ("FWD", "NAD", "BWD")]},
+        ("INPUTS", "image_FWD.tif", "1500 x 986 px but camera NAD", "is it the scene's image")),
+    "two_cameras_swapped_of_one_size": (  # FWD and BWD have the same size: the matching finds no agreement
+        lambda s, t: {"INPUTS": [str(s.images[c]) for c in ("NAD", "BWD", "FWD")]},
+        ("no consistent match", "increase the search range")),
+    "output_is_an_input": (_output_is_an_input, ("OUTPUT", "INPUTS")),
+    "output_not_geopackage": (lambda s, t: {"OUTPUT": str(t / "ties.csv")}, ("OUTPUT", "GeoPackage")),
+    "window_even": (lambda s, t: {"WINDOW": 30}, ("window",)),
+    "search_range_larger_than_the_image": (lambda s, t: {"SEARCH_RANGE": 20_000},
+                                           ("search range", "more than the image")),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_refused(tlc, tmp_path, case):
+    build, texts = CASES[case]
+    out = tmp_path / "out"
+    out.mkdir()
+    overrides = build(tlc, tmp_path)
+    assert_refused(ALG, _params(tlc, out, **overrides), *texts, watch=_watched(tlc, out, overrides))
+
+
+def test_a_single_camera_scene_has_no_pairs(simulated, tmp_path):
+    """A CBERS-02B HRC scene (one camera): nothing to tie; refused before any image is read."""
+    out = tmp_path / "out"
+    out.mkdir()
+    image = _raster(tmp_path / "hrc.tif", 100, 100, 5)
+    assert_refused(ALG, {"SCENE": simulated["ONBOARD_SCENE"], "INPUTS": [image], "OUTPUT": str(out / "t.gpkg")},
+                   "SCENE", "has one camera (HRC)", "two or more", watch=[simulated["ONBOARD_SCENE"], image, out])
+
+
+def test_refused_through_qgis_process(tlc, tmp_path, qgis_process):
+    out = tmp_path / "out"
+    out.mkdir()
+    params = _params(tlc, out)
+    images = params.pop("INPUTS")[:2]
+    before = {"INPUTS": images}
+    text = assert_refused_cli(qgis_process, ALG, params | {"INPUTS": images[0]}, "1 raw image(s) given",
+                              watch=_watched(tlc, out, before))
+    assert "3 camera(s)" in text
+
+
+def test_an_image_in_another_format_is_legitimate(tlc, tmp_path):
+    """The nadir image as a GeoPackage raster (any GDAL format will do) matches as the GeoTIFF does."""
+    nadir = _gpkg_raster(tlc, tmp_path / "nadir.gpkg")
+    out = processing.run(ALG, _params(tlc, tmp_path, INPUTS=_images(tlc, NAD=nadir)))
+    table = tiepoints.read_gpkg(out["OUTPUT"])
+    pairs = tiepoints.summary(table)["pairs"]
+    assert pairs["NAD-FWD"] >= 100 and pairs["NAD-BWD"] >= 100, pairs  # 15 x 12 grid points
+    assert np.all(table.sigma_px >= 0.1)

@@ -1,0 +1,87 @@
+"""pushbroom:matchtiepoints — tie points between the cameras of a three-line scene (or strip)
+matched automatically in a common ground geometry, written as the tie-point layer the
+adjustment reads."""
+from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParameterVectorDestination
+
+from ...core import tiepoints
+from ...core.matching import match_tiepoints
+from ...core.ortho import check_images
+from ..common import (SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_images_for,
+                      check_cancelled, core_call, core_log_to, dem_from_parameters, feedback_callbacks,
+                      geopackage_output, load_scene_for, matching_settings, processing_errors)
+from ..parameters import INPUTS, camera_images, matching_parameters, tr
+from .importtiepoints import write_tie_layer
+
+
+class MatchTiePointsAlgorithm(PushbroomAlgorithm):
+    ID = "matchtiepoints"
+    NAME = "Match tie points"
+    GROUP, GROUP_ID = "Control", "control"
+    HELP = ("Finds tie points between the cameras of a scene without a click, as the three-line blocks of "
+            "Zhang et al. 2015 (TH-1) and Zhang et al. 2024 (ZY-3) rest on: a grid of points over the first "
+            "camera's raw image (the nadir line of a three-line camera) is matched in every other camera's raw "
+            "image. The images are compared in a common ground geometry, so the cameras' different view angles "
+            "(+-22 to 25 degrees) do not defeat the correlation: for each grid point, a window of the other "
+            "camera's image is resampled into the first camera's geometry through the scene's (onboard) model on "
+            "the DEM, correlated with the first image (normalised cross-correlation by FFT, a coarse pass first "
+            "for disagreements up to SEARCH_RANGE) and refined to sub-pixel; the match is mapped back into the "
+            "other camera's image. A grid point matched in k other cameras is one tie point observed k + 1 times, "
+            "so the points seen in all three cameras tie every camera pair. A strip of several scenes in one "
+            "image per camera (as the simulator writes) is matched the same way. Weak matches are rejected and "
+            "counted by camera and reason (low texture, low correlation, ambiguous peak, window leaving an "
+            "image); what passes may hold a few mismatches, which the adjustment's robust estimation removes. "
+            "The output is the tie-point layer pushbroom:importtiepoints writes (checked against the scene and "
+            "intersected with its model, likely mismatches flagged), with sigma_px from the correlation and "
+            "the image gradients (at least 0.1 px); pushbroom:bundleadjust reads it as TIE_POINTS.")
+    OUTPUT = "OUTPUT"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
+        add_scene_parameters(self, with_camera=False)
+        self.addParameter(camera_images())
+        add_dem_parameters(self)
+        for parameter in matching_parameters():
+            self.addParameter(parameter)
+        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Matched tie points"),
+                                                      QgsProcessing.TypeVectorPoint)
+        out.setSupportsNonFileBasedOutput(False)
+        self.add_parameter(out, tr("GeoPackage (.gpkg) point layer 'tie_points' in EPSG:4979, one feature per "
+                                   "observation, with the fields of pushbroom:importtiepoints, styled by the "
+                                   "number of cameras seeing each point."))
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        dest = geopackage_output(self, parameters, context, self.OUTPUT, "matched_tie_points.gpkg", "tie-point")
+        scene_path = self.parameterAsFile(parameters, SCENE, context)
+        scene = load_scene_for(SCENE, scene_path, feedback)
+        if len(scene.cameras) < 2:
+            raise QgsProcessingException(f"{SCENE}: {scene_path} has one camera ({scene.cameras[0].name}); tie points "
+                                         "are matched between the cameras of a scene with two or more (a three-line "
+                                         "camera such as TH-1 or ZY-3)")
+        images = camera_images_for(self, parameters, context, scene)
+        with processing_errors(f"{INPUTS}: "):
+            check_images(scene, images)
+        for k, image in images.items():
+            feedback.pushInfo(f"camera {scene.cameras[k].name}: {image}")
+        surface = dem_from_parameters(self, parameters, context, scene, feedback)
+        settings = matching_settings(self, parameters, context)
+        progress, is_cancelled = feedback_callbacks(feedback)
+        table, rejected = core_call(match_tiepoints, scene, images, surface, settings, 0,
+                                    lambda f, m=None: progress(0.85 * f, m), is_cancelled)
+        check_cancelled(feedback)
+        self._report_matching(scene, table, rejected, feedback)
+        feedback.setProgressText(f"checking and intersecting {len(table)} observations")
+        with core_log_to(feedback, tiepoints.__name__):
+            table = core_call(tiepoints.check_against_scene, table, scene, scene_path, "matched tie points")
+        check_cancelled(feedback)
+        return write_tie_layer(table, self.OUTPUT, dest, context, feedback)
+
+    @staticmethod
+    def _report_matching(scene, table, rejected: dict, feedback) -> None:
+        """Per camera matched against the first: grid points matched, rejections by reason."""
+        base = scene.cameras[0].name
+        for name, counts in rejected.items():
+            matched = int((table.camera == name).sum())
+            total = matched + sum(counts.values())
+            reasons = ", ".join(f"{v} {k}" for k, v in counts.items() if v) or "none"
+            feedback.pushInfo(f"{base}-{name}: matched {matched} of {total} grid points; rejected: {reasons}")
+        pairs = tiepoints.summary(table)["pairs"]
+        feedback.pushInfo("tie points per camera pair: " + ", ".join(f"{k} {v}" for k, v in pairs.items()))
