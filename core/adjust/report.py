@@ -345,8 +345,11 @@ def _selection_items(sel: dict | None) -> list[str]:
         return []
     items = [f"<li>Interior parameter removed: <b>{html.escape(r['name'])}</b> "
              f"({html.escape('; '.join(r['fails']))}).</li>" for r in sel["removed"]]
-    kept = ", ".join(f"{k['name']} (t = {k['t']:.1f})" for k in sel["kept"]) or "none"
+    kept = ", ".join(f"{k['name']} (t = {k['t']:.1f})" for k in sel["kept"] if not k.get("held_by_prior")) or "none"
     items.append(f"<li>Interior parameters kept after {sel['rounds']} removal rounds: {html.escape(kept)}.</li>")
+    items += [f"<li>Interior parameter held by its prior (kept; the control alone cannot support it): "
+              f"<b>{html.escape(k['name'])}</b> ({html.escape(k['held_by_prior'])}).</li>"
+              for k in sel["kept"] if k.get("held_by_prior")]
     g = sel["guard"]
     items.append("<li>Self-calibration kept: it fits significantly better than no interior parameters "
                  f"(F = {_fmt(g['F'], '.3g')} &gt; {_fmt(g['F_critical'], '.3g')}).</li>" if g["self_calibration_kept"]

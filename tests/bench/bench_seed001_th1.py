@@ -7,7 +7,12 @@ with 1 GCP + the tie points + the onboard pseudo-observations. Prints a table (n
 and which of issue 10's criteria (done-when 1) pass.
 
 Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_seed001_th1.py
-      [--seeds 1 2 3] [--quick]
+      [--seeds 1 2 3] [--quick] [--checks 80] [--control 9] [--layout random|spread]
+
+--layout random takes the simulator's control points (uniformly random over the nadir image);
+spread takes the point nearest each node of a k x k grid over the nadir image (k = ceil(sqrt(n)),
+8 % from its edges): the layout a photogrammetrist chooses, with GCPs near both ends of the
+arrays, where only GCPs see the across-track camera errors the three cameras share.
 
 Figures per run: the monoplotted planimetric RMSE of the check observations (what the
 adjustment reports per observation) and the 3D figures of the check points intersected from all
@@ -19,10 +24,13 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
 import tempfile
 from dataclasses import dataclass, replace
 from pathlib import Path
+
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
@@ -75,9 +83,33 @@ def _run(scene, table, ties, interior: str, selection: str, settings: Adjustment
                sentence)
 
 
-def block(seed: int, folder: Path, checks: int = CHECKS, runs=RUNS) -> dict[str, Run]:
-    """Simulate the seed-001-sized TH-1 block ``seed`` in ``folder`` and adjust it as ``runs``."""
-    points = CONTROL + checks
+SPREAD_CANDIDATES = 6  # points simulated per control point of a spread layout (the nearest to each node is taken)
+
+
+def spread_control(table: G.GcpTable, cols: int, rows: int, control: int, checks: int) -> G.GcpTable:
+    """``table`` with the point nearest each node of a k x k grid over the nadir image (k =
+    ceil(sqrt(control)), the first ``control`` nodes, 8 % margins; positions in px of the nadir
+    camera's cols x rows image) as control and ``checks`` of the others as check points."""
+    k = math.ceil(math.sqrt(control))
+    axis = np.linspace(0.08, 0.92, k)
+    nodes = np.array([(x * cols, y * rows) for x in axis for y in axis])[:control]
+    nad = table.camera == "NAD"
+    ids, at = table.id[nad], np.column_stack([table.col[nad], table.row[nad]])
+    distance = np.linalg.norm(at[None, :, :] - nodes[:, None, :], axis=2)  # (nodes, points)
+    chosen: list[str] = []
+    for row in distance:
+        chosen.append(next(ids[j] for j in np.argsort(row) if ids[j] not in chosen))
+    others = [i for i in dict.fromkeys(table.id) if i not in chosen][:checks]
+    keep = np.isin(table.id, chosen + others)
+    role = np.where(np.isin(table.id, chosen), "control", "check")
+    return replace(table, role=role).select(keep)
+
+
+def block(seed: int, folder: Path, checks: int = CHECKS, runs=RUNS, control: int = CONTROL,
+          layout: str = "random") -> dict[str, Run]:
+    """Simulate the seed-001-sized TH-1 block ``seed`` in ``folder`` (``control`` GCPs laid out
+    as ``layout``, ``checks`` check points) and adjust it as ``runs``."""
+    points = control + checks if layout == "random" else SPREAD_CANDIDATES * control + checks
     result = simulate("th1_tlc", folder, seed=seed, gcp_settings=GcpSettings(
         n_gcps=points, check_fraction=checks / points, image_noise=IMAGE_NOISE, ground_noise_xy=GROUND_XY,
         ground_noise_z=GROUND_Z, n_tie_points=TIES))
@@ -86,6 +118,8 @@ def block(seed: int, folder: Path, checks: int = CHECKS, runs=RUNS) -> dict[str,
                        sigma_z=GROUND_Z)
     ties = T.read_csv(result.tie_points, sigma_px=IMAGE_NOISE)
     onboard, true = load_scene(result.onboard_scene), load_scene(result.true_scene)
+    if layout == "spread":
+        table = spread_control(table, onboard.cameras[0].cols, onboard.cameras[0].rows, control, checks)
     floor = replace(onboard, cameras=true.cameras, _guess={})  # true interior, onboard trajectory
     one = table.id[table.role == "control"][0]
     one_gcp = table.select((table.role == "check") | (table.id == one))
@@ -119,11 +153,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_CHECKS} check points, no 'kept' runs")
+    parser.add_argument("--checks", type=int, default=CHECKS, help="number of check points (without --quick)")
+    parser.add_argument("--control", type=int, default=CONTROL, help="number of GCPs")
+    parser.add_argument("--layout", choices=("random", "spread"), default="random",
+                        help="GCPs uniformly random, or nearest the nodes of a grid over the image")
     args = parser.parse_args()
     logging.basicConfig(level=logging.ERROR)
-    checks = QUICK_CHECKS if args.quick else CHECKS
+    checks = QUICK_CHECKS if args.quick else args.checks
     runs = tuple(r for r in RUNS if not (args.quick and r.endswith("kept")))
-    print(f"TH-1 three-line block (Zhang et al. 2015 analogue): {CONTROL} GCPs in all cameras, {TIES} tie points, "
+    print(f"TH-1 three-line block (Zhang et al. 2015 analogue): {args.control} GCPs ({args.layout}) in all cameras, {TIES} tie points, "
           f"{checks} check points, {IMAGE_NOISE} px image noise; {SETTINGS.attitude_order}-order attitude, "
           f"position bias ({SETTINGS.position_sigma} m)")
     print(f"{'seed':>4} {'adjustment':<24} {'mono':>7} {'3D plan':>8} {'3D h':>7} {'pts':>7} "
@@ -132,7 +170,7 @@ def main() -> None:
     datum_sentence = ""
     for seed in args.seeds:
         with tempfile.TemporaryDirectory() as tmp:
-            figures = block(seed, Path(tmp), checks, runs)
+            figures = block(seed, Path(tmp), checks, runs, args.control, args.layout)
         for name, f in figures.items():
             print(f"{seed:>4} {name:<24} {f.mono:7.2f} {f.plan:8.2f} {f.height:7.2f} {f.intersected:>3}/{f.points:<3} "
                   f"{f.outcome} ({f.kept})")

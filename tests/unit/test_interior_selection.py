@@ -137,13 +137,14 @@ def blocks(tmp_path_factory):
         default = adjust(scene, table, AdjustmentSettings(interior="default"))
         try:
             free = rmse(adjust(scene, table, AdjustmentSettings(interior=FREE_SET, interior_selection="keep")))
-            free_selected = rmse(adjust(scene, table, AdjustmentSettings(interior=FREE_SET)))
+            selected = adjust(scene, table, AdjustmentSettings(interior=FREE_SET))
+            free_selected, free_selection = rmse(selected), selected.report["interior_selection"]
         except InputError:  # too few GCPs for 36 free parameters
-            free = free_selected = None
+            free = free_selected = free_selection = None
         out.append({"seed": seed, "gcps": n, "conventional": rmse(conventional), "default": rmse(default),
                     "free_selected": free_selected, "free": free,
-                    "selection": default.report["interior_selection"]})
-    print(json.dumps([{k: v for k, v in b.items() if k != "selection"} | {
+                    "selection": default.report["interior_selection"], "free_selection": free_selection})
+    print(json.dumps([{k: v for k, v in b.items() if not k.endswith("selection")} | {
         "kept": [k["name"] for k in b["selection"]["kept"]], "outcome": b["selection"]["outcome"]} for b in out]))
     return out
 
@@ -172,29 +173,54 @@ def test_the_free_set_overfits_without_removal(tmp_path):
     assert rmse["default"] <= TOLERANCE * rmse["conventional"], rmse
 
 
-def test_the_report_names_removed_and_kept_parameters(blocks):
-    for b in blocks:
-        sel = b["selection"]
-        assert sel["outcome"] in ("self-calibration", "conventional")
+def _guard_consistent(sel: dict) -> None:
+    assert sel["outcome"] in ("self-calibration", "conventional")
+    assert sel["guard"]["self_calibration_kept"] == (sel["outcome"] == "self-calibration")
+    if sel["outcome"] == "conventional":
+        assert sel["guard"]["reason"]
+    else:
+        assert sel["guard"]["F"] > sel["guard"]["F_critical"]
+        assert 0 < sel["guard"]["effective_parameters"] <= sel["guard"]["kept_parameters"]
+
+
+def test_the_report_names_removed_free_parameters(blocks):
+    """Free parameters that fail a test are removed, each with its reasons; the kept ones pass."""
+    for b in (b for b in blocks if b["free_selection"]):
+        sel = b["free_selection"]
+        _guard_consistent(sel)
         assert sel["removed"], b["seed"]
         for r in sel["removed"]:
             assert r["fails"] and all(isinstance(f, str) for f in r["fails"])
-        assert sel["guard"]["self_calibration_kept"] == (sel["outcome"] == "self-calibration")
-        if sel["outcome"] == "conventional":
-            assert sel["guard"]["reason"]
-        else:
-            assert sel["guard"]["F"] > sel["guard"]["F_critical"]
-            assert all(k["t"] >= 1.96 and abs(k["correlation"]) <= 0.98 for k in sel["kept"])
+        if sel["outcome"] == "self-calibration":
+            assert all(k["t"] >= 1.96 and not k.get("held_by_prior") for k in sel["kept"])
+
+
+def test_weighted_parameters_are_held_by_their_priors_and_named(blocks):
+    """INTERIOR=default (every term weighted): nothing is removed; the terms the control cannot
+    support are kept, held by their priors, and named with the failed tests (on block (1, 9):
+    measured 22 of 36, e.g. the principal point against the installation angles)."""
+    for b in blocks:
+        sel = b["selection"]
+        _guard_consistent(sel)
+        assert sel["removed"] == [] and len(sel["kept"]) == 36, b["seed"]
+        held = [k for k in sel["kept"] if k.get("held_by_prior")]
+        assert all(k["t"] < 1.96 or abs(k["correlation"]) > 0.98 or k["information"] < 1e-4 for k in held)
+        assert all(k["t"] >= 1.96 for k in sel["kept"] if not k.get("held_by_prior"))
+    nine = next(b for b in blocks if b["gcps"] == 9)["selection"]
+    assert 10 <= sum(bool(k.get("held_by_prior")) for k in nine["kept"]) <= 30
+    assert nine["guard"]["effective_parameters"] < 30
 
 
 def test_self_calibration_is_kept_where_it_helps(blocks):
     """The guard compares the self-calibrated model re-solved under the conventional weights (its
-    own solution is not their minimum): on blocks whose interior errors 7-9 GCPs can see it keeps
-    self-calibration (measured: 2.67 -> 0.63 px, 3.63 -> 0.65 px at the check points)."""
+    own solution is not their minimum): on blocks whose interior errors 6-9 GCPs can see it keeps
+    self-calibration (measured, check points: 2.67 -> 0.58, 4.58 -> 1.61, 3.22 -> 0.95, 3.63 ->
+    0.59 px; removing the weighted terms that failed their tests, as an earlier version did,
+    gave 0.63, 2.19, 2.06, 0.65 px)."""
     for b in blocks:
-        if b["seed"] in (1, 5):
+        if b["seed"] in (1, 2, 4, 5):
             assert b["selection"]["outcome"] == "self-calibration", b
-            assert b["default"] < 0.35 * b["conventional"], b
+            assert b["default"] < 0.4 * b["conventional"], b
 
 
 def test_information_shares_keep_one_of_an_inseparable_pair():
