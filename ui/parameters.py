@@ -216,13 +216,15 @@ def interior_selection() -> QgsProcessingParameterEnum:
                            "the same (|value| >= 5 sigma), or left with under 0.01 % of their "
                            "information once the trajectory and the stronger interior parameters are free (of "
                            "parameters the control cannot separate one is kept) are fixed at 0, a few at a time, "
-                           "and the block re-solved; then self-calibration is kept only if an F-test shows it fits "
+                           "and the block re-solved if they are free; weighted ones (name=sigma, INTERIOR=default) "
+                           "are kept, held by their priors, and named; then self-calibration is kept only if an "
+                           "F-test shows it fits "
                            "significantly better than no interior parameters, else the run falls back to the "
                            "conventional adjustment and says so"),
          "keep": tr("estimate every INTERIOR parameter as given (with few GCPs a free set can overfit)")},
         "significant",
         tr("What to do with interior parameters the control at hand cannot support; the report lists the removed "
-           "ones with the reason and the kept ones."))
+           "ones with the reason, the ones held by their priors with the reason, and the kept ones."))
 
 
 def resampling() -> QgsProcessingParameterEnum:
