@@ -72,9 +72,11 @@ def main() -> None:
     ap.add_argument("--control", type=int, default=9)
     ap.add_argument("--seed", type=int, default=3)
     ap.add_argument("--out", type=Path)
+    ap.add_argument("--selection", choices=("significant", "keep"), default="significant",
+                    help="INTERIOR_SELECTION of the adjustments")
     a = ap.parse_args()
     sim = scene(a.out, a.cols, a.rows, a.seed)
-    settings = AdjustmentSettings(interior="default", robust="none", interior_selection="keep")
+    settings = AdjustmentSettings(interior="default", robust="none", interior_selection=a.selection)
     load = os.getloadavg()[0]
     c = compare_ties(sim, a.control, MatchSettings(spacing=a.spacing, search=300.0), settings)
     s = summary(c.matched)
@@ -88,7 +90,8 @@ def main() -> None:
               f"largest {e.max():.3f}, {100 * np.mean(e > 1):.1f} % > 1 px")
     onboard = load_scene(sim.onboard_scene)
     without = adjust(onboard, c.gcps, settings).report["check_points"]["intersection"]
-    print(f"3D check points, adjustment with {a.control} control points, INTERIOR=default (all terms kept), robust off:")
+    print(f"3D check points, adjustment with {a.control} control points, INTERIOR=default, "
+          f"INTERIOR_SELECTION={a.selection}, robust off:")
     print(line("matched tie points", c.with_matched))
     print(line("exact tie points", c.with_exact))
     print(line("no tie points", without))
