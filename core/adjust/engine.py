@@ -881,6 +881,9 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     selection = None
     if settings.interior_selection == "significant" and interior_free(problem).size:
         problem, est, selection = select_interior(problem, est, lambda p: _estimate(p, progress, is_cancelled))
+    if est.at_limit:  # said of the reported solution only, not of the interior selection's trial solutions
+        log.warning("robust estimation stopped at its limit of %d passes; the flags may be incomplete",
+                    len(est.passes))
     progress(0.92, "evaluating check points")
     adjusted = problem.params.adjusted_scene()
     out = _result(problem, table, adjusted, est, determinability)
@@ -962,7 +965,6 @@ def _estimate(problem: _Problem, progress, is_cancelled) -> _Estimate:
             np.array_equal(lines_before, problem.line_flagged)
         if not iterate or (settled and component_change < COMPONENT_TOLERANCE):
             return _Estimate(result, st, passes, False, comps, inlier, kappa)
-    log.warning("robust estimation stopped at its limit of %d passes; the flags may be incomplete", len(passes))
     return _Estimate(result, st, passes, True, comps, inlier, kappa)
 
 

@@ -1,6 +1,7 @@
 """Robust estimation that does not trust the stated sigmas (core.adjust.robust): variance
 components recovered, flags and check figures independent of the sigmas' scale, the pass
 limit reported, breakdowns named; per-point sigma columns on import."""
+import copy
 import logging
 from dataclasses import replace
 
@@ -114,6 +115,25 @@ def test_a_loop_at_its_pass_limit_says_so(gross, caplog):
     assert rep["robust"]["stopped_at_limit"] and len(rep["robust"]["passes"]) == 1
     assert "robust estimation stopped at its limit of 1 passes; the flags may be incomplete" in caplog.text
     assert adjust(scene, table, _settings()).report["robust"]["stopped_at_limit"] is False
+
+
+def test_a_trial_solution_at_its_pass_limit_is_not_reported(gross, caplog, monkeypatch):
+    """The interior selection's trial solutions (the guard's conventional one) may stop at the
+    limit; only the reported solution's limit is the user's concern."""
+    from core.adjust import engine
+
+    def select_with_a_trial_at_the_limit(problem, est, estimate):
+        trial = copy.deepcopy(problem)
+        trial.settings = replace(trial.settings, max_robust_iterations=1)
+        assert estimate(trial).at_limit
+        return problem, est, {"outcome": "self-calibration"}
+
+    monkeypatch.setattr(engine, "select_interior", select_with_a_trial_at_the_limit)
+    scene, table, _ = gross
+    with caplog.at_level(logging.WARNING):
+        rep = adjust(scene, table, _settings(interior_selection="significant")).report
+    assert not rep["robust"]["stopped_at_limit"]
+    assert "stopped at its limit" not in caplog.text
 
 
 def _shifted(table: G.GcpTable, scene, share: float, shift: float) -> tuple[G.GcpTable, np.ndarray]:
