@@ -7,12 +7,15 @@ with 1 GCP + the tie points + the onboard pseudo-observations. Prints a table (n
 and which of issue 10's criteria (done-when 1) pass.
 
 Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_seed001_th1.py
-      [--seeds 1 2 3] [--quick] [--checks 80] [--control 9] [--layout random|spread]
+      [--seeds 1 2 3] [--quick] [--checks 80] [--control 9] [--layout random|spread] [--exact-control]
 
 --layout random takes the simulator's control points (uniformly random over the nadir image);
 spread takes the point nearest each node of a k x k grid over the nadir image (k = ceil(sqrt(n)),
 8 % from its edges): the layout a photogrammetrist chooses, with GCPs near both ends of the
 arrays, where only GCPs see the across-track camera errors the three cameras share.
+--exact-control (a diagnostic) gives the control points their true image and ground positions
+(the check and tie points keep their noise): what is left of the gap to the floor is not the
+control points' own measurement noise.
 
 Figures per run: the monoplotted planimetric RMSE of the check observations (what the
 adjustment reports per observation) and the 3D figures of the check points intersected from all
@@ -23,6 +26,7 @@ Z, self-calibrated 5-6 m plan and about 5 m height.
 from __future__ import annotations
 
 import argparse
+import csv
 import logging
 import math
 import sys
@@ -105,8 +109,20 @@ def spread_control(table: G.GcpTable, cols: int, rows: int, control: int, checks
     return replace(table, role=role).select(keep)
 
 
+def exact_control(table: G.GcpTable, gcps_csv: Path) -> G.GcpTable:
+    """``table`` with its control points' col, row, lon, lat, h replaced by the simulation's
+    true values (columns col_true ... h_true of ``gcps_csv``, matched by id and camera)."""
+    truth = {(r["id"], r["camera"]): r for r in csv.DictReader(gcps_csv.open())}
+    out = replace(table, **{f: getattr(table, f).copy() for f in ("col", "row", "lon", "lat", "h")})
+    for k in np.flatnonzero(table.role == "control"):
+        r = truth[(table.id[k], table.camera[k])]
+        for f in ("col", "row", "lon", "lat", "h"):
+            getattr(out, f)[k] = float(r[f"{f}_true"])
+    return out
+
+
 def block(seed: int, folder: Path, checks: int = CHECKS, runs=RUNS, control: int = CONTROL,
-          layout: str = "random") -> dict[str, Run]:
+          layout: str = "random", exact: bool = False) -> dict[str, Run]:
     """Simulate the seed-001-sized TH-1 block ``seed`` in ``folder`` (``control`` GCPs laid out
     as ``layout``, ``checks`` check points) and adjust it as ``runs``."""
     points = control + checks if layout == "random" else SPREAD_CANDIDATES * control + checks
@@ -120,6 +136,8 @@ def block(seed: int, folder: Path, checks: int = CHECKS, runs=RUNS, control: int
     onboard, true = load_scene(result.onboard_scene), load_scene(result.true_scene)
     if layout == "spread":
         table = spread_control(table, onboard.cameras[0].cols, onboard.cameras[0].rows, control, checks)
+    if exact:
+        table = exact_control(table, Path(result.gcps))
     floor = replace(onboard, cameras=true.cameras, _guess={})  # true interior, onboard trajectory
     one = table.id[table.role == "control"][0]
     one_gcp = table.select((table.role == "check") | (table.id == one))
@@ -157,11 +175,14 @@ def main() -> None:
     parser.add_argument("--control", type=int, default=CONTROL, help="number of GCPs")
     parser.add_argument("--layout", choices=("random", "spread"), default="random",
                         help="GCPs uniformly random, or nearest the nodes of a grid over the image")
+    parser.add_argument("--exact-control", action="store_true",
+                        help="diagnostic: the control points without measurement noise")
     args = parser.parse_args()
     logging.basicConfig(level=logging.ERROR)
     checks = QUICK_CHECKS if args.quick else args.checks
     runs = tuple(r for r in RUNS if not (args.quick and r.endswith("kept")))
-    print(f"TH-1 three-line block (Zhang et al. 2015 analogue): {args.control} GCPs ({args.layout}) in all cameras, {TIES} tie points, "
+    print(f"TH-1 three-line block (Zhang et al. 2015 analogue): {args.control} GCPs ({args.layout}"
+          f"{', exact' if args.exact_control else ''}) in all cameras, {TIES} tie points, "
           f"{checks} check points, {IMAGE_NOISE} px image noise; {SETTINGS.attitude_order}-order attitude, "
           f"position bias ({SETTINGS.position_sigma} m)")
     print(f"{'seed':>4} {'adjustment':<24} {'mono':>7} {'3D plan':>8} {'3D h':>7} {'pts':>7} "
@@ -170,7 +191,7 @@ def main() -> None:
     datum_sentence = ""
     for seed in args.seeds:
         with tempfile.TemporaryDirectory() as tmp:
-            figures = block(seed, Path(tmp), checks, runs, args.control, args.layout)
+            figures = block(seed, Path(tmp), checks, runs, args.control, args.layout, args.exact_control)
         for name, f in figures.items():
             print(f"{seed:>4} {name:<24} {f.mono:7.2f} {f.plan:8.2f} {f.height:7.2f} {f.intersected:>3}/{f.points:<3} "
                   f"{f.outcome} ({f.kept})")
