@@ -40,7 +40,7 @@ run matchgcps INPUT="$SIM/image_HRC.tif" SCENE="$SIM/onboard_scene.json" REFEREN
     DEM="$SIM/dem.tif" DEM_DATUM=geoid SPACING=200 CHECK_FRACTION=0.2 OUTPUT="$OUT/gcps.gpkg"
 run bundleadjust SCENE="$SIM/onboard_scene.json" GCPS="$OUT/gcps.gpkg" INTERIOR="HRC-1.*, HRC-3.*" POSITION_ORDER=0 \
     OUTPUT_SCENE="$OUT/adjusted_scene.json" OUTPUT_REPORT="$OUT/adjustment.html" \
-    INTERIOR_SELECTION=keep OUTPUT_GCPS="$OUT/adjusted_gcps.gpkg" OUTPUT_RESIDUALS="$OUT/residuals.gpkg"
+    OUTPUT_GCPS="$OUT/adjusted_gcps.gpkg" OUTPUT_RESIDUALS="$OUT/residuals.gpkg"
 run orthorectify INPUT="$SIM/image_HRC.tif" SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=geoid \
     OUTPUT="$OUT/orthoimage.tif"
 run exportrpc SCENE="$OUT/adjusted_scene.json" DEM="$SIM/dem.tif" DEM_DATUM=geoid IMAGE="$SIM/image_HRC.tif" \

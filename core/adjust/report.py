@@ -433,7 +433,8 @@ def _variance_components_section(rep: dict) -> str:
     def row(k: str, v: dict) -> list[str]:
         test = "–" if v.get("passed") is None else ("<span class='ok'>passed</span>" if v["passed"] else
                                                      "<span class='bad'>failed</span>")
-        used = "yes" if v.get("estimated") else "no (redundancy below 10)"
+        used = ("at the floor 0.01 x stated (far more precise than stated)" if v.get("held_at_floor") else "yes") \
+            if v.get("estimated") else "no (redundancy below 10)"
         return [html.escape(k), str(v.get("observations", "–")), _fmt(v.get("redundancy"), ".1f"),
                 _fmt(v.get("apriori_sigma"), ".4g"), _fmt(v.get("estimated_sigma"), ".4g"),
                 html.escape(v.get("unit") or ""), _fmt(v.get("sigma0")), test, used]

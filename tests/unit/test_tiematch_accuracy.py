@@ -12,12 +12,11 @@ from core.simulator import GcpSettings, simulate
 from core.tiepoints import summary
 from tests.matchscene import compare_ties, th1_cut
 
-# Self-calibration of every camera (INTERIOR=default), 9 control points, 30 check points seen in
-# all three cameras. The same model in both runs: every interior term kept (the automatic removal
-# of insignificant terms picks other terms for other tie residuals: 11 against 8 rounds on the
-# bench's scene, plan 4.9 against 2.0 m), and robust estimation off (with exact tie points the
-# selection-weight passes do not converge: their residuals are zero).
-ADJUSTMENT = AdjustmentSettings(interior="default", robust="none", interior_selection="keep")
+# Self-calibration of every camera (INTERIOR=default) with the automatic removal, 9 control points,
+# 30 check points seen in all three cameras; robust estimation off (with exact tie points the
+# selection-weight passes have no scale for the measured control points: the cameras' variance
+# components stop at their 0.01 floor and the run does not converge or keeps other terms).
+ADJUSTMENT = AdjustmentSettings(interior="default", robust="none")
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +37,19 @@ def test_tie_points_between_all_camera_pairs_are_accurate(comparison):
 def test_the_adjustment_with_matched_ties_is_as_accurate_as_with_exact_ones(comparison):
     m, x = comparison.with_matched, comparison.with_exact
     assert m["intersected"] == x["intersected"] == 30
-    # measured: plan 1.64 / 1.63 m, height 3.00 / 3.00 m (matched / exact)
+    # measured: plan 1.60 / 1.57 m, height 2.99 / 2.99 m (matched / exact; every term kept: 1.64 / 1.63 m,
+    # 3.00 / 3.00 m)
     for key in ("rmse_plan", "rmse_height"):
         assert m[key] <= 1.1 * x[key], (key, m[key], x[key])
     # and both are a few metres (5 m GSD) where the onboard model is tens of metres off
     assert x["rmse_plan"] < 5.0 and x["rmse_height"] < 5.0
+
+
+def test_the_removal_keeps_the_same_terms_with_matched_and_exact_ties(comparison):
+    """The interior terms kept hardly depend on whether the tie points are matched or exact
+    (measured: the same 16 terms, the matched run one more, FWD.b3, which the control hardly
+    separates from FWD.k1; on the bench's 6000 px scene the same 15 terms, plan 1.88 / 1.90 m;
+    an earlier state picked other terms there, plan 4.93 against 2.08 m)."""
+    kept = {k: {t["name"] for t in r["interior_selection"]["kept"]} for k, r in comparison.reports.items()}
+    assert len(kept["matched"] ^ kept["exact"]) <= 1 and len(kept["exact"]) >= 10, kept
+    assert all(r["interior_selection"]["outcome"] == "self-calibration" for r in comparison.reports.values())
