@@ -32,7 +32,7 @@ from .checkpoints import blunder_test, intersection_accuracy, model_error_messag
 from .model import Jacobian, Model, build_observations
 from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, point_couplings
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
-from .selection import SELECTION, interior_free, select_interior
+from .selection import SELECTION, conventional_instead, interior_free, select_interior
 from .ties import TieSetUp, camera_indices, check_ties, datum, set_up_ties
 from . import linepoints
 from .linepoints import ControlLines, LineSetUp, check_lines, flag_lines, line_statistics, set_up_lines
@@ -46,6 +46,7 @@ CAMERA_TRAJECTORY = ("shared", "per_camera")
 SINGULAR = 1e-11           # trajectory: smallest / largest eigenvalue of the correlation-scaled matrix
 STEP_TOLERANCE = 1e-3     # px: a step changing no image residual more than this is converged
 SIGMA_TOLERANCE = 1e-3    # a step below this share of every parameter's a-priori sigma is converged
+PROMISE_SHARE = 1e-3      # a refused step that promised more than this share of the cost: not converged
 # Interior: share of a combination's information left with the trajectory free. Measured on
 # CBERS-02B: non-determinable sets keep <= 1.3e-5 (the middle chip's stagger barely separates
 # yaw from a common chip rotation), the weakest determinable term (focal length) >= 1.6e-3.
@@ -510,6 +511,7 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
             raise Cancelled("adjustment cancelled by the user")
         D = np.diag(system.N).copy()
         D[D <= 0] = 1.0
+        promised, rejected = None, False
         while True:
             try:
                 factor = linalg.cho_factor(system.N + lam * np.diag(D), check_finite=False)
@@ -519,6 +521,8 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
                 if lam > 1e12:
                     raise ConvergenceError(_not_converged(history, "the normal matrix is not positive definite"))
                 continue
+            if promised is None:  # the linearised model's decrease of the cost for this iteration's first step
+                promised = -float(system.b @ dx)
             change = _image_change(lin, dx)
             # At the optimum already (rounding decides the cost, not the step), or the step is a
             # negligible share of every parameter's standard deviation (weakly determined
@@ -526,6 +530,12 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
             relative = np.max(np.abs(dx) / np.sqrt(np.diag(
                 linalg.cho_solve(factor, np.eye(dx.size), check_finite=False))), initial=0.0)
             if change < STEP_TOLERANCE or relative < SIGMA_TOLERANCE:
+                # Damped down to nothing after the steps the linearised model promised much from
+                # were all refused: stuck, not at the optimum (a nearly singular normal matrix).
+                if rejected and promised > PROMISE_SHARE * cost:
+                    raise ConvergenceError(_not_converged(
+                        history, f"no step reduces the residuals (the linearised model promised {promised:.4g} "
+                                 f"of {cost:.4g}; the normal matrix is nearly singular)"))
                 return {"iterations": history, "system": system, "linearization": lin}
             saved = (problem.params.values(), problem.ground.copy())
             problem.step(lin, system, dx)
@@ -534,6 +544,7 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
                 break
             problem.params.set_values(saved[0])
             problem.ground = saved[1]
+            rejected = True
             lam = max(10.0 * lam, 1e-9)
             if lam > 1e12:
                 raise ConvergenceError(_not_converged(history, "no step reduces the residuals"))
@@ -877,10 +888,18 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
                          "(lower order, longer interval) or fewer interior parameters")
     _, system = problem.system()
     determinability = check_determinability(problem, system)
-    est = _estimate(problem, progress, is_cancelled)
     selection = None
-    if settings.interior_selection == "significant" and interior_free(problem).size:
-        problem, est, selection = select_interior(problem, est, lambda p: _estimate(p, progress, is_cancelled))
+    selecting = settings.interior_selection == "significant" and interior_free(problem).size > 0
+    try:
+        est = _estimate(problem, progress, is_cancelled)
+    except ConvergenceError as err:
+        if not selecting:
+            raise
+        problem, est, selection = conventional_instead(problem, lambda p: _estimate(p, progress, is_cancelled),
+                                                       f"the self-calibrating solution did not converge: {err}")
+    else:
+        if selecting:
+            problem, est, selection = select_interior(problem, est, lambda p: _estimate(p, progress, is_cancelled))
     if est.at_limit:  # said of the reported solution only, not of the interior selection's trial solutions
         log.warning("robust estimation stopped at its limit of %d passes; the flags may be incomplete",
                     len(est.passes))

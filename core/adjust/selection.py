@@ -221,13 +221,8 @@ def select_interior(problem, est, estimate: Callable) -> tuple[object, object, d
     for x in kept:
         if x.get("held_by_prior"):
             log.info("interior parameter %s kept, held by its prior: %s", x["name"], x["held_by_prior"])
-    report = {"method": "significant", "t_critical": T_CRITICAL, "max_correlation": MAX_CORRELATION,
-              "min_information": MIN_INFORMATION, "rounds": rounds, "removed": removed, "kept": kept}
-    _fix(conventional, interior_free(conventional))
-    conventional.factor = np.ones_like(conventional.factor)
-    conventional.scale = {}
-    conventional.rescaled()
-    est0 = estimate(conventional)
+    report = _report(rounds, removed, kept)
+    est0 = estimate(_without_interior(conventional))
     guard = _guard(problem, est, conventional, est0, len(kept), sum(x["effective"] for x in kept))
     report["guard"] = guard
     if guard["self_calibration_kept"]:
@@ -247,6 +242,34 @@ def _kept_entry(test: dict) -> dict:
     if test["fails"]:
         entry["held_by_prior"] = "; ".join(test["fails"])
     return entry
+
+
+def _report(rounds: int, removed: list, kept: list) -> dict:
+    return {"method": "significant", "t_critical": T_CRITICAL, "max_correlation": MAX_CORRELATION,
+            "min_information": MIN_INFORMATION, "rounds": rounds, "removed": removed, "kept": kept}
+
+
+def _without_interior(problem):
+    """``problem`` (changed in place) with every interior parameter fixed at 0 and the
+    weights as stated: the conventional adjustment of the same observations."""
+    _fix(problem, interior_free(problem))
+    problem.factor = np.ones_like(problem.factor)
+    problem.scale = {}
+    problem.rescaled()
+    return problem
+
+
+def conventional_instead(problem, estimate: Callable, why: str) -> tuple[object, object, dict]:
+    """The conventional adjustment in place of a self-calibrating one that cannot be solved
+    (``why``): its problem, estimate and the selection's report section saying so."""
+    n = int(interior_free(problem).size)
+    conventional = _without_interior(copy.deepcopy(problem))
+    est0 = estimate(conventional)
+    log.warning("self-calibration fell back to the conventional adjustment (no interior parameters): %s", why)
+    guard = {"kept_parameters": n, "effective_parameters": None, "cost_conventional": conventional.cost(),
+             "cost_self_calibrated": None, "dof": None, "alpha": GUARD_ALPHA, "F": None, "F_critical": None,
+             "self_calibration_kept": False, "reason": why}
+    return conventional, est0, _report(0, [], []) | {"guard": guard, "outcome": "conventional"}
 
 
 def _guard(problem, est, conventional, est0, kept: int, q: float) -> dict:

@@ -10,7 +10,7 @@ from core import gcps as G
 from core.adjust import AdjustmentSettings, adjust
 from core.adjust.parameters import ARCSEC, ParameterSet, parse_interior, sigma_in_si
 from core.adjust.selection import _batch, information_shares
-from core.errors import InputError
+from core.errors import ConvergenceError, InputError
 from core.scene_io import load_scene
 from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
 from core.timebasis import TimeBasis
@@ -264,3 +264,28 @@ def test_a_round_never_removes_both_of_a_correlated_pair():
                fail("BWD.b2", "x", 0.1), fail("FWD.k1", "FWD.k2", -0.99), fail("FWD.k2", "FWD.k1", -0.99)]
     assert [x["name"] for x in _batch(failing)] == ["NAD.k1"]  # a third of six: two, NAD.k2 skipped
     assert [x["name"] for x in _batch([failing[0], failing[3], fail("NAD.b3", "NAD.f", 1.0, 0.0)])] == ["NAD.b3"]
+
+
+def test_a_self_calibration_that_cannot_be_solved_is_never_reported_as_solved(tmp_path):
+    """ZY-3 (three multi-chip cameras), 9 GCPs, INTERIOR=default: 58 lens, chip and installation
+    terms held by their priors leave the normal matrix nearly singular; Gauss-Newton's damped
+    steps were all refused and the solver returned the onboard model as "converged" (measured:
+    29.6 px at the check points, sigma0 45.8, against 1.32 px conventional). Kept as given the
+    run must now either converge to a fit or say it did not; with the automatic removal it falls
+    back to the conventional adjustment and names why."""
+    result = simulate("zy3_tlc", tmp_path, seed=5,
+                      gcp_settings=GcpSettings(n_gcps=300, check_fraction=291 / 300, image_noise=0.3))
+    scene, table = load_scene(result.onboard_scene), _table(result)
+    rmse = lambda out: out.report["check_points"]["image"]["rmse"]  # noqa: E731
+    conventional = rmse(adjust(scene, table, AdjustmentSettings()))
+    try:
+        kept = adjust(scene, table, AdjustmentSettings(interior="default", interior_selection="keep"))
+    except ConvergenceError as err:
+        assert "no step reduces the residuals" in str(err)
+    else:
+        assert kept.report["sigma0"] < 3.0 and rmse(kept) < 2.0 * conventional
+    selected = adjust(scene, table, AdjustmentSettings(interior="default"))
+    assert rmse(selected) <= TOLERANCE * conventional
+    sel = selected.report["interior_selection"]
+    if sel["outcome"] == "conventional" and sel["guard"]["F"] is None:
+        assert sel["guard"]["reason"].startswith("the self-calibrating solution did not converge")
