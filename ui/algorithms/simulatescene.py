@@ -146,7 +146,8 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                               "about one of its points so that it ends 20-200 m off (fields kind and shift_m of "
                               "ground_lines; truth, not read by the adjustment)."), advanced=True)
         self.add_parameter(QgsProcessingParameterNumber(self.IMAGE_SIZE, tr("Cut the cameras to (px)"),
-                                                        QgsProcessingParameterNumber.Integer, 0, minValue=0),
+                                                        QgsProcessingParameterNumber.Integer, 0, optional=True,
+                                                        minValue=0),
                            tr(f"0: the preset's full cameras. Otherwise each camera is cut to this many detectors and "
                               f"each scene to this many lines ({MIN_CUT} or more; presets whose cameras are one "
                               "detector line, e.g. th1_tlc and zy3_tlc), so a three-line block renders in seconds; "
