@@ -8,26 +8,22 @@ from pathlib import Path
 
 import numpy as np
 from osgeo import ogr
-from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 
 import processing
 from core import gcps as G
 from core.adjust.checkpoints import intersection_accuracy
 from core.scene_io import load_scene
 
+from .modelcheck import assert_shipped_model
+
 MODEL_FILE = Path(__file__).resolve().parents[2] / "resources" / "models" / "simulate_match_ties_adjust.model3"
 MODEL_ID = "pushbroom:Three-line block: simulate, match tie points, adjust"
 
 
 def test_the_three_line_model_is_valid_and_in_the_toolbox(provider):
-    model = QgsProcessingModelAlgorithm()
-    assert model.fromFile(str(MODEL_FILE))
-    ok, problems = model.validate()
-    assert ok, problems
-    assert [c.algorithmId() for c in sorted(model.childAlgorithms().values(), key=lambda c: c.position().y())] == [
-        "pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:matchtiepoints", "pushbroom:bundleadjust"]
-    alg = QgsApplication.processingRegistry().algorithmById(MODEL_ID)
-    assert alg is not None and alg.group() == "Workflows" and "Zhang et al. 2015" in alg.shortHelpString()
+    assert_shipped_model(MODEL_FILE, MODEL_ID, ["pushbroom:simulatescene", "pushbroom:importgcps",
+                                                "pushbroom:matchtiepoints", "pushbroom:bundleadjust"],
+                         "Zhang et al. 2015")
 
 
 def test_the_three_line_model_adjusts_the_block_to_matched_tie_points(provider, tmp_path):
