@@ -24,16 +24,17 @@ def test_a_bad_cut_is_refused(provider, tmp_path, case, preset, size, texts):
 
 
 def test_a_cut_block_has_the_cut_cameras(provider, tmp_path):
-    """A legitimate cut: every camera 600 px wide and the strip 600 lines long, the lens errors
-    scaled by 600 / 12000 (simulation.json records the preset's name with the cut)."""
+    """A legitimate cut: every camera 600 px wide, the nadir strip 600 lines long (the tilted
+    cameras' trimmed to the lines that see the block), the preset's name with the cut recorded
+    in simulation.json."""
     import json
 
     from core.scene_io import load_scene
     out = processing.run("pushbroom:simulatescene", {"PRESET": "th1_tlc", "N_GCPS": 5, "IMAGE_SIZE": 600,
                                                      "OUTPUT_FOLDER": str(tmp_path / "sim")})
     scene = load_scene(out["ONBOARD_SCENE"])
-    assert [(c.name, c.cols, c.rows) for c in scene.cameras] == [("NAD", 600, 600), ("FWD", 600, 600),
-                                                                 ("BWD", 600, 600)]
+    assert [(c.name, c.cols) for c in scene.cameras] == [("NAD", 600), ("FWD", 600), ("BWD", 600)]
+    assert scene.cameras[0].rows == 600 and all(400 < c.rows <= 600 for c in scene.cameras[1:])
     manifest = json.loads((tmp_path / "sim" / "simulation.json").read_text())
     assert "th1_tlc_600x600" in json.dumps(manifest)
     assert out["IMAGES"] == []
