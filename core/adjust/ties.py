@@ -33,6 +33,7 @@ SHIFTS = ("shift X", "shift Y", "shift Z")
 ROTATIONS = ("roll (rotation about the flight line)", "pitch", "yaw")
 SCALE = ("scale",)
 LISTED = 10  # ids named in a message
+YAW_TABLE_STEP = 0.5  # s: trajectory table step of the scenes yaw_hold differences
 EDGE = 2.0   # px: measurement noise may put a point at the image border this far outside
 BUNCHED = 0.1  # tie points within this share of the image in both directions are in one corner
 
@@ -238,7 +239,12 @@ def yaw_hold(params: ParameterSet, covariance: np.ndarray, grid: int = 3) -> dic
 
     def ground(values: np.ndarray) -> np.ndarray:
         params.set_values(values)
-        return params.adjusted_scene().image_to_ground(col, row, height, 0)
+        scene = params.adjusted_scene()
+        # A coarse trajectory table: tabulating the whole strip at its fine step for 9 points
+        # would cost a quarter second per parameter; the interpolation error is common to the
+        # two sides of each difference (the same grid), so it cancels.
+        scene.platform.cache_step = YAW_TABLE_STEP
+        return scene.image_to_ground(col, row, height, 0)
 
     try:
         g0 = ground(base)
