@@ -217,6 +217,32 @@ class SimulationResult:
     reference: Path | None = None
 
 
+MIN_CUT = 500  # px: the smallest cut of a preset's cameras (matching windows and GCPs need room)
+
+
+def cut_preset(preset: Preset, cols: int, rows: int) -> Preset:
+    """``preset`` with each camera cut down to ``cols`` detectors and its scenes to ``rows``
+    lines, so that it renders in seconds (e.g. a three-line block for a test or a model run):
+    the same orbit and trajectory errors, its images a centred part of the full cameras'. The
+    lens and CCD errors (px at the array end) are scaled by cols / the full array's length, so
+    that the distortion bends an image window as much as in the full camera (the same px per
+    px); keeping the end displacements would bend it full / cols times more. Cameras of one
+    detector line only (a staggered multi-chip array cannot be cut evenly)."""
+    chips = [c for c in preset.cameras if c.n_chips != 1]
+    if chips:
+        raise InputError(f"a cut needs cameras of one detector line; {preset.name} camera {chips[0].name} has "
+                         f"{chips[0].n_chips} CCD chips")
+    full = preset.cameras[0].chip_pixels
+    if not MIN_CUT <= cols <= full or not MIN_CUT <= rows <= preset.scene_rows:
+        raise InputError(f"a cut of {preset.name} must be {MIN_CUT} to {full} detectors and {MIN_CUT} to "
+                         f"{preset.scene_rows} lines (got {cols} x {rows})")
+    scale = cols / full
+    errors = replace(preset.errors, **{name: getattr(preset.errors, name) * scale for name in CAMERA_ERRORS})
+    return replace(preset, name=f"{preset.name}_{cols}x{rows}",
+                   description=f"{preset.description}, cut to {cols} x {rows} px",
+                   cameras=tuple(replace(c, chip_pixels=cols) for c in preset.cameras), scene_rows=rows, errors=errors)
+
+
 # --- orbit and attitude ----------------------------------------------------------------------
 def circular_orbit(altitude: float, inclination: float, lon0: float, lat0: float, t) -> tuple[np.ndarray, np.ndarray]:
     """ECEF positions and velocities (n, 3) of a circular orbit that passes, descending, over

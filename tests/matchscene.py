@@ -16,7 +16,7 @@ from core.dem import Dem
 from core.geodesy import geodetic_to_ecef
 from core.matching import MatchSettings, match_tiepoints
 from core.scene_io import load_scene
-from core.simulator import CAMERA_ERRORS, PRESETS, CameraSpec, ErrorSettings, Preset, SimulationResult, simulate
+from core.simulator import PRESETS, CameraSpec, ErrorSettings, Preset, SimulationResult, cut_preset, simulate
 from core.tiepoints import TieTable
 
 MINI = Preset("mini_hrc", "CBERS-02B HRC geometry, 2 CCDs of 1024 px, 1200 rows", 778e3,
@@ -56,15 +56,9 @@ def mini_tlc_scene(folder: Path, seed: int = 7) -> SimulationResult:
 
 def th1_cut(cols: int, rows: int) -> Preset:
     """The TH-1 preset (its trajectory, installation and interior errors; seed 001) with its three
-    cameras cut down to ``cols`` detectors and ``rows`` lines, so it renders in seconds. The
-    interior errors (px at the array end) are scaled by cols / 12000: the distortion then bends
-    a matching window as much as in the full camera (the same px per px), where keeping the
-    end displacements would bend it 12000 / cols times more."""
-    th1 = PRESETS["th1_tlc"]
-    scale = cols / th1.cameras[0].chip_pixels
-    errors = replace(th1.errors, **{name: getattr(th1.errors, name) * scale for name in CAMERA_ERRORS})
-    return replace(th1, name=f"th1_{cols}x{rows}", description=f"TH-1 three-line camera cut to {cols} x {rows} px",
-                   cameras=tuple(replace(c, chip_pixels=cols) for c in th1.cameras), scene_rows=rows, errors=errors)
+    cameras cut down to ``cols`` detectors and ``rows`` lines, so it renders in seconds
+    (:func:`core.simulator.cut_preset`: the interior errors scaled by cols / 12000)."""
+    return cut_preset(PRESETS["th1_tlc"], cols, rows)
 
 
 def exact_ties(true, dem, matched: TieTable) -> TieTable:

@@ -33,9 +33,10 @@ from .model import Jacobian, Model, build_observations
 from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, point_couplings
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 from .selection import SELECTION, conventional_instead, interior_free, select_interior
-from .ties import TieSetUp, camera_indices, check_ties, datum, set_up_ties
+from .ties import TieSetUp, camera_indices, check_ties, datum, set_up_ties, yaw_hold, yaw_sentence
 from . import linepoints
-from .linepoints import ControlLines, LineSetUp, check_lines, flag_lines, line_statistics, set_up_lines
+from .linepoints import (ControlLines, LineSetUp, check_lines, datum_lines, flag_lines, line_statistics,
+                         set_up_lines)
 from .robust import (COMPONENT_TOLERANCE, breakdown, component_report, components, critical as _critical, image_group,
                      inliers, rescale, robust_scale, robust_weights, stated_sigma0, truncation)
 
@@ -804,16 +805,25 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
         _check_seen_by_scene(scene, table.select(control))
     if not sparse_control or np.unique(table.id[control]).size >= 3:
         _check_spread(scene, table, control)
-    _datum(table, settings, ties)
+    _datum(table, settings, ties, lines)
     return table
 
 
-def _datum(table: GcpTable, settings: AdjustmentSettings, ties: TieTable | None) -> dict | None:
-    """How the datum of a block with tie points is held (None without tie points; InputError
-    naming a datum defect)."""
+def _datum(table: GcpTable, settings: AdjustmentSettings, ties: TieTable | None,
+           lines: ControlLines | None = None) -> dict | None:
+    """How the datum of a block with tie points (and control lines) is held (None without tie
+    points; InputError naming a datum defect)."""
     if ties is None or len(ties) == 0:
         return None
-    return datum(np.unique(table.id[table.role == "control"]).size, settings.position_sigma, settings.attitude_sigma)
+    return datum(np.unique(table.id[table.role == "control"]).size, settings.position_sigma, settings.attitude_sigma,
+                 *datum_lines(lines))
+
+
+def _with_yaw(held: dict, problem: _Problem, st: Statistics) -> dict:
+    """The datum entry with the posterior sigma of the block's yaw (:func:`yaw_hold`) and its
+    sentence appended to the note."""
+    yaw = yaw_hold(problem.params, st.sigma0 ** 2 * st.Q)
+    return {**held, "yaw": yaw, "note": "; ".join(filter(None, (held.get("note"), yaw_sentence(yaw))))}
 
 
 def _check_seen_by_scene(scene: SceneModel, control: GcpTable) -> None:
@@ -877,7 +887,7 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     progress = progress or (lambda fraction, message=None: None)
     is_cancelled = is_cancelled or (lambda: False)
     table = check_inputs(scene, table, settings, ties, lines)
-    held = _datum(table, settings, ties)
+    held = _datum(table, settings, ties, lines)
     progress(0.02, "setting up the observations")
     tie_set = set_up_ties(scene, ties) if ties is not None and len(ties) else TieSetUp.empty()
     problem = _problem_for(scene, table, settings, tie_set, set_up_lines(scene, lines))
@@ -909,7 +919,7 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     rep = out.report
     rep["interior_selection"] = selection
     if held is not None:
-        rep["datum"] = held
+        held = rep["datum"] = _with_yaw(held, problem, est.st)
         log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")
     adjusted.info["adjustment"] = {
         "settings": asdict(settings), "sigma0": rep["sigma0"],
@@ -921,7 +931,8 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
         "determinability": determinability, "interior_selection": selection,
         "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
     if held is not None:
-        adjusted.info["adjustment"]["datum"] = {k: held[k] for k in ("held_by", "control_points", "note") if k in held}
+        adjusted.info["adjustment"]["datum"] = {k: held[k] for k in ("held_by", "control_points", "control_lines",
+                                                                "note", "yaw") if k in held}
         adjusted.info["adjustment"]["tie_points"] = int(problem.ties.ids.size)
     if "lines" in rep:
         adjusted.info["adjustment"]["lines"] = {k: rep["lines"][k] for k in ("lines", "points", "flagged_line_ids",

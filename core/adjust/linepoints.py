@@ -47,7 +47,7 @@ from scipy import stats
 from ..geodesy import ecef_to_geodetic, enu_rotations
 from ..lines import (GroundLines, ImageLines, LineConstraint, LineObservations, LineSegments, _wgs84_3d, azimuths,
                      check_image_lines, check_in_scene, direction_check, ground_layer, line_constraints, lines_outside,
-                     nearest_segments, pair, start_points)
+                     nearest_segments, pair, segment_directions, start_points)
 from ..vector_io import LayerData, write_layers
 from .ties import _listed
 
@@ -112,6 +112,16 @@ def check_lines(scene, lines: ControlLines) -> None:
     check_image_lines(lines.image, scene)
     pair(lines.image, lines.ground)
     check_in_scene(lines.ground, scene, ids=np.unique(lines.image.line_id))
+
+
+def datum_lines(lines: ControlLines | None) -> tuple[int, bool]:
+    """(ground lines paired with image lines, whether their directions determine both horizontal
+    directions): what the control lines can hold of a block's datum (:func:`core.adjust.ties.datum`)."""
+    if lines is None or len(lines.image) == 0:
+        return 0, False
+    obs = pair(lines.image, lines.ground)
+    ground = _subset(lines.ground, np.isin(lines.ground.id, obs.keys[np.unique(obs.key)]))
+    return int(np.unique(ground.id).size), segment_directions(LineSegments.from_lines(ground)).determined
 
 
 def set_up_lines(scene, lines: ControlLines | None) -> LineSetUp:

@@ -334,7 +334,8 @@ def _decisions_section(rep: dict) -> str:
                      + (f": {html.escape(ids)}" if ids else "") + ".</li>")
     if rep.get("datum"):
         d = rep["datum"]
-        items.append(f"<li>Datum held by {html.escape(d['held_by'])} ({d['control_points']} control points)"
+        lines = f", {d['control_lines']} control lines" if d.get("control_lines") else ""
+        items.append(f"<li>Datum held by {html.escape(d['held_by'])} ({d['control_points']} control points{lines})"
                      + (f": {html.escape(d['note'])}" if d.get("note") else "") + ".</li>")
     return "<h2>Decisions</h2><ul>" + "".join(items) + "</ul>"
 

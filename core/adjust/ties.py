@@ -21,9 +21,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..geodesy import ecef_to_geodetic, enu_rotation
 from ..intersection import intersect
 from ..sensor import SceneModel
 from ..tiepoints import TieTable
+from .parameters import ARCSEC, ParameterSet
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +33,7 @@ SHIFTS = ("shift X", "shift Y", "shift Z")
 ROTATIONS = ("roll (rotation about the flight line)", "pitch", "yaw")
 SCALE = ("scale",)
 LISTED = 10  # ids named in a message
+YAW_TABLE_STEP = 0.5  # s: trajectory table step of the scenes yaw_hold differences
 EDGE = 2.0   # px: measurement noise may put a point at the image border this far outside
 BUNCHED = 0.1  # tie points within this share of the image in both directions are in one corner
 
@@ -145,16 +148,22 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
     return out
 
 
-def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | None) -> dict:
+def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | None,
+          n_lines: int = 0, lines_determined: bool = False) -> dict:
     """How the datum (shift X/Y/Z, roll, pitch, yaw, scale) of a block with tie points is held,
-    for ``n_control`` control points (at least 3 are checked for spread elsewhere) and the
-    onboard pseudo-observations. Raises InputError naming the components nothing holds.
+    for ``n_control`` control points (at least 3 are checked for spread elsewhere), ``n_lines``
+    control lines (``lines_determined``: their directions determine both horizontal directions,
+    :func:`core.lines.direction_check`) and the onboard pseudo-observations. Raises InputError
+    naming the components nothing holds.
 
     Control points: 3 or more well spread hold all; 2 all but the rotation about the line
-    through them; 1 the shifts. Onboard positions (pseudo-observations of the orbit, hundreds
-    of km above the ground) hold the shifts, the scale, pitch and yaw; roll about the flight
-    line leaves them in place, so it needs a GCP (off that line) or the attitude. Onboard
-    attitude holds the three rotations."""
+    through them; 1 the shifts. Control lines in several directions hold all (each fixes its
+    points across the line and in height, and lines spread over the scene fix the rotations
+    and the scale as points do); lines that all run one way leave the shift along them, the
+    yaw and the scale free and hold the height, roll and pitch only. Onboard positions
+    (pseudo-observations of the orbit, hundreds of km above the ground) hold the shifts, the
+    scale, pitch and yaw; roll about the flight line leaves them in place, so it needs a GCP
+    (off that line), lines or the attitude. Onboard attitude holds the three rotations."""
     held: dict[str, list[str]] = {c: [] for c in SHIFTS + ROTATIONS + SCALE}
     extra_missing = []
 
@@ -166,11 +175,13 @@ def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | 
         hold("control points", SHIFTS + ROTATIONS + SCALE)
     elif n_control == 1:
         hold("control points", SHIFTS)
+    if n_lines:
+        hold("control lines", SHIFTS + ROTATIONS + SCALE if lines_determined else SHIFTS[2:] + ROTATIONS[:2])
     if position_sigma is not None:
         hold("onboard positions", SHIFTS + SCALE + ROTATIONS[1:] + (ROTATIONS[:1] if n_control else ()))
     if attitude_sigma is not None:
         hold("onboard attitude", ROTATIONS)
-    if n_control == 2 and position_sigma is None and attitude_sigma is None:
+    if n_control == 2 and position_sigma is None and attitude_sigma is None and not (n_lines and lines_determined):
         extra_missing.append("rotation about the line through the 2 control points")
     missing = [c for c, sources in held.items() if not sources] + extra_missing
     if missing:
@@ -182,20 +193,80 @@ def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | 
         pseudo = [name for name, s in (("positions", position_sigma), ("attitude", attitude_sigma)) if s is not None]
         given = "onboard pseudo-observations of the " + " and ".join(pseudo) if pseudo else \
             "no onboard pseudo-observations"
+        lines = f", {n_lines} control line(s)" + ("" if lines_determined else " all running one way") \
+            if n_lines else ""
         raise InputError(
-            f"datum defect: with {n_control} control point(s) and {given}, the tie points fix the block's shape "
-            f"but not {', '.join(missing)}; the adjustment would drift freely in them. Give "
+            f"datum defect: with {n_control} control point(s){lines} and {given}, the tie points fix the block's "
+            f"shape but not {', '.join(missing)}; the adjustment would drift freely in them. Give "
             f"{' and '.join(need)}, or at least 3 well spread GCPs")
-    sources = sorted({s for v in held.values() for s in v})
-    gcps = "control points" in sources
-    onboard = [s for s in sources if s.startswith("onboard")]
-    by = "control points and onboard pseudo-observations" if gcps and onboard else \
-        "control points" if gcps else "onboard pseudo-observations"
-    out = {"held_by": by, "control_points": n_control, "components": held}
-    if not gcps:
+    sources = {s for v in held.values() for s in v}
+    named = [name for name, present in (("control points", "control points" in sources),
+                                        ("control lines", "control lines" in sources),
+                                        ("onboard pseudo-observations", any(s.startswith("onboard") for s in sources)))
+             if present]
+    by = named[0] if len(named) == 1 else ", ".join(named[:-1]) + " and " + named[-1]
+    out = {"held_by": by, "control_points": n_control, "control_lines": n_lines, "components": held}
+    if not n_control and not n_lines:
         out["note"] = ("no control points: the tie points fix the block's relative geometry only; its absolute "
                        "accuracy is that of the onboard orbit and attitude (the pseudo-observations' sigmas)")
     elif n_control < 3:
-        out["note"] = (f"{n_control} control point(s): the datum components they do not hold are held by the onboard "
-                       "pseudo-observations, at the onboard accuracy")
+        rest = " and ".join(name for name in named if name != "control points")
+        who = f"{n_control} control point(s): the datum components they do not hold are" if n_control else \
+            "no control points: the datum is"
+        out["note"] = (f"{who} held by the {rest}"
+                       + (", at the onboard accuracy" if rest == "onboard pseudo-observations" else ""))
     return out
+
+
+def yaw_hold(params: ParameterSet, covariance: np.ndarray, grid: int = 3) -> dict:
+    """How well the solution holds the block's yaw (its rotation about the vertical through the
+    first camera's image centre), from the posterior covariance ``covariance`` (k,k) of the
+    unknowns ``params.free`` (sigma0^2 Q, SI units) at the current (adjusted) values.
+
+    The rotation is read from the ground a ``grid`` x ``grid`` lattice of the first camera's
+    image sees at the scene's mean height: theta = sum(e dn - n de) / sum(e^2 + n^2) over the
+    points' local east/north (m) about their centre, a linear function of the unknowns whose
+    gradient is taken by central differences of one posterior sigma each. Returns sigma_arcsec,
+    edge_m (its displacement at the lattice point farthest from the centre: the scene's corner)
+    and radius_m (that distance)."""
+    scene = params.scene
+    cam = scene.cameras[0]
+    col, row = (a.ravel() for a in np.meshgrid(np.linspace(0, cam.cols, grid), np.linspace(0, cam.rows, grid)))
+    height = np.full(col.size, float(np.mean(scene.height_range)))
+    base = params.values()
+    free = params.free
+    step = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+
+    def ground(values: np.ndarray) -> np.ndarray:
+        params.set_values(values)
+        scene = params.adjusted_scene()
+        # A coarse trajectory table: tabulating the whole strip at its fine step for 9 points
+        # would cost a quarter second per parameter; the interpolation error is common to the
+        # two sides of each difference (the same grid), so it cancels.
+        scene.platform.cache_step = YAW_TABLE_STEP
+        return scene.image_to_ground(col, row, height, 0)
+
+    try:
+        g0 = ground(base)
+        lon, lat, _ = ecef_to_geodetic(g0.mean(axis=0))
+        to_en = enu_rotation(float(lon), float(lat))[:2]                     # (2,3) east, north rows
+        en = (g0 - g0.mean(axis=0)) @ to_en.T                                 # (p,2) m
+        weights = np.stack([-en[:, 1], en[:, 0]], axis=1) / np.sum(en ** 2)   # d theta / d(east, north)
+        gradient = np.zeros(free.size)
+        for j in np.nonzero(step > 0)[0]:
+            up, down = base.copy(), base.copy()
+            up[free[j]] += step[j]
+            down[free[j]] -= step[j]
+            moved = (ground(up) - ground(down)) @ to_en.T / (2.0 * step[j])
+            gradient[j] = np.sum(weights * moved)
+    finally:
+        params.set_values(base)
+    sigma = float(np.sqrt(max(gradient @ covariance @ gradient, 0.0)))
+    radius = float(np.sqrt(np.sum(en ** 2, axis=1)).max())
+    return {"sigma_arcsec": sigma / ARCSEC, "edge_m": sigma * radius, "radius_m": radius}
+
+
+def yaw_sentence(yaw: dict) -> str:
+    """The yaw figure of :func:`yaw_hold` in words."""
+    return (f"the yaw (block rotation about the vertical) is held to {yaw['sigma_arcsec']:.1f} arcsec (posterior "
+            f"sigma), {yaw['edge_m']:.2f} m at the scene's corners {yaw['radius_m'] / 1000:.1f} km from its centre")

@@ -4,6 +4,7 @@
 and by qgis_process; multi-camera GCPs and check points; 4 GCPs and 0 GCPs; the adjusted
 tie-point layer, its style, the log and the reports."""
 import csv
+import html
 import json
 from pathlib import Path
 
@@ -133,11 +134,15 @@ def test_the_log_and_the_reports_give_the_tie_figures_and_the_datum(chain):
                for line in lines)
     residuals = next(line for line in lines if line.startswith("tie residuals RMSE"))
     assert all(f"{cam} 0." in residuals for cam in CAMERAS)
-    assert "datum held by control points and onboard pseudo-observations" in lines
-    page = Path(chain["result"]["OUTPUT_REPORT"]).read_text()
-    assert "<h2>Tie points</h2>" in page and "datum held by control points and onboard pseudo-observations" in page
     rep = json.loads(Path(chain["result"]["OUTPUT_REPORT_JSON"]).read_text())
     assert rep["tie_points"]["points"] == 60 and rep["datum"]["control_points"] == 4
+    yaw = rep["datum"]["yaw"]
+    held = ("datum held by control points and onboard pseudo-observations: the yaw (block rotation about the "
+            f"vertical) is held to {yaw['sigma_arcsec']:.1f} arcsec (posterior sigma), {yaw['edge_m']:.2f} m at the "
+            f"scene's corners {yaw['radius_m'] / 1000:.1f} km from its centre")
+    assert held in lines and 0 < yaw["sigma_arcsec"] < 60
+    page = Path(chain["result"]["OUTPUT_REPORT"]).read_text()
+    assert "<h2>Tie points</h2>" in page and html.escape(held) in page
 
 
 def test_no_control_points_the_onboard_data_hold_the_datum(chain, tmp_path):

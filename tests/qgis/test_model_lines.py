@@ -5,10 +5,10 @@ import json
 from pathlib import Path
 
 from osgeo import ogr
-from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 
 import processing
 
+from .modelcheck import assert_shipped_model
 from .test_importlines import roads  # noqa: F401
 
 MODEL_FILE = Path(__file__).resolve().parents[2] / "resources" / "models" / "adjust_with_lines.model3"
@@ -16,14 +16,8 @@ MODEL_ID = "pushbroom:Adjust with GCPs and control lines"
 
 
 def test_the_lines_model_is_valid_and_in_the_toolbox(provider):
-    model = QgsProcessingModelAlgorithm()
-    assert model.fromFile(str(MODEL_FILE))
-    ok, problems = model.validate()
-    assert ok, problems
-    assert [c.algorithmId() for c in sorted(model.childAlgorithms().values(), key=lambda c: c.position().y())] == [
-        "pushbroom:importgcps", "pushbroom:importlines", "pushbroom:bundleadjust"]
-    alg = QgsApplication.processingRegistry().algorithmById(MODEL_ID)
-    assert alg is not None and alg.group() == "Workflows" and "Tommaselli" in alg.shortHelpString()
+    assert_shipped_model(MODEL_FILE, MODEL_ID, ["pushbroom:importgcps", "pushbroom:importlines",
+                                                "pushbroom:bundleadjust"], "Tommaselli")
 
 
 def test_the_lines_model_adjusts_and_names_the_wrong_lines(provider, roads, tmp_path):  # noqa: F811

@@ -13,7 +13,8 @@ ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:impo
               "pushbroom:snaplines"]
 MODELS = ["pushbroom:Simulate, adjust, orthorectify and export RPC",  # resources/models/*.model3
           "pushbroom:Simulate, match GCPs, adjust, orthorectify and export RPC",
-          "pushbroom:Adjust with GCPs and control lines"]
+          "pushbroom:Adjust with GCPs and control lines",
+          "pushbroom:Three-line block: simulate, match tie points, adjust"]
 
 
 def test_provider_lists_its_algorithms(provider):

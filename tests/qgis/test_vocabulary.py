@@ -78,7 +78,7 @@ def vocabulary_problems(algorithms) -> list[str]:
 
 def test_the_provider_speaks_one_vocabulary(provider):
     algorithms = provider.algorithms()
-    assert len(algorithms) == 18  # 15 algorithms and the three shipped models
+    assert len(algorithms) == 19  # 15 algorithms and the four shipped models
     assert vocabulary_problems(algorithms) == []
 
 

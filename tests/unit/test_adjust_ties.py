@@ -10,13 +10,18 @@ import pytest
 
 from core import gcps as G
 from core.adjust import AdjustmentSettings, adjust
+from core.adjust.linepoints import ControlLines
 from core.adjust.ties import datum
 from core.errors import InputError
 from core.geodesy import geodetic_to_ecef
 from core.intersection import intersect
+from core.lines import read_ground_lines, read_image_lines
+from core.roads import RoadSettings
 from core.scene_io import load_scene
 from core.simulator import ErrorSettings, GcpSettings, simulate
 from core.tiepoints import TieTable
+
+ARCSEC = np.pi / 648000.0
 
 NOISE = 0.3  # px
 # the simulated trajectory errors only: the interior is exact, so the figures are the engine's
@@ -140,6 +145,67 @@ def test_datum_with_attitude_only_lacks_shift_and_scale():
     with pytest.raises(InputError, match=r"not shift X, shift Y, shift Z, scale; .*Give POSITION_SIGMA"):
         datum(0, None, 1e-5)
     assert datum(3, None, None)["held_by"] == "control points"
+
+
+def test_datum_credits_control_lines():
+    """Lines in several directions hold every component (as 3+ GCPs); lines all running one way
+    only the height, roll and pitch."""
+    one = datum(1, None, None, n_lines=20, lines_determined=True)
+    assert one["held_by"] == "control points and control lines" and one["control_lines"] == 20
+    assert one["note"] == "1 control point(s): the datum components they do not hold are held by the control lines"
+    assert datum(0, None, None, n_lines=20, lines_determined=True)["held_by"] == "control lines"
+    assert datum(2, None, None, n_lines=5, lines_determined=True)["components"]["yaw"] == ["control points",
+                                                                                         "control lines"]
+    assert datum(1, 100.0, None, 20, True)["held_by"] == ("control points, control lines and onboard "
+                                                          "pseudo-observations")
+    with pytest.raises(InputError, match=r"1 control point\(s\), 20 control line\(s\) all running one way and no "
+                                         r"onboard .* but not yaw, scale; .*Give POSITION_SIGMA .* and ATTITUDE_SIGMA"):
+        datum(1, None, None, n_lines=20, lines_determined=False)
+
+
+def _yaw_sentence(rep: dict) -> str:
+    return f"the yaw (block rotation about the vertical) is held to {rep['datum']['yaw']['sigma_arcsec']:.1f} arcsec"
+
+
+def test_the_yaw_sigma_follows_the_attitude_prior(th1):
+    """1 GCP: the yaw is held by the onboard data, as tightly as their sigmas and the tie points
+    allow; the posterior sigma (from the solution's covariance) never exceeds the attitude prior's
+    and shrinks with it. Its effect at the scene's corners is the sigma times their distance from
+    the centre (half the 60 km x 60 km nadir footprint's diagonal)."""
+    scene, table, ties, _ = th1
+    yaw = {}
+    for attitude in (None, 1e-4, 1e-5):  # rad: 20.6 and 2.06 arcsec
+        rep = adjust(scene, _corner_control(table, 1), AdjustmentSettings(position_sigma=100.0,
+                                                                          attitude_sigma=attitude), ties=ties).report
+        yaw[attitude] = rep["datum"]["yaw"]
+        assert _yaw_sentence(rep) in rep["datum"]["note"]
+    # measured: 52.0, 11.4, 1.2 arcsec; 10.7, 2.3, 0.25 m at 42.4 km
+    assert yaw[None]["sigma_arcsec"] > 2 * yaw[1e-4]["sigma_arcsec"] > 4 * yaw[1e-5]["sigma_arcsec"]
+    assert yaw[1e-4]["sigma_arcsec"] < 1e-4 / ARCSEC and yaw[1e-5]["sigma_arcsec"] < 1e-5 / ARCSEC
+    for y in yaw.values():
+        assert y["radius_m"] == pytest.approx(np.hypot(30e3, 30e3), rel=0.03)
+        assert y["edge_m"] == pytest.approx(y["sigma_arcsec"] * ARCSEC * y["radius_m"], rel=1e-9)
+
+
+def test_one_gcp_and_control_lines_hold_the_datum(tmp_path):
+    """A TH-1 block with 1 GCP, tie points and 20 roads as control lines, without onboard sigmas:
+    the datum is held by the GCP and the lines (a defect without the lines), the yaw to a few arcsec."""
+    result = simulate("th1_tlc", tmp_path, seed=5, errors=TRAJECTORY_ONLY,
+                      gcp_settings=GcpSettings(n_gcps=40, check_fraction=0.5, image_noise=NOISE, n_tie_points=100),
+                      road_settings=RoadSettings(n_lines=20))
+    scene, table, (ties, _) = load_scene(result.onboard_scene), _gcps(result), _ties(result.tie_points)
+    lines = ControlLines(read_ground_lines(result.lines), read_image_lines(result.lines))
+    settings = AdjustmentSettings(position_sigma=None)
+    with pytest.raises(InputError, match="datum defect"):
+        adjust(scene, _corner_control(table, 1), settings, ties=ties)
+    rep = adjust(scene, _corner_control(table, 1), settings, ties=ties, lines=lines).report
+    assert rep["datum"]["held_by"] == "control points and control lines"
+    assert rep["datum"]["control_points"] == 1 and rep["datum"]["control_lines"] == 20
+    assert rep["datum"]["note"].startswith("1 control point(s): the datum components they do not hold are held by "
+                                           "the control lines; " + _yaw_sentence(rep))
+    # measured: 2.2 arcsec (0.45 m at the corners); check points 1.24 m plan
+    assert rep["datum"]["yaw"]["sigma_arcsec"] < 5.0
+    assert rep["check_points"]["intersection"]["rmse_plan"] < 2.0
 
 
 def test_a_tie_point_with_one_ray_is_left_out_and_named(th1, caplog):

@@ -1,11 +1,12 @@
 """pushbroom:simulatescene — a simulated scene with known truth: onboard and true sensor models,
 GCPs, tie points, a DEM and optionally rendered raw images, from a preset sensor."""
-from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputRasterLayer,
+from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputMultipleLayers,
+                       QgsProcessingOutputRasterLayer,
                        QgsProcessingParameterBoolean,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber)
 
 from ...core.roads import LINES_FILE, POINTS_FILE, RoadSettings
-from ...core.simulator import PRESETS, GcpSettings, check_folder, output_names, simulate
+from ...core.simulator import MIN_CUT, PRESETS, GcpSettings, check_folder, cut_preset, output_names, simulate
 from ..common import PushbroomAlgorithm, core_call, feedback_callbacks, processing_errors
 from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_value, preset, tr
 
@@ -96,6 +97,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
     PRESET, SEED, N_SCENES, N_GCPS, IMAGE_NOISE, RENDER = PRESET, "SEED", "N_SCENES", "N_GCPS", "IMAGE_NOISE", \
         "RENDER"
     N_LINES, WRONG_LINE_FRACTION, LINES = "N_LINES", "WRONG_LINE_FRACTION", "LINES"
+    IMAGE_SIZE, IMAGES = "IMAGE_SIZE", "IMAGES"
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
     ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM = "ONBOARD_SCENE", "TRUE_SCENE", "GCPS", "DEM"
     TIE_POINTS, MANIFEST, IMAGE, REFERENCE = "TIE_POINTS", "MANIFEST", "IMAGE", "REFERENCE"
@@ -143,6 +145,15 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                            tr("0 to 1: this share of the simulated road map is wrong, shifted as a whole or turned "
                               "about one of its points so that it ends 20-200 m off (fields kind and shift_m of "
                               "ground_lines; truth, not read by the adjustment)."), advanced=True)
+        self.add_parameter(QgsProcessingParameterNumber(self.IMAGE_SIZE, tr("Cut the cameras to (px)"),
+                                                        QgsProcessingParameterNumber.Integer, 0, optional=True,
+                                                        minValue=0),
+                           tr(f"0: the preset's full cameras. Otherwise each camera is cut to this many detectors and "
+                              f"each scene to this many lines ({MIN_CUT} or more; presets whose cameras are one "
+                              "detector line, e.g. th1_tlc and zy3_tlc), so a three-line block renders in seconds; "
+                              "the preset's lens and CCD errors (px at the array end) are scaled by the cut's share "
+                              "of the full array, so the distortion bends the images as in the full camera."),
+                           advanced=True)
         for name, _, label, kind, default, lo, hi, help_text in MEASUREMENT_PARAMETERS:
             kind = QgsProcessingParameterNumber.Integer if kind == "i" else QgsProcessingParameterNumber.Double
             self.add_parameter(QgsProcessingParameterNumber(name, tr(label), kind, default, minValue=lo, maxValue=hi),
@@ -164,6 +175,8 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                                                               "image_clicks), when requested")))
         self.addOutput(QgsProcessingOutputFile(self.MANIFEST, tr("Simulation settings and drawn errors (JSON)")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.IMAGE, tr("Raw image of the first camera, when rendered")))
+        self.addOutput(QgsProcessingOutputMultipleLayers(self.IMAGES, tr("Raw images of every camera, in the "
+                                                                         "scene's camera order, when rendered")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.REFERENCE, tr("Reference orthoimage, when rendered")))
         self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, tr("Output folder")))
 
@@ -182,8 +195,12 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                                **measurements)
         roads = RoadSettings(n_lines=self.parameterAsInt(parameters, self.N_LINES, context),
                              wrong_fraction=self.parameterAsDouble(parameters, self.WRONG_LINE_FRACTION, context))
+        size = self.parameterAsInt(parameters, self.IMAGE_SIZE, context)
+        if size:
+            with processing_errors(f"{self.IMAGE_SIZE}: "):
+                preset = cut_preset(PRESETS[preset], size, size)
         with processing_errors(f"{self.OUTPUT_FOLDER}: "):  # before any work: a user's files there are kept
-            check_folder(folder, output_names(PRESETS[preset], settings,
+            check_folder(folder, output_names(preset if size else PRESETS[preset], settings,
                                               self.parameterAsBool(parameters, self.RENDER, context))
                          + ([LINES_FILE, POINTS_FILE] if roads.n_lines else []))
         progress, is_cancelled = feedback_callbacks(feedback)
@@ -193,7 +210,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                            render=self.parameterAsBool(parameters, self.RENDER, context),
                            errors=errors, gcp_settings=settings, road_settings=roads, progress=progress,
                            is_cancelled=is_cancelled)
-        feedback.pushInfo(f"simulated {preset} into {folder}: " + ", ".join(
+        feedback.pushInfo(f"simulated {getattr(preset, 'name', preset)} into {folder}: " + ", ".join(
             p.name for p in (result.onboard_scene, result.true_scene, result.gcps, result.dem,
                              result.tie_points, result.lines, *result.images.values()) if p is not None))
         return {self.OUTPUT_FOLDER: folder, self.ONBOARD_SCENE: str(result.onboard_scene),
@@ -201,4 +218,5 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                 self.TIE_POINTS: str(result.tie_points) if result.tie_points else None,
                 self.LINES: str(result.lines) if result.lines else None, self.MANIFEST: str(result.manifest),
                 self.IMAGE: str(next(iter(result.images.values()))) if result.images else None,
+                self.IMAGES: [str(path) for path in result.images.values()],
                 self.REFERENCE: str(result.reference) if result.reference else None}
