@@ -17,5 +17,9 @@ class ConvergenceError(PushbroomError):
     """An iterative solution did not converge; the message says what was tried."""
 
 
+class NoDescentError(ConvergenceError):
+    """No step lowers the residuals: the normal matrix is (nearly) singular for the model chosen."""
+
+
 class Cancelled(PushbroomError):
     """The user cancelled a long computation; nothing was written."""

@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 from scipy import linalg, stats
 
-from ..errors import Cancelled, ConvergenceError, InputError
+from ..errors import Cancelled, ConvergenceError, InputError, NoDescentError
 from ..gcps import GcpTable, resolve_cameras
 from ..geodesy import ecef_to_geodetic, enu_rotations, geodetic_to_ecef, up_vector
 from ..sensor import SceneModel
@@ -520,7 +520,7 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
             except linalg.LinAlgError:
                 lam = max(10.0 * lam, 1e-9)
                 if lam > 1e12:
-                    raise ConvergenceError(_not_converged(history, "the normal matrix is not positive definite"))
+                    raise NoDescentError(_not_converged(history, "the normal matrix is not positive definite"))
                 continue
             if promised is None:  # the linearised model's decrease of the cost for this iteration's first step
                 promised = -float(system.b @ dx)
@@ -534,7 +534,7 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
                 # Damped down to nothing after the steps the linearised model promised much from
                 # were all refused: stuck, not at the optimum (a nearly singular normal matrix).
                 if rejected and promised > PROMISE_SHARE * cost:
-                    raise ConvergenceError(_not_converged(
+                    raise NoDescentError(_not_converged(
                         history, f"no step reduces the residuals (the linearised model promised {promised:.4g} "
                                  f"of {cost:.4g}; the normal matrix is nearly singular)"))
                 return {"iterations": history, "system": system, "linearization": lin}
@@ -548,7 +548,7 @@ def solve(problem: _Problem, progress, is_cancelled, label: str = "") -> dict:
             rejected = True
             lam = max(10.0 * lam, 1e-9)
             if lam > 1e12:
-                raise ConvergenceError(_not_converged(history, "no step reduces the residuals"))
+                raise NoDescentError(_not_converged(history, "no step reduces the residuals"))
         history.append({"iteration": it + 1, "cost": new_cost, "max_image_change_px": change, "damping": lam})
         log.info("%siteration %d: weighted squared residuals %.6g, largest image change %.2e px", label, it + 1,
                  new_cost, change)
@@ -902,7 +902,7 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     selecting = settings.interior_selection == "significant" and interior_free(problem).size > 0
     try:
         est = _estimate(problem, progress, is_cancelled)
-    except ConvergenceError as err:
+    except NoDescentError as err:
         if not selecting:
             raise
         problem, est, selection = conventional_instead(problem, lambda p: _estimate(p, progress, is_cancelled),
