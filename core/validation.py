@@ -187,7 +187,7 @@ def check_rpc_scene_dict(d: dict, source: str) -> dict:
     {name, cols, rows}, rpc {LINE_OFF ... HEIGHT_SCALE: numbers, scales non-zero; *_COEFF: 20
     numbers}, optional correction {col, row: 3 numbers each} and info. Returns ``d``; raises
     MetadataError naming ``source`` and the key path."""
-    from .rpcfit import _COEFFS, RPC_KEYS
+    from .products.rpcfit import _COEFFS, RPC_KEYS
     s = _Schema(source)
     camera = s.object(s.required(d, "camera", ""), "camera")
     s.string(s.required(camera, "name", "camera"), "camera.name", nonempty=True)

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.support import plugin_package  # noqa: F401 (registers the package pushbroom_adjust)
+
 REPO = Path(__file__).resolve().parents[1]
 TEST_DATA = REPO / "tests" / "data"
 

@@ -130,7 +130,7 @@ def load_scene_for(parameter_name: str, path: str, feedback=None):
     The error message names the parameter, e.g. "SCENE: /x/y.xml: no such file". The reader's
     warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``.
     """
-    from ..core.scene_io import load_scene
+    from ..core.formats.scene_json import load_scene
     if not path:
         raise QgsProcessingException(f"{parameter_name}: no scene file given")
     with processing_errors(f"{parameter_name}: "):
@@ -350,7 +350,7 @@ def camera_images_for(alg, parameters, context, scene) -> dict[int, str]:
 def matching_settings(alg, parameters, context, **fixed):
     """core.matching.MatchSettings of the matching parameters (ui.parameters.matching_parameters),
     checked; ``fixed``: other MatchSettings fields."""
-    from ..core.matching import MatchSettings
+    from ..core.measure.matching import MatchSettings
     with processing_errors():
         settings = MatchSettings(spacing=alg.parameterAsDouble(parameters, vocabulary.SPACING, context),
                                  count=alg.parameterAsInt(parameters, vocabulary.N_POINTS, context),

@@ -20,10 +20,10 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
                        QgsProcessingParameterVectorLayer, QgsProperty)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
-from ..core.gcps import DEFAULT_SIGMA_PX
-from ..core.ortho import RESAMPLING as CORE_RESAMPLING
-from ..core.simulator import PRESETS
-from ..core.timebasis import KINDS
+from ..core.observations.gcps import DEFAULT_SIGMA_PX
+from ..core.products.ortho import RESAMPLING as CORE_RESAMPLING
+from ..simulation.simulator import PRESETS
+from ..core.model.timebasis import KINDS
 
 TR_CONTEXT = "PushbroomAdjust"
 

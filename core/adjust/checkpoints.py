@@ -21,10 +21,10 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from ..gcps import GcpTable
+from ..observations.gcps import GcpTable
 from ..geodesy import enu_rotations, geodetic_to_ecef
-from ..intersection import intersect
-from ..sensor import SceneModel
+from ..model.intersection import intersect
+from ..model.sensor import SceneModel
 
 MODEL_ERROR_SHARE = 0.05  # share of check observations that blunders in the check data may explain
 

@@ -23,11 +23,11 @@ import numpy as np
 from scipy import linalg, stats
 
 from ..errors import Cancelled, ConvergenceError, InputError, NoDescentError
-from ..gcps import GcpTable, resolve_cameras
+from ..observations.gcps import GcpTable, resolve_cameras
 from ..geodesy import ecef_to_geodetic, enu_rotations, geodetic_to_ecef, up_vector
-from ..sensor import SceneModel
-from ..tiepoints import TieTable
-from ..timebasis import TimeBasis
+from ..model.sensor import SceneModel
+from ..observations.tiepoints import TieTable
+from ..model.timebasis import TimeBasis
 from .checkpoints import blunder_test, intersection_accuracy, model_error_message, summary_lines
 from .model import Jacobian, Model, build_observations
 from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups, point_couplings
@@ -786,7 +786,7 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
         check_ties(scene, ties, table.id)
     with_lines = lines is not None and len(lines.image) > 0
     if with_lines:
-        from ..rpcscene import RpcScene
+        from ..model.rpcscene import RpcScene
         if isinstance(scene, RpcScene):
             raise InputError("control lines need a rigorous (physical) scene model; an RPC scene's correction is "
                              "adjusted from GCPs")
@@ -864,7 +864,7 @@ def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings, ties: Tie
                  lines: LineSetUp | None = None) -> _Problem:
     """The problem of a rigorous scene, or of an RPC scene (its image-space correction,
     :mod:`core.adjust.rpcbias`)."""
-    from ..rpcscene import RpcScene
+    from ..model.rpcscene import RpcScene
     if isinstance(scene, RpcScene):
         if len(ties):
             raise InputError("tie points need a rigorous (physical) scene model with several cameras; an RPC "

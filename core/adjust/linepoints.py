@@ -45,9 +45,10 @@ from osgeo import ogr
 from scipy import stats
 
 from ..geodesy import ecef_to_geodetic, enu_rotations
-from ..lines import (GroundLines, ImageLines, LineConstraint, LineObservations, LineSegments, _wgs84_3d, azimuths,
-                     check_image_lines, check_in_scene, direction_check, ground_layer, line_constraints, lines_outside,
-                     nearest_segments, pair, segment_directions, start_points)
+from ..observations.lines import (GroundLines, ImageLines, LineConstraint, LineObservations, LineSegments, _wgs84_3d,
+                                  azimuths, check_image_lines, check_in_scene, direction_check, ground_layer,
+                                  line_constraints, lines_outside, nearest_segments, pair, segment_directions,
+                                  start_points)
 from ..vector_io import LayerData, write_layers
 from .ties import _listed
 

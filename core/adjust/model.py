@@ -23,11 +23,11 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .. import corrections as corr
+from ..model import corrections as corr
 from ..geodesy import ecef_to_geodetic, up_vector
 from ..rotations import rotation_and_derivatives
-from ..sensor import SceneModel
-from ..trajectory import Platform
+from ..model.sensor import SceneModel
+from ..model.trajectory import Platform
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 
 

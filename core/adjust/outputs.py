@@ -17,10 +17,10 @@ from osgeo import ogr, osr
 
 from ..errors import InputError
 from ..files import OutputSet
-from ..gcps import SCENE_METADATA_KEY, GcpTable, Residuals, _wgs84_3d, write_gpkg
+from ..observations.gcps import SCENE_METADATA_KEY, GcpTable, Residuals, _wgs84_3d, write_gpkg
 from ..geodesy import A, F, enu_rotations
-from ..sensor import SceneModel
-from ..tiepoints import GPKG_LAYER, point_wkt
+from ..model.sensor import SceneModel
+from ..observations.tiepoints import GPKG_LAYER, point_wkt
 from ..vector_io import open_layer, write_layer
 
 ogr.UseExceptions()

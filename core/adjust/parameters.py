@@ -28,12 +28,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..camera import DISTORTION_TERMS
+from ..model.camera import DISTORTION_TERMS
 from ..errors import InputError
 from ..rotations import rotation_from_angles
-from ..sensor import SceneModel
-from ..timebasis import TimeBasis
-from ..trajectory import Platform, TrajectoryCorrection
+from ..model.sensor import SceneModel
+from ..model.timebasis import TimeBasis
+from ..model.trajectory import Platform, TrajectoryCorrection
 
 log = logging.getLogger(__name__)
 

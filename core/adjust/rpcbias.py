@@ -20,7 +20,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..errors import InputError
-from ..rpcscene import RpcScene
+from ..model.rpcscene import RpcScene
 from .engine import AdjustmentSettings, _Problem
 from .normal import GroundPrior, Linearization, groups
 from .parameters import Parameter, ParameterSet

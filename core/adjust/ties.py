@@ -22,9 +22,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic, enu_rotation
-from ..intersection import intersect
-from ..sensor import SceneModel
-from ..tiepoints import TieTable
+from ..model.intersection import intersect
+from ..model.sensor import SceneModel
+from ..observations.tiepoints import TieTable
 from .parameters import ARCSEC, ParameterSet
 
 log = logging.getLogger(__name__)

@@ -43,12 +43,13 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core import gcps as G  # noqa: E402
-from core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from core.geodesy import ecef_to_geodetic, enu_rotations, geodetic_to_ecef  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, enu_rotations, geodetic_to_ecef  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
 
 IMAGE_NOISE, GROUND_XY, GROUND_Z = 0.7, 3.0, 10.0
 SCHEMES = [  # seed 000 Table II: x0, y0, a0 = left chip (HRC-1), x1.. middle (HRC-2), x2.. right (HRC-3)

@@ -31,12 +31,13 @@ from scipy import optimize, sparse
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core import gcps as G  # noqa: E402
-from core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from core.adjust.engine import _Problem, check_determinability, check_inputs, solve  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
+from pushbroom_adjust.core.adjust.engine import _Problem, check_determinability, check_inputs, solve  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
 
 SETTINGS = AdjustmentSettings(interior="HRC-1.*, HRC-3.*", position_model="lagrange", position_interval=20.0,
                               attitude_model="lagrange", attitude_interval=20.0, robust="none")

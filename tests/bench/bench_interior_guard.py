@@ -29,13 +29,14 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core import gcps as G  # noqa: E402
-from core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from core.errors import InputError  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.simulator import GcpSettings, simulate  # noqa: E402
-from core.tiepoints import TieTable  # noqa: E402
+from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
+from pushbroom_adjust.core.errors import InputError  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.observations.tiepoints import TieTable  # noqa: E402
 
 FREE_SET = "*.f, *.dxp, *.dyp, *.k1, *.k2, *.p1, *.p2, *.b1, *.b2, *.b3, FWD.roll, FWD.pitch, FWD.yaw, " \
            "BWD.roll, BWD.pitch, BWD.yaw"

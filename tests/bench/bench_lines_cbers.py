@@ -35,14 +35,15 @@ from osgeo import ogr
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core import gcps as G  # noqa: E402
-from core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from core.adjust.linepoints import ControlLines  # noqa: E402
-from core.lines import ImageLines, read_ground_lines, read_image_lines  # noqa: E402
-from core.roads import RoadSettings  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
+from pushbroom_adjust.core.adjust.linepoints import ControlLines  # noqa: E402
+from pushbroom_adjust.core.observations.lines import ImageLines, read_ground_lines, read_image_lines  # noqa: E402
+from pushbroom_adjust.simulation.roads import RoadSettings  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
 
 GSD = 2.36
 DIRECTION_WINDOW = 4.0   # deg

@@ -31,13 +31,14 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from core.dem import Dem  # noqa: E402
-from core.geodesy import geodetic_to_ecef  # noqa: E402
-from core.matching import MatchSettings, match_gcps  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.simulator import simulate  # noqa: E402
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
+from pushbroom_adjust.core.dem import Dem  # noqa: E402
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef  # noqa: E402
+from pushbroom_adjust.core.measure.matching import MatchSettings, match_gcps  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 
 
 def scene_folder(out: Path | None, seed: int) -> Path:

@@ -37,13 +37,14 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from core.matching import MatchSettings  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.simulator import GcpSettings, SimulationResult, simulate  # noqa: E402
-from core.tiepoints import summary  # noqa: E402
-from tests.matchscene import compare_ties, th1_cut  # noqa: E402
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
+from pushbroom_adjust.core.measure.matching import MatchSettings  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.simulator import GcpSettings, SimulationResult, simulate  # noqa: E402
+from pushbroom_adjust.core.observations.tiepoints import summary  # noqa: E402
+from tests.support.matchscene import compare_ties, th1_cut  # noqa: E402
 
 FIGURES = ("rmse_plan", "rmse_height", "ce90", "le90")
 

@@ -14,12 +14,17 @@ orthoimage's registration to the texture (px).
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
 
-from core.ortho import default_grid, orthorectify, orthorectify_products, strip_products
-from tests.ortho_compare import rendered_cameras, shift_against_texture
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
+from pushbroom_adjust.core.products.ortho import (  # noqa: E402
+    default_grid, orthorectify, orthorectify_products, strip_products)
+from tests.support.ortho_compare import rendered_cameras, shift_against_texture  # noqa: E402
 
 
 def main() -> None:

@@ -20,14 +20,15 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core.dem import Dem  # noqa: E402
-from core.ortho import default_grid  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
+from pushbroom_adjust.core.dem import Dem  # noqa: E402
+from pushbroom_adjust.core.products.ortho import default_grid  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
 from tests.bench.bench_ortho_vs_gdalwarp import main  # noqa: E402
 from tests.conftest import TEST_DATA  # noqa: E402
-from tests.rpcdata import padded_dem, pleiades_rpc, scaled, write_image  # noqa: E402
-from core.rpcscene import size_from_rpc  # noqa: E402
+from tests.support.rpcdata import padded_dem, pleiades_rpc, scaled, write_image  # noqa: E402
+from pushbroom_adjust.core.model.rpcscene import size_from_rpc  # noqa: E402
 
 COLS = 12246
 

@@ -13,7 +13,7 @@ onboard model (the nominal camera, which one RPC follows to 0.03 px) onto the de
   - the same output grid (CRS, origin, pixel size, size), bilinear resampling, nodata 0,
   - the same output options: tiled 512 x 512, DEFLATE + predictor 2, compression on all cores.
 gdalwarp runs as the issue states it: ``gdalwarp -rpc -to RPC_DEM=dem -r bilinear -multi
--wo NUM_THREADS=ALL_CPUS`` with the RPC fitted to the same model (``core.rpcfit``, an
+-wo NUM_THREADS=ALL_CPUS`` with the RPC fitted to the same model (``core.products.rpcfit``, an
 ``_RPC.TXT`` beside the image). Ours writes overviews as part of its product; gdalwarp does not,
 so its time is given alone and with ``gdaladdo`` making the same overviews.
 
@@ -43,17 +43,18 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from osgeo import gdal  # noqa: E402
 from pyproj import CRS  # noqa: E402
 
-from core.dem import Dem  # noqa: E402
-from core.ortho import OrthoGrid, default_grid, orthorectify, overview_levels  # noqa: E402
-from core.render import render_image, texture_frame  # noqa: E402
-from core.rpcfit import dem_height_range, fit_rpc, sidecar_path, write_rpc  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.simulator import simulate  # noqa: E402
-from tests.ortho_compare import gdal_rpc_against_rigorous, image_difference  # noqa: E402
+from pushbroom_adjust.core.dem import Dem  # noqa: E402
+from pushbroom_adjust.core.products.ortho import OrthoGrid, default_grid, orthorectify, overview_levels  # noqa: E402
+from pushbroom_adjust.simulation.render import render_image, texture_frame  # noqa: E402
+from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc, sidecar_path, write_rpc  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
+from tests.support.ortho_compare import gdal_rpc_against_rigorous, image_difference  # noqa: E402
 
 gdal.UseExceptions()
 log = logging.getLogger("bench_ortho")

@@ -53,15 +53,16 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core import gcps as G  # noqa: E402
-from core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from core.adjust.checkpoints import intersection_accuracy  # noqa: E402
-from core.adjust.parameters import ANGLES, ARCSEC, DEFAULT_INSTALLATION_ARCSEC  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.sensor import SceneModel  # noqa: E402
-from core.simulator import CAMERA_ERRORS, PRESETS, GcpSettings, simulate  # noqa: E402
-from core.tiepoints import CsvMapping, TieTable, read_csv  # noqa: E402
+from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
+from pushbroom_adjust.core.adjust.checkpoints import intersection_accuracy  # noqa: E402
+from pushbroom_adjust.core.adjust.parameters import ANGLES, ARCSEC, DEFAULT_INSTALLATION_ARCSEC  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.core.model.sensor import SceneModel  # noqa: E402
+from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, PRESETS, GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.observations.tiepoints import CsvMapping, TieTable, read_csv  # noqa: E402
 
 NOISE_PX, GROUND_M = 0.3, 0.1
 INSTALLATION = ", ".join(f"{cam}.{a}" for cam in ("FWD", "BWD") for a in ANGLES)

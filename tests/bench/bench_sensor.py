@@ -25,11 +25,12 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core.dem import Dem  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.simulator import simulate  # noqa: E402
-from tests.seams import round_trip_errors  # noqa: E402
+from pushbroom_adjust.core.dem import Dem  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
+from tests.support.seams import round_trip_errors  # noqa: E402
 
 PLEIADES = REPO / "tests" / "data" / "pleiades"
 

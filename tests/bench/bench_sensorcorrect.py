@@ -1,4 +1,4 @@
-"""Time and peak memory of the sensor correction (core.sensorcorrect) of one full CBERS-02B HRC
+"""Time and peak memory of the sensor correction (core.products.sensorcorrect) of one full CBERS-02B HRC
 scene: 12246 x 12246 px, three staggered, misaligned CCDs (the true camera). Prints figures (no
 assertions); the machine may be shared, so the load average is printed before and after.
 
@@ -27,10 +27,11 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core.dem import Dem  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.sensorcorrect import sensor_correct  # noqa: E402
+from pushbroom_adjust.core.dem import Dem  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.core.products.sensorcorrect import sensor_correct  # noqa: E402
 from tests.bench.bench_ortho_vs_gdalwarp import prepare as prepare_ortho_bench  # noqa: E402
 
 log = logging.getLogger("bench_sensorcorrect")

@@ -34,13 +34,14 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from core import gcps as G  # noqa: E402
-from core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from core.geodesy import geodetic_to_ecef  # noqa: E402
-from core.scene_io import load_scene  # noqa: E402
-from core.simulator import ErrorSettings, GcpSettings, simulate  # noqa: E402
-from core.tiepoints import TieTable  # noqa: E402
+from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef  # noqa: E402
+from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.simulator import ErrorSettings, GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.observations.tiepoints import TieTable  # noqa: E402
 
 NOISE = 0.5  # px
 GROUND = 0.5  # m: GCP ground noise, east, north and up

@@ -11,11 +11,11 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsGeometry, Qg
                        QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer)
 
 import processing
-from core.dem import Dem
-from core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from core.products import footprints
-from core.scene_io import load_scene
-from tests.seams import round_trip_errors
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
+from pushbroom_adjust.core.products.footprint import footprints
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.seams import round_trip_errors
 
 RNG = np.random.default_rng(11)
 

@@ -13,9 +13,9 @@ from qgis.core import (QgsExpression, QgsExpressionContext, QgsExpressionContext
                        QgsProcessingFeedback, QgsProject, QgsVectorLayer)
 
 import processing
-from core.gcps import read_gpkg
-from core.geodesy import enu_rotations, geodetic_to_ecef
-from core.scene_io import load_scene
+from pushbroom_adjust.core.observations.gcps import read_gpkg
+from pushbroom_adjust.core.geodesy import enu_rotations, geodetic_to_ecef
+from pushbroom_adjust.core.formats.scene_json import load_scene
 
 from .test_qgis_process import _run_json
 

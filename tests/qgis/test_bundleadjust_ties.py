@@ -14,9 +14,9 @@ from osgeo import gdal, ogr
 from qgis.core import QgsRenderContext, QgsVectorLayer
 
 import processing
-from core.geodesy import geodetic_to_ecef
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef
 
-from .hostile import LogFeedback
+from tests.support.hostile import LogFeedback
 
 STYLE = Path(__file__).resolve().parents[2] / "resources" / "styles" / "adjusted_tie_points.qml"
 # 24 ground points, 4 of them control (the simulator's draw), each seen in all three cameras.

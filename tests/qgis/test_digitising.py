@@ -1,7 +1,7 @@
 """The digitising dock in QGIS, driven with mouse events on real map canvases: prepare the display
 copy (pushbroom:preparedigitising), digitise two image lines on the dock's canvas, undo a vertex,
 pair each with its ground line on the main canvas, predict the ground lines, save; the saved
-layer reads back through core.lines with the clicked pixels and the ids."""
+layer reads back through core.observations.lines with the clicked pixels and the ids."""
 import csv
 
 import numpy as np
@@ -26,8 +26,8 @@ def blank_raw_image(path, cols: int, rows: int):
 @pytest.fixture(scope="module")
 def roads(plugin, tmp_path_factory):
     """A CBERS-02B HRC scene with 6 roads, its raw image (blank) and its display copy."""
-    from pushbroom_adjust.core.scene_io import load_scene
-    from pushbroom_adjust.core.simulator import simulate
+    from pushbroom_adjust.core.formats.scene_json import load_scene
+    from pushbroom_adjust.simulation.simulator import simulate
     folder = tmp_path_factory.mktemp("roads")
     result = simulate("cbers02b_hrc", folder / "sim", seed=5, n_gcps=12, n_lines=6)
     camera = load_scene(result.true_scene).cameras[0]
@@ -47,7 +47,7 @@ def prepared(provider, roads):
 
 
 def test_prepare_writes_the_display_copy_and_an_empty_layer(prepared, roads):
-    from pushbroom_adjust.core.display import read_display_source
+    from pushbroom_adjust.core.measure.display import read_display_source
     ds = gdal.Open(prepared["OUTPUT"])
     assert ds.GetGeoTransform() == (0.0, 1.0, 0.0, 0.0, 0.0, -1.0)
     assert (ds.RasterXSize, ds.RasterYSize) == (roads["camera"].cols, roads["camera"].rows)
@@ -112,7 +112,7 @@ def ground_layer(roads, qgis_canvas, qgis_new_project):
 
 def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground_layer, qgis_iface, qgis_canvas,
                                                  tmp_path):
-    from pushbroom_adjust.core.lines import read_image_lines
+    from pushbroom_adjust.core.observations.lines import read_image_lines
     from pushbroom_adjust.ui.digitising.dock import DigitisingDock
     dock = DigitisingDock(qgis_iface)  # the Python reference keeps the widget alive
     dock.resize(600, 900)
@@ -194,8 +194,8 @@ def _snap_in(dock, tmp_path):
     """Clicks 2 px off a rendered road, Snap: within 0.3 px RMS across the road's true image,
     each vertex with its own sigma; Undo restores the clicks; the snapped sigmas are saved.
     (In the dock of the test above, with a second display copy.)"""
-    from pushbroom_adjust.core.display import write_display_vrt
-    from pushbroom_adjust.core.lines import read_image_lines
+    from pushbroom_adjust.core.measure.display import write_display_vrt
+    from pushbroom_adjust.core.observations.lines import read_image_lines
     from tests.unit.test_snapping import _across_error, _clicks, rendered
     path, scene, truth = rendered.__wrapped__(_Factory(tmp_path))
     write_display_vrt(path, tmp_path / "display.vrt")

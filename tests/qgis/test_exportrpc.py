@@ -10,9 +10,9 @@ from osgeo import gdal
 from qgis.core import QgsProcessingException, QgsProcessingFeedback
 
 import processing
-from core.dem import Dem
-from core.rpcfit import dem_height_range, fit_rpc
-from core.scene_io import load_scene
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc
+from pushbroom_adjust.core.formats.scene_json import load_scene
 
 from .conftest import PLUGIN
 from .test_qgis_process import _run_json

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import processing
-from core.gcps import read_gpkg
+from pushbroom_adjust.core.observations.gcps import read_gpkg
 
-from .hostile import assert_refused, assert_unchanged, snapshot
+from tests.support.hostile import assert_refused, assert_unchanged, snapshot
 from .test_algorithms import RecordingFeedback
 
 INTERIOR = "HRC-1.*, HRC-3.*"

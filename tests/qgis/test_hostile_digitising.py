@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 from osgeo import gdal
 
-from core.scene_io import load_scene
+from pushbroom_adjust.core.formats.scene_json import load_scene
 
-from .hostile import assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
 from .test_digitising import blank_raw_image
 
 ALG = "pushbroom:preparedigitising"

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from osgeo import ogr, osr
 
-from .hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
 
 
 @pytest.fixture(scope="module")
 def lines_sim(provider, tmp_path_factory):
-    from pushbroom_adjust.core.roads import RoadSettings
-    from pushbroom_adjust.core.simulator import GcpSettings, simulate
+    from pushbroom_adjust.simulation.roads import RoadSettings
+    from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
     folder = tmp_path_factory.mktemp("hostile_lines")
     result = simulate("cbers02b_hrc", folder / "sim", seed=4, errors=dict(ccd_shift=0.0, ccd_rotation=0.0),
                       gcp_settings=GcpSettings(n_gcps=30, check_fraction=0.3, image_noise=0.5),
@@ -200,8 +200,8 @@ def test_lines_only_parallel_to_each_other_adjust_with_the_free_direction_named(
     """Legitimate input: lines that all run one way are used, and the report says which
     direction they leave to the points."""
     import processing
-    from pushbroom_adjust.core import lines as core_lines
-    from pushbroom_adjust.core.scene_io import load_scene
+    from pushbroom_adjust.core.observations import lines as core_lines
+    from pushbroom_adjust.core.formats.scene_json import load_scene
     from tests.unit.test_adjust_lines import _parallel_lines
     parallel = _parallel_lines(load_scene(lines_sim["result"].true_scene))
     path = tmp_path / "parallel.gpkg"

@@ -10,9 +10,9 @@ import pytest
 from osgeo import gdal, osr
 
 import processing
-from core import gcps
-from tests.matchscene import SEARCH, mini_scene, true_errors
-from tests.qgis.hostile import assert_refused, assert_refused_cli
+from pushbroom_adjust.core.observations import gcps
+from tests.support.matchscene import SEARCH, mini_scene, true_errors
+from tests.support.hostile import assert_refused, assert_refused_cli
 
 gdal.UseExceptions()
 ALG = "pushbroom:matchgcps"

@@ -10,9 +10,9 @@ import pytest
 from osgeo import gdal, osr
 
 import processing
-from core import tiepoints
-from tests.matchscene import mini_tlc_scene
-from tests.qgis.hostile import assert_refused, assert_refused_cli
+from pushbroom_adjust.core.observations import tiepoints
+from tests.support.matchscene import mini_tlc_scene
+from tests.support.hostile import assert_refused, assert_refused_cli
 
 gdal.UseExceptions()
 ALG = "pushbroom:matchtiepoints"

@@ -15,7 +15,7 @@ import pytest
 
 import processing
 
-from .hostile import assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
 from .test_algorithms import RecordingFeedback
 
 SOURCE = "wv_mvp_1.xml"

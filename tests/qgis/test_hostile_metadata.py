@@ -9,7 +9,7 @@ import re
 import pytest
 
 import processing
-from tests.qgis.hostile import assert_refused
+from tests.support.hostile import assert_refused
 
 XML = "pleiades/PHRDIMAP_P1BP--2018122638935449CP.XML"
 

@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 from osgeo import gdal
 
-from core.scene_io import load_scene, save_scene
-from core.simulator import simulate
+from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
+from pushbroom_adjust.simulation.simulator import simulate
 
-from .hostile import assert_refused, assert_refused_cli, snapshot
+from tests.support.hostile import assert_refused, assert_refused_cli, snapshot
 
 ALG = "pushbroom:orthorectify"
 CAMERAS = ("NAD", "FWD", "BWD")

@@ -20,11 +20,11 @@ from osgeo import gdal
 from qgis.core import QgsProcessingFeedback, QgsProject, QgsRasterLayer, QgsVectorLayer
 
 import processing
-from core.scene_io import save_scene
-from tests.mounts import read_only_folder, tiny_disk
-from tests.ortho_compare import rendered_cut
+from pushbroom_adjust.core.formats.scene_json import save_scene
+from tests.support.mounts import read_only_folder, tiny_disk
+from tests.support.ortho_compare import rendered_cut
 
-from .hostile import assert_refused, assert_refused_cli, snapshot
+from tests.support.hostile import assert_refused, assert_refused_cli, snapshot
 
 
 @pytest.fixture(scope="module")

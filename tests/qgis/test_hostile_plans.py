@@ -9,7 +9,7 @@ import pytest
 
 import processing
 
-from .hostile import assert_refused
+from tests.support.hostile import assert_refused
 
 
 @pytest.fixture(scope="module")

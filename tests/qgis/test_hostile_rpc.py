@@ -10,10 +10,10 @@ import pytest
 from osgeo import gdal
 
 import processing
-from core.rpcscene import RpcScene
-from core.scene_io import load_scene
-from tests.qgis.hostile import assert_refused, assert_refused_cli
-from tests.rpcdata import padded_dem, pleiades_rpc, rpc_files, scaled, write_image
+from pushbroom_adjust.core.model.rpcscene import RpcScene
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.rpcdata import padded_dem, pleiades_rpc, rpc_files, scaled, write_image
 
 gdal.UseExceptions()
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import processing
-from tests.qgis.hostile import assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
 
 # The example: ephemeris order 0 put the satellite at the Earth's centre (6836 km²).
 CBERS_FOOTPRINT_KM2 = (700.0, 900.0)  # 12246 px x 2.36 m squared is ~835 km²

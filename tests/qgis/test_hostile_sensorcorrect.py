@@ -6,12 +6,12 @@ from pathlib import Path
 import pytest
 from osgeo import gdal
 
-from core.scene_io import load_scene, save_scene
+from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
 from tests.conftest import TEST_DATA
-from tests.ortho_compare import saved_cut
-from tests.rpcdata import pleiades_rpc, rpc_files, scaled
+from tests.support.ortho_compare import saved_cut
+from tests.support.rpcdata import pleiades_rpc, rpc_files, scaled
 
-from .hostile import assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
 
 ALG = "pushbroom:sensorcorrect"
 

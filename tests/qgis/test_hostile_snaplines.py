@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from osgeo import gdal, ogr, osr
 
-from core.lines import ImageLines, write_gpkg
+from pushbroom_adjust.core.observations.lines import ImageLines, write_gpkg
 
-from .hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
 
 ROAD_COL = 100.5   # the bright band's centre (px) in the test image
 

@@ -6,7 +6,7 @@ import shutil
 
 import pytest
 
-from .hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
 
 
 def _rows(three_line):

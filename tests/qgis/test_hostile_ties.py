@@ -9,9 +9,9 @@ import pytest
 from osgeo import gdal
 
 import processing
-from core import tiepoints
+from pushbroom_adjust.core.observations import tiepoints
 
-from .hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
 
 ALG = "pushbroom:bundleadjust"
 

@@ -14,10 +14,10 @@ from qgis.core import (QgsCoordinateTransformContext, QgsFeature, QgsGeometry, Q
                        QgsVectorLayer)
 
 import processing
-from core.geodesy import ecef_to_geodetic
-from core.ortho import utm_crs
-from core.scene_io import load_scene
-from tests.qgis.hostile import assert_refused, assert_refused_cli
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.ortho import utm_crs
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.hostile import assert_refused, assert_refused_cli
 from tests.qgis.test_algorithms import RecordingFeedback
 
 gdal.UseExceptions()

@@ -9,11 +9,11 @@ from qgis.core import (QgsFeature, QgsGeometry, QgsPoint, QgsProcessingException
                        QgsProcessingModelChildParameterSource, QgsProcessingModelOutput, QgsProperty, QgsVectorLayer)
 
 import processing
-from core.dem import to_ellipsoidal
-from core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from core.scene_io import load_scene
+from pushbroom_adjust.core.dem import to_ellipsoidal
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
+from pushbroom_adjust.core.formats.scene_json import load_scene
 
-from .hostile import assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
 
 DATUMS = "geoid, ellipsoid"
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 from osgeo import ogr
 
-from core.roads import RoadSettings
-from core.simulator import GcpSettings, simulate
+from pushbroom_adjust.simulation.roads import RoadSettings
+from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
 
 
 @pytest.fixture(scope="module")

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import processing
-from core import gcps
-from core.dem import Dem
-from core.scene_io import load_scene
-from tests.matchscene import SEARCH, mini_scene, true_errors
+from pushbroom_adjust.core.observations import gcps
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.matchscene import SEARCH, mini_scene, true_errors
 
 
 @pytest.fixture(scope="module")

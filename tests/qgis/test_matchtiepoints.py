@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 import processing
-from core import tiepoints
-from core.dem import Dem
-from core.scene_io import load_scene
-from tests.matchscene import mini_tlc_scene
-from tests.qgis.hostile import LogFeedback
+from pushbroom_adjust.core.observations import tiepoints
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.matchscene import mini_tlc_scene
+from tests.support.hostile import LogFeedback
 
 FIELDS = ["id", "camera", "col", "row", "sigma_px", "scene", "rays", "res_col", "res_row", "res_px"]
 

@@ -12,10 +12,10 @@ from osgeo import gdal
 from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 
 import processing
-from core.geodesy import ecef_to_geodetic
-from core.rpcfit import fit_rpc
-from core.scene_io import load_scene
-from tests.ortho_compare import shift_against_texture
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.rpcfit import fit_rpc
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.ortho_compare import shift_against_texture
 
 
 MODEL_FILE = Path(__file__).resolve().parents[2] / "resources" / "models" / "simulate_adjust_orthorectify.model3"
@@ -102,7 +102,7 @@ def test_the_model_runs_from_qgis_process(qgis_process, tmp_path):
 def test_the_matching_model_adjusts_without_a_manual_point(provider, tmp_path):
     """Simulate -> matchgcps -> bundleadjust -> orthorectify -> exportrpc: the orthoimage lies on the
     ground texture and the adjusted model on the true one, from matched GCPs alone."""
-    from core.dem import Dem
+    from pushbroom_adjust.core.dem import Dem
     results = processing.run(MATCH_MODEL_ID, {
         "SEED": 1, "N_GCPS": 20, "simulate:Simulation folder": str(tmp_path / "sim"),
         "adjust:Adjusted scene": str(tmp_path / "adjusted.json"), "adjust:Adjustment report": "TEMPORARY_OUTPUT",

@@ -8,7 +8,7 @@ from osgeo import ogr
 
 import processing
 
-from .modelcheck import assert_shipped_model
+from tests.support.modelcheck import assert_shipped_model
 from .test_importlines import roads  # noqa: F401
 
 MODEL_FILE = Path(__file__).resolve().parents[2] / "resources" / "models" / "adjust_with_lines.model3"

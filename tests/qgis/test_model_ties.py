@@ -10,11 +10,11 @@ import numpy as np
 from osgeo import ogr
 
 import processing
-from core import gcps as G
-from core.adjust.checkpoints import intersection_accuracy
-from core.scene_io import load_scene
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.adjust.checkpoints import intersection_accuracy
+from pushbroom_adjust.core.formats.scene_json import load_scene
 
-from .modelcheck import assert_shipped_model
+from tests.support.modelcheck import assert_shipped_model
 
 MODEL_FILE = Path(__file__).resolve().parents[2] / "resources" / "models" / "simulate_match_ties_adjust.model3"
 MODEL_ID = "pushbroom:Three-line block: simulate, match tie points, adjust"

@@ -8,8 +8,8 @@ from osgeo import gdal
 from qgis.core import QgsProcessingException
 
 import processing
-from core.scene_io import save_scene
-from tests.ortho_compare import rendered_cameras, rendered_cut
+from pushbroom_adjust.core.formats.scene_json import save_scene
+from tests.support.ortho_compare import rendered_cameras, rendered_cut
 
 from .test_algorithms import RecordingFeedback
 from .test_qgis_process import _run_json

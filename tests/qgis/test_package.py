@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from core.dem import Dem
-from core.products import footprints
-from core.scene_io import load_scene
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.products.footprint import footprints
+from pushbroom_adjust.core.formats.scene_json import load_scene
 
 from .conftest import PLUGIN, QGIS_PROCESS, REPO
 from .test_provider import ALGORITHMS, MODELS
@@ -178,7 +178,7 @@ def test_installed_plugin_imports_nothing_from_the_repository(installed):
         files = {n: Path(m.__file__).resolve() for n, m in list(sys.modules.items()) if getattr(m, "__file__", None)}
         print(json.dumps({"imported": names,
                           "from_repo": sorted(n for n, f in files.items() if f.is_relative_to(repo)),
-                          "stray": sorted(n for n in sys.modules if n.split(".")[0] in ("core", "ui", "tests"))}))
+                          "stray": sorted(n for n in sys.modules if n.split(".")[0] in ("core", "simulation", "ui", "tests"))}))
     """
     plugins = installed / "profiles" / "default" / "python" / "plugins"
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}

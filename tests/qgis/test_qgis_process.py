@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from osgeo import ogr, osr
 
-from core.dem import Dem
-from core.geodesy import ecef_to_geodetic
-from core.products import footprints
-from core.scene_io import load_scene
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.footprint import footprints
+from pushbroom_adjust.core.formats.scene_json import load_scene
 
 from .test_provider import ALGORITHMS
 

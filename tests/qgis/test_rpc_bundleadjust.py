@@ -11,12 +11,12 @@ from osgeo import gdal
 from qgis.core import QgsProcessingException
 
 import processing
-from core.gcps import write_gpkg
-from core.geodesy import ecef_to_geodetic
-from core.rpcfit import rpc_metadata, write_rpc
-from core.rpcscene import RpcScene
-from core.scene_io import load_scene
-from tests.rpcdata import worldview2_rpc
+from pushbroom_adjust.core.observations.gcps import write_gpkg
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.rpcfit import rpc_metadata, write_rpc
+from pushbroom_adjust.core.model.rpcscene import RpcScene
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.rpcdata import worldview2_rpc
 from tests.unit.test_rpc_adjust import BIAS, NOISE, _table
 
 from .test_algorithms import _points, _values

@@ -10,14 +10,14 @@ from osgeo import gdal
 from qgis.core import QgsProcessingException
 
 import processing
-from core.dem import ConstantHeight, Dem
-from core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from core.ortho import default_grid
-from core.products import footprints
-from core.rpcscene import RpcScene
-from core.scene_io import load_scene
-from tests.ortho_compare import gdal_rpc_against_rigorous, gdalwarp_rpc, image_difference
-from tests.rpcdata import PLEIADES, padded_dem, pleiades_rpc, rpc_files, scaled
+from pushbroom_adjust.core.dem import ConstantHeight, Dem
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
+from pushbroom_adjust.core.products.ortho import default_grid
+from pushbroom_adjust.core.products.footprint import footprints
+from pushbroom_adjust.core.model.rpcscene import RpcScene
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.ortho_compare import gdal_rpc_against_rigorous, gdalwarp_rpc, image_difference
+from tests.support.rpcdata import PLEIADES, padded_dem, pleiades_rpc, rpc_files, scaled
 
 from .test_algorithms import RecordingFeedback, _table, _values
 from .test_qgis_process import _read_layer, _run_json

@@ -9,9 +9,9 @@ import pytest
 from osgeo import gdal
 
 import processing
-from core.scene_io import load_scene
+from pushbroom_adjust.core.formats.scene_json import load_scene
 
-from tests.ortho_compare import saved_cut
+from tests.support.ortho_compare import saved_cut
 
 from .test_algorithms import RecordingFeedback
 from .test_qgis_process import _run_json

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from osgeo import ogr
 
-from core.lines import read_image_lines, write_gpkg
+from pushbroom_adjust.core.observations.lines import read_image_lines, write_gpkg
 from tests.unit.test_snapping import _across_error, _clicks, rendered  # noqa: F401 (the fixture)
 
 

@@ -6,13 +6,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from core import gcps as G
-from core.adjust import AdjustmentSettings, adjust
-from core.adjust.engine import _Problem, check_inputs
-from core.adjust.model import Model
-from core.errors import ConvergenceError, InputError
-from core.scene_io import load_scene, save_scene
-from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.adjust.engine import _Problem, check_inputs
+from pushbroom_adjust.core.adjust.model import Model
+from pushbroom_adjust.core.errors import ConvergenceError, InputError
+from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
+from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
 
 CBERS_CHIPS = "HRC-1.*, HRC-3.*"
 

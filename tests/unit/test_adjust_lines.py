@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from core import gcps as G
-from core.adjust import AdjustmentSettings, adjust
-from core.adjust.linepoints import ControlLines
-from core.errors import InputError
-from core.geodesy import ecef_to_geodetic
-from core.lines import GroundLines, ImageLines, read_ground_lines, read_image_lines
-from core.roads import RoadSettings
-from core.scene_io import load_scene
-from core.simulator import GcpSettings, simulate
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.adjust.linepoints import ControlLines
+from pushbroom_adjust.core.errors import InputError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.observations.lines import GroundLines, ImageLines, read_ground_lines, read_image_lines
+from pushbroom_adjust.simulation.roads import RoadSettings
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
 
 # seed 002's setting: a polynomial trajectory estimated from ground control alone
 SETTINGS = dict(position_model="polynomial", position_order=1, attitude_model="polynomial", attitude_order=2,
@@ -142,7 +142,7 @@ def _parallel_lines(true_scene, count=5, points=10, noise=0.3, seed=0):
         ids.append(f"P{i}")
         parts.append((lon, lat))
         s = np.linspace(-9e3, 9e3, points) * k + lon0
-        from core.geodesy import geodetic_to_ecef
+        from pushbroom_adjust.core.geodesy import geodetic_to_ecef
         c, r = true_scene.ground_to_image(geodetic_to_ecef(s, np.full(points, lat[0]), np.full(points, 500.0)), 0)
         cols.append(c + rng.normal(0, noise, points))
         rows.append(r + rng.normal(0, noise, points))
@@ -176,7 +176,7 @@ def test_lines_on_an_rpc_scene_or_pairing_nothing_are_refused(clean):
 
 
 def test_group_median_matches_numpy():
-    from core.adjust.linepoints import group_median
+    from pushbroom_adjust.core.adjust.linepoints import group_median
     rng = np.random.default_rng(1)
     key = rng.integers(0, 7, 200)
     key[key == 3] = 4                                     # an empty group
@@ -187,7 +187,7 @@ def test_group_median_matches_numpy():
 
 
 def test_html_report_lists_the_control_lines(runs, tmp_path):
-    from core.adjust.report import write_report_html
+    from pushbroom_adjust.core.adjust.report import write_report_html
     out = runs["lines"]
     rep = out.report["lines"]
     write_report_html(out.report, out.points, tmp_path / "r.html")
@@ -204,7 +204,7 @@ def test_html_report_lists_the_control_lines(runs, tmp_path):
 
 
 def test_html_report_names_wrong_lines_and_a_free_direction(runs, tmp_path):
-    from core.adjust.report import _lines_section
+    from pushbroom_adjust.core.adjust.report import _lines_section
     rep = dict(runs["lines"].report["lines"])
     per = {k: list(v) for k, v in rep["per_line"].items()}
     per["flagged"][1] = True

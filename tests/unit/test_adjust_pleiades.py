@@ -16,16 +16,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.adjust import AdjustmentSettings, adjust
-from core.dem import Dem
-from core.gcps import GcpTable
-from core.geodesy import geodetic_to_ecef
-from core.readers.dimap import read_dimap_rfm
-from core.rotations import matrix_to_quat, rotation_from_angles
-from core.scene_io import load_scene
-from core.sensor import SceneModel
-from core.timebasis import TimeBasis
-from core.trajectory import Platform, QuaternionSamples, TrajectoryCorrection
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.observations.gcps import GcpTable
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef
+from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
+from pushbroom_adjust.core.rotations import matrix_to_quat, rotation_from_angles
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.model.sensor import SceneModel
+from pushbroom_adjust.core.model.timebasis import TimeBasis
+from pushbroom_adjust.core.model.trajectory import Platform, QuaternionSamples, TrajectoryCorrection
 
 XML = "pleiades/PHRDIMAP_P1BP--2018122638935449CP.XML"
 MNT = "pleiades/MNT_P1BP--2018122638935449CP.tif"

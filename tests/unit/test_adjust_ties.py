@@ -8,18 +8,18 @@ from dataclasses import fields, replace
 import numpy as np
 import pytest
 
-from core import gcps as G
-from core.adjust import AdjustmentSettings, adjust
-from core.adjust.linepoints import ControlLines
-from core.adjust.ties import datum
-from core.errors import InputError
-from core.geodesy import geodetic_to_ecef
-from core.intersection import intersect
-from core.lines import read_ground_lines, read_image_lines
-from core.roads import RoadSettings
-from core.scene_io import load_scene
-from core.simulator import ErrorSettings, GcpSettings, simulate
-from core.tiepoints import TieTable
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.adjust.linepoints import ControlLines
+from pushbroom_adjust.core.adjust.ties import datum
+from pushbroom_adjust.core.errors import InputError
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef
+from pushbroom_adjust.core.model.intersection import intersect
+from pushbroom_adjust.core.observations.lines import read_ground_lines, read_image_lines
+from pushbroom_adjust.simulation.roads import RoadSettings
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import ErrorSettings, GcpSettings, simulate
+from pushbroom_adjust.core.observations.tiepoints import TieTable
 
 ARCSEC = np.pi / 648000.0
 
@@ -302,7 +302,7 @@ def test_redundancy_numbers_of_multi_ray_points_sum_to_the_degrees_of_freedom(th
 
 
 def test_html_report_tells_the_datum_and_tie_points(th1, tmp_path):
-    from core.adjust.report import write_report_html
+    from pushbroom_adjust.core.adjust.report import write_report_html
     scene, table, ties, _ = th1
     lonely = ties.select(~np.isin(np.arange(len(ties)), np.nonzero(ties.id == ties.id[0])[0][1:]))
     out = adjust(scene, table.select(table.role == "check"),

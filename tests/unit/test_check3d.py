@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from core import gcps as G
-from core.adjust import AdjustmentSettings, adjust
-from core.adjust.checkpoints import (MODEL_ERROR_SHARE, blunder_test, intersection_accuracy, summary_lines,
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.adjust.checkpoints import (MODEL_ERROR_SHARE, blunder_test, intersection_accuracy, summary_lines,
                                      without_label)
-from core.adjust.report import write_report_html
-from core.geodesy import enu_rotations, geodetic_to_ecef
-from core.scene_io import load_scene
-from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.adjust.report import write_report_html
+from pushbroom_adjust.core.geodesy import enu_rotations, geodetic_to_ecef
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
 
 # The preset's camera (interior) errors switched off: these tests are about the check figures,
 # not self-calibration; what the default adjustment leaves of the TH-1 interior errors (20 m
@@ -42,7 +42,7 @@ def block(tmp_path_factory):
 def _direct(scene, table: G.GcpTable) -> np.ndarray:
     """Errors (points, 3) east/north/up m of the check points seen in >= 2 cameras, each found on
     its own by scipy's least squares on the image residuals, unknowns the east/north/up offsets
-    from the known position (independent of core.intersection)."""
+    from the known position (independent of core.model.intersection)."""
     names = [c.name for c in scene.cameras]
     checks = table.select(table.role == "check")
     out = []

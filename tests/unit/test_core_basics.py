@@ -3,13 +3,13 @@ import numpy as np
 import pytest
 from pyproj import Transformer
 
-from core import corrections as corr
-from core.camera import LineTiming
-from core.dem import ConstantHeight, Dem, geoid_undulation, to_ellipsoidal
-from core.errors import InputError, MetadataError
-from core.geodesy import ecef_to_geodetic, enu_rotation, geodetic_to_ecef, ray_height_intersection
-from core.rotations import matrix_to_quat, quat_to_matrix, rotation_from_angles
-from core.trajectory import Ephemeris, QuaternionPolynomial, QuaternionSamples
+from pushbroom_adjust.core.model import corrections as corr
+from pushbroom_adjust.core.model.camera import LineTiming
+from pushbroom_adjust.core.dem import ConstantHeight, Dem, geoid_undulation, to_ellipsoidal
+from pushbroom_adjust.core.errors import InputError, MetadataError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, enu_rotation, geodetic_to_ecef, ray_height_intersection
+from pushbroom_adjust.core.rotations import matrix_to_quat, quat_to_matrix, rotation_from_angles
+from pushbroom_adjust.core.model.trajectory import Ephemeris, QuaternionPolynomial, QuaternionSamples
 
 RNG = np.random.default_rng(7)
 

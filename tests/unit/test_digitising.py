@@ -1,19 +1,19 @@
-"""Digitising control lines without a user interface: the display copy (core.display), the line
-editor, the nearest ground line and ground lines predicted into the image (core.digitising)."""
+"""Digitising control lines without a user interface: the display copy (core.measure.display), the line
+editor, the nearest ground line and ground lines predicted into the image (core.measure.digitising)."""
 import csv
 
 import numpy as np
 import pytest
 from osgeo import gdal, ogr
 
-from core.digitising import LineEditor, PredictedLine, densify, nearest_line, predict_lines
-from core.display import (PIXEL_GEOTRANSFORM, check_image_size, read_display_source, write_display_vrt,
+from pushbroom_adjust.core.measure.digitising import LineEditor, PredictedLine, densify, nearest_line, predict_lines
+from pushbroom_adjust.core.measure.display import (PIXEL_GEOTRANSFORM, check_image_size, read_display_source, write_display_vrt,
                           write_empty_lines)
-from core.errors import InputError
-from core.gcps import Heights
-from core.lines import read_image_lines
-from core.scene_io import load_scene
-from core.simulator import simulate
+from pushbroom_adjust.core.errors import InputError
+from pushbroom_adjust.core.observations.gcps import Heights
+from pushbroom_adjust.core.observations.lines import read_image_lines
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import simulate
 
 
 @pytest.fixture(scope="module")
@@ -188,7 +188,7 @@ def test_prediction_with_a_constant_height_far_from_the_terrain_moves_the_lines(
 
 
 def test_saved_lines_read_back(tmp_path):
-    from core.lines import write_gpkg
+    from pushbroom_adjust.core.observations.lines import write_gpkg
     editor = LineEditor()
     for col, row in ((10.25, 20.5), (30.0, 40.0), (60.0, 45.0)):
         editor.add_vertex(col, row)
@@ -207,7 +207,7 @@ def test_saved_lines_read_back(tmp_path):
 def test_editor_snaps_the_selected_line_undoably_and_saves_its_sigmas():
     """A line clicked 2 px beside a bright 3 px band: snapped onto it with per-vertex sigmas,
     Undo restores the clicks, the sigmas reach the saved ImageLines."""
-    from core.snapping import SnapSettings
+    from pushbroom_adjust.core.measure.snapping import SnapSettings
     image = np.full((200, 200), 60.0) + np.random.default_rng(0).normal(0, 3, (200, 200))
     image[:, 99:102] = 200.0                 # the band's centre: col 100.5
     editor = LineEditor()

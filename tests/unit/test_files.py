@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from osgeo import ogr, osr
 
-from core import files as F
-from core.files import Output, OutputError, atomic_output, atomic_outputs, check_outputs, file_key, write_text
-from core.vector_io import feature_count, write_layer
-from tests.mounts import read_only_folder, tiny_disk
+from pushbroom_adjust.core import files as F
+from pushbroom_adjust.core.files import Output, OutputError, atomic_output, atomic_outputs, check_outputs, file_key, write_text
+from pushbroom_adjust.core.vector_io import feature_count, write_layer
+from tests.support.mounts import read_only_folder, tiny_disk
 
 REPO = Path(__file__).resolve().parents[2]
 

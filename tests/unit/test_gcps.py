@@ -5,13 +5,13 @@ import pytest
 from osgeo import ogr
 from pyproj import CRS
 
-from core import gcps as G
-from core.camera import Camera, Chip, LineTiming
-from core.dem import geoid_undulation
-from core.errors import InputError
-from core.geodesy import ecef_to_geodetic
-from core.sensor import SceneModel
-from core.trajectory import Ephemeris, Platform, QuaternionPolynomial
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.model.camera import Camera, Chip, LineTiming
+from pushbroom_adjust.core.dem import geoid_undulation
+from pushbroom_adjust.core.errors import InputError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.model.sensor import SceneModel
+from pushbroom_adjust.core.model.trajectory import Ephemeris, Platform, QuaternionPolynomial
 
 IFOV = 2e-5  # rad per pixel of the test camera (look angle uy = -0.01 + IFOV * (col - 0.5))
 ROLL = 1e-4  # rad: attitude error of the "onboard" scene

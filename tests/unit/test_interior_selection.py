@@ -6,14 +6,14 @@ import json
 import numpy as np
 import pytest
 
-from core import gcps as G
-from core.adjust import AdjustmentSettings, adjust
-from core.adjust.parameters import ARCSEC, ParameterSet, parse_interior, sigma_in_si
-from core.adjust.selection import _batch, information_shares
-from core.errors import ConvergenceError, InputError
-from core.scene_io import load_scene
-from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
-from core.timebasis import TimeBasis
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.adjust.parameters import ARCSEC, ParameterSet, parse_interior, sigma_in_si
+from pushbroom_adjust.core.adjust.selection import _batch, information_shares
+from pushbroom_adjust.core.errors import ConvergenceError, InputError
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.model.timebasis import TimeBasis
 
 FREE_SET = "*.f, *.dxp, *.dyp, *.k1, *.k2, *.p1, *.p2, *.b1, *.b2, *.b3, FWD.roll, FWD.pitch, FWD.yaw, " \
            "BWD.roll, BWD.pitch, BWD.yaw"

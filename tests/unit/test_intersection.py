@@ -4,10 +4,10 @@ import csv
 import numpy as np
 import pytest
 
-from core.geodesy import geodetic_to_ecef
-from core.intersection import intersect
-from core.scene_io import load_scene
-from core.simulator import GcpSettings, simulate
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef
+from pushbroom_adjust.core.model.intersection import intersect
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
 
 
 @pytest.fixture(scope="module")

@@ -1,15 +1,15 @@
-"""core.matching and core.reference on a small rendered scene with known truth (tests/matchscene.py)."""
+"""core.measure.matching and simulation.reference on a small rendered scene with known truth (tests/matchscene.py)."""
 import numpy as np
 import pytest
 from osgeo import gdal
 from pyproj import CRS, Transformer
 
-from core.dem import Dem
-from core.errors import InputError
-from core.matching import REASONS, MatchSettings, find_peaks, match_gcps, ncc
-from core.render import texture_at
-from core.scene_io import load_scene
-from tests.matchscene import SEARCH, manifest, mini_scene, true_errors
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.errors import InputError
+from pushbroom_adjust.core.measure.matching import REASONS, MatchSettings, find_peaks, match_gcps, ncc
+from pushbroom_adjust.simulation.render import texture_at
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.matchscene import SEARCH, manifest, mini_scene, true_errors
 
 
 @pytest.fixture(scope="module")
@@ -102,8 +102,8 @@ def test_grid_count_and_settings_are_checked(mini):
 def test_tie_points_between_the_three_cameras_of_a_line_scanner(tmp_path):
     """TH-1-like three-line scene: FWD and BWD (+-25 deg) matched to NAD in NAD's geometry; each
     observation against the true scene's projection of the NAD point's true ground."""
-    from core.matching import match_tiepoints
-    from tests.matchscene import mini_tlc_scene
+    from pushbroom_adjust.core.measure.matching import match_tiepoints
+    from tests.support.matchscene import mini_tlc_scene
     sim = mini_tlc_scene(tmp_path)
     onboard, true, dem = load_scene(sim.onboard_scene), load_scene(sim.true_scene), Dem(sim.dem, "geoid")
     images = {k: sim.images[c.name] for k, c in enumerate(onboard.cameras)}

@@ -6,11 +6,11 @@ import pytest
 from osgeo import gdal
 from pyproj import CRS, Transformer
 
-from core.dem import Dem
-from core.errors import Cancelled, InputError
-from core.geodesy import ecef_to_geodetic
-from core.ortho import default_grid, orthorectify
-from tests.ortho_compare import rendered_cut, shift_against_texture
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.errors import Cancelled, InputError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.ortho import default_grid, orthorectify
+from tests.support.ortho_compare import rendered_cut, shift_against_texture
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +111,7 @@ def test_cancel_or_a_failure_midway_leaves_no_file(rendered, tmp_path, monkeypat
     with pytest.raises(Cancelled):
         orthorectify(scene, folder / "raw.tif", dem, tmp_path / "o.tif", is_cancelled=cancel_after_three)
     assert list(tmp_path.iterdir()) == []
-    from core import ortho
+    from pushbroom_adjust.core.products import ortho
     real = ortho._overview_blocks
 
     def fail_at_tile_five(*args, _n=[0]):

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
-from core.dem import Dem
-from core.ortho import default_grid, orthorectify
-from core.rpcfit import dem_height_range, fit_rpc, sidecar_path, write_rpc
-from tests.ortho_compare import gdal_rpc_against_rigorous, gdalwarp_rpc, image_difference, rendered_cut
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.products.ortho import default_grid, orthorectify
+from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc, sidecar_path, write_rpc
+from tests.support.ortho_compare import gdal_rpc_against_rigorous, gdalwarp_rpc, image_difference, rendered_cut
 
 
 @pytest.fixture(scope="module")

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
-from core.errors import Cancelled, InputError
-from core.ortho import (OrthoJob, default_grid, orthorectify, orthorectify_products, run_job, strip_products,
+from pushbroom_adjust.core.errors import Cancelled, InputError
+from pushbroom_adjust.core.products.ortho import (OrthoJob, default_grid, orthorectify, orthorectify_products, run_job, strip_products,
                         surface_description)
-from tests.ortho_compare import rendered_cameras, shift_against_texture
+from tests.support.ortho_compare import rendered_cameras, shift_against_texture
 
 RESOLUTION = 40.0  # m: small grids keep the test quick; the mapping is exact at any resolution
 
@@ -88,8 +88,8 @@ def test_a_failure_or_a_cancel_leaves_no_orthoimage(strip, tmp_path):
 def test_a_job_is_plain_data_and_runs_alone(strip, tmp_path):
     """An OrthoJob survives pickling and a worker's run of it gives the tile of the threaded run."""
     scene, dem, _, images, products, grids = strip
-    from core.ortho import _Mapper
-    from core.scene_io import scene_to_dict
+    from pushbroom_adjust.core.products.ortho import _Mapper
+    from pushbroom_adjust.core.formats.scene_json import scene_to_dict
     import json
     p, grid = products[0], grids[0]
     whole = tmp_path / "whole.tif"

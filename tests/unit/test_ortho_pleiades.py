@@ -10,13 +10,13 @@ from osgeo import gdal
 from pyproj import CRS, Transformer
 from scipy import ndimage
 
-from core.dem import Dem
-from core.geodesy import ecef_to_geodetic
-from core.ortho import default_grid, orthorectify, utm_crs
-from core.readers.dimap import read_dimap_rfm
-from core.rpcfit import sidecar_path, write_rpc
-from core.scene_io import load_scene
-from tests.ortho_compare import gdalwarp_rpc, image_difference
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.ortho import default_grid, orthorectify, utm_crs
+from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
+from pushbroom_adjust.core.products.rpcfit import sidecar_path, write_rpc
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.ortho_compare import gdalwarp_rpc, image_difference
 
 XML = "pleiades/PHRDIMAP_P1BP--2018122638935449CP.XML"
 MNT = "pleiades/MNT_P1BP--2018122638935449CP.tif"  # ellipsoidal heights (tests/unit/test_pleiades.py)

@@ -12,14 +12,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from core import gcps as G
-from core.adjust import AdjustmentSettings, adjust
-from core.errors import InputError, MetadataError
-from core.geodesy import enu_rotations, geodetic_to_ecef
-from core.intersection import intersect
-from core.scene_io import load_scene, save_scene, scene_from_dict, scene_to_dict
-from core.sensor import SceneModel
-from core.simulator import GcpSettings, simulate
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.errors import InputError, MetadataError
+from pushbroom_adjust.core.geodesy import enu_rotations, geodetic_to_ecef
+from pushbroom_adjust.core.model.intersection import intersect
+from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene, scene_from_dict, scene_to_dict
+from pushbroom_adjust.core.model.sensor import SceneModel
+from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
 
 INSTALLATION = "FWD.roll, FWD.pitch, FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw"
 ARCSEC = np.pi / 648000.0

@@ -4,13 +4,13 @@ import pytest
 from osgeo import gdal, osr
 from pyproj import Geod
 
-from core.camera import Camera, Chip, LineTiming
-from core.dem import ConstantHeight, Dem
-from core.errors import InputError
-from core.geodesy import ecef_to_geodetic
-from core.products import footprints, image_outline
-from core.sensor import SceneModel
-from core.trajectory import Ephemeris, Platform, QuaternionPolynomial
+from pushbroom_adjust.core.model.camera import Camera, Chip, LineTiming
+from pushbroom_adjust.core.dem import ConstantHeight, Dem
+from pushbroom_adjust.core.errors import InputError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.footprint import footprints, image_outline
+from pushbroom_adjust.core.model.sensor import SceneModel
+from pushbroom_adjust.core.model.trajectory import Ephemeris, Platform, QuaternionPolynomial
 
 COLS, ROWS = 2000, 3000
 

@@ -9,13 +9,13 @@ import matplotlib
 import numpy as np
 import pytest
 
-from core import gcps as G
-from core.adjust import AdjustmentSettings, adjust
-from core.adjust.checkpoints import without_label
-from core.adjust.report import MAX_ARROWS, report_to_json, write_report_html, write_report_json
-from core.files import OutputError
-from core.scene_io import load_scene
-from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.adjust.checkpoints import without_label
+from pushbroom_adjust.core.adjust.report import MAX_ARROWS, report_to_json, write_report_html, write_report_json
+from pushbroom_adjust.core.files import OutputError
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 IMAGES = re.compile(r"data:image/png;base64,([A-Za-z0-9+/=]+)")

@@ -8,12 +8,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from core import gcps as G
-from core.adjust import AdjustmentSettings, adjust
-from core.adjust.robust import rayleigh_p, truncation
-from core.errors import InputError
-from core.scene_io import load_scene
-from core.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.adjust.robust import rayleigh_p, truncation
+from pushbroom_adjust.core.errors import InputError
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
 
 IMAGE_NOISE, GROUND_XY, GROUND_Z = 0.7, 3.0, 10.0
 CHIPS = "HRC-1.*, HRC-3.*"
@@ -120,7 +120,7 @@ def test_a_loop_at_its_pass_limit_says_so(gross, caplog):
 def test_a_trial_solution_at_its_pass_limit_is_not_reported(gross, caplog, monkeypatch):
     """The interior selection's trial solutions (the guard's conventional one) may stop at the
     limit; only the reported solution's limit is the user's concern."""
-    from core.adjust import engine
+    from pushbroom_adjust.core.adjust import engine
 
     def select_with_a_trial_at_the_limit(problem, est, estimate):
         trial = copy.deepcopy(problem)

@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
-from core.adjust.engine import AdjustmentSettings, adjust
-from core.gcps import GcpTable
-from core.geodesy import ecef_to_geodetic
-from core.rpcfit import rpc_metadata, write_rpc
-from core.rpcscene import refined_rpc
-from core.scene_io import load_scene
-from tests.rpcdata import PLEIADES, pleiades_rpc, worldview2_rpc
+from pushbroom_adjust.core.adjust.engine import AdjustmentSettings, adjust
+from pushbroom_adjust.core.observations.gcps import GcpTable
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.rpcfit import rpc_metadata, write_rpc
+from pushbroom_adjust.core.model.rpcscene import refined_rpc
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from tests.support.rpcdata import PLEIADES, pleiades_rpc, worldview2_rpc
 
 gdal.UseExceptions()
 NOISE = 0.3  # px

@@ -1,4 +1,4 @@
-"""RPC00B fitting (core.rpcfit) against the rigorous model, GDAL's RPC transformer and the
+"""RPC00B fitting (core.products.rpcfit) against the rigorous model, GDAL's RPC transformer and the
 Pleiades vendor RFM; writing the RPC files GDAL reads; bad input.
 
 Measured (seed 1 simulations, default grid 31x31x7, check grid 40x40 at 7 heights):
@@ -17,14 +17,14 @@ import numpy as np
 import pytest
 from osgeo import gdal, osr
 
-from core.dem import Dem
-from core.errors import InputError
-from core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from core.readers.dimap import read_dimap_rfm
-from core.rpcfit import (dem_height_range, fit_rpc, image_vrt_with_rpc, rpc_metadata, set_geotiff_rpc, sidecar_path,
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.errors import InputError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
+from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
+from pushbroom_adjust.core.products.rpcfit import (dem_height_range, fit_rpc, image_vrt_with_rpc, rpc_metadata, set_geotiff_rpc, sidecar_path,
                          write_rpc)
-from core.scene_io import load_scene
-from core.simulator import simulate
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import simulate
 
 gdal.UseExceptions()
 

@@ -1,4 +1,4 @@
-"""RPC-only scenes (core.rpcscene) from the real vendor RPCs: every source reads to the same model,
+"""RPC-only scenes (core.model.rpcscene) from the real vendor RPCs: every source reads to the same model,
 ground <-> image against GDAL's RPC transformer and the rigorous Pleiades model, the DEM
 intersection, the image-space correction, scene JSON, and bad RPC files.
 
@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
-from core.dem import Dem
-from core.errors import MetadataError
-from core.geodesy import ecef_to_geodetic
-from core.rpcfit import rpc_metadata, write_rpc
-from core.rpcscene import RpcScene
-from core.scene_io import load_scene, save_scene
-from tests.rpcdata import PLEIADES, PLEIADES_DEM, pleiades_rpc, rpc_files, scaled, worldview2_rpc
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.errors import MetadataError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.rpcfit import rpc_metadata, write_rpc
+from pushbroom_adjust.core.model.rpcscene import RpcScene
+from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
+from tests.support.rpcdata import PLEIADES, PLEIADES_DEM, pleiades_rpc, rpc_files, scaled, worldview2_rpc
 
 gdal.UseExceptions()
 

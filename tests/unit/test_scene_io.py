@@ -4,11 +4,11 @@ import json
 import numpy as np
 import pytest
 
-from core.camera import Camera, Chip, LineTiming
-from core.errors import MetadataError
-from core.scene_io import load_scene, save_scene, scene_to_dict
-from core.sensor import SceneModel
-from core.trajectory import Ephemeris, Platform, QuaternionPolynomial
+from pushbroom_adjust.core.model.camera import Camera, Chip, LineTiming
+from pushbroom_adjust.core.errors import MetadataError
+from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene, scene_to_dict
+from pushbroom_adjust.core.model.sensor import SceneModel
+from pushbroom_adjust.core.model.trajectory import Ephemeris, Platform, QuaternionPolynomial
 
 
 def _tiny_scene() -> SceneModel:
@@ -60,7 +60,7 @@ def test_missing_file_is_named(tmp_path):
 
 def test_ground_to_image_rejects_nan_and_names_cameras(tmp_path):
     scene = _tiny_scene()
-    from core.errors import InputError
+    from pushbroom_adjust.core.errors import InputError
     with pytest.raises(InputError, match="NaN"):
         scene.ground_to_image(np.array([[np.nan, 0.0, 0.0]]))
     with pytest.raises(InputError, match="NaN"):

@@ -11,14 +11,14 @@ import pytest
 from osgeo import gdal
 from pyproj import Transformer
 
-from core.dem import Dem
-from core.errors import Cancelled, InputError
-from core.geodesy import ecef_to_geodetic
-from core.ortho import OrthoGrid, default_grid, orthorectify
-from core.render import texture_at
-from core.scene_io import load_scene
-from core.sensorcorrect import output_files, sensor_correct, virtual_camera
-from tests.ortho_compare import gdalwarp_rpc, image_difference, rendered_cut
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.errors import Cancelled, InputError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.products.ortho import OrthoGrid, default_grid, orthorectify
+from pushbroom_adjust.simulation.render import texture_at
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.products.sensorcorrect import output_files, sensor_correct, virtual_camera
+from tests.support.ortho_compare import gdalwarp_rpc, image_difference, rendered_cut
 
 CASES = {"cbers02b_hrc": 700, "zy3_tlc": 400}  # preset: rows of the cut
 

@@ -9,14 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.dem import Dem
-from core.errors import Cancelled, InputError
-from core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from core.render import render_image, texture_at, texture_frame, to_digital_numbers
-from core.scene_io import load_scene
-from core.simulator import (CAMERA_ERRORS, PRESETS, ErrorSettings, GcpSettings, camera_term, nominal_camera,
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.errors import Cancelled, InputError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
+from pushbroom_adjust.simulation.render import render_image, texture_at, texture_frame, to_digital_numbers
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import (CAMERA_ERRORS, PRESETS, ErrorSettings, GcpSettings, camera_term, nominal_camera,
                             perturbed_camera, simulate)
-from tests.seams import round_trip_errors
+from tests.support.seams import round_trip_errors
 
 
 def _read(path: Path) -> dict:

@@ -1,4 +1,4 @@
-"""Snapping digitised image lines to rendered roads (core.snapping): clicks with 2 px error
+"""Snapping digitised image lines to rendered roads (core.measure.snapping): clicks with 2 px error
 refined across the road, against the road's true image from the simulator's truth."""
 from __future__ import annotations
 
@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
-from core.dem import Dem
-from core.errors import InputError
-from core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from core.lines import ImageLines
-from core.render import render_image, texture_frame, texture_plane
-from core.roads import RoadSettings, plane_to_lonlat, road_curve
-from core.scene_io import load_scene
-from core.simulator import simulate
-from core.snapping import SnapSettings, snap_lines
+from pushbroom_adjust.core.dem import Dem
+from pushbroom_adjust.core.errors import InputError
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
+from pushbroom_adjust.core.observations.lines import ImageLines
+from pushbroom_adjust.simulation.render import render_image, texture_frame, texture_plane
+from pushbroom_adjust.simulation.roads import RoadSettings, plane_to_lonlat, road_curve
+from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.simulator import simulate
+from pushbroom_adjust.core.measure.snapping import SnapSettings, snap_lines
 
 ROWS = 600
 

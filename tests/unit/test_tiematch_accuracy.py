@@ -6,11 +6,11 @@ tests/bench/bench_matchtiepoints.py prints the same figures for larger scenes.""
 import numpy as np
 import pytest
 
-from core.adjust import AdjustmentSettings
-from core.matching import MatchSettings
-from core.simulator import GcpSettings, simulate
-from core.tiepoints import summary
-from tests.matchscene import compare_ties, th1_cut
+from pushbroom_adjust.core.adjust import AdjustmentSettings
+from pushbroom_adjust.core.measure.matching import MatchSettings
+from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
+from pushbroom_adjust.core.observations.tiepoints import summary
+from tests.support.matchscene import compare_ties, th1_cut
 
 # Self-calibration of every camera (INTERIOR=default) with the automatic removal, 9 control points,
 # 30 check points seen in all three cameras; robust estimation off (with exact tie points the

@@ -5,12 +5,12 @@ import json
 import numpy as np
 import pytest
 
-from core.errors import InputError, MetadataError
-from core.geodesy import geodetic_to_ecef
-from core.scene_io import load_scene, save_scene
-from core.simulator import simulate
-from core.timebasis import TimeBasis
-from core.trajectory import TrajectoryCorrection
+from pushbroom_adjust.core.errors import InputError, MetadataError
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef
+from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
+from pushbroom_adjust.simulation.simulator import simulate
+from pushbroom_adjust.core.model.timebasis import TimeBasis
+from pushbroom_adjust.core.model.trajectory import TrajectoryCorrection
 
 
 @pytest.mark.parametrize("kind", ["lagrange", "spline"])

@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from core.errors import InputError, MetadataError
-from core.geodesy import geodetic_to_ecef, ray_height_intersection
-from core.scene_io import FORMAT, VERSION, load_scene, scene_to_dict
-from core.validation import (PLAUSIBLE_HEIGHTS, check_nodata, check_scene_dict, check_surface_heights,
+from pushbroom_adjust.core.errors import InputError, MetadataError
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef, ray_height_intersection
+from pushbroom_adjust.core.formats.scene_json import FORMAT, VERSION, load_scene, scene_to_dict
+from pushbroom_adjust.core.validation import (PLAUSIBLE_HEIGHTS, check_nodata, check_scene_dict, check_surface_heights,
                              check_terrain_height, implausible_heights, implausible_image_coordinates)
 from tests.unit.test_scene_io import _tiny_scene
 
@@ -47,7 +47,7 @@ def test_schema_names_the_key_path_and_value(scene_dict, mutate, message):
 
 def test_quaternions_slightly_off_unit_are_normalised_in_a_copy(tmp_path):
     scene = _tiny_scene()
-    from core.trajectory import QuaternionSamples
+    from pushbroom_adjust.core.model.trajectory import QuaternionSamples
     t = np.linspace(-20.0, 20.0, 9)
     q = np.tile([0.5 ** 0.5, 0.0, -(0.5 ** 0.5), 0.0], (9, 1))
     scene.platform.attitude = QuaternionSamples(t, q)

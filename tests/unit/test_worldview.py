@@ -21,10 +21,10 @@ import re
 import numpy as np
 import pytest
 
-from core.errors import MetadataError
-from core.geodesy import geodetic_to_ecef
-from core.readers.maxar import read_maxar_rpc
-from core.scene_io import load_scene, save_scene
+from pushbroom_adjust.core.errors import MetadataError
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef
+from pushbroom_adjust.core.formats.maxar import read_maxar_rpc
+from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
 
 # scene file -> (max, RMS) px bounds against the RPB with both corrections (measured 0.18/0.13
 # and 0.38/0.25; the issue's target is 0.5 px max)
@@ -98,7 +98,7 @@ def test_model_meets_imd_corners(case, shared_data):
     """The IMD corner coordinates are the centres of the corner pixels (0-based vendor
     pixels (0, 0) ... (cols-1, rows-1)), i.e. GDAL half-integers."""
     name, scene, *_ = case
-    from core.readers import parse_xml
+    from pushbroom_adjust.core.formats.vendor_xml import parse_xml
     band = parse_xml(_path(shared_data, name)).find("IMD/BAND_P")
     cam = scene.cameras[0]
     expected = {"UL": (0.5, 0.5), "UR": (cam.cols - 0.5, 0.5), "LR": (cam.cols - 0.5, cam.rows - 0.5),
@@ -252,7 +252,7 @@ def test_wv3_what_remains_is_attitude_motion_along_the_rows(wv3):
 def _attitude_wave(scene, ground):
     """Column shift (n,) px of the ground points when the ATT samples are replaced by a cubic
     in time fitted over the scene (+-2 s): the attitude motion a cubic cannot follow."""
-    from core.trajectory import Platform, QuaternionSamples
+    from pushbroom_adjust.core.model.trajectory import Platform, QuaternionSamples
     att, original = scene.platform.attitude, scene.platform
     t0, t1 = scene.time_span()
     near = (att.times > t0 - 2.0) & (att.times < t1 + 2.0)
@@ -275,7 +275,7 @@ def test_wv3_imd_corners_need_the_corrections(shared_data, wv3):
     pads the mosaic; the TLC table ends at line 38116), so only the left and top edges are
     checked. The 9-10 px along the rows that remain are not explained (the stereo partner
     1040010075633C00 shows 9.1 px col / -4.1 px row at its upper-left corner)."""
-    from core.readers import parse_xml
+    from pushbroom_adjust.core.formats.vendor_xml import parse_xml
     scene, *_ = wv3
     band = parse_xml(shared_data / "worldview3" / WV3).find("IMD/BAND_P")
     corner = {k: [float(band.findtext(k + x)) for x in ("LON", "LAT", "HAE")] for k in ("UL", "UR", "LL")}
@@ -299,7 +299,7 @@ def test_unplaced_generation_is_warned(shared_data, tmp_path, caplog, edit, unkn
     """A product the reader cannot place still loads, with corrections on, and one warning
     (logged and in info["warnings"]) naming what is unknown and what was assumed."""
     path = _edited(shared_data, tmp_path, edit)
-    with caplog.at_level("WARNING", logger="core.readers.maxar"):
+    with caplog.at_level("WARNING", logger="core.formats.maxar"):
         scene = load_scene(path)
     (warning,) = scene.info["warnings"]
     assert "edited.xml" in warning and unknown in warning

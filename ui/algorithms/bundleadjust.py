@@ -14,7 +14,7 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutpu
                        QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
                        QgsProcessingParameterVectorLayer)
 
-from ...core import gcps, tiepoints
+from ...core.observations import gcps, tiepoints
 from ...core.adjust import AdjustmentSettings, adjust
 from ...core.adjust.engine import check_inputs
 from ...core.adjust.checkpoints import model_error_message, summary_lines
@@ -23,10 +23,10 @@ from ...core.adjust.outputs import (ground_residuals, write_adjusted_gcps, write
 from ...core.adjust.parameters import ParameterSet
 from ...core.errors import InputError, PushbroomError
 from ...core.files import Output, atomic_outputs
-from ...core.rpcfit import write_rpc
-from ...core.rpcscene import RpcScene, refined_rpc
-from ...core.scene_io import save_scene
-from ...core.timebasis import TimeBasis
+from ...core.products.rpcfit import write_rpc
+from ...core.model.rpcscene import RpcScene, refined_rpc
+from ...core.formats.scene_json import save_scene
+from ...core.model.timebasis import TimeBasis
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, attribute_floats, attribute_texts,
                       check_cancelled, check_outputs, core_call, core_log_to, feedback_callbacks, load_scene_for,
                       processing_errors, style_output_on_load)
@@ -283,7 +283,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
 
     def _lines(self, parameters, context):
         """ControlLines of the LINES GeoPackage (None without)."""
-        from ...core import lines as core_lines
+        from ...core.observations import lines as core_lines
         from ...core.adjust.linepoints import ControlLines
         from .importlines import ogr_source
         layer = self.parameterAsVectorLayer(parameters, self.LINES, context)

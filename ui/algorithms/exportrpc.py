@@ -8,7 +8,7 @@ from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProce
 
 from ...core.dem import ConstantHeight
 from ...core.files import Output, atomic_outputs
-from ...core.rpcfit import dem_height_range, fit_rpc, image_vrt_with_rpc, report_path, write_rpc
+from ...core.products.rpcfit import dem_height_range, fit_rpc, image_vrt_with_rpc, report_path, write_rpc
 from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       check_cancelled, check_outputs, core_call, dem_from_parameters, feedback_callbacks,
                       layer_file, load_scene_for, processing_errors)

@@ -4,7 +4,7 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFi
                        QgsWkbTypes)
 from qgis.PyQt.QtCore import QVariant
 
-from ...core.products import footprints
+from ...core.products.footprint import footprints
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
                       check_outputs, core_call, dem_from_parameters, load_scene_for, output_sink,
                       style_output_on_load)

@@ -8,7 +8,7 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessin
                        QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterString,
                        QgsProcessingParameterVectorDestination, QgsWkbTypes)
 
-from ...core import gcps
+from ...core.observations import gcps
 from ...core.validation import check_terrain_height
 from ..common import (DEM_DATUM, HEIGHT, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
                       add_scene_parameters, attribute_floats, attribute_texts, check_cancelled, check_outputs,

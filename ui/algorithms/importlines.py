@@ -8,7 +8,7 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
                        QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
                        QgsProcessingParameterVectorLayer)
 
-from ...core import lines as core_lines
+from ...core.observations import lines as core_lines
 from ...core.adjust.linepoints import ControlLines, check_against_scene
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
                       check_outputs, load_scene_for, processing_errors, style_output_on_load)

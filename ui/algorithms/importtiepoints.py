@@ -5,8 +5,8 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
                        QgsProcessingParameterFile, QgsProcessingParameterString,
                        QgsProcessingParameterVectorDestination)
 
-from ...core import tiepoints
-from ...core.gcps import per_point_sigmas
+from ...core.observations import tiepoints
+from ...core.observations.gcps import per_point_sigmas
 from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, attribute_floats, attribute_texts,
                       check_cancelled, core_call, core_log_to, field_values, geopackage_output, load_scene_for,
                       processing_errors, style_output_on_load)

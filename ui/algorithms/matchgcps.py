@@ -6,8 +6,8 @@ import numpy as np
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterRasterLayer,
                        QgsProcessingParameterVectorDestination)
 
-from ...core import gcps
-from ...core.matching import match_gcps
+from ...core.observations import gcps
+from ...core.measure.matching import match_gcps
 from ..common import (CAMERA, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       check_outputs, core_call, dem_from_parameters, feedback_callbacks, load_scene_for,
                       matching_settings, processing_errors, style_output_on_load)

@@ -3,9 +3,9 @@ matched automatically in a common ground geometry, written as the tie-point laye
 adjustment reads."""
 from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParameterVectorDestination
 
-from ...core import tiepoints
-from ...core.matching import match_tiepoints
-from ...core.ortho import check_images
+from ...core.observations import tiepoints
+from ...core.measure.matching import match_tiepoints
+from ...core.products.ortho import check_images
 from ..common import (SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_images_for,
                       check_cancelled, core_call, core_log_to, dem_from_parameters, feedback_callbacks,
                       geopackage_output, load_scene_for, matching_settings, processing_errors)

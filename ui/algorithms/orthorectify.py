@@ -17,9 +17,9 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY,
                        QgsRectangle)
 
 from ...core.dem import ConstantHeight
-from ...core.ortho import (check_images, default_grid, orthorectify, orthorectify_products, scene_utm_crs,
+from ...core.products.ortho import (check_images, default_grid, orthorectify, orthorectify_products, scene_utm_crs,
                            strip_products)
-from ...core.products import footprints
+from ...core.products.footprint import footprints
 from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       camera_images_for, check_outputs, core_call, dem_from_parameters, feedback_callbacks,
                       load_scene_for, processing_errors)

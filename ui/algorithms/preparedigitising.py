@@ -2,9 +2,9 @@
 from qgis.core import (QgsProcessingContext, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterRasterLayer)
 
-from ...core.display import check_image_size, write_display_vrt, write_empty_lines
+from ...core.measure.display import check_image_size, write_display_vrt, write_empty_lines
 from ...core.files import atomic_outputs
-from ...core.lines import IMAGE_LAYER
+from ...core.observations.lines import IMAGE_LAYER
 from ..common import (CAMERA, SCENE, PushbroomAlgorithm, add_scene_parameters, camera_for, check_outputs,
                       layer_file, load_scene_for, processing_errors)
 from ..parameters import tr

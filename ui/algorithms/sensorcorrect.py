@@ -10,8 +10,8 @@ from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProce
                        QgsProcessingParameterRasterLayer)
 
 from ...core.files import Output
-from ...core.sensor import SceneModel
-from ...core.sensorcorrect import output_files, sensor_correct
+from ...core.model.sensor import SceneModel
+from ...core.products.sensorcorrect import output_files, sensor_correct
 from ..common import (CAMERA, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
                       check_outputs, core_call, dem_from_parameters, feedback_callbacks, layer_file, load_scene_for)
 from ..parameters import OUTPUT_SCENE, RESAMPLING, enum_value, output_scene, resampling, tr

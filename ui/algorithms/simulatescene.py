@@ -5,8 +5,8 @@ from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsPr
                        QgsProcessingParameterBoolean,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber)
 
-from ...core.roads import LINES_FILE, POINTS_FILE, RoadSettings
-from ...core.simulator import MIN_CUT, PRESETS, GcpSettings, check_folder, cut_preset, output_names, simulate
+from ...simulation.roads import LINES_FILE, POINTS_FILE, RoadSettings
+from ...simulation.simulator import MIN_CUT, PRESETS, GcpSettings, check_folder, cut_preset, output_names, simulate
 from ..common import PushbroomAlgorithm, core_call, feedback_callbacks, processing_errors
 from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_value, preset, tr
 

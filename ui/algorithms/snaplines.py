@@ -4,8 +4,8 @@ import numpy as np
 from qgis.core import (QgsProcessing, QgsProcessingParameterNumber,
                        QgsProcessingParameterRasterLayer, QgsProcessingParameterVectorDestination)
 
-from ...core import lines as core_lines
-from ...core.snapping import SnapSettings, kept_reasons, snap_lines
+from ...core.observations import lines as core_lines
+from ...core.measure.snapping import SnapSettings, kept_reasons, snap_lines
 from ..common import PushbroomAlgorithm, layer_file, processing_errors
 from ..parameters import enum_parameter, enum_value, image_lines, tr
 from .importlines import gpkg_output, ogr_source

@@ -20,14 +20,14 @@ from qgis.PyQt.QtGui import QColor
 from qgis.PyQt.QtWidgets import (QComboBox, QDockWidget, QDoubleSpinBox, QFileDialog, QFormLayout, QHBoxLayout,
                                  QLabel, QLineEdit, QListWidget, QPushButton, QVBoxLayout, QWidget)
 
-from ...core.digitising import LineEditor, nearest_line, predict_lines
-from ...core.display import read_display_source
+from ...core.measure.digitising import LineEditor, nearest_line, predict_lines
+from ...core.measure.display import read_display_source
 from ...core.errors import PushbroomError
-from ...core.gcps import Heights
-from ...core.lines import write_gpkg
-from ...core.scene_io import load_scene
-from ...core.snapping import MODES as SNAP_MODES
-from ...core.snapping import SnapSettings
+from ...core.observations.gcps import Heights
+from ...core.observations.lines import write_gpkg
+from ...core.formats.scene_json import load_scene
+from ...core.measure.snapping import MODES as SNAP_MODES
+from ...core.measure.snapping import SnapSettings
 from ..parameters import DATUMS, HEIGHT_SOURCES, tr
 
 LINE_COLOUR, CURRENT_COLOUR, SELECTED_COLOUR, PREDICTED_COLOUR = (QColor(0, 200, 255), QColor(255, 220, 0),

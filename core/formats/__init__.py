@@ -1,0 +1,1 @@
+"""Files that hold a scene: scene JSON and its schema, DIMAP, Maxar XML, RPC text/RPB/DIMAP RPC."""

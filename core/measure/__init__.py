@@ -1,0 +1,1 @@
+"""Observations made from images: automatic matching, snapping, digitising, display copies."""

@@ -1,0 +1,106 @@
+"""Display copy of a raw image: the image in its own pixel frame, for digitising image lines.
+
+A raw image carrying RPC or GCP metadata is warped by QGIS on display (to the RPC's or GCPs'
+ground frame), and one without any is drawn in an unnamed frame; neither shows pixel
+coordinates. The display copy is a VRT that references the raw image's bands (nothing is
+copied or resampled) without its RPC and GCP metadata, with the pixel geotransform
+(0, 1, 0, 0, 0, -1) — x = col, y = -row, GDAL convention: (0, 0) is the upper-left corner of
+the upper-left pixel — and the engineering CRS of :func:`core.lines.pixel_frame`, the frame of
+the ``image_lines`` layers. The VRT's PUSHBROOM metadata domain names the scene file and the
+camera, so that the digitising dock finds them again.
+"""
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from osgeo import gdal
+
+from ..errors import InputError
+from ..files import OutputSet, atomic_output
+from ..observations.lines import ImageLines, pixel_frame, write_gpkg
+
+gdal.UseExceptions()
+log = logging.getLogger(__name__)
+
+PIXEL_GEOTRANSFORM = (0.0, 1.0, 0.0, 0.0, 0.0, -1.0)  # x = col, y = -row
+METADATA_DOMAIN = "PUSHBROOM"
+DROPPED_DOMAINS = ("RPC", "GEOLOCATION")
+
+
+@dataclass(frozen=True)
+class DisplaySource:
+    """What a display copy shows: the raw image (path, cols, rows), the scene file and the
+    camera's name (from the VRT's PUSHBROOM metadata; '' when absent)."""
+    image: str
+    cols: int
+    rows: int
+    scene: str
+    camera: str
+
+
+def raster_size(path) -> tuple[int, int]:
+    """(cols, rows) of a raster file; InputError naming the file when GDAL cannot read it."""
+    try:
+        ds = gdal.Open(str(path))
+    except RuntimeError as exc:
+        raise InputError(f"{path}: cannot be read as a raster ({exc})") from None
+    if ds is None or ds.RasterCount == 0:
+        raise InputError(f"{path}: holds no raster band")
+    return ds.RasterXSize, ds.RasterYSize
+
+
+def check_image_size(path, cols: int, rows: int, camera: str) -> None:
+    """InputError unless the raster at ``path`` has the camera's (cols, rows): another image's
+    pixels would put every digitised vertex at the wrong place."""
+    got = raster_size(path)
+    if got != (cols, rows):
+        raise InputError(f"{path}: the image is {got[0]} x {got[1]} pixels but camera {camera} of the scene "
+                         f"delivers {cols} x {rows}; give the raw image of that camera (not an orthoimage or "
+                         "another scene's image)")
+
+
+def write_display_vrt(image, output, scene: str = "", camera: str = "", files: OutputSet | None = None) -> None:
+    """Write the display copy of raster ``image`` to ``output`` (.vrt), completely or not at all.
+
+    The VRT references ``image`` by absolute path (it stays valid when moved) and keeps its bands,
+    nodata and overviews; RPC, GEOLOCATION and GCPs are dropped. ``scene`` and ``camera`` go to
+    the PUSHBROOM metadata domain. The input is only read."""
+    output = Path(output)
+    if output.suffix.lower() != ".vrt":
+        raise InputError(f"{output}: the display copy is a virtual raster; use a .vrt file name")
+    source = os.path.abspath(str(image))
+    raster_size(source)
+    with atomic_output(output, files) as tmp:
+        ds = gdal.Translate(str(tmp), source, format="VRT")
+        ds.SetGCPs([], "")
+        for domain in DROPPED_DOMAINS:
+            ds.SetMetadata({}, domain)
+        ds.SetGeoTransform(PIXEL_GEOTRANSFORM)
+        ds.SetSpatialRef(pixel_frame())
+        ds.SetMetadata({"SCENE": os.path.abspath(scene) if scene else "", "CAMERA": camera,
+                        "IMAGE": source}, METADATA_DOMAIN)
+        ds.FlushCache()
+        ds = None
+        log.info("display copy of %s written to %s", source, output)
+
+
+def read_display_source(path) -> DisplaySource:
+    """The raw image, scene and camera a display copy (or any raster) shows; for a raster
+    that is not a display copy, the raster itself with no scene."""
+    cols, rows = raster_size(path)
+    ds = gdal.Open(str(path))
+    meta = ds.GetMetadata(METADATA_DOMAIN) or {}
+    return DisplaySource(meta.get("IMAGE", str(path)), cols, rows, meta.get("SCENE", ""), meta.get("CAMERA", ""))
+
+
+def empty_image_lines() -> ImageLines:
+    """No image lines: what an empty ``image_lines`` layer holds."""
+    return ImageLines([], [], [0], [], [], 1.0)
+
+
+def write_empty_lines(output, files: OutputSet | None = None) -> None:
+    """A GeoPackage with an empty ``image_lines`` layer (:mod:`core.lines`' format) to digitise in."""
+    write_gpkg(output, image=empty_image_lines(), files=files)

@@ -1,0 +1,701 @@
+"""Automatic ground control points: the raw image matched against a reference orthoimage
+through the scene model (the approach of seed 000, Zheng et al. 2015).
+
+For each point p0 (col, row; GDAL pixel centres) of a grid over the raw image:
+
+1. **Prediction.** The onboard model maps the pixels of a window around p0 to the ground
+   (rays on the DEM) and the reference is sampled there: the *predicted chip*, the
+   reference resampled into the raw image's geometry. The map raw -> reference pixel is exact
+   at 3 x 3 nodes of each window and interpolated between them by biquadratic Lagrange
+   polynomials (the map is smooth over a window; the error is far below 0.01 px).
+2. **Coarse pass.** Onboard errors of hundreds of metres are found first at low resolution:
+   a few large chips (raw image block-averaged by a factor f, reference smoothed alike) are
+   correlated over the whole search range, and a plane offset(col, row) is fitted to the
+   consistent matches. Too few consistent matches is an error that names the search range.
+3. **Fine pass.** Each predicted chip (``window`` px) is correlated with the raw image over
+   +-``fine_radius`` px around the coarse prediction: normalised cross-correlation computed
+   by FFT (scipy.fft, vectorised over a batch of chips; local sums by integral images), the
+   peak refined to sub-pixel by a least-squares paraboloid on its 3 x 3 neighbourhood.
+4. **Rejection.** A point is rejected, with its reason counted, when its window leaves the
+   image or the reference, its ray misses the DEM, the raw chip has too little texture
+   (standard deviation < ``min_texture`` DN), the correlation peak is low (< ``min_correlation``:
+   clouds, changed land cover, water), ambiguous (second peak / first peak > ``max_peak_ratio``)
+   or on the border of the search area.
+
+Tie points (:func:`match_tiepoints`) use the same machinery with another camera's raw image
+as the reference (ground -> its image through the scene model): the images are compared in
+the base camera's geometry, so different view angles do not defeat the correlation.
+
+A match says: the ground point G0 the onboard model sees at p0 (on the DEM) is seen in the
+raw image at p0 + d. So the GCP is ground G0 (lon, lat, ellipsoidal h) at image p0 + d.
+Its sigma (px) follows least-squares matching precision: sigma^2 = (1 - rho) / sum(g'^2) per
+axis, g the raw chip in standard units, rho the correlation (floor 0.05 px).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import os
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.fft
+from osgeo import gdal
+from pyproj import CRS, Transformer
+from pyproj.exceptions import CRSError
+from scipy.ndimage import gaussian_filter
+
+from ..errors import Cancelled, InputError
+from ..observations.gcps import GcpTable
+from ..geodesy import ecef_to_geodetic
+from ..products.ortho import _image_on_surface, _open_raw, _RawImage
+from ..model.sensor import SceneModel
+from ..observations.tiepoints import TieTable
+
+gdal.UseExceptions()
+log = logging.getLogger(__name__)
+
+REASONS = ("near a CCD seam", "outside the image", "off the DEM", "outside the reference", "low texture",
+           "low correlation", "ambiguous peak", "peak on the search border")
+OUTSIDE_OTHER = "outside the other camera's image"  # REASONS[3] for tie points
+COARSE_TEMPLATE = 64      # coarse chip size (coarse px)
+COARSE_RADIUS = 40        # coarse search radius (coarse px): sets the block-averaging factor
+COARSE_GRID = 5           # coarse chips per side
+MIN_CONSISTENT = 3        # coarse matches that must agree
+SIGMA_FLOOR = 0.1         # px: the error floor the bench measures (spline sampling, peak fit), unseen by the formula
+MEMORY_BUDGET = 2 ** 30   # bytes of raw image / reference pixels held in memory
+
+
+@dataclass(frozen=True)
+class MatchSettings:
+    """spacing (px between grid points; count > 0 overrides it with about that many points),
+    window (px, odd), min_correlation, max_peak_ratio, min_texture (DN), search (m: largest
+    onboard error looked for), fine_radius (px around the coarse prediction), batch (chips
+    per FFT batch), workers (threads; 0 = all cores), sigma_xy / sigma_z (m, ground sigmas
+    written to the GCPs; sigma_xy None = half a reference pixel)."""
+    spacing: float = 200.0
+    count: int = 0
+    window: int = 31
+    min_correlation: float = 0.6
+    max_peak_ratio: float = 0.85
+    min_texture: float = 2.0
+    search: float = 1000.0
+    fine_radius: int = 8
+    batch: int = 256
+    workers: int = 0
+    sigma_xy: float | None = None
+    sigma_z: float = 5.0
+
+    def validate(self) -> None:
+        checks = {"spacing": self.spacing >= 8 or self.count > 0, "count": 0 <= self.count <= 10_000_000,
+                  "window": 9 <= self.window <= 257 and self.window % 2 == 1,
+                  "min_correlation": 0 < self.min_correlation < 1, "max_peak_ratio": 0 < self.max_peak_ratio <= 1,
+                  "min_texture": self.min_texture >= 0, "search": 0 < self.search <= 50_000,
+                  "fine_radius": 2 <= self.fine_radius <= 64, "batch": self.batch >= 1,
+                  "workers": self.workers >= 0, "sigma_xy": self.sigma_xy is None or self.sigma_xy >= 0,
+                  "sigma_z": self.sigma_z >= 0}
+        bad = [k for k, ok in checks.items() if not ok]
+        if bad:
+            raise InputError(f"matching settings out of range: {', '.join(f'{k}={getattr(self, k)}' for k in bad)} "
+                             "(window odd 9-257 px, spacing >= 8 px, correlation in (0, 1), search 0-50 km, "
+                             "fine radius 2-64 px)")
+
+
+@dataclass
+class MatchResult:
+    """The matched GCPs and how they were found. table: the GCPs that passed; quality: their
+    correlation peak (n,); peak_ratio (n,); offset (n, 2) px matched minus p0 (col, row);
+    rejected: {reason: count} over all grid points; coarse: the coarse pass (offset plane
+    coefficients in px, number of consistent chips, factor); seconds: matching wall time."""
+    table: GcpTable
+    quality: np.ndarray
+    peak_ratio: np.ndarray
+    offset: np.ndarray
+    grid_points: int
+    rejected: dict
+    coarse: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+# --- rasters -------------------------------------------------------------------------------------
+class Reference:
+    """A north-up reference orthoimage (any projected or geographic CRS): its CRS, geotransform and
+    pixels (in memory when they fit in ``budget`` bytes, else read by window through a GDAL
+    dataset per thread)."""
+
+    def __init__(self, path, budget: float = MEMORY_BUDGET):
+        self.path = str(path)
+        try:
+            ds = gdal.OpenEx(self.path, gdal.OF_RASTER)
+        except RuntimeError as exc:
+            raise InputError(f"reference {self.path}: cannot be opened as a raster ({exc})") from None
+        self.cols, self.rows = ds.RasterXSize, ds.RasterYSize
+        gt = ds.GetGeoTransform(can_return_null=True)
+        wkt = ds.GetProjection()
+        if not wkt or gt is None:
+            raise InputError(f"reference {self.path}: no coordinate reference system or georeferencing: a reference "
+                             "orthoimage must say where it lies (a GeoTIFF with its CRS, or a .prj/.aux.xml)")
+        try:
+            self.crs = CRS.from_wkt(wkt)
+        except CRSError as exc:
+            raise InputError(f"reference {self.path}: unknown coordinate reference system ({exc})") from None
+        if gt[2] != 0 or gt[4] != 0 or not (gt[1] > 0 and gt[5] < 0):
+            raise InputError(f"reference {self.path}: the geotransform {gt} is rotated or not north-up; warp it "
+                             "north-up first (gdalwarp)")
+        if not (self.crs.is_projected or self.crs.is_geographic):
+            raise InputError(f"reference {self.path}: its coordinate reference system ({self.crs.name}) is neither "
+                             "projected nor geographic, so its place on the Earth is unknown; assign the right CRS")
+        self.geotransform = gt
+        self.nodata = ds.GetRasterBand(1).GetNoDataValue()
+        self.to_map = Transformer.from_crs(CRS.from_epsg(4326), self.crs, always_xy=True)
+        centre = Transformer.from_crs(self.crs, CRS.from_epsg(4326), always_xy=True).transform(
+            gt[0] + gt[1] * self.cols / 2, gt[3] + gt[5] * self.rows / 2)
+        # pixel size on the ground (m): degrees of a geographic CRS at the raster's centre
+        unit = (math.radians(6378137.0) * math.cos(math.radians(centre[1])) if self.crs.is_geographic
+                else self.crs.axis_info[0].unit_conversion_factor)
+        self.gsd = float(gt[1] * unit)
+        if not (np.all(np.isfinite(centre)) and 1e-3 <= self.gsd <= 1e4):
+            raise InputError(f"reference {self.path}: implausible georeferencing (pixel size {self.gsd:g} m in "
+                             f"{self.crs.name}); expected an orthoimage with pixels of 1 mm to 10 km")
+        self._local = threading.local()
+        self.data = ds.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
+        ds = None
+
+    def dataset(self):
+        if not hasattr(self._local, "ds"):
+            self._local.ds = gdal.Open(self.path)
+        return self._local.ds
+
+    def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional array indices (x, y) of ECEF points (n, 3)."""
+        lon, lat, _ = ecef_to_geodetic(ground)
+        return self.pixel(lon, lat)
+
+    def pixel(self, lon, lat) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional array indices (x = column, y = row; pixel centres at integers) of (lon, lat)."""
+        x, y = self.to_map.transform(lon, lat)
+        gt = self.geotransform
+        return (np.asarray(x) - gt[0]) / gt[1] - 0.5, (np.asarray(y) - gt[3]) / gt[5] - 0.5
+
+    def window(self, x: np.ndarray, y: np.ndarray, pad: int) -> tuple[np.ndarray, int, int]:
+        """Pixels covering array positions (x, y) + ``pad``, clipped to the raster, in its own data
+        type (the whole array when in memory: sample() indexes it flat, without a copy), and
+        their origin."""
+        x0, y0 = max(int(np.floor(np.nanmin(x))) - pad, 0), max(int(np.floor(np.nanmin(y))) - pad, 0)
+        x1 = min(int(np.ceil(np.nanmax(x))) + pad + 1, self.cols)
+        y1 = min(int(np.ceil(np.nanmax(y))) + pad + 1, self.rows)
+        if x1 <= x0 or y1 <= y0:
+            return np.full((1, 1), np.nan, np.float32), 0, 0
+        if self.data is not None:
+            return self.data, 0, 0
+        return self.dataset().GetRasterBand(1).ReadAsArray(x0, y0, x1 - x0, y1 - y0), x0, y0
+
+    def float_window(self, x: np.ndarray, y: np.ndarray, pad: int) -> tuple[np.ndarray, int, int]:
+        """Like :meth:`window`, only the covering pixels, as float32 with nodata NaN."""
+        a, ox, oy = self.window(x, y, pad)
+        x0, y0 = max(int(np.floor(np.nanmin(x))) - pad - ox, 0), max(int(np.floor(np.nanmin(y))) - pad - oy, 0)
+        x1, y1 = int(np.ceil(np.nanmax(x))) + pad + 1 - ox, int(np.ceil(np.nanmax(y))) + pad + 1 - oy
+        return _blanked(a[y0:y1, x0:x1], self.nodata), ox + x0, oy + y0
+
+
+class ImageReference(Reference):
+    """Another camera's raw image as the reference (tie points): ground -> its image through the
+    scene model. Pixels as :class:`Reference`'s."""
+
+    def __init__(self, scene: SceneModel, camera: int, image_path, gsd: float, budget: float = MEMORY_BUDGET):
+        cam = scene.cameras[camera]
+        src, self.nodata = _open_checked(scene, camera, image_path)
+        self.scene, self.camera, self.path, self.gsd = scene, camera, str(image_path), gsd
+        self.cols, self.rows = cam.cols, cam.rows
+        self.data = src.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
+        self._local = threading.local()
+
+    def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        col, row = self.scene.ground_to_image(ground, self.camera)
+        return col - 0.5, row - 0.5
+
+
+def _blanked(a: np.ndarray, nodata) -> np.ndarray:
+    """Float32 copy of ``a`` with its nodata pixels NaN."""
+    a = a.astype(np.float32)
+    if nodata is not None:
+        a[a == nodata] = np.nan
+    return a
+
+
+def check_not_constant(what: str, path: str, a: np.ndarray) -> None:
+    """InputError when a sample of an image has (almost) no contrast: nothing can be matched."""
+    a = a[np.isfinite(a)]
+    if a.size == 0 or float(np.std(a)) < 0.5:
+        value = f" (value {float(a[0]):g})" if a.size else ""
+        raise InputError(f"{what} {path}: the image is blank or constant{value}; nothing can be matched")
+
+
+# --- geometry ------------------------------------------------------------------------------------
+_LAGRANGE = lambda t: np.stack([t * (t - 1) / 2, 1 - t * t, t * (t + 1) / 2], axis=-1)  # noqa: E731
+
+
+def predicted_positions(scene: SceneModel, camera: int, dem, ref: Reference, col: np.ndarray, row: np.ndarray,
+                        half: float, size: int, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Reference array positions (x, y), each (n, size, size), of the raw pixels
+    p0 + step * (k - (size-1)/2), k = 0..size-1 (rows then cols) around the n points (col, row),
+    through ``scene`` on ``dem``; and the ECEF ground (n, 3) of the points themselves. The map is
+    exact at 3 x 3 nodes spaced ``half`` px and biquadratic between. NaN where a ray misses."""
+    n = col.size
+    d = np.array([-half, 0.0, half])
+    nc = (col[:, None, None] + d[None, None, :]) + 0 * d[None, :, None]
+    nr = (row[:, None, None] + d[None, :, None]) + 0 * d[None, None, :]
+    ground = scene.image_to_ground_dem(nc.ravel(), nr.ravel(), dem, camera)
+    x, y = (v.reshape(n, 3, 3) for v in ref.ground_pixel(ground))
+    w = _LAGRANGE(step * (np.arange(size) - (size - 1) / 2) / half)  # (size, 3)
+    px = np.einsum("ia,jb,nab->nij", w, w, x)
+    py = np.einsum("ia,jb,nab->nij", w, w, y)
+    return px, py, ground.reshape(n, 9, 3)[:, 4]
+
+
+def _keys(t: np.ndarray) -> list[np.ndarray]:
+    """Keys cubic convolution weights (a = -0.5) of the taps -1, 0, 1, 2 at fractions t."""
+    t2, t3 = t * t, t * t * t
+    return [(-t3 + 2 * t2 - t) / 2, (3 * t3 - 5 * t2 + 2) / 2, (-3 * t3 + 4 * t2 + t) / 2, (t3 - t2) / 2]
+
+
+def sample(image: np.ndarray, x0: int, y0: int, x: np.ndarray, y: np.ndarray, nodata=None) -> np.ndarray:
+    """Cubic convolution samples (Keys) of ``image`` (origin (x0, y0)) at array positions (x, y);
+    NaN where a position lies outside the image or one of its 4 x 4 taps is ``nodata`` or NaN.
+    A local kernel, so no prefilter of the image: the cost is per sample, not per image."""
+    h, w = image.shape
+    if h < 4 or w < 4:
+        return np.full(np.shape(x), np.nan)
+    u, v = np.asarray(x, np.float64) - x0, np.asarray(y, np.float64) - y0
+    iu, iv = np.floor(u), np.floor(v)
+    inside = (iu >= 1) & (iv >= 1) & (iu <= w - 3) & (iv <= h - 3)
+    iu, iv = np.where(inside, iu, 1).astype(np.intp), np.where(inside, iv, 1).astype(np.intp)
+    wu, wv = _keys((u - iu).astype(np.float32)), _keys((v - iv).astype(np.float32))
+    flat = image.ravel()
+    base = iv * w + iu
+    out = np.zeros(u.shape, np.float32)
+    for a in range(4):
+        row = np.zeros(u.shape, np.float32)
+        for b in range(4):
+            tap = flat[base + (a - 1) * w + (b - 1)]
+            if nodata is not None:
+                inside &= tap != nodata
+            row += wu[b] * tap
+        out += wv[a] * row
+    return np.where(inside & np.isfinite(out), out, np.nan)
+
+
+# --- correlation ---------------------------------------------------------------------------------
+def _window_sums(a: np.ndarray, w: int) -> np.ndarray:
+    """Sums of a (b, s, s) over every w x w window: (b, s-w+1, s-w+1), by integral images."""
+    c = np.zeros((a.shape[0], a.shape[1] + 1, a.shape[2] + 1))
+    c[:, 1:, 1:] = a.cumsum(1).cumsum(2)
+    return c[:, w:, w:] - c[:, :-w, w:] - c[:, w:, :-w] + c[:, :-w, :-w]
+
+
+def ncc(templates: np.ndarray, search: np.ndarray, workers: int = 1) -> np.ndarray:
+    """Normalised cross-correlation (b, n, n), n = s - w + 1, of templates (b, w, w) at every
+    offset inside search images (b, s, s): entry [i, j] compares the template with the search
+    window whose upper-left pixel is (row i, col j). Flat windows give 0."""
+    b, w, _ = templates.shape
+    s = search.shape[1]
+    t = templates - templates.mean(axis=(1, 2), keepdims=True)
+    t /= np.maximum(np.sqrt((t * t).sum(axis=(1, 2), keepdims=True)), 1e-12)
+    size = scipy.fft.next_fast_len(s, real=True)
+    ft = scipy.fft.rfft2(t, s=(size, size), workers=workers)
+    fs = scipy.fft.rfft2(search, s=(size, size), workers=workers)
+    corr = scipy.fft.irfft2(fs * np.conj(ft), s=(size, size), workers=workers)[:, :s - w + 1, :s - w + 1]
+    total = _window_sums(search, w)
+    energy = _window_sums(search * search, w) - total * total / (w * w)
+    return np.where(energy > 1e-9, corr / np.sqrt(np.maximum(energy, 1e-9)), 0.0)
+
+
+# least-squares paraboloid z = a + b x + c y + d x^2 + e xy + f y^2 on the 3 x 3 neighbourhood
+_GX, _GY = np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0])
+_PARABOLOID = np.linalg.pinv(np.stack([np.ones(9), _GX.ravel(), _GY.ravel(), _GX.ravel() ** 2,
+                                       (_GX * _GY).ravel(), _GY.ravel() ** 2], axis=1))
+
+
+@dataclass
+class Peaks:
+    """Per chip: sub-pixel peak position (dx, dy) in offset units, its correlation, the second
+    peak's ratio to it and whether the integer peak lies on the border of the surface."""
+    dx: np.ndarray
+    dy: np.ndarray
+    value: np.ndarray
+    ratio: np.ndarray
+    border: np.ndarray
+
+
+def find_peaks(c: np.ndarray, exclusion: int) -> Peaks:
+    """Peaks of correlation surfaces c (b, n, n): integer maximum refined by a paraboloid; the
+    second peak is the largest value farther than ``exclusion`` from the first."""
+    b, n, _ = c.shape
+    flat = c.reshape(b, -1)
+    k = np.argmax(flat, axis=1)
+    i, j = np.divmod(k, n)
+    value = flat[np.arange(b), k]
+    border = (i == 0) | (j == 0) | (i == n - 1) | (j == n - 1)
+    ii, jj = np.clip(i, 1, n - 2), np.clip(j, 1, n - 2)
+    rows = ii[:, None, None] + np.arange(-1, 2)[None, :, None]
+    cols = jj[:, None, None] + np.arange(-1, 2)[None, None, :]
+    z = c[np.arange(b)[:, None, None], rows, cols].reshape(b, 9)
+    _, gb, gc, gd, ge, gf = (_PARABOLOID @ z.T)
+    det = 4 * gd * gf - ge * ge
+    ok = (det > 1e-12) & (gd < 0) & (gf < 0)
+    sx = np.where(ok, (-2 * gf * gb + ge * gc) / np.where(ok, det, 1.0), 0.0)
+    sy = np.where(ok, (-2 * gd * gc + ge * gb) / np.where(ok, det, 1.0), 0.0)
+    sx, sy = np.clip(sx, -1.0, 1.0), np.clip(sy, -1.0, 1.0)
+    yy, xx = np.mgrid[0:n, 0:n]
+    far = (np.abs(yy[None] - i[:, None, None]) > exclusion) | (np.abs(xx[None] - j[:, None, None]) > exclusion)
+    second = np.where(far, c, -np.inf).reshape(b, -1).max(axis=1)
+    ratio = np.where(value > 0, np.maximum(second, 0.0) / np.maximum(value, 1e-12), 1.0)
+    return Peaks(jj + sx, ii + sy, value, ratio, border | ~ok)
+
+
+# --- the grid ------------------------------------------------------------------------------------
+def grid_points(cam, settings: MatchSettings, margin: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Pixel centres (col, row) of the grid whose windows (+ ``margin``) lie inside one CCD chip
+    and the image rows; and the number of grid points dropped near CCD seams."""
+    spacing = settings.spacing
+    if settings.count > 0:
+        spacing = max(math.sqrt(cam.cols * cam.rows / settings.count), 8.0)
+    cols = np.arange(margin + spacing / 2, cam.cols - margin, spacing)
+    rows = np.arange(margin + spacing / 2, cam.rows - margin, spacing)
+    cc, rr = np.meshgrid(np.floor(cols) + 0.5, np.floor(rows) + 0.5)
+    cc, rr = cc.ravel(), rr.ravel()
+    inside = np.zeros(cc.size, bool)
+    for k in range(len(cam.chips)):
+        start, end = cam.chip_range(k)
+        inside |= (cc - margin >= start) & (cc + margin <= end)
+    return cc[inside], rr[inside], int((~inside).sum())
+
+
+# --- coarse pass ---------------------------------------------------------------------------------
+def _block_mean(a: np.ndarray, f: int) -> np.ndarray:
+    """Means of the f x f blocks of a (h, w), both multiples of f."""
+    return a.reshape(a.shape[0] // f, f, a.shape[1] // f, f).mean(axis=(1, 3))
+
+
+def coarse_offsets(scene: SceneModel, camera: int, dem, ref: Reference, raw: _RawImage, gsd: float,
+                   settings: MatchSettings) -> dict:
+    """The offset plane (raw px) d(col, row) = a + b (col - c0) / cols + e (row - r0) / rows from
+    block-averaged chips correlated over the whole search range. InputError when too few
+    chips agree: the reference does not show the scene's ground, or the error exceeds the range."""
+    cam = scene.cameras[camera]
+    radius_px = settings.search / gsd
+    f = max(1, int(math.ceil(radius_px / COARSE_RADIUS)))
+    r = int(math.ceil(radius_px / f)) + 2
+    t = COARSE_TEMPLATE
+    span = f * (t + 2 * r)
+    if span > min(cam.cols, cam.rows):
+        raise InputError(f"search range {settings.search:g} m needs {span} px chips, more than the image "
+                         f"({cam.cols} x {cam.rows} px): choose a smaller search range")
+    half = span / 2
+    c0 = np.linspace(half, cam.cols - half, COARSE_GRID)
+    r0 = np.linspace(half, cam.rows - half, COARSE_GRID)
+    cc, rr = (np.floor(v.ravel()) + 0.5 for v in np.meshgrid(c0, r0))
+    px, py, _ = predicted_positions(scene, camera, dem, ref, cc, rr, f * t / 2, t, f)
+    smooth = 0.5 * f * gsd / ref.gsd
+    templates, searches = [], []
+    for k in range(cc.size):
+        finite = np.isfinite(px[k])
+        if not finite.all():
+            templates.append(None)
+            searches.append(None)
+            continue
+        win, wx, wy = ref.float_window(px[k], py[k], 4)
+        templates.append(sample(gaussian_filter(win, smooth) if smooth > 0.3 else win, wx, wy, px[k], py[k]))
+        sx, sy = int(np.floor(cc[k] - half)), int(np.floor(rr[k] - half))
+        searches.append(_block_mean(raw.window(sy, sy + span, sx, sx + span)[0].astype(np.float32), f))
+    usable = [k for k in range(cc.size) if templates[k] is not None and np.isfinite(templates[k]).all()
+              and np.std(templates[k]) > settings.min_texture and np.std(searches[k]) > settings.min_texture]
+    if not usable:
+        raise InputError(f"reference {ref.path}: it does not cover the scene's ground where the onboard model "
+                         "puts it (or shows no texture there): check that it overlaps the scene")
+    c = ncc(np.stack([templates[k] for k in usable]), np.stack([searches[k] for k in usable]))
+    peaks = find_peaks(c, 4)
+    good = (peaks.value > 0.5) & (peaks.ratio < settings.max_peak_ratio) & ~peaks.border
+    # offset (raw px) of the raw chip from the prediction: template pixel k (centre p0 + f (k - (t-1)/2))
+    # meets coarse search pixel k + d, whose centre is origin + f (k + d + 1/2)
+    cu, ru = cc[usable], rr[usable]
+    dx = np.floor(cu - half) + f * (peaks.dx + t / 2) - cu
+    dy = np.floor(ru - half) + f * (peaks.dy + t / 2) - ru
+    consistent = good.copy()
+    if good.sum() >= MIN_CONSISTENT:
+        mx, my = np.median(dx[good]), np.median(dy[good])
+        consistent &= np.hypot(dx - mx, dy - my) <= 2.0 * f + 4.0
+    n_ok = int(consistent.sum())
+    log.info("coarse pass: factor %d, %d chips, %d usable, %d good, %d consistent", f, cc.size, len(usable),
+             int(good.sum()), n_ok)
+    if n_ok < MIN_CONSISTENT:
+        on_border = int(peaks.border.sum())
+        raise InputError(
+            f"no consistent match between the image and reference {ref.path} within the search range "
+            f"(+-{settings.search:g} m): {n_ok} of {len(usable)} coarse chips agree ({on_border} peak on the border "
+            "of the search area). Either the onboard model is farther off than the search range (increase the "
+            "search range, e.g. to twice the expected onboard error), or the reference does not show the same "
+            "ground (check its overlap, date and CRS)")
+    a = np.stack([np.ones(n_ok), (cu[consistent] - cam.cols / 2) / cam.cols,
+                  (ru[consistent] - cam.rows / 2) / cam.rows], axis=1)
+    coef_x = np.linalg.lstsq(a if n_ok >= 4 else a[:, :1], dx[consistent], rcond=None)[0]
+    coef_y = np.linalg.lstsq(a if n_ok >= 4 else a[:, :1], dy[consistent], rcond=None)[0]
+    pad = np.zeros(3 - coef_x.size)
+    return {"factor": f, "chips": int(cc.size), "consistent": n_ok, "col_plane_px": np.r_[coef_x, pad].tolist(),
+            "row_plane_px": np.r_[coef_y, pad].tolist(),
+            "spread_px": float(np.max(np.hypot(dx[consistent] - np.median(dx[consistent]),
+                                               dy[consistent] - np.median(dy[consistent])))) if n_ok else 0.0}
+
+
+def _plane(coarse: dict, cam, col: np.ndarray, row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    u, v = (col - cam.cols / 2) / cam.cols, (row - cam.rows / 2) / cam.rows
+    a, b = np.array(coarse["col_plane_px"]), np.array(coarse["row_plane_px"])
+    return a[0] + a[1] * u + a[2] * v, b[0] + b[1] * u + b[2] * v
+
+
+# --- fine pass -----------------------------------------------------------------------------------
+def _fine_batch(px, py, col, row, shift_c, shift_r, ref: Reference, raw: _RawImage, nodata,
+                settings: MatchSettings, workers: int) -> dict:
+    """Match one batch: reference chips (b, w, w) sampled at (px, py) against raw search areas
+    centred on (col, row) + integer shifts. Returns per-chip offsets, peaks and reasons."""
+    w, r = settings.window, settings.fine_radius
+    s = w + 2 * r
+    b = col.size
+    win, wx, wy = ref.window(px, py, 3)
+    templates = sample(win, wx, wy, px, py, ref.nodata)
+    # raw search areas: upper-left pixel index of each
+    sc = (np.floor(col) + shift_c - (s - 1) / 2).astype(int)
+    sr = (np.floor(row) + shift_r - (s - 1) / 2).astype(int)
+    outside = (sc < 0) | (sr < 0) | (sc + s > raw.cols) | (sr + s > raw.rows)
+    scc, src = np.clip(sc, 0, raw.cols - s), np.clip(sr, 0, raw.rows - s)
+    bx0, by0 = int(scc.min()), int(src.min())
+    block = raw.window(by0, int(src.max()) + s, bx0, int(scc.max()) + s)[0]
+    k = np.arange(s)
+    search = block[(src - by0)[:, None, None] + k[None, :, None], (scc - bx0)[:, None, None] + k[None, None, :]]
+    search = search.astype(np.float32)
+    if nodata is not None:
+        outside |= (search == nodata).any(axis=(1, 2))
+    no_ref = ~np.isfinite(templates).all(axis=(1, 2))
+    templates = np.where(np.isfinite(templates), templates, 0.0)
+    centre = search[:, r:r + w, r:r + w]
+    texture = np.minimum(centre.std(axis=(1, 2)), templates.std(axis=(1, 2)))
+    c = ncc(templates, search, workers)
+    p = find_peaks(c, 4)
+    # matched image position of the template centre
+    mc = scc + p.dx + (w - 1) / 2 + 0.5
+    mr = src + p.dy + (w - 1) / 2 + 0.5
+    top = np.clip(np.rint(p.dy).astype(int), 0, 2 * r)[:, None, None]
+    left = np.clip(np.rint(p.dx).astype(int), 0, 2 * r)[:, None, None]
+    g = search[np.arange(b)[:, None, None], top + k[None, :w, None], left + k[None, None, :w]]
+    g = (g - g.mean(axis=(1, 2), keepdims=True)) / np.maximum(g.std(axis=(1, 2), keepdims=True), 1e-6)
+    gy, gx = np.gradient(g, axis=(1, 2))
+    rho = np.clip(p.value, 1e-3, 1.0)
+    sig = np.sqrt(0.5 * ((1 - rho) / np.maximum((gx * gx).sum(axis=(1, 2)), 1e-9)
+                         + (1 - rho) / np.maximum((gy * gy).sum(axis=(1, 2)), 1e-9)))
+    return {"col": mc, "row": mr, "value": p.value, "ratio": p.ratio, "sigma": np.maximum(sig, SIGMA_FLOOR),
+            "reasons": _reasons(outside, no_ref, texture, p, settings)}
+
+
+def _reasons(outside, no_ref, texture, p: Peaks, settings: MatchSettings) -> np.ndarray:
+    """Index into REASONS of each chip's first failed test; -1 for a match that passes."""
+    tests = [(1, outside), (3, no_ref), (4, texture < settings.min_texture), (5, p.value < settings.min_correlation),
+             (6, p.ratio > settings.max_peak_ratio), (7, p.border)]
+    reason = np.full(outside.size, -1)
+    for index, failed in reversed(tests):
+        reason = np.where(failed, index, reason)
+    return reason
+
+
+def _open_checked(scene: SceneModel, camera: int, image_path):
+    """(raw image in memory or by window, its nodata) after checking its size and contrast."""
+    cam = scene.cameras[camera]
+    src = _open_raw(image_path, cam)
+    band = src.GetRasterBand(1)
+    step = max(1, min(cam.cols, cam.rows) // 256)
+    check_not_constant("image", str(image_path), band.ReadAsArray(buf_xsize=cam.cols // step,
+                                                                  buf_ysize=cam.rows // step).astype(np.float32))
+    return src, band.GetNoDataValue()
+
+
+@dataclass
+class _GridMatch:
+    """Per grid point (n,): its position (col, row), the matched position, correlation, peak
+    ratio, sigma, the reference position matching the grid point itself (ref_col, ref_row: GDAL
+    px of the reference's array; the local affine map applied to the match's offset), the ECEF
+    ground (n, 3) of the grid point and the reason index (-1: passed)."""
+    col: np.ndarray
+    row: np.ndarray
+    out: dict
+    ground: np.ndarray
+    reasons: np.ndarray
+    near_seam: int
+    coarse: dict
+    seconds: float
+
+    def rejected(self) -> dict:
+        return {REASONS[0]: self.near_seam,
+                **{REASONS[i]: int((self.reasons == i).sum()) for i in range(1, len(REASONS))}}
+
+
+def _match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, gsd: float,
+                settings: MatchSettings, report, cancelled) -> _GridMatch:
+    """Match the grid of camera ``camera``'s raw image against ``ref`` (coarse, then fine pass)."""
+    cam = scene.cameras[camera]
+    src, nodata = _open_checked(scene, camera, image_path)
+    report(0.01, "reading the images")
+    raw = _RawImage(image_path, src, MEMORY_BUDGET)
+    start = time.perf_counter()
+    report(0.02, "coarse pass: looking for the onboard model's offset")
+    coarse = coarse_offsets(scene, camera, dem, ref, raw, gsd, settings)
+    log.info("coarse offset plane: col %s, row %s px", coarse["col_plane_px"], coarse["row_plane_px"])
+    half = (settings.window - 1) / 2
+    h = int(half)
+    col, row, near_seam = grid_points(cam, settings, int(half + settings.fine_radius + 1))
+    if col.size == 0:
+        raise InputError(f"no grid point fits in the image ({cam.cols} x {cam.rows} px) with window "
+                         f"{settings.window} px and spacing {settings.spacing:g} px")
+    shift_c, shift_r = (np.rint(v).astype(int) for v in _plane(coarse, cam, col, row))
+    order = np.argsort(np.floor(row / (settings.spacing * 8)) * cam.cols + col, kind="stable")
+    batches = [order[i:i + settings.batch] for i in range(0, order.size, settings.batch)]
+    workers = settings.workers or os.cpu_count() or 1
+    out = {k: np.full(col.size, np.nan) for k in ("col", "row", "value", "ratio", "sigma", "ref_col", "ref_row")}
+    ground = np.full((col.size, 3), np.nan)
+    reasons = np.full(col.size, 2)
+
+    def run(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Predict and match one batch of grid points (indices idx)."""
+        if cancelled():
+            raise Cancelled("matching cancelled by the user")
+        px, py, g = predicted_positions(scene, camera, dem, ref, col[idx], row[idx], half, settings.window, 1.0)
+        ok = np.isfinite(g).all(axis=1) & np.isfinite(px).all(axis=(1, 2)) & np.isfinite(py).all(axis=(1, 2))
+        if not ok.any():
+            return idx[:0], g[:0], {}
+        px, py, idx = px[ok], py[ok], idx[ok]
+        res = _fine_batch(px, py, col[idx], row[idx], shift_c[idx], shift_r[idx], ref, raw, nodata, settings, 1)
+        # the reference position of the grid point's own match: centre minus the local map of the offset
+        dc, dr = res["col"] - col[idx], res["row"] - row[idx]
+        jx = ((px[:, h, h + 1] - px[:, h, h - 1]) / 2, (px[:, h + 1, h] - px[:, h - 1, h]) / 2)
+        jy = ((py[:, h, h + 1] - py[:, h, h - 1]) / 2, (py[:, h + 1, h] - py[:, h - 1, h]) / 2)
+        res["ref_col"] = px[:, h, h] + 0.5 - jx[0] * dc - jx[1] * dr
+        res["ref_row"] = py[:, h, h] + 0.5 - jy[0] * dc - jy[1] * dr
+        return idx, g[ok], res
+
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for n, (idx, g, res) in enumerate(pool.map(run, batches)):
+            if idx.size:
+                for k in out:
+                    out[k][idx] = res[k]
+                reasons[idx], ground[idx] = res["reasons"], g
+            report(0.1 + 0.85 * (n + 1) / len(batches), None)
+    return _GridMatch(col, row, out, ground, reasons, near_seam, coarse, time.perf_counter() - start)
+
+
+def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
+               settings: MatchSettings = MatchSettings(),
+               progress: Callable[[float, str | None], None] | None = None,
+               is_cancelled: Callable[[], bool] | None = None) -> MatchResult:
+    """Ground control points for camera ``camera`` of ``scene`` by matching its raw image
+    (``image_path``) against a reference orthoimage over ``dem`` (core.dem.Dem or
+    ConstantHeight; heights of the GCPs come from it). See the module docstring."""
+    settings.validate()
+    report = progress or (lambda fraction, message=None: None)
+    cancelled = is_cancelled or (lambda: False)
+    cam = scene.cameras[camera]
+    ref = Reference(reference_path)
+    gsd = float(scene.info.get("gsd_m") or _gsd(scene, camera, dem))
+    _check_overlap(scene, camera, dem, ref, settings.search)
+    m = _match_grid(scene, camera, image_path, ref, dem, gsd, settings, report, cancelled)
+    ok = m.reasons < 0
+    rejected = m.rejected()
+    n, total = int(ok.sum()), int(m.col.size + m.near_seam)
+    if n == 0:
+        raise InputError(f"no point of {total} matched: " + _reason_text(rejected) +
+                         ". Lower the quality threshold, enlarge the window, or check the reference")
+    lon, lat, h = ecef_to_geodetic(m.ground[ok])
+    table = GcpTable(id=np.char.add("M", (np.nonzero(ok)[0] + 1).astype(str)), role="control", camera=cam.name,
+                     col=m.out["col"][ok], row=m.out["row"][ok], lon=lon, lat=lat, h=h, sigma_px=m.out["sigma"][ok],
+                     sigma_xy=0.5 * ref.gsd if settings.sigma_xy is None else settings.sigma_xy,
+                     sigma_z=settings.sigma_z)
+    log.info("matched %d of %d grid points in %.2f s; rejected: %s", n, total, m.seconds, _reason_text(rejected))
+    return MatchResult(table, m.out["value"][ok], m.out["ratio"][ok],
+                       np.stack([m.out["col"][ok] - m.col[ok], m.out["row"][ok] - m.row[ok]], axis=1),
+                       total, rejected, m.coarse, m.seconds)
+
+
+def match_tiepoints(scene: SceneModel, images: dict, dem, settings: MatchSettings = MatchSettings(search=300.0),
+                    base: int = 0, progress: Callable[[float, str | None], None] | None = None,
+                    is_cancelled: Callable[[], bool] | None = None) -> tuple[TieTable, dict]:
+    """Tie points between camera ``base`` of ``scene`` and every other camera of ``images``
+    ({camera index: raw image path}). Each other camera's image is resampled into the base
+    image's geometry through the onboard model on ``dem`` (the common ground geometry, so the
+    view angles do not defeat correlation) and matched like a reference; a grid point that
+    matches in k cameras is one tie point observed k + 1 times (its base position is the grid
+    point itself, the others the matched positions mapped back to it through the local map
+    base -> camera). ``search`` (m) bounds the cameras' relative error. Returns the table and
+    {camera name: rejected counts by reason} (REASONS, 'outside the reference' named
+    OUTSIDE_OTHER: the window leaves that camera's image). InputError when no grid point
+    matches in any camera, with the counts."""
+    settings.validate()
+    report = progress or (lambda fraction, message=None: None)
+    cancelled = is_cancelled or (lambda: False)
+    if base not in images or len(images) < 2:
+        raise InputError("tie points need the base camera's image and at least one other camera's")
+    gsd = float(scene.info.get("gsd_m") or _gsd(scene, base, dem))
+    observations, rejected = [], {}
+    others = [k for k in sorted(images) if k != base]
+    for n, k in enumerate(others):
+        ref = ImageReference(scene, k, images[k], gsd)
+        m = _match_grid(scene, base, images[base], ref, dem, gsd, settings,
+                        lambda f, msg=None, n=n: report((n + f) / len(others), msg), cancelled)
+        ok = m.reasons < 0
+        rejected[scene.cameras[k].name] = {OUTSIDE_OTHER if r == REASONS[3] else r: v for r, v in m.rejected().items()}
+        ids = np.char.add("T", (np.nonzero(ok)[0] + 1).astype(str))
+        observations.append((ids, scene.cameras[base].name, m.col[ok], m.row[ok], m.out["sigma"][ok]))
+        observations.append((ids, scene.cameras[k].name, m.out["ref_col"][ok], m.out["ref_row"][ok],
+                             m.out["sigma"][ok]))
+    if not any(o[0].size for o in observations):
+        raise InputError("no tie point matched between camera " + scene.cameras[base].name + " and the others: "
+                         + "; ".join(f"{name}: {_reason_text(r)}" for name, r in rejected.items())
+                         + ". Lower the quality threshold, enlarge the window or the search range, or check that "
+                           "the images are the scene's")
+    ids, cams, col, row, sigma = (np.concatenate([np.broadcast_to(o[i], o[0].shape) for o in observations])
+                                  for i in range(5))
+    # the base observation of a point matched in several cameras once
+    _, first = np.unique(np.char.add(np.char.add(ids, "|"), cams), return_index=True)
+    keep = np.sort(first)
+    return TieTable(ids[keep], cams[keep], col[keep], row[keep], sigma[keep], ""), rejected
+
+
+def _reason_text(rejected: dict) -> str:
+    return ", ".join(f"{v} {k}" for k, v in rejected.items() if v) or "none rejected"
+
+
+def _gsd(scene: SceneModel, camera: int, dem) -> float:
+    """Ground distance (m) between two neighbouring pixels at the image centre."""
+    cam = scene.cameras[camera]
+    g = scene.image_to_ground_dem(np.array([cam.cols / 2, cam.cols / 2 + 1]), np.array([cam.rows / 2] * 2), dem,
+                                  camera)
+    return float(np.linalg.norm(g[1] - g[0]))
+
+
+def _check_overlap(scene: SceneModel, camera: int, dem, ref: Reference, search: float) -> None:
+    """InputError when the image footprint (onboard model, widened by the search range) and the
+    reference's extent do not overlap; also checks the reference is not blank there."""
+    lon, lat, _ = ecef_to_geodetic(_image_on_surface(scene, camera, dem, footprint=True))
+    x, y = ref.pixel(lon[:-2], lat[:-2])
+    m = search / ref.gsd
+    x0, x1, y0, y1 = np.min(x) - m, np.max(x) + m, np.min(y) - m, np.max(y) + m
+    if not (np.all(np.isfinite([x0, x1, y0, y1])) and x1 > 0 and y1 > 0 and x0 < ref.cols and y0 < ref.rows):
+        gt = ref.geotransform
+        raise InputError(f"reference {ref.path} does not overlap the scene: its extent ({gt[0]:.0f}, "
+                         f"{gt[3] + ref.rows * gt[5]:.0f}) - ({gt[0] + ref.cols * gt[1]:.0f}, {gt[3]:.0f}) in "
+                         f"{ref.crs.name} lies apart from the image footprint "
+                         f"(lon {np.min(lon):.4f}..{np.max(lon):.4f}, lat {np.min(lat):.4f}..{np.max(lat):.4f})")
+    step = max(1, int(max(ref.cols, ref.rows) // 512))
+    a = ref.data[::step, ::step] if ref.data is not None else ref.dataset().GetRasterBand(1).ReadAsArray(
+        buf_xsize=max(ref.cols // step, 1), buf_ysize=max(ref.rows // step, 1))
+    check_not_constant("reference", ref.path, _blanked(a, ref.nodata))

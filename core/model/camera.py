@@ -1,0 +1,263 @@
+"""Line timing and cameras of a pushbroom scene.
+
+Image coordinates follow GDAL: (col, row) = (x, y) with (0, 0) the upper-left corner of
+the upper-left pixel, so pixel centres are at half-integers. A chip's detector index
+``d`` is continuous with d = 0 at the centre of its first detector.
+
+Camera frame: x along track (flight direction), y across track (to the right), z toward
+the scene. A detector's line of sight in that frame is (ux, uy, 1), where (ux, uy) are
+normalised image-plane coordinates (tangents of the along/across-track view angles).
+The camera frame is turned into the platform body frame by ``installation`` (3x3,
+camera -> body), and the body into ECEF by the attitude.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import MetadataError
+
+DISTORTION_TERMS = ("dxp", "dyp", "df", "k1", "k2", "p1", "p2", "b1", "b2", "b3")
+
+
+@dataclass
+class LineTiming:
+    """Acquisition time of image rows.
+
+    Either constant: ``t = t0 + (row - 0.5) * period`` (t0 is the time of the first
+    row's centre), or a table of (line, time) pairs with line = row - 0.5 (line index
+    of pixel centres), linearly interpolated and extrapolated with the end segments.
+    """
+    t0: float = 0.0
+    period: float = 0.0
+    lines: np.ndarray | None = None
+    times: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.lines is not None:
+            self.lines = np.asarray(self.lines, dtype=float)
+            self.times = np.asarray(self.times, dtype=float)
+            if self.lines.size < 2 or self.lines.size != self.times.size or np.any(np.diff(self.lines) <= 0) \
+                    or np.any(np.diff(self.times) <= 0):
+                raise MetadataError("line timing table needs >= 2 increasing (line, time) pairs")
+        elif not (np.isfinite(self.period) and self.period > 0):
+            raise MetadataError(f"line period must be positive (got {self.period})")
+
+    def time(self, row) -> np.ndarray:
+        """Time (s from epoch) of row coordinate(s) ``row`` (GDAL y)."""
+        line = np.asarray(row, dtype=float) - 0.5
+        if self.lines is None:
+            return self.t0 + line * self.period
+        return _interp_extrapolate(line, self.lines, self.times)
+
+    def row(self, t) -> np.ndarray:
+        """Row coordinate (GDAL y) acquired at time(s) t."""
+        t = np.asarray(t, dtype=float)
+        if self.lines is None:
+            return (t - self.t0) / self.period + 0.5
+        return _interp_extrapolate(t, self.times, self.lines) + 0.5
+
+    def mean_period(self) -> float:
+        """Mean line period (s)."""
+        if self.lines is None:
+            return self.period
+        return float((self.times[-1] - self.times[0]) / (self.lines[-1] - self.lines[0]))
+
+    def to_dict(self) -> dict:
+        if self.lines is None:
+            return {"t0": self.t0, "period": self.period}
+        return {"lines": self.lines.tolist(), "times": self.times.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "LineTiming":
+        if "lines" in d:
+            return cls(lines=np.array(d["lines"]), times=np.array(d["times"]))
+        return cls(float(d["t0"]), float(d["period"]))
+
+
+def _interp_extrapolate(x, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
+    """np.interp with linear extrapolation from the end segments instead of clamping."""
+    x = np.asarray(x, dtype=float)
+    y = np.interp(x, xp, fp)
+    lo, hi = x < xp[0], x > xp[-1]
+    y = np.where(lo, fp[0] + (x - xp[0]) * (fp[1] - fp[0]) / (xp[1] - xp[0]), y)
+    return np.where(hi, fp[-1] + (x - xp[-1]) * (fp[-1] - fp[-2]) / (xp[-1] - xp[-2]), y)
+
+
+@dataclass
+class Chip:
+    """One linear detector array (a CCD chip, or the whole line of a look-angle camera).
+
+    col_offset: image column (GDAL x) of the left edge of detector 0 in the delivered image.
+    n_pixels: detectors in the chip. time_offset: s added to the row time for this chip
+    (along-track displaced chips of a staggered array image a given row at another time).
+
+    Geometry is one of:
+      - focal plane ("focal_plane"): detector d sits at x = x0 + d*pitch*sin(theta),
+        y = y0 + d*pitch*cos(theta) (metres, seed 000 eq. 4 with theta the chip rotation);
+      - look angles ("look_angle"): ux(d), uy(d) given as polynomials (ascending coefficients
+        in d) or as per-detector tables (one value per detector, linearly interpolated).
+    """
+    col_offset: float
+    n_pixels: int
+    kind: str = "focal_plane"
+    time_offset: float = 0.0
+    x0: float = 0.0
+    y0: float = 0.0
+    pitch: float = 0.0
+    theta: float = 0.0
+    ux_poly: np.ndarray | None = None
+    uy_poly: np.ndarray | None = None
+    ux_table: np.ndarray | None = None
+    uy_table: np.ndarray | None = None
+    name: str = ""
+
+    def __post_init__(self):
+        for key in ("ux_poly", "uy_poly", "ux_table", "uy_table"):
+            v = getattr(self, key)
+            if v is not None:
+                setattr(self, key, np.asarray(v, dtype=float))
+        if self.kind == "focal_plane":
+            if not self.pitch > 0:
+                raise MetadataError(f"chip {self.name!r}: detector pitch must be positive")
+        elif self.kind == "look_angle":
+            if (self.ux_poly is None or self.uy_poly is None) and (self.ux_table is None or self.uy_table is None):
+                raise MetadataError(f"chip {self.name!r}: look-angle chip needs ux/uy polynomials or tables")
+        else:
+            raise MetadataError(f"chip {self.name!r}: unknown chip kind {self.kind!r}")
+
+    def focal_plane_xy(self, d) -> tuple[np.ndarray, np.ndarray]:
+        """Focal-plane coordinates (x, y) in metres of detector index d (focal-plane chips)."""
+        d = np.asarray(d, dtype=float)
+        return (self.x0 + d * self.pitch * np.sin(self.theta),
+                self.y0 + d * self.pitch * np.cos(self.theta))
+
+    def look(self, d) -> tuple[np.ndarray, np.ndarray]:
+        """(ux, uy) of detector index d for look-angle chips."""
+        d = np.asarray(d, dtype=float)
+        if self.ux_table is not None:
+            idx = np.arange(self.ux_table.size, dtype=float)
+            return _interp_extrapolate(d, idx, self.ux_table), _interp_extrapolate(d, idx, self.uy_table)
+        return np.polynomial.polynomial.polyval(d, self.ux_poly), np.polynomial.polynomial.polyval(d, self.uy_poly)
+
+    def to_dict(self) -> dict:
+        out = {"name": self.name, "kind": self.kind, "col_offset": self.col_offset, "n_pixels": self.n_pixels,
+               "time_offset": self.time_offset}
+        if self.kind == "focal_plane":
+            out.update(x0=self.x0, y0=self.y0, pitch=self.pitch, theta=self.theta)
+        for key in ("ux_poly", "uy_poly", "ux_table", "uy_table"):
+            v = getattr(self, key)
+            if v is not None:
+                out[key] = v.tolist()
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Chip":
+        return cls(**{k: v for k, v in d.items() if k in cls.__dataclass_fields__})
+
+
+@dataclass
+class Camera:
+    """A pushbroom camera: chips on one focal plane (or look-angle lines), timing and mounting.
+
+    focal_length (m) and the 10 distortion terms of seed 001 eq. 7 (dxp, dyp, df in metres,
+    k1 (1/m^2), k2 (1/m^4), p1, p2 (1/m), b1, b2, b3 (unitless)) apply to focal-plane chips;
+    principal_point (xp, yp) in metres. installation: camera -> body rotation (3, 3).
+    cols, rows: size of the delivered image.
+    """
+    name: str
+    cols: int
+    rows: int
+    timing: LineTiming
+    chips: list[Chip]
+    focal_length: float = 1.0
+    principal_point: tuple[float, float] = (0.0, 0.0)
+    distortion: dict = field(default_factory=dict)
+    installation: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    def __post_init__(self):
+        self.installation = np.asarray(self.installation, dtype=float).reshape(3, 3)
+        self.chips = sorted(self.chips, key=lambda c: c.col_offset)
+        if not self.chips:
+            raise MetadataError(f"camera {self.name!r} has no detector chips")
+        unknown = set(self.distortion) - set(DISTORTION_TERMS)
+        if unknown:
+            raise MetadataError(f"camera {self.name!r}: unknown distortion terms {sorted(unknown)}")
+        self._starts = np.array([c.col_offset for c in self.chips])
+        self._time_offsets = np.array([c.time_offset for c in self.chips])
+
+    # --- columns and chips -------------------------------------------------------------
+    def chip_index(self, col) -> np.ndarray:
+        """Index of the chip that delivers image column(s) ``col`` (the later chip wins overlaps)."""
+        return np.clip(np.searchsorted(self._starts, np.asarray(col, dtype=float), side="right") - 1,
+                       0, len(self.chips) - 1)
+
+    def chip_range(self, k: int) -> tuple[float, float]:
+        """Columns [start, end) that chip k delivers in the image."""
+        end = self.chips[k + 1].col_offset if k + 1 < len(self.chips) else self.chips[k].col_offset + self.chips[k].n_pixels
+        return self.chips[k].col_offset, min(end, self.chips[k].col_offset + self.chips[k].n_pixels)
+
+    def time_offset(self, chip_idx) -> np.ndarray:
+        return self._time_offsets[chip_idx]
+
+    # --- lines of sight ----------------------------------------------------------------
+    def image_plane(self, col, chip_idx=None) -> tuple[np.ndarray, np.ndarray]:
+        """Normalised image-plane coordinates (ux, uy) of column(s) col, on the given chip(s)."""
+        col = np.atleast_1d(np.asarray(col, dtype=float))
+        k = self.chip_index(col) if chip_idx is None else np.broadcast_to(chip_idx, col.shape)
+        ux = np.empty_like(col)
+        uy = np.empty_like(col)
+        for i, chip in enumerate(self.chips):
+            m = k == i
+            if not m.any():
+                continue
+            d = col[m] - chip.col_offset - 0.5
+            if chip.kind == "look_angle":
+                ux[m], uy[m] = chip.look(d)
+            else:
+                ux[m], uy[m] = self._focal_plane_to_normalised(*chip.focal_plane_xy(d))
+        return ux, uy
+
+    def _focal_plane_to_normalised(self, x, y) -> tuple[np.ndarray, np.ndarray]:
+        """Apply principal point, focal length and seed-001 eq. 7 distortion to (x, y) metres."""
+        g = self.distortion.get
+        xb = x - self.principal_point[0]
+        yb = y - self.principal_point[1]
+        if self.distortion:
+            f = self.focal_length
+            r2 = xb * xb + yb * yb
+            radial = g("k1", 0.0) * r2 + g("k2", 0.0) * r2 * r2
+            p1, p2 = g("p1", 0.0), g("p2", 0.0)
+            dx = (g("dxp", 0.0) - g("df", 0.0) / f * xb + radial * xb + p1 * (r2 + 2 * xb * xb)
+                  + 2 * p2 * xb * yb + g("b1", 0.0) * xb + g("b2", 0.0) * yb)
+            dy = (g("dyp", 0.0) - g("df", 0.0) / f * yb + radial * yb + 2 * p1 * xb * yb
+                  + p2 * (r2 + 2 * yb * yb) + g("b3", 0.0) * yb)
+            xb, yb = xb + dx, yb + dy
+        return xb / self.focal_length, yb / self.focal_length
+
+    def los_camera(self, col, chip_idx=None) -> np.ndarray:
+        """Unnormalised lines of sight (n, 3) in the camera frame."""
+        ux, uy = self.image_plane(col, chip_idx)
+        return np.stack([ux, uy, np.ones_like(ux)], axis=-1)
+
+    def column_table(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """(columns, uy) sampled across chip k, for first guesses of the inverse mapping."""
+        c0, c1 = self.chips[k].col_offset, self.chips[k].col_offset + self.chips[k].n_pixels
+        cols = np.linspace(c0, c1, min(self.chips[k].n_pixels, 256) + 1)
+        return cols, self.image_plane(cols, np.full(cols.shape, k))[1]
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "cols": self.cols, "rows": self.rows, "timing": self.timing.to_dict(),
+                "chips": [c.to_dict() for c in self.chips], "focal_length": self.focal_length,
+                "principal_point": list(self.principal_point), "distortion": dict(self.distortion),
+                "installation": self.installation.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Camera":
+        return cls(name=d["name"], cols=int(d["cols"]), rows=int(d["rows"]),
+                   timing=LineTiming.from_dict(d["timing"]), chips=[Chip.from_dict(c) for c in d["chips"]],
+                   focal_length=float(d.get("focal_length", 1.0)),
+                   principal_point=tuple(d.get("principal_point", (0.0, 0.0))),
+                   distortion=dict(d.get("distortion", {})),
+                   installation=np.array(d.get("installation", np.eye(3))))

@@ -1,0 +1,112 @@
+"""Forward intersection: ground points from their image positions in several cameras.
+
+A point seen in two or more cameras (three-line scenes, overlapping scenes of a strip) is
+intersected in two steps:
+
+1. the least-squares meeting point of its apparent lines of sight (closed form per point:
+   sum (I - u u') X = sum (I - u u') S), good to a few metres;
+2. Gauss-Newton on the image residuals through the full model (``ground_to_image``, with
+   aberration and refraction), derivatives by 1 m differences along ECEF axes, so the result
+   is the point whose projections best fit the measurements (px, unit weights).
+
+Used for tie-point start values (onboard model) and for the 3D check figures (adjusted model).
+Arrays: n observations (camera index, col, row, point index), m points.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from .sensor import SceneModel
+
+STEP = 1.0               # m: finite-difference step of the image Jacobian
+ITERATIONS = 5           # Gauss-Newton passes; the start is metres off, each pass gains ~1e4
+TOLERANCE = 1e-4         # m: a step below this for every point ends the iteration
+
+
+@dataclass
+class Intersection:
+    """ground (m,3) ECEF m (NaN where fewer than two rays); rays (m,) number of observations;
+    residuals (n,2) px, predicted minus measured (col, row); condition (m,) m per px: the
+    largest standard deviation of the point for 1 px image noise (large: near-parallel rays);
+    iterations: Gauss-Newton passes run; converged: whether the last step was below TOLERANCE."""
+    ground: np.ndarray
+    rays: np.ndarray
+    residuals: np.ndarray
+    condition: np.ndarray
+    iterations: int
+    converged: bool
+
+
+def _sum_by_point(point: np.ndarray, values: np.ndarray, m: int) -> np.ndarray:
+    flat = values.reshape(values.shape[0], -1)
+    out = np.stack([np.bincount(point, weights=flat[:, k], minlength=m) for k in range(flat.shape[1])], axis=1)
+    return out.reshape((m,) + values.shape[1:])
+
+
+def _rays(scene: SceneModel, camera, col, row) -> tuple[np.ndarray, np.ndarray]:
+    """Origins (n,3) and unit directions (n,3) ECEF of the observations' lines of sight."""
+    origin = np.empty((col.size, 3))
+    direction = np.empty((col.size, 3))
+    for c in np.unique(camera):
+        m = camera == c
+        _, origin[m], _, direction[m] = scene.line_of_sight(col[m], row[m], int(c))
+    return origin, direction
+
+
+def _project(scene: SceneModel, camera, x) -> np.ndarray:
+    """Image positions (n,2) of ECEF points x (n,3) in cameras ``camera`` (n,)."""
+    out = np.empty((x.shape[0], 2))
+    for c in np.unique(camera):
+        m = camera == c
+        out[m] = np.stack(scene.ground_to_image(x[m], int(c)), axis=1)
+    return out
+
+
+def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None = None) -> Intersection:
+    """Intersect the observations (camera (n,) index, col, row (n,) px) of points ``point``
+    (n,) index in 0..n_points-1."""
+    camera = np.asarray(camera, dtype=np.int64)
+    point = np.asarray(point, dtype=np.int64)
+    col, row = np.asarray(col, dtype=float), np.asarray(row, dtype=float)
+    m = int(point.max()) + 1 if n_points is None else int(n_points)
+    if col.size and (point.min() < 0 or point.max() >= m):
+        raise InputError("point indices of the observations are out of range")
+    rays = np.bincount(point, minlength=m)
+    origin, u = _rays(scene, camera, col, row)
+    projector = np.eye(3)[None] - u[:, :, None] * u[:, None, :]          # (n,3,3)
+    A = _sum_by_point(point, projector, m)
+    b = _sum_by_point(point, np.einsum("nij,nj->ni", projector, origin), m)
+    ok = rays >= 2
+    ground = np.full((m, 3), np.nan)
+    ground[ok] = np.linalg.solve(A[ok], b[ok][:, :, None])[:, :, 0]
+    measured = np.stack([col, row], axis=1)
+    use = ok[point]
+    iterations, converged = 0, not use.any()
+    normal = np.zeros((m, 3, 3))
+    for iterations in range(1, ITERATIONS + 1 if use.any() else 1):  # none to iterate without a 2-ray point
+        x = ground[point[use]]
+        cam = camera[use]
+        base = _project(scene, cam, x)
+        J = np.stack([(_project(scene, cam, x + STEP * e) - base) / STEP for e in np.eye(3)], axis=2)  # (k,2,3)
+        r = base - measured[use]
+        normal = np.zeros((m, 3, 3))
+        normal[ok] = _sum_by_point(point[use], J.transpose(0, 2, 1) @ J, m)[ok]
+        rhs = _sum_by_point(point[use], np.einsum("kji,kj->ki", J, r), m)
+        good = ok & np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(rhs), axis=1)
+        step = np.zeros((m, 3))
+        step[good] = -np.linalg.solve(normal[good], rhs[good][:, :, None])[:, :, 0]
+        ground[good] += step[good]
+        if np.all(np.linalg.norm(step[good], axis=1) < TOLERANCE):
+            converged = True
+            break
+    residuals = np.full((col.size, 2), np.nan)
+    if use.any():
+        residuals[use] = _project(scene, camera[use], ground[point[use]]) - measured[use]
+    condition = np.full(m, np.inf)
+    if ok.any():
+        with np.errstate(divide="ignore", invalid="ignore"):
+            condition[ok] = np.sqrt(1.0 / np.linalg.eigvalsh(normal[ok])[:, 0])
+    return Intersection(ground, rays, residuals, condition, iterations, converged)

@@ -1,0 +1,131 @@
+"""Rational polynomial (RPC00B) camera models: evaluation, and inversion by Newton.
+
+Ground coordinates are (lon, lat) degrees and ellipsoidal height (m). The model's own image
+coordinates (sample, line) are converted to GDAL (col, row) with ``origin``: the model
+coordinate of the centre of the upper-left pixel (0 for RPC00B/GDAL RPC metadata, 1 for
+DIMAP v2's 1-based convention), so col = sample - origin + 0.5.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConvergenceError, MetadataError
+
+
+def _check_coefficients(model, names: tuple[str, ...], what: str) -> None:
+    """Make each named attribute a (20,) float array; MetadataError naming a bad one."""
+    for k in names:
+        v = np.asarray(getattr(model, k), dtype=float).ravel()
+        if v.size != 20 or not np.all(np.isfinite(v)):
+            raise MetadataError(f"{what} {k} must hold 20 finite numbers (got {v.size})")
+        setattr(model, k, v)
+
+
+def rpc_terms(x, y, z) -> np.ndarray:
+    """The 20 RPC00B monomials (n, 20) of normalised (x = lon, y = lat, z = height), broadcast."""
+    x, y, z = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (x, y, z)))
+    one = np.ones_like(x)
+    return np.stack([one, x, y, z, x * y, x * z, y * z, x * x, y * y, z * z, x * y * z, x ** 3, x * y * y,
+                     x * z * z, x * x * y, y ** 3, y * z * z, x * x * z, y * y * z, z ** 3], axis=-1)
+
+
+@dataclass
+class RpcModel:
+    """Direct RPC00B model ground -> image.
+
+    coefficients: dict with 'line_num', 'line_den', 'samp_num', 'samp_den', each (20,).
+    Offsets/scales: lon, lat (deg), height (m), line, samp (model pixels).
+    """
+    line_num: np.ndarray
+    line_den: np.ndarray
+    samp_num: np.ndarray
+    samp_den: np.ndarray
+    lon_off: float
+    lon_scale: float
+    lat_off: float
+    lat_scale: float
+    height_off: float
+    height_scale: float
+    line_off: float
+    line_scale: float
+    samp_off: float
+    samp_scale: float
+    origin: float = 0.0
+
+    def __post_init__(self):
+        _check_coefficients(self, ("line_num", "line_den", "samp_num", "samp_den"), "RPC coefficient list")
+
+    def ground_to_image(self, lon, lat, h) -> tuple[np.ndarray, np.ndarray]:
+        """GDAL (col, row) of ground points (lon, lat deg, h m)."""
+        t = rpc_terms((np.asarray(lon) - self.lon_off) / self.lon_scale,
+                      (np.asarray(lat) - self.lat_off) / self.lat_scale,
+                      (np.asarray(h) - self.height_off) / self.height_scale)
+        line = (t @ self.line_num) / (t @ self.line_den) * self.line_scale + self.line_off
+        samp = (t @ self.samp_num) / (t @ self.samp_den) * self.samp_scale + self.samp_off
+        return samp - self.origin + 0.5, line - self.origin + 0.5
+
+    def image_to_ground(self, col, row, h, tol: float = 1e-10, max_iter: int = 30, converged_only: bool = False):
+        """(lon, lat) degrees of GDAL image points at ellipsoidal heights h, by Newton on
+        the direct model (Jacobian by finite differences). Without convergence: ConvergenceError,
+        or with ``converged_only`` NaN for the points that did not converge."""
+        col, row, h = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (col, row, h)))
+        lon = np.full(col.shape, self.lon_off)
+        lat = np.full(col.shape, self.lat_off)
+        e_lon, e_lat = 1e-6 * self.lon_scale, 1e-6 * self.lat_scale
+        for _ in range(max_iter):
+            c0, r0 = self.ground_to_image(lon, lat, h)
+            c1, r1 = self.ground_to_image(lon + e_lon, lat, h)
+            c2, r2 = self.ground_to_image(lon, lat + e_lat, h)
+            a, b = (c1 - c0) / e_lon, (c2 - c0) / e_lat
+            c, d = (r1 - r0) / e_lon, (r2 - r0) / e_lat
+            det = a * d - b * c
+            dc, dr = col - c0, row - r0
+            dlon = (d * dc - b * dr) / det
+            dlat = (a * dr - c * dc) / det
+            lon, lat = lon + dlon, lat + dlat
+            if np.nanmax(np.abs(dlon) / self.lon_scale) < tol and np.nanmax(np.abs(dlat) / self.lat_scale) < tol:
+                return lon, lat
+        if converged_only:
+            late = ~((np.abs(dlon) / self.lon_scale < tol) & (np.abs(dlat) / self.lat_scale < tol))
+            return np.where(late, np.nan, lon), np.where(late, np.nan, lat)
+        raise ConvergenceError("RPC inversion did not converge in %d iterations" % max_iter)
+
+
+@dataclass
+class RationalDirectModel:
+    """Rational functions image -> ground (the DIMAP ``Direct_Model``): lon and lat (deg)
+    as ratios of 20-term cubics in normalised (x = sample, y = line, z = height), with the
+    RPC00B monomial order of :func:`rpc_terms`.
+
+    Offsets/scales: samp, line (model pixels), height (m), lon, lat (deg). ``origin`` is the
+    model coordinate of the centre of the upper-left pixel, as in :class:`RpcModel`.
+    """
+    lon_num: np.ndarray
+    lon_den: np.ndarray
+    lat_num: np.ndarray
+    lat_den: np.ndarray
+    samp_off: float
+    samp_scale: float
+    line_off: float
+    line_scale: float
+    height_off: float
+    height_scale: float
+    lon_off: float
+    lon_scale: float
+    lat_off: float
+    lat_scale: float
+    origin: float = 0.0
+
+    def __post_init__(self):
+        _check_coefficients(self, ("lon_num", "lon_den", "lat_num", "lat_den"), "direct rational coefficient list")
+
+    def image_to_ground(self, col, row, h) -> tuple[np.ndarray, np.ndarray]:
+        """(lon, lat) degrees of GDAL image points (col, row) at ellipsoidal heights h (m)."""
+        t = rpc_terms((np.asarray(col, dtype=float) + self.origin - 0.5 - self.samp_off) / self.samp_scale,
+                      (np.asarray(row, dtype=float) + self.origin - 0.5 - self.line_off) / self.line_scale,
+                      (np.asarray(h, dtype=float) - self.height_off) / self.height_scale)
+        lon = (t @ self.lon_num) / (t @ self.lon_den) * self.lon_scale + self.lon_off
+        lat = (t @ self.lat_num) / (t @ self.lat_den) * self.lat_scale + self.lat_off
+        return lon, lat

@@ -1,0 +1,302 @@
+"""Platform trajectory: ephemeris (position, velocity) and attitude (body -> ECEF).
+
+Times are float seconds from the scene epoch. Positions/velocities are ECEF metres and
+m/s, shape (n, 3). Attitude is returned as rotation matrices body -> ECEF, shape (n, 3, 3).
+Every model extrapolates smoothly past its samples (never clamps): line times beyond the
+ends of a product's tables are legitimate.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import MetadataError
+from ..rotations import quat_to_matrix, rotation_from_angles
+from .timebasis import TimeBasis
+
+
+def _lagrange_weights(nodes: np.ndarray, order: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Window start indices (n,) and Lagrange weights (n, order) for sample times ``nodes``."""
+    n_nodes = nodes.size
+    start = np.clip(np.searchsorted(nodes, t) - order // 2, 0, n_nodes - order)
+    idx = start[:, None] + np.arange(order)
+    tw = nodes[idx]
+    diff = t[:, None] - tw
+    # Products over k != j without dividing by diff_j (which may be exactly zero).
+    ones = np.ones((t.size, 1))
+    left = np.cumprod(np.hstack([ones, diff[:, :-1]]), axis=1)
+    right = np.cumprod(np.hstack([ones, diff[:, :0:-1]]), axis=1)[:, ::-1]
+    num = left * right
+    den = np.prod(np.where(np.eye(order, dtype=bool), 1.0, tw[:, :, None] - tw[:, None, :]), axis=2)
+    return start, num / den
+
+
+@dataclass
+class Ephemeris:
+    """Sampled ECEF orbit, Lagrange-interpolated.
+
+    times: (N,) s, strictly increasing; positions: (N, 3) m; velocities: (N, 3) m/s or None
+    (then differentiated from the position interpolant); order: points per Lagrange window.
+    """
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray | None = None
+    order: int = 8
+
+    def __post_init__(self):
+        self.times = np.asarray(self.times, dtype=float)
+        self.positions = np.asarray(self.positions, dtype=float).reshape(-1, 3)
+        if self.velocities is not None:
+            self.velocities = np.asarray(self.velocities, dtype=float).reshape(-1, 3)
+        if self.times.size < 2 or self.times.size != self.positions.shape[0]:
+            raise MetadataError(f"ephemeris needs at least 2 samples with matching times and positions "
+                                f"(got {self.times.size} times, {self.positions.shape[0]} positions)")
+        if not np.all(np.isfinite(self.positions)) or not np.all(np.isfinite(self.times)):
+            raise MetadataError("ephemeris contains non-finite values")
+        if np.any(np.diff(self.times) <= 0):
+            raise MetadataError("ephemeris times are not strictly increasing")
+        self.order = int(min(self.order, self.times.size))
+
+    def position(self, t) -> np.ndarray:
+        """ECEF position (n, 3) m at times t (n,) s."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        start, w = _lagrange_weights(self.times, self.order, t)
+        idx = start[:, None] + np.arange(self.order)
+        return np.einsum("nk,nki->ni", w, self.positions[idx])
+
+    def velocity(self, t) -> np.ndarray:
+        """ECEF velocity (n, 3) m/s at times t (n,) s."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.velocities is not None:
+            start, w = _lagrange_weights(self.times, self.order, t)
+            idx = start[:, None] + np.arange(self.order)
+            return np.einsum("nk,nki->ni", w, self.velocities[idx])
+        # Central difference: 0.05 s balances truncation (~h^2 r omega^3 / 6) and round-off.
+        h = 0.05
+        return (self.position(t + h) - self.position(t - h)) / (2 * h)
+
+    def to_dict(self) -> dict:
+        d = {"times": self.times.tolist(), "positions": self.positions.tolist(), "order": self.order}
+        if self.velocities is not None:
+            d["velocities"] = self.velocities.tolist()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Ephemeris":
+        return cls(np.array(d["times"]), np.array(d["positions"]),
+                   None if d.get("velocities") is None else np.array(d["velocities"]), int(d.get("order", 8)))
+
+
+def _continuous_quaternions(q: np.ndarray) -> np.ndarray:
+    """Flip signs so consecutive quaternions lie in the same hemisphere (q and -q are equal)."""
+    q = np.array(q, dtype=float)
+    flips = np.cumsum(np.r_[0, (np.einsum("ij,ij->i", q[1:], q[:-1]) < 0).astype(int)]) % 2
+    q[flips == 1] *= -1
+    return q
+
+
+@dataclass
+class QuaternionSamples:
+    """Attitude from sampled quaternions (N, 4), scalar first, rotating body -> ECEF.
+
+    Interpolated component-wise with ``order``-point Lagrange windows (2 = linear), then
+    normalised; signs are made continuous first.
+    """
+    times: np.ndarray
+    quaternions: np.ndarray
+    order: int = 4
+
+    def __post_init__(self):
+        self.times = np.asarray(self.times, dtype=float)
+        q = np.asarray(self.quaternions, dtype=float).reshape(-1, 4)
+        if self.times.size < 2 or self.times.size != q.shape[0]:
+            raise MetadataError(f"attitude needs at least 2 samples with matching times and quaternions "
+                                f"(got {self.times.size} times, {q.shape[0]} quaternions)")
+        if not np.all(np.isfinite(q)) or np.any(np.linalg.norm(q, axis=1) < 0.5):
+            raise MetadataError("attitude quaternions contain non-finite or non-unit values")
+        if np.any(np.diff(self.times) <= 0):
+            raise MetadataError("attitude times are not strictly increasing")
+        self.quaternions = _continuous_quaternions(q)
+        self.order = int(min(self.order, self.times.size))
+
+    def rotation(self, t) -> np.ndarray:
+        """Body -> ECEF rotation matrices (n, 3, 3) at times t (n,) s."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        start, w = _lagrange_weights(self.times, self.order, t)
+        idx = start[:, None] + np.arange(self.order)
+        return quat_to_matrix(np.einsum("nk,nki->ni", w, self.quaternions[idx]))
+
+    def to_dict(self) -> dict:
+        return {"kind": "quaternion_samples", "times": self.times.tolist(),
+                "quaternions": self.quaternions.tolist(), "order": self.order}
+
+
+@dataclass
+class QuaternionPolynomial:
+    """Attitude as four polynomials q_i(u), u = (t - offset) / scale, scalar first, body -> ECEF.
+
+    coefficients: (4, degree + 1), ascending powers of u (the Pleiades DIMAP form).
+    """
+    offset: float
+    scale: float
+    coefficients: np.ndarray
+
+    def __post_init__(self):
+        self.coefficients = np.asarray(self.coefficients, dtype=float).reshape(4, -1)
+        if not np.all(np.isfinite(self.coefficients)) or not np.isfinite(self.scale) or self.scale == 0:
+            raise MetadataError("attitude polynomial has non-finite coefficients or a zero scale")
+
+    def quaternion(self, t) -> np.ndarray:
+        """The polynomials' quaternions (n, 4) at times t (n,) s, not normalised."""
+        u = (np.atleast_1d(np.asarray(t, dtype=float)) - self.offset) / self.scale
+        return (u[:, None] ** np.arange(self.coefficients.shape[1])) @ self.coefficients.T
+
+    def rotation(self, t) -> np.ndarray:
+        """Body -> ECEF rotation matrices (n, 3, 3) at times t (n,) s."""
+        return quat_to_matrix(self.quaternion(t))
+
+    def to_dict(self) -> dict:
+        return {"kind": "quaternion_polynomial", "offset": self.offset, "scale": self.scale,
+                "coefficients": self.coefficients.tolist()}
+
+
+def attitude_from_dict(d: dict):
+    """Rebuild an attitude model written by ``to_dict``."""
+    kind = d.get("kind")
+    if kind == "quaternion_samples":
+        return QuaternionSamples(np.array(d["times"]), np.array(d["quaternions"]), int(d.get("order", 4)))
+    if kind == "quaternion_polynomial":
+        return QuaternionPolynomial(float(d["offset"]), float(d["scale"]), np.array(d["coefficients"]))
+    raise MetadataError(f"unknown attitude model kind {kind!r} (expected quaternion_samples or quaternion_polynomial)")
+
+
+@dataclass
+class TrajectoryCorrection:
+    """Corrections estimated by an adjustment, on top of the measured trajectory:
+
+        position(t) = measured position(t) + Bp(t) @ position_coefficients     (ECEF m)
+        rotation(t) = measured rotation(t) @ R(Ba(t) @ attitude_coefficients)   (body frame)
+
+    with R = rotation_from_angles(roll, pitch, yaw) (rad) and Bp, Ba time bases (see
+    :mod:`core.timebasis`). Coefficients: (m, 3) arrays, columns X, Y, Z and roll, pitch, yaw.
+    """
+    position: TimeBasis
+    position_coefficients: np.ndarray
+    attitude: TimeBasis
+    attitude_coefficients: np.ndarray
+
+    def __post_init__(self):
+        self.position_coefficients = np.asarray(self.position_coefficients, dtype=float).reshape(-1, 3)
+        self.attitude_coefficients = np.asarray(self.attitude_coefficients, dtype=float).reshape(-1, 3)
+        for name, basis, coef in (("position", self.position, self.position_coefficients),
+                                  ("attitude", self.attitude, self.attitude_coefficients)):
+            if coef.shape[0] != basis.size or not np.all(np.isfinite(coef)):
+                raise MetadataError(f"trajectory correction: {name} needs {basis.size} finite rows of 3 "
+                                    f"coefficients (got {coef.shape[0]})")
+
+    def offsets(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position offset (n,3) m, velocity offset (n,3) m/s, attitude angles (n,3) rad) at t."""
+        return (self.position.matrix(t) @ self.position_coefficients,
+                self.position.derivative(t) @ self.position_coefficients,
+                self.attitude.matrix(t) @ self.attitude_coefficients)
+
+    def apply(self, t, pos, vel, rot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The corrected (position, velocity, rotation) from measured ones at times t."""
+        dp, dv, angles = self.offsets(np.atleast_1d(np.asarray(t, dtype=float)))
+        return pos + dp, vel + dv, rot @ rotation_from_angles(angles[:, 0], angles[:, 1], angles[:, 2])
+
+    def to_dict(self) -> dict:
+        return {"position": {"basis": self.position.to_dict(), "coefficients": self.position_coefficients.tolist()},
+                "attitude": {"basis": self.attitude.to_dict(), "coefficients": self.attitude_coefficients.tolist()}}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TrajectoryCorrection":
+        return cls(TimeBasis.from_dict(d["position"]["basis"]), np.array(d["position"]["coefficients"]),
+                   TimeBasis.from_dict(d["attitude"]["basis"]), np.array(d["attitude"]["coefficients"]))
+
+
+@dataclass
+class Platform:
+    """Ephemeris plus attitude (plus an adjustment's correction, if any), with a dense sampled
+    cache for fast repeated evaluation.
+
+    ``camera_corrections`` (camera name -> correction) are written by an adjustment with one
+    trajectory correction per camera (seed 003 Plan A): a camera listed there sees the measured
+    trajectory under its own correction instead of ``correction`` (:meth:`for_camera`).
+
+    The cache tabulates position, velocity and rotation every ``cache_step`` seconds over
+    [t_min, t_max] and interpolates linearly: at 1 ms steps the error is below 1e-6 m and
+    1e-12 rad for orbital motion, far under any image measurement. Outside the cached
+    span the exact models are evaluated.
+    """
+    ephemeris: Ephemeris
+    attitude: object
+    correction: TrajectoryCorrection | None = None
+    cache_step: float = 1e-3
+    camera_corrections: dict[str, TrajectoryCorrection] = field(default_factory=dict)
+    _cache: tuple | None = field(default=None, repr=False, compare=False)
+    _views: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def for_camera(self, name: str) -> "Platform":
+        """The trajectory camera ``name`` sees: this platform, or (with a correction of its own)
+        the measured trajectory under that correction, made once and kept (with its own cache)."""
+        if name not in self.camera_corrections:
+            return self
+        if name not in self._views:
+            self._views[name] = Platform(self.ephemeris, self.attitude, self.camera_corrections[name],
+                                         self.cache_step)
+        return self._views[name]
+
+    def prepare(self, t_min: float, t_max: float) -> None:
+        """Tabulate the trajectory over [t_min, t_max] s (with a small margin)."""
+        margin = 0.05 * (t_max - t_min) + 10 * self.cache_step
+        t0, t1 = t_min - margin, t_max + margin
+        n = int(np.ceil((t1 - t0) / self.cache_step)) + 1
+        grid = t0 + self.cache_step * np.arange(n)
+        pos, vel, rot = self._exact_state(grid)
+        table = np.concatenate([pos, vel, rot.reshape(n, 9)], axis=1)
+        # Each row holds a sample and the step to the next, so interpolation is one gather.
+        self._cache = (t0, n, np.hstack([table[:-1], np.diff(table, axis=0)]))
+
+    def state(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position (n,3) m, velocity (n,3) m/s, rotation body->ECEF (n,3,3)) at times t (n,) s."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self._cache is None:
+            return self._exact_state(t)
+        t0, n, table = self._cache
+        f = (t - t0) / self.cache_step
+        inside = (f >= 0) & (f <= n - 1)
+        f = np.where(inside, f, 0.0)
+        i = np.minimum(f.astype(np.int64), n - 2)
+        pair = table[i]
+        row = pair[:, :15] + (f - i)[:, None] * pair[:, 15:]
+        if not inside.all():
+            out = ~inside
+            pos, vel, rot = self._exact_state(t[out])
+            row[out] = np.concatenate([pos, vel, rot.reshape(-1, 9)], axis=1)
+        return row[:, 0:3], row[:, 3:6], row[:, 6:15].reshape(-1, 3, 3)
+
+    def measured_state(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position, velocity, rotation) of the measured trajectory alone (no correction)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return self.ephemeris.position(t), self.ephemeris.velocity(t), self.attitude.rotation(t)
+
+    def _exact_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        state = self.measured_state(t)
+        return state if self.correction is None else self.correction.apply(t, *state)
+
+    def to_dict(self) -> dict:
+        d = {"ephemeris": self.ephemeris.to_dict(), "attitude": self.attitude.to_dict()}
+        if self.correction is not None:
+            d["correction"] = self.correction.to_dict()
+        if self.camera_corrections:
+            d["camera_corrections"] = {k: v.to_dict() for k, v in self.camera_corrections.items()}
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Platform":
+        correction = TrajectoryCorrection.from_dict(d["correction"]) if d.get("correction") else None
+        cameras = {str(k): TrajectoryCorrection.from_dict(v) for k, v in (d.get("camera_corrections") or {}).items()}
+        return cls(Ephemeris.from_dict(d["ephemeris"]), attitude_from_dict(d["attitude"]), correction,
+                   camera_corrections=cameras)

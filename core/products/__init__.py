@@ -1,0 +1,1 @@
+"""What an adjusted scene makes: orthoimage, sensor-corrected image, fitted RPC, footprint."""

@@ -1,0 +1,1 @@
+"""Synthetic scenes with known truth (sibling of core/: imports core, core never imports it)."""
