@@ -18,13 +18,19 @@ MODEL_ERROR_SHARE + 2 alpha, rejected at alpha.
 """
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from scipy import stats
 
 from ..observations.gcps import GcpTable
-from ..geodesy import enu_rotations, geodetic_to_ecef
+from ..geodesy import enu_rotations, geodetic_to_ecef, up_vector
 from ..model.intersection import intersect
 from ..model.sensor import SceneModel
+from .problem import image_group
+from .robust import critical
+
+log = logging.getLogger(__name__)
 
 MODEL_ERROR_SHARE = 0.05  # share of check observations that blunders in the check data may explain
 
@@ -153,3 +159,91 @@ def summary_lines(before: dict, after: dict) -> list[str]:
                      + (f"; median geometry {inter['median_condition']:.2f} m per px of image error"
                         if inter.get("median_condition") is not None else ""))
     return lines
+
+
+# --- monoplotted check-point figures ------------------------------------------------------------------
+def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float,
+             scale: dict[str, float] | None = None) -> dict:
+    """Check-point accuracy of a scene: ground -> image residuals (px) and image -> ground at
+    the known height in a local east-north frame (m): RMSE per axis, max, CE90.
+
+    The figures are per observation (a point seen in three cameras counts three times), each
+    monoplotted on its own. ``points``: distinct check point ids; ``observations``: rows.
+
+    Figures over all check observations, and again without the blunders: observations whose
+    image residual exceeds the critical value (at ``alpha``) of what their own sigmas allow
+    (image sigma, planimetric ground sigma over the GSD and the image shift of a height error of
+    sigma_z, per axis), each times its group's variance component factor in ``scale`` (the
+    check points are measured as the control points are: the factors estimated on those make
+    the test independent of the stated sigmas' scale). ``blunders`` counts those observations,
+    ``blunder_points`` the points with any. A model error makes many exceed it:
+    ``blunder_test`` (:func:`core.adjust.checkpoints.blunder_test`) decides, and with
+    ``model_error`` the figures without them are not meaningful.
+    """
+    scale = scale or {}
+    if rows.size == 0:
+        return {"points": 0}
+    res = np.full((rows.size, 2), np.nan)
+    en = np.full((rows.size, 2), np.nan)
+    allowed = np.full(rows.size, np.nan)
+    sub = table.select(rows)
+    ground = sub.ecef()
+    crit = critical(alpha)
+    for c, cam in enumerate(scene.cameras):
+        m = sub.camera == cam.name
+        if not m.any():
+            continue
+        col, row = scene.ground_to_image(ground[m], c)
+        res[m] = np.stack([col - sub.col[m], row - sub.row[m]], axis=1)
+        seen = scene.image_to_ground(sub.col[m], sub.row[m], sub.h[m], c)
+        en[m] = np.einsum("nij,nj->ni", enu_rotations(sub.lon[m], sub.lat[m]), seen - ground[m])[:, :2]
+        # a height error moves the image point by its relief displacement only
+        sigma_z = sub.sigma_z[m] * scale.get("ground_z", 1.0)
+        up = ground[m] + sigma_z[:, None] * up_vector(sub.lon[m], sub.lat[m])
+        relief = np.hypot(*(a - b for a, b in zip(scene.ground_to_image(up, c), (col, row))))
+        sigma_px = sub.sigma_px[m] * scale.get(image_group(cam.name), 1.0)
+        sigma_xy = sub.sigma_xy[m] * scale.get("ground_xy", 1.0)
+        allowed[m] = crit * np.sqrt(sigma_px ** 2 + (sigma_xy / _gsd(scene, c)) ** 2 + relief ** 2)
+    flagged = ~(np.abs(res) <= allowed[:, None]).all(axis=1)
+    test = blunder_test(int(flagged.sum()), rows.size, alpha)
+    return {"points": int(np.unique(sub.id).size), "observations": int(rows.size), **_figures(res, en),
+            "blunders": int(flagged.sum()), "blunder_points": int(np.unique(sub.id[flagged]).size),
+            "blunder_test": test, "model_error": test["model_error"],
+            "without_blunders": _figures(res[~flagged], en[~flagged]),
+            "residuals": res, "en": en, "is_flagged": flagged}
+
+
+def _figures(res: np.ndarray, en: np.ndarray) -> dict:
+    """RMSE per axis, max and CE90 of image residuals (n,2) px and ground errors (n,2) m."""
+    if res.shape[0] == 0:
+        return {"image": None, "ground": None}
+    horizontal = np.hypot(en[:, 0], en[:, 1])
+    px = np.hypot(res[:, 0], res[:, 1])
+    rms = lambda a: float(np.sqrt(np.mean(a * a)))  # noqa: E731
+    return {"image": {"rmse_col": rms(res[:, 0]), "rmse_row": rms(res[:, 1]), "rmse": rms(px), "max": float(px.max())},
+            "ground": {"rmse_east": rms(en[:, 0]), "rmse_north": rms(en[:, 1]), "rmse": rms(horizontal),
+                       "max": float(horizontal.max()), "ce90": float(np.percentile(horizontal, 90))}}
+
+
+def _gsd(scene: SceneModel, camera: int) -> float:
+    """Ground sample distance (m): the distance between neighbouring pixels at the image centre."""
+    cam = scene.cameras[camera]
+    c, r = np.array([cam.cols / 2, cam.cols / 2 + 1]), np.array([cam.rows / 2, cam.rows / 2])
+    g = scene.image_to_ground(c, r, float(np.mean(scene.height_range)), camera)
+    return float(np.linalg.norm(g[1] - g[0]))
+
+
+def check_point_report(figures: dict) -> dict:
+    """The JSON part of :func:`accuracy`'s figures (with their ``intersection``): no per-row arrays."""
+    out = {k: v for k, v in figures.items() if k not in ("residuals", "en", "is_flagged")}
+    out["intersection"] = {k: v for k, v in figures["intersection"].items() if k != "errors"}
+    return out
+
+
+def log_check_points(before: dict, after: dict) -> None:
+    """The check figures, and a model error where it is found."""
+    if after.get("model_error"):
+        log.warning("%s", model_error_message(after))
+    for line in summary_lines(before, after):
+        log.info("check points %s", line)
+

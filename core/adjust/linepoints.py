@@ -38,22 +38,15 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
-from osgeo import ogr
-from scipy import stats
 
 from ..geodesy import ecef_to_geodetic, enu_rotations
-from ..observations.lines import (GroundLines, ImageLines, LineConstraint, LineObservations, LineSegments, _wgs84_3d,
-                                  azimuths, check_image_lines, check_in_scene, direction_check, ground_layer,
-                                  line_constraints, lines_outside, nearest_segments, pair, segment_directions,
-                                  start_points)
-from ..vector_io import LayerData, write_layers
+from ..observations.lines import (GroundLines, ImageLines, LineConstraint, LineObservations, LineSegments, azimuths,
+                                  check_image_lines, check_in_scene, direction_check, line_constraints, lines_outside,
+                                  nearest_segments, pair, segment_directions, start_points)
 from .ties import _listed
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .engine import Statistics, _Problem
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +55,6 @@ HEIGHT_GROUP = "lines_height"
 RELEASE = 1e4          # factor on sigma_across of a line named wrong
 SCREEN_MADS = 10.0      # a-priori screening: robust standard deviations of the lines' misfits
 SCREEN_MIN_M = 50.0     # m: and at least this
-WRONG_SHARE = 0.5       # a line with more than this share of its points failing the point test is wrong
 
 
 @dataclass
@@ -121,7 +113,7 @@ def datum_lines(lines: ControlLines | None) -> tuple[int, bool]:
     if lines is None or len(lines.image) == 0:
         return 0, False
     obs = pair(lines.image, lines.ground)
-    ground = _subset(lines.ground, np.isin(lines.ground.id, obs.keys[np.unique(obs.key)]))
+    ground = subset_lines(lines.ground, np.isin(lines.ground.id, obs.keys[np.unique(obs.key)]))
     return int(np.unique(ground.id).size), segment_directions(LineSegments.from_lines(ground)).determined
 
 
@@ -131,7 +123,7 @@ def set_up_lines(scene, lines: ControlLines | None) -> LineSetUp:
         return LineSetUp.empty()
     obs = pair(lines.image, lines.ground)
     used = np.isin(lines.ground.id, obs.keys[np.unique(obs.key)])
-    ground = _subset(lines.ground, used)
+    ground = subset_lines(lines.ground, used)
     seg = LineSegments.from_lines(ground)
     obs.key = np.searchsorted(seg.keys, obs.keys[obs.key])
     obs.keys = seg.keys
@@ -139,7 +131,7 @@ def set_up_lines(scene, lines: ControlLines | None) -> LineSetUp:
     return LineSetUp(obs, seg, camera, start_points(scene, obs, seg))
 
 
-def _subset(ground: GroundLines, keep: np.ndarray) -> GroundLines:
+def subset_lines(ground: GroundLines, keep: np.ndarray) -> GroundLines:
     """The parts ``keep`` (k,) of ``ground``."""
     vertex = keep[ground.vertex_part()]
     counts = np.diff(ground.start)[keep]
@@ -188,86 +180,6 @@ def group_median(values: np.ndarray, key: np.ndarray, k: int) -> np.ndarray:
 
 
 # --- statistics ------------------------------------------------------------------------------------
-@dataclass
-class LineStatistics:
-    """Per line point (n,): the prior's misfit across the line and in height (m, signed),
-    their redundancy numbers and weights (1/m^2, with the current factors), and the across-line
-    normalised residual w (against the stated sigma times the group's factor, released or not)."""
-    d_across: np.ndarray
-    d_height: np.ndarray
-    r_across: np.ndarray
-    r_height: np.ndarray
-    w_across: np.ndarray
-    w_height: np.ndarray
-    w: np.ndarray
-
-
-def line_statistics(problem: "_Problem", qgg: np.ndarray) -> LineStatistics:
-    """Misfits and redundancy numbers of the line points' across and height constraints;
-    qgg (n,3,3) the cofactors of their ground unknowns (ECEF)."""
-    lines = problem.lines
-    c = lines.constraints(problem.line_ground(), problem.scale, problem.line_flagged)
-    wa = np.einsum("ni,nij,nj->n", c.across, c.weight, c.across)
-    wh = np.einsum("ni,nij,nj->n", c.normal, c.weight, c.normal)
-    r_a = np.clip(1.0 - np.einsum("ni,nij,nj->n", c.across, qgg, c.across) * wa, 0.0, 1.0)
-    r_h = np.clip(1.0 - np.einsum("ni,nij,nj->n", c.normal, qgg, c.normal) * wh, 0.0, 1.0)
-    sigma = lines.seg.sigma_across[c.segment] * problem.scale.get(ACROSS_GROUP, 1.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        w = np.where(r_a > 1e-6, c.d_across / (sigma * np.sqrt(r_a)), 0.0)
-    return LineStatistics(c.d_across, c.d_normal, r_a, r_h, wa, wh, w)
-
-
-def line_group_sums(problem: "_Problem", st: "Statistics", inlier: np.ndarray) -> dict:
-    """(sum of p v^2, redundancy, count) of the groups lines_across and lines_height over the
-    points whose image observation is an inlier, of lines not named wrong."""
-    ls = st.lines
-    if ls is None or ls.d_across.size == 0:
-        return {}
-    good = inlier[problem.line_obs] & ~problem.line_flagged[problem.lines.obs.key]
-    return {ACROSS_GROUP: (float(np.sum(ls.w_across[good] * ls.d_across[good] ** 2)), float(ls.r_across[good].sum()),
-                           int(good.sum())),
-            HEIGHT_GROUP: (float(np.sum(ls.w_height[good] * ls.d_height[good] ** 2)), float(ls.r_height[good].sum()),
-                           int(good.sum()))}
-
-
-def point_scores(problem: "_Problem", st: "Statistics") -> np.ndarray:
-    """(n,) per line point the larger of |w| across the line and of its image residual: the
-    same test while both are weighted (the image residual of a line point lies across the
-    line's image), and whichever is down-weighted keeps the misfit (a point whose image
-    observation the robust step down-weighted sits on its line; a released line's point on
-    its ray)."""
-    return np.maximum(np.abs(st.lines.w), np.abs(st.w[problem.line_obs]).max(axis=1))
-
-
-def line_tests(problem: "_Problem", score: np.ndarray, crit: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per line (K,): whether it fails (see :func:`flag_lines`) and the RMS of its points'
-    scores (|w| / scale, (n,))."""
-    key = problem.lines.obs.key
-    k = problem.lines.obs.keys.size
-    fail = score > crit
-    n = np.bincount(key, minlength=k)
-    share = np.bincount(key, weights=fail, minlength=k) / np.maximum(n, 1)
-    passing = np.bincount(key, weights=~fail, minlength=k)
-    chi2 = np.bincount(key, weights=np.where(fail, 0.0, score ** 2), minlength=k)
-    limit = np.where(passing > 0, stats.chi2.ppf(1.0 - problem.settings.alpha, np.maximum(passing, 1)), np.inf)
-    rms = np.sqrt(np.bincount(key, weights=score ** 2, minlength=k) / np.maximum(n, 1))
-    return (share > WRONG_SHARE) | (chi2 > limit), rms
-
-
-def flag_lines(problem: "_Problem", st: "Statistics", scale: float, crit: float) -> float:
-    """Name the lines that do not fit as a whole (see the module docstring) and release their
-    across-line constraints; returns 1.0 when a line changed side, else 0.0. ``scale``: the
-    robust scale of the normalised residuals of this pass."""
-    if len(problem.lines) == 0:
-        return 0.0
-    fails, rms = line_tests(problem, point_scores(problem, st) / scale, crit)
-    old = problem.line_flagged
-    # As iterated data snooping: only the worst of the new failures (within a factor 2 of the
-    # worst) are released per pass; a wrong line distorts the others' residuals until it is.
-    candidate = fails & ~old
-    worst = float(rms[candidate].max(initial=0.0))
-    problem.line_flagged = (old & fails) | (candidate & (rms >= 0.5 * worst))
-    return float(not np.array_equal(old, problem.line_flagged))
 
 
 # --- checks against a scene and the report -------------------------------------------------------------
@@ -313,43 +225,6 @@ def directions(setup: LineSetUp, n_control: int) -> dict:
     return out
 
 
-def results(problem: "_Problem", adjusted, st: "Statistics", flagged: np.ndarray) -> tuple[dict, dict]:
-    """The report entry and per line point arrays of the lines (see AdjustmentResult.lines)."""
-    lines = problem.lines
-    rows = problem.line_obs
-    crit = float(stats.norm.ppf(1.0 - problem.settings.alpha / 2.0))
-    offsets = ray_offsets(adjusted, lines)
-    before = ray_offsets(problem.scene, lines)
-    lon, lat, h = ecef_to_geodetic(problem.line_ground())
-    line_flag = problem.line_flagged[lines.obs.key]
-    points = {"line_id": lines.line_ids(), "camera": lines.obs.camera, "col": lines.obs.col, "row": lines.obs.row,
-              "res_col": st.v[rows, 0], "res_row": st.v[rows, 1], "w_col": st.w[rows, 0], "w_row": st.w[rows, 1],
-              "w_across": st.lines.w, "weight": problem.factor[rows, 0], "across_m": offsets[:, 0],
-              "height_m": offsets[:, 1], "across_before_m": before[:, 0],
-              "flagged": flagged[rows] | (np.abs(st.lines.w) > crit) | line_flag, "line_flagged": line_flag,
-              "lon": lon, "lat": lat, "h": h}
-    table = per_line(lines, offsets[:, 0], points["flagged"], problem.line_flagged)
-    wrong = table["line_id"][table["flagged"]]
-    if wrong.size:
-        log.warning("%d control line(s) do not fit as a whole (wrong road or shifted in the map); their across-line "
-                    "constraints were released: %s", wrong.size, _listed(wrong))
-    good = ~points["flagged"]
-    rms = lambda a: float(np.sqrt(np.mean(a * a))) if a.size else None  # noqa: E731
-    direction = directions(lines, problem.n_control)
-    if not direction["determined"]:
-        log.warning("control lines: %s", direction["message"])
-    report = {"lines": int(table["line_id"].size), "points": len(lines), "constraints_per_point": 2,
-              "flagged_lines": int(wrong.size), "flagged_line_ids": [str(i) for i in wrong[:1000]],
-              "flagged_points": int((~good).sum()),
-              "across_rmse_m": rms(offsets[good, 0]), "height_rmse_m": rms(offsets[good, 1]),
-              "across_rmse_before_m": rms(before[good, 0]),
-              "image_residuals_px": {"rmse_col": rms(points["res_col"][good]),
-                                     "rmse_row": rms(points["res_row"][good])},
-              "directions": direction, "per_line": {k: v.tolist() for k, v in table.items()}}
-    return report, points
-
-
-
 def check_against_scene(scene, lines: ControlLines) -> tuple[dict, dict, np.ndarray]:
     """What ``pushbroom:importlines`` writes: the lines checked (InputError as
     :func:`check_image_lines` / :func:`core.lines.pair`), per image vertex (n,) the a-priori
@@ -364,23 +239,3 @@ def check_against_scene(scene, lines: ControlLines) -> tuple[dict, dict, np.ndar
     return points, table, lines_outside(lines.ground, scene)
 
 
-def write_line_residuals(path, lines: ControlLines, points: dict, report: dict, files=None) -> None:
-    """One GeoPackage: layer ``line_points`` (points at their adjusted ground, EPSG:4979: per
-    line point line_id, camera, col, row, res_col, res_row (px), across_m, height_m (m, the
-    ray's distance from the line through the adjusted scene), across_before_m, flagged,
-    line_flagged) and layer ``ground_lines`` (the paired lines with points, rms_across_m,
-    max_across_m, points_flagged, flagged = named wrong as a whole)."""
-    geoms = [f"POINT Z ({a!r} {b!r} {c!r})" for a, b, c in zip(points["lon"].tolist(), points["lat"].tolist(),
-                                                                  points["h"].tolist())]
-    columns = {k: points[k] for k in ("line_id", "camera", "col", "row", "res_col", "res_row", "across_m", "height_m",
-                                      "across_before_m")}
-    columns.update(flagged=points["flagged"].astype(int), line_flagged=points["line_flagged"].astype(int))
-    per = report["per_line"]
-    used = np.isin(lines.ground.id, per["line_id"])
-    ground = _subset(lines.ground, used)
-    index = {i: k for k, i in enumerate(per["line_id"])}
-    k = [index[i] for i in ground.id]
-    extra = {name: np.asarray(per[name])[k] for name in ("points", "rms_across_m", "max_across_m", "points_flagged")}
-    extra["flagged"] = np.asarray(per["flagged"], dtype=int)[k]
-    write_layers(path, [LayerData("line_points", _wgs84_3d(), ogr.wkbPoint25D, columns, geoms),
-                        ground_layer(ground, extra)], files)

@@ -21,7 +21,9 @@ from ..observations.gcps import SCENE_METADATA_KEY, GcpTable, Residuals, _wgs84_
 from ..geodesy import A, F, enu_rotations
 from ..model.sensor import SceneModel
 from ..observations.tiepoints import GPKG_LAYER, point_wkt
-from ..vector_io import open_layer, write_layer
+from ..observations.lines import ground_layer
+from ..vector_io import LayerData, open_layer, write_layer, write_layers
+from .linepoints import ControlLines, subset_lines
 
 ogr.UseExceptions()
 
@@ -178,3 +180,26 @@ def _other_fields(source, layer: str | None, n: int) -> dict:
         else:
             out[name] = np.array(["" if v is None else str(v) for v in values], dtype=object)
     return out
+
+
+def write_line_residuals(path, lines: ControlLines, points: dict, report: dict, files=None) -> None:
+    """One GeoPackage: layer ``line_points`` (points at their adjusted ground, EPSG:4979: per
+    line point line_id, camera, col, row, res_col, res_row (px), across_m, height_m (m, the
+    ray's distance from the line through the adjusted scene), across_before_m, flagged,
+    line_flagged) and layer ``ground_lines`` (the paired lines with points, rms_across_m,
+    max_across_m, points_flagged, flagged = named wrong as a whole)."""
+    geoms = [f"POINT Z ({a!r} {b!r} {c!r})" for a, b, c in zip(points["lon"].tolist(), points["lat"].tolist(),
+                                                                  points["h"].tolist())]
+    columns = {k: points[k] for k in ("line_id", "camera", "col", "row", "res_col", "res_row", "across_m", "height_m",
+                                      "across_before_m")}
+    columns.update(flagged=points["flagged"].astype(int), line_flagged=points["line_flagged"].astype(int))
+    per = report["per_line"]
+    used = np.isin(lines.ground.id, per["line_id"])
+    ground = subset_lines(lines.ground, used)
+    index = {i: k for k, i in enumerate(per["line_id"])}
+    k = [index[i] for i in ground.id]
+    extra = {name: np.asarray(per[name])[k] for name in ("points", "rms_across_m", "max_across_m", "points_flagged")}
+    extra["flagged"] = np.asarray(per["flagged"], dtype=int)[k]
+    write_layers(path, [LayerData("line_points", _wgs84_3d(), ogr.wkbPoint25D, columns, geoms),
+                        ground_layer(ground, extra)], files)
+

@@ -68,15 +68,12 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import stats
 
-from .linepoints import line_group_sums
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .engine import Statistics, _Problem
+from .problem import Problem, image_group
+from .statistics import Statistics, line_group_sums
 
 log = logging.getLogger(__name__)
 
@@ -89,6 +86,7 @@ SYSTEMATIC_SHARE = 0.1
 MIN_SYSTEMATIC = 10
 INFLATED_RATIO = 1.5
 MAD_TO_SIGMA = 1.4826
+WRONG_SHARE = 0.5       # a line with more than this share of its points failing the point test is wrong
 MIN_FACTOR = 0.01  # lowest factor on stated sigmas: no measured group is 100 times more precise than stated
 
 
@@ -103,22 +101,18 @@ def truncation(c: float) -> float:
     return float(1.0 - 2.0 * c * stats.norm.pdf(c) / (2.0 * stats.norm.cdf(c) - 1.0))
 
 
-def image_group(camera: str) -> str:
-    return f"image {camera}"
-
-
 def robust_scale(w: np.ndarray, redundancy: np.ndarray) -> float:
     """1.4826 x median |w| of the normalised residuals (n, 2) with a redundancy."""
     live = redundancy > 1e-6
     return max(MAD_TO_SIGMA * float(np.median(np.abs(w[live]))) if live.any() else 1.0, MIN_FACTOR)
 
 
-def inliers(st: "Statistics", scale: float, crit: float) -> np.ndarray:
+def inliers(st: Statistics, scale: float, crit: float) -> np.ndarray:
     """(n,) image observations whose normalised residuals |w| / scale stay within ``crit``."""
     return (np.abs(st.w) <= crit * scale).all(axis=1)
 
 
-def components(problem: "_Problem", st: "Statistics", inlier: np.ndarray) -> dict[str, tuple[float, float, int]]:
+def components(problem: Problem, st: Statistics, inlier: np.ndarray) -> dict[str, tuple[float, float, int]]:
     """(sum of p v^2 with the stated sigmas, redundancy, count) per observation group, over the
     inlier image observations, the control points all of whose observations are inliers, and
     all pseudo-observations."""
@@ -126,7 +120,7 @@ def components(problem: "_Problem", st: "Statistics", inlier: np.ndarray) -> dic
     return {k: (pvv * problem.scale.get(k, 1.0) ** 2, r, n) for k, (pvv, r, n) in out.items()}
 
 
-def _sums(problem: "_Problem", st: "Statistics", inlier: np.ndarray) -> dict[str, tuple[float, float, int]]:
+def _sums(problem: Problem, st: Statistics, inlier: np.ndarray) -> dict[str, tuple[float, float, int]]:
     """(sum of p v^2, redundancy, count) per group with the current weights (see :func:`components`)."""
     out = {}
     for c, cam in enumerate(problem.scene.cameras):
@@ -148,10 +142,11 @@ def estimable(pvv: float, r: float) -> bool:
     return r >= MIN_REDUNDANCY and pvv > 0
 
 
-def rescale(problem: "_Problem", comps: dict, kappa: float) -> float:
+def rescale(problem: Problem, comps: dict, kappa: float) -> float:
     """Set each estimable group's factor on its stated sigmas to sqrt(Omega / (kappa r)) (see
     :func:`components`); returns the largest relative change of a factor (0: none estimable)."""
     change = 0.0
+    scale = dict(problem.scale)
     for group, (pvv, r, _) in comps.items():
         if estimable(pvv, r):
             factor = max(math.sqrt(pvv / (kappa * r)), MIN_FACTOR)
@@ -160,12 +155,12 @@ def rescale(problem: "_Problem", comps: dict, kappa: float) -> float:
                             "(observations far more precise than stated, e.g. exact ones: state their sigmas)",
                             group, math.sqrt(pvv / (kappa * r)), MIN_FACTOR)
             change = max(change, abs(factor / problem.scale.get(group, 1.0) - 1.0))
-            problem.scale[group] = factor
-    problem.rescaled()
+            scale[group] = factor
+    problem.set_scale(scale)
     return change
 
 
-def robust_weights(problem: "_Problem", st: "Statistics", scale: float) -> float:
+def robust_weights(problem: Problem, st: Statistics, scale: float) -> float:
     """One step of the robust method against the normalised residuals divided by ``scale``;
     returns the largest change of a weight factor."""
     crit = critical(problem.settings.alpha)
@@ -177,17 +172,19 @@ def robust_weights(problem: "_Problem", st: "Statistics", scale: float) -> float
             t = np.abs(st.w) / scale
             sigma = problem.image_sigma()[:, None]
             ratio = np.where(t > crit, scale ** 2 * st.redundancy * sigma ** 2 / np.maximum(st.v * st.v, 1e-300), 1.0)
-        problem.factor = np.repeat(np.clip(ratio.min(axis=1), 1e-8, 1.0)[:, None], 2, axis=1)
+        problem.set_weight_factors(np.repeat(np.clip(ratio.min(axis=1), 1e-8, 1.0)[:, None], 2, axis=1))
     elif problem.settings.robust == "snooping":
         live = problem.factor[:, 0] > 0
         score = np.where(live, np.abs(st.w).max(axis=1) / scale, 0.0)
         worst = float(score.max(initial=0.0))
         if worst > crit:
-            problem.factor[score > max(crit, 0.5 * worst)] = 0.0
+            factor = problem.factor.copy()
+            factor[score > max(crit, 0.5 * worst)] = 0.0
+            problem.set_weight_factors(factor)
     return float(np.max(np.abs(problem.factor - old), initial=0.0))
 
 
-def component_report(problem: "_Problem", comps: dict, kappa: float) -> dict:
+def component_report(problem: Problem, comps: dict, kappa: float) -> dict:
     """Per group: observations, redundancy, sum of pvv (with the stated sigmas), the ratio
     sigma0 = estimated / stated sigma, the median stated and estimated sigma with their unit,
     whether the factor was estimated (and used), whether it is held at MIN_FACTOR, and whether
@@ -219,7 +216,7 @@ def rayleigh_p(n: int, resultant: float) -> float:
     return float(min(1.0, math.exp(math.sqrt(1.0 + 4.0 * n + 4.0 * (n * n - rn * rn)) - (1.0 + 2.0 * n))))
 
 
-def breakdown(problem: "_Problem", st: "Statistics", flagged: np.ndarray, inlier: np.ndarray) -> list[dict]:
+def breakdown(problem: Problem, st: Statistics, flagged: np.ndarray, inlier: np.ndarray) -> list[dict]:
     """Signs that the robust estimation broke down, per CCD chip (see the module docstring):
     each a dict with group, kind ('too_many_flagged', 'systematic', 'inflated'), share,
     reliable (False unless a small systematic subset the test removed) and message."""
@@ -267,7 +264,7 @@ def _systematic(name: str, v: np.ndarray, n: int, alpha: float) -> list[dict]:
                         "not random blunders"}]
 
 
-def _inflated(name: str, st: "Statistics", mine: np.ndarray, others: np.ndarray, alpha: float) -> list[dict]:
+def _inflated(name: str, st: Statistics, mine: np.ndarray, others: np.ndarray, alpha: float) -> list[dict]:
     """A chip whose inlier residuals are larger than those of its camera's other chips."""
     r_mine, r_other = float(st.redundancy[mine].sum()), float(st.redundancy[others].sum())
     if r_mine < MIN_REDUNDANCY or r_other < MIN_REDUNDANCY:
@@ -279,3 +276,44 @@ def _inflated(name: str, st: "Statistics", mine: np.ndarray, others: np.ndarray,
              "message": f"{name}: its residuals are {math.sqrt(f):.1f} times those of the camera's other chips "
                         f"(F test, p < {alpha:g}): a systematic error in this chip's observations (e.g. part of "
                         "them shifted by a few sigma) or a model error"}]
+
+
+# --- control lines named wrong as a whole (see core.adjust.linepoints) -----------------------------------
+def point_scores(problem: Problem, st: Statistics) -> np.ndarray:
+    """(n,) per line point the larger of |w| across the line and of its image residual: the
+    same test while both are weighted (the image residual of a line point lies across the
+    line's image), and whichever is down-weighted keeps the misfit (a point whose image
+    observation the robust step down-weighted sits on its line; a released line's point on
+    its ray)."""
+    return np.maximum(np.abs(st.lines.w), np.abs(st.w[problem.line_obs]).max(axis=1))
+
+
+def line_tests(problem: Problem, score: np.ndarray, crit: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per line (K,): whether it fails (see :func:`flag_lines`) and the RMS of its points'
+    scores (|w| / scale, (n,))."""
+    key = problem.lines.obs.key
+    k = problem.lines.obs.keys.size
+    fail = score > crit
+    n = np.bincount(key, minlength=k)
+    share = np.bincount(key, weights=fail, minlength=k) / np.maximum(n, 1)
+    passing = np.bincount(key, weights=~fail, minlength=k)
+    chi2 = np.bincount(key, weights=np.where(fail, 0.0, score ** 2), minlength=k)
+    limit = np.where(passing > 0, stats.chi2.ppf(1.0 - problem.settings.alpha, np.maximum(passing, 1)), np.inf)
+    rms = np.sqrt(np.bincount(key, weights=score ** 2, minlength=k) / np.maximum(n, 1))
+    return (share > WRONG_SHARE) | (chi2 > limit), rms
+
+
+def flag_lines(problem: Problem, st: Statistics, scale: float, crit: float) -> float:
+    """Name the lines that do not fit as a whole (see the module docstring) and release their
+    across-line constraints; returns 1.0 when a line changed side, else 0.0. ``scale``: the
+    robust scale of the normalised residuals of this pass."""
+    if len(problem.lines) == 0:
+        return 0.0
+    fails, rms = line_tests(problem, point_scores(problem, st) / scale, crit)
+    old = problem.line_flagged
+    # As iterated data snooping: only the worst of the new failures (within a factor 2 of the
+    # worst) are released per pass; a wrong line distorts the others' residuals until it is.
+    candidate = fails & ~old
+    worst = float(rms[candidate].max(initial=0.0))
+    problem.set_line_flags((old & fails) | (candidate & (rms >= 0.5 * worst)))
+    return float(not np.array_equal(old, problem.line_flagged))

@@ -8,7 +8,7 @@ with (col, row) the RPC's own image position. Modes (RPC_CORRECTION): ``shift`` 
 Parameter names ``<image>.a0`` ...; units px (a0, b0) and px per px (the rest).
 
 The engine (:mod:`core.adjust.engine`) runs unchanged: :class:`RpcProblem` offers what it uses
-of its ``_Problem`` (observations, parameter columns, linearisation; ground points eliminated,
+of a :class:`core.adjust.problem.Problem` (observations, parameter columns, linearisation; ground points eliminated,
 weighted or fixed, as for a rigorous scene) with the correction instead of the trajectory and
 interior blocks. Residuals are predicted - measured, in pixels, with the RPC's own Jacobian
 with respect to the ground point (central differences of 0.1 m: the RPC is a cubic ratio).
@@ -21,9 +21,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..model.rpcscene import RpcScene
-from .engine import AdjustmentSettings, _Problem
 from .normal import GroundPrior, Linearization, groups
 from .parameters import Parameter, ParameterSet
+from .problem import Problem
+from .settings import AdjustmentSettings
 from .ties import TieSetUp
 
 TERMS = ("a0", "a1", "a2", "b0", "b1", "b2")
@@ -71,7 +72,7 @@ class BiasParameters(ParameterSet):
         return RpcScene(s.rpc, s.camera, self.values().reshape(2, 3), dict(s.info))
 
 
-class RpcProblem(_Problem):
+class RpcProblem(Problem):
     """The engine's problem for an RPC scene (see the module docstring)."""
 
     def __init__(self, scene: RpcScene, table, settings: AdjustmentSettings):

@@ -54,6 +54,8 @@ from typing import Callable
 import numpy as np
 from scipy import stats
 
+from .solver import solve
+
 log = logging.getLogger(__name__)
 
 T_CRITICAL = 1.96        # |value| / sigma below this: not significant (alpha 0.05, two-sided)
@@ -61,7 +63,6 @@ MAX_CORRELATION = 0.98   # |r| with another unknown above this: the control cann
 T_CORRELATED = 5.0       # ... unless the parameter stands out this clearly from its sigma
 MIN_INFORMATION = 1e-4   # share of its observation information left with the others free
 GUARD_ALPHA = 0.05       # significance of the F-test against the conventional adjustment
-SELECTION = ("keep", "significant")
 
 
 def interior_free(problem) -> np.ndarray:
@@ -172,23 +173,14 @@ def _batch(failing: list[dict]) -> list[dict]:
     return batch
 
 
-def _fix(problem, indices) -> None:
-    for i in indices:
-        p = problem.params.params[i]
-        p.mode, p.value = "fixed", 0.0
-    problem.structure()
-
-
 def _same_weight_cost(problem, like) -> float:
     """The least weighted squared residuals of ``problem``'s model with the weights of ``like``
     (same observations in the same order): its variance components and robust weights. The
     self-calibrated solution minimises its own weights' cost; under the conventional run's
     weights it is not the minimum (by far when the two runs' variance components or flags
     differ, e.g. many tie points), so it is re-solved from there (Gauss-Newton, weights held)."""
-    from .engine import solve  # the adjustment's own iterations (the engine imports this module)
     same = copy.deepcopy(problem)
-    same.scale, same.factor = dict(like.scale), like.factor.copy()
-    same.rescaled()
+    same.set_weights_of(like)
     solve(same, lambda *a: None, lambda: False, "guard: ")
     return same.cost()
 
@@ -196,7 +188,8 @@ def _same_weight_cost(problem, like) -> float:
 def select_interior(problem, est, estimate: Callable) -> tuple[object, object, dict]:
     """Remove failing interior parameters and guard against the conventional adjustment.
 
-    problem, est: the solved problem (engine._Problem) and its estimate (engine._Estimate);
+    problem, est: the solved problem (:class:`core.adjust.problem.Problem`) and its estimate
+    (:class:`core.adjust.estimation.Estimate`);
     estimate(problem) re-solves. Returns the problem and estimate to report (the conventional
     ones when self-calibration is not significantly better) and the report section."""
     conventional = copy.deepcopy(problem)
@@ -211,7 +204,7 @@ def select_interior(problem, est, estimate: Callable) -> tuple[object, object, d
         for x in batch:
             log.info("interior parameter %s removed: %s", x["name"], "; ".join(x["fails"]))
             removed.append({k: v for k, v in x.items() if k != "index"} | {"round": rounds + 1})
-        _fix(problem, [x["index"] for x in batch])
+        problem.fix_at_zero([x["index"] for x in batch])
         rounds += 1
         if interior_free(problem).size == 0:
             tests = []
@@ -252,10 +245,8 @@ def _report(rounds: int, removed: list, kept: list) -> dict:
 def _without_interior(problem):
     """``problem`` (changed in place) with every interior parameter fixed at 0 and the
     weights as stated: the conventional adjustment of the same observations."""
-    _fix(problem, interior_free(problem))
-    problem.factor = np.ones_like(problem.factor)
-    problem.scale = {}
-    problem.rescaled()
+    problem.fix_at_zero(interior_free(problem))
+    problem.reset_weights()
     return problem
 
 

@@ -35,15 +35,19 @@ import tests.support.plugin_package  # noqa: E402,F401 (registers the package pu
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from pushbroom_adjust.core.adjust.engine import _Problem, check_determinability, check_inputs, solve  # noqa: E402
+from pushbroom_adjust.core.adjust.checks import check_inputs  # noqa: E402
+from pushbroom_adjust.core.adjust.determinability import check_determinability  # noqa: E402
+from pushbroom_adjust.core.adjust.problem import Problem  # noqa: E402
+from pushbroom_adjust.core.adjust.solver import solve  # noqa: E402
 from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 
 SETTINGS = AdjustmentSettings(interior="HRC-1.*, HRC-3.*", position_model="lagrange", position_interval=20.0,
                               attitude_model="lagrange", attitude_interval=20.0, robust="none")
 
 
-def scipy_problem(problem: _Problem):
+def scipy_problem(problem: Problem):
     """(residual function of x, x0, Jacobian sparsity) of the adjustment's weighted residuals;
     x = [free parameters, ground corrections (3 per point, m ECEF: ground - ground0)]."""
     free = problem.params.free
@@ -88,9 +92,9 @@ def scipy_problem(problem: _Problem):
     return fun, x0, pattern
 
 
-def prepared(scene, table) -> _Problem:
+def prepared(scene, table) -> Problem:
     """The adjustment's problem with the free parameters adjust() solves for."""
-    problem = _Problem(scene, table, SETTINGS)
+    problem = Problem(scene, table, SETTINGS)
     check_determinability(problem, problem.system()[1])
     return problem
 

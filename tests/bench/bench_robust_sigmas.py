@@ -116,7 +116,7 @@ def main() -> None:
     parser.add_argument("--gcps", type=int, default=4000)
     parser.add_argument("--out", type=Path, default=None, help="folder for the simulations (default: temporary)")
     args = parser.parse_args()
-    logging.getLogger("core").setLevel(logging.ERROR)  # the verdict column says what the warnings say
+    logging.getLogger("pushbroom_adjust.core").setLevel(logging.ERROR)  # the verdict column says what the warnings say
     with tempfile.TemporaryDirectory() as tmp:
         args.out = args.out or Path(tmp)
         args.out.mkdir(parents=True, exist_ok=True)

@@ -8,11 +8,14 @@ import pytest
 
 from pushbroom_adjust.core.observations import gcps as G
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
-from pushbroom_adjust.core.adjust.engine import _Problem, check_inputs
+from pushbroom_adjust.core.adjust.checks import check_inputs
+from pushbroom_adjust.core.adjust.problem import Problem
 from pushbroom_adjust.core.adjust.model import Model
 from pushbroom_adjust.core.errors import ConvergenceError, InputError
 from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
-from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.simulation.presets import CAMERA_ERRORS
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 
 CBERS_CHIPS = "HRC-1.*, HRC-3.*"
 
@@ -45,7 +48,7 @@ def test_analytic_jacobian_matches_central_differences(tmp_path, preset, interio
     settings = AdjustmentSettings(interior=interior, position_model="lagrange", position_interval=2.0,
                                   attitude_model="spline", attitude_interval=1.5, robust="none")
     table = check_inputs(scene, _table(result), settings)
-    problem = _Problem(scene, table, settings)
+    problem = Problem(scene, table, settings)
     params = problem.params
     rng = np.random.default_rng(0)
     # a point away from zero, so every term of the derivatives is exercised

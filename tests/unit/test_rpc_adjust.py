@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from osgeo import gdal
 
-from pushbroom_adjust.core.adjust.engine import AdjustmentSettings, adjust
+from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.observations.gcps import GcpTable
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
 from pushbroom_adjust.core.products.rpcfit import rpc_metadata, write_rpc

@@ -1,0 +1,114 @@
+"""Inputs checked before anything is solved: the settings, the GCPs (finite, positive sigmas, in
+this scene's images, seen by it, spread over it), tie points and control lines, and how the datum
+of a block with tie points is held."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..model.rpcscene import RpcScene
+from ..model.sensor import SceneModel
+from ..observations.gcps import GcpTable, resolve_cameras
+from ..observations.tiepoints import TieTable
+from .linepoints import ControlLines, check_lines, datum_lines
+from .problem import Problem
+from .settings import AdjustmentSettings
+from .ties import check_ties, datum
+
+def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
+                 ties: TieTable | None = None, lines: ControlLines | None = None) -> GcpTable:
+    """Cameras resolved and the GCPs (and tie points) checked before anything is solved:
+    finite values, points in this scene's images, enough of them, and spread over the image.
+    Without tie points at least 3 control points are needed; with tie points fewer (0, 1, 2)
+    when the onboard pseudo-observations hold what they leave of the datum (see
+    :func:`core.adjust.ties.datum`); with control lines (checked against the scene) fewer too:
+    lines in several directions hold the datum as points do (the report's lines/directions
+    says when they do not)."""
+    settings.validate()
+    table = resolve_cameras(table, scene)
+    bad = ~np.all(np.isfinite(np.stack([table.col, table.row, table.lon, table.lat, table.h, table.sigma_px,
+                                        table.sigma_xy, table.sigma_z])), axis=0)
+    if bad.any():
+        raise InputError(f"GCPs {', '.join(table.id[bad][:10])} have NaN or missing coordinates or sigmas")
+    if np.any(table.sigma_px <= 0) or (settings.ground == "weighted" and
+                                       (np.any(table.sigma_xy <= 0) or np.any(table.sigma_z <= 0))):
+        raise InputError("GCP sigmas must be positive (sigma_px, and sigma_xy, sigma_z for weighted ground)")
+    control = table.role == "control"
+    with_ties = ties is not None and len(ties) > 0
+    if with_ties:
+        check_ties(scene, ties, table.id)
+    with_lines = lines is not None and len(lines.image) > 0
+    if with_lines:
+        if isinstance(scene, RpcScene):
+            raise InputError("control lines need a rigorous (physical) scene model; an RPC scene's correction is "
+                             "adjusted from GCPs")
+        check_lines(scene, lines)
+    sparse_control = with_ties or with_lines
+    inside = np.zeros(len(table), bool)
+    for c, cam in enumerate(scene.cameras):
+        m = table.camera == cam.name
+        inside[m] = (table.col[m] >= 0) & (table.col[m] <= cam.cols) & (table.row[m] >= 0) & (table.row[m] <= cam.rows)
+    if not inside[control].any() and not (sparse_control and not control.any()):
+        raise InputError("no control point lies inside this scene's images: is the GCP layer from another scene?")
+    if (~inside[control]).sum() > 0.5 * control.sum():
+        raise InputError(f"{int((~inside[control]).sum())} of {int(control.sum())} control points lie outside the "
+                         "scene's images: is the GCP layer from another scene?")
+    if control.any():
+        _check_seen_by_scene(scene, table.select(control))
+    if not sparse_control or np.unique(table.id[control]).size >= 3:
+        _check_spread(scene, table, control)
+    block_datum(table, settings, ties, lines)
+    return table
+
+
+def block_datum(table: GcpTable, settings: AdjustmentSettings, ties: TieTable | None,
+           lines: ControlLines | None = None) -> dict | None:
+    """How the datum of a block with tie points (and control lines) is held (None without tie
+    points; InputError naming a datum defect)."""
+    if ties is None or len(ties) == 0:
+        return None
+    return datum(np.unique(table.id[table.role == "control"]).size, settings.position_sigma, settings.attitude_sigma,
+                 *datum_lines(lines))
+
+
+def _check_seen_by_scene(scene: SceneModel, control: GcpTable) -> None:
+    """Most control points' ground positions must project into the scene's images: onboard
+    errors move them by hundreds of pixels, another scene by its whole size. An evenly spaced
+    sample of 5000 points decides."""
+    control = control.select(np.unique(np.linspace(0, len(control) - 1, min(len(control), 5000)).astype(int)))
+    seen = np.zeros(len(control), bool)
+    for c, cam in enumerate(scene.cameras):
+        m = control.camera == cam.name
+        if m.any():
+            col, row = scene.ground_to_image(control.select(m).ecef(), c)
+            seen[m] = (col > -0.5 * cam.cols) & (col < 1.5 * cam.cols) & (row > -0.5 * cam.rows) & \
+                (row < 1.5 * cam.rows)
+    if seen.mean() < 0.5:
+        raise InputError(f"the ground positions of {int((~seen).sum())} of {len(control)} control points are far "
+                         "outside this scene's images (more than half an image away): is the GCP layer from "
+                         "another scene?")
+
+
+def _check_spread(scene: SceneModel, table: GcpTable, control: np.ndarray) -> None:
+    """Control points on a line or bunched in a corner cannot fix a trajectory."""
+    cam = scene.cameras[0]
+    xy = np.stack([table.col[control] / cam.cols, table.row[control] / cam.rows], axis=1)
+    if xy.shape[0] < 3:
+        raise InputError(f"too few control points: {xy.shape[0]} (at least 3, better many more, are needed)")
+    span = xy.max(axis=0) - xy.min(axis=0)
+    sv = np.linalg.svd(xy - xy.mean(axis=0), compute_uv=False)
+    if sv[1] < 0.01 * sv[0]:
+        raise InputError("the control points lie on a line; the scene's rotation about it cannot be determined. "
+                         "Add points off that line.")
+    if span[0] < 0.1 and span[1] < 0.1:
+        raise InputError(f"the control points cover only {100 * span[0]:.0f}% x {100 * span[1]:.0f}% of the image "
+                         "(one corner); spread them over the scene")
+
+
+def check_redundancy(problem: Problem) -> None:
+    """More equations than unknowns, or an InputError naming what to change."""
+    n_eq, n_unknowns = problem.counts()
+    if n_eq <= n_unknowns:
+        raise InputError(f"too few GCPs for the chosen model: {len(problem.obs)} image observations give {n_eq} "
+                         f"equations for {n_unknowns} unknowns; add GCPs or choose a simpler trajectory model "
+                         "(lower order, longer interval) or fewer interior parameters")

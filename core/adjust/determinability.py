@@ -1,0 +1,107 @@
+"""Parameter sets the observations cannot separate: found from the normal matrix, named, and one of
+each fixed (or the run stopped, as the settings say).
+
+The seeds' CBERS-02B experiments (Zhang et al. 2015, Table II) show that all ten interior
+parameters together cannot be determined; such sets are detected here before solving.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from ..errors import InputError
+from .normal import System
+from .problem import Problem
+
+log = logging.getLogger(__name__)
+
+SINGULAR = 1e-11           # trajectory: smallest / largest eigenvalue of the correlation-scaled matrix
+
+
+# Interior: share of a combination's information left with the trajectory free. Measured on
+# CBERS-02B: non-determinable sets keep <= 1.3e-5 (the middle chip's stagger barely separates
+# yaw from a common chip rotation), the weakest determinable term (focal length) >= 1.6e-3.
+INTERIOR_SINGULAR = 1e-4
+
+
+def non_determinable(N: np.ndarray, names: list[str], trajectory: np.ndarray) -> list[list[str]]:
+    """Sets of parameters the observations cannot separate, each listed with the most
+    involved first.
+
+    Trajectory: (near-)null directions of the correlation-scaled normal matrix (ratio below
+    SINGULAR). Interior (the rest): directions that keep less than INTERIOR_SINGULAR of their
+    information once the trajectory is free (the Schur complement of the trajectory block,
+    scaled by the interior diagonal), named with the trajectory parameters that absorb them.
+    """
+    d = np.sqrt(np.maximum(np.diag(N), 0.0))
+    dead = np.nonzero(d <= 0)[0]
+    if dead.size:
+        return [[names[i]] for i in dead]
+    C = N / np.outer(d, d)
+    t = np.nonzero(trajectory)[0]
+    if t.size == 0:  # an RPC scene's correction: no trajectory to absorb anything
+        vals, vecs = np.linalg.eigh(C)
+        return [_members(vecs[:, k], np.arange(len(names)), names) for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
+    vals, vecs = np.linalg.eigh(C[np.ix_(t, t)])
+    sets = [_members(vecs[:, k], t, names) for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
+    if sets or trajectory.all():
+        return sets
+    i = np.nonzero(~trajectory)[0]
+    absorb = np.linalg.solve(C[np.ix_(t, t)], C[np.ix_(t, i)])
+    vals, vecs = np.linalg.eigh(C[np.ix_(i, i)] - C[np.ix_(i, t)] @ absorb)
+    for k in np.nonzero(vals < INTERIOR_SINGULAR)[0]:
+        inner = _members(vecs[:, k], i, names)
+        outer = _members(-absorb @ vecs[:, k], t, names)[:2]
+        sets.append(inner + outer)
+    return sets
+
+
+def _members(v: np.ndarray, index: np.ndarray, names: list[str]) -> list[str]:
+    big = np.nonzero(np.abs(v) > 0.25 * np.abs(v).max())[0]
+    return [names[index[j]] for j in big[np.argsort(-np.abs(v[big]))]]
+
+
+def _choose_to_fix(problem: Problem, members: list[str]) -> str | None:
+    """The parameter to fix in a non-determinable set: an interior one, preferably of the
+    reference (middle) chip, else the one taking the largest part."""
+    params = problem.params
+    interior = [n for n in members if params.params[params.index[n]].block not in ("position", "attitude")]
+    for n in interior:
+        p = params.params[params.index[n]]
+        if p.block == "chip" and p.chip == len(problem.scene.cameras[p.camera].chips) // 2:
+            return n
+    return interior[0] if interior else None
+
+
+def check_determinability(problem: Problem, system: System) -> list[dict]:
+    """Find non-determinable parameter sets; fix one interior parameter of each (or stop with
+    their names). Returns what was found and done, for the report."""
+    found = []
+    for _ in range(len(problem.params.params)):
+        free = problem.params.free
+        names = [problem.params.params[i].name for i in free]
+        # A weighted interior parameter is determined by its prior (to at most its sigma) whatever
+        # the observations say: like the trajectory it may absorb the others, it is not tested.
+        # Its prior is a small share of the information the image observations give it, so the
+        # share test would call it non-determinable and fix it at 0, discarding the prior.
+        trajectory = np.array([problem.params.params[i].block in ("position", "attitude")
+                               or problem.params.params[i].mode == "weighted" for i in free])
+        sets = non_determinable(system.N, names, trajectory)
+        if not sets:
+            return found
+        members = sets[0]
+        chosen = _choose_to_fix(problem, members) if problem.settings.on_singular == "fix" else None
+        if chosen is None:
+            hint = ("" if problem.settings.on_singular == "stop" and any(
+                problem.params.params[problem.params.index[n]].block not in ("position", "attitude")
+                for n in members) else
+                "; give onboard GPS/attitude sigmas, more or better spread GCPs, or a simpler trajectory model")
+            raise InputError(f"these parameters cannot be determined together from the observations: "
+                             f"{', '.join(members)}{hint}")
+        found.append({"parameters": members, "fixed": chosen})
+        log.warning("not determinable together: %s; fixed %s", ", ".join(members), chosen)
+        problem.fix([chosen])
+        _, system = problem.system()
+    return found
+

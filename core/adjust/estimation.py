@@ -1,0 +1,74 @@
+"""Solve, estimate the variance components and down-weight gross errors, alternately, until
+neither the flags nor the component factors change (see :mod:`core.adjust.robust`)."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from .problem import Problem
+from .robust import (COMPONENT_TOLERANCE, components, critical, flag_lines, inliers, rescale, robust_scale,
+                     robust_weights, truncation)
+from .solver import solve
+from .statistics import Statistics, normalised, statistics
+
+log = logging.getLogger(__name__)
+
+@dataclass
+class Estimate:
+    """The last solution and its statistics, the robust passes' log, whether the loop stopped
+    at its pass limit, the variance components (group -> (sum of p v^2 with the stated sigmas,
+    redundancy, count)) over the inliers (n,) of the last pass, and the truncation factor."""
+    result: dict
+    st: Statistics
+    passes: list
+    at_limit: bool
+    components: dict
+    inlier: np.ndarray
+    kappa: float
+
+
+def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
+    """Solve, estimate the variance components and down-weight gross errors, alternately,
+    until neither the flags nor the component factors change (see :mod:`core.adjust.robust`)."""
+    s = problem.settings
+    crit = critical(s.alpha)
+    robust = s.robust != "none"
+    kappa = truncation(crit) if robust else 1.0
+    iterate = robust or s.variance_components
+    passes = []
+    for k in range(s.max_robust_iterations if iterate else 1):
+        label = f"robust pass {k + 1}: " if robust else f"variance component pass {k + 1}: " if iterate else ""
+        result = solve(problem, progress, is_cancelled, label)
+        st = statistics(problem, result["linearization"], result["system"])
+        # Before any component is estimated the scale is robust: sigma0 of a first pass is
+        # inflated by the gross errors themselves and would hide most of them.
+        scale = robust_scale(st.w, st.redundancy) if robust and (k == 0 or not s.variance_components) else 1.0
+        inlier = inliers(st, scale, crit) if robust else np.ones(len(problem.obs), bool)
+        comps = components(problem, st, inlier)
+        component_change = 0.0
+        if s.variance_components:
+            component_change = rescale(problem, comps, kappa)
+            st.w, scale = normalised(problem, st.v, st.redundancy), 1.0
+        before = problem.factor[:, 0] < 1.0
+        lines_before = problem.line_flagged.copy()
+        change = robust_weights(problem, st, scale) if robust else 0.0
+        if robust:
+            change = max(change, flag_lines(problem, st, scale, crit))
+        after = problem.factor[:, 0] < 1.0
+        passes.append({"pass": k + 1, "sigma0": st.sigma0, "down_weighted": int(after.sum()),
+                       "largest_change": change, "component_change": component_change})
+        log.info("%ssigma0 %.3f, %d observations down-weighted, variance components changed by %.1f %%", label,
+                 st.sigma0, int(after.sum()), 100 * component_change)
+        # Done when no observation changes side (the weights of the down-weighted ones then only
+        # follow their already large residuals and no longer move the solution), or when the
+        # last re-weighting no longer moved the solution measurably (with tens of thousands of
+        # observations some always sit at the critical value and change side back and forth),
+        # no control line changes side, and no variance component changes by more than its tolerance.
+        settled = (change < 1e-3 or (k > 0 and (np.array_equal(before, after) or not result["iterations"]))) and \
+            np.array_equal(lines_before, problem.line_flagged)
+        if not iterate or (settled and component_change < COMPONENT_TOLERANCE):
+            return Estimate(result, st, passes, False, comps, inlier, kappa)
+    return Estimate(result, st, passes, True, comps, inlier, kappa)
+

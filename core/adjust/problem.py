@@ -1,0 +1,352 @@
+"""The unknowns, observations and weights of one adjustment, and one linearisation of it.
+
+:class:`Problem` holds the scene, the parameters (:mod:`core.adjust.parameters`), the image
+observations of control points, tie points and line points in one sorted array, the ground points
+(control, tie, line) with their priors, and the weights: stated sigmas times the variance component
+factor of their group (``scale``) times the robust weight factors (``factor``). The stages that change
+them (variance components, robust weights, wrong lines, interior selection) do so through its methods.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..geodesy import enu_rotations, geodetic_to_ecef
+from ..model.sensor import SceneModel
+from ..model.timebasis import TimeBasis
+from ..observations.gcps import GcpTable
+from . import linepoints
+from .linepoints import LineSetUp
+from .model import Jacobian, Model, build_observations
+from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups
+from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
+from .settings import AdjustmentSettings
+from .ties import TieSetUp, camera_indices
+
+
+def image_group(camera: str) -> str:
+    """The variance component group of a camera's image observations."""
+    return f"image {camera}"
+
+
+class Problem:
+    """The data and unknowns of one adjustment, and one linearisation of it (see the module docstring)."""
+
+    def __init__(self, scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
+                 ties: TieSetUp | None = None, lines: LineSetUp | None = None):
+        self.scene, self.settings = scene, settings
+        ties = ties or TieSetUp.empty()
+        lines = lines or LineSetUp.empty()
+        t_min, t_max = scene.time_span()
+        self.params = ParameterSet(
+            scene,
+            TimeBasis.covering(settings.position_model, t_min, t_max, settings.position_order,
+                               settings.position_interval),
+            TimeBasis.covering(settings.attitude_model, t_min, t_max, settings.attitude_order,
+                               settings.attitude_interval),
+            settings.interior, per_camera=settings.camera_trajectory == "per_camera")
+        _start_from_existing_correction(scene, self.params)
+        control = np.nonzero(table.role == "control")[0]
+        ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
+        sel = control[first]
+        self._set_up_ground(table, sel, ties.ground, lines)
+        # GCP observations, then tie observations (their points after the GCPs'), then line points
+        kind = np.repeat([0, 1, 2], [control.size, len(ties), len(lines)])
+        obs = build_observations(scene, self.params,
+                                 np.r_[camera_indices(scene, table.camera[control]), ties.camera, lines.camera],
+                                 np.r_[table.col[control], ties.table.col[ties.rows], lines.obs.col],
+                                 np.r_[table.row[control], ties.table.row[ties.rows], lines.obs.row],
+                                 np.r_[point, sel.size + ties.point, self.line_first + np.arange(len(lines))],
+                                 np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows], lines.obs.sigma_px],
+                                 self.ground)
+        # Observations sorted by what decides their parameter columns, so that observations
+        # sharing columns are contiguous whatever the free parameters: groups are slices.
+        order = np.lexsort((obs.att_first, obs.pos_first, obs.chip, obs.camera))
+        self.obs = obs.select(order)
+        self.is_tie, self.is_line = kind[order] == 1, kind[order] == 2
+        # rows of the GCP table, of the tie table for ties, of the line points for lines
+        self.rows = np.r_[control, ties.rows, np.arange(len(lines))][order]
+        self.line_obs = np.empty(len(lines), np.int64)  # each line point's observation
+        self.line_obs[self.rows[self.is_line]] = np.nonzero(self.is_line)[0]
+        self.ties = ties
+        self.factor = np.ones((len(self.obs), 2))  # robust weight factors per residual row
+        self.scale: dict[str, float] = {}  # variance component factor on the stated sigmas, per group
+        self.rescaled()
+        self.structure()
+
+    # --- sigmas: stated, times the variance component factor of their group ----------------
+    def rescaled(self) -> None:
+        """Ground weights (m,3,3) ECEF from the stated sigmas and the current factors."""
+        s = np.array([self.scale.get("ground_xy", 1.0)] * 2 + [self.scale.get("ground_z", 1.0)])
+        self.ground_weight = np.einsum("mki,mk,mkj->mij", self.enu, 1.0 / (self.ground_sigma * s) ** 2, self.enu)
+
+    def set_scale(self, scale: dict[str, float]) -> None:
+        """Variance component factors on the stated sigmas, per group (a group not named: 1)."""
+        self.scale = dict(scale)
+        self.rescaled()
+
+    def set_weight_factors(self, factor: np.ndarray) -> None:
+        """Robust weight factors (n, 2) of the image observations' residual rows, in [0, 1]."""
+        self.factor = np.array(factor, dtype=float)
+
+    def set_weights_of(self, other: "Problem") -> None:
+        """The variance component factors and robust weight factors of ``other`` (same observations)."""
+        self.set_weight_factors(other.factor)
+        self.set_scale(other.scale)
+
+    def reset_weights(self) -> None:
+        """Weights as stated: no variance component factors, no robust down-weighting."""
+        self.set_weight_factors(np.ones_like(self.factor))
+        self.set_scale({})
+
+    def set_line_flags(self, flagged: np.ndarray) -> None:
+        """(K,) the control lines named wrong as a whole (their across-line constraints released)."""
+        self.line_flagged = np.asarray(flagged, dtype=bool)
+
+    def fix(self, names: list[str]) -> None:
+        """Fix the parameters ``names`` at their current values and renumber the unknowns."""
+        self.params.fix(names)
+        self.structure()
+
+    def fix_at_zero(self, indices) -> None:
+        """Fix the parameters of ``indices`` (into params.params) at 0 and renumber the unknowns."""
+        for i in indices:
+            p = self.params.params[i]
+            p.mode, p.value = "fixed", 0.0
+        self.structure()
+
+    def image_sigma(self) -> np.ndarray:
+        """(n,) px: each image observation's stated sigma times its camera's factor."""
+        factors = np.array([self.scale.get(image_group(c.name), 1.0) for c in self.scene.cameras])
+        return self.obs.sigma * factors[self.obs.camera]
+
+    def stated_sigma(self, group: str) -> tuple[float | None, str]:
+        """The median stated sigma of a group and its unit (None for interior pseudo-observations,
+        whose sigmas have several units)."""
+        for c, cam in enumerate(self.scene.cameras):
+            if group == image_group(cam.name):
+                return float(np.median(self.obs.sigma[self.obs.camera == c])), "px"
+        if group.startswith("ground"):
+            return float(np.median(self.ground_sigma[:, 2 if group == "ground_z" else 0])), "m"
+        if group in (linepoints.ACROSS_GROUP, linepoints.HEIGHT_GROUP):
+            seg = self.lines.seg
+            return float(np.median(seg.sigma_across if group == linepoints.ACROSS_GROUP else seg.sigma_h)), "m"
+        s = self.settings
+        return {"position pseudo-observations": (s.position_sigma, "m"),
+                "attitude pseudo-observations": (s.attitude_sigma, "rad")}.get(group, (None, ""))
+
+    # --- unknowns and their columns -------------------------------------------------------
+    def _set_up_ground(self, table: GcpTable, sel: np.ndarray, tie_ground: np.ndarray | None = None,
+                       lines: LineSetUp | None = None) -> None:
+        """Ground points: the control points ``sel`` (rows of ``table``, one per point), then the
+        tie points (start values ``tie_ground`` (t, 3) ECEF m), then the line points of ``lines``
+        (from ``line_first``; their prior is the lines', :meth:`ground_prior`). ground0 / ground (m, 3) ECEF m:
+        measured (start) and current positions; for weighted ground the control points' ENU
+        rotations and stated east, north, up sigmas (m, (n, 3)). The ground unknowns are the
+        weighted control points and all tie points (which have no prior): ``estimated`` (k,)
+        their indices in ground, ``ground_point`` (m,) each point's unknown index or -1."""
+        tie_ground = np.zeros((0, 3)) if tie_ground is None else tie_ground
+        self.lines = lines or LineSetUp.empty()
+        # lines named wrong as a whole (released); grossly wrong ones from the start
+        self.line_flagged = linepoints.screen(self.scene, self.lines) if len(self.lines) else \
+            np.zeros(0, bool)
+        self.n_control = int(sel.size)
+        self.line_first = int(sel.size + tie_ground.shape[0])
+        self.ground0 = np.concatenate([geodetic_to_ecef(table.lon[sel], table.lat[sel], table.h[sel]).reshape(-1, 3),
+                                       tie_ground, self.lines.ground])
+        self.ground = self.ground0.copy()
+        self.weighted = self.settings.ground == "weighted"
+        self.enu = enu_rotations(table.lon[sel], table.lat[sel]) if self.weighted else np.zeros((0, 3, 3))
+        self.ground_sigma = np.stack([table.sigma_xy[sel], table.sigma_xy[sel], table.sigma_z[sel]], 1) \
+            if self.weighted else np.zeros((0, 3))
+        self.estimated = np.arange(self.n_control * (not self.weighted), self.ground0.shape[0])
+        self.ground_point = -np.ones(self.ground0.shape[0], np.int64)
+        self.ground_point[self.estimated] = np.arange(self.estimated.size)
+
+    def counts(self) -> tuple[int, int]:
+        """(equations, unknowns): image rows, ground priors and pseudo-observations against the
+        free parameters and the ground unknowns."""
+        n_eq = 2 * len(self.obs) + 3 * self.enu.shape[0] + 2 * len(self.lines) + \
+            sum(p.B.shape[0] for p in self.pseudo())
+        return n_eq, int(self.params.free.size) + 3 * int(self.estimated.size)
+
+    def structure(self) -> None:
+        """Unknown numbering and each observation's columns (after a change of the free set)."""
+        params = self.params
+        free = params.free
+        self.unknown = -np.ones(len(params.params), dtype=np.int64)
+        self.unknown[free] = np.arange(free.size)
+        obs = self.obs
+        pos = params.block_indices("position")
+        att = params.block_indices("attitude")
+        wp, wa = obs.pos_weights.shape[1], obs.att_weights.shape[1]
+        cols = [pos[obs.pos_first[:, None] + np.arange(wp)].reshape(-1, 3 * wp),
+                att[obs.att_first[:, None] + np.arange(wa)].reshape(-1, 3 * wa)]
+        inst = np.stack([params.camera_indices(c, "installation", ANGLES) for c in range(len(params.scene.cameras))])
+        cams = np.stack([params.camera_indices(c, "camera", CAMERA_TERMS) for c in range(len(params.scene.cameras))])
+        chip = -np.ones((len(obs), 4), dtype=np.int64)
+        for c, cam in enumerate(params.scene.cameras):
+            for k in range(len(cam.chips)):
+                _, idx = params.chip_indices(c, k)
+                chip[(obs.camera == c) & (obs.chip == k), :idx.size] = idx
+        cols += [inst[obs.camera], chip, cams[obs.camera]]
+        param_cols = np.concatenate(cols, axis=1)
+        columns = np.where(param_cols >= 0, self.unknown[np.maximum(param_cols, 0)], -1)
+        # Only the column slots some observation uses (fixed terms cost nothing then).
+        self.slots = np.nonzero((columns >= 0).any(axis=0))[0]
+        self.columns = columns[:, self.slots]
+        self.groups = groups(self.columns)
+
+    def values(self, jac: Jacobian) -> np.ndarray:
+        """Jacobian values (n, 2, q) in the column layout of :meth:`structure`."""
+        obs = self.obs
+        wp, wa = obs.pos_weights.shape[1], obs.att_weights.shape[1]
+        out = np.empty((len(obs), 2, self.slots.size))
+        for j, slot in enumerate(self.slots):
+            if slot < 3 * wp:
+                out[:, :, j] = jac.S[:, :, slot % 3] * obs.pos_weights[:, slot // 3, None]
+            elif slot < 3 * (wp + wa):
+                k = slot - 3 * wp
+                out[:, :, j] = jac.angles[:, :, k % 3] * obs.att_weights[:, k // 3, None]
+            else:
+                k = slot - 3 * (wp + wa)
+                block, k = ((jac.installation, k) if k < 3 else (jac.chip, k - 3) if k < 7 else (jac.camera, k - 7))
+                out[:, :, j] = block[:, :, k]
+        return out
+
+    # --- one linearisation --------------------------------------------------------------------
+    def weights(self) -> np.ndarray:
+        return self.factor / self.image_sigma()[:, None] ** 2
+
+    def linearize(self) -> tuple[Linearization, GroundPrior | None]:
+        r, jac = Model(self.scene, self.params).linearize(self.obs, self.ground[self.obs.point])
+        return Linearization(r, self.weights(), self.columns, self.values(jac), jac.ground,
+                             self.ground_point[self.obs.point]), self.ground_prior()
+
+    def ground_prior(self) -> GroundPrior | None:
+        """The ground unknowns' prior: the weighted control points' stated weights, zero for tie
+        points, the rank-2 line constraints at the current ground for line points (the nearest
+        segment refreshed) (None without ground unknowns)."""
+        if self.estimated.size == 0:
+            return None
+        weight = np.concatenate([self.ground_weight, np.zeros((self.estimated.size - self.enu.shape[0], 3, 3))])
+        misfit = (self.ground - self.ground0)[self.estimated]
+        if len(self.lines):
+            c = self.lines.constraints(self.line_ground(), self.scale, self.line_flagged)
+            weight[-len(self.lines):], misfit[-len(self.lines):] = c.weight, c.misfit
+        return GroundPrior(weight, misfit)
+
+    def line_ground(self) -> np.ndarray:
+        """(n, 3) ECEF m: the line points' current ground positions."""
+        return self.ground[self.line_first:]
+
+    def residuals(self) -> np.ndarray:
+        return Model(self.scene, self.params).residuals(self.obs, self.ground[self.obs.point])
+
+    def cost(self) -> float:
+        r = self.residuals()
+        c = float(np.sum(self.weights() * r * r))
+        if self.weighted:
+            e = (self.ground - self.ground0)[:self.n_control]
+            c += float(np.einsum("mi,mij,mj->", e, self.ground_weight, e))
+        if len(self.lines):
+            line = self.lines.constraints(self.line_ground(), self.scale, self.line_flagged)
+            c += float(np.einsum("mi,mij,mj->", line.misfit, line.weight, line.misfit))
+        return c + sum(float(np.sum(p.weight * p.misfit(self.params) ** 2)) for p in self.pseudo())
+
+    def pseudo(self) -> list["Pseudo"]:
+        """Pseudo-observations: trajectory corrections at the knots, weighted parameters."""
+        out = []
+        s = self.settings
+        for block, basis, sigma in (("position", self.params.position_basis, s.position_sigma),
+                                    ("attitude", self.params.attitude_basis, s.attitude_sigma)):
+            if sigma is None:
+                continue
+            times = basis.knot_times() if basis.kind != "polynomial" else \
+                basis.t0 + basis.scale * np.linspace(-1.0, 1.0, basis.size)
+            B = basis.matrix(times)  # (k, m)
+            idx = self.params.block_indices(block).reshape(-1, basis.size, 3)  # per trajectory (camera)
+            group = f"{block} pseudo-observations"
+            for rows in idx:
+                for a in range(3):
+                    out.append(Pseudo(group, rows[:, a], B, 1.0 / (sigma * self.scale.get(group, 1.0)) ** 2))
+        weighted = [i for i, p in enumerate(self.params.params) if p.mode == "weighted"]
+        if weighted:
+            group = "interior pseudo-observations"
+            sigmas = np.array([self.params.params[i].sigma for i in weighted]) * self.scale.get(group, 1.0)
+            out.append(Pseudo(group, np.array(weighted), np.eye(len(weighted)), 1.0 / sigmas ** 2))
+        return out
+
+    def system(self) -> tuple[Linearization, System]:
+        lin, prior = self.linearize()
+        system = assemble(lin, prior, int(self.params.free.size), self.groups)
+        for p in self.pseudo():
+            cols = self.unknown[p.index]
+            m = p.misfit(self.params)
+            w = np.broadcast_to(p.weight, m.shape)
+            system.N[np.ix_(cols, cols)] += p.B.T @ (w[:, None] * p.B)
+            system.b += np.bincount(cols, weights=p.B.T @ (w * m), minlength=system.b.size)
+            system.cost += float(np.sum(w * m * m))
+        return lin, system
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The current parameter values and ground positions, for :meth:`restore`."""
+        return self.params.values(), self.ground.copy()
+
+    def restore(self, state: tuple[np.ndarray, np.ndarray]) -> None:
+        """Back to a :meth:`state` (a refused step)."""
+        self.params.set_values(state[0])
+        self.ground = state[1]
+
+    def step(self, lin: Linearization, system: System, dx: np.ndarray) -> None:
+        values = self.params.values()
+        values[self.params.free] += dx
+        self.params.set_values(values)
+        if self.estimated.size:
+            self.ground = self.ground.copy()
+            self.ground[self.estimated] += back_substitute(lin, system, dx)
+
+
+@dataclass
+class Pseudo:
+    """A group of pseudo-observations B @ x[index] = 0 with weights (1/sigma^2)."""
+    group: str
+    index: np.ndarray
+    B: np.ndarray
+    weight: np.ndarray | float
+
+    def misfit(self, params: ParameterSet) -> np.ndarray:
+        return self.B @ params.values()[self.index]
+
+
+def _start_from_existing_correction(scene: SceneModel, params: ParameterSet) -> None:
+    """Re-adjusting an adjusted scene starts from its correction(s) when the models agree: a
+    shared correction starts every camera's of a per-camera run; corrections per camera
+    cannot start a shared one."""
+    platform = scene.platform
+    own = [cam.name for cam in scene.cameras if cam.name in platform.camera_corrections]
+    if own and not params.per_camera:
+        raise InputError(f"the scene was adjusted with a trajectory correction per camera ({', '.join(own)}); "
+                         "adjust it again with one correction per camera, or adjust the original (onboard) scene")
+    starts = [platform.for_camera(cam.name).correction for cam in scene.cameras] if params.per_camera else \
+        [platform.correction]
+    if all(corr is None for corr in starts):
+        return
+    position, attitude = params.block_values("position"), params.block_values("attitude")
+    m_p, m_a = params.position_basis.size, params.attitude_basis.size
+    for k, corr in enumerate(starts):
+        if corr is None:
+            continue
+        if corr.position.to_dict() != params.position_basis.to_dict() or \
+                corr.attitude.to_dict() != params.attitude_basis.to_dict():
+            raise InputError("the scene was adjusted with another trajectory model; adjust the original (onboard) "
+                             "scene, or choose the same model and interval")
+        position[k * m_p:(k + 1) * m_p] = corr.position_coefficients
+        attitude[k * m_a:(k + 1) * m_a] = corr.attitude_coefficients
+    values = params.values()
+    values[params.block_indices("position")] = position
+    values[params.block_indices("attitude")] = attitude
+    params.set_values(values)
+

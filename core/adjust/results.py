@@ -1,0 +1,275 @@
+"""What an adjustment returns: :class:`AdjustmentResult` (the adjusted scene, the JSON-ready report,
+per-observation arrays of control and check points, tie points and line points) built from the
+final solution and its statistics."""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from ..geodesy import ecef_to_geodetic
+from ..model.sensor import SceneModel
+from ..observations.gcps import GcpTable
+from .checkpoints import accuracy, check_point_report, intersection_accuracy, log_check_points
+from .estimation import Estimate
+from .linepoints import directions, per_line, ray_offsets
+from .problem import Problem
+from .settings import AdjustmentSettings
+from .robust import breakdown, component_report, critical, stated_sigma0
+from .statistics import Statistics, correlated_pairs
+from .ties import _listed, yaw_hold, yaw_sentence
+
+log = logging.getLogger(__name__)
+
+@dataclass
+class AdjustmentResult:
+    """scene: the adjusted scene; report: JSON-ready statistics; points: per input row
+    (control and check) arrays: id, role, camera, col, row, res_col, res_row (px,
+    predicted - measured), res_px, w_col, w_row (normalised residuals), redundancy, weight
+    (final weight factor), flagged (bool); for check points the residuals are those of the
+    adjusted scene's ground -> image. tie_points: per input tie observation (input order)
+    arrays: id, camera, col, row, res_col, res_row (px), w_col, w_row, weight, flagged, and the
+    adjusted ground position of its point lon, lat (deg), h (ellipsoidal m); NaN for the
+    observations of points left out (empty without tie points). lines: per line point (one per
+    image-line vertex) arrays: line_id, camera, col, row, res_col, res_row (px), w_col, w_row,
+    weight, across_m / height_m (m: where the point's ray through the adjusted scene meets its
+    line's height, across the line and in height), across_before_m (the same through the input
+    scene), flagged (the point or its line), line_flagged, lon, lat, h of its adjusted ground
+    point; per line in report["lines"]["per_line"] (empty without lines)."""
+    scene: SceneModel
+    report: dict
+    points: dict = field(default_factory=dict)
+    tie_points: dict = field(default_factory=dict)
+    lines: dict = field(default_factory=dict)
+
+
+def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Estimate,
+            determinability: list) -> AdjustmentResult:
+    crit = critical(problem.settings.alpha)
+    result, st = est.result, est.st
+    params = problem.params
+    free = params.free
+    sigma = np.full(len(params.params), np.nan)
+    sigma[free] = st.sigma0 * np.sqrt(np.diag(st.Q))
+    d = np.sqrt(np.diag(st.Q))
+    corr_matrix = st.Q / np.outer(d, d)
+    parameters = []
+    for i, p in enumerate(params.params):
+        parameters.append({"name": p.name, "block": p.block, "value": p.value, "sigma": None if np.isnan(sigma[i])
+                           else float(sigma[i]), "unit": p.unit, "mode": p.mode,
+                           "significant": None if np.isnan(sigma[i]) or p.block in ("position", "attitude")
+                           else bool(abs(p.value) > 1.96 * sigma[i])})
+    pairs = correlated_pairs(corr_matrix, [params.params[i] for i in free])
+    for pair in pairs:
+        if pair["trajectory"]:
+            log.warning("%s and %s are correlated %.4f: the GCPs hardly separate them (their sigmas say by how "
+                        "much); onboard sigmas (pseudo-observations) would", pair["a"], pair["b"], pair["r"])
+    flagged = np.abs(st.w).max(axis=1) > crit
+    gcp = ~(problem.is_tie | problem.is_line)
+    rows = problem.rows[gcp]
+    n = len(table)
+    points = {"id": table.id, "role": table.role, "camera": table.camera, "col": table.col, "row": table.row,
+              "res_col": np.full(n, np.nan), "res_row": np.full(n, np.nan), "w_col": np.full(n, np.nan),
+              "w_row": np.full(n, np.nan), "redundancy": np.full(n, np.nan), "weight": np.full(n, np.nan),
+              "flagged": np.zeros(n, bool)}
+    points["res_col"][rows], points["res_row"][rows] = st.v[gcp, 0], st.v[gcp, 1]
+    points["w_col"][rows], points["w_row"][rows] = st.w[gcp, 0], st.w[gcp, 1]
+    points["redundancy"][rows] = st.redundancy[gcp].mean(axis=1)
+    points["weight"][rows] = problem.factor[gcp, 0]
+    points["flagged"][rows] = flagged[gcp]
+    checks = np.nonzero(table.role == "check")[0]
+    after = accuracy(adjusted, table, checks, problem.settings.alpha, problem.scale)
+    before = accuracy(problem.scene, table, checks, problem.settings.alpha, problem.scale)
+    if checks.size:
+        points["res_col"][checks], points["res_row"][checks] = after["residuals"][:, 0], after["residuals"][:, 1]
+        points["flagged"][checks] = after["is_flagged"]
+    after["intersection"] = intersection_accuracy(adjusted, table, checks, after.get("is_flagged"))
+    before["intersection"] = intersection_accuracy(problem.scene, table, checks)
+    log_check_points(before, after)
+    points["res_px"] = np.hypot(points["res_col"], points["res_row"])
+    # Robust runs leave their flagged observations out of the residual figures; plain ones keep all.
+    good = ~flagged if problem.settings.robust != "none" else np.ones_like(flagged)
+    # sigma0 of the stated sigmas: over the inliers (with their redundancy) when the variance
+    # components are estimated, else over all observations as weighted.
+    sigma0, dof = stated_sigma0(est.components, est.kappa) if problem.settings.variance_components else \
+        (st.sigma0, st.dof)
+    chi2_lo, chi2_hi = stats.chi2.ppf([0.025, 0.975], dof) / dof
+    problems = breakdown(problem, st, flagged, est.inlier)
+    reliable = all(p["reliable"] for p in problems)
+    for p in problems:
+        log.warning("%s%s", p["message"], "" if p["reliable"] else "; the result is not reliable")
+    tie_ids = problem.ties.table.id[problem.rows[problem.is_tie]]
+    report = {
+        "settings": asdict(problem.settings),
+        "observations": {"control_points": problem.n_control, "image_observations": int(gcp.sum()),
+                         "check_points": int(checks.size), "unknowns": int(free.size),
+                         "ground_unknowns": int(3 * problem.estimated.size),
+                         "tie_points": problem.ties.counts(), "tie_observations": int(problem.is_tie.sum()),
+                         "line_points": int(problem.is_line.sum()),
+                         "degrees_of_freedom": st.dof},
+        "iterations": result["iterations"],
+        "robust": {"method": problem.settings.robust, "passes": est.passes, "critical_w": crit,
+                   "stopped_at_limit": est.at_limit, "flagged": int(flagged.sum()),
+                   "flagged_ids": [str(i) for i in table.id[rows][flagged[gcp]][:1000]],
+                   "flagged_tie_ids": [str(i) for i in tie_ids[flagged[problem.is_tie]][:1000]]},
+        "reliability": {"reliable": reliable, "problems": problems},
+        "sigma0": sigma0,
+        "sigma0_adjusted": st.sigma0,
+        "sigma0_test": {"ratio_bounds_95": [math.sqrt(chi2_lo), math.sqrt(chi2_hi)],
+                        "passed": bool(chi2_lo <= sigma0 ** 2 <= chi2_hi)},
+        "variance_components": component_report(problem, est.components, est.kappa),
+        "determinability": determinability,
+        "parameters": parameters,
+        "high_correlations": pairs,
+        "control_residuals": _residual_summary(st.v[good & gcp]),
+        "control_residuals_per_chip": {
+            f"{c.name}/{ch.name or k + 1}": _residual_summary(st.v[good & gcp & (problem.obs.camera == ci)
+                                                                    & (problem.obs.chip == k)])
+            for ci, c in enumerate(problem.scene.cameras) for k, ch in enumerate(c.chips)},
+        "check_points": check_point_report(after),
+        "check_points_before": check_point_report(before),
+        "trajectory": _trajectory_curves(problem) if problem.params.position_basis is not None else None,
+    }
+    if len(problem.ties.table):
+        report["tie_points"], ties = _tie_points(problem, st, flagged, good)
+    else:
+        ties = {}
+    lines = {}
+    if len(problem.lines):
+        report["lines"], lines = _line_results(problem, adjusted, st, flagged)
+    return AdjustmentResult(adjusted, report, points, ties, lines)
+
+
+def _tie_points(problem: Problem, st: Statistics, flagged: np.ndarray, good: np.ndarray) -> tuple[dict, dict]:
+    """The tie points' report entry and per input observation arrays (see AdjustmentResult).
+
+    Their adjusted ground positions are no absolute accuracy (no known truth; with few GCPs
+    they share the datum's error): the relative accuracy is told by the image residuals."""
+    tie = problem.is_tie
+    table = problem.ties.table
+    n = len(table)
+    rows = problem.rows[tie]
+    out = {"id": table.id, "camera": table.camera, "col": table.col, "row": table.row}
+    for name, values in (("res_col", st.v[tie, 0]), ("res_row", st.v[tie, 1]), ("w_col", st.w[tie, 0]),
+                         ("w_row", st.w[tie, 1]), ("weight", problem.factor[tie, 0])):
+        out[name] = np.full(n, np.nan)
+        out[name][rows] = values
+    out["flagged"] = np.zeros(n, bool)
+    out["flagged"][rows] = flagged[tie]
+    lon, lat, h = (np.full(n, np.nan) for _ in range(3))
+    point = problem.obs.point[tie]
+    lon[rows], lat[rows], h[rows] = ecef_to_geodetic(problem.ground[point])
+    out.update(lon=lon, lat=lat, h=h)
+    cams = problem.scene.cameras
+    report = {**problem.ties.counts(),
+              "flagged": int(flagged[tie].sum()),
+              "span": problem.ties.span(problem.scene),
+              "residuals": _residual_summary(st.v[tie & good]),
+              "residuals_per_camera": {c.name: _residual_summary(st.v[tie & good & (problem.obs.camera == ci)])
+                                       for ci, c in enumerate(cams)},
+              "relative_accuracy": "image residuals of the tie observations (px, flagged ones left out) measure the "
+                                   "block's relative accuracy; the tie points' adjusted ground positions carry the "
+                                   "datum's error as well and are no absolute accuracy figure"}
+    return report, out
+
+
+
+def _line_results(problem: Problem, adjusted, st: Statistics, flagged: np.ndarray) -> tuple[dict, dict]:
+    """The report entry and per line point arrays of the lines (see AdjustmentResult.lines)."""
+    lines = problem.lines
+    rows = problem.line_obs
+    crit = critical(problem.settings.alpha)
+    offsets = ray_offsets(adjusted, lines)
+    before = ray_offsets(problem.scene, lines)
+    lon, lat, h = ecef_to_geodetic(problem.line_ground())
+    line_flag = problem.line_flagged[lines.obs.key]
+    points = {"line_id": lines.line_ids(), "camera": lines.obs.camera, "col": lines.obs.col, "row": lines.obs.row,
+              "res_col": st.v[rows, 0], "res_row": st.v[rows, 1], "w_col": st.w[rows, 0], "w_row": st.w[rows, 1],
+              "w_across": st.lines.w, "weight": problem.factor[rows, 0], "across_m": offsets[:, 0],
+              "height_m": offsets[:, 1], "across_before_m": before[:, 0],
+              "flagged": flagged[rows] | (np.abs(st.lines.w) > crit) | line_flag, "line_flagged": line_flag,
+              "lon": lon, "lat": lat, "h": h}
+    table = per_line(lines, offsets[:, 0], points["flagged"], problem.line_flagged)
+    wrong = table["line_id"][table["flagged"]]
+    if wrong.size:
+        log.warning("%d control line(s) do not fit as a whole (wrong road or shifted in the map); their across-line "
+                    "constraints were released: %s", wrong.size, _listed(wrong))
+    good = ~points["flagged"]
+    rms = lambda a: float(np.sqrt(np.mean(a * a))) if a.size else None  # noqa: E731
+    direction = directions(lines, problem.n_control)
+    if not direction["determined"]:
+        log.warning("control lines: %s", direction["message"])
+    report = {"lines": int(table["line_id"].size), "points": len(lines), "constraints_per_point": 2,
+              "flagged_lines": int(wrong.size), "flagged_line_ids": [str(i) for i in wrong[:1000]],
+              "flagged_points": int((~good).sum()),
+              "across_rmse_m": rms(offsets[good, 0]), "height_rmse_m": rms(offsets[good, 1]),
+              "across_rmse_before_m": rms(before[good, 0]),
+              "image_residuals_px": {"rmse_col": rms(points["res_col"][good]),
+                                     "rmse_row": rms(points["res_row"][good])},
+              "directions": direction, "per_line": {k: v.tolist() for k, v in table.items()}}
+    return report, points
+
+
+
+def with_yaw(held: dict, problem: Problem, st: Statistics) -> dict:
+    """The datum entry with the posterior sigma of the block's yaw (:func:`yaw_hold`) and its
+    sentence appended to the note."""
+    yaw = yaw_hold(problem.params, st.sigma0 ** 2 * st.Q)
+    return {**held, "yaw": yaw, "note": "; ".join(filter(None, (held.get("note"), yaw_sentence(yaw))))}
+
+
+def _residual_summary(v: np.ndarray) -> dict:
+    if v.size == 0:
+        return {"count": 0}
+    px = np.hypot(v[:, 0], v[:, 1])
+    return {"count": int(v.shape[0]), "rmse_col": float(np.sqrt(np.mean(v[:, 0] ** 2))),
+            "rmse_row": float(np.sqrt(np.mean(v[:, 1] ** 2))), "max_col": float(np.max(np.abs(v[:, 0]))),
+            "max_row": float(np.max(np.abs(v[:, 1]))), "max": float(px.max())}
+
+
+def _trajectory_curves(problem: Problem, samples: int = 200) -> dict:
+    """Corrections against time, for plots: position (m, ECEF) and attitude (rad); with one
+    correction per camera, the reference (first) camera's there and every camera's in
+    ``per_camera`` (camera name -> {position, attitude})."""
+    t_min, t_max = problem.scene.time_span()
+    t = np.linspace(t_min, t_max, samples)
+    params = problem.params
+    pb, ab = params.position_basis, params.attitude_basis
+
+    def curves(camera: int) -> dict:
+        corr = params.trajectory_correction(camera)
+        return {"position": (pb.matrix(t) @ corr.position_coefficients).tolist(),
+                "attitude": (ab.matrix(t) @ corr.attitude_coefficients).tolist()}
+
+    out = {"time": t.tolist(), **curves(0), "position_knots": pb.knot_times().tolist(),
+           "attitude_knots": ab.knot_times().tolist()}
+    if params.per_camera:
+        out["per_camera"] = {cam.name: curves(c) for c, cam in enumerate(problem.scene.cameras)}
+    return out
+
+
+def record_in_scene(adjusted: SceneModel, settings: AdjustmentSettings, out: AdjustmentResult, determinability: list,
+                    selection: dict | None, held: dict | None, tie_points: int) -> None:
+    """What the adjusted scene carries of its adjustment (``info["adjustment"]``): settings, sigma0,
+    variance components, reliability, the parameters that are not fixed at 0, determinability,
+    interior selection, check-point figures, and with tie points the datum, with lines their figures."""
+    rep = out.report
+    adjusted.info["adjustment"] = {
+        "settings": asdict(settings), "sigma0": rep["sigma0"],
+        "variance_components": {k: {f: v[f] for f in ("apriori_sigma", "estimated_sigma", "unit", "estimated")}
+                                for k, v in rep["variance_components"].items()},
+        "reliable": rep["reliability"]["reliable"], "robust_stopped_at_limit": rep["robust"]["stopped_at_limit"],
+        "parameters": [{k: p[k] for k in ("name", "value", "sigma", "unit", "mode")}
+                       for p in out.report["parameters"] if p["mode"] != "fixed" or p["value"] != 0.0],
+        "determinability": determinability, "interior_selection": selection,
+        "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
+    if held is not None:
+        adjusted.info["adjustment"]["datum"] = {k: held[k] for k in ("held_by", "control_points", "control_lines",
+                                                                "note", "yaw") if k in held}
+        adjusted.info["adjustment"]["tie_points"] = tie_points
+    if "lines" in rep:
+        adjusted.info["adjustment"]["lines"] = {k: rep["lines"][k] for k in ("lines", "points", "flagged_line_ids",
+                                                                             "across_rmse_m", "directions")}

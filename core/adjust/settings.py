@@ -1,0 +1,76 @@
+"""How to adjust: the settings of one bundle adjustment and their checks."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import InputError
+
+ROBUST = ("none", "selection", "snooping")
+CAMERA_TRAJECTORY = ("shared", "per_camera")
+SELECTION = ("keep", "significant")
+
+
+@dataclass
+class AdjustmentSettings:
+    """How to adjust.
+
+    position_model / attitude_model: 'polynomial' (order 0-2), 'lagrange' (orientation
+    images every *_interval s) or 'spline' (piecewise quadratics every *_interval s).
+    position_sigma (m) / attitude_sigma (rad): accuracy of the onboard GPS / star trackers,
+    pseudo-observations of the corrections at the knots; None: no pseudo-observations.
+    camera_trajectory: 'shared' (one trajectory correction for all cameras; with installation
+    angles free in ``interior`` this is seed 003's Plans B-D, by the attitude order 0/1/2) or
+    'per_camera' (one correction per camera, each with its own pseudo-observations: Plan A).
+    interior: free/weighted interior and installation parameters (see
+    :func:`core.adjust.parameters.parse_interior`). ground: 'weighted' (GCP sigmas) or 'fixed'.
+    robust: 'none', 'selection' or 'snooping'; alpha: significance of the outlier test.
+    on_singular: 'fix' (fix one parameter of each non-determinable set and go on) or 'stop'.
+    max_iterations: Gauss-Newton iterations per solution; max_robust_iterations: passes of
+    the robust / variance component loop. variance_components: estimate a factor on the stated
+    sigmas per observation group and test outliers against it (see :mod:`core.adjust.robust`);
+    False trusts the stated sigmas. interior_selection: 'significant' removes interior
+    parameters the control cannot support and falls back to no self-calibration when it is
+    not significantly better (:mod:`core.adjust.selection`); 'keep' keeps the set as given.
+    """
+    position_model: str = "polynomial"
+    position_order: int = 1
+    position_interval: float = 20.0
+    attitude_model: str = "polynomial"
+    attitude_order: int = 2
+    attitude_interval: float = 20.0
+    position_sigma: float | None = 100.0
+    attitude_sigma: float | None = None
+    camera_trajectory: str = "shared"
+    interior: str = ""
+    ground: str = "weighted"
+    robust: str = "selection"
+    alpha: float = 0.001
+    on_singular: str = "fix"
+    max_iterations: int = 30
+    max_robust_iterations: int = 12
+    variance_components: bool = True
+    rpc_correction: str = "drift"
+    interior_selection: str = "significant"
+
+    def validate(self) -> None:
+        if self.ground not in ("weighted", "fixed"):
+            raise InputError(f"ground must be 'weighted' or 'fixed' (got {self.ground!r})")
+        if self.robust not in ROBUST:
+            raise InputError(f"robust method must be one of {', '.join(ROBUST)} (got {self.robust!r})")
+        if self.camera_trajectory not in CAMERA_TRAJECTORY:
+            raise InputError(f"camera trajectory must be one of {', '.join(CAMERA_TRAJECTORY)} "
+                             f"(got {self.camera_trajectory!r})")
+        if self.on_singular not in ("fix", "stop"):
+            raise InputError(f"on_singular must be 'fix' or 'stop' (got {self.on_singular!r})")
+        if not 0 < self.alpha < 0.5:
+            raise InputError(f"alpha must be between 0 and 0.5 (got {self.alpha})")
+        for name in ("position_sigma", "attitude_sigma"):
+            v = getattr(self, name)
+            if v is not None and not v > 0:
+                raise InputError(f"{name} must be positive or empty (got {v})")
+        if self.rpc_correction not in ("shift", "drift", "affine"):
+            raise InputError(f"RPC correction must be shift, drift or affine (got {self.rpc_correction!r})")
+        if self.interior_selection not in SELECTION:
+            raise InputError(f"interior_selection must be one of {', '.join(SELECTION)} "
+                             f"(got {self.interior_selection!r})")
+
