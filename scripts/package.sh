@@ -9,7 +9,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PLUGIN=pushbroom_adjust
-CONTENT=(metadata.txt __init__.py plugin.py LICENSE README.md core simulation ui resources)
+CONTENT=(metadata.txt __init__.py plugin.py LICENSE README.md docs core simulation ui resources)
 
 version="$(sed -n 's/^version=//p' metadata.txt | tr -d '\r')"
 if ! [[ "$version" =~ ^[0-9]+(\.[0-9]+)*[A-Za-z0-9.+-]*$ ]]; then

@@ -18,13 +18,14 @@ from osgeo import ogr
 
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.products.footprint import footprints
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 
 from .conftest import PLUGIN, QGIS_PROCESS, REPO
 from .test_provider import ALGORITHMS, MODELS
 from .test_qgis_process import _run_json
 
-CONTENT = ("metadata.txt", "__init__.py", "plugin.py", "LICENSE", "README.md", "core", "ui", "resources")
+CONTENT = ("metadata.txt", "__init__.py", "plugin.py", "LICENSE", "README.md", "docs", "core", "simulation", "ui",
+           "resources")
 # What the plugin may import besides itself: the standard library and these (QGIS's Python and the
 # packages the README's set-up installs).
 THIRD_PARTY = {"numpy", "scipy", "pyproj", "osgeo", "matplotlib", "qgis", "processing",

@@ -220,11 +220,13 @@ def test_qgis_process_help_lists_the_value_names(provider, qgis_process):
 
 
 def test_the_readme_demo_and_models_use_value_names():
-    """No enumeration is passed by number in the README's command lines, the demo or the models."""
+    """No enumeration is passed by number in the README's and docs' command lines, the demo or the models."""
     names = ("DEM_DATUM", "Z_DATUM", "HEIGHT_SOURCE", "POSITION_MODEL", "ATTITUDE_MODEL", "GROUND", "ROBUST",
              "ON_SINGULAR", "RESAMPLING", "PRESET", "INTERIOR_SELECTION")
     by_number = re.compile(r"\b(" + "|".join(names) + r")=\d")
-    for path in [REPO / "README.md", REPO / "scripts" / "demo.sh"]:
+    pages = sorted((REPO / "docs").rglob("*.md"))
+    assert len(pages) >= 15  # one per algorithm at least
+    for path in [REPO / "README.md", REPO / "scripts" / "demo.sh", *pages]:
         assert by_number.findall(path.read_text()) == [], path
     for model in (REPO / "resources" / "models").glob("*.model3"):
         text = model.read_text()
