@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
+ARCSEC = np.pi / 648000.0  # radians per arcsecond
+ARCSEC_PER_RAD = 1.0 / ARCSEC  # arcseconds per radian
+
 
 def quat_to_matrix(q) -> np.ndarray:
     """Unit-normalised quaternion(s) (..., 4), scalar first -> rotation matrices (..., 3, 3)."""
@@ -29,10 +32,14 @@ def matrix_to_quat(r) -> np.ndarray:
     r = np.asarray(r, dtype=float)
     tr = r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2]
     cand = np.stack([
-        np.stack([1 + tr, r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], -1),
-        np.stack([r[..., 2, 1] - r[..., 1, 2], 1 + 2 * r[..., 0, 0] - tr, r[..., 0, 1] + r[..., 1, 0], r[..., 0, 2] + r[..., 2, 0]], -1),
-        np.stack([r[..., 0, 2] - r[..., 2, 0], r[..., 0, 1] + r[..., 1, 0], 1 + 2 * r[..., 1, 1] - tr, r[..., 1, 2] + r[..., 2, 1]], -1),
-        np.stack([r[..., 1, 0] - r[..., 0, 1], r[..., 0, 2] + r[..., 2, 0], r[..., 1, 2] + r[..., 2, 1], 1 + 2 * r[..., 2, 2] - tr], -1),
+        np.stack([1 + tr, r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]],
+                 -1),
+        np.stack([r[..., 2, 1] - r[..., 1, 2], 1 + 2 * r[..., 0, 0] - tr, r[..., 0, 1] + r[..., 1, 0],
+                  r[..., 0, 2] + r[..., 2, 0]], -1),
+        np.stack([r[..., 0, 2] - r[..., 2, 0], r[..., 0, 1] + r[..., 1, 0], 1 + 2 * r[..., 1, 1] - tr,
+                  r[..., 1, 2] + r[..., 2, 1]], -1),
+        np.stack([r[..., 1, 0] - r[..., 0, 1], r[..., 0, 2] + r[..., 2, 0], r[..., 1, 2] + r[..., 2, 1],
+                  1 + 2 * r[..., 2, 2] - tr], -1),
     ], axis=-2)
     # The candidate built on the largest diagonal term is the numerically stable one.
     diag = np.stack([tr, r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]], -1)

@@ -23,12 +23,13 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..model import corrections as corr
 from ..geodesy import ecef_to_geodetic, up_vector
-from ..rotations import rotation_and_derivatives
+from ..model import corrections as corr
+from ..model.camera import CAMERA_TERMS, corrected_image_plane
 from ..model.sensor import SceneModel
 from ..model.trajectory import Platform
-from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
+from ..rotations import rotation_and_derivatives
+from .parameters import ANGLES, ParameterSet
 
 
 @dataclass
@@ -183,7 +184,7 @@ class Model:
                         j_chip[m, 0, 0], j_chip[m, 0, 1] = 1.0, s
                         j_chip[m, 1, 2], j_chip[m, 1, 3] = 1.0, s
                     continue
-                u[m], jc, jk = _focal_plane(cam, chip, terms, self.cam_terms[c], d, with_jacobian)
+                u[m], jc, jk = corrected_image_plane(cam, chip, terms, self.cam_terms[c], d, with_jacobian)
                 if with_jacobian:
                     j_chip[m, :, :3], j_cam[m] = jc, jk
         return u, j_chip, j_cam
@@ -244,51 +245,3 @@ class Model:
         j_ground = projected(dw_ground)
         return r_u, Jacobian(-j_ground, projected(dw_angles), projected(dw_inst), j_ground, -j_chip, -j_cam)
 
-
-def _focal_plane(cam, chip, terms, cam_terms, d, with_jacobian):
-    """Normalised (ux, uy) (n,2) of focal-plane detectors d on a chip with corrections
-    terms = (dx, dy, theta) and camera terms (CAMERA_TERMS order), with the derivatives
-    (n,2,3) and (n,2,10) when asked (seed 000 eq. 4, seed 001 eq. 7)."""
-    th = chip.theta + terms[2]
-    x = chip.x0 + terms[0] + d * chip.pitch * np.sin(th)
-    y = chip.y0 + terms[1] + d * chip.pitch * np.cos(th)
-    base = cam.distortion
-    f = cam.focal_length + cam_terms[0]
-    dxp, dyp, k1, k2, p1, p2, b1, b2, b3 = (base.get(t, 0.0) + v for t, v in zip(CAMERA_TERMS[1:], cam_terms[1:]))
-    df_old = base.get("df", 0.0)
-    xb = x - cam.principal_point[0]
-    yb = y - cam.principal_point[1]
-    r2 = xb * xb + yb * yb
-    radial = k1 * r2 + k2 * r2 * r2
-    dx = (dxp - df_old / cam.focal_length * xb + radial * xb + p1 * (r2 + 2 * xb * xb) + 2 * p2 * xb * yb
-          + b1 * xb + b2 * yb)
-    dy = dyp - df_old / cam.focal_length * yb + radial * yb + 2 * p1 * xb * yb + p2 * (r2 + 2 * yb * yb) + b3 * yb
-    X, Y = xb + dx, yb + dy
-    u = np.stack([X / f, Y / f], axis=1)
-    if not with_jacobian:
-        return u, None, None
-    dr = 2.0 * (k1 + 2.0 * k2 * r2)  # d radial / d(xb^2 + yb^2) * 2
-    c_df = df_old / cam.focal_length
-    dX_dxb = 1 - c_df + radial + xb * xb * dr + 6 * p1 * xb + 2 * p2 * yb + b1
-    dX_dyb = xb * yb * dr + 2 * p1 * yb + 2 * p2 * xb + b2
-    dY_dxb = yb * xb * dr + 2 * p1 * yb + 2 * p2 * xb
-    dY_dyb = 1 - c_df + radial + yb * yb * dr + 2 * p1 * xb + 6 * p2 * yb + b3
-    dxb_dth, dyb_dth = d * chip.pitch * np.cos(th), -d * chip.pitch * np.sin(th)
-    n = d.size
-    jc = np.empty((n, 2, 3))
-    jc[:, 0, 0], jc[:, 1, 0] = dX_dxb / f, dY_dxb / f
-    jc[:, 0, 1], jc[:, 1, 1] = dX_dyb / f, dY_dyb / f
-    jc[:, 0, 2] = (dX_dxb * dxb_dth + dX_dyb * dyb_dth) / f
-    jc[:, 1, 2] = (dY_dxb * dxb_dth + dY_dyb * dyb_dth) / f
-    zero, one = np.zeros(n), np.ones(n)
-    jk = np.stack([
-        np.stack([-X / f ** 2, -Y / f ** 2], axis=1),                            # f
-        np.stack([one / f, zero], axis=1), np.stack([zero, one / f], axis=1),      # dxp, dyp
-        np.stack([r2 * xb, r2 * yb], axis=1) / f,                                  # k1
-        np.stack([r2 * r2 * xb, r2 * r2 * yb], axis=1) / f,                        # k2
-        np.stack([r2 + 2 * xb * xb, 2 * xb * yb], axis=1) / f,                     # p1
-        np.stack([2 * xb * yb, r2 + 2 * yb * yb], axis=1) / f,                     # p2
-        np.stack([xb, zero], axis=1) / f, np.stack([yb, zero], axis=1) / f,        # b1, b2
-        np.stack([zero, yb], axis=1) / f,                                          # b3
-    ], axis=2)
-    return u, jc, jk

@@ -28,23 +28,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..model.camera import DISTORTION_TERMS
 from ..errors import InputError
-from ..rotations import rotation_from_angles
+from ..model.camera import CAMERA_TERMS, CHIP_TERMS, LOOK_TERMS, UNITS, corrected_image_plane
 from ..model.sensor import SceneModel
 from ..model.timebasis import TimeBasis
 from ..model.trajectory import Platform, TrajectoryCorrection
+from ..rotations import ARCSEC, rotation_from_angles
 
 log = logging.getLogger(__name__)
 
 AXES = ("X", "Y", "Z")
 ANGLES = ("roll", "pitch", "yaw")
-CHIP_TERMS = ("dx", "dy", "theta")
-LOOK_TERMS = ("ux0", "ux1", "uy0", "uy1")
-CAMERA_TERMS = ("f",) + tuple(t for t in DISTORTION_TERMS if t != "df")
-UNITS = {"dx": "m", "dy": "m", "theta": "rad", "ux0": "rad", "ux1": "rad", "uy0": "rad", "uy1": "rad",
-         "f": "m", "dxp": "m", "dyp": "m", "k1": "1/m2", "k2": "1/m4", "p1": "1/m", "p2": "1/m", "b1": "",
-         "b2": "", "b3": "", "roll": "rad", "pitch": "rad", "yaw": "rad"}
 
 
 @dataclass
@@ -63,7 +57,6 @@ class Parameter:
 
 
 SIGMA_UNITS = ("px", "arcsec")  # besides the parameter's SI unit (no suffix)
-ARCSEC = np.pi / 648000.0
 # INTERIOR=default (see :func:`default_selection`): priors of the preset, in image terms.
 DEFAULT_CAMERA_PX = 3.0
 DEFAULT_CHIP_PX = 2.0
@@ -95,9 +88,10 @@ def parse_interior(spec: str | list | None) -> list[tuple[str, float | None, str
             value = float(sigma[:len(sigma) - len(unit)])
         except ValueError:
             raise InputError(f"interior parameter {item!r}: the sigma after '=' must be a number, optionally "
-                             f"followed by px or arcsec (e.g. 2px, 30arcsec, 1e-5)") from None
+                             f"followed by px or arcsec (e.g. 2px, 30arcsec, 1e-5)",
+                             parameter="settings.interior") from None
         if not value > 0 or not np.isfinite(value):
-            raise InputError(f"interior parameter {item!r}: the sigma must be positive")
+            raise InputError(f"interior parameter {item!r}: the sigma must be positive", parameter="settings.interior")
         out.append((pattern.strip(), value, unit))
     return out
 
@@ -158,7 +152,6 @@ def image_effect(scene: SceneModel, p: Parameter) -> float:
       half length in px for yaw at a centred array).
     A value of 0 means the parameter does not move any end detector (e.g. b1 on an array
     through the principal point)."""
-    from .model import _focal_plane  # the adjustment's own derivatives (model imports this module)
     cam = scene.cameras[p.camera]
     effects = []
     for k, (chip, d) in enumerate(_array_ends(cam)):
@@ -171,7 +164,7 @@ def image_effect(scene: SceneModel, p: Parameter) -> float:
                 continue
             ux, uy = chip.look(d)
         else:
-            u, jc, jk = _focal_plane(cam, chip, np.zeros(3), np.zeros(len(CAMERA_TERMS)), d, True)
+            u, jc, jk = corrected_image_plane(cam, chip, np.zeros(3), np.zeros(len(CAMERA_TERMS)), d, True)
             ux, uy = u[:, 0], u[:, 1]
             if p.block == "camera":
                 effects += list(scale * np.hypot(*jk[:, :, CAMERA_TERMS.index(p.term)].T))
@@ -195,12 +188,12 @@ def sigma_in_si(scene: SceneModel, p: Parameter, value: float, unit: str) -> flo
     if unit == "arcsec":
         if p.unit != "rad":
             raise InputError(f"interior parameter {p.name}: arcsec applies to angles only (its unit is "
-                             f"{p.unit or 'none'}); give px or its SI unit")
+                             f"{p.unit or 'none'}); give px or its SI unit", parameter="settings.interior")
         return value * ARCSEC
     effect = image_effect(scene, p)
     if not effect > 1e-12:
         raise InputError(f"interior parameter {p.name} does not move the image at the array ends; a sigma in px "
-                         "cannot be converted (leave it out or give its SI unit)")
+                         "cannot be converted (leave it out or give its SI unit)", parameter="settings.interior")
     return value / effect
 
 
@@ -238,7 +231,8 @@ class ParameterSet:
                                                  term=term))
         names = [p.name for p in self.params]
         if len(set(names)) != len(names):
-            raise InputError("the scene's camera and chip names are not unique; parameters cannot be named")
+            raise InputError("the scene's camera and chip names are not unique; parameters cannot be named",
+                             parameter="scene")
         self._select(parse_interior(interior))
         self.index = {p.name: i for i, p in enumerate(self.params)}
 
@@ -252,7 +246,8 @@ class ParameterSet:
             hits = [p for p in selectable if fnmatch.fnmatchcase(p.name, pattern)]
             if not hits:
                 raise InputError(f"interior parameter {pattern!r} matches none of this scene's parameters "
-                                 f"(e.g. {', '.join(p.name for p in selectable[:12])}, ...)")
+                                 f"(e.g. {', '.join(p.name for p in selectable[:12])}, ...)",
+                                 parameter="settings.interior")
             for p in hits:
                 if default and unit == "px" and not image_effect(self.scene, p) > 1e-12:
                     p.mode, p.sigma = "fixed", 0.0  # e.g. b1 of an array through the principal point

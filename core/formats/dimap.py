@@ -33,7 +33,7 @@ from ..errors import MetadataError
 from ..model.rpc import RationalDirectModel, RpcModel
 from ..model.sensor import SceneModel
 from ..model.trajectory import Ephemeris, Platform, QuaternionPolynomial
-from .vendor_xml import parse_floats as _floats
+from .vendor_xml import parse_floats as _floats, parse_xml
 
 SENSOR_MODEL = "Geometric_Data/Sensor_Model_Characteristics"
 GLOBAL_RFM = "Geoposition/Rational_Sensor_Model/Global_RFM"
@@ -84,7 +84,6 @@ def read_dimap_rfm(path: str | Path, root: ElementTree.Element | None = None
     (col, row) by the model classes."""
     src = str(path)
     if root is None:
-        from .vendor_xml import parse_xml
         root = parse_xml(path)
     # in the DIMAP document itself, or in an RPC_*.XML file (<Rational_Function_Model/Global_RFM>)
     rfm = root.find(GLOBAL_RFM) if root.find(GLOBAL_RFM) is not None else root.find(".//Global_RFM")

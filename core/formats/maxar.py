@@ -12,7 +12,7 @@ Vendor conventions and how they are converted here:
     y = DETORIGINY - d*pitch*cos(r) (r = DETROTANGLE, degrees) in the camera frame whose
     x is along track and z toward the scene; the line of sight is (x, y, PD) - no
     inversion (the detector coordinates are those of the positive image plane).
-    In :class:`core.camera.Chip` terms: x0, y0, theta = pi - r, metres.
+    In :class:`core.model.camera.Chip` terms: x0, y0, theta = pi - r, metres.
   - Quaternions (ATT, CAMERA_ATTITUDE): scalar last (q1, q2, q3, q4 = w). ATT rotates the
     body frame to ECEF; CAMERA_ATTITUDE rotates the camera frame to the body frame.
   - Time: UTC strings; the scene epoch is the first line time, every time is seconds from it.
@@ -57,7 +57,7 @@ from ..rotations import quat_to_matrix
 from ..model.rpc import RpcModel
 from ..model.sensor import SceneModel
 from ..model.trajectory import Ephemeris, Platform, QuaternionSamples
-from .vendor_xml import parse_floats as _floats
+from .vendor_xml import parse_floats as _floats, parse_xml
 
 log = logging.getLogger(__name__)
 
@@ -129,7 +129,6 @@ def read_maxar_rpc(path: str | Path, root: ElementTree.Element | None = None) ->
     """The vendor RPC00B model of the RPB section (0-based pixel centres, as GDAL reads RPCs)."""
     src = str(path)
     if root is None:
-        from .vendor_xml import parse_xml
         root = parse_xml(path)
     rpb = _section(root, "RPB", src, "vendor RPC")
     img = _child(rpb, "IMAGE", src, "RPB")

@@ -1,4 +1,4 @@
-"""Scene JSON (the project's own scene file) and the reader dispatcher.
+"""Scene JSON: the project's own scene file, for rigorous and for RPC scenes.
 
 Scene JSON, version 2 — one object (version 1 files, without corrections, are read too):
     format      "pushbroom-scene"
@@ -8,7 +8,7 @@ Scene JSON, version 2 — one object (version 1 files, without corrections, are 
                  "attitude": {"kind": "quaternion_samples", times, quaternions (w,x,y,z), order}
                           or {"kind": "quaternion_polynomial", offset, scale, coefficients},
                  "correction" (optional, written by an adjustment): {"position": {basis, coefficients},
-                     "attitude": {basis, coefficients}} — see core.trajectory.TrajectoryCorrection,
+                     "attitude": {basis, coefficients}} — see core.model.trajectory.TrajectoryCorrection,
                  "camera_corrections" (optional, written by an adjustment with one trajectory
                      correction per camera): {camera name: correction as above}, used by that
                      camera instead of "correction"}
@@ -16,40 +16,48 @@ Scene JSON, version 2 — one object (version 1 files, without corrections, are 
                  chips [...], focal_length, principal_point, distortion, installation}
     corrections {"aberration": bool, "refraction": bool}
     info        free metadata: sensor, source, height_range, ...
-Readers for vendor formats return the same SceneModel, so every algorithm accepts any of them.
+
+RPC scene JSON (:class:`core.model.rpcscene.RpcScene`): format and version as above and
+    model       "rpc"
+    camera      {name, cols, rows}
+    rpc         GDAL's RPC metadata keys: LINE_OFF ... HEIGHT_SCALE numbers, *_COEFF lists of 20
+    correction  {"col": [a0, a1, a2], "row": [b0, b1, b2]} (see core.model.rpcscene)
+    info        free metadata
+Readers of vendor formats return the same models (:func:`core.formats.load_scene`), so every
+algorithm accepts any of them.
 """
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-from ..model.camera import Camera
+import numpy as np
+
 from ..errors import MetadataError, PushbroomError
 from ..files import OutputSet, write_text
+from ..model.camera import Camera
+from ..model.rpcscene import MODEL, RpcCamera, RpcScene, check_image_size
 from ..model.sensor import SceneModel
 from ..model.trajectory import Platform
-from ..validation import check_scene_dict, check_scene_model
-
-FORMAT = "pushbroom-scene"
-VERSION = 2
-UTF8_BOM = b"\xef\xbb\xbf"  # written by some editors (Notepad); JSON and XML both allow it
+from .rpcfiles import RPC_COEFFS, RPC_KEYS, rpc_from_metadata, rpc_metadata
+from .schema import FORMAT, VERSION, check_rpc_scene_dict, check_scene_dict, check_scene_model
 
 
 def scene_to_dict(scene: SceneModel) -> dict:
+    """The scene-JSON object of a rigorous scene."""
     return {"format": FORMAT, "version": VERSION, "epoch": scene.epoch,
             "platform": scene.platform.to_dict(), "cameras": [c.to_dict() for c in scene.cameras],
             "corrections": {"aberration": scene.aberration, "refraction": scene.refraction},
             "info": scene.info}
 
 
-def scene_from_dict(d: dict, source: str = "scene JSON") -> SceneModel:
+def scene_from_dict(d: dict, source: str = "scene JSON") -> SceneModel | RpcScene:
     """The SceneModel of a scene-JSON object, checked against the schema
-    (:func:`core.validation.check_scene_dict`); MetadataError naming ``source`` and the key path.
-    An object with ``"model": "rpc"`` is an RPC scene (:class:`core.rpcscene.RpcScene`)."""
-    if isinstance(d, dict) and d.get("format") == FORMAT and d.get("model") == "rpc":
-        from ..model.rpcscene import RpcScene
-        return RpcScene.from_dict(d, source)
-    d = check_scene_dict(d, source, FORMAT, VERSION)
+    (:func:`core.formats.schema.check_scene_dict`); MetadataError naming ``source`` and the key path.
+    An object with ``"model": "rpc"`` is an RPC scene (:func:`rpc_scene_from_dict`)."""
+    if isinstance(d, dict) and d.get("format") == FORMAT and d.get("model") == MODEL:
+        return rpc_scene_from_dict(d, source)
+    d = check_scene_dict(d, source)
     try:
         corrections = d.get("corrections", {})
         return SceneModel(epoch=str(d["epoch"]), platform=Platform.from_dict(d["platform"]),
@@ -62,51 +70,41 @@ def scene_from_dict(d: dict, source: str = "scene JSON") -> SceneModel:
         raise MetadataError(f"{source}: malformed value ({exc})") from None
 
 
+def rpc_scene_to_dict(scene: RpcScene) -> dict:
+    """The RPC scene-JSON object of an RPC scene (the RPC with GDAL's origin, 0 at the first pixel's centre)."""
+    md = rpc_metadata(scene.rpc)
+    rpc = {key: float(md[key]) for key in RPC_KEYS}
+    rpc.update({key: [float(v) for v in md[key].split()] for key, _ in RPC_COEFFS})
+    return {"format": FORMAT, "version": VERSION, "model": MODEL,
+            "camera": {"name": scene.camera.name, "cols": scene.camera.cols, "rows": scene.camera.rows},
+            "rpc": rpc, "correction": {"col": scene.correction[0].tolist(), "row": scene.correction[1].tolist()},
+            "info": scene.info}
+
+
+def rpc_scene_from_dict(d: dict, source: str) -> RpcScene:
+    """The scene of a scene-JSON object with ``"model": "rpc"``, checked (see
+    :func:`core.formats.schema.check_rpc_scene_dict`); MetadataError naming ``source``."""
+    d = check_rpc_scene_dict(d, source)
+    rpc = rpc_from_metadata(d["rpc"], f"{source}: rpc")
+    cam = d["camera"]
+    camera = RpcCamera(str(cam["name"]), int(cam["cols"]), int(cam["rows"]))
+    correction = np.array([d.get("correction", {}).get("col", [0, 0, 0]),
+                           d.get("correction", {}).get("row", [0, 0, 0])], dtype=float)
+    scene = RpcScene(rpc, camera, correction, dict(d.get("info", {})))
+    check_image_size(rpc, camera.cols, camera.rows, source)
+    return scene
+
+
 def validate_scene(scene: SceneModel, source: str) -> SceneModel:
     """Check a scene read from any format by the scene-JSON schema and the model's own checks
-    (:mod:`core.validation`): vendor metadata meets the same rules as scene JSON."""
-    check_scene_dict(scene_to_dict(scene), source, FORMAT, VERSION)
+    (:mod:`core.formats.schema`): vendor metadata meets the same rules as scene JSON."""
+    check_scene_dict(scene_to_dict(scene), source)
     check_scene_model(scene, source)
     return scene
 
 
-def save_scene(scene: SceneModel, path: str | Path, files: OutputSet | None = None) -> None:
+def save_scene(scene: SceneModel | RpcScene, path: str | Path, files: OutputSet | None = None) -> None:
     """Write a scene JSON completely or not at all (:func:`core.files.write_text`; with
     ``files``, as part of that set)."""
-    d = scene.to_dict() if hasattr(scene, "to_dict") else scene_to_dict(scene)
+    d = rpc_scene_to_dict(scene) if isinstance(scene, RpcScene) else scene_to_dict(scene)
     write_text(path, json.dumps(d, indent=1), files)
-
-
-def load_scene(path: str | Path) -> SceneModel:
-    """Read any supported scene: scene JSON, Pleiades/SPOT DIMAP v2, Maxar/DigitalGlobe XML, and
-    RPC sources (:mod:`core.rpcscene`): an RPC scene JSON, ``_RPC.TXT``, ``.RPB``, DIMAP
-    ``RPC_*.XML``, or an image with RPC metadata GDAL reads."""
-    from ..model import rpcscene
-    path = Path(path)
-    if not path.is_file():
-        raise MetadataError(f"{path}: no such file")
-    with path.open("rb") as f:
-        head = f.read(4096).removeprefix(UTF8_BOM).lstrip()
-    if head.startswith((b"{", b"[")):
-        try:
-            d = json.loads(path.read_text(encoding="utf-8-sig"))
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise MetadataError(f"{path}: invalid JSON ({exc})") from None
-        scene = scene_from_dict(d, str(path))
-        if isinstance(scene, SceneModel):
-            check_scene_model(scene, str(path))
-    elif head.startswith(b"<") and path.name.upper().startswith("RPC_"):
-        from .vendor_xml import parse_xml
-        scene = rpcscene.read_dimap_rpc(path, parse_xml(path))
-    elif head.startswith(b"<"):
-        from .vendor_xml import read_xml_scene
-        scene = validate_scene(read_xml_scene(path), str(path))
-    elif rpcscene.is_rpc_text(path, head):
-        scene = rpcscene.read_rpc_text(path)
-    else:
-        scene = rpcscene.read_rpc_image(path)
-        if scene is None:
-            raise MetadataError(f"{path}: neither scene JSON nor XML metadata (DIMAP v2 or Maxar), nor an RPC file "
-                                "(_RPC.TXT, .RPB) or an image with RPC metadata")
-    scene.info.setdefault("source", str(path))
-    return scene

@@ -1,5 +1,5 @@
-"""Readers of vendor metadata into a SceneModel. Vendor conventions (1-based pixel
-centres, scalar-last quaternions, time systems) are converted here and nowhere else."""
+"""What the readers of vendor XML metadata (:mod:`core.formats.dimap`, :mod:`core.formats.maxar`)
+share: parsing the file, and lists of numbers in an element's text, with errors naming the file."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -29,15 +29,3 @@ def parse_floats(text: str, src: str, where: str, min_count: int = 1) -> np.ndar
         raise MetadataError(f"{src}: {where}: expected at least {min_count} finite numbers, got {values.size}")
     return values
 
-
-def read_xml_scene(path: str | Path):
-    """Dispatch an XML metadata file to the reader for its format."""
-    root = parse_xml(path)
-    if root.tag.endswith("Dimap_Document"):
-        from .dimap import read_dimap
-        return read_dimap(path, root)
-    if root.tag == "isd" or root.find("IMD") is not None:
-        from .maxar import read_maxar
-        return read_maxar(path, root)
-    raise MetadataError(f"{path}: unrecognised XML metadata (root element <{root.tag}>); "
-                        "expected a DIMAP v2 document or Maxar/DigitalGlobe XML")

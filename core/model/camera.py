@@ -19,6 +19,17 @@ import numpy as np
 from ..errors import MetadataError
 
 DISTORTION_TERMS = ("dxp", "dyp", "df", "k1", "k2", "p1", "p2", "b1", "b2", "b3")
+# Correction terms of the camera geometry a bundle adjustment can estimate: per focal-plane chip
+# (shifts on the focal plane and rotation, seed 000 eq. 4), per look-angle chip (offsets and
+# change across the chip), per focal-plane camera (the focal length and the distortion terms of
+# eq. 7; 'df' is the focal-length term itself, so the camera term 'f' replaces it).
+CHIP_TERMS = ("dx", "dy", "theta")
+LOOK_TERMS = ("ux0", "ux1", "uy0", "uy1")
+CAMERA_TERMS = ("f",) + tuple(t for t in DISTORTION_TERMS if t != "df")
+# SI units of those terms and of the installation angles (roll, pitch, yaw).
+UNITS = {"dx": "m", "dy": "m", "theta": "rad", "ux0": "rad", "ux1": "rad", "uy0": "rad", "uy1": "rad",
+         "f": "m", "dxp": "m", "dyp": "m", "k1": "1/m2", "k2": "1/m4", "p1": "1/m", "p2": "1/m", "b1": "",
+         "b2": "", "b3": "", "roll": "rad", "pitch": "rad", "yaw": "rad"}
 
 
 @dataclass
@@ -188,6 +199,10 @@ class Camera:
         self._time_offsets = np.array([c.time_offset for c in self.chips])
 
     # --- columns and chips -------------------------------------------------------------
+    def in_image(self, col, row) -> np.ndarray:
+        """Mask of image points (GDAL px) inside this camera's image (:func:`inside_image`)."""
+        return inside_image(col, row, self.cols, self.rows)
+
     def chip_index(self, col) -> np.ndarray:
         """Index of the chip that delivers image column(s) ``col`` (the later chip wins overlaps)."""
         return np.clip(np.searchsorted(self._starts, np.asarray(col, dtype=float), side="right") - 1,
@@ -195,8 +210,9 @@ class Camera:
 
     def chip_range(self, k: int) -> tuple[float, float]:
         """Columns [start, end) that chip k delivers in the image."""
-        end = self.chips[k + 1].col_offset if k + 1 < len(self.chips) else self.chips[k].col_offset + self.chips[k].n_pixels
-        return self.chips[k].col_offset, min(end, self.chips[k].col_offset + self.chips[k].n_pixels)
+        chip = self.chips[k]
+        end = self.chips[k + 1].col_offset if k + 1 < len(self.chips) else chip.col_offset + chip.n_pixels
+        return chip.col_offset, min(end, chip.col_offset + chip.n_pixels)
 
     def time_offset(self, chip_idx) -> np.ndarray:
         return self._time_offsets[chip_idx]
@@ -221,19 +237,10 @@ class Camera:
 
     def _focal_plane_to_normalised(self, x, y) -> tuple[np.ndarray, np.ndarray]:
         """Apply principal point, focal length and seed-001 eq. 7 distortion to (x, y) metres."""
-        g = self.distortion.get
         xb = x - self.principal_point[0]
         yb = y - self.principal_point[1]
         if self.distortion:
-            f = self.focal_length
-            r2 = xb * xb + yb * yb
-            radial = g("k1", 0.0) * r2 + g("k2", 0.0) * r2 * r2
-            p1, p2 = g("p1", 0.0), g("p2", 0.0)
-            dx = (g("dxp", 0.0) - g("df", 0.0) / f * xb + radial * xb + p1 * (r2 + 2 * xb * xb)
-                  + 2 * p2 * xb * yb + g("b1", 0.0) * xb + g("b2", 0.0) * yb)
-            dy = (g("dyp", 0.0) - g("df", 0.0) / f * yb + radial * yb + 2 * p1 * xb * yb
-                  + p2 * (r2 + 2 * yb * yb) + g("b3", 0.0) * yb)
-            xb, yb = xb + dx, yb + dy
+            xb, yb = distorted(xb, yb, self.distortion, self.focal_length)
         return xb / self.focal_length, yb / self.focal_length
 
     def los_camera(self, col, chip_idx=None) -> np.ndarray:
@@ -261,3 +268,84 @@ class Camera:
                    principal_point=tuple(d.get("principal_point", (0.0, 0.0))),
                    distortion=dict(d.get("distortion", {})),
                    installation=np.array(d.get("installation", np.eye(3))))
+
+
+def inside_image(col, row, cols, rows) -> np.ndarray:
+    """Mask of image points (col, row), GDAL px, that lie in an image of ``cols`` x ``rows``
+    pixels: 0 <= col <= cols and 0 <= row <= rows. In GDAL's convention the image covers the
+    rectangle from the outer corner (0, 0) of its first pixel to the outer corner (cols, rows)
+    of its last one; the bounds are closed, so a point on the image's edge (a pixel corner or
+    side) is inside. False for NaN. ``cols``, ``rows``: numbers, or arrays broadcasting with
+    col and row (one image size per point)."""
+    col, row = np.asarray(col, dtype=float), np.asarray(row, dtype=float)
+    with np.errstate(invalid="ignore"):
+        return (col >= 0) & (col <= cols) & (row >= 0) & (row <= rows)
+
+
+def distorted(xb, yb, terms, focal_length: float) -> tuple[np.ndarray, np.ndarray]:
+    """Focal-plane coordinates (m) moved by the lens distortion of Zhang et al. 2015 eq. 7 (seed
+    001): (xb + dx, yb + dy) for (xb, yb), metres from the principal point.
+
+    ``terms``: mapping of DISTORTION_TERMS to values (missing ones are 0): dxp, dyp, df (m),
+    k1 (1/m^2), k2 (1/m^4), p1, p2 (1/m), b1, b2, b3; the focal-length term acts as
+    -df / focal_length times (xb, yb), with ``focal_length`` (m) the nominal one."""
+    g = terms.get
+    r2 = xb * xb + yb * yb
+    radial = g("k1", 0.0) * r2 + g("k2", 0.0) * r2 * r2
+    p1, p2 = g("p1", 0.0), g("p2", 0.0)
+    dx = (g("dxp", 0.0) - g("df", 0.0) / focal_length * xb + radial * xb + p1 * (r2 + 2 * xb * xb)
+          + 2 * p2 * xb * yb + g("b1", 0.0) * xb + g("b2", 0.0) * yb)
+    dy = (g("dyp", 0.0) - g("df", 0.0) / focal_length * yb + radial * yb + 2 * p1 * xb * yb
+          + p2 * (r2 + 2 * yb * yb) + g("b3", 0.0) * yb)
+    return xb + dx, yb + dy
+
+
+def corrected_image_plane(cam: Camera, chip: Chip, terms, cam_terms, d, with_jacobian: bool = False):
+    """Normalised (ux, uy) (n, 2) of detectors ``d`` (n,) of a focal-plane chip under correction
+    terms: ``terms`` (dx, dy, theta) of the chip (CHIP_TERMS: m, m, rad) and ``cam_terms`` (10,)
+    of the camera in CAMERA_TERMS order ('f' the change of the focal length, the others added to
+    the camera's distortion terms), seed 000 eq. 4 and seed 001 eq. 7. With ``with_jacobian``,
+    also the derivatives (n, 2, 3) by the chip terms and (n, 2, 10) by the camera terms, else
+    None for both."""
+    th = chip.theta + terms[2]
+    x = chip.x0 + terms[0] + d * chip.pitch * np.sin(th)
+    y = chip.y0 + terms[1] + d * chip.pitch * np.cos(th)
+    base = cam.distortion
+    f = cam.focal_length + cam_terms[0]
+    # the corrected distortion terms; 'df' stays the camera's own (its correction is f)
+    current = {t: base.get(t, 0.0) + v for t, v in zip(CAMERA_TERMS[1:], cam_terms[1:])}
+    current["df"] = base.get("df", 0.0)
+    xb = x - cam.principal_point[0]
+    yb = y - cam.principal_point[1]
+    X, Y = distorted(xb, yb, current, cam.focal_length)
+    u = np.stack([X / f, Y / f], axis=1)
+    if not with_jacobian:
+        return u, None, None
+    k1, k2, p1, p2, b1, b2, b3 = (current[t] for t in ("k1", "k2", "p1", "p2", "b1", "b2", "b3"))
+    r2 = xb * xb + yb * yb
+    radial = k1 * r2 + k2 * r2 * r2
+    dr = 2.0 * (k1 + 2.0 * k2 * r2)  # d radial / d(xb^2 + yb^2) * 2
+    c_df = current["df"] / cam.focal_length
+    dX_dxb = 1 - c_df + radial + xb * xb * dr + 6 * p1 * xb + 2 * p2 * yb + b1
+    dX_dyb = xb * yb * dr + 2 * p1 * yb + 2 * p2 * xb + b2
+    dY_dxb = yb * xb * dr + 2 * p1 * yb + 2 * p2 * xb
+    dY_dyb = 1 - c_df + radial + yb * yb * dr + 2 * p1 * xb + 6 * p2 * yb + b3
+    dxb_dth, dyb_dth = d * chip.pitch * np.cos(th), -d * chip.pitch * np.sin(th)
+    n = d.size
+    jc = np.empty((n, 2, 3))
+    jc[:, 0, 0], jc[:, 1, 0] = dX_dxb / f, dY_dxb / f
+    jc[:, 0, 1], jc[:, 1, 1] = dX_dyb / f, dY_dyb / f
+    jc[:, 0, 2] = (dX_dxb * dxb_dth + dX_dyb * dyb_dth) / f
+    jc[:, 1, 2] = (dY_dxb * dxb_dth + dY_dyb * dyb_dth) / f
+    zero, one = np.zeros(n), np.ones(n)
+    jk = np.stack([
+        np.stack([-X / f ** 2, -Y / f ** 2], axis=1),                            # f
+        np.stack([one / f, zero], axis=1), np.stack([zero, one / f], axis=1),      # dxp, dyp
+        np.stack([r2 * xb, r2 * yb], axis=1) / f,                                  # k1
+        np.stack([r2 * r2 * xb, r2 * r2 * yb], axis=1) / f,                        # k2
+        np.stack([r2 + 2 * xb * xb, 2 * xb * yb], axis=1) / f,                     # p1
+        np.stack([2 * xb * yb, r2 + 2 * yb * yb], axis=1) / f,                     # p2
+        np.stack([xb, zero], axis=1) / f, np.stack([yb, zero], axis=1) / f,        # b1, b2
+        np.stack([zero, yb], axis=1) / f,                                          # b3
+    ], axis=2)
+    return u, jc, jk

@@ -1,10 +1,10 @@
 """RPC-only scenes: an image and its rational polynomial model (RPC00B), as a scene.
 
 :class:`RpcScene` offers the interface the algorithms use on a rigorous
-:class:`core.sensor.SceneModel` (cameras, camera_index, height_range, ground_to_image,
+:class:`core.model.sensor.SceneModel` (cameras, camera_index, height_range, ground_to_image,
 image_to_ground, image_to_ground_dem, info), so every algorithm that takes a scene takes one.
 
-Frames and units as in core.sensor: ground points ECEF metres (n, 3), image points GDAL
+Frames and units as in core.model.sensor: ground points ECEF metres (n, 3), image points GDAL
 (col, row) floats (pixel centres at +0.5), heights ellipsoidal metres.
 
 ground -> image is the RPC followed by an image-space correction (Grodecki & Dial 2003):
@@ -13,25 +13,23 @@ with (col, row) the RPC's own image position (zero correction: the vendor model)
 ground inverts the correction (a 2 x 2 linear system), then the RPC by Newton at a height, and
 on a DEM by iterating the height under the point.
 
-Sources (:func:`read_rpc_source`): GDAL's RPC metadata of an image (tags, ``_RPC.TXT`` or
-``.RPB`` beside it), a ``_RPC.TXT`` or ``.RPB`` file alone, a DIMAP ``RPC_*.XML``, or the
-scene JSON written by :func:`RpcScene.to_dict` (``"model": "rpc"``).
+Files holding an RPC scene (GDAL's RPC metadata of an image, ``_RPC.TXT``, ``.RPB``, a DIMAP
+``RPC_*.XML``) are read by :mod:`core.formats.rpcfiles`; the RPC scene JSON
+(``"model": "rpc"``) by :mod:`core.formats.scene_json`.
 """
 from __future__ import annotations
 
 import logging
 import math
-import re
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import InputError, MetadataError
 from ..geodesy import ecef_to_geodetic, geodetic_to_ecef
+from .camera import inside_image
 from .rpc import RpcModel
-from ..products.rpcfit import _COEFFS, _FIELDS, RPC_KEYS, rpc_metadata
-from .sensor import _as_points
+from .sensor import as_points
 
 log = logging.getLogger(__name__)
 
@@ -42,10 +40,6 @@ SIZE_MARGIN = 0.1
 # Normalised ground coordinates beyond which the cubic ratios are extrapolated too far to mean
 # anything (|x| <= 1 is the fitted domain): no image position there.
 MAX_NORMALISED = 2.0
-RPB_NAMES = dict(zip(("lineOffset", "sampOffset", "latOffset", "longOffset", "heightOffset", "lineScale",
-                      "sampScale", "latScale", "longScale", "heightScale"), RPC_KEYS))
-RPB_NAMES.update(lineNumCoef="LINE_NUM_COEFF", lineDenCoef="LINE_DEN_COEFF", sampNumCoef="SAMP_NUM_COEFF",
-                 sampDenCoef="SAMP_DEN_COEFF")
 
 
 @dataclass
@@ -69,6 +63,10 @@ class RpcCamera:
     def chip_range(self, k: int) -> tuple[float, float]:
         return 0.0, float(self.cols)
 
+    def in_image(self, col, row) -> np.ndarray:
+        """Mask of image points (GDAL px) inside the image (:func:`core.model.camera.inside_image`)."""
+        return inside_image(col, row, self.cols, self.rows)
+
 
 @dataclass
 class RpcScene:
@@ -85,7 +83,7 @@ class RpcScene:
         self.correction = np.asarray(self.correction, dtype=float).reshape(2, 3)
         self.info.setdefault("model", MODEL)
 
-    # --- the interface of core.sensor.SceneModel -------------------------------------------
+    # --- the interface of core.model.sensor.SceneModel -------------------------------------
     @property
     def cameras(self) -> list[RpcCamera]:
         return [self.camera]
@@ -133,7 +131,7 @@ class RpcScene:
         """ECEF points (n, 3) seen at image points on the surface of ellipsoidal height
         ``height`` (m, scalar or (n,)); NaN where the RPC's inversion does not converge."""
         self.camera_index(camera)
-        col, row = _as_points(col, row)
+        col, row = as_points(col, row)
         height = np.broadcast_to(np.asarray(height, dtype=float), col.shape)
         if not np.all(np.isfinite(height)):
             raise InputError("heights contain NaN or infinite values")
@@ -148,7 +146,7 @@ class RpcScene:
         obliquely, where the plain iteration oscillates). NaN where a ray leaves the DEM or
         does not converge."""
         self.camera_index(camera)
-        col, row = _as_points(col, row)
+        col, row = as_points(col, row)
         h = np.full(col.shape, float(np.mean(dem.height_range)))
         lon = np.full(col.shape, np.nan)
         lat = np.full(col.shape, np.nan)
@@ -216,124 +214,8 @@ class RpcScene:
                     f"{hi:.0f} m; the RPC is extrapolated there")
         return None
 
-    # --- scene JSON ------------------------------------------------------------------------
-    def to_dict(self) -> dict:
-        from ..formats.scene_json import FORMAT, VERSION
-        md = rpc_metadata(self.rpc)
-        rpc = {key: float(md[key]) for key in RPC_KEYS}
-        rpc.update({key: [float(v) for v in md[key].split()] for key, _ in _COEFFS})
-        return {"format": FORMAT, "version": VERSION, "model": MODEL,
-                "camera": {"name": self.camera.name, "cols": self.camera.cols, "rows": self.camera.rows},
-                "rpc": rpc, "correction": {"col": self.correction[0].tolist(), "row": self.correction[1].tolist()},
-                "info": self.info}
 
-    @classmethod
-    def from_dict(cls, d: dict, source: str) -> "RpcScene":
-        """The scene of a checked scene-JSON object with ``"model": "rpc"`` (see
-        :func:`core.validation.check_rpc_scene_dict`)."""
-        from ..validation import check_rpc_scene_dict
-        d = check_rpc_scene_dict(d, source)
-        rpc = rpc_from_metadata(d["rpc"], f"{source}: rpc")
-        cam = d["camera"]
-        camera = RpcCamera(str(cam["name"]), int(cam["cols"]), int(cam["rows"]))
-        correction = np.array([d.get("correction", {}).get("col", [0, 0, 0]),
-                               d.get("correction", {}).get("row", [0, 0, 0])], dtype=float)
-        scene = cls(rpc, camera, correction, dict(d.get("info", {})))
-        check_image_size(rpc, camera.cols, camera.rows, source)
-        return scene
-
-
-# --- the refined RPC --------------------------------------------------------------------------
-def refined_rpc(scene: RpcScene) -> tuple[RpcModel, str]:
-    """An RPC00B model of the corrected scene, GDAL and QGIS use directly, and how it was made:
-    'folded' when each image coordinate's correction depends on that coordinate alone (a1 = 0 on
-    rows, a2 = b1 = 0: col' = (1 + a1) col + a0 is an exact change of the sample numerator, as a
-    multiple of the numerator plus one of the denominator; likewise rows), else 'refitted' (a
-    correction mixing rows and columns, e.g. a drift of the columns along the rows, is not a ratio
-    with the same denominator: the RPC is fitted anew to the corrected scene over the whole image
-    and the RPC's height range, :func:`core.rpcfit.fit_rpc`, to about 1e-5 px)."""
-    (a0, a1, a2), (b0, b1, b2) = scene.correction
-    r = scene.rpc
-    if a2 == 0.0 and b1 == 0.0:
-        def fold(num, den, off, scale, gain, shift):
-            # model' = gain * (model - origin + 0.5) + shift + origin - 0.5 with model = num/den * scale + off
-            constant = (gain - 1.0) * off + shift - (gain - 1.0) * (r.origin - 0.5)
-            return gain * num + constant / scale * den
-        return replace(r, samp_num=fold(r.samp_num, r.samp_den, r.samp_off, r.samp_scale, 1.0 + a1, a0),
-                       line_num=fold(r.line_num, r.line_den, r.line_off, r.line_scale, 1.0 + b2, b0)), "folded"
-    from ..products.rpcfit import fit_rpc
-    rpc, _ = fit_rpc(scene, 0, scene.height_range)
-    return rpc, "refitted"
-
-
-# --- reading RPC sources ----------------------------------------------------------------------
-def rpc_from_metadata(md: dict, source: str) -> RpcModel:
-    """RpcModel (origin 0) of GDAL 'RPC' metadata (keys LINE_OFF..., coefficient lists as text
-    of 20 numbers or lists); MetadataError naming ``source`` and the key when one is missing,
-    not a number, or a scale is zero."""
-    values = {}
-    for key, fld in zip(RPC_KEYS, _FIELDS):
-        if key not in md or str(md[key]).strip() == "":
-            raise MetadataError(f"{source}: {key} is missing")
-        values[fld] = _number(md[key], source, key)
-        if fld.endswith("_scale") and not (values[fld] != 0 and math.isfinite(values[fld])):
-            raise MetadataError(f"{source}: {key} is {md[key]!r}; a scale must be a non-zero number")
-    for key, fld in _COEFFS:
-        if key not in md:
-            raise MetadataError(f"{source}: {key} is missing (20 coefficients expected)")
-        raw = md[key]
-        items = raw if isinstance(raw, (list, tuple)) else str(raw).replace(",", " ").split()
-        coefficients = [_number(v, source, key) for v in items]
-        if len(coefficients) != 20:
-            raise MetadataError(f"{source}: {key} holds {len(coefficients)} numbers; RPC00B has 20")
-        values[fld] = np.array(coefficients)
-    for fld in ("line_den", "samp_den"):
-        if values[fld][0] == 0:
-            raise MetadataError(f"{source}: the constant term of {fld.upper()}_COEFF is 0: the denominator vanishes "
-                                "at the scene centre")
-    return RpcModel(**values, origin=0.0)
-
-
-def _number(text, source: str, key: str) -> float:
-    try:
-        v = float(str(text).strip().split()[0]) if not isinstance(text, (int, float)) else float(text)
-    except (ValueError, IndexError):
-        raise MetadataError(f"{source}: {key} is {str(text)[:40]!r}, not a number") from None
-    if not math.isfinite(v):
-        raise MetadataError(f"{source}: {key} is {text!r}, not a finite number")
-    return v
-
-
-def parse_rpc_txt(text: str) -> dict:
-    """GDAL 'RPC' metadata of a ``_RPC.TXT`` text ("KEY: value [unit]", coefficients one per line
-    as KEY_1..KEY_20)."""
-    md: dict = {}
-    lists: dict = {}
-    for line in text.splitlines():
-        key, sep, value = line.partition(":")
-        if not sep:
-            continue
-        key, value = key.strip().upper(), value.strip()
-        m = re.fullmatch(r"(\w+_COEFF)_(\d+)", key)
-        if m:
-            lists.setdefault(m.group(1), {})[int(m.group(2))] = value
-        else:
-            md[key] = value
-    for key, items in lists.items():
-        md[key] = [items[i] for i in sorted(items)]
-    return md
-
-
-def parse_rpb(text: str) -> dict:
-    """GDAL 'RPC' metadata of an ``.RPB`` text ("name = value;", lists in parentheses)."""
-    md = {}
-    for name, value in re.findall(r"(\w+)\s*=\s*([^;]*);", text):
-        key = RPB_NAMES.get(name)
-        if key:
-            md[key] = value.strip().strip("()").replace(",", " ")
-    return md
-
-
+# --- the image an RPC describes --------------------------------------------------------------
 def check_image_size(rpc: RpcModel, cols: int, rows: int, source: str) -> None:
     """MetadataError when an image of cols x rows px reaches past the RPC's sample/line range
     (by more than SIZE_MARGIN of its half-width): the RPC describes another image (a crop of an
@@ -352,77 +234,3 @@ def size_from_rpc(rpc: RpcModel) -> tuple[int, int]:
     """(cols, rows) of the image whose pixels the RPC's sample/line range spans."""
     return (int(math.floor(rpc.samp_off - rpc.origin + 1.0 + abs(rpc.samp_scale))),
             int(math.floor(rpc.line_off - rpc.origin + 1.0 + abs(rpc.line_scale))))
-
-
-def is_rpc_text(path: Path, head: bytes) -> bool:
-    """Whether a file is an RPC text (``_RPC.TXT`` / ``.RPB`` layout), by name or first line."""
-    name = path.name.upper()
-    return name.endswith(("_RPC.TXT", ".RPB")) or head.upper().startswith((b"LINE_OFF", b"SATID"))
-
-
-def read_rpc_text(path: Path) -> RpcScene:
-    """The RPC scene of a ``_RPC.TXT`` or ``.RPB`` file; the image size from an image beside it
-    that GDAL would pair with it, else from the RPC's line/sample range (with a warning)."""
-    try:
-        text = path.read_text(encoding="utf-8-sig", errors="strict")
-    except UnicodeDecodeError:
-        raise MetadataError(f"{path}: not a text RPC file (not UTF-8/ASCII text)") from None
-    md = parse_rpb(text) if ("BEGIN_GROUP" in text.upper() or path.suffix.upper() == ".RPB") else parse_rpc_txt(text)
-    rpc = rpc_from_metadata(md, str(path))
-    stem = path.name[:-8] if path.name.upper().endswith("_RPC.TXT") else path.stem
-    image = next((p for p in sorted(path.parent.glob(stem + ".*")) if p.suffix.lower() in IMAGE_SUFFIXES), None)
-    warnings = []
-    if image is not None:
-        cols, rows = _raster_size(image)
-    else:
-        cols, rows = size_from_rpc(rpc)
-        warnings.append(f"no image beside {path.name}: its size {cols} x {rows} px is taken from the RPC's "
-                        "sample/line range")
-    check_image_size(rpc, cols, rows, str(image or path))
-    info = {"source": str(path), "image": str(image) if image else None, "warnings": warnings}
-    return RpcScene(rpc, RpcCamera(stem or "image", cols, rows), info=info)
-
-
-IMAGE_SUFFIXES = (".tif", ".tiff", ".ntf", ".jp2", ".img", ".vrt")
-
-
-def _raster_size(path: Path) -> tuple[int, int]:
-    from osgeo import gdal
-    gdal.UseExceptions()
-    try:
-        ds = gdal.Open(str(path))
-    except RuntimeError as exc:
-        raise MetadataError(f"{path}: cannot be opened as a raster ({exc})") from None
-    return ds.RasterXSize, ds.RasterYSize
-
-
-def read_rpc_image(path: Path) -> RpcScene | None:
-    """The RPC scene of a raster GDAL reads with RPC metadata (tags, ``_RPC.TXT`` or ``.RPB``
-    beside it); None when GDAL cannot open it or it has no RPC."""
-    from osgeo import gdal
-    gdal.UseExceptions()
-    try:
-        ds = gdal.Open(str(path))
-    except RuntimeError:
-        return None
-    md = ds.GetMetadata("RPC") or {}
-    if not md:
-        return None
-    rpc = rpc_from_metadata(md, f"{path} (RPC metadata)")
-    check_image_size(rpc, ds.RasterXSize, ds.RasterYSize, str(path))
-    info = {"source": str(path), "image": str(path), "warnings": []}
-    return RpcScene(rpc, RpcCamera(path.stem, ds.RasterXSize, ds.RasterYSize), info=info)
-
-
-def read_dimap_rpc(path: Path, root) -> RpcScene:
-    """The RPC scene of a DIMAP ``RPC_*.XML`` (the vendor's Global_RFM inverse model); the image
-    size from the RFM's direct-model validity domain."""
-    from ..formats.dimap import read_dimap_rfm
-    rpc, _ = read_dimap_rfm(path, root)
-    domain = root.find(".//Direct_Model_Validity_Domain")
-    try:
-        cols, rows = int(domain.findtext("LAST_COL")), int(domain.findtext("LAST_ROW"))
-    except (AttributeError, TypeError, ValueError):
-        cols, rows = size_from_rpc(rpc)
-    check_image_size(rpc, cols, rows, str(path))
-    return RpcScene(rpc, RpcCamera(path.stem, cols, rows), info={"source": str(path), "warnings": []})

@@ -95,7 +95,7 @@ class SceneModel:
         """
         self.prepare()
         cam = self.cameras[camera]
-        col, row = _as_points(col, row)
+        col, row = as_points(col, row)
         k = cam.chip_index(col)
         t = cam.timing.time(row) + cam.time_offset(k)
         s, v, r = self.platform_of(camera).state(t)
@@ -118,7 +118,7 @@ class SceneModel:
     def image_to_ground(self, col, row, height, camera: int = 0) -> np.ndarray:
         """ECEF points (n, 3) seen at image points (col, row) on the surface of ellipsoidal
         height ``height`` (m, scalar or (n,)). NaN where the ray misses."""
-        col, row = _as_points(col, row)
+        col, row = as_points(col, row)
         height = np.broadcast_to(np.asarray(height, dtype=float), col.shape)
         if not np.all(np.isfinite(height)):
             raise InputError("heights contain NaN or infinite values")
@@ -141,7 +141,7 @@ class SceneModel:
         vertical rate; refraction shifts the ground point toward nadir.
         """
         camera = self.camera_index(camera)
-        col, row = _as_points(col, row)
+        col, row = as_points(col, row)
         self.prepare()
         h_start = np.broadcast_to(h_start, col.shape)
         index = np.arange(col.size)
@@ -252,6 +252,10 @@ class SceneModel:
         if camera not in self._guess:
             self._guess[camera] = self._build_guess_rasters(camera)
         return _in_chunks(lambda q: self._ground_to_image_chunk(q, camera, tol, max_iter), p)
+
+    def clear_guesses(self) -> None:
+        """Forget the first-guess rasters of :meth:`ground_to_image` (after its corrections changed)."""
+        self._guess.clear()
 
     def _ground_to_image_chunk(self, p, camera: int, tol: float, max_iter: int):
         cam = self.cameras[camera]
@@ -440,7 +444,9 @@ def _in_chunks(func, *arrays):
     return np.concatenate(parts)
 
 
-def _as_points(col, row) -> tuple[np.ndarray, np.ndarray]:
+def as_points(col, row) -> tuple[np.ndarray, np.ndarray]:
+    """Image points (GDAL px) as two float arrays of one shape (n,) (scalars broadcast);
+    InputError when any is NaN or infinite."""
     col = np.atleast_1d(np.asarray(col, dtype=float))
     row = np.atleast_1d(np.asarray(row, dtype=float))
     col, row = np.broadcast_arrays(col, row)

@@ -53,7 +53,8 @@ class TimeBasis:
             raise InputError("time scale and knot interval must be positive")
 
     @classmethod
-    def covering(cls, kind: str, t_min: float, t_max: float, order: int = 2, interval: float | None = None) -> "TimeBasis":
+    def covering(cls, kind: str, t_min: float, t_max: float, order: int = 2,
+                 interval: float | None = None) -> "TimeBasis":
         """A basis over [t_min, t_max] s: polynomials centred on the span (tau in [-1, 1]), or
         knots every ``interval`` s spanning it (at least the minimum count)."""
         centre, half = 0.5 * (t_min + t_max), max(0.5 * (t_max - t_min), 1e-6)

@@ -179,7 +179,7 @@ class TrajectoryCorrection:
         rotation(t) = measured rotation(t) @ R(Ba(t) @ attitude_coefficients)   (body frame)
 
     with R = rotation_from_angles(roll, pitch, yaw) (rad) and Bp, Ba time bases (see
-    :mod:`core.timebasis`). Coefficients: (m, 3) arrays, columns X, Y, Z and roll, pitch, yaw.
+    :mod:`core.model.timebasis`). Coefficients: (m, 3) arrays, columns X, Y, Z and roll, pitch, yaw.
     """
     position: TimeBasis
     position_coefficients: np.ndarray

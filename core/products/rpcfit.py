@@ -1,11 +1,12 @@
-"""Fit RPC00B rational polynomial models to a rigorous scene model, check them, write them.
+"""Fit RPC00B rational polynomial models to a scene model and check them; the refined RPC of an
+adjusted RPC scene. Writing them: :mod:`core.formats.rpcfiles`.
 
 Conventions (as everywhere in the core):
 - Image coordinates are GDAL (col, row): (0, 0) is the upper-left corner of the upper-left
   pixel, whose centre is (0.5, 0.5).
 - RPC00B model coordinates (sample, line), as GDAL reads them from a GeoTIFF's RPC tag, an
   ``<image>_RPC.TXT`` or an ``<image>.RPB``, are 0 at the CENTRE of the first pixel:
-  sample = col - 0.5, line = row - 0.5 (:class:`core.rpc.RpcModel` with ``origin`` = 0). This is
+  sample = col - 0.5, line = row - 0.5 (:class:`core.model.rpc.RpcModel` with ``origin`` = 0). This is
   what GDAL's RPC transformer applies (checked in tests/unit/test_rpcfit.py by running
   ``gdal.Transformer(..., ['METHOD=RPC', 'RPC_HEIGHT=h'])`` on a fitted model).
 - Ground: longitude, latitude (degrees, WGS84) and ellipsoidal height (m).
@@ -19,37 +20,26 @@ per iteration and coordinate.
 """
 from __future__ import annotations
 
-import json
 import math
-import os
-from pathlib import Path
-from xml.etree import ElementTree
+from dataclasses import replace
 
 import numpy as np
 
 from ..errors import InputError
-from ..files import OutputSet, output_set, write_text
 from ..geodesy import ecef_to_geodetic
 from ..model.rpc import RpcModel, rpc_terms
+from ..model.rpcscene import RpcScene
 
 DEFAULT_GRID = (31, 31, 7)
 DEFAULT_REGULARISATION = 1e-12
 MAX_REGULARISATION = 1e-4  # beyond it the ridge itself bends the fit by a good fraction of a pixel
 DEFAULT_CHECK_GRID = (40, 40)
 
-RPC_KEYS = ("LINE_OFF", "SAMP_OFF", "LAT_OFF", "LONG_OFF", "HEIGHT_OFF", "LINE_SCALE", "SAMP_SCALE",
-            "LAT_SCALE", "LONG_SCALE", "HEIGHT_SCALE")
-_FIELDS = ("line_off", "samp_off", "lat_off", "lon_off", "height_off", "line_scale", "samp_scale",
-           "lat_scale", "lon_scale", "height_scale")
-_UNITS = ("pixels", "pixels", "degrees", "degrees", "meters", "pixels", "pixels", "degrees", "degrees", "meters")
-_COEFFS = (("LINE_NUM_COEFF", "line_num"), ("LINE_DEN_COEFF", "line_den"), ("SAMP_NUM_COEFF", "samp_num"),
-           ("SAMP_DEN_COEFF", "samp_den"))
-
 
 # --- fit ----------------------------------------------------------------------------------
 def fit_rpc(scene, camera=0, height_range=None, grid=DEFAULT_GRID, regularisation: float = DEFAULT_REGULARISATION,
             check_grid=DEFAULT_CHECK_GRID, max_iter: int = 20, progress=None) -> tuple[RpcModel, dict]:
-    """RPC00B model of one camera of ``scene`` (core.sensor.SceneModel), fitted to its rigorous
+    """RPC00B model of one camera of ``scene`` (core.model.sensor.SceneModel), fitted to its rigorous
     image -> ground over the whole image and ``height_range`` (lo, hi) ellipsoidal metres
     (default: the scene's own height range), and the report of an independent check.
 
@@ -334,112 +324,23 @@ def dem_height_range(scene, dem, camera=0, margin: float = 0.1, min_margin: floa
     return lo - pad, hi + pad
 
 
-# --- writing -------------------------------------------------------------------------------
-def rpc_metadata(rpc: RpcModel) -> dict:
-    """GDAL's 'RPC' metadata domain (string values) of a model (origin converted to 0)."""
-    # GDAL's model coordinates are 0 at the first pixel's centre: move other origins there
-    values = dict(line_off=rpc.line_off - rpc.origin, samp_off=rpc.samp_off - rpc.origin)
-    md = {}
-    for key, fld in zip(RPC_KEYS, _FIELDS):
-        md[key] = repr(float(values.get(fld, getattr(rpc, fld))))
-    for key, fld in _COEFFS:
-        md[key] = " ".join(repr(float(v)) for v in getattr(rpc, fld))
-    return md
-
-
-def rpc_txt(rpc: RpcModel) -> str:
-    """The model as GDAL's ``_RPC.TXT`` text (the DigitalGlobe "KEY: value units" layout)."""
-    md = rpc_metadata(rpc)
-    lines = [f"{key}: {md[key]} {unit}" for key, unit in zip(RPC_KEYS, _UNITS)]
-    for key, _ in _COEFFS:
-        lines += [f"{key}_{i + 1}: {v}" for i, v in enumerate(md[key].split())]
-    return "\n".join(lines) + "\n"
-
-
-def rpc_rpb(rpc: RpcModel, sat_id: str = "PUSHBROOM") -> str:
-    """The model as an ``.RPB`` file (the RPC00B keyword layout that GDAL reads)."""
-    md = rpc_metadata(rpc)
-    names = ("lineOffset", "sampOffset", "latOffset", "longOffset", "heightOffset", "lineScale", "sampScale",
-             "latScale", "longScale", "heightScale")
-    out = [f'satId = "{sat_id}";', 'bandId = "P";', 'SpecId = "RPC00B";', "BEGIN_GROUP = IMAGE",
-           "\terrBias = -1.0;", "\terrRand = -1.0;"]
-    out += [f"\t{n} = {md[k]};" for n, k in zip(names, RPC_KEYS)]
-    for n, (key, _) in zip(("lineNumCoef", "lineDenCoef", "sampNumCoef", "sampDenCoef"), _COEFFS):
-        vals = md[key].split()
-        out.append(f"\t{n} = (")
-        out += [f"\t\t\t{v}," for v in vals[:-1]] + [f"\t\t\t{vals[-1]});"]
-    out += ["END_GROUP = IMAGE", "END;"]
-    return "\n".join(out) + "\n"
-
-
-def write_rpc(rpc: RpcModel, path, report: dict | None = None, files: OutputSet | None = None) -> Path:
-    """Write the model to ``path``: ``.RPB`` -> RPB layout, anything else (``*_RPC.TXT``) -> GDAL's
-    RPC text layout. GDAL reads it for an image ``<name>.<ext>`` in the same folder when the file
-    is called ``<name>_RPC.TXT`` or ``<name>.RPB``. With ``report``, also writes it as JSON to
-    ``<path>.json``. Both files are renamed into place only when both are written, so a failure
-    leaves nothing behind (with ``files``, they are part of that set, committed by its owner)."""
-    path = Path(path)
-    with output_set(files) as out:
-        write_text(path, rpc_rpb(rpc) if path.suffix.lower() == ".rpb" else rpc_txt(rpc), out, encoding="ascii")
-        if report is not None:
-            write_text(report_path(path), json.dumps(report, indent=2), out)
-    return path
-
-
-def report_path(path) -> Path:
-    """Where :func:`write_rpc` puts the fit report of an RPC file: ``<path>.json``."""
-    return Path(f"{path}.json")
-
-
-def sidecar_path(image, kind: str = "txt") -> Path:
-    """Where GDAL looks for an image's RPC file: ``<stem>_RPC.TXT`` (kind 'txt') or ``<stem>.RPB``."""
-    image = Path(image)
-    return image.with_name(image.stem + ("_RPC.TXT" if kind == "txt" else ".RPB"))
-
-
-def set_geotiff_rpc(rpc: RpcModel, tif_path) -> None:
-    """Store the model in a GeoTIFF's RPC tag (GDAL metadata domain 'RPC'), IN PLACE.
-
-    Only for files the caller owns (an output or a copy): never point it at a user's input."""
-    from osgeo import gdal
-    gdal.UseExceptions()
-    try:
-        ds = gdal.Open(str(tif_path), gdal.GA_Update)
-    except RuntimeError as exc:
-        raise InputError(f"cannot open {tif_path} for update: {exc}") from None
-    if ds.GetDriver().ShortName != "GTiff":
-        raise InputError(f"{tif_path} is not a GeoTIFF; write an _RPC.TXT or .RPB beside it instead")
-    ds.SetMetadata(rpc_metadata(rpc), "RPC")
-    ds.FlushCache()
-    ds = None
-
-
-def image_vrt_with_rpc(rpc: RpcModel, image, vrt_path, cols: int | None = None, rows: int | None = None,
-                       files: OutputSet | None = None, shown_as=None) -> Path:
-    """A VRT at ``vrt_path`` that shows ``image`` (unchanged, referenced by path: relative to the
-    VRT's folder when it lies in or below it) with the model in its RPC metadata, so GDAL and
-    QGIS use the RPC for it. With cols/rows, checks that the image has the camera's size
-    (InputError otherwise). Written completely or not at all (with ``files``, as part of that set).
-    ``shown_as``: the path the VRT names for the image instead of ``image`` (the final name of an
-    image still being written under a temporary one)."""
-    from osgeo import gdal
-    gdal.UseExceptions()
-    vrt_path = Path(vrt_path)
-    try:
-        src = gdal.Open(str(image))
-    except RuntimeError as exc:
-        raise InputError(f"image {image}: cannot be opened as a raster ({exc})") from None
-    if cols is not None and (src.RasterXSize, src.RasterYSize) != (int(cols), int(rows)):
-        raise InputError(f"image {image} is {src.RasterXSize} x {src.RasterYSize} pixels but the camera's image is "
-                         f"{cols} x {rows}: it is not this camera's image")
-    vrt = gdal.Translate("", src, format="VRT")  # in memory: its XML is written below
-    vrt.SetMetadata(rpc_metadata(rpc), "RPC")
-    xml = ElementTree.fromstring(vrt.GetMetadata("xml:VRT")[0])
-    vrt = None
-    for name in xml.iter("SourceFilename"):  # relative to the VRT's folder when the image lies in or below it
-        relative = os.path.relpath(os.path.realpath(shown_as or name.text), os.path.dirname(os.path.realpath(vrt_path)))
-        if name.get("relativeToVRT") != "1" and not relative.startswith(os.pardir):
-            name.text = relative
-            name.set("relativeToVRT", "1")
-    write_text(vrt_path, ElementTree.tostring(xml, encoding="unicode"), files)
-    return vrt_path
+# --- the refined RPC --------------------------------------------------------------------------
+def refined_rpc(scene: RpcScene) -> tuple[RpcModel, str]:
+    """An RPC00B model of the corrected scene, GDAL and QGIS use directly, and how it was made:
+    'folded' when each image coordinate's correction depends on that coordinate alone (a1 = 0 on
+    rows, a2 = b1 = 0: col' = (1 + a1) col + a0 is an exact change of the sample numerator, as a
+    multiple of the numerator plus one of the denominator; likewise rows), else 'refitted' (a
+    correction mixing rows and columns, e.g. a drift of the columns along the rows, is not a ratio
+    with the same denominator: the RPC is fitted anew to the corrected scene over the whole image
+    and the RPC's height range, :func:`fit_rpc`, to about 1e-5 px)."""
+    (a0, a1, a2), (b0, b1, b2) = scene.correction
+    r = scene.rpc
+    if a2 == 0.0 and b1 == 0.0:
+        def fold(num, den, off, scale, gain, shift):
+            # model' = gain * (model - origin + 0.5) + shift + origin - 0.5 with model = num/den * scale + off
+            constant = (gain - 1.0) * off + shift - (gain - 1.0) * (r.origin - 0.5)
+            return gain * num + constant / scale * den
+        return replace(r, samp_num=fold(r.samp_num, r.samp_den, r.samp_off, r.samp_scale, 1.0 + a1, a0),
+                       line_num=fold(r.line_num, r.line_den, r.line_off, r.line_scale, 1.0 + b2, b0)), "folded"
+    rpc, _ = fit_rpc(scene, 0, scene.height_range)
+    return rpc, "refitted"
