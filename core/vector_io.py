@@ -1,4 +1,5 @@
-"""Writing vector layers with OGR: fields from parallel numpy arrays, one geometry per row.
+"""Vector layers with OGR: opening a layer, the WGS84 3D frame of ground layers, and writing
+layers whose fields come from parallel numpy arrays, one geometry per row.
 
 Types follow the arrays: strings -> String, booleans and integers -> Integer, floats ->
 Real (NaN written as NULL). The file is written completely or not at all
@@ -34,6 +35,27 @@ def open_layer(path, layer: str | None = None):
     if lyr is None:
         raise InputError(f"{path}: no layer {layer!r}")
     return ds, lyr
+
+
+def wgs84_3d() -> osr.SpatialReference:
+    """EPSG:4979 (WGS84 longitude, latitude in degrees, ellipsoidal height in metres), in
+    longitude/latitude axis order: the frame of every ground layer the core writes."""
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(4979)
+    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    return srs
+
+
+def layer_to_wgs84_3d(lyr) -> osr.CoordinateTransformation | None:
+    """The transformation of an OGR layer's coordinates to :func:`wgs84_3d`; None when the layer
+    has no CRS or is in that frame already."""
+    srs = lyr.GetSpatialRef()
+    target = wgs84_3d()
+    if srs is None or srs.IsSame(target):
+        return None
+    srs = srs.Clone()
+    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
+    return osr.CoordinateTransformation(srs, target)
 
 
 def feature_count(path) -> int | None:

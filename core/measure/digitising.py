@@ -3,7 +3,7 @@ image lines being drawn (vertices, undo, delete, pairing to ground lines), the g
 nearest to a click, and ground lines predicted into the image by the current scene model.
 
 Image coordinates are (col, row) GDAL px: (0, 0) is the upper-left corner of the upper-left
-pixel, rows grow downwards (the display copy of :mod:`core.display` shows them as x = col,
+pixel, rows grow downwards (the display copy of :mod:`core.measure.display` shows them as x = col,
 y = -row).
 """
 from __future__ import annotations
@@ -13,12 +13,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..observations.gcps import Heights, _heights
 from ..geodesy import geodetic_to_ecef
-from ..observations.lines import DEFAULT_SIGMA_PX, ImageLines, build_image_lines
+from ..observations.lines import DEFAULT_SIGMA_PX, M_PER_DEG, ImageLines, build_image_lines
+from ..observations.tables import Heights, ellipsoidal_heights
 from .snapping import SnapSettings, snap_lines
-
-_M_PER_DEG = 111320.0
 
 
 @dataclass
@@ -86,7 +84,7 @@ class LineEditor:
 
     def snap_selected(self, image, settings: SnapSettings) -> tuple[int, int]:
         """Snap the selected line to the feature of ``image`` (raster path or array,
-        :func:`core.snapping.snap_lines`), undoable; (vertices refined, vertices)."""
+        :func:`core.measure.snapping.snap_lines`), undoable; (vertices refined, vertices)."""
         if self.selected is None:
             raise InputError("select an image line first (click it in the list), then snap it")
         line = self.lines[self.selected]
@@ -122,7 +120,7 @@ class LineEditor:
         self.lines[self.selected].line_id = line_id
 
     def image_lines(self, camera: str, sigma_px: float = DEFAULT_SIGMA_PX) -> ImageLines:
-        """The finished lines as :class:`core.lines.ImageLines` of ``camera``. InputError naming
+        """The finished lines as :class:`core.observations.lines.ImageLines` of ``camera``. InputError naming
         the lines (1-based, as listed) that are not paired, and when a line is still being
         drawn or there is none."""
         if self.current:
@@ -168,8 +166,8 @@ def densify(part: np.ndarray, step_m: float) -> np.ndarray:
     """Vertices of a ground polyline (n, 2|3) lon, lat deg [, z] with points added along each
     segment, at most ``step_m`` m apart (interpolated linearly in lon, lat and z)."""
     lon, lat = part[:, 0], part[:, 1]
-    dx = np.diff(lon) * _M_PER_DEG * np.cos(np.radians(lat[:-1]))
-    dy = np.diff(lat) * _M_PER_DEG
+    dx = np.diff(lon) * M_PER_DEG * np.cos(np.radians(lat[:-1]))
+    dy = np.diff(lat) * M_PER_DEG
     pieces = np.maximum(np.ceil(np.hypot(dx, dy) / step_m), 1).astype(int)
     # fractional vertex positions: segment k contributes k + j / pieces[k], j = 0 .. pieces[k] - 1
     seg = np.repeat(np.arange(pieces.size), pieces)
@@ -207,7 +205,7 @@ def predict_lines(scene, camera: int, ids, parts: list[np.ndarray], heights: Hei
     ids = np.asarray(ids, dtype=str)
     vid = np.repeat(ids, [len(p) for p in dense])
     z = points[:, 2] if points.shape[1] > 2 else None
-    h = _heights(points[:, 0], points[:, 1], heights, z, vid, "ground lines")
+    h = ellipsoidal_heights(points[:, 0], points[:, 1], heights, z, vid, "ground lines")
     col, row = scene.ground_to_image(geodetic_to_ecef(points[:, 0], points[:, 1], h), camera)
     bounds = np.cumsum([0] + [len(p) for p in dense])
     return [PredictedLine(str(i), col[a:b], row[a:b]) for i, a, b in zip(ids, bounds[:-1], bounds[1:])]

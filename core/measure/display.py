@@ -5,7 +5,7 @@ ground frame), and one without any is drawn in an unnamed frame; neither shows p
 coordinates. The display copy is a VRT that references the raw image's bands (nothing is
 copied or resampled) without its RPC and GCP metadata, with the pixel geotransform
 (0, 1, 0, 0, 0, -1) — x = col, y = -row, GDAL convention: (0, 0) is the upper-left corner of
-the upper-left pixel — and the engineering CRS of :func:`core.lines.pixel_frame`, the frame of
+the upper-left pixel — and the engineering CRS of :func:`core.observations.lines.pixel_frame`, the frame of
 the ``image_lines`` layers. The VRT's PUSHBROOM metadata domain names the scene file and the
 camera, so that the digitising dock finds them again.
 """
@@ -102,5 +102,5 @@ def empty_image_lines() -> ImageLines:
 
 
 def write_empty_lines(output, files: OutputSet | None = None) -> None:
-    """A GeoPackage with an empty ``image_lines`` layer (:mod:`core.lines`' format) to digitise in."""
+    """A GeoPackage with an empty ``image_lines`` layer (:mod:`core.observations.lines`' format) to digitise in."""
     write_gpkg(output, image=empty_image_lines(), files=files)

@@ -36,27 +36,23 @@ from __future__ import annotations
 import logging
 import math
 import os
-import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-import scipy.fft
-from osgeo import gdal
-from pyproj import CRS, Transformer
-from pyproj.exceptions import CRSError
 from scipy.ndimage import gaussian_filter
 
 from ..errors import Cancelled, InputError
-from ..observations.gcps import GcpTable
 from ..geodesy import ecef_to_geodetic
-from ..products.ortho import _image_on_surface, _open_raw, _RawImage
 from ..model.sensor import SceneModel
+from ..observations.gcps import GcpTable
 from ..observations.tiepoints import TieTable
+from ..products.rawimage import RawImage
+from .correlation import Peaks, block_mean, find_peaks, ncc, sample
+from .reference import MEMORY_BUDGET, ImageReference, Reference, check_overlap, open_checked
 
-gdal.UseExceptions()
 log = logging.getLogger(__name__)
 
 REASONS = ("near a CCD seam", "outside the image", "off the DEM", "outside the reference", "low texture",
@@ -67,7 +63,6 @@ COARSE_RADIUS = 40        # coarse search radius (coarse px): sets the block-ave
 COARSE_GRID = 5           # coarse chips per side
 MIN_CONSISTENT = 3        # coarse matches that must agree
 SIGMA_FLOOR = 0.1         # px: the error floor the bench measures (spline sampling, peak fit), unseen by the formula
-MEMORY_BUDGET = 2 ** 30   # bytes of raw image / reference pixels held in memory
 
 
 @dataclass(frozen=True)
@@ -121,120 +116,6 @@ class MatchResult:
     seconds: float = 0.0
 
 
-# --- rasters -------------------------------------------------------------------------------------
-class Reference:
-    """A north-up reference orthoimage (any projected or geographic CRS): its CRS, geotransform and
-    pixels (in memory when they fit in ``budget`` bytes, else read by window through a GDAL
-    dataset per thread)."""
-
-    def __init__(self, path, budget: float = MEMORY_BUDGET):
-        self.path = str(path)
-        try:
-            ds = gdal.OpenEx(self.path, gdal.OF_RASTER)
-        except RuntimeError as exc:
-            raise InputError(f"reference {self.path}: cannot be opened as a raster ({exc})") from None
-        self.cols, self.rows = ds.RasterXSize, ds.RasterYSize
-        gt = ds.GetGeoTransform(can_return_null=True)
-        wkt = ds.GetProjection()
-        if not wkt or gt is None:
-            raise InputError(f"reference {self.path}: no coordinate reference system or georeferencing: a reference "
-                             "orthoimage must say where it lies (a GeoTIFF with its CRS, or a .prj/.aux.xml)")
-        try:
-            self.crs = CRS.from_wkt(wkt)
-        except CRSError as exc:
-            raise InputError(f"reference {self.path}: unknown coordinate reference system ({exc})") from None
-        if gt[2] != 0 or gt[4] != 0 or not (gt[1] > 0 and gt[5] < 0):
-            raise InputError(f"reference {self.path}: the geotransform {gt} is rotated or not north-up; warp it "
-                             "north-up first (gdalwarp)")
-        if not (self.crs.is_projected or self.crs.is_geographic):
-            raise InputError(f"reference {self.path}: its coordinate reference system ({self.crs.name}) is neither "
-                             "projected nor geographic, so its place on the Earth is unknown; assign the right CRS")
-        self.geotransform = gt
-        self.nodata = ds.GetRasterBand(1).GetNoDataValue()
-        self.to_map = Transformer.from_crs(CRS.from_epsg(4326), self.crs, always_xy=True)
-        centre = Transformer.from_crs(self.crs, CRS.from_epsg(4326), always_xy=True).transform(
-            gt[0] + gt[1] * self.cols / 2, gt[3] + gt[5] * self.rows / 2)
-        # pixel size on the ground (m): degrees of a geographic CRS at the raster's centre
-        unit = (math.radians(6378137.0) * math.cos(math.radians(centre[1])) if self.crs.is_geographic
-                else self.crs.axis_info[0].unit_conversion_factor)
-        self.gsd = float(gt[1] * unit)
-        if not (np.all(np.isfinite(centre)) and 1e-3 <= self.gsd <= 1e4):
-            raise InputError(f"reference {self.path}: implausible georeferencing (pixel size {self.gsd:g} m in "
-                             f"{self.crs.name}); expected an orthoimage with pixels of 1 mm to 10 km")
-        self._local = threading.local()
-        self.data = ds.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
-        ds = None
-
-    def dataset(self):
-        if not hasattr(self._local, "ds"):
-            self._local.ds = gdal.Open(self.path)
-        return self._local.ds
-
-    def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Fractional array indices (x, y) of ECEF points (n, 3)."""
-        lon, lat, _ = ecef_to_geodetic(ground)
-        return self.pixel(lon, lat)
-
-    def pixel(self, lon, lat) -> tuple[np.ndarray, np.ndarray]:
-        """Fractional array indices (x = column, y = row; pixel centres at integers) of (lon, lat)."""
-        x, y = self.to_map.transform(lon, lat)
-        gt = self.geotransform
-        return (np.asarray(x) - gt[0]) / gt[1] - 0.5, (np.asarray(y) - gt[3]) / gt[5] - 0.5
-
-    def window(self, x: np.ndarray, y: np.ndarray, pad: int) -> tuple[np.ndarray, int, int]:
-        """Pixels covering array positions (x, y) + ``pad``, clipped to the raster, in its own data
-        type (the whole array when in memory: sample() indexes it flat, without a copy), and
-        their origin."""
-        x0, y0 = max(int(np.floor(np.nanmin(x))) - pad, 0), max(int(np.floor(np.nanmin(y))) - pad, 0)
-        x1 = min(int(np.ceil(np.nanmax(x))) + pad + 1, self.cols)
-        y1 = min(int(np.ceil(np.nanmax(y))) + pad + 1, self.rows)
-        if x1 <= x0 or y1 <= y0:
-            return np.full((1, 1), np.nan, np.float32), 0, 0
-        if self.data is not None:
-            return self.data, 0, 0
-        return self.dataset().GetRasterBand(1).ReadAsArray(x0, y0, x1 - x0, y1 - y0), x0, y0
-
-    def float_window(self, x: np.ndarray, y: np.ndarray, pad: int) -> tuple[np.ndarray, int, int]:
-        """Like :meth:`window`, only the covering pixels, as float32 with nodata NaN."""
-        a, ox, oy = self.window(x, y, pad)
-        x0, y0 = max(int(np.floor(np.nanmin(x))) - pad - ox, 0), max(int(np.floor(np.nanmin(y))) - pad - oy, 0)
-        x1, y1 = int(np.ceil(np.nanmax(x))) + pad + 1 - ox, int(np.ceil(np.nanmax(y))) + pad + 1 - oy
-        return _blanked(a[y0:y1, x0:x1], self.nodata), ox + x0, oy + y0
-
-
-class ImageReference(Reference):
-    """Another camera's raw image as the reference (tie points): ground -> its image through the
-    scene model. Pixels as :class:`Reference`'s."""
-
-    def __init__(self, scene: SceneModel, camera: int, image_path, gsd: float, budget: float = MEMORY_BUDGET):
-        cam = scene.cameras[camera]
-        src, self.nodata = _open_checked(scene, camera, image_path)
-        self.scene, self.camera, self.path, self.gsd = scene, camera, str(image_path), gsd
-        self.cols, self.rows = cam.cols, cam.rows
-        self.data = src.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
-        self._local = threading.local()
-
-    def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        col, row = self.scene.ground_to_image(ground, self.camera)
-        return col - 0.5, row - 0.5
-
-
-def _blanked(a: np.ndarray, nodata) -> np.ndarray:
-    """Float32 copy of ``a`` with its nodata pixels NaN."""
-    a = a.astype(np.float32)
-    if nodata is not None:
-        a[a == nodata] = np.nan
-    return a
-
-
-def check_not_constant(what: str, path: str, a: np.ndarray) -> None:
-    """InputError when a sample of an image has (almost) no contrast: nothing can be matched."""
-    a = a[np.isfinite(a)]
-    if a.size == 0 or float(np.std(a)) < 0.5:
-        value = f" (value {float(a[0]):g})" if a.size else ""
-        raise InputError(f"{what} {path}: the image is blank or constant{value}; nothing can be matched")
-
-
 # --- geometry ------------------------------------------------------------------------------------
 _LAGRANGE = lambda t: np.stack([t * (t - 1) / 2, 1 - t * t, t * (t + 1) / 2], axis=-1)  # noqa: E731
 
@@ -257,106 +138,6 @@ def predicted_positions(scene: SceneModel, camera: int, dem, ref: Reference, col
     return px, py, ground.reshape(n, 9, 3)[:, 4]
 
 
-def _keys(t: np.ndarray) -> list[np.ndarray]:
-    """Keys cubic convolution weights (a = -0.5) of the taps -1, 0, 1, 2 at fractions t."""
-    t2, t3 = t * t, t * t * t
-    return [(-t3 + 2 * t2 - t) / 2, (3 * t3 - 5 * t2 + 2) / 2, (-3 * t3 + 4 * t2 + t) / 2, (t3 - t2) / 2]
-
-
-def sample(image: np.ndarray, x0: int, y0: int, x: np.ndarray, y: np.ndarray, nodata=None) -> np.ndarray:
-    """Cubic convolution samples (Keys) of ``image`` (origin (x0, y0)) at array positions (x, y);
-    NaN where a position lies outside the image or one of its 4 x 4 taps is ``nodata`` or NaN.
-    A local kernel, so no prefilter of the image: the cost is per sample, not per image."""
-    h, w = image.shape
-    if h < 4 or w < 4:
-        return np.full(np.shape(x), np.nan)
-    u, v = np.asarray(x, np.float64) - x0, np.asarray(y, np.float64) - y0
-    iu, iv = np.floor(u), np.floor(v)
-    inside = (iu >= 1) & (iv >= 1) & (iu <= w - 3) & (iv <= h - 3)
-    iu, iv = np.where(inside, iu, 1).astype(np.intp), np.where(inside, iv, 1).astype(np.intp)
-    wu, wv = _keys((u - iu).astype(np.float32)), _keys((v - iv).astype(np.float32))
-    flat = image.ravel()
-    base = iv * w + iu
-    out = np.zeros(u.shape, np.float32)
-    for a in range(4):
-        row = np.zeros(u.shape, np.float32)
-        for b in range(4):
-            tap = flat[base + (a - 1) * w + (b - 1)]
-            if nodata is not None:
-                inside &= tap != nodata
-            row += wu[b] * tap
-        out += wv[a] * row
-    return np.where(inside & np.isfinite(out), out, np.nan)
-
-
-# --- correlation ---------------------------------------------------------------------------------
-def _window_sums(a: np.ndarray, w: int) -> np.ndarray:
-    """Sums of a (b, s, s) over every w x w window: (b, s-w+1, s-w+1), by integral images."""
-    c = np.zeros((a.shape[0], a.shape[1] + 1, a.shape[2] + 1))
-    c[:, 1:, 1:] = a.cumsum(1).cumsum(2)
-    return c[:, w:, w:] - c[:, :-w, w:] - c[:, w:, :-w] + c[:, :-w, :-w]
-
-
-def ncc(templates: np.ndarray, search: np.ndarray, workers: int = 1) -> np.ndarray:
-    """Normalised cross-correlation (b, n, n), n = s - w + 1, of templates (b, w, w) at every
-    offset inside search images (b, s, s): entry [i, j] compares the template with the search
-    window whose upper-left pixel is (row i, col j). Flat windows give 0."""
-    b, w, _ = templates.shape
-    s = search.shape[1]
-    t = templates - templates.mean(axis=(1, 2), keepdims=True)
-    t /= np.maximum(np.sqrt((t * t).sum(axis=(1, 2), keepdims=True)), 1e-12)
-    size = scipy.fft.next_fast_len(s, real=True)
-    ft = scipy.fft.rfft2(t, s=(size, size), workers=workers)
-    fs = scipy.fft.rfft2(search, s=(size, size), workers=workers)
-    corr = scipy.fft.irfft2(fs * np.conj(ft), s=(size, size), workers=workers)[:, :s - w + 1, :s - w + 1]
-    total = _window_sums(search, w)
-    energy = _window_sums(search * search, w) - total * total / (w * w)
-    return np.where(energy > 1e-9, corr / np.sqrt(np.maximum(energy, 1e-9)), 0.0)
-
-
-# least-squares paraboloid z = a + b x + c y + d x^2 + e xy + f y^2 on the 3 x 3 neighbourhood
-_GX, _GY = np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0])
-_PARABOLOID = np.linalg.pinv(np.stack([np.ones(9), _GX.ravel(), _GY.ravel(), _GX.ravel() ** 2,
-                                       (_GX * _GY).ravel(), _GY.ravel() ** 2], axis=1))
-
-
-@dataclass
-class Peaks:
-    """Per chip: sub-pixel peak position (dx, dy) in offset units, its correlation, the second
-    peak's ratio to it and whether the integer peak lies on the border of the surface."""
-    dx: np.ndarray
-    dy: np.ndarray
-    value: np.ndarray
-    ratio: np.ndarray
-    border: np.ndarray
-
-
-def find_peaks(c: np.ndarray, exclusion: int) -> Peaks:
-    """Peaks of correlation surfaces c (b, n, n): integer maximum refined by a paraboloid; the
-    second peak is the largest value farther than ``exclusion`` from the first."""
-    b, n, _ = c.shape
-    flat = c.reshape(b, -1)
-    k = np.argmax(flat, axis=1)
-    i, j = np.divmod(k, n)
-    value = flat[np.arange(b), k]
-    border = (i == 0) | (j == 0) | (i == n - 1) | (j == n - 1)
-    ii, jj = np.clip(i, 1, n - 2), np.clip(j, 1, n - 2)
-    rows = ii[:, None, None] + np.arange(-1, 2)[None, :, None]
-    cols = jj[:, None, None] + np.arange(-1, 2)[None, None, :]
-    z = c[np.arange(b)[:, None, None], rows, cols].reshape(b, 9)
-    _, gb, gc, gd, ge, gf = (_PARABOLOID @ z.T)
-    det = 4 * gd * gf - ge * ge
-    ok = (det > 1e-12) & (gd < 0) & (gf < 0)
-    sx = np.where(ok, (-2 * gf * gb + ge * gc) / np.where(ok, det, 1.0), 0.0)
-    sy = np.where(ok, (-2 * gd * gc + ge * gb) / np.where(ok, det, 1.0), 0.0)
-    sx, sy = np.clip(sx, -1.0, 1.0), np.clip(sy, -1.0, 1.0)
-    yy, xx = np.mgrid[0:n, 0:n]
-    far = (np.abs(yy[None] - i[:, None, None]) > exclusion) | (np.abs(xx[None] - j[:, None, None]) > exclusion)
-    second = np.where(far, c, -np.inf).reshape(b, -1).max(axis=1)
-    ratio = np.where(value > 0, np.maximum(second, 0.0) / np.maximum(value, 1e-12), 1.0)
-    return Peaks(jj + sx, ii + sy, value, ratio, border | ~ok)
-
-
 # --- the grid ------------------------------------------------------------------------------------
 def grid_points(cam, settings: MatchSettings, margin: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Pixel centres (col, row) of the grid whose windows (+ ``margin``) lie inside one CCD chip
@@ -376,12 +157,7 @@ def grid_points(cam, settings: MatchSettings, margin: int) -> tuple[np.ndarray, 
 
 
 # --- coarse pass ---------------------------------------------------------------------------------
-def _block_mean(a: np.ndarray, f: int) -> np.ndarray:
-    """Means of the f x f blocks of a (h, w), both multiples of f."""
-    return a.reshape(a.shape[0] // f, f, a.shape[1] // f, f).mean(axis=(1, 3))
-
-
-def coarse_offsets(scene: SceneModel, camera: int, dem, ref: Reference, raw: _RawImage, gsd: float,
+def coarse_offsets(scene: SceneModel, camera: int, dem, ref: Reference, raw: RawImage, gsd: float,
                    settings: MatchSettings) -> dict:
     """The offset plane (raw px) d(col, row) = a + b (col - c0) / cols + e (row - r0) / rows from
     block-averaged chips correlated over the whole search range. InputError when too few
@@ -411,7 +187,7 @@ def coarse_offsets(scene: SceneModel, camera: int, dem, ref: Reference, raw: _Ra
         win, wx, wy = ref.float_window(px[k], py[k], 4)
         templates.append(sample(gaussian_filter(win, smooth) if smooth > 0.3 else win, wx, wy, px[k], py[k]))
         sx, sy = int(np.floor(cc[k] - half)), int(np.floor(rr[k] - half))
-        searches.append(_block_mean(raw.window(sy, sy + span, sx, sx + span)[0].astype(np.float32), f))
+        searches.append(block_mean(raw.window(sy, sy + span, sx, sx + span)[0].astype(np.float32), f))
     usable = [k for k in range(cc.size) if templates[k] is not None and np.isfinite(templates[k]).all()
               and np.std(templates[k]) > settings.min_texture and np.std(searches[k]) > settings.min_texture]
     if not usable:
@@ -458,7 +234,7 @@ def _plane(coarse: dict, cam, col: np.ndarray, row: np.ndarray) -> tuple[np.ndar
 
 
 # --- fine pass -----------------------------------------------------------------------------------
-def _fine_batch(px, py, col, row, shift_c, shift_r, ref: Reference, raw: _RawImage, nodata,
+def _fine_batch(px, py, col, row, shift_c, shift_r, ref: Reference, raw: RawImage, nodata,
                 settings: MatchSettings, workers: int) -> dict:
     """Match one batch: reference chips (b, w, w) sampled at (px, py) against raw search areas
     centred on (col, row) + integer shifts. Returns per-chip offsets, peaks and reasons."""
@@ -510,17 +286,6 @@ def _reasons(outside, no_ref, texture, p: Peaks, settings: MatchSettings) -> np.
     return reason
 
 
-def _open_checked(scene: SceneModel, camera: int, image_path):
-    """(raw image in memory or by window, its nodata) after checking its size and contrast."""
-    cam = scene.cameras[camera]
-    src = _open_raw(image_path, cam)
-    band = src.GetRasterBand(1)
-    step = max(1, min(cam.cols, cam.rows) // 256)
-    check_not_constant("image", str(image_path), band.ReadAsArray(buf_xsize=cam.cols // step,
-                                                                  buf_ysize=cam.rows // step).astype(np.float32))
-    return src, band.GetNoDataValue()
-
-
 @dataclass
 class _GridMatch:
     """Per grid point (n,): its position (col, row), the matched position, correlation, peak
@@ -545,9 +310,9 @@ def _match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem,
                 settings: MatchSettings, report, cancelled) -> _GridMatch:
     """Match the grid of camera ``camera``'s raw image against ``ref`` (coarse, then fine pass)."""
     cam = scene.cameras[camera]
-    src, nodata = _open_checked(scene, camera, image_path)
+    src, nodata = open_checked(scene, camera, image_path)
     report(0.01, "reading the images")
-    raw = _RawImage(image_path, src, MEMORY_BUDGET)
+    raw = RawImage(image_path, src, MEMORY_BUDGET)
     start = time.perf_counter()
     report(0.02, "coarse pass: looking for the onboard model's offset")
     coarse = coarse_offsets(scene, camera, dem, ref, raw, gsd, settings)
@@ -607,7 +372,7 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
     cam = scene.cameras[camera]
     ref = Reference(reference_path)
     gsd = float(scene.info.get("gsd_m") or _gsd(scene, camera, dem))
-    _check_overlap(scene, camera, dem, ref, settings.search)
+    check_overlap(scene, camera, dem, ref, settings.search)
     m = _match_grid(scene, camera, image_path, ref, dem, gsd, settings, report, cancelled)
     ok = m.reasons < 0
     rejected = m.rejected()
@@ -680,22 +445,3 @@ def _gsd(scene: SceneModel, camera: int, dem) -> float:
     g = scene.image_to_ground_dem(np.array([cam.cols / 2, cam.cols / 2 + 1]), np.array([cam.rows / 2] * 2), dem,
                                   camera)
     return float(np.linalg.norm(g[1] - g[0]))
-
-
-def _check_overlap(scene: SceneModel, camera: int, dem, ref: Reference, search: float) -> None:
-    """InputError when the image footprint (onboard model, widened by the search range) and the
-    reference's extent do not overlap; also checks the reference is not blank there."""
-    lon, lat, _ = ecef_to_geodetic(_image_on_surface(scene, camera, dem, footprint=True))
-    x, y = ref.pixel(lon[:-2], lat[:-2])
-    m = search / ref.gsd
-    x0, x1, y0, y1 = np.min(x) - m, np.max(x) + m, np.min(y) - m, np.max(y) + m
-    if not (np.all(np.isfinite([x0, x1, y0, y1])) and x1 > 0 and y1 > 0 and x0 < ref.cols and y0 < ref.rows):
-        gt = ref.geotransform
-        raise InputError(f"reference {ref.path} does not overlap the scene: its extent ({gt[0]:.0f}, "
-                         f"{gt[3] + ref.rows * gt[5]:.0f}) - ({gt[0] + ref.cols * gt[1]:.0f}, {gt[3]:.0f}) in "
-                         f"{ref.crs.name} lies apart from the image footprint "
-                         f"(lon {np.min(lon):.4f}..{np.max(lon):.4f}, lat {np.min(lat):.4f}..{np.max(lat):.4f})")
-    step = max(1, int(max(ref.cols, ref.rows) // 512))
-    a = ref.data[::step, ::step] if ref.data is not None else ref.dataset().GetRasterBand(1).ReadAsArray(
-        buf_xsize=max(ref.cols // step, 1), buf_ysize=max(ref.rows // step, 1))
-    check_not_constant("reference", ref.path, _blanked(a, ref.nodata))

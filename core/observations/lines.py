@@ -1,36 +1,6 @@
-"""Control lines: ground lines (roads, canals, field boundaries) and their images, and the
-observation model that lets the bundle adjustment use them beside points.
-
-Observation model (Tommaselli & Marcato Junior 2012, seed 002). Their line coplanarity model
-(eq. 4) states that the ray of an image point p_i of a line lies in the plane through the
-instantaneous perspective centre PC and the ground line P1 P2:
-
-    N_i . R_j [0, y_i, -f]' = 0,      N_i = (P2 - P1) x (PC - P1).
-
-Here each point the user places along an image line is one image observation (col, row) of
-an unknown ground point X_i, as a GCP's, with a *rank-2* ground weight instead of a GCP's
-full one: X_i is tied to the nearest point F_i of its ground polyline across the line
-horizontally (sigma_across) and in height (sigma_h), and is free along it:
-
-    W_i = a a' / sigma_across^2 + v v' / sigma_h^2          (ECEF, 1/m^2, rank 2)
-    e_i = X_i - F_i                                         (misfit, m)
-
-with d the unit direction of F_i's segment, a = unit(d x up) the horizontal across-line
-direction and v = a x d (up for a level line, tilted with the slope otherwise); W_i d = 0.
-Eliminating X_i per observation (the Schur complement of :mod:`core.adjust.normal`, which
-takes any (m,3,3) weight in :class:`core.adjust.normal.GroundPrior`) leaves one constraint
-per image point on the orientation: 2 image equations + 2 line equations - 3 unknowns. To
-first order it is the coplanarity condition: when the ray misses the line, the eliminated
-residual is the image distance, across the image of the line, of the measured point from the
-line's image — what eq. 4 measures as an angle (tests/unit/test_lines.py shows both on a
-simulated scene). Unlike eq. 4 it needs no straight ground line: a polyline (a curved road)
-associates each point with its nearest segment, refreshed every iteration
-(:func:`line_constraints` with the current X_i), and the weight also holds the line's height.
-Never is a straight line fitted in image space: the image of a straight road is not straight
-for a pushbroom sensor (each row has its own perspective centre).
-
-Statistics: a line point adds 2 ground constraints (not a GCP's 3); its redundancy share
-follows from the eliminated system. Data snooping tests the across-line residual.
+"""Control lines: ground lines (roads, canals, field boundaries) and their images, as data,
+built and checked from raw parts and read from and written to GeoPackage layers. How the bundle
+adjustment uses them is :mod:`core.observations.linemodel`.
 
 Data:
 - :class:`GroundLines`: polylines of WGS84 (lon, lat) degrees and ellipsoidal heights (m),
@@ -56,10 +26,10 @@ from osgeo import ogr, osr
 
 from ..errors import InputError
 from ..files import OutputSet
-from .gcps import Heights, _heights, _listed, _to_lonlat, parse_crs
-from ..geodesy import ecef_to_geodetic, enu_rotations, geodetic_to_ecef, up_vector
+from ..geodesy import geodetic_to_ecef
 from ..validation import MAX_IMAGE_COORDINATE, PLAUSIBLE_HEIGHTS, implausible_heights
-from ..vector_io import LayerData, open_layer, write_layers
+from ..vector_io import LayerData, open_layer, wgs84_3d, write_layers
+from .tables import Heights, ellipsoidal_heights, listed, parse_crs, to_lonlat
 
 ogr.UseExceptions()
 log = logging.getLogger(__name__)
@@ -71,10 +41,9 @@ DEFAULT_SIGMA_H = 3.0           # m
 DEFAULT_SIGMA_PX = 1.0          # px: a point clicked along an image line
 MAX_SIGMA_M = 1e4
 MAX_SIGMA_PX = 1e3
-MIN_DIRECTION_SPREAD_DEG = 5.0  # lines spreading less leave the along-line direction free
 PIXEL_FRAME_WKT = ('LOCAL_CS["Pushbroom image pixels (x = col, y = -row)",LOCAL_DATUM["raw image",32767],'
                    'UNIT["metre",1],AXIS["X",EAST],AXIS["Y",NORTH]]')
-_M_PER_DEG = 111320.0
+M_PER_DEG = 111320.0  # m per degree of latitude, and of longitude at the equator (local plane checks)
 
 
 # --- the data --------------------------------------------------------------------------------------
@@ -158,8 +127,8 @@ def build_ground_lines(ids, parts, *, crs, heights: Heights, sigma_across=DEFAUL
                        sigma_h=DEFAULT_SIGMA_H, source: str = "ground lines") -> GroundLines:
     """Ground lines from raw parts: ids (k,), parts a list of k arrays (n_i, 2) x, y or (n_i, 3)
     x, y, z in ``crs`` (any EPSG code, WKT or PROJ string; x = easting/longitude).
-    heights: where heights come from (:class:`core.gcps.Heights`: the parts' z, a DEM or a
-    constant, each with its datum). sigma_across, sigma_h: m, scalars or (k,).
+    heights: where heights come from (:class:`core.observations.tables.Heights`: the parts' z, a
+    DEM or a constant, each with its datum). sigma_across, sigma_h: m, scalars or (k,).
 
     InputError, naming ``source`` and the line ids, for: no CRS (a layer without CRS), a
     vertex that cannot be converted, a part with one vertex, a zero-length or
@@ -181,12 +150,12 @@ def build_ground_lines(ids, parts, *, crs, heights: Heights, sigma_across=DEFAUL
     _require_vertices(ids, start, source)
     bad = ~np.isfinite(xy).all(axis=1)
     if bad.any():
-        raise InputError(f"{source}: line(s) {_listed(np.unique(vid[bad]))} have empty or non-numeric coordinates")
-    lon, lat = _to_lonlat(xy[:, 0], xy[:, 1], crs, vid, source)
-    h = _heights(lon, lat, heights, z, vid, source)
+        raise InputError(f"{source}: line(s) {listed(np.unique(vid[bad]))} have empty or non-numeric coordinates")
+    lon, lat = to_lonlat(xy[:, 0], xy[:, 1], crs, vid, source)
+    h = ellipsoidal_heights(lon, lat, heights, z, vid, source)
     bad = implausible_heights(h)
     if bad.any():
-        raise InputError(f"{source}: heights of line(s) {_listed(np.unique(vid[bad]))} are not terrain heights "
+        raise InputError(f"{source}: heights of line(s) {listed(np.unique(vid[bad]))} are not terrain heights "
                          f"({PLAUSIBLE_HEIGHTS[0]:g} to {PLAUSIBLE_HEIGHTS[1]:g} m ellipsoidal)")
     k = ids.size
     sig_a = np.broadcast_to(np.asarray(sigma_across, dtype=float), (k,))
@@ -219,11 +188,11 @@ def build_image_lines(line_ids, parts, camera, sigma_px=DEFAULT_SIGMA_PX,
     vid = np.repeat(ids, np.diff(start))
     bad = ~np.isfinite(cr).all(axis=1)
     if bad.any():
-        raise InputError(f"{source}: image line(s) {_listed(np.unique(vid[bad]))} have empty or non-numeric "
+        raise InputError(f"{source}: image line(s) {listed(np.unique(vid[bad]))} have empty or non-numeric "
                          "coordinates")
     bad = (np.abs(cr) > MAX_IMAGE_COORDINATE).any(axis=1)
     if bad.any():
-        raise InputError(f"{source}: image line(s) {_listed(np.unique(vid[bad]))} have coordinates beyond any "
+        raise InputError(f"{source}: image line(s) {listed(np.unique(vid[bad]))} have coordinates beyond any "
                          f"image (|value| > {MAX_IMAGE_COORDINATE:g} px)")
     if isinstance(sigma_px, (list, tuple)):
         sigma = np.concatenate([np.broadcast_to(np.asarray(s, dtype=float), (len(p),))
@@ -241,7 +210,7 @@ def build_image_lines(line_ids, parts, camera, sigma_px=DEFAULT_SIGMA_PX,
 def _require_vertices(ids, start, source: str) -> None:
     single = np.diff(start) < 2
     if single.any():
-        raise InputError(f"{source}: line(s) {_listed(ids[single])} have fewer than two vertices; a line needs at "
+        raise InputError(f"{source}: line(s) {listed(ids[single])} have fewer than two vertices; a line needs at "
                          "least two")
 
 
@@ -250,7 +219,7 @@ def _require_sigmas(ids, source: str, largest: float, **columns) -> None:
         with np.errstate(invalid="ignore"):
             bad = ~((values > 0) & (values < largest))
         if bad.any():
-            raise InputError(f"{source}: {name} of line(s) {_listed(np.unique(ids[bad]))} must be > 0 and below "
+            raise InputError(f"{source}: {name} of line(s) {listed(np.unique(ids[bad]))} must be > 0 and below "
                              f"{largest:g} (got {values[bad][0]:g})")
 
 
@@ -258,7 +227,7 @@ def _local_metres(lon, lat, start) -> tuple[np.ndarray, np.ndarray]:
     """Plane coordinates (m) of vertices about their part's first vertex (for geometry checks)."""
     first = np.repeat(start[:-1], np.diff(start))
     lon0, lat0 = lon[first], lat[first]
-    return ((lon - lon0 + 180.0) % 360.0 - 180.0) * _M_PER_DEG * np.cos(np.radians(lat0)), (lat - lat0) * _M_PER_DEG
+    return ((lon - lon0 + 180.0) % 360.0 - 180.0) * M_PER_DEG * np.cos(np.radians(lat0)), (lat - lat0) * M_PER_DEG
 
 
 def _drop_repeats(ids, start, x, y, source: str) -> tuple[np.ndarray, np.ndarray]:
@@ -269,7 +238,7 @@ def _drop_repeats(ids, start, x, y, source: str) -> tuple[np.ndarray, np.ndarray
     keep[1:] = ~((part[1:] == part[:-1]) & (x[1:] == x[:-1]) & (y[1:] == y[:-1]))
     counts = np.bincount(part[keep], minlength=ids.size)
     if (counts < 2).any():
-        raise InputError(f"{source}: line(s) {_listed(ids[counts < 2])} have zero length (all vertices at one place)")
+        raise InputError(f"{source}: line(s) {listed(ids[counts < 2])} have zero length (all vertices at one place)")
     if (~keep).any():
         log.info("%s: %d repeated vertices dropped", source, int((~keep).sum()))
     return keep, np.r_[0, np.cumsum(counts)].astype(np.int64)
@@ -285,301 +254,10 @@ def _require_simple(ids, start, x, y, source: str) -> None:
         if not geom.IsSimple():
             crossing.append(ids[i])
     if crossing:
-        raise InputError(f"{source}: line(s) {_listed(crossing)} intersect themselves; split them where they cross")
-
-
-# --- pairing ---------------------------------------------------------------------------------------
-@dataclass
-class LineObservations:
-    """n image points of lines: key (n,) index into keys (K,) (sorted ground line ids, as
-    :func:`LineSegments.from_lines`), camera (n,) str, col, row (n,) GDAL px, sigma_px (n,) px,
-    image_line (n,) the image-line part and vertex (n,) the vertex index in ImageLines."""
-    keys: np.ndarray
-    key: np.ndarray
-    camera: np.ndarray
-    col: np.ndarray
-    row: np.ndarray
-    sigma_px: np.ndarray
-    image_line: np.ndarray
-    vertex: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.col.size)
-
-
-def pair(image: ImageLines, ground: GroundLines, source: str = "image lines") -> LineObservations:
-    """One observation per image-line vertex, paired to its ground line by id. InputError
-    naming the image lines whose id is no ground line's; ground lines no image line shows are
-    legitimate (a road map covers more) and only logged."""
-    keys = ground.keys()
-    unknown = ~np.isin(image.line_id, keys)
-    if unknown.any():
-        raise InputError(f"{source}: line id(s) {_listed(np.unique(image.line_id[unknown]))} pair with no ground "
-                         f"line (ground line ids: {_listed(keys)})")
-    unused = ~np.isin(keys, image.line_id)
-    if unused.any():
-        log.info("%d ground line(s) shown on no image line: %s", int(unused.sum()), _listed(keys[unused]))
-    part = image.vertex_part()
-    return LineObservations(keys, np.searchsorted(keys, image.line_id[part]), image.camera[part], image.col.copy(),
-                            image.row.copy(), image.sigma_px.copy(), part, np.arange(part.size))
-
-
-# --- segments, association and the rank-2 constraint ----------------------------------------------
-@dataclass
-class LineSegments:
-    """The segments of ground lines, grouped by line id: keys (K,) sorted ids, key_start
-    (K+1,) offsets into the segment arrays, a, b (S,3) ECEF end points (m), part (S,) the
-    GroundLines part, sigma_across, sigma_h (S,) m."""
-    keys: np.ndarray
-    key_start: np.ndarray
-    a: np.ndarray
-    b: np.ndarray
-    part: np.ndarray
-    sigma_across: np.ndarray
-    sigma_h: np.ndarray
-
-    @classmethod
-    def from_lines(cls, ground: GroundLines) -> "LineSegments":
-        xyz = ground.ecef()
-        vpart = ground.vertex_part()
-        first = np.nonzero(vpart[1:] == vpart[:-1])[0]   # segment = vertex i -> i + 1 of one part
-        part = vpart[first]
-        keys = ground.keys()
-        key = np.searchsorted(keys, ground.id[part])
-        order = np.argsort(key, kind="stable")
-        first, part, key = first[order], part[order], key[order]
-        key_start = np.searchsorted(key, np.arange(keys.size + 1)).astype(np.int64)
-        return cls(keys, key_start, xyz[first], xyz[first + 1], part, ground.sigma_across[part],
-                   ground.sigma_h[part])
-
-
-@dataclass
-class LineConstraint:
-    """The rank-2 ground constraint of n line points at ground points x (n,3) ECEF m:
-    segment (n,) chosen segment, foot (n,3) nearest point on it (ECEF m), along, across,
-    normal (n,3) unit ECEF directions (along the segment; horizontal across it; a x d, up for a
-    level line), weight (n,3,3) ECEF 1/m^2 (zero along the line), misfit (n,3) = x - foot (m),
-    d_across, d_normal (n,) m: the misfit's signed across-line and normal components."""
-    segment: np.ndarray
-    foot: np.ndarray
-    along: np.ndarray
-    across: np.ndarray
-    normal: np.ndarray
-    weight: np.ndarray
-    misfit: np.ndarray
-    d_across: np.ndarray
-    d_normal: np.ndarray
-
-
-def nearest_segments(seg: LineSegments, key: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(segment (n,), t (n,) in [0, 1]) of the nearest segment of each point's line ``key``
-    (n,) to the ECEF points x (n,3), by horizontal distance (the local vertical at x removed,
-    so a wrong height does not change the association); t places the foot a + t (b - a)."""
-    key = np.asarray(key, dtype=np.int64)
-    x = np.asarray(x, dtype=float)
-    first, counts = seg.key_start[key], seg.key_start[key + 1] - seg.key_start[key]
-    n = key.size
-    obs = np.repeat(np.arange(n), counts)                            # every (point, candidate) pair
-    offsets = np.r_[0, np.cumsum(counts)[:-1]]
-    cand = first[obs] + np.arange(obs.size) - offsets[obs]
-    lon, lat, _ = ecef_to_geodetic(x)
-    up = up_vector(lon, lat)[obs]
-    d = seg.b[cand] - seg.a[cand]
-    w = x[obs] - seg.a[cand]
-    dh = d - np.einsum("ni,ni->n", d, up)[:, None] * up
-    wh = w - np.einsum("ni,ni->n", w, up)[:, None] * up
-    t = np.clip(np.einsum("ni,ni->n", wh, dh) / np.einsum("ni,ni->n", dh, dh), 0.0, 1.0)
-    dist2 = np.einsum("ni,ni->n", wh - t[:, None] * dh, wh - t[:, None] * dh)
-    best = np.minimum.reduceat(dist2, offsets)
-    winner = np.nonzero(dist2 == best[obs])[0]
-    _, pick = np.unique(obs[winner], return_index=True)              # the first of equal candidates
-    chosen = winner[pick]
-    return cand[chosen], t[chosen]
-
-
-def line_constraints(seg: LineSegments, key: np.ndarray, x: np.ndarray, across_factor: float = 1.0,
-                     height_factor: float = 1.0) -> LineConstraint:
-    """The rank-2 constraint (see the module docstring) of points x (n,3) ECEF on their lines
-    ``key`` (n,): association with the nearest segment at the current x (call it every
-    iteration), W = a a'/(sigma_across f_a)^2 + v v'/(sigma_h f_h)^2, misfit x - foot.
-    across_factor, height_factor: variance-component factors on the stated sigmas."""
-    x = np.asarray(x, dtype=float)
-    s, t = nearest_segments(seg, key, x)
-    d = seg.b[s] - seg.a[s]
-    foot = seg.a[s] + t[:, None] * d
-    along = d / np.linalg.norm(d, axis=1, keepdims=True)
-    lon, lat, _ = ecef_to_geodetic(foot)
-    across = np.cross(along, up_vector(lon, lat))
-    across /= np.linalg.norm(across, axis=1, keepdims=True)
-    normal = np.cross(across, along)
-    wa = 1.0 / (seg.sigma_across[s] * across_factor) ** 2
-    wn = 1.0 / (seg.sigma_h[s] * height_factor) ** 2
-    weight = (wa[:, None, None] * across[:, :, None] * across[:, None, :]
-              + wn[:, None, None] * normal[:, :, None] * normal[:, None, :])
-    misfit = x - foot
-    return LineConstraint(s, foot, along, across, normal, weight, misfit, np.einsum("ni,ni->n", misfit, across),
-                          np.einsum("ni,ni->n", misfit, normal))
-
-
-def start_points(scene, obs: LineObservations, seg: LineSegments, iterations: int = 6,
-                 tol: float = 0.01) -> np.ndarray:
-    """Start values (n,3) ECEF m of the line points' ground: each image point's ray through
-    ``scene`` meets the surface of its line's height (first the line's mean height, then the
-    height of the nearest point of the line, until it changes by less than tol m). InputError
-    naming the lines whose rays miss the Earth."""
-    n = len(obs)
-    h = np.empty(n)
-    seg_h = 0.5 * (ecef_to_geodetic(seg.a)[2] + ecef_to_geodetic(seg.b)[2])
-    mean_h = np.add.reduceat(seg_h, seg.key_start[:-1]) / np.diff(seg.key_start)
-    h[:] = mean_h[obs.key]
-    cam = np.array([scene.camera_index(str(c)) for c in obs.camera]) if n else np.zeros(0, int)
-    x = np.full((n, 3), np.nan)
-    for _ in range(iterations):
-        for c in np.unique(cam):
-            m = cam == c
-            x[m] = scene.image_to_ground(obs.col[m], obs.row[m], h[m], int(c))
-        missed = ~np.isfinite(x).all(axis=1)
-        if missed.any():
-            raise InputError(f"image points of line(s) {_listed(np.unique(obs.keys[obs.key[missed]]))} see no ground "
-                             "(their rays miss the Earth)")
-        s, t = nearest_segments(seg, obs.key, x)
-        new_h = ecef_to_geodetic(seg.a[s] + t[:, None] * (seg.b[s] - seg.a[s]))[2]
-        done = np.max(np.abs(new_h - h)) < tol
-        h = new_h
-        if done:
-            break
-    return x
-
-
-def coplanarity_residual(scene, camera, col, row, p1: np.ndarray, p2: np.ndarray) -> np.ndarray:
-    """Seed 002 eq. 4 for image points (col, row) (n,) of camera ``camera``: the sine of the
-    angle (rad) between each point's ray and the plane through the perspective centre PC and
-    the straight ground line p1 -> p2 (ECEF, (3,) or (n,3)): N . u / |N| with
-    N = (p2 - p1) x (PC - p1), u the unit ray (the geometric direction: velocity aberration
-    removed, as eq. 4 is a condition on straight rays; refraction, a few microradians off
-    nadir, is left in)."""
-    _, pc, v, u = scene.line_of_sight(col, row, scene.camera_index(camera))
-    u = scene._geometric_ray(pc, v, u, np.linalg.norm(np.asarray(p1, float) - pc, axis=-1))
-    normal = np.cross(np.asarray(p2, float) - p1, pc - np.asarray(p1, float))
-    return np.einsum("ni,ni->n", normal, u) / np.linalg.norm(normal, axis=1)
-
-
-# --- checks against a scene -----------------------------------------------------------------------
-def check_image_lines(image: ImageLines, scene, source: str = "image lines") -> None:
-    """InputError naming image lines whose camera the scene lacks or whose vertices lie
-    outside their camera's image."""
-    names = [c.name for c in scene.cameras]
-    unknown = ~np.isin(image.camera, names)
-    if unknown.any():
-        raise InputError(f"{source}: camera(s) {_listed(np.unique(image.camera[unknown]))} of line(s) "
-                         f"{_listed(np.unique(image.line_id[unknown]))} are not in the scene (cameras: "
-                         f"{', '.join(names)})")
-    part = image.vertex_part()
-    cols = np.array([scene.cameras[names.index(c)].cols for c in image.camera], float)[part]
-    rows = np.array([scene.cameras[names.index(c)].rows for c in image.camera], float)[part]
-    out = (image.col < 0) | (image.col > cols) | (image.row < 0) | (image.row > rows)
-    if out.any():
-        raise InputError(f"{source}: vertices of image line(s) {_listed(np.unique(image.line_id[part[out]]))} lie "
-                         "outside the image")
-
-
-def lines_outside(ground: GroundLines, scene, samples: int = 65) -> np.ndarray:
-    """Ids (sorted) of ground lines none of whose parts reaches any camera's footprint (the
-    image border seen at the lines' mean height)."""
-    h = float(np.mean(ground.h))
-    footprints = []
-    for k, cam in enumerate(scene.cameras):
-        s = np.linspace(0.0, 1.0, samples)
-        col = np.concatenate([s * cam.cols, np.full_like(s, cam.cols), (1 - s) * cam.cols, np.zeros_like(s)])
-        row = np.concatenate([np.zeros_like(s), s * cam.rows, np.full_like(s, cam.rows), (1 - s) * cam.rows])
-        lon, lat, _ = ecef_to_geodetic(scene.image_to_ground(col, row, h, k))
-        ring = ogr.Geometry(ogr.wkbLinearRing)
-        for a, b in zip(lon.tolist() + lon[:1].tolist(), lat.tolist() + lat[:1].tolist()):
-            ring.AddPoint_2D(a, b)
-        poly = ogr.Geometry(ogr.wkbPolygon)
-        poly.AddGeometry(ring)
-        footprints.append(poly)
-    inside = set()
-    for i in range(len(ground)):  # one GEOS test per line and camera
-        geom = ogr.Geometry(ogr.wkbLineString)
-        sl = slice(ground.start[i], ground.start[i + 1])
-        for a, b in zip(ground.lon[sl].tolist(), ground.lat[sl].tolist()):
-            geom.AddPoint_2D(a, b)
-        if any(f.Intersects(geom) for f in footprints):
-            inside.add(str(ground.id[i]))
-    return np.array(sorted(set(ground.id.tolist()) - inside), dtype=str)
-
-
-def check_in_scene(ground: GroundLines, scene, ids=None, source: str = "ground lines") -> None:
-    """InputError naming the ground lines (all, or those with ``ids``: the paired ones)
-    outside every camera's footprint."""
-    out = lines_outside(ground, scene)
-    if ids is not None:
-        out = out[np.isin(out, np.asarray(ids, dtype=str))]
-    if out.size:
-        raise InputError(f"{source}: line(s) {_listed(out)} lie outside the scene (no camera sees them)")
-
-
-# --- directions --------------------------------------------------------------------------------------
-@dataclass
-class DirectionCheck:
-    """How the lines' across-line constraints spread over horizontal directions.
-    azimuth_deg: the direction the lines run along, in [0, 180) (clockwise from north);
-    spread_deg: atan(sqrt(lambda_min / lambda_max)) of the across-line information (about the
-    RMS angle of the lines about that direction); determined: spread >= the threshold;
-    message: for the report, naming the undetermined direction when not determined."""
-    azimuth_deg: float
-    spread_deg: float
-    determined: bool
-    message: str
-
-
-def direction_check(azimuth, weight=None, min_spread_deg: float = MIN_DIRECTION_SPREAD_DEG) -> DirectionCheck:
-    """Whether lines running along azimuths (n,) rad (clockwise from north) with weights (n,)
-    (e.g. 1/sigma_across^2 of each point) determine both horizontal directions: lines alone
-    fix only positions across themselves, so when they all run one way a shift along them is
-    free (unless points fix it)."""
-    az = np.asarray(azimuth, dtype=float)
-    w = np.ones_like(az) if weight is None else np.asarray(weight, dtype=float)
-    if az.size == 0:
-        return DirectionCheck(float("nan"), 0.0, False, "no lines")
-    across = np.stack([np.cos(az), -np.sin(az)], axis=1)           # (east, north) across each line
-    info = np.einsum("n,ni,nj->ij", w, across, across)
-    values, vectors = np.linalg.eigh(info)
-    weak = vectors[:, 0]                                             # (east, north) least determined
-    azimuth_deg = float(np.degrees(np.arctan2(weak[0], weak[1])) % 180.0)
-    spread = float(np.degrees(np.arctan(np.sqrt(max(values[0], 0.0) / values[1])))) if values[1] > 0 else 0.0
-    determined = spread >= min_spread_deg
-    message = (f"the lines run in directions spread by {spread:.1f} deg: both horizontal directions are determined"
-               if determined else
-               f"all lines run within {spread:.1f} deg of azimuth {azimuth_deg:.1f} deg (clockwise from north): a "
-               f"shift along azimuth {azimuth_deg:.1f} deg is not determined by the lines; add points or lines "
-               "running across them")
-    return DirectionCheck(azimuth_deg, spread, determined, message)
-
-
-def azimuths(foot: np.ndarray, along: np.ndarray) -> np.ndarray:
-    """Azimuths (n,) rad clockwise from north of ECEF directions ``along`` (n,3) at ``foot`` (n,3)."""
-    lon, lat, _ = ecef_to_geodetic(foot)
-    enu = np.einsum("nij,nj->ni", enu_rotations(lon, lat), along)
-    return np.arctan2(enu[:, 0], enu[:, 1])
-
-
-def segment_directions(seg: LineSegments) -> DirectionCheck:
-    """:func:`direction_check` of all segments weighted by length / sigma_across^2."""
-    d = seg.b - seg.a
-    length = np.linalg.norm(d, axis=1)
-    return direction_check(azimuths(0.5 * (seg.a + seg.b), d / length[:, None]), length / seg.sigma_across ** 2)
+        raise InputError(f"{source}: line(s) {listed(crossing)} intersect themselves; split them where they cross")
 
 
 # --- GeoPackage ----------------------------------------------------------------------------------
-def _wgs84_3d() -> osr.SpatialReference:
-    srs = osr.SpatialReference()
-    srs.ImportFromEPSG(4979)
-    srs.SetAxisMappingStrategy(osr.OAMS_TRADITIONAL_GIS_ORDER)
-    return srs
-
-
 def pixel_frame() -> osr.SpatialReference:
     """The engineering frame of image-line layers: x = col, y = -row (GDAL px)."""
     srs = osr.SpatialReference()
@@ -596,7 +274,7 @@ def ground_layer(ground: GroundLines, extra: dict | None = None) -> LayerData:
                                                                        ground.h[sl].tolist()))
         geoms.append(f"LINESTRING Z ({coords})")
     columns = {"line_id": ground.id, "sigma_across": ground.sigma_across, "sigma_h": ground.sigma_h, **(extra or {})}
-    return LayerData(GROUND_LAYER, _wgs84_3d(), ogr.wkbLineString25D, columns, geoms)
+    return LayerData(GROUND_LAYER, wgs84_3d(), ogr.wkbLineString25D, columns, geoms)
 
 
 def image_layer(image: ImageLines, extra: dict | None = None) -> LayerData:
@@ -702,7 +380,7 @@ def read_image_lines(path, layer: str | None = IMAGE_LAYER, id_field: str = "lin
     ids = np.array(["" if v is None else str(v) for v in values["id"]])
     positive = [i for i, (p, _) in enumerate(parts) if (p[:, 1] > 1e-9).any()]
     if positive:
-        raise InputError(f"{path}: image line(s) {_listed(ids[positive])} have y > 0; image lines are stored as "
+        raise InputError(f"{path}: image line(s) {listed(ids[positive])} have y > 0; image lines are stored as "
                          "x = column, y = -row (the pixel frame QGIS shows for a raw image), so y is negative")
     cams = np.array([camera or ("" if v is None else str(v)) for v in values["camera"]])
     sigmas = []

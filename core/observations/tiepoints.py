@@ -3,13 +3,13 @@
 One tie point is one ground point measured in two or more cameras of a scene (three-line
 cameras) or in overlapping scenes of a strip; the adjustment estimates its ground position
 (eliminated per point, like a weighted GCP's) starting from a forward intersection of the
-onboard rays (:mod:`core.intersection`).
+onboard rays (:mod:`core.model.intersection`).
 
-Conventions as in :mod:`core.gcps`: image coordinates are GDAL's (pixel centres at
+Conventions as in :mod:`core.observations.gcps`: image coordinates are GDAL's (pixel centres at
 half-integers), sigma_px is the image measurement sigma (px).
 
 Inputs: CSV with a header row and a column mapping (:class:`CsvMapping`; the delimiters and
-decimal commas of :func:`core.gcps.read_csv`; other columns are ignored, so the simulator's
+decimal commas of :func:`core.observations.gcps.read_csv`; other columns are ignored, so the simulator's
 ``tie_points.csv`` reads as it is), or arrays from elsewhere (a QGIS layer) through
 :func:`build_table`. :func:`check_against_scene` checks them against the scene and adds the
 onboard forward intersection (:class:`Apriori`). Output: a GeoPackage point layer
@@ -27,12 +27,12 @@ from osgeo import ogr
 
 from ..errors import InputError
 from ..files import OutputSet
-from .gcps import (SCENE_METADATA_KEY, _float, _layer_transform, _listed, _numbers, _read_delimited, _require_finite,
-                   _require_unique, _wgs84_3d, csv_column, per_point_sigmas, resolve_cameras)
 from ..geodesy import ecef_to_geodetic
 from ..model.intersection import intersect
 from ..validation import MAX_IMAGE_COORDINATE, implausible_image_coordinates, spread_problem
-from ..vector_io import open_layer, write_layer
+from ..vector_io import layer_to_wgs84_3d, open_layer, wgs84_3d, write_layer
+from .tables import (SCENE_METADATA_KEY, csv_column, listed, nullable_floats, parse_numbers, per_point_sigmas,
+                     read_delimited, require_finite, require_unique, resolve_cameras)
 
 log = logging.getLogger(__name__)
 
@@ -130,12 +130,12 @@ def build_table(ids, camera, col, row, *, scene=None, sigma_px=DEFAULT_SIGMA_PX,
         raise InputError(f"{source}: no tie points")
     if (ids == "").any():
         lines = (np.nonzero(ids == "")[0] + 1).astype(str)
-        raise InputError(f"{source}: empty point id in data line(s) {_listed(lines)}")
+        raise InputError(f"{source}: empty point id in data line(s) {listed(lines)}")
     col, row = np.asarray(col, dtype=float), np.asarray(row, dtype=float)
-    _require_finite(ids, source, col=col, row=row)
+    require_finite(ids, source, col=col, row=row)
     bad = implausible_image_coordinates(col, row)
     if bad.any():
-        raise InputError(f"{source}: col/row of point(s) {_listed(ids[bad])} is beyond any image "
+        raise InputError(f"{source}: col/row of point(s) {listed(ids[bad])} is beyond any image "
                          f"(|value| > {MAX_IMAGE_COORDINATE:g} px)")
 
     def texts(values):
@@ -150,13 +150,13 @@ def read_csv(path, mapping: CsvMapping | None = None, sigma_px: float = DEFAULT_
     mapping = mapping or CsvMapping()
     path = Path(path)
     source = str(path)
-    header, cells = _read_delimited(path)
+    header, cells = read_delimited(path)
 
     def text(name: str | None):
         return None if name is None else csv_column(header, cells, name, source)
 
     ids = text(mapping.id)
-    col, row = (_numbers(text(name), name, ids, source) for name in (mapping.col, mapping.row))
+    col, row = (parse_numbers(text(name), name, ids, source) for name in (mapping.col, mapping.row))
     sigmas = sigma_px if mapping.sigma_px is None else \
         per_point_sigmas(text(mapping.sigma_px), sigma_px, mapping.sigma_px, ids, source, "sigma_px")
     return build_table(ids, text(mapping.camera), col, row, scene=text(mapping.scene),
@@ -178,7 +178,7 @@ def check_against_scene(table: TieTable, scene, scene_path: str = "", source: st
     if len(table) == 0:
         raise InputError(f"{source}: no tie points")
     table = resolve_cameras(table, scene)
-    _require_unique(table.id, table.camera, source)
+    require_unique(table.id, table.camera, source)
     names = [c.name for c in scene.cameras]
     camera = np.array([names.index(c) for c in table.camera.tolist()], dtype=np.int64)
     sizes = np.array([(c.cols, c.rows) for c in scene.cameras], dtype=float)[camera]
@@ -186,7 +186,7 @@ def check_against_scene(table: TieTable, scene, scene_path: str = "", source: st
     outside = (x < 0) | (x > 1) | (y < 0) | (y > 1)
     if outside.any():
         cams = ", ".join(f"{c.name} {c.cols} x {c.rows}" for c in scene.cameras)
-        raise InputError(f"{source}: observation(s) of point(s) {_listed(_unique_ids(table.id[outside]))} lie "
+        raise InputError(f"{source}: observation(s) of point(s) {listed(_unique_ids(table.id[outside]))} lie "
                          f"outside their camera's image (cols x rows: {cams}); are they from another scene?")
     ids, point = table.points()
     if ids.size >= 3:
@@ -202,7 +202,7 @@ def check_against_scene(table: TieTable, scene, scene_path: str = "", source: st
     single = ids[found.rays < 2]
     if single.size:
         log.warning("%d tie point(s) seen in one camera only, kept in the layer but not intersected (the "
-                    "adjustment leaves them out): %s", single.size, _listed(single))
+                    "adjustment leaves them out): %s", single.size, listed(single))
     if not found.converged:
         log.warning("the forward intersection did not converge in %d passes; the a-priori residuals are "
                     "approximate", found.iterations)
@@ -210,7 +210,7 @@ def check_against_scene(table: TieTable, scene, scene_path: str = "", source: st
     if suspect.size:
         log.warning("%d tie point(s) with implausible a-priori intersection residuals (more than %.1f px, %g x "
                     "the median point's): likely mismatched points, check them: %s", suspect.size,
-                    _suspect_threshold(table), SUSPECT_FACTOR, _listed(suspect))
+                    _suspect_threshold(table), SUSPECT_FACTOR, listed(suspect))
     return table
 
 
@@ -286,7 +286,7 @@ def write_gpkg(table: TieTable, path, layer: str = GPKG_LAYER, files: OutputSet 
                "sigma_px": table.sigma_px, "scene": table.scene,
                "rays": nan if a is None else a.rays.astype(int),
                **{k: nan if a is None else getattr(a, k) for k in ("res_col", "res_row", "res_px")}}
-    write_layer(path, layer, _wgs84_3d(), ogr.wkbPoint25D, columns, point_wkt(*ground),
+    write_layer(path, layer, wgs84_3d(), ogr.wkbPoint25D, columns, point_wkt(*ground),
                 {SCENE_METADATA_KEY: table.scene_path} if table.scene_path else None, files)
 
 
@@ -307,7 +307,7 @@ def read_gpkg(path, layer: str | None = GPKG_LAYER) -> TieTable:
     missing = [f for f in ("id", "camera", "col", "row") if f not in names]
     if missing:
         raise InputError(f"{path}: layer {lyr.GetName()!r} lacks tie-point field(s) {', '.join(missing)}")
-    to_wgs = _layer_transform(lyr)
+    to_wgs = layer_to_wgs84_3d(lyr)
     wanted = [n for n in _TEXT_FIELDS + _NUMBER_FIELDS if n in names]
     records, coords = [], []
     for feat in lyr:  # OGR reads feature by feature
@@ -318,7 +318,7 @@ def read_gpkg(path, layer: str | None = GPKG_LAYER) -> TieTable:
     cols = {n: [r[k] for r in records] for k, n in enumerate(wanted)}
     texts = {n: np.array(["" if v is None else str(v) for v in cols.get(n, [None] * len(records))])
              for n in _TEXT_FIELDS}
-    numbers = {n: _float(cols.get(n, [None] * len(records))) for n in _NUMBER_FIELDS}
+    numbers = {n: nullable_floats(cols.get(n, [None] * len(records))) for n in _NUMBER_FIELDS}
     sigma = np.where(np.isfinite(numbers["sigma_px"]), numbers["sigma_px"], DEFAULT_SIGMA_PX)
     table = build_table(texts["id"], texts["camera"], numbers["col"], numbers["row"], scene=texts["scene"],
                         sigma_px=sigma, source=str(path))

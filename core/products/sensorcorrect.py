@@ -14,7 +14,7 @@ For every virtual pixel (col, row) (GDAL convention, centres at +0.5) the ground
 virtual line of sight's intersection with the surface (DEM or constant height) and the raw
 image position is that point's ground -> image through the real (adjusted) model; the raw
 image is resampled there. The mapping is evaluated on a node grid and densified as in
-:mod:`core.ortho` (checked per tile, cells along the former seams mapped pixel by pixel).
+:mod:`core.products.mapping` (checked per tile, cells along the former seams mapped pixel by pixel).
 """
 from __future__ import annotations
 
@@ -30,8 +30,11 @@ from ..model.camera import Camera, Chip, LineTiming
 from ..dem import ConstantHeight
 from ..errors import InputError
 from ..files import atomic_outputs, check_destination
-from .ortho import _Mapper, _open_raw, _RawImage, check_resampling, write_resampled
-from .rpcfit import dem_height_range, fit_rpc, image_vrt_with_rpc, sidecar_path, write_rpc
+from .mapping import Mapper
+from .rawimage import RawImage, open_raw
+from .resampling import check_resampling, write_resampled
+from ..formats.rpcfiles import image_vrt_with_rpc, sidecar_path, write_rpc
+from .rpcfit import dem_height_range, fit_rpc
 from ..formats.scene_json import save_scene
 from ..model.sensor import SceneModel
 from ..validation import check_nodata
@@ -85,7 +88,7 @@ def virtual_scene(scene: SceneModel, camera: int, info: dict | None = None) -> S
                       info={**inherited, "sensor_corrected": how})
 
 
-class _VirtualMapper(_Mapper):
+class _VirtualMapper(Mapper):
     """Virtual image pixels -> raw image positions: the virtual line of sight on the surface,
     then the real camera's ground -> image. Pixels whose ray misses the surface are NaN."""
 
@@ -142,7 +145,7 @@ def output_files(output_path) -> dict[str, Path]:
 
 def rpc_height_range(scene: SceneModel, camera: int, surface) -> tuple[float, float]:
     """Heights (m, ellipsoidal) the RPC is fitted over: the DEM's over the image with a margin
-    (:func:`core.rpcfit.dem_height_range`; InputError naming the DEM where it does not cover the
+    (:func:`core.products.rpcfit.dem_height_range`; InputError naming the DEM where it does not cover the
     image), or a constant height +- CONSTANT_HEIGHT_SPAN."""
     if isinstance(surface, ConstantHeight):
         return surface.value - CONSTANT_HEIGHT_SPAN, surface.value + CONSTANT_HEIGHT_SPAN
@@ -167,7 +170,7 @@ def sensor_correct(scene: SceneModel, camera: int, image_path, surface, output_p
     camera = scene.camera_index(camera)
     cam = scene.cameras[camera]
     report = progress or (lambda fraction, message=None: None)
-    src = _open_raw(image_path, cam)
+    src = open_raw(image_path, cam)
     if nodata is not None:
         check_nodata(nodata, gdal_array.GDALTypeCodeToNumericTypeCode(src.GetRasterBand(1).DataType))
     output_path = Path(output_path)
@@ -179,7 +182,7 @@ def sensor_correct(scene: SceneModel, camera: int, image_path, surface, output_p
                                             **(info or {})})
     report(0.0, "virtual camera: image positions on the node grid")
     mapper = _VirtualMapper(scene, camera, virtual, surface)
-    raw = _RawImage(image_path, src, memory_budget)
+    raw = RawImage(image_path, src, memory_budget)
     cancelled = is_cancelled or (lambda: False)
     try:
         planned = mapper.nodes(0, cam.rows, 0, cam.cols, step, is_cancelled=cancelled)

@@ -1,0 +1,125 @@
+"""The raw image of a scene camera, as the products read it: opened and checked against the
+camera, read by window (from memory or from the file), resampled at image positions, and where
+the image meets the terrain.
+
+Image positions (col, row) are GDAL's: (0, 0) is the upper-left corner of the upper-left pixel,
+pixel centres at +0.5.
+"""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+from osgeo import gdal, gdal_array
+from scipy import ndimage
+
+from ..dem import ConstantHeight
+from ..errors import InputError
+from ..model.sensor import SceneModel
+
+gdal.UseExceptions()
+
+
+def open_raw(image_path, cam):
+    """The raw image as a GDAL dataset (decoded on all cores), checked against the camera's size."""
+    try:
+        src = gdal.OpenEx(str(image_path), gdal.OF_RASTER, open_options=["NUM_THREADS=ALL_CPUS"])
+    except RuntimeError as exc:
+        raise InputError(f"{image_path}: cannot be opened as a raster ({exc})") from None
+    if (src.RasterXSize, src.RasterYSize) != (cam.cols, cam.rows):
+        raise InputError(f"{image_path}: the raster is {src.RasterXSize} x {src.RasterYSize} px but camera {cam.name} "
+                         f"of the scene images {cam.cols} x {cam.rows} px: is it the scene's image?")
+    return src
+
+
+class RawImage:
+    """The raw image's bands (count, rows, cols), read by window: from memory when the whole
+    image fits in ``budget`` bytes (decoded once, on all cores), else from the file through a
+    GDAL dataset per thread (GDAL datasets are not shared between threads), so memory stays
+    bounded for images of any size."""
+
+    def __init__(self, path, src, budget: float):
+        self.path, self.count = str(path), src.RasterCount
+        self.rows, self.cols = src.RasterYSize, src.RasterXSize
+        self.data_type = src.GetRasterBand(1).DataType
+        self.dtype = np.dtype(gdal_array.GDALTypeCodeToNumericTypeCode(self.data_type))
+        size = self.rows * self.cols * self.count * self.dtype.itemsize
+        self.data = src.ReadAsArray().reshape(self.count, self.rows, self.cols) if size <= budget else None
+        self._local = threading.local()
+
+    def window(self, i0: int, i1: int, j0: int, j1: int) -> np.ndarray:
+        """Bands (count, i1-i0, j1-j0) of rows i0..i1 and columns j0..j1."""
+        if self.data is not None:
+            return self.data[:, i0:i1, j0:j1]
+        ds = getattr(self._local, "ds", None)
+        if ds is None:
+            ds = self._local.ds = gdal.Open(self.path)
+        return ds.ReadAsArray(j0, i0, j1 - j0, i1 - i0).reshape(self.count, i1 - i0, j1 - j0)
+
+    def close(self) -> None:
+        """Drop the decoded image and every thread's dataset."""
+        self.data, self._local = None, threading.local()
+
+
+def resample(raw: RawImage, col: np.ndarray, row: np.ndarray, order: int, fill,
+             rows: tuple[int, int] | None = None) -> list[np.ndarray]:
+    """Values of every band of the raw image at image positions (col, row) (GDAL convention,
+    arrays of the tile's shape); ``fill`` outside the image (or outside its ``rows`` = (first,
+    end), one scene of a strip). Integer types rounded and clipped to their range."""
+    top, bottom = rows or (0, raw.rows)
+    outside = ~np.isfinite(col) | (col < 0) | (col > raw.cols) | (row < top) | (row > bottom)
+    any_outside = outside.any()
+    if any_outside and outside.all():
+        return [np.full(col.shape, fill, dtype=raw.dtype) for _ in range(raw.count)]
+    # image positions (centres at +0.5) -> array indices (centres at 0), in the raw window the
+    # tile needs (a cubic spline is prefiltered on that window only)
+    i, j = row - 0.5, col - 0.5
+    if any_outside:
+        i, j = np.where(outside, np.nan, i), np.where(outside, np.nan, j)
+    i0, j0 = max(int(np.nanmin(i)) - 4, 0), max(int(np.nanmin(j)) - 4, 0)
+    i1, j1 = min(int(np.nanmax(i)) + 5, raw.rows), min(int(np.nanmax(j)) + 5, raw.cols)
+    coords = np.stack([i - i0, j - j0])
+    if any_outside:
+        coords[:, outside] = 0.0
+    blocks = []
+    for window in raw.window(i0, i1, j0, j1):
+        if order <= 1:  # an integer band's output is rounded by ndimage; no overshoot to clip
+            block = ndimage.map_coordinates(window, coords, order=order, mode="nearest", prefilter=False)
+        else:
+            values = ndimage.map_coordinates(window.astype(np.float32), coords, order=order, mode="nearest")
+            if np.issubdtype(raw.dtype, np.integer):
+                info = np.iinfo(raw.dtype)
+                values = np.clip(np.rint(values), info.min, info.max)
+            block = values.astype(raw.dtype)
+        if any_outside:
+            block[outside] = fill
+        blocks.append(block)
+    return blocks
+
+
+def image_on_surface(scene: SceneModel, camera: int, surface, footprint: bool,
+                     rows: tuple[int, int] | None = None) -> np.ndarray:
+    """ECEF points (n, 3) where the image (its ``rows`` = (first, end), default all) meets the
+    surface: with ``footprint`` 33 points along each side of the border, then (always) the
+    centre pixel and its right neighbour (without ``footprint``, at the surface's mean height
+    where the surface misses them). InputError naming the DEM where they do not meet it."""
+    cam = scene.cameras[camera]
+    top, bottom = rows or (0, cam.rows)
+    s = np.linspace(0.0, 1.0, 33)
+    centre_col, centre_row = np.array([cam.cols / 2, cam.cols / 2 + 1]), np.array([(top + bottom) / 2] * 2)
+    if footprint:
+        side = top + s * (bottom - top)
+        col = np.concatenate([s * cam.cols, np.full_like(s, cam.cols), s * cam.cols, np.zeros_like(s), centre_col])
+        row = np.concatenate([np.full_like(s, top), side, np.full_like(s, bottom), side, centre_row])
+    else:
+        col, row = centre_col, centre_row
+    ground = scene.image_to_ground_dem(col, row, surface, camera)
+    if not footprint and not np.all(np.isfinite(ground)):
+        # the centre only sets the default CRS and pixel size: the DEM's mean height serves there
+        ground = scene.image_to_ground_dem(col, row, ConstantHeight(float(np.mean(surface.height_range))), camera)
+    if not np.all(np.isfinite(ground)):
+        name = getattr(surface, "path", "the terrain surface")
+        where = "the image's centre" if not np.all(np.isfinite(ground[-2:])) else "the image's border"
+        raise InputError(f"DEM {name} does not cover the scene: {where} does not meet it. Use a DEM covering the "
+                         f"footprint, a constant height, or an extent inside the DEM")
+    return ground
