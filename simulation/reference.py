@@ -1,7 +1,7 @@
 """A simulated reference orthoimage of a rendered scene's ground: the map a user would match
 the raw image against (a national orthophoto, a Sentinel-2 scene, an earlier product).
 
-It shows the same ground texture as the raw images (:mod:`core.render`), on a north-up grid
+It shows the same ground texture as the raw images (:mod:`simulation.texture`), on a north-up grid
 in the UTM zone of the scene centre, and differs from them like a real reference does:
 
 - another ground sample distance (default 5 m, at least twice the scene's) and an optical blur (Gaussian, sigma in
@@ -28,9 +28,10 @@ from pyproj import CRS, Transformer
 from scipy.ndimage import gaussian_filter, map_coordinates
 
 from ..core.errors import Cancelled, InputError
-from ..core.products.ortho import default_grid, utm_crs
-from .render import texture_at
 from ..core.model.sensor import SceneModel
+from ..core.products.mapping import utm_crs
+from ..core.products.ortho import default_grid
+from .texture import texture_at
 
 gdal.UseExceptions()
 
@@ -101,9 +102,10 @@ def write_reference(scene: SceneModel, dem, frame: dict, path, seed: int,
                     settings: ReferenceSettings | None = None,
                     is_cancelled: Callable[[], bool] | None = None) -> dict:
     """Write the reference orthoimage of ``scene``'s ground (the true scene; every camera's
-    footprint on ``dem`` plus the margin) with the texture of ``frame`` (core.render) into an
-    8-bit GeoTIFF at ``path``. Default settings: :class:`ReferenceSettings` with pixels of 5 m
-    or twice the scene's GSD, whichever is larger (a 60 km TH-1 scene stays at 44 Mpx).
+    footprint on ``dem`` plus the margin) with the texture of ``frame``
+    (:func:`simulation.texture.texture_frame`) into an 8-bit GeoTIFF at ``path``. Default
+    settings: :class:`ReferenceSettings` with pixels of 5 m or twice the scene's GSD, whichever
+    is larger (a 60 km TH-1 scene stays at 44 Mpx).
     Returns its description (CRS, geotransform, settings, discs)."""
     settings = settings or ReferenceSettings(gsd=max(5.0, 2.0 * float(frame["gsd_m"])))
     settings.validate()

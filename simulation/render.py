@@ -1,11 +1,5 @@
-"""Raw pushbroom images rendered from a known ground texture: the truth that
-orthorectification is checked against.
-
-The texture is value noise (three octaves, smoothstep-interpolated hashed lattice values)
-on a local metric plane around a centre (lon0, lat0):
-    x = (lon - lon0) * 111320 cos(lat0),  y = (lat - lat0) * 110540     (metres)
-with lattice cells of 4, 16 and 64 ground sample distances, so an image pixel always sees
-a smooth texture. :func:`texture_at` gives its value anywhere on the ground.
+"""Raw pushbroom images rendered from a known ground texture (:mod:`simulation.texture`): the
+truth that orthorectification is checked against.
 
 A raw image pixel (col, row) (GDAL convention, centre at +0.5) takes the texture value at
 the ground point its line of sight meets on the DEM. Exact image -> ground is computed on a
@@ -30,60 +24,14 @@ from osgeo import gdal
 from ..core.errors import Cancelled, InputError
 from ..core.geodesy import ecef_to_geodetic
 from ..core.model.sensor import SceneModel
+from .roads import painter_for
+from .texture import texture, texture_plane, to_digital_numbers
 
 gdal.UseExceptions()
 log = logging.getLogger(__name__)
 
 GRID_STEP = 16          # px between exact image -> ground nodes
 TILE_ROWS = 256         # rows rendered at once
-OCTAVES = ((4.0, 0.25), (16.0, 0.35), (64.0, 0.40))  # (cell size in GSD, weight)
-M_PER_DEG_LON = 111320.0
-M_PER_DEG_LAT = 110540.0
-
-
-def texture_plane(lon, lat, centre: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Local plane coordinates (x east, y north) in metres of (lon, lat) degrees."""
-    return ((np.asarray(lon) - centre[0]) * M_PER_DEG_LON * math.cos(math.radians(centre[1])),
-            (np.asarray(lat) - centre[1]) * M_PER_DEG_LAT)
-
-
-def _lattice(i: np.ndarray, j: np.ndarray, seed: int) -> np.ndarray:
-    """Pseudo-random values in [0, 1) at integer lattice nodes (i, j): an integer hash."""
-    with np.errstate(over="ignore"):
-        h = (i.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)) ^ (j.astype(np.uint64) * np.uint64(0xC2B2AE3D27D4EB4F))
-        h ^= np.uint64(seed * 0x165667B19E3779F9 & 0xFFFFFFFFFFFFFFFF)
-        h ^= h >> np.uint64(29)
-        h *= np.uint64(0xBF58476D1CE4E5B9)
-        h ^= h >> np.uint64(32)
-    return (h >> np.uint64(40)).astype(np.float64) / float(1 << 24)
-
-
-def texture(x, y, gsd: float, seed: int) -> np.ndarray:
-    """Texture value in [0, 1] at plane coordinates (x, y) metres; any shape."""
-    x = np.asarray(x, dtype=float)
-    y = np.asarray(y, dtype=float)
-    out = np.zeros(np.broadcast(x, y).shape)
-    for level, (cells, weight) in enumerate(OCTAVES):
-        gx, gy = x / (cells * gsd), y / (cells * gsd)
-        i, j = np.floor(gx), np.floor(gy)
-        fx, fy = gx - i, gy - j
-        wx, wy = fx * fx * (3 - 2 * fx), fy * fy * (3 - 2 * fy)
-        ii, jj = i.astype(np.int64), j.astype(np.int64)
-        s = seed * 4 + level
-        top = _lattice(ii, jj, s) * (1 - wx) + _lattice(ii + 1, jj, s) * wx
-        bottom = _lattice(ii, jj + 1, s) * (1 - wx) + _lattice(ii + 1, jj + 1, s) * wx
-        out += weight * (top * (1 - wy) + bottom * wy)
-    return out
-
-
-def texture_at(lon, lat, centre: tuple[float, float], gsd: float, seed: int) -> np.ndarray:
-    """Texture value in [0, 1] at ground (lon, lat) degrees."""
-    return texture(*texture_plane(lon, lat, centre), gsd, seed)
-
-
-def to_digital_numbers(value: np.ndarray) -> np.ndarray:
-    """Texture values [0, 1] -> 8-bit digital numbers (20..235)."""
-    return np.rint(20.0 + 215.0 * value).astype(np.uint8)
 
 
 def _cubic_weights(x: np.ndarray, first: float, step: float, n_nodes: int) -> np.ndarray:
@@ -143,14 +91,13 @@ def render_image(scene: SceneModel, camera: int, dem, path, frame: dict,
                  is_cancelled: Callable[[], bool] | None = None) -> float:
     """Render camera ``camera`` of ``scene`` over ``dem`` into an 8-bit GeoTIFF at ``path``
     (no georeferencing: raw image geometry), with the texture of ``frame`` (see
-    :func:`texture_frame`) and its roads (``frame['roads']``, :mod:`core.roads`). Returns the
+    :func:`simulation.texture.texture_frame`) and its roads (``frame['roads']``, :mod:`simulation.roads`). Returns the
     largest interpolation error of the ground position measured on sample pixels, in pixels
     (ground metres / GSD).
     """
     cam = scene.cameras[camera]
     centre, gsd, seed = tuple(frame["centre"]), float(frame["gsd_m"]), int(frame["seed"])
     grids = [_ChipGrid(scene, camera, k, dem, centre) for k in range(len(cam.chips))]
-    from .roads import painter_for  # roads import this module
     roads = painter_for(frame)
     ds = gdal.GetDriverByName("GTiff").Create(str(path), cam.cols, cam.rows, 1, gdal.GDT_Byte,
                                               ["TILED=YES", "COMPRESS=DEFLATE", "PREDICTOR=2", "BIGTIFF=IF_SAFER"])
@@ -182,15 +129,6 @@ def render_image(scene: SceneModel, camera: int, dem, path, frame: dict,
     error = interpolation_error(grids, cam.rows, gsd)
     log.info("rendered %s (%d x %d); ground interpolation error max %.2e px", cam.name, cam.cols, cam.rows, error)
     return error
-
-
-def texture_frame(scene: SceneModel, dem, seed: int) -> dict:
-    """The texture's frame for a scene: centre (lon, lat) = the reference camera's image
-    centre on the DEM, gsd_m = the scene's ground sample distance, and the seed."""
-    cam = scene.cameras[0]
-    centre = scene.image_to_ground_dem(np.array([cam.cols / 2]), np.array([cam.rows / 2]), dem, 0)
-    lon, lat, _ = ecef_to_geodetic(centre)
-    return {"centre": [float(lon[0]), float(lat[0])], "gsd_m": float(scene.info.get("gsd_m", 1.0)), "seed": seed}
 
 
 def interpolation_error(grids: list[_ChipGrid], rows: int, gsd: float, n: int = 2000) -> float:

@@ -1,12 +1,12 @@
-"""Simulated roads: control lines with known truth for :func:`core.simulator.simulate`.
+"""Simulated roads: control lines with known truth for :func:`simulation.simulator.simulate`.
 
-A road is a smooth curve on the ground, defined in the texture plane of :mod:`core.render`
+A road is a smooth curve on the ground, defined in the texture plane of :mod:`simulation.texture`
 (x east, y north, metres about the texture centre) by its centre (x0, y0), its azimuth at the
 centre (rad, clockwise from north), its length (m) and a curvature varying linearly along it:
 kappa(s) = k0 + k1 s (1/m, s from -length/2 to length/2; k0 = k1 = 0 for a straight road).
 It lies on the terrain (heights from the DEM). From each road the simulator writes:
 
-- the **road map** (layer ``ground_lines`` of ``lines.gpkg``, see :mod:`core.lines`): the road
+- the **road map** (layer ``ground_lines`` of ``lines.gpkg``, see :mod:`core.observations.lines`): the road
   with a vertex every ``vertex_spacing`` m, horizontal noise ``map_sigma`` and height noise
   ``map_sigma_h``; a share ``wrong_fraction`` of the lines is wrong as a real map's can be:
   shifted as a whole by 20-200 m ('shifted'), or turned about a point of the road so that it
@@ -19,7 +19,7 @@ It lies on the terrain (heights from the DEM). From each road the simulator writ
   true ground point (lon, lat, ellipsoidal h).
 
 With rendering, the roads are drawn into the raw images as bright bands ``width`` GSD wide
-(:class:`RoadPainter`, called by :func:`core.render.render_image`), centred on the true road,
+(:class:`RoadPainter`, called by :func:`simulation.render.render_image`), centred on the true road,
 so snapping is tested on pixels.
 """
 from __future__ import annotations
@@ -33,7 +33,8 @@ from scipy.spatial import cKDTree
 from ..core.errors import InputError
 from ..core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from ..core.observations.lines import GroundLines, ImageLines, image_layer, write_gpkg
-from .render import M_PER_DEG_LAT, M_PER_DEG_LON, texture_frame, texture_plane
+from .measurements import write_csv
+from .texture import plane_to_lonlat, texture_frame, texture_plane
 
 LINES_FILE = "lines.gpkg"
 POINTS_FILE = "line_points.csv"
@@ -97,12 +98,6 @@ def road_curve(road: dict, spacing: float) -> tuple[np.ndarray, np.ndarray]:
     return road["x0"] + np.interp(at, s, x), road["y0"] + np.interp(at, s, y)
 
 
-def plane_to_lonlat(x, y, centre) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse of :func:`core.render.texture_plane`."""
-    return (centre[0] + np.asarray(x) / (M_PER_DEG_LON * math.cos(math.radians(centre[1]))),
-            centre[1] + np.asarray(y) / M_PER_DEG_LAT)
-
-
 def draw_roads(scene, dem, settings: RoadSettings, centre, rng: np.random.Generator) -> list[dict]:
     """Road definitions (see the module docstring) centred at random points of camera 0's image."""
     cam = scene.cameras[0]
@@ -142,7 +137,6 @@ def simulate_roads(true_scene, dem, settings: RoadSettings, seed: int, folder, f
     """Draw the roads, write ``lines.gpkg`` and ``line_points.csv`` into ``folder`` (through the
     :class:`core.files.OutputSet` ``files``); returns the manifest entry {settings, centre,
     roads (with kind and shift_m)} that :class:`RoadPainter` renders."""
-    from .simulator import _write_csv  # the simulator's CSV writer; imported here: the simulator imports us
     settings.validate()
     rng = np.random.default_rng([seed, 11])  # its own stream: the other outputs do not change with roads
     frame = texture_frame(true_scene, dem, seed)
@@ -169,7 +163,7 @@ def simulate_roads(true_scene, dem, settings: RoadSettings, seed: int, folder, f
     write_gpkg(files.path(folder / LINES_FILE), ground, measured,
                extra_ground={"kind": np.array([r["kind"] for r in roads]), "shift_m": np.array(shifts)},
                extra_layers=[clicks_layer], files=None)
-    _write_csv(files.path(folder / POINTS_FILE), POINT_COLUMNS, points)
+    write_csv(files.path(folder / POINTS_FILE), POINT_COLUMNS, points)
     return {"settings": asdict(settings), "centre": list(centre), "gsd_m": frame["gsd_m"], "roads": roads}
 
 
