@@ -1,4 +1,5 @@
 """Exceptions the core raises for bad input; messages name the file, field or parameter."""
+from __future__ import annotations
 
 
 class PushbroomError(Exception):
@@ -10,7 +11,17 @@ class MetadataError(PushbroomError):
 
 
 class InputError(PushbroomError):
-    """A parameter or data value is outside what the algorithm accepts (NaN, CRS, coverage...)."""
+    """A parameter or data value is outside what the algorithm accepts (NaN, CRS, coverage...).
+
+    ``parameter``: the input the error concerns, in the core's own terms ('gcps', 'ties',
+    'lines', 'scene', 'settings.<field>' of :class:`core.adjust.settings.AdjustmentSettings`),
+    for the caller to name its own parameter; '' when it concerns several inputs, which the
+    message names itself; None when the caller must say (the default).
+    """
+
+    def __init__(self, message: str, *, parameter: str | None = None):
+        super().__init__(message)
+        self.parameter = parameter
 
 
 class ConvergenceError(PushbroomError):

@@ -21,8 +21,8 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
 from ..core.observations.gcps import DEFAULT_SIGMA_PX
-from ..core.products.ortho import RESAMPLING as CORE_RESAMPLING
-from ..simulation.simulator import PRESETS
+from ..core.products.resampling import RESAMPLING as CORE_RESAMPLING
+from ..simulation.presets import PRESETS
 from ..core.model.timebasis import KINDS
 
 TR_CONTEXT = "PushbroomAdjust"
@@ -40,7 +40,7 @@ SPACING, N_POINTS, WINDOW, MIN_CORRELATION, SEARCH_RANGE = \
     "SPACING", "N_POINTS", "WINDOW", "MIN_CORRELATION", "SEARCH_RANGE"
 
 # Value names of the enumerations, in the order the drop-down lists show them; they are the
-# core's own names (core.dem datums, core.gcps.Heights.source, core.timebasis.KINDS, ...).
+# core's own names (core.dem datums, core.observations.tables.Heights.source, core.model.timebasis.KINDS, ...).
 DATUMS = ("geoid", "ellipsoid")
 HEIGHT_SOURCES = ("z", "dem", "constant")
 TRAJECTORY_MODELS = KINDS  # polynomial, lagrange, spline

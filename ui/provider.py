@@ -4,6 +4,7 @@ import logging
 from qgis.core import QgsProcessingModelAlgorithm, QgsProcessingProvider
 from qgis.PyQt.QtGui import QIcon
 
+from . import RESOURCES
 from .algorithms.bundleadjust import BundleAdjustAlgorithm
 from .algorithms.exportrpc import ExportRpcAlgorithm
 from .algorithms.footprint import FootprintAlgorithm
@@ -19,7 +20,6 @@ from .algorithms.preparedigitising import PrepareDigitisingAlgorithm
 from .algorithms.sensorcorrect import SensorCorrectAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .algorithms.snaplines import SnapLinesAlgorithm
-from .common import RESOURCES
 from .parameters import tr
 
 log = logging.getLogger(__name__)

@@ -8,7 +8,8 @@ import numpy as np
 from ..errors import InputError
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
-from ..observations.gcps import GcpTable, resolve_cameras
+from ..observations.gcps import GcpTable
+from ..observations.tables import resolve_cameras
 from ..observations.tiepoints import TieTable
 from .linepoints import ControlLines, check_lines, datum_lines
 from .problem import Problem
@@ -29,10 +30,12 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
     bad = ~np.all(np.isfinite(np.stack([table.col, table.row, table.lon, table.lat, table.h, table.sigma_px,
                                         table.sigma_xy, table.sigma_z])), axis=0)
     if bad.any():
-        raise InputError(f"GCPs {', '.join(table.id[bad][:10])} have NaN or missing coordinates or sigmas")
+        raise InputError(f"GCPs {', '.join(table.id[bad][:10])} have NaN or missing coordinates or sigmas",
+                         parameter="gcps")
     if np.any(table.sigma_px <= 0) or (settings.ground == "weighted" and
                                        (np.any(table.sigma_xy <= 0) or np.any(table.sigma_z <= 0))):
-        raise InputError("GCP sigmas must be positive (sigma_px, and sigma_xy, sigma_z for weighted ground)")
+        raise InputError("GCP sigmas must be positive (sigma_px, and sigma_xy, sigma_z for weighted ground)",
+                         parameter="gcps")
     control = table.role == "control"
     with_ties = ties is not None and len(ties) > 0
     if with_ties:
@@ -41,18 +44,19 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
     if with_lines:
         if isinstance(scene, RpcScene):
             raise InputError("control lines need a rigorous (physical) scene model; an RPC scene's correction is "
-                             "adjusted from GCPs")
+                             "adjusted from GCPs", parameter="lines")
         check_lines(scene, lines)
     sparse_control = with_ties or with_lines
     inside = np.zeros(len(table), bool)
     for c, cam in enumerate(scene.cameras):
         m = table.camera == cam.name
-        inside[m] = (table.col[m] >= 0) & (table.col[m] <= cam.cols) & (table.row[m] >= 0) & (table.row[m] <= cam.rows)
+        inside[m] = cam.in_image(table.col[m], table.row[m])
     if not inside[control].any() and not (sparse_control and not control.any()):
-        raise InputError("no control point lies inside this scene's images: is the GCP layer from another scene?")
+        raise InputError("no control point lies inside this scene's images: is the GCP layer from another scene?",
+                         parameter="gcps")
     if (~inside[control]).sum() > 0.5 * control.sum():
         raise InputError(f"{int((~inside[control]).sum())} of {int(control.sum())} control points lie outside the "
-                         "scene's images: is the GCP layer from another scene?")
+                         "scene's images: is the GCP layer from another scene?", parameter="gcps")
     if control.any():
         _check_seen_by_scene(scene, table.select(control))
     if not sparse_control or np.unique(table.id[control]).size >= 3:
@@ -86,7 +90,7 @@ def _check_seen_by_scene(scene: SceneModel, control: GcpTable) -> None:
     if seen.mean() < 0.5:
         raise InputError(f"the ground positions of {int((~seen).sum())} of {len(control)} control points are far "
                          "outside this scene's images (more than half an image away): is the GCP layer from "
-                         "another scene?")
+                         "another scene?", parameter="gcps")
 
 
 def _check_spread(scene: SceneModel, table: GcpTable, control: np.ndarray) -> None:
@@ -94,15 +98,16 @@ def _check_spread(scene: SceneModel, table: GcpTable, control: np.ndarray) -> No
     cam = scene.cameras[0]
     xy = np.stack([table.col[control] / cam.cols, table.row[control] / cam.rows], axis=1)
     if xy.shape[0] < 3:
-        raise InputError(f"too few control points: {xy.shape[0]} (at least 3, better many more, are needed)")
+        raise InputError(f"too few control points: {xy.shape[0]} (at least 3, better many more, are needed)",
+                         parameter="gcps")
     span = xy.max(axis=0) - xy.min(axis=0)
     sv = np.linalg.svd(xy - xy.mean(axis=0), compute_uv=False)
     if sv[1] < 0.01 * sv[0]:
         raise InputError("the control points lie on a line; the scene's rotation about it cannot be determined. "
-                         "Add points off that line.")
+                         "Add points off that line.", parameter="gcps")
     if span[0] < 0.1 and span[1] < 0.1:
         raise InputError(f"the control points cover only {100 * span[0]:.0f}% x {100 * span[1]:.0f}% of the image "
-                         "(one corner); spread them over the scene")
+                         "(one corner); spread them over the scene", parameter="gcps")
 
 
 def check_redundancy(problem: Problem) -> None:
@@ -111,4 +116,4 @@ def check_redundancy(problem: Problem) -> None:
     if n_eq <= n_unknowns:
         raise InputError(f"too few GCPs for the chosen model: {len(problem.obs)} image observations give {n_eq} "
                          f"equations for {n_unknowns} unknowns; add GCPs or choose a simpler trajectory model "
-                         "(lower order, longer interval) or fewer interior parameters")
+                         "(lower order, longer interval) or fewer interior parameters", parameter="gcps")

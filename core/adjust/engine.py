@@ -43,7 +43,7 @@ def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings, ties: Tie
     if isinstance(scene, RpcScene):
         if len(ties):
             raise InputError("tie points need a rigorous (physical) scene model with several cameras; an RPC "
-                             "scene is one image")
+                             "scene is one image", parameter="ties")
         return RpcProblem(scene, table, settings)
     return Problem(scene, table, settings, ties, lines)
 

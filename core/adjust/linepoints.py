@@ -42,10 +42,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geodesy import ecef_to_geodetic, enu_rotations
-from ..observations.lines import (GroundLines, ImageLines, LineConstraint, LineObservations, LineSegments, azimuths,
-                                  check_image_lines, check_in_scene, direction_check, line_constraints, lines_outside,
-                                  nearest_segments, pair, segment_directions, start_points)
-from .ties import _listed
+from ..observations.linemodel import (LineConstraint, LineObservations, LineSegments, azimuths, check_image_lines,
+                                      check_in_scene, direction_check, line_constraints, lines_outside,
+                                      nearest_segments, pair, segment_directions, start_points)
+from ..observations.lines import GroundLines, ImageLines
+from ..observations.tables import listed
 
 
 log = logging.getLogger(__name__)
@@ -164,7 +165,7 @@ def screen(scene, setup: LineSetUp) -> np.ndarray:
         keep = ~gross[key]
     if gross.any():
         log.info("control lines %s start released: their a-priori misfit is grossly larger than the others'",
-                 _listed(setup.obs.keys[gross]))
+                 listed(setup.obs.keys[gross]))
     return gross
 
 

@@ -17,12 +17,13 @@ from osgeo import ogr, osr
 
 from ..errors import InputError
 from ..files import OutputSet
-from ..observations.gcps import SCENE_METADATA_KEY, GcpTable, Residuals, _wgs84_3d, write_gpkg
+from ..observations.gcps import GcpTable, Residuals, write_gpkg
 from ..geodesy import A, F, enu_rotations
 from ..model.sensor import SceneModel
 from ..observations.tiepoints import GPKG_LAYER, point_wkt
 from ..observations.lines import ground_layer
-from ..vector_io import LayerData, open_layer, write_layer, write_layers
+from ..observations.tables import SCENE_METADATA_KEY
+from ..vector_io import LayerData, open_layer, wgs84_3d, write_layer, write_layers
 from .linepoints import ControlLines, subset_lines
 
 ogr.UseExceptions()
@@ -102,7 +103,7 @@ def write_adjusted_tie_points(tie_points: dict, path, *, scene_path: str = "", f
                if k == "res_px" else np.asarray(tie_points[k]) for k in TIE_FIELDS}
     columns["flagged"] = columns["flagged"].astype(int)
     ground = point_wkt(*(tie_points[k] for k in ("lon", "lat", "h")))
-    write_layer(path, GPKG_LAYER, _wgs84_3d(), ogr.wkbPoint25D, columns, ground,
+    write_layer(path, GPKG_LAYER, wgs84_3d(), ogr.wkbPoint25D, columns, ground,
                 {SCENE_METADATA_KEY: scene_path} if scene_path else None, files)
 
 
@@ -200,6 +201,6 @@ def write_line_residuals(path, lines: ControlLines, points: dict, report: dict, 
     k = [index[i] for i in ground.id]
     extra = {name: np.asarray(per[name])[k] for name in ("points", "rms_across_m", "max_across_m", "points_flagged")}
     extra["flagged"] = np.asarray(per["flagged"], dtype=int)[k]
-    write_layers(path, [LayerData("line_points", _wgs84_3d(), ogr.wkbPoint25D, columns, geoms),
+    write_layers(path, [LayerData("line_points", wgs84_3d(), ogr.wkbPoint25D, columns, geoms),
                         ground_layer(ground, extra)], files)
 

@@ -329,7 +329,8 @@ def _start_from_existing_correction(scene: SceneModel, params: ParameterSet) -> 
     own = [cam.name for cam in scene.cameras if cam.name in platform.camera_corrections]
     if own and not params.per_camera:
         raise InputError(f"the scene was adjusted with a trajectory correction per camera ({', '.join(own)}); "
-                         "adjust it again with one correction per camera, or adjust the original (onboard) scene")
+                         "adjust it again with one correction per camera, or adjust the original (onboard) scene",
+                         parameter="scene")
     starts = [platform.for_camera(cam.name).correction for cam in scene.cameras] if params.per_camera else \
         [platform.correction]
     if all(corr is None for corr in starts):
@@ -342,7 +343,7 @@ def _start_from_existing_correction(scene: SceneModel, params: ParameterSet) -> 
         if corr.position.to_dict() != params.position_basis.to_dict() or \
                 corr.attitude.to_dict() != params.attitude_basis.to_dict():
             raise InputError("the scene was adjusted with another trajectory model; adjust the original (onboard) "
-                             "scene, or choose the same model and interval")
+                             "scene, or choose the same model and interval", parameter="scene")
         position[k * m_p:(k + 1) * m_p] = corr.position_coefficients
         attitude[k * m_a:(k + 1) * m_a] = corr.attitude_coefficients
     values = params.values()

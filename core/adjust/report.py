@@ -1,48 +1,35 @@
-"""Adjustment reports: JSON for machines, one self-contained HTML page for people.
+"""Adjustment reports for machines and for the log: the report as strict JSON, and the
+sentences the run leaves in the log (how the result is to be trusted, what was decided, tie
+points, control lines), each with whether it is a warning.
 
-The HTML page leads with the figures that decide whether to trust the result (sigma0 and its
-test, control residuals, check points before and after), then the settings, what the
-adjustment decided (non-determinable parameters fixed, gross errors flagged), the interior
-and installation parameters with their sigmas, three plots as inline PNG (image residual
-vectors over the image, seed 000 Fig. 6; trajectory corrections against time, Fig. 7-11;
-residual RMSE per CCD chip), high correlations, variance components and iterations.
-
-Both files are written completely or not at all (:func:`core.files.write_text`). The plots are
-drawn on bare matplotlib ``Figure`` objects with the Agg canvas: no pyplot, so no global
-backend switch inside QGIS and no figure registry to leak.
+The HTML page for people is :mod:`core.adjust.report_html`. The JSON file is written completely
+or not at all (:func:`core.files.write_text`).
 """
 from __future__ import annotations
 
-import base64
-import html
-import io
 import json
 import logging
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from ..files import OutputSet, write_text
-from .checkpoints import model_error_message, without_label
+from .checkpoints import model_error_message, summary_lines
 
 log = logging.getLogger(__name__)
 
-MAX_ARROWS = 5000  # residual vectors drawn at most; more are subsampled (stated in the caption)
-MAX_LISTED_TRAJECTORY = 24  # trajectory coefficients listed one per row up to this many, else summarised
-ARCSEC_PER_RAD = 180.0 / math.pi * 3600.0
-PNG_DPI = 90
-
 
 # --- JSON ---------------------------------------------------------------------------------------
-def _plain(value):
+def plain(value):
     """JSON-ready copy of ``value``: numpy scalars and arrays become Python numbers and lists,
     NaN and infinities become None, dict keys strings; other objects (paths, enums) their str()."""
     if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
+        return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
+        return plain(value.tolist())
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, (int, np.integer)):
@@ -56,7 +43,7 @@ def _plain(value):
 
 def report_to_json(report: dict) -> str:
     """The report as strict JSON text (numpy types converted, NaN and infinities as null)."""
-    return json.dumps(_plain(report), indent=1, allow_nan=False)
+    return json.dumps(plain(report), indent=1, allow_nan=False)
 
 
 def write_report_json(report: dict, path, files: OutputSet | None = None) -> None:
@@ -66,169 +53,7 @@ def write_report_json(report: dict, path, files: OutputSet | None = None) -> Non
     log.info("wrote the adjustment report %s", path)
 
 
-# --- HTML page ----------------------------------------------------------------------------------
-_STYLE = ("body{font-family:sans-serif;max-width:1150px;margin:2em auto;color:#222;line-height:1.4}"
-          "table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;"
-          "text-align:right}th{background:#f2f2f2}td.l,th.l{text-align:left}.bad{color:#b00}.ok{color:#070}"
-          ".big{font-size:1.25em}figure{margin:1em 0 2em}figcaption{font-size:.9em;color:#444;max-width:60em}"
-          "img{max-width:100%}")
-
-
-def write_report_html(report: dict, points: dict, path, title: str = "Bundle adjustment report",
-                      files: OutputSet | None = None) -> None:
-    """Write one self-contained HTML page (plots as inline PNG) of an adjustment's ``report`` and
-    per-GCP ``points`` (see :class:`core.adjust.engine.AdjustmentResult`) to ``path``,
-    completely or not at all (with ``files``, as part of that set)."""
-    rep = _plain(report)
-    body = [f"<h1>{html.escape(title)}</h1>", _reliability_section(rep), _headline_section(rep),
-            _tie_point_section(rep), _lines_section(rep), _settings_section(rep), _decisions_section(rep),
-            _parameters_section(rep),
-            "<h2>Plots</h2>",
-            _residual_vector_figure(points), _trajectory_figure(rep["trajectory"]) if rep["trajectory"] else "",
-            _chip_figure(rep["control_residuals_per_chip"]), _correlations_section(rep),
-            _variance_components_section(rep), _iterations_section(rep)]
-    page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{_STYLE}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
-    write_text(path, page, files)
-    log.info("wrote the adjustment report %s", path)
-
-
-def _fmt(value, spec: str = ".3f") -> str:
-    """``value`` formatted with ``spec``; a dash when it is missing (None)."""
-    return "–" if value is None else format(value, spec)
-
-
-def _table(header: list[str], rows: list[list[str]], left: int = 1) -> str:
-    """An HTML table; the first ``left`` columns left-aligned (text), the others right (numbers).
-    Cells are HTML already: escape text before passing it."""
-    def cells(tag: str, row: list[str]) -> str:
-        return "".join(f"<{tag} class='l'>{c}</{tag}>" if i < left else f"<{tag}>{c}</{tag}>"
-                       for i, c in enumerate(row))
-    return ("<table><tr>" + cells("th", header) + "</tr>"
-            + "".join("<tr>" + cells("td", r) + "</tr>" for r in rows) + "</table>")
-
-
-def _reliability_section(rep: dict) -> str:
-    """What makes the result unreliable or the flags incomplete, first of all (empty when nothing)."""
-    rel = rep.get("reliability") or {"reliable": True, "problems": []}
-    items = [f"<li>{html.escape(p['message'])}</li>" for p in rel["problems"]]
-    if rep["robust"].get("stopped_at_limit"):
-        items.append(f"<li>robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; the "
-                     "flags may be incomplete.</li>")
-    if not items:
-        return ""
-    head = ("<p class='big bad'><b>The result is not reliable</b>: the robust estimation broke down (more "
-            "than 40 % of a CCD chip's observations flagged, flagged residuals pointing the same way, or one "
-            "chip's residuals much larger than the other chips').</p>" if not rel["reliable"] else
-            "<p class='big bad'><b>Warnings</b></p>")
-    return head + "<ul class='bad'>" + "".join(items) + "</ul>"
-
-
-def _sigma0_sentence(rep: dict) -> str:
-    """sigma0 (unitless: 1 when the residuals match the stated sigmas) and its chi-square test."""
-    lo, hi = rep["sigma0_test"]["ratio_bounds_95"]
-    verdict = ("<span class='ok'>passed: the residuals agree with the stated sigmas</span>"
-               if rep["sigma0_test"]["passed"] else
-               "<span class='bad'>failed: the residuals do not agree with the stated sigmas</span>")
-    return (f"<p class='big'><b>sigma0 = {_fmt(rep['sigma0'])}</b> (95 % acceptance interval "
-            f"{_fmt(lo)}–{_fmt(hi)}): {verdict}.</p>")
-
-
-def _check_point_row(label: str, figures: dict, count) -> list[str]:
-    """One row of the monoplotted check table: image RMSE (px) and ground RMSE, CE90 (m)."""
-    img, gnd = figures.get("image") or {}, figures.get("ground") or {}
-    return [html.escape(label), str(count), _fmt(img.get("rmse_col")), _fmt(img.get("rmse_row")),
-            _fmt(img.get("rmse")), _fmt(img.get("max"), ".2f"), _fmt(gnd.get("rmse_east"), ".2f"),
-            _fmt(gnd.get("rmse_north"), ".2f"), _fmt(gnd.get("rmse"), ".2f"), _fmt(gnd.get("ce90"), ".2f"),
-            _fmt(gnd.get("max"), ".2f")]
-
-
-def _intersection_row(label: str, figures: dict, count) -> list[str]:
-    """One row of the 3D intersection table (m)."""
-    keys = ("rmse_east", "rmse_north", "rmse_plan", "rmse_height", "max_plan", "max_height", "ce90", "le90")
-    return [html.escape(label), str(count)] + [_fmt(figures.get(k), ".2f") for k in keys]
-
-
-def _model_error_note(after: dict) -> str:
-    """Why the check points that exceed their sigmas are not left out (empty without a model error)."""
-    text = model_error_message(after)
-    return f"<p class='big bad'><b>{html.escape(text[:1].upper() + text[1:])}.</b></p>" if text else ""
-
-
-def _blunder_note(after: dict) -> str:
-    """How many check points were left out of the 'without blunders' rows, and why."""
-    if not after.get("blunders") or after.get("model_error"):
-        return ""
-    return (f"<p>{after['blunder_points']} of {after['points']} check points ({after['blunders']} observations) "
-            "have residuals beyond what their own sigmas allow: blunders in the check data (few enough not to "
-            "point to a model error). The rows 'without' leave those points out; compare them with the rows "
-            "over all points.</p>")
-
-
-def _intersection_section(before: dict, after: dict) -> str:
-    """3D check figures: points seen in two or more cameras, intersected (empty when there are none)."""
-    inter, prior = after.get("intersection") or {}, before.get("intersection") or {}
-    if not inter.get("points"):
-        return ""
-    n = inter["intersected"]
-    notes = []
-    if inter.get("single_camera"):
-        notes.append(f"{inter['single_camera']} of {inter['points']} check points are seen in one camera only "
-                     "and are not intersected")
-    if inter.get("failed"):
-        notes.append(f"{inter['failed']} could not be intersected")
-    if not n:
-        return f"<p>3D intersection: no check point is intersected ({'; '.join(notes)}).</p>"
-    out = [f"<h3>3D intersection ({n} points in &gt;= 2 cameras)</h3>"]
-    rows = [_intersection_row("before (input scene)", prior, prior.get("intersected")),
-            _intersection_row("after adjustment", inter, n)]
-    if inter.get("blunder_points") and not after.get("model_error"):
-        rows.append(_intersection_row(without_label(inter["blunder_points"]),
-                                      inter["without_blunders"], n - inter["blunder_points"]))
-    out.append(_table(["", "points", "RMSE east m", "RMSE north m", "RMSE plan m", "RMSE height m", "max plan m",
-                       "max height m", "CE90 m", "LE90 m"], rows))
-    out.append("<p>Each point intersected from all its cameras with the model, compared with its known position "
-               "in a local east/north/up frame; one value per point. Plan error = horizontal distance; CE90 / "
-               "LE90: 90 % of the points have a smaller plan / absolute height error. Intersection geometry: "
-               f"median {_fmt(inter.get('median_condition'), '.2f')} m of point error per px of image error"
-               + "".join(f"; {x}" for x in notes) + ".</p>")
-    return "\n".join(out)
-
-
-def _headline_section(rep: dict) -> str:
-    """sigma0 and its test, the control residuals and the check points before and after (px and m):
-    monoplotted per observation, and intersected in 3D per point."""
-    obs, ctl = rep["observations"], rep["control_residuals"]
-    left_out = ", flagged observations left out" if rep["robust"]["method"] != "none" else ""
-    out = [_sigma0_sentence(rep),
-           f"<p>{obs['control_points']} control points ({obs['image_observations']} image observations), "
-           f"{obs['check_points']} check points, {obs['unknowns']} adjusted parameters, "
-           f"{_fmt(obs['degrees_of_freedom'], '.0f')} degrees of freedom.</p>",
-           "<h2>Control point residuals</h2>",
-           f"<p class='big'>RMSE col {_fmt(ctl.get('rmse_col'))} px, row {_fmt(ctl.get('rmse_row'))} px; "
-           f"largest {_fmt(ctl.get('max'), '.2f')} px ({ctl.get('count', 0)} observations{left_out}).</p>"]
-    before, after = rep["check_points_before"], rep["check_points"]
-    out.append("<h2>Check points (independent accuracy)</h2>")
-    if not after.get("points"):
-        out.append("<p>No check points: the accuracy of the result is not measured independently.</p>")
-        return "\n".join(out)
-    out.append(_model_error_note(after))
-    out.append(_intersection_section(before, after))
-    n_obs = after.get("observations", after["points"])
-    rows = [_check_point_row("before (input scene)", before, n_obs),
-            _check_point_row("after adjustment", after, n_obs)]
-    if after.get("blunders") and not after.get("model_error"):
-        rows.append(_check_point_row(without_label(after["blunder_points"]),
-                                     after["without_blunders"], n_obs - after["blunders"]))
-    out.append(f"<h3>Monoplotted, per observation ({after['points']} points, {n_obs} observations)</h3>")
-    out.append(_table(["", "observations", "RMSE col px", "RMSE row px", "RMSE px", "max px", "RMSE east m",
-                       "RMSE north m", "RMSE m", "CE90 m", "max m"], rows))
-    out.append("<p>Each observation on its own: image residual of the known ground point (px), and the image "
-               "position projected to the ground at the known height (m, plan only).</p>")
-    out.append(_blunder_note(after))
-    return "\n".join(x for x in out if x)
-
-
+# --- sentences for the log ------------------------------------------------------------------
 LEFT_OUT_REASONS = {"single_ray": "seen by one camera only (one ray fixes no ground position)",
                     "not_intersected": "their onboard rays could not be intersected"}
 
@@ -255,352 +80,78 @@ def tie_point_lines(ties: dict) -> list[tuple[str, bool]]:
     return lines
 
 
-def _tie_point_section(rep: dict) -> str:
-    """Tie points used and left out, their image residuals per camera and how the datum is held
-    (empty without tie points)."""
-    ties = rep.get("tie_points")
-    if not ties:
-        return ""
-    items = [f"<li>{html.escape(text)}</li>" for text, _ in tie_point_lines(ties)]
-    if rep.get("datum"):
-        items.append(f"<li>{html.escape(datum_sentence(rep['datum']))}</li>")
-    rows = [[html.escape(cam), str(r.get("count", 0)), _fmt(r.get("rmse_col")), _fmt(r.get("rmse_row")),
-             _fmt(r.get("max"), ".2f")] for cam, r in ties["residuals_per_camera"].items()]
-    return ("<h2>Tie points</h2><ul>" + "".join(items) + "</ul>"
-            + _table(["camera", "observations", "RMSE col px", "RMSE row px", "max px"], rows)
-            + f"<p>{html.escape(ties['relative_accuracy'])}.</p>")
+class LogLine(NamedTuple):
+    """A sentence for the run's log. ``parameter``: the input it concerns, in the core's terms (as
+    :attr:`core.errors.InputError.parameter`: 'ties'...), for the caller to name; None: none."""
+    text: str
+    warning: bool = False
+    parameter: str | None = None
 
 
-MAX_LISTED_LINES = 200  # per-line rows listed at most (the rest counted; all are in OUTPUT_LINE_RESIDUALS)
+def log_lines(report: dict, tie_observations: int | None = None) -> list[LogLine]:
+    """What the log says after an adjustment, from its ``report`` (:class:`core.adjust.results.
+    AdjustmentResult`): the outcome (correlations, fixed parameters, variance components, robust
+    estimation, reliability, sigma0, control and check point figures), then the tie points
+    (``tie_observations``: how many were given; None without tie points) and the control lines."""
+    return [*outcome_lines(report), *tie_lines(report, tie_observations), *control_line_lines(report.get("lines"))]
 
 
-def _lines_section(rep: dict) -> str:
-    """Control lines (Tommaselli & Marcato Junior 2012): lines and points used, across-line RMSE
-    before and after, lines named wrong as a whole, whether the lines' directions determine both
-    horizontal directions, and per line its figures (empty without lines)."""
-    lines = rep.get("lines")
-    if not lines:
-        return ""
-    directions = lines["directions"]
-    wrong = lines["flagged_line_ids"]
-    items = [f"{lines['lines']} lines, {lines['points']} line points (each {lines['constraints_per_point']} "
-             f"constraints: across the line and in height); {lines['flagged_points']} points flagged",
-             f"across-line RMSE {_fmt(lines['across_rmse_before_m'], '.2f')} m before (onboard model), "
-             f"{_fmt(lines['across_rmse_m'], '.2f')} m after; height RMSE {_fmt(lines['height_rmse_m'], '.2f')} m "
-             "(points not flagged)",
-             f"{lines['flagged_lines']} lines do not fit as a whole (wrong road or shifted in the map; their "
-             "constraints released)" + (": " + ", ".join(wrong[:30]) + (" …" if len(wrong) > 30 else "")
-                                        if wrong else "")]
-    note = (f"directions: lines run along {_fmt(directions['azimuth_deg'], '.0f')}° with a spread of "
-            f"{_fmt(directions['spread_deg'], '.1f')}°" + ("; both horizontal directions determined"
-                                                           if directions["determined"] else
-                                                           f" — {directions['message']}"))
-    per = lines["per_line"]
-    order = sorted(range(len(per["line_id"])), key=lambda i: (not per["flagged"][i], str(per["line_id"][i])))
-    rows = [[html.escape(str(per["line_id"][i])), str(per["points"][i]), _fmt(per["rms_across_m"][i], ".2f"),
-             _fmt(per["max_across_m"][i], ".2f"), str(per["points_flagged"][i]),
-             "<b>wrong</b>" if per["flagged"][i] else ""] for i in order[:MAX_LISTED_LINES]]
-    more = (f"<p>{len(order) - MAX_LISTED_LINES} more lines not listed (all are in the line residuals "
-            "output).</p>" if len(order) > MAX_LISTED_LINES else "")
-    warn = "" if directions["determined"] else " class='bad'"
-    return ("<h2>Control lines</h2><ul>" + "".join(f"<li>{html.escape(t)}</li>" for t in items)
-            + f"<li{warn}>{html.escape(note)}</li></ul>"
-            + _table(["line", "points", "RMS across m", "max across m", "points flagged", ""], rows) + more)
+def outcome_lines(rep: dict) -> list[LogLine]:
+    """Correlations the control hardly separates, parameters fixed as not determinable, variance
+    components, a robust estimation stopped at its limit, reliability problems, sigma0 and the
+    control residuals, and the check point figures before and after."""
+    out = [LogLine(f"{c['a']} and {c['b']} are correlated {c['r']:.4f}: the GCPs hardly separate them; give "
+                   "onboard sigmas (POSITION_SIGMA, ATTITUDE_SIGMA)", True)
+           for c in rep["high_correlations"] if c["trajectory"]]
+    out += [LogLine(f"not determinable together from these GCPs: {', '.join(d['parameters'])}; {d['fixed']} was "
+                    "fixed at its input value (ON_SINGULAR)", True) for d in rep["determinability"]]
+    for group, c in rep["variance_components"].items():
+        if c["apriori_sigma"] is not None and c["estimated_sigma"] is not None:
+            out.append(LogLine(f"variance component {group}: stated sigma {c['apriori_sigma']:.4g} {c['unit']}, "
+                               f"estimated {c['estimated_sigma']:.4g} {c['unit']} (redundancy "
+                               f"{c['redundancy']:.1f}{'' if c['estimated'] else ', too small: not used'})"))
+    if rep["robust"]["stopped_at_limit"]:
+        out.append(LogLine(f"robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; the "
+                           "flags may be incomplete", True))
+    out += [LogLine(p["message"] + ("" if p["reliable"] else "; the result is not reliable"), True)
+            for p in rep["reliability"]["problems"]]
+    ctl = rep["control_residuals"]
+    out.append(LogLine(f"sigma0 {rep['sigma0']:.3f} ({'passes' if rep['sigma0_test']['passed'] else 'fails'} the "
+                       f"95 % test); control residuals RMSE col {ctl.get('rmse_col', float('nan')):.3f} px, row "
+                       f"{ctl.get('rmse_row', float('nan')):.3f} px; {rep['robust']['flagged']} observations "
+                       "flagged as gross errors"))
+    before, after = rep["check_points_before"], rep["check_points"]
+    if after.get("model_error"):
+        out.append(LogLine(model_error_message(after), True))
+    out += [LogLine(f"check points {line}") for line in summary_lines(before, after)]
+    return out
 
 
-def _settings_section(rep: dict) -> str:
-    """The adjustment settings as given."""
-    rows = [[html.escape(str(k)), html.escape("–" if v is None else str(v))] for k, v in rep["settings"].items()]
-    return "<h2>Settings</h2>" + _table(["setting", "value"], rows, left=2)
-
-
-def _decisions_section(rep: dict) -> str:
-    """Non-determinable parameter sets and the parameter fixed in each; gross error detection."""
-    items = [f"<li>Not determinable together: {html.escape(', '.join(d['parameters']))}; "
-             f"<b>{html.escape(d['fixed'])}</b> was fixed.</li>" if d.get("fixed") else
-             f"<li>Not determinable together: {html.escape(', '.join(d['parameters']))}; "
-             "nothing was fixed.</li>" for d in rep["determinability"]]
-    items += _selection_items(rep.get("interior_selection"))
-    rob = rep["robust"]
-    if rob["method"] == "none":
-        items.append("<li>No gross error detection (robust = none): every observation kept its full weight.</li>")
-    else:
-        ids = ", ".join(rob["flagged_ids"][:30]) + (", …" if rob["flagged"] > 30 else "")
-        limit = " (stopped at the pass limit: the flags may be incomplete)" if rob.get("stopped_at_limit") else ""
-        items.append(f"<li>Gross errors ({html.escape(rob['method'])}): {rob['flagged']} image observations "
-                     f"flagged (normalised residual |w| &gt; {_fmt(rob['critical_w'], '.2f')}, against the sigmas "
-                     f"rescaled by the variance components) in {len(rob['passes'])} passes{limit}; they stay in "
-                     "the GCP layer" + (" and the tie-point output" if rep.get("tie_points") else "") + ", marked"
-                     + (f": {html.escape(ids)}" if ids else "") + ".</li>")
-    if rep.get("datum"):
-        d = rep["datum"]
-        lines = f", {d['control_lines']} control lines" if d.get("control_lines") else ""
-        items.append(f"<li>Datum held by {html.escape(d['held_by'])} ({d['control_points']} control points{lines})"
-                     + (f": {html.escape(d['note'])}" if d.get("note") else "") + ".</li>")
-    return "<h2>Decisions</h2><ul>" + "".join(items) + "</ul>"
-
-
-def _selection_items(sel: dict | None) -> list[str]:
-    """Interior parameter selection: removed parameters and why, kept ones, the guard's verdict."""
-    if not sel:
-        return []
-    items = [f"<li>Interior parameter removed: <b>{html.escape(r['name'])}</b> "
-             f"({html.escape('; '.join(r['fails']))}).</li>" for r in sel["removed"]]
-    kept = ", ".join(f"{k['name']} (t = {k['t']:.1f})" for k in sel["kept"] if not k.get("held_by_prior")) or "none"
-    items.append(f"<li>Interior parameters kept after {sel['rounds']} removal rounds: {html.escape(kept)}.</li>")
-    items += [f"<li>Interior parameter held by its prior (kept; the control alone cannot support it): "
-              f"<b>{html.escape(k['name'])}</b> ({html.escape(k['held_by_prior'])}).</li>"
-              for k in sel["kept"] if k.get("held_by_prior")]
-    g = sel["guard"]
-    items.append("<li>Self-calibration kept: it fits significantly better than no interior parameters "
-                 f"(F = {_fmt(g['F'], '.3g')} &gt; {_fmt(g['F_critical'], '.3g')}).</li>" if g["self_calibration_kept"]
-                 else "<li><b>Fell back to the conventional adjustment</b> (no interior parameters): "
-                 f"{html.escape(g['reason'])}.</li>")
-    return items
-
-
-def _display_value(value, unit: str, block: str) -> tuple[float | None, str]:
-    """A parameter value (SI) in the unit a photogrammetrist reads: angles in arcsec, focal-plane
-    shifts (camera and chip blocks) in µm; other units unchanged."""
-    if value is None:
-        return None, unit
-    if unit == "rad":
-        return value * ARCSEC_PER_RAD, "arcsec"
-    if unit == "m" and block in ("camera", "chip"):
-        return value * 1e6, "µm"
-    return value, unit
-
-
-def _parameter_row(p: dict, fixed_by_determinability: set) -> list[str]:
-    """One parameter's table row: value and sigma in display units, |value|/sigma, significance."""
-    value, unit = _display_value(p["value"], p["unit"], p["block"])
-    sigma, _ = _display_value(p["sigma"], p["unit"], p["block"])
-    mode = "fixed (not determinable)" if p["name"] in fixed_by_determinability else p["mode"]
-    ratio = _fmt(abs(p["value"]) / p["sigma"], ".1f") if p["sigma"] else "–"
-    significant = "–" if p["significant"] is None else ("yes" if p["significant"] else "no")
-    return [html.escape(p["name"]), html.escape(mode), _fmt(value, ".4g"), _fmt(sigma, ".3g"),
-            html.escape(unit), ratio, significant]
-
-
-def _trajectory_summary_rows(params: list[dict]) -> list[list[str]]:
-    """Per trajectory axis (e.g. position.X, or FWD.position.X with a correction per camera):
-    coefficient count, largest |value| and largest sigma."""
-    axes: dict[str, list[dict]] = {}
-    for p in params:
-        parts = p["name"].split(".")
-        axes.setdefault(".".join(parts[:2] if parts[0] == p["block"] else parts[:3]), []).append(p)
-    rows = []
-    for axis, ps in axes.items():
-        unit = _display_value(0.0, ps[0]["unit"], ps[0]["block"])[1]
-        largest = max(abs(_display_value(p["value"], p["unit"], p["block"])[0]) for p in ps)
-        sigmas = [_display_value(p["sigma"], p["unit"], p["block"])[0] for p in ps if p["sigma"] is not None]
-        rows.append([html.escape(axis), str(len(ps)), _fmt(largest, ".4g"),
-                     _fmt(max(sigmas) if sigmas else None, ".3g"), html.escape(unit)])
-    return rows
-
-
-def _parameters_section(rep: dict) -> str:
-    """Interior and installation parameters (free, weighted, or fixed by the determinability
-    check or at a non-zero value) and the trajectory corrections, listed or summarised per axis."""
-    fixed = {d["fixed"] for d in rep["determinability"] if d.get("fixed")}
-    interior = [p for p in rep["parameters"] if p["block"] not in ("position", "attitude")
-                and (p["mode"] != "fixed" or p["value"] or p["name"] in fixed)]
-    trajectory = [p for p in rep["parameters"] if p["block"] in ("position", "attitude")]
-    header = ["parameter", "mode", "value", "sigma", "unit", "|value|/sigma", "significant (95 %)"]
-    out = ["<h2>Interior and installation parameters</h2>"]
-    out.append(_table(header, [_parameter_row(p, fixed) for p in interior], left=2) if interior else
-               "<p>No interior or installation parameter was estimated.</p>")
-    out.append("<h2>Trajectory corrections</h2>")
-    if len(trajectory) <= MAX_LISTED_TRAJECTORY:
-        out.append(_table(header[:6], [_parameter_row(p, fixed)[:6] for p in trajectory], left=2))
-    else:
-        out.append(f"<p>{len(trajectory)} coefficients, summarised per axis (all of them are in the JSON "
-                   "report); the curves are plotted below.</p>")
-        out.append(_table(["axis", "coefficients", "largest |value|", "largest sigma", "unit"],
-                          _trajectory_summary_rows(trajectory)))
-    return "\n".join(out)
-
-
-def _correlations_section(rep: dict) -> str:
-    """Pairs of adjusted parameters with high correlation (as selected by the engine)."""
-    rows = [[html.escape(c["a"]), html.escape(c["b"]), _fmt(c["r"], ".4f")] for c in rep["high_correlations"]]
-    return ("<h2>High correlations</h2><p>|r| &gt; 0.9 where an interior parameter takes part, |r| &gt; 0.999 "
-            "between trajectory terms.</p>"
-            + (_table(["parameter", "parameter", "r"], rows, left=2) if rows else "<p>None.</p>"))
-
-
-def _variance_components_section(rep: dict) -> str:
-    """Per observation group: stated and estimated sigma, their ratio and its test, redundancy."""
-    def row(k: str, v: dict) -> list[str]:
-        test = "–" if v.get("passed") is None else ("<span class='ok'>passed</span>" if v["passed"] else
-                                                     "<span class='bad'>failed</span>")
-        used = ("at the floor 0.01 x stated (far more precise than stated)" if v.get("held_at_floor") else "yes") \
-            if v.get("estimated") else "no (redundancy below 10)"
-        return [html.escape(k), str(v.get("observations", "–")), _fmt(v.get("redundancy"), ".1f"),
-                _fmt(v.get("apriori_sigma"), ".4g"), _fmt(v.get("estimated_sigma"), ".4g"),
-                html.escape(v.get("unit") or ""), _fmt(v.get("sigma0")), test, used]
-    rows = [row(k, v) for k, v in rep["variance_components"].items()]
-    return ("<h2>Variance components</h2><p>Per observation group, the stated (a-priori, median) sigma and the "
-            "sigma the residuals of the inliers imply (Förstner's estimator); their ratio is the group's sigma0. "
-            "Estimated factors replace the stated sigmas before the outlier test and in the check-point blunder "
-            "test.</p>"
-            + _table(["group", "observations", "redundancy", "stated sigma", "estimated sigma", "unit",
-                      "ratio", "chi² test (95 %)", "used"], rows))
-
-
-def _iterations_section(rep: dict) -> str:
-    """The robust passes (if any) and the Gauss-Newton iterations of the last pass."""
+def tie_lines(rep: dict, tie_observations: int | None) -> list[LogLine]:
+    """The tie-point figures (:func:`tie_point_lines`) and how the datum is held; a warning when
+    tie points were given (``tie_observations`` of them) but none entered the adjustment."""
     out = []
-    passes = rep["robust"]["passes"]
-    if passes:
-        out.append("<h2>Robust passes</h2>" + _table(
-            ["pass", "sigma0", "down-weighted observations", "largest weight change", "largest component change"],
-            [[str(p["pass"]), _fmt(p["sigma0"]), str(p["down_weighted"]), _fmt(p["largest_change"], ".3g"),
-              _fmt(p.get("component_change"), ".3g")] for p in passes]))
-    out.append("<h2>Iterations (last pass)</h2>" + _table(
-        ["#", "weighted squared residuals", "largest image change px", "damping"],
-        [[str(i["iteration"]), _fmt(i["cost"], ".6g"), _fmt(i["max_image_change_px"], ".3g"),
-          _fmt(i.get("damping"), ".3g")] for i in rep["iterations"]]))
-    return "\n".join(out)
+    if tie_observations is not None and not rep.get("tie_points"):
+        out.append(LogLine(f"none of the {tie_observations} tie observations entered the adjustment (no point is "
+                           "seen in two or more cameras); the GCPs alone adjusted the block", True, "ties"))
+    out += [LogLine(text, warning) for text, warning in tie_point_lines(rep["tie_points"])] \
+        if rep.get("tie_points") else []
+    if rep.get("datum"):
+        out.append(LogLine(datum_sentence(rep["datum"])))
+    return out
 
 
-# --- plots --------------------------------------------------------------------------------------
-def _new_figure(width: float, height: float):
-    """A matplotlib Figure (inches) on an Agg canvas, outside pyplot."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _png(fig) -> bytes:
-    """The figure rendered as PNG bytes; its memory is released."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=PNG_DPI)
-    fig.clear()
-    return buf.getvalue()
-
-
-def _figure_html(png: bytes, alt: str, caption: str) -> str:
-    """An inline PNG (base64 data URI) with an escaped alt text and caption."""
-    data = base64.b64encode(png).decode("ascii")
-    return (f"<figure><img alt='{html.escape(alt)}' src='data:image/png;base64,{data}'>"
-            f"<figcaption>{html.escape(caption)}</figcaption></figure>")
-
-
-def _subsample(index: np.ndarray, limit: int) -> np.ndarray:
-    """At most ``limit`` entries of ``index``, a reproducible uniform random choice, in order."""
-    if index.size <= limit:
-        return index
-    return np.sort(np.random.default_rng(0).choice(index, limit, replace=False))
-
-
-def _exaggeration(dc: np.ndarray, dr: np.ndarray, extent: float) -> float:
-    """Factor that draws the 95th-percentile residual vector (px) as 2.5 % of the image extent (px)."""
-    typical = float(np.percentile(np.hypot(dc, dr), 95)) if dc.size else 0.0
-    return 0.025 * extent / max(typical, 1e-6)
-
-
-def _nice_length(value: float) -> float:
-    """1, 2 or 5 times a power of ten, not above ``value`` (> 0): a readable scale-arrow length."""
-    power = 10.0 ** math.floor(math.log10(value))
-    return max(m * power for m in (1, 2, 5) if m * power <= value)
-
-
-def _residual_vector_figure(points: dict) -> str:
-    """Plot (a): image residual vectors (predicted - measured, px) at the measured positions,
-    exaggerated; control points blue, check points (adjusted model) orange, flagged ones red
-    crosses (their vectors would swamp the others). Subsampled to MAX_ARROWS points."""
-    col, row = np.asarray(points["col"], dtype=float), np.asarray(points["row"], dtype=float)
-    dc, dr = np.asarray(points["res_col"], dtype=float), np.asarray(points["res_row"], dtype=float)
-    role, flagged = np.asarray(points["role"]), np.asarray(points["flagged"], dtype=bool)
-    usable = np.isfinite(dc) & np.isfinite(dr) & np.isfinite(col) & np.isfinite(row)
-    if not usable.any():
-        return "<p>No image residuals to plot.</p>"
-    shown = _subsample(np.nonzero(usable)[0], MAX_ARROWS)
-    groups = {"control": shown[(role[shown] == "control") & ~flagged[shown]],
-              "check": shown[(role[shown] == "check") & ~flagged[shown]], "flagged": shown[flagged[shown]]}
-    extent = max(np.ptp(col[usable]), np.ptp(row[usable]), 1.0)
-    basis = groups["control"] if groups["control"].size else groups["check"]  # unflagged vectors set the scale
-    scale = _exaggeration(dc[basis], dr[basis], extent)
-    fig = _new_figure(10, 8)
-    ax = fig.add_subplot()
-    arrows = None
-    for name, colour in (("control", "#1f5fa8"), ("check", "#e08a00")):
-        i = groups[name]
-        if i.size:
-            arrows = ax.quiver(col[i], row[i], dc[i] * scale, dr[i] * scale, angles="xy", scale_units="xy",
-                               scale=1, color=colour, width=0.0018, label=f"{name} ({i.size})")
-    i = groups["flagged"]
-    if i.size:
-        ax.plot(col[i], row[i], "x", color="#d00", ms=5, mew=1.2, label=f"flagged ({i.size}), not drawn as vectors")
-    if arrows is not None:
-        key = _nice_length(0.1 * extent / scale)
-        ax.quiverkey(arrows, 0.97, 1.025, key * scale, f"scale: {key:g} px", labelpos="W", coordinates="axes",
-                     color="k")
-    ax.set_xlim(col[usable].min() - 0.02 * extent, col[usable].max() + 0.02 * extent)
-    ax.set_ylim(row[usable].max() + 0.02 * extent, row[usable].min() - 0.02 * extent)  # image y down
-    ax.set_aspect("equal" if np.ptp(row[usable]) < 4 * max(np.ptp(col[usable]), 1.0) else "auto")
-    ax.set_xlabel("column (px)")
-    ax.set_ylabel("row (px, down)")
-    ax.set_title(f"image residuals (predicted − measured), exaggerated {scale:.3g}×", loc="left")
-    ax.legend(loc="lower left", fontsize="small", framealpha=0.9)
-    total = int(usable.sum())
-    sampled = (f" {shown.size} of the {total} points are drawn (a uniform random subsample)."
-               if shown.size < total else "")
-    caption = (f"Image residual vectors, predicted − measured, drawn {scale:.3g} times their length (scale arrow "
-               "above the plot). Control points blue, check points (from the adjusted model) orange, flagged "
-               f"observations as red crosses.{sampled}")
-    return _figure_html(_png(fig), "image residual vectors", caption)
-
-
-def _trajectory_figure(trajectory: dict) -> str:
-    """Plot (b): position corrections (m, ECEF X/Y/Z) and attitude corrections (arcsec, roll/pitch/
-    yaw) against time (s), knot times (for polynomials the reference time t0) as grey lines."""
-    t = np.asarray(trajectory["time"], dtype=float)
-    # one set of curves, or one per camera (a trajectory correction per camera), told by line style
-    sets = trajectory.get("per_camera") or {"": trajectory}
-    fig = _new_figure(10, 7)
-    axes = fig.subplots(2, 1, sharex=True)
-    for ax, key, scale, names, knots in (
-            (axes[0], "position", 1.0, ("X", "Y", "Z"), trajectory["position_knots"]),
-            (axes[1], "attitude", ARCSEC_PER_RAD, ("roll", "pitch", "yaw"), trajectory["attitude_knots"])):
-        for k, knot in enumerate(knots):
-            ax.axvline(knot, color="#aaa", lw=0.8, ls="--", zorder=0, label="knots" if k == 0 else None)
-        for c, (camera, curves) in enumerate(sets.items()):
-            values = np.asarray(curves[key], dtype=float).reshape(-1, 3) * scale
-            for a, name in enumerate(names):
-                ax.plot(t, values[:, a], lw=1.5, ls=("-", "--", ":", "-.")[c % 4], color=f"C{a}",
-                        label=f"{camera} {name}".strip())
-        ax.grid(alpha=0.3)
-        ax.legend(loc="best", fontsize="small", ncol=4)
-    axes[0].set_ylabel("position correction (m, ECEF)")
-    axes[1].set_ylabel("attitude correction (arcsec)")
-    axes[1].set_xlabel("time (s)")
-    axes[0].set_title("trajectory corrections (adjusted − input)")
-    caption = ("Corrections to the input trajectory against time: position in metres along the ECEF axes, "
-               "attitude (roll, pitch, yaw) in arcseconds. Dashed grey lines: knot times of the trajectory "
-               "model (for polynomials the reference time t0).")
-    return _figure_html(_png(fig), "trajectory corrections", caption)
-
-
-def _chip_figure(per_chip: dict) -> str:
-    """Plot (c): control residual RMSE (px) in col and row per CCD chip, with the observation counts."""
-    names = [k for k, v in per_chip.items() if v.get("count")]
-    if not names:
-        return "<p>No control residuals per chip to plot.</p>"
-    x = np.arange(len(names))
-    fig = _new_figure(max(6.0, 1.1 * len(names) + 2), 4.5)
-    ax = fig.add_subplot()
-    ax.bar(x - 0.2, [per_chip[n]["rmse_col"] for n in names], 0.4, label="col (across track)", color="#1f5fa8")
-    ax.bar(x + 0.2, [per_chip[n]["rmse_row"] for n in names], 0.4, label="row (along track)", color="#e08a00")
-    ax.set_xticks(x, [f"{n}\n{per_chip[n]['count']} obs" for n in names], fontsize="small")
-    ax.set_xlabel("camera / CCD chip")
-    ax.set_ylabel("control residual RMSE (px)")
-    ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize="small")
-    caption = ("Control point residual RMSE per CCD chip, column and row, in pixels (flagged observations left "
-               "out in robust runs). A chip clearly above the others points to an unmodelled chip offset or "
-               "rotation.")
-    return _figure_html(_png(fig), "residual RMSE per CCD chip", caption)
+def control_line_lines(rep: dict | None) -> list[LogLine]:
+    """The control lines' figures (``report["lines"]``, None without lines): lines, points and the
+    across-line RMSE before and after, lines released as a whole, undetermined directions."""
+    if rep is None:
+        return []
+    out = [LogLine(f"control lines: {rep['lines']} lines, {rep['points']} points (2 constraints each); across-line "
+                   f"RMSE {rep['across_rmse_m'] or float('nan'):.2f} m (before "
+                   f"{rep['across_rmse_before_m'] or float('nan'):.1f} m), {rep['flagged_points']} points flagged")]
+    if rep["flagged_lines"]:
+        out.append(LogLine(f"{rep['flagged_lines']} control line(s) do not fit as a whole (a wrong road or a shifted "
+                           "map line) and were released: " + ", ".join(rep["flagged_line_ids"][:50]), True))
+    if not rep["directions"]["determined"]:
+        out.append(LogLine(f"control lines: {rep['directions']['message']}", True))
+    return out

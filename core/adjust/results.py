@@ -13,6 +13,7 @@ from scipy import stats
 from ..geodesy import ecef_to_geodetic
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
+from ..observations.tables import listed
 from .checkpoints import accuracy, check_point_report, intersection_accuracy, log_check_points
 from .estimation import Estimate
 from .linepoints import directions, per_line, ray_offsets
@@ -20,7 +21,7 @@ from .problem import Problem
 from .settings import AdjustmentSettings
 from .robust import breakdown, component_report, critical, stated_sigma0
 from .statistics import Statistics, correlated_pairs
-from .ties import _listed, yaw_hold, yaw_sentence
+from .ties import yaw_hold, yaw_sentence
 
 log = logging.getLogger(__name__)
 
@@ -196,7 +197,7 @@ def _line_results(problem: Problem, adjusted, st: Statistics, flagged: np.ndarra
     wrong = table["line_id"][table["flagged"]]
     if wrong.size:
         log.warning("%d control line(s) do not fit as a whole (wrong road or shifted in the map); their across-line "
-                    "constraints were released: %s", wrong.size, _listed(wrong))
+                    "constraints were released: %s", wrong.size, listed(wrong))
     good = ~points["flagged"]
     rms = lambda a: float(np.sqrt(np.mean(a * a))) if a.size else None  # noqa: E731
     direction = directions(lines, problem.n_control)

@@ -56,7 +56,8 @@ class BiasParameters(ParameterSet):
 
     def __init__(self, scene: RpcScene, mode: str):
         if mode not in MODES:
-            raise InputError(f"RPC correction must be one of {', '.join(MODES)} (got {mode!r})")
+            raise InputError(f"RPC correction must be one of {', '.join(MODES)} (got {mode!r})",
+                             parameter="settings.rpc_correction")
         self.scene, self.mode = scene, mode
         self.position_basis = self.attitude_basis = None
         units = {"a0": "px", "b0": "px"}
@@ -123,7 +124,7 @@ class RpcProblem(Problem):
         res = np.stack([c - self.obs.col, r - self.obs.row], axis=1)
         if not np.all(np.isfinite(res)):
             raise InputError("a control point lies outside the RPC's ground domain; is the GCP layer from another "
-                             "scene?")
+                             "scene?", parameter="gcps")
         jg = np.empty((len(self.obs), 2, 3))
         for k in range(3):
             step = np.zeros(3)

@@ -54,23 +54,26 @@ class AdjustmentSettings:
 
     def validate(self) -> None:
         if self.ground not in ("weighted", "fixed"):
-            raise InputError(f"ground must be 'weighted' or 'fixed' (got {self.ground!r})")
+            raise InputError(f"ground must be 'weighted' or 'fixed' (got {self.ground!r})", parameter="settings.ground")
         if self.robust not in ROBUST:
-            raise InputError(f"robust method must be one of {', '.join(ROBUST)} (got {self.robust!r})")
+            raise InputError(f"robust method must be one of {', '.join(ROBUST)} (got {self.robust!r})",
+                             parameter="settings.robust")
         if self.camera_trajectory not in CAMERA_TRAJECTORY:
             raise InputError(f"camera trajectory must be one of {', '.join(CAMERA_TRAJECTORY)} "
-                             f"(got {self.camera_trajectory!r})")
+                             f"(got {self.camera_trajectory!r})", parameter="settings.camera_trajectory")
         if self.on_singular not in ("fix", "stop"):
-            raise InputError(f"on_singular must be 'fix' or 'stop' (got {self.on_singular!r})")
+            raise InputError(f"on_singular must be 'fix' or 'stop' (got {self.on_singular!r})",
+                             parameter="settings.on_singular")
         if not 0 < self.alpha < 0.5:
-            raise InputError(f"alpha must be between 0 and 0.5 (got {self.alpha})")
+            raise InputError(f"alpha must be between 0 and 0.5 (got {self.alpha})", parameter="settings.alpha")
         for name in ("position_sigma", "attitude_sigma"):
             v = getattr(self, name)
             if v is not None and not v > 0:
-                raise InputError(f"{name} must be positive or empty (got {v})")
+                raise InputError(f"{name} must be positive or empty (got {v})", parameter=f"settings.{name}")
         if self.rpc_correction not in ("shift", "drift", "affine"):
-            raise InputError(f"RPC correction must be shift, drift or affine (got {self.rpc_correction!r})")
+            raise InputError(f"RPC correction must be shift, drift or affine (got {self.rpc_correction!r})",
+                             parameter="settings.rpc_correction")
         if self.interior_selection not in SELECTION:
             raise InputError(f"interior_selection must be one of {', '.join(SELECTION)} "
-                             f"(got {self.interior_selection!r})")
+                             f"(got {self.interior_selection!r})", parameter="settings.interior_selection")
 

@@ -25,14 +25,15 @@ from ..geodesy import ecef_to_geodetic, enu_rotation
 from ..model.intersection import intersect
 from ..model.sensor import SceneModel
 from ..observations.tiepoints import TieTable
-from .parameters import ARCSEC, ParameterSet
+from ..observations.tables import listed
+from ..rotations import ARCSEC
+from .parameters import ParameterSet
 
 log = logging.getLogger(__name__)
 
 SHIFTS = ("shift X", "shift Y", "shift Z")
 ROTATIONS = ("roll (rotation about the flight line)", "pitch", "yaw")
 SCALE = ("scale",)
-LISTED = 10  # ids named in a message
 YAW_TABLE_STEP = 0.5  # s: trajectory table step of the scenes yaw_hold differences
 EDGE = 2.0   # px: measurement noise may put a point at the image border this far outside
 BUNCHED = 0.1  # tie points within this share of the image in both directions are in one corner
@@ -79,11 +80,6 @@ class TieSetUp:
                              for reason, ids in self.left_out.items() if ids.size}}
 
 
-def _listed(ids) -> str:
-    ids = [str(i) for i in ids]
-    return ", ".join(ids[:LISTED]) + (f" and {len(ids) - LISTED} more" if len(ids) > LISTED else "")
-
-
 def camera_indices(scene: SceneModel, names: np.ndarray) -> np.ndarray:
     """Indices (n,) of the camera names (n,) in ``scene`` (all names must be the scene's)."""
     cams = [c.name for c in scene.cameras]
@@ -98,25 +94,26 @@ def check_ties(scene: SceneModel, ties: TieTable, gcp_ids: np.ndarray) -> None:
     names = [c.name for c in scene.cameras]
     unknown = ~np.isin(ties.camera, names)
     if unknown.any():
-        raise InputError(f"tie points: camera(s) {_listed(np.unique(ties.camera[unknown]))} of point(s) "
-                         f"{_listed(np.unique(ties.id[unknown]))} not in the scene (cameras: {', '.join(names)})")
+        raise InputError(f"tie points: camera(s) {listed(np.unique(ties.camera[unknown]))} of point(s) "
+                         f"{listed(np.unique(ties.id[unknown]))} not in the scene (cameras: {', '.join(names)})",
+                         parameter="ties")
     cam = camera_indices(scene, ties.camera)
     cols = np.array([c.cols for c in scene.cameras])[cam]
     rows = np.array([c.rows for c in scene.cameras])[cam]
     outside = (ties.col < -EDGE) | (ties.col > cols + EDGE) | (ties.row < -EDGE) | (ties.row > rows + EDGE)
     if outside.any():
         raise InputError(f"tie points: {int(outside.sum())} observation(s) of point(s) "
-                         f"{_listed(np.unique(ties.id[outside]))} lie outside their camera's image (by more than "
-                         f"{EDGE:g} px)")
+                         f"{listed(np.unique(ties.id[outside]))} lie outside their camera's image (by more than "
+                         f"{EDGE:g} px)", parameter="ties")
     pairs, counts = np.unique(np.stack([ties.id, ties.camera], axis=1), axis=0, return_counts=True)
     if (counts > 1).any():
         twice = np.unique(pairs[counts > 1, 0])
-        raise InputError(f"tie points: point(s) {_listed(twice)} are observed more than once in the same camera "
-                         "(duplicate observations); keep one observation per point and camera")
+        raise InputError(f"tie points: point(s) {listed(twice)} are observed more than once in the same camera "
+                         "(duplicate observations); keep one observation per point and camera", parameter="ties")
     shared = np.intersect1d(ties.id, gcp_ids)
     if shared.size:
-        raise InputError(f"tie points: id(s) {_listed(shared)} are also GCP ids; a tie point is a point of unknown "
-                         "ground position: give it another id, or measure it as a GCP")
+        raise InputError(f"tie points: id(s) {listed(shared)} are also GCP ids; a tie point is a point of unknown "
+                         "ground position: give it another id, or measure it as a GCP", parameter="ties")
 
 
 def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
@@ -132,10 +129,10 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
     left_out = {"single_ray": ids[single], "not_intersected": ids[failed]}
     if single.any():
         log.warning("%d tie point(s) seen by one camera only are left out (one ray fixes no ground position): %s",
-                    int(single.sum()), _listed(ids[single]))
+                    int(single.sum()), listed(ids[single]))
     if failed.any():
         log.warning("%d tie point(s) whose onboard rays could not be intersected are left out: %s",
-                    int(failed.sum()), _listed(ids[failed]))
+                    int(failed.sum()), listed(ids[failed]))
     keep = ~(single | failed)
     new_index = np.cumsum(keep) - 1
     rows = np.nonzero(keep[point])[0]
@@ -198,7 +195,7 @@ def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | 
         raise InputError(
             f"datum defect: with {n_control} control point(s){lines} and {given}, the tie points fix the block's "
             f"shape but not {', '.join(missing)}; the adjustment would drift freely in them. Give "
-            f"{' and '.join(need)}, or at least 3 well spread GCPs")
+            f"{' and '.join(need)}, or at least 3 well spread GCPs", parameter="")
     sources = {s for v in held.values() for s in v}
     named = [name for name, present in (("control points", "control points" in sources),
                                         ("control lines", "control lines" in sources),

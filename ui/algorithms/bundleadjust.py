@@ -3,7 +3,6 @@ and tie points: the adjusted scene JSON, JSON and HTML reports, the GCP and tie-
 with residuals and flags, and residual vectors."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -14,27 +13,33 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutpu
                        QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
                        QgsProcessingParameterVectorLayer)
 
-from ...core.observations import gcps, tiepoints
 from ...core.adjust import AdjustmentSettings, adjust
-from ...core.adjust.engine import check_inputs
-from ...core.adjust.checkpoints import model_error_message, summary_lines
+from ...core.adjust.checks import check_inputs
+from ...core.adjust.linepoints import ControlLines
 from ...core.adjust.outputs import (ground_residuals, write_adjusted_gcps, write_adjusted_tie_points,
-                                    write_residual_vectors)
+                                    write_line_residuals, write_residual_vectors)
 from ...core.adjust.parameters import ParameterSet
+from ...core.adjust.report import log_lines, write_report_json
+from ...core.adjust.report_html import write_report_html
 from ...core.errors import InputError, PushbroomError
 from ...core.files import Output, atomic_outputs
-from ...core.products.rpcfit import write_rpc
-from ...core.model.rpcscene import RpcScene, refined_rpc
+from ...core.formats.rpcfiles import write_rpc
 from ...core.formats.scene_json import save_scene
+from ...core.model.rpcscene import RpcScene
 from ...core.model.timebasis import TimeBasis
-from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, attribute_floats, attribute_texts,
-                      check_cancelled, check_outputs, core_call, core_log_to, feedback_callbacks, load_scene_for,
-                      processing_errors, style_output_on_load)
+from ...core.observations import gcps, tiepoints
+from ...core.observations.lines import read_ground_lines, read_image_lines
+from ...core.products.rpcfit import refined_rpc
+from ...core.rotations import ARCSEC
+from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
+from ..inputs import (add_scene_parameters, attribute_floats, attribute_texts, load_scene_for, ogr_source,
+                      split_ogr_source)
+from ..outputs import STYLES, check_outputs, style_output_on_load
 from ..parameters import (ATTITUDE_MODEL, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR, POSITION_MODEL,
-                          ROBUST, RPC_CORRECTION, camera_trajectory, enum_value, ground_mode, interior_selection,
-                          on_singular, output_scene, robust_method, rpc_correction, tr, trajectory_model)
-
-ARCSEC = math.pi / 648000.0
+                          ROBUST, RPC_CORRECTION, SCENE, camera_trajectory, enum_value, ground_mode,
+                          interior_selection, on_singular, output_scene, robust_method, rpc_correction, tr,
+                          trajectory_model)
+from .base import PushbroomAlgorithm
 
 
 class BundleAdjustAlgorithm(PushbroomAlgorithm):
@@ -74,6 +79,19 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     OUTPUT_REPORT_JSON = "OUTPUT_REPORT_JSON"
     RPC_CORRECTION, OUTPUT_RPC = RPC_CORRECTION, "OUTPUT_RPC"
     CAMERA_TRAJECTORY = CAMERA_TRAJECTORY
+    LINES, OUTPUT_LINE_RESIDUALS = "LINES", "OUTPUT_LINE_RESIDUALS"
+    # The inputs core errors name (core.errors.InputError.parameter) -> this algorithm's parameters.
+    CORE_PARAMETERS = {
+        "gcps": GCPS, "ties": TIE_POINTS, "lines": LINES, "scene": SCENE,
+        "settings.position_model": POSITION_MODEL, "settings.position_order": POSITION_ORDER,
+        "settings.position_interval": POSITION_INTERVAL, "settings.position_sigma": POSITION_SIGMA,
+        "settings.attitude_model": ATTITUDE_MODEL, "settings.attitude_order": ATTITUDE_ORDER,
+        "settings.attitude_interval": ATTITUDE_INTERVAL, "settings.attitude_sigma": ATTITUDE_SIGMA,
+        "settings.camera_trajectory": CAMERA_TRAJECTORY, "settings.interior": INTERIOR,
+        "settings.interior_selection": INTERIOR_SELECTION, "settings.ground": GROUND, "settings.robust": ROBUST,
+        "settings.alpha": ALPHA, "settings.variance_components": VARIANCE_COMPONENTS,
+        "settings.max_robust_iterations": MAX_ROBUST_PASSES, "settings.on_singular": ON_SINGULAR,
+        "settings.rpc_correction": RPC_CORRECTION}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
@@ -187,9 +205,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, tr("Report (JSON)")))
         self._add_line_parameters()
 
-
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        from ...core.adjust.report import write_report_html, write_report_json
         outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
             (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
             (self.OUTPUT_RESIDUALS, ".gpkg"), (self.OUTPUT_TIE_POINTS, ".gpkg"), (self.OUTPUT_RPC, ".txt"),
@@ -209,19 +225,18 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self._check_tie_outputs(outputs, ties, gcp_path)
         settings = self._settings(parameters, context)
         scale = self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context)
-        # Checks that name the parameter at fault before the (long) solution starts.
-        core_call(settings.validate)
         lines = self._lines(parameters, context)
-        self._check_inputs(scene, table, settings, ties, lines)
+        # The core's checks (settings, GCPs, tie points, lines, datum) before the (long) solution starts;
+        # what the core does not place is about the GCPs.
+        with self.core_errors(self.GCPS):
+            check_inputs(scene, table, settings, ties, lines)
         self._check_interior(scene, settings.interior)
         if gcp_path:
             feedback.pushInfo(f"{len(table)} points from {gcp_path}: {int((table.role == 'control').sum())} "
                               f"control, {int((table.role == 'check').sum())} check")
         progress, is_cancelled = feedback_callbacks(feedback)
-        try:
+        with self.core_errors():
             result = adjust(scene, table, settings, progress, is_cancelled, ties=ties, lines=lines)
-        except PushbroomError as exc:
-            raise QgsProcessingException(self._named(str(exc))) from None
         check_cancelled(feedback)
         feedback.setProgressText("writing the outputs")
         en = core_call(ground_residuals, result.scene, table, result.points["camera"])
@@ -257,15 +272,11 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
         style_output_on_load(context, outputs[self.OUTPUT_TIE_POINTS], STYLES / "adjusted_tie_points.qml")
         style_output_on_load(context, outputs[self.OUTPUT_LINE_RESIDUALS], STYLES / "control_lines.qml")
-        self._report(result.report, feedback)
-        self._report_ties(result.report, ties, feedback)
-        self._report_lines(result.report.get("lines"), feedback)
+        self.push_core_lines(feedback, log_lines(result.report, None if ties is None else len(ties)))
         feedback.setProgress(100)
         return {**{name: path or None for name, path in outputs.items()}, self.OUTPUT_REPORT_JSON: report_json or None}
 
     # --- control lines ---------------------------------------------------------------------
-    LINES, OUTPUT_LINE_RESIDUALS = "LINES", "OUTPUT_LINE_RESIDUALS"
-
     def _add_line_parameters(self) -> None:
         self.add_parameter(QgsProcessingParameterVectorLayer(self.LINES, tr("Control lines (GeoPackage)"),
                                                              [QgsProcessing.TypeVectorLine], optional=True),
@@ -283,32 +294,14 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
 
     def _lines(self, parameters, context):
         """ControlLines of the LINES GeoPackage (None without)."""
-        from ...core.observations import lines as core_lines
-        from ...core.adjust.linepoints import ControlLines
-        from .importlines import ogr_source
         layer = self.parameterAsVectorLayer(parameters, self.LINES, context)
         if layer is None:
             return None
         path, _ = ogr_source(self.LINES, layer, "control lines")
         with processing_errors(f"{self.LINES}: "):
-            return ControlLines(core_lines.read_ground_lines(path), core_lines.read_image_lines(path))
-
-    @staticmethod
-    def _report_lines(rep: dict | None, feedback) -> None:
-        if rep is None:
-            return
-        feedback.pushInfo(f"control lines: {rep['lines']} lines, {rep['points']} points (2 constraints each); "
-                          f"across-line RMSE {rep['across_rmse_m'] or float('nan'):.2f} m (before "
-                          f"{rep['across_rmse_before_m'] or float('nan'):.1f} m), {rep['flagged_points']} points "
-                          "flagged")
-        if rep["flagged_lines"]:
-            feedback.pushWarning(f"{rep['flagged_lines']} control line(s) do not fit as a whole (a wrong road or a "
-                                 "shifted map line) and were released: " + ", ".join(rep["flagged_line_ids"][:50]))
-        if not rep["directions"]["determined"]:
-            feedback.pushWarning(f"control lines: {rep['directions']['message']}")
+            return ControlLines(read_ground_lines(path), read_image_lines(path))
 
     def _write_line_residuals(self, lines, result, path: str, files) -> None:
-        from ...core.adjust.linepoints import write_line_residuals
         if lines is None:
             raise QgsProcessingException(f"{self.OUTPUT_LINE_RESIDUALS}: no LINES given")
         with processing_errors(f"{self.OUTPUT_LINE_RESIDUALS}: "):
@@ -325,7 +318,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         if layer is None:
             raise QgsProcessingException(f"{self.GCPS}: no GCP layer given (it may be left out only with "
                                          f"{self.TIE_POINTS})")
-        path, name = _ogr_source(layer)
+        path, name = split_ogr_source(layer.source())
         source = layer.source()
         if layer.providerType() != "ogr" or not path.lower().endswith(".gpkg"):
             raise QgsProcessingException(f"{self.GCPS}: {source} is not a GeoPackage; write the GCPs with 'Import "
@@ -358,7 +351,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             raise QgsProcessingException(f"{self.TIE_POINTS}: tie points need a rigorous (physical) scene model with "
                                          "several cameras; this SCENE is given by its RPC (one image)")
         with processing_errors(f"{self.TIE_POINTS}: "):
-            table = tiepoints.read_gpkg(*_ogr_source(layer)) if layer.providerType() == "ogr" else \
+            table = tiepoints.read_gpkg(*split_ogr_source(layer.source())) if layer.providerType() == "ogr" else \
                 self._ties_from_features(layer)
         made_for = table.scene_path
         if made_for and Path(made_for).resolve() != Path(scene_path).resolve():
@@ -393,31 +386,11 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             if outputs[name] and not gcp_path:
                 raise QgsProcessingException(f"{name}: there are no GCPs to write (no {self.GCPS} given)")
 
-    def _check_inputs(self, scene, table, settings, ties, lines) -> None:
-        """core check_inputs, its error prefixed with the parameter at fault (GCPS by default)."""
-        try:
-            check_inputs(scene, table, settings, ties, lines)
-        except PushbroomError as exc:
-            raise QgsProcessingException(self._named(str(exc), self.GCPS)) from None
-
-    def _report_ties(self, rep: dict, ties, feedback) -> None:
-        """The tie-point figures and how the datum is held, in the log."""
-        from ...core.adjust.report import datum_sentence, tie_point_lines
-        if ties is not None and not rep.get("tie_points"):
-            feedback.pushWarning(f"{self.TIE_POINTS}: none of the {len(ties)} tie observations entered the adjustment "
-                                 "(no point is seen in two or more cameras); the GCPs alone adjusted the block")
-        for text, warning in tie_point_lines(rep["tie_points"]) if rep.get("tie_points") else ():
-            (feedback.pushWarning if warning else feedback.pushInfo)(text)
-        if rep.get("datum"):
-            feedback.pushInfo(datum_sentence(rep["datum"]))
-
     def _check_interior(self, scene, interior: str) -> None:
-        """INTERIOR's names and sigmas against the scene's parameters; the error lists the
-        scene's cameras and CCD chips, whose names the patterns use."""
+        """INTERIOR's names and sigmas against a rigorous scene's parameters; the error lists the
+        scene's cameras and CCD chips, whose names the patterns use. (The core refuses INTERIOR for
+        an RPC scene.)"""
         if isinstance(scene, RpcScene):
-            if interior.strip():
-                raise QgsProcessingException(f"{self.INTERIOR}: an RPC scene has no interior parameters; its "
-                                             f"correction is chosen with {self.RPC_CORRECTION}")
             return
         t_min, t_max = scene.time_span()
         basis = TimeBasis.covering("polynomial", t_min, t_max, 0)
@@ -451,54 +424,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             on_singular=enum_value(self, parameters, self.ON_SINGULAR, context),
             rpc_correction=enum_value(self, parameters, self.RPC_CORRECTION, context))
 
-    def _named(self, message: str, default: str = "") -> str:
-        """A core error, prefixed with the parameter at fault where that is clear (else ``default``;
-        a datum defect names the parameters that would hold it)."""
-        for start, name in (("too few GCPs", self.GCPS), ("the scene was adjusted with another", SCENE),
-                            ("tie points", self.TIE_POINTS), ("datum defect", "")):
-            if message.startswith(start):
-                default = name
-                break
-        return f"{default}: {message}" if default else message
-
     def _destination(self, parameters, context, name: str, suffix: str) -> str:
         path = self.output_path(parameters, context, name, name.lower() + suffix)
         if path and Path(path).suffix.lower() != suffix:
             raise QgsProcessingException(f"{name}: expected a {suffix} file (got {path})")
         return path
-
-    @staticmethod
-    def _report(rep: dict, feedback) -> None:
-        for c in rep["high_correlations"]:
-            if c["trajectory"]:
-                feedback.pushWarning(f"{c['a']} and {c['b']} are correlated {c['r']:.4f}: the GCPs hardly separate "
-                                     "them; give onboard sigmas (POSITION_SIGMA, ATTITUDE_SIGMA)")
-        for d in rep["determinability"]:
-            feedback.pushWarning(f"not determinable together from these GCPs: {', '.join(d['parameters'])}; "
-                                 f"{d['fixed']} was fixed at its input value (ON_SINGULAR)")
-        for group, c in rep["variance_components"].items():
-            if c["apriori_sigma"] is not None and c["estimated_sigma"] is not None:
-                feedback.pushInfo(f"variance component {group}: stated sigma {c['apriori_sigma']:.4g} {c['unit']}, "
-                                  f"estimated {c['estimated_sigma']:.4g} {c['unit']} (redundancy "
-                                  f"{c['redundancy']:.1f}{'' if c['estimated'] else ', too small: not used'})")
-        if rep["robust"]["stopped_at_limit"]:
-            feedback.pushWarning(f"robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; "
-                                 "the flags may be incomplete")
-        for p in rep["reliability"]["problems"]:
-            feedback.pushWarning(p["message"] + ("" if p["reliable"] else "; the result is not reliable"))
-        ctl = rep["control_residuals"]
-        feedback.pushInfo(f"sigma0 {rep['sigma0']:.3f} ({'passes' if rep['sigma0_test']['passed'] else 'fails'} "
-                          f"the 95 % test); control residuals RMSE col {ctl.get('rmse_col', float('nan')):.3f} px, "
-                          f"row {ctl.get('rmse_row', float('nan')):.3f} px; {rep['robust']['flagged']} observations "
-                          "flagged as gross errors")
-        before, after = rep["check_points_before"], rep["check_points"]
-        if after.get("model_error"):
-            feedback.pushWarning(model_error_message(after))
-        for line in summary_lines(before, after):
-            feedback.pushInfo(f"check points {line}")
-
-
-def _ogr_source(layer) -> tuple[str, str | None]:
-    """(file path, layer name or None for the first) of an OGR layer's source."""
-    path, _, options = layer.source().partition("|")
-    return path, dict(o.split("=", 1) for o in options.split("|") if "=" in o).get("layername")

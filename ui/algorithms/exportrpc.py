@@ -8,11 +8,14 @@ from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProce
 
 from ...core.dem import ConstantHeight
 from ...core.files import Output, atomic_outputs
-from ...core.products.rpcfit import dem_height_range, fit_rpc, image_vrt_with_rpc, report_path, write_rpc
-from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
-                      check_cancelled, check_outputs, core_call, dem_from_parameters, feedback_callbacks,
-                      layer_file, load_scene_for, processing_errors)
-from ..parameters import tr
+from ...core.formats.rpcfiles import image_vrt_with_rpc, report_path, write_rpc
+from ...core.products.rpcfit import dem_height_range, fit_rpc
+from ..feedback import check_cancelled, core_call, feedback_callbacks, processing_errors
+from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, layer_file,
+                      load_scene_for)
+from ..outputs import check_outputs
+from ..parameters import CAMERA, DEM, SCENE, tr
+from .base import PushbroomAlgorithm
 
 
 class ExportRpcAlgorithm(PushbroomAlgorithm):
@@ -141,7 +144,8 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         check = report["check"]
         lo, hi = report["height_range"]
         feedback.pushInfo(f"camera {report['camera']}: RPC00B fitted on {report['fit']['points']} points, heights "
-                          f"{lo:.0f} to {hi:.0f} m (ellipsoidal); regularisation used {report['regularisation_used']:g}")
+                          f"{lo:.0f} to {hi:.0f} m (ellipsoidal); regularisation used "
+                          f"{report['regularisation_used']:g}")
         feedback.pushInfo(f"check on {check['points']} independent points: RMS {check['rms_px']:.4f} px, "
                           f"max {check['max_px']:.4f} px")
         for end, fig in check["heights"].items():

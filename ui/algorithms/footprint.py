@@ -5,10 +5,11 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFi
 from qgis.PyQt.QtCore import QVariant
 
 from ...core.products.footprint import footprints
-from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
-                      check_outputs, core_call, dem_from_parameters, load_scene_for, output_sink,
-                      style_output_on_load)
-from ..parameters import tr
+from ..feedback import check_cancelled, core_call
+from ..inputs import add_dem_parameters, add_scene_parameters, dem_from_parameters, load_scene_for
+from ..outputs import STYLES, check_outputs, output_sink, style_output_on_load
+from ..parameters import SCENE, tr
+from .base import PushbroomAlgorithm
 
 
 class FootprintAlgorithm(PushbroomAlgorithm):

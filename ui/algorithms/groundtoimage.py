@@ -5,13 +5,14 @@ from qgis.core import (QgsFeature, QgsField, QgsFields, QgsProcessing, QgsProces
                        QgsProcessingParameterFeatureSource, QgsProcessingUtils)
 from qgis.PyQt.QtCore import QVariant
 
-from ...core.dem import to_ellipsoidal
 from ...core.geodesy import geodetic_to_ecef
-from ...core.validation import PLAUSIBLE_HEIGHTS, implausible_heights
-from ..common import (STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
-                      check_outputs, core_call, dem_from_parameters, lonlat_of, nonfinite_message, output_sink,
-                      require_points, scene_camera_and_features, style_output_on_load, z_datum_of_crs)
+from ...core.observations.tables import point_heights
+from ..feedback import check_cancelled, core_call
+from ..inputs import (add_dem_parameters, add_scene_parameters, dem_from_parameters, lonlat_of, nonfinite_message,
+                      require_points, scene_camera_and_features, z_datum_of_crs)
+from ..outputs import STYLES, check_outputs, output_sink, style_output_on_load
 from ..parameters import Z_DATUM, enum_value, tr, z_datum
+from .base import PushbroomAlgorithm
 
 
 class GroundToImageAlgorithm(PushbroomAlgorithm):
@@ -50,7 +51,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         feedback.setProgressText(f"projecting {len(features)} points into camera {scene.cameras[camera].name}")
         col, row = core_call(scene.ground_to_image, geodetic_to_ecef(lon, lat, h), camera)
         cam = scene.cameras[camera]
-        inside = np.isfinite(col) & (col >= 0) & (col <= cam.cols) & (row >= 0) & (row <= cam.rows)
+        inside = cam.in_image(col, row)
 
         new = QgsFields()
         for name in ("col", "row"):
@@ -92,7 +93,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
             raise QgsProcessingException(nonfinite_message(self.INPUT, "point coordinates", ids, bad))
         lon, lat = lonlat_of(self.INPUT, source.sourceCrs(), xyz[:, 0], xyz[:, 1])
         use_z = self.parameterAsBool(parameters, self.USE_Z, context) & np.isfinite(xyz[:, 2])
-        h = np.empty(n)
+        datum = None
         if use_z.any():
             datum = enum_value(self, parameters, self.Z_DATUM, context) or z_datum_of_crs(source.sourceCrs())
             if datum is None:
@@ -100,21 +101,9 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
                                              f"layer's CRS ({source.sourceCrs().authid()}) does not say what they "
                                              "are measured from: give Z_DATUM=geoid or Z_DATUM=ellipsoid (or "
                                              "USE_Z=false to take heights from the DEM or HEIGHT)")
-            h[use_z] = core_call(to_ellipsoidal, lon[use_z], lat[use_z], xyz[use_z, 2], datum)
-            implausible = use_z & implausible_heights(h)
-            if implausible.any():
-                raise QgsProcessingException(
-                    f"{self.INPUT}: the Z values of {int(implausible.sum())} points are not terrain heights "
-                    f"({PLAUSIBLE_HEIGHTS[0]:g} to {PLAUSIBLE_HEIGHTS[1]:g} m ellipsoidal; feature ids "
-                    f"{', '.join(str(i) for i in ids[implausible][:5])}); uncheck {self.USE_Z} to take heights "
-                    f"from the DEM or HEIGHT")
-        if (~use_z).any():
-            surface = dem_from_parameters(self, parameters, context, scene, feedback)
-            h[~use_z] = surface.height(lon[~use_z], lat[~use_z])
-            off = ~use_z & ~np.isfinite(h)
-            if off.any():
-                raise QgsProcessingException(nonfinite_message(self.INPUT, "DEM heights (points off the DEM or "
-                                                               "on its nodata)", ids, off))
+        h = core_call(point_heights, lon, lat, np.where(use_z, xyz[:, 2], np.nan), datum,
+                      lambda: dem_from_parameters(self, parameters, context, scene, feedback), ids, self.INPUT,
+                      f"uncheck {self.USE_Z} to take heights from the DEM or HEIGHT")
         return lon, lat, h
 
 

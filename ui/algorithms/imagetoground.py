@@ -8,10 +8,13 @@ from qgis.PyQt.QtCore import QVariant
 
 from ...core.dem import ConstantHeight
 from ...core.geodesy import ecef_to_geodetic
-from ..common import (DEM, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
-                      check_outputs, core_call, dem_from_parameters, nonfinite_message, output_sink,
-                      scene_camera_and_features, style_output_on_load)
-from ..parameters import COL_FIELD, ROW_FIELD, image_field, tr
+from ..feedback import check_cancelled, core_call
+from ..inputs import (add_dem_parameters, add_scene_parameters, dem_from_parameters, nonfinite_message,
+                      scene_camera_and_features)
+from ..outputs import STYLES, check_outputs, output_sink, style_output_on_load
+from ..parameters import COL_FIELD, DEM, ROW_FIELD, image_field, tr
+from .base import PushbroomAlgorithm
+
 
 OUTPUT_CRS = "EPSG:4979"  # WGS84 longitude, latitude (deg) and ellipsoidal height (m)
 
@@ -50,7 +53,7 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
         surface = dem_from_parameters(self, parameters, context, scene, feedback)
         check_cancelled(feedback)
         cam = scene.cameras[camera]
-        outside = (col < 0) | (col > cam.cols) | (row < 0) | (row > cam.rows)
+        outside = ~cam.in_image(col, row)
         if outside.any():
             feedback.pushWarning(f"{int(outside.sum())} points lie outside the image of camera {cam.name} "
                                  f"({cam.cols} x {cam.rows} px); their lines of sight are extrapolated")

@@ -1,7 +1,5 @@
 """pushbroom:importgcps — ground control points from CSV, QGIS .points or a point layer,
 checked against a scene and written as the GeoPackage GCP layer the adjustment reads."""
-from pathlib import Path
-
 import numpy as np
 from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessingException,
                        QgsProcessingParameterCrs, QgsProcessingParameterFeatureSource,
@@ -9,14 +7,15 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessin
                        QgsProcessingParameterVectorDestination, QgsWkbTypes)
 
 from ...core.observations import gcps
-from ...core.validation import check_terrain_height
-from ..common import (DEM_DATUM, HEIGHT, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters,
-                      add_scene_parameters, attribute_floats, attribute_texts, check_cancelled, check_outputs,
-                      core_call, core_log_to, dem_from_parameters, field_values, load_scene_for, processing_errors,
-                      require_points, style_output_on_load, z_datum_of_crs)
-from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD,
-                          SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction, enum_value,
-                          height_source, id_field, image_field, sigma_field, sigma_px, tr, z_datum)
+from ...core.observations.tables import per_point_sigmas
+from ..feedback import check_cancelled, core_call, core_log_to, processing_errors
+from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts, field_values,
+                      heights_from_parameters, load_scene_for, require_points)
+from ..outputs import STYLES, geopackage_output, style_output_on_load
+from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD, SCENE,
+                          SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction, height_source,
+                          id_field, image_field, sigma_field, sigma_px, tr, z_datum)
+from .base import PushbroomAlgorithm
 
 
 class ImportGcpsAlgorithm(PushbroomAlgorithm):
@@ -94,13 +93,8 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         self.add_parameter(out, tr("GeoPackage (.gpkg) point layer of the checked GCPs, styled so points with a "
                   "large a-priori residual (relative to the median) and points outside the image stand out."))
 
-
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = self.output_path(parameters, context, self.OUTPUT, "gcps.gpkg")
-        if Path(dest).suffix.lower() != ".gpkg":
-            raise QgsProcessingException(f"{self.OUTPUT}: GCP layers are written as GeoPackage; choose a .gpkg file "
-                                         f"(got {dest})")
-        check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
+        dest = geopackage_output(self, parameters, context, self.OUTPUT, "gcps.gpkg", "GCP layers")
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         with core_log_to(feedback, gcps.__name__):
@@ -126,7 +120,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                          f"(point layer), not {'both' if path else 'neither'}")
         crs_of_points = source.sourceCrs() if source is not None else \
             self.parameterAsCrs(parameters, self.GROUND_CRS, context)
-        heights = self._heights(parameters, context, crs_of_points)
+        heights = heights_from_parameters(self, parameters, context, crs_of_points)
         sigmas = {f"sigma_{k}": self.parameterAsDouble(parameters, name, context)
                   for k, name in (("px", self.SIGMA_PX), ("xy", self.SIGMA_XY), ("z", self.SIGMA_Z))}
         crs = _crs_text(self.parameterAsCrs(parameters, self.GROUND_CRS, context))
@@ -148,24 +142,6 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                   role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD], **fields)
         return core_call(gcps.read_csv, path, mapping, crs, heights, **sigmas)
 
-    def _heights(self, parameters, context, crs) -> gcps.Heights:
-        """Where the heights come from; Z_DATUM, when not given, from the points' CRS if it says."""
-        kind = enum_value(self, parameters, self.HEIGHT_SOURCE, context)
-        if kind == "constant":
-            value = self.parameterAsDouble(parameters, HEIGHT, context)
-            return gcps.Heights("constant", "ellipsoid", value=core_call(check_terrain_height, value, HEIGHT))
-        if kind == "dem":
-            dem = dem_from_parameters(self, parameters, context)
-            if not hasattr(dem, "path"):
-                raise QgsProcessingException("HEIGHT_SOURCE is dem but no DEM was given")
-            return gcps.Heights("dem", enum_value(self, parameters, DEM_DATUM, context), dem=dem)
-        datum = enum_value(self, parameters, self.Z_DATUM, context) or z_datum_of_crs(crs)
-        if datum is None:
-            raise QgsProcessingException(f"{self.Z_DATUM}: HEIGHT_SOURCE is z and the points' CRS ({crs.authid()}) "
-                                         "does not say what the Z values are measured from: give Z_DATUM=geoid or "
-                                         f"Z_DATUM=ellipsoid ({DEM_DATUM} is the DEM's datum only)")
-        return gcps.Heights("z", datum)
-
     def _from_layer(self, parameters, context, source, heights, sigmas) -> gcps.GcpTable:
         """Arrays of the layer's features -> core.gcps.build_table (which checks them)."""
         require_points(self.INPUT, source)
@@ -178,7 +154,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         for key, name in self.SIGMA_FIELDS.items():
             values = column(name, False)
             if values is not None:
-                sigmas[key] = core_call(gcps.per_point_sigmas, attribute_texts(values), sigmas[key],
+                sigmas[key] = core_call(per_point_sigmas, attribute_texts(values), sigmas[key],
                                         self.parameterAsString(parameters, name, context).strip(),
                                         [str(i) for i in ids], f"{self.INPUT} layer", key)
         z = column(self.Z_FIELD, False)

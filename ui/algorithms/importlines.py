@@ -8,34 +8,13 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
                        QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
                        QgsProcessingParameterVectorLayer)
 
-from ...core.observations import lines as core_lines
 from ...core.adjust.linepoints import ControlLines, check_against_scene
-from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, check_cancelled,
-                      check_outputs, load_scene_for, processing_errors, style_output_on_load)
-from ..parameters import height_source, image_lines, tr, z_datum
-from .importgcps import ImportGcpsAlgorithm
-
-
-def ogr_source(alg_name: str, layer, what: str) -> tuple[str, str | None]:
-    """(file path, layer name or None) of a file-based OGR vector layer."""
-    if layer is None:
-        raise QgsProcessingException(f"{alg_name}: no {what} given")
-    path, _, options = layer.source().partition("|")
-    name = dict(o.split("=", 1) for o in options.split("|") if "=" in o).get("layername")
-    if layer.providerType() != "ogr" or not Path(path).is_file():
-        raise QgsProcessingException(f"{alg_name}: {layer.source()} is not a file-based vector layer; save the "
-                                     f"{what} to a GeoPackage or shapefile first")
-    return path, name
-
-
-def gpkg_output(alg, parameters, context, what: str, temporary_name: str) -> str:
-    """The OUTPUT GeoPackage of a line algorithm, refused when not .gpkg, checked against the
-    inputs (:func:`ui.common.check_outputs`)."""
-    dest = alg.output_path(parameters, context, "OUTPUT", temporary_name)
-    if Path(dest).suffix.lower() != ".gpkg":
-        raise QgsProcessingException(f"OUTPUT: {what} are written as GeoPackage; choose a .gpkg file (got {dest})")
-    check_outputs(alg, parameters, context, {"OUTPUT": [dest]})
-    return dest
+from ...core.observations import lines as core_lines
+from ..feedback import check_cancelled, processing_errors
+from ..inputs import add_dem_parameters, add_scene_parameters, heights_from_parameters, load_scene_for, ogr_source
+from ..outputs import STYLES, geopackage_output, style_output_on_load
+from ..parameters import SCENE, height_source, image_lines, tr, z_datum
+from .base import PushbroomAlgorithm
 
 
 class ImportLinesAlgorithm(PushbroomAlgorithm):
@@ -83,7 +62,7 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
         self.add_parameter(out, tr("GeoPackage (.gpkg) with the layers ground_lines and image_lines."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = gpkg_output(self, parameters, context, "control lines", "control_lines.gpkg")
+        dest = geopackage_output(self, parameters, context, self.OUTPUT, "control_lines.gpkg", "control lines")
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         lines = self._read(parameters, context)
@@ -120,7 +99,7 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
         if Path(path).resolve() == Path(image_path).resolve() and name == image_name:
             raise QgsProcessingException(f"{self.IMAGE_LINES}: the same layer as {self.INPUT}; give the image lines "
                                          "digitised on the raw image")
-        heights = ImportGcpsAlgorithm._heights(self, parameters, context, ground_layer.crs())
+        heights = heights_from_parameters(self, parameters, context, ground_layer.crs())
         id_field = self.parameterAsString(parameters, self.ID_FIELD, context).strip() or None
         sigma_a = self.parameterAsDouble(parameters, self.SIGMA_ACROSS, context)
         sigma_h = self.parameterAsDouble(parameters, self.SIGMA_H, context)

@@ -6,12 +6,13 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
                        QgsProcessingParameterVectorDestination)
 
 from ...core.observations import tiepoints
-from ...core.observations.gcps import per_point_sigmas
-from ..common import (SCENE, STYLES, PushbroomAlgorithm, add_scene_parameters, attribute_floats, attribute_texts,
-                      check_cancelled, core_call, core_log_to, field_values, geopackage_output, load_scene_for,
-                      processing_errors, style_output_on_load)
-from ..parameters import (CAMERA_FIELD, COL_FIELD, ID_FIELD, ROW_FIELD, SIGMA_FIELDS, SIGMA_PX, camera_field,
+from ...core.observations.tables import per_point_sigmas
+from ..feedback import check_cancelled, core_call, core_log_to
+from ..inputs import add_scene_parameters, attribute_floats, attribute_texts, field_values, load_scene_for
+from ..outputs import geopackage_output, write_tie_layer
+from ..parameters import (CAMERA_FIELD, COL_FIELD, ID_FIELD, ROW_FIELD, SCENE, SIGMA_FIELDS, SIGMA_PX, camera_field,
                           id_field, image_field, sigma_field, sigma_px, tr)
+from .base import PushbroomAlgorithm
 
 
 class ImportTiePointsAlgorithm(PushbroomAlgorithm):
@@ -60,7 +61,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
                                    "of cameras seeing each point, with likely mismatches standing out."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = geopackage_output(self, parameters, context, self.OUTPUT, "tie_points.gpkg", "tie-point")
+        dest = geopackage_output(self, parameters, context, self.OUTPUT, "tie_points.gpkg", "tie-point layers")
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         feedback.setProgress(10)
@@ -110,29 +111,3 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         return core_call(tiepoints.build_table, ids, attribute_texts(column(self.CAMERA_FIELD, False)),
                          attribute_floats(column(self.COL_FIELD, True)), attribute_floats(column(self.ROW_FIELD, True)),
                          scene=attribute_texts(column(self.SCENE_FIELD, False)), sigma_px=sigma, source=what)
-
-    @staticmethod
-    def _report(table: tiepoints.TieTable, feedback) -> None:
-        s = tiepoints.summary(table)
-        histogram = ", ".join(f"{points} in {rays} camera{'s' if rays != 1 else ''}"
-                              for rays, points in sorted(s["cameras_per_point"].items()))
-        feedback.pushInfo(f"{s['points']} tie points, {s['observations']} observations ("
-                          + ", ".join(f"{k}: {v}" for k, v in s["cameras"].items()) + f"); points seen {histogram}")
-        if s["single"]:
-            feedback.pushWarning(f"{s['single']} point(s) seen in one camera only: kept in the layer (rays = 1, "
-                                 "empty geometry) but left out of the adjustment")
-        if s["rms_px"] == s["rms_px"]:
-            feedback.pushInfo(f"a-priori intersection residuals (onboard model, {s['points'] - s['single']} "
-                              f"intersected points): RMS {s['rms_px']:.2f} px; {s['suspect']} point(s) likely "
-                              "mismatched")
-
-
-def write_tie_layer(table: tiepoints.TieTable, name: str, dest: str, context, feedback) -> dict:
-    """Write the checked table to output ``name`` (file ``dest``), report it, style it on load;
-    the algorithm's results."""
-    with processing_errors(f"{name}: "):
-        tiepoints.write_gpkg(table, dest)
-    ImportTiePointsAlgorithm._report(table, feedback)
-    style_output_on_load(context, dest, STYLES / "tie_points.qml")
-    feedback.setProgress(100)
-    return {name: dest}

@@ -1,17 +1,17 @@
 """pushbroom:matchgcps — ground control points matched automatically between the raw image and
 a reference orthoimage through the scene model, written as the GCP layer the adjustment reads."""
-from pathlib import Path
-
 import numpy as np
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterRasterLayer,
                        QgsProcessingParameterVectorDestination)
 
 from ...core.observations import gcps
 from ...core.measure.matching import match_gcps
-from ..common import (CAMERA, SCENE, STYLES, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
-                      check_outputs, core_call, dem_from_parameters, feedback_callbacks, load_scene_for,
-                      matching_settings, processing_errors, style_output_on_load)
-from ..parameters import CHECK_FRACTION, check_fraction, matching_parameters, tr
+from ..feedback import core_call, feedback_callbacks, processing_errors
+from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, load_scene_for,
+                      matching_settings)
+from ..outputs import STYLES, geopackage_output, style_output_on_load
+from ..parameters import CAMERA, CHECK_FRACTION, SCENE, check_fraction, matching_parameters, tr
+from .base import PushbroomAlgorithm
 
 
 class MatchGcpsAlgorithm(PushbroomAlgorithm):
@@ -52,11 +52,7 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
                                    "of pushbroom:importgcps plus quality and peak_ratio."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = self.output_path(parameters, context, self.OUTPUT, "matched_gcps.gpkg")
-        if Path(dest).suffix.lower() != ".gpkg":
-            raise QgsProcessingException(f"{self.OUTPUT}: GCP layers are written as GeoPackage; choose a .gpkg file "
-                                         f"(got {dest})")
-        check_outputs(self, parameters, context, {self.OUTPUT: [dest]})
+        dest = geopackage_output(self, parameters, context, self.OUTPUT, "matched_gcps.gpkg", "GCP layers")
         image, reference = (self._raster(parameters, context, name) for name in (self.INPUT, self.REFERENCE))
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)

@@ -6,11 +6,12 @@ from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParame
 from ...core.observations import tiepoints
 from ...core.measure.matching import match_tiepoints
 from ...core.products.ortho import check_images
-from ..common import (SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_images_for,
-                      check_cancelled, core_call, core_log_to, dem_from_parameters, feedback_callbacks,
-                      geopackage_output, load_scene_for, matching_settings, processing_errors)
-from ..parameters import INPUTS, camera_images, matching_parameters, tr
-from .importtiepoints import write_tie_layer
+from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
+from ..inputs import (add_dem_parameters, add_scene_parameters, camera_images_for, dem_from_parameters, load_scene_for,
+                      matching_settings)
+from ..outputs import geopackage_output, write_tie_layer
+from ..parameters import INPUTS, SCENE, camera_images, matching_parameters, tr
+from .base import PushbroomAlgorithm
 
 
 class MatchTiePointsAlgorithm(PushbroomAlgorithm):
@@ -49,7 +50,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
                                    "number of cameras seeing each point."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = geopackage_output(self, parameters, context, self.OUTPUT, "matched_tie_points.gpkg", "tie-point")
+        dest = geopackage_output(self, parameters, context, self.OUTPUT, "matched_tie_points.gpkg", "tie-point layers")
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         if len(scene.cameras) < 2:

@@ -20,10 +20,12 @@ from ...core.dem import ConstantHeight
 from ...core.products.ortho import (check_images, default_grid, orthorectify, orthorectify_products, scene_utm_crs,
                            strip_products)
 from ...core.products.footprint import footprints
-from ..common import (CAMERA, DEM, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
-                      camera_images_for, check_outputs, core_call, dem_from_parameters, feedback_callbacks,
-                      load_scene_for, processing_errors)
-from ..parameters import INPUTS, RESAMPLING, camera_images, enum_value, resampling, tr
+from ..feedback import core_call, feedback_callbacks, processing_errors
+from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, camera_images_for, dem_from_parameters,
+                      load_scene_for)
+from ..outputs import check_outputs
+from ..parameters import CAMERA, DEM, INPUTS, RESAMPLING, SCENE, camera_images, enum_value, resampling, tr
+from .base import PushbroomAlgorithm
 
 
 class OrthorectifyAlgorithm(PushbroomAlgorithm):
@@ -88,7 +90,6 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                      "import this plugin and reach the input and output files at the same paths; each writes its "
                      "tile beside the output and the tiles are assembled here into the same bytes."), advanced=True)
         self.addOutput(QgsProcessingOutputMultipleLayers(self.ORTHOIMAGES, tr("Orthoimages (ALL_CAMERAS)")))
-
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         if self.parameterAsBool(parameters, self.ALL_CAMERAS, context):

@@ -5,9 +5,11 @@ from qgis.core import (QgsProcessingContext, QgsProcessingParameterFileDestinati
 from ...core.measure.display import check_image_size, write_display_vrt, write_empty_lines
 from ...core.files import atomic_outputs
 from ...core.observations.lines import IMAGE_LAYER
-from ..common import (CAMERA, SCENE, PushbroomAlgorithm, add_scene_parameters, camera_for, check_outputs,
-                      layer_file, load_scene_for, processing_errors)
-from ..parameters import tr
+from ..feedback import processing_errors
+from ..inputs import add_scene_parameters, camera_for, layer_file, load_scene_for
+from ..outputs import check_outputs
+from ..parameters import CAMERA, SCENE, tr
+from .base import PushbroomAlgorithm
 
 
 class PrepareDigitisingAlgorithm(PushbroomAlgorithm):

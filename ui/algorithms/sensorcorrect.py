@@ -12,9 +12,12 @@ from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProce
 from ...core.files import Output
 from ...core.model.sensor import SceneModel
 from ...core.products.sensorcorrect import output_files, sensor_correct
-from ..common import (CAMERA, SCENE, PushbroomAlgorithm, add_dem_parameters, add_scene_parameters, camera_for,
-                      check_outputs, core_call, dem_from_parameters, feedback_callbacks, layer_file, load_scene_for)
-from ..parameters import OUTPUT_SCENE, RESAMPLING, enum_value, output_scene, resampling, tr
+from ..feedback import core_call, feedback_callbacks
+from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, layer_file,
+                      load_scene_for)
+from ..outputs import check_outputs
+from ..parameters import CAMERA, OUTPUT_SCENE, RESAMPLING, SCENE, enum_value, output_scene, resampling, tr
+from .base import PushbroomAlgorithm
 
 
 class SensorCorrectAlgorithm(PushbroomAlgorithm):

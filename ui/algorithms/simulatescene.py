@@ -6,9 +6,12 @@ from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsPr
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber)
 
 from ...simulation.roads import LINES_FILE, POINTS_FILE, RoadSettings
-from ...simulation.simulator import MIN_CUT, PRESETS, GcpSettings, check_folder, cut_preset, output_names, simulate
-from ..common import PushbroomAlgorithm, core_call, feedback_callbacks, processing_errors
+from ...simulation.presets import MIN_CUT, PRESETS, cut_preset
+from ...simulation.measurements import GcpSettings
+from ...simulation.simulator import check_folder, output_names, simulate
+from ..feedback import core_call, feedback_callbacks, processing_errors
 from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_value, preset, tr
+from .base import PushbroomAlgorithm
 
 MICRO = 1e-6
 
@@ -16,7 +19,8 @@ MICRO = 1e-6
 # label, factor from the parameter's unit to the core's SI unit, help).
 ERROR_PARAMETERS = (
     ("POSITION_BIAS", "position_bias", "Position bias (m)", 1.0, "Bias of the onboard ephemeris per ECEF axis."),
-    ("POSITION_DRIFT", "position_drift", "Position drift (m/s)", 1.0, "Linear drift of the onboard ephemeris per axis."),
+    ("POSITION_DRIFT", "position_drift", "Position drift (m/s)", 1.0,
+     "Linear drift of the onboard ephemeris per axis."),
     ("POSITION_QUADRATIC", "position_quadratic", "Position 2nd-order term (m/s²)", 1.0,
      "Quadratic term of the onboard ephemeris error per axis."),
     ("ATTITUDE_BIAS", "attitude_bias", "Attitude bias (µrad)", MICRO,
@@ -125,8 +129,9 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         render.setHelp(tr("Also write each camera's raw image (8-bit GeoTIFF without georeferencing, "
                           "image_<CAMERA>.tif) rendered from a known texture over the DEM, for orthorectification. "
                           "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB. With the images comes "
-                          "reference.tif, a reference orthoimage of the same ground (UTM, 5 m or twice the GSD, blurred, another "
-                          "radiometry, noise, patches of changed land cover and cloud) for pushbroom:matchgcps."))
+                          "reference.tif, a reference orthoimage of the same ground (UTM, 5 m or twice the GSD, "
+                          "blurred, another radiometry, noise, patches of changed land cover and cloud) for "
+                          "pushbroom:matchgcps."))
         n_lines = QgsProcessingParameterNumber(self.N_LINES, tr("Number of roads (control lines)"),
                                                QgsProcessingParameterNumber.Integer, 0, minValue=0, maxValue=10000)
         n_lines.setHelp(tr("How many roads (straight and curved, 2-6 km, on the terrain) to simulate as control "
@@ -179,7 +184,6 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                                                                          "scene's camera order, when rendered")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.REFERENCE, tr("Reference orthoimage, when rendered")))
         self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, tr("Output folder")))
-
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         preset = enum_value(self, parameters, self.PRESET, context)

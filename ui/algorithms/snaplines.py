@@ -6,9 +6,11 @@ from qgis.core import (QgsProcessing, QgsProcessingParameterNumber,
 
 from ...core.observations import lines as core_lines
 from ...core.measure.snapping import SnapSettings, kept_reasons, snap_lines
-from ..common import PushbroomAlgorithm, layer_file, processing_errors
+from ..feedback import processing_errors
+from ..inputs import layer_file, ogr_source
+from ..outputs import geopackage_output
 from ..parameters import enum_parameter, enum_value, image_lines, tr
-from .importlines import gpkg_output, ogr_source
+from .base import PushbroomAlgorithm
 
 DEFAULTS = SnapSettings()
 
@@ -63,7 +65,7 @@ class SnapLinesAlgorithm(PushbroomAlgorithm):
                                    "refined (field refined); 'Import control lines' reads it as IMAGE_LINES."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = gpkg_output(self, parameters, context, "snapped lines", "snapped_lines.gpkg")
+        dest = geopackage_output(self, parameters, context, self.OUTPUT, "snapped_lines.gpkg", "snapped lines")
         image = layer_file(self.parameterAsRasterLayer(parameters, self.INPUT, context))
         path, name = ogr_source(self.IMAGE_LINES, self.parameterAsVectorLayer(parameters, self.IMAGE_LINES, context),
                                 "image line layer")

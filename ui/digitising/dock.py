@@ -23,9 +23,9 @@ from qgis.PyQt.QtWidgets import (QComboBox, QDockWidget, QDoubleSpinBox, QFileDi
 from ...core.measure.digitising import LineEditor, nearest_line, predict_lines
 from ...core.measure.display import read_display_source
 from ...core.errors import PushbroomError
-from ...core.observations.gcps import Heights
+from ...core.observations.tables import Heights
 from ...core.observations.lines import write_gpkg
-from ...core.formats.scene_json import load_scene
+from ...core.formats import load_scene
 from ...core.measure.snapping import MODES as SNAP_MODES
 from ...core.measure.snapping import SnapSettings
 from ..parameters import DATUMS, HEIGHT_SOURCES, tr

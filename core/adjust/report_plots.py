@@ -1,0 +1,161 @@
+"""The plots of the adjustment report (:mod:`core.adjust.report_html`), as inline PNG figures:
+image residual vectors over the image (seed 000 Fig. 6), trajectory corrections against time
+(Fig. 7-11) and residual RMSE per CCD chip.
+
+The plots are drawn on bare matplotlib ``Figure`` objects with the Agg canvas: no pyplot, so no
+global backend switch inside QGIS and no figure registry to leak.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+
+import numpy as np
+
+from ..rotations import ARCSEC_PER_RAD
+
+MAX_ARROWS = 5000  # residual vectors drawn at most; more are subsampled (stated in the caption)
+PNG_DPI = 90
+
+
+def _new_figure(width: float, height: float):
+    """A matplotlib Figure (inches) on an Agg canvas, outside pyplot."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _png(fig) -> bytes:
+    """The figure rendered as PNG bytes; its memory is released."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=PNG_DPI)
+    fig.clear()
+    return buf.getvalue()
+
+
+def _figure_html(png: bytes, alt: str, caption: str) -> str:
+    """An inline PNG (base64 data URI) with an escaped alt text and caption."""
+    data = base64.b64encode(png).decode("ascii")
+    return (f"<figure><img alt='{html.escape(alt)}' src='data:image/png;base64,{data}'>"
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+
+
+def _subsample(index: np.ndarray, limit: int) -> np.ndarray:
+    """At most ``limit`` entries of ``index``, a reproducible uniform random choice, in order."""
+    if index.size <= limit:
+        return index
+    return np.sort(np.random.default_rng(0).choice(index, limit, replace=False))
+
+
+def _exaggeration(dc: np.ndarray, dr: np.ndarray, extent: float) -> float:
+    """Factor that draws the 95th-percentile residual vector (px) as 2.5 % of the image extent (px)."""
+    typical = float(np.percentile(np.hypot(dc, dr), 95)) if dc.size else 0.0
+    return 0.025 * extent / max(typical, 1e-6)
+
+
+def _nice_length(value: float) -> float:
+    """1, 2 or 5 times a power of ten, not above ``value`` (> 0): a readable scale-arrow length."""
+    power = 10.0 ** math.floor(math.log10(value))
+    return max(m * power for m in (1, 2, 5) if m * power <= value)
+
+
+def residual_vector_figure(points: dict) -> str:
+    """Plot (a): image residual vectors (predicted - measured, px) at the measured positions,
+    exaggerated; control points blue, check points (adjusted model) orange, flagged ones red
+    crosses (their vectors would swamp the others). Subsampled to MAX_ARROWS points."""
+    col, row = np.asarray(points["col"], dtype=float), np.asarray(points["row"], dtype=float)
+    dc, dr = np.asarray(points["res_col"], dtype=float), np.asarray(points["res_row"], dtype=float)
+    role, flagged = np.asarray(points["role"]), np.asarray(points["flagged"], dtype=bool)
+    usable = np.isfinite(dc) & np.isfinite(dr) & np.isfinite(col) & np.isfinite(row)
+    if not usable.any():
+        return "<p>No image residuals to plot.</p>"
+    shown = _subsample(np.nonzero(usable)[0], MAX_ARROWS)
+    groups = {"control": shown[(role[shown] == "control") & ~flagged[shown]],
+              "check": shown[(role[shown] == "check") & ~flagged[shown]], "flagged": shown[flagged[shown]]}
+    extent = max(np.ptp(col[usable]), np.ptp(row[usable]), 1.0)
+    basis = groups["control"] if groups["control"].size else groups["check"]  # unflagged vectors set the scale
+    scale = _exaggeration(dc[basis], dr[basis], extent)
+    fig = _new_figure(10, 8)
+    ax = fig.add_subplot()
+    arrows = None
+    for name, colour in (("control", "#1f5fa8"), ("check", "#e08a00")):
+        i = groups[name]
+        if i.size:
+            arrows = ax.quiver(col[i], row[i], dc[i] * scale, dr[i] * scale, angles="xy", scale_units="xy",
+                               scale=1, color=colour, width=0.0018, label=f"{name} ({i.size})")
+    i = groups["flagged"]
+    if i.size:
+        ax.plot(col[i], row[i], "x", color="#d00", ms=5, mew=1.2, label=f"flagged ({i.size}), not drawn as vectors")
+    if arrows is not None:
+        key = _nice_length(0.1 * extent / scale)
+        ax.quiverkey(arrows, 0.97, 1.025, key * scale, f"scale: {key:g} px", labelpos="W", coordinates="axes",
+                     color="k")
+    ax.set_xlim(col[usable].min() - 0.02 * extent, col[usable].max() + 0.02 * extent)
+    ax.set_ylim(row[usable].max() + 0.02 * extent, row[usable].min() - 0.02 * extent)  # image y down
+    ax.set_aspect("equal" if np.ptp(row[usable]) < 4 * max(np.ptp(col[usable]), 1.0) else "auto")
+    ax.set_xlabel("column (px)")
+    ax.set_ylabel("row (px, down)")
+    ax.set_title(f"image residuals (predicted − measured), exaggerated {scale:.3g}×", loc="left")
+    ax.legend(loc="lower left", fontsize="small", framealpha=0.9)
+    total = int(usable.sum())
+    sampled = (f" {shown.size} of the {total} points are drawn (a uniform random subsample)."
+               if shown.size < total else "")
+    caption = (f"Image residual vectors, predicted − measured, drawn {scale:.3g} times their length (scale arrow "
+               "above the plot). Control points blue, check points (from the adjusted model) orange, flagged "
+               f"observations as red crosses.{sampled}")
+    return _figure_html(_png(fig), "image residual vectors", caption)
+
+
+def trajectory_figure(trajectory: dict) -> str:
+    """Plot (b): position corrections (m, ECEF X/Y/Z) and attitude corrections (arcsec, roll/pitch/
+    yaw) against time (s), knot times (for polynomials the reference time t0) as grey lines."""
+    t = np.asarray(trajectory["time"], dtype=float)
+    # one set of curves, or one per camera (a trajectory correction per camera), told by line style
+    sets = trajectory.get("per_camera") or {"": trajectory}
+    fig = _new_figure(10, 7)
+    axes = fig.subplots(2, 1, sharex=True)
+    for ax, key, scale, names, knots in (
+            (axes[0], "position", 1.0, ("X", "Y", "Z"), trajectory["position_knots"]),
+            (axes[1], "attitude", ARCSEC_PER_RAD, ("roll", "pitch", "yaw"), trajectory["attitude_knots"])):
+        for k, knot in enumerate(knots):
+            ax.axvline(knot, color="#aaa", lw=0.8, ls="--", zorder=0, label="knots" if k == 0 else None)
+        for c, (camera, curves) in enumerate(sets.items()):
+            values = np.asarray(curves[key], dtype=float).reshape(-1, 3) * scale
+            for a, name in enumerate(names):
+                ax.plot(t, values[:, a], lw=1.5, ls=("-", "--", ":", "-.")[c % 4], color=f"C{a}",
+                        label=f"{camera} {name}".strip())
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize="small", ncol=4)
+    axes[0].set_ylabel("position correction (m, ECEF)")
+    axes[1].set_ylabel("attitude correction (arcsec)")
+    axes[1].set_xlabel("time (s)")
+    axes[0].set_title("trajectory corrections (adjusted − input)")
+    caption = ("Corrections to the input trajectory against time: position in metres along the ECEF axes, "
+               "attitude (roll, pitch, yaw) in arcseconds. Dashed grey lines: knot times of the trajectory "
+               "model (for polynomials the reference time t0).")
+    return _figure_html(_png(fig), "trajectory corrections", caption)
+
+
+def chip_figure(per_chip: dict) -> str:
+    """Plot (c): control residual RMSE (px) in col and row per CCD chip, with the observation counts."""
+    names = [k for k, v in per_chip.items() if v.get("count")]
+    if not names:
+        return "<p>No control residuals per chip to plot.</p>"
+    x = np.arange(len(names))
+    fig = _new_figure(max(6.0, 1.1 * len(names) + 2), 4.5)
+    ax = fig.add_subplot()
+    ax.bar(x - 0.2, [per_chip[n]["rmse_col"] for n in names], 0.4, label="col (across track)", color="#1f5fa8")
+    ax.bar(x + 0.2, [per_chip[n]["rmse_row"] for n in names], 0.4, label="row (along track)", color="#e08a00")
+    ax.set_xticks(x, [f"{n}\n{per_chip[n]['count']} obs" for n in names], fontsize="small")
+    ax.set_xlabel("camera / CCD chip")
+    ax.set_ylabel("control residual RMSE (px)")
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize="small")
+    caption = ("Control point residual RMSE per CCD chip, column and row, in pixels (flagged observations left "
+               "out in robust runs). A chip clearly above the others points to an unmodelled chip offset or "
+               "rotation.")
+    return _figure_html(_png(fig), "residual RMSE per CCD chip", caption)

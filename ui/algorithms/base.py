@@ -1,0 +1,106 @@
+"""PushbroomAlgorithm, the base of every algorithm of the provider: id, name, group, icon and help
+from class attributes, parameters with their help texts, output paths, the check of
+enumeration values, and the adapter around core calls (a core error becomes a
+QgsProcessingException naming the algorithm's parameter at fault)."""
+from __future__ import annotations
+
+from qgis.core import (QgsProcessingAlgorithm, QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+                       QgsProcessingParameterFileDestination, QgsProcessingUtils)
+from qgis.PyQt.QtGui import QIcon
+
+from .. import RESOURCES
+from ..feedback import processing_errors, push_lines
+from ..parameters import enum_refusal, tr
+
+
+class PushbroomAlgorithm(QgsProcessingAlgorithm):
+    """Base of the plugin's algorithms: id, name, group and help from class attributes.
+
+    shortHelpString() is HELP followed by every parameter's name and help text (setHelp), so
+    the toolbox, qgis_process help and the README say the same. NAME, GROUP and HELP are
+    English and shown through tr(); GROUP_ID never changes with the language.
+    Enumeration values are checked before a run (checkParameterValues): an unknown name or an
+    option number is refused with the parameter's value names.
+
+    CORE_PARAMETERS maps the inputs the core's errors name (``InputError.parameter``, in
+    the core's terms: 'gcps', 'ties', 'settings.alpha'...) to this algorithm's parameters; an
+    error raised inside :meth:`core_errors` starts with the parameter's name, and so does a log
+    sentence about an input (:meth:`push_core_lines`).
+    """
+    ID = ""
+    NAME = ""
+    GROUP, GROUP_ID = "Sensor model", "sensormodel"
+    HELP = ""
+    CORE_PARAMETERS: dict[str, str] = {}
+
+    def name(self):
+        return self.ID
+
+    def displayName(self):  # noqa: N802 (QGIS API names)
+        return tr(self.NAME)
+
+    def group(self):
+        return tr(self.GROUP)
+
+    def groupId(self):  # noqa: N802
+        return self.GROUP_ID
+
+    def icon(self):
+        return QIcon(str(RESOURCES / "icon.svg"))
+
+    def createInstance(self):  # noqa: N802
+        return type(self)()
+
+    def add_parameter(self, parameter, help_text: str | None = None, advanced: bool = False) -> None:
+        """Add a parameter with its help text (shown in the toolbox and qgis_process help); None keeps
+        the help a shared definition of ui.parameters brings."""
+        if help_text is not None:
+            parameter.setHelp(help_text)
+        if advanced:
+            parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+        self.addParameter(parameter)
+
+    def output_path(self, parameters, context, name: str, temporary_name: str) -> str:
+        """Where output parameter ``name`` goes: '' for an optional output nobody asked for, a new
+        temporary file ``temporary_name`` for an empty required one (a graphical model passes
+        that for outputs nobody asked for, which later steps may still need)."""
+        definition = self.parameterDefinition(name)
+        if isinstance(definition, QgsProcessingParameterFileDestination):
+            path = self.parameterAsFileOutput(parameters, name, context)
+        else:
+            path = self.parameterAsOutputLayer(parameters, name, context)
+        if not path and definition.flags() & QgsProcessingParameterDefinition.FlagOptional:
+            return ""
+        return path or QgsProcessingUtils.generateTempFilename(temporary_name)
+
+    def shortHelpString(self):  # noqa: N802
+        rows = "".join(f"<li><b>{p.name()}</b>: {p.help() or p.description()}</li>"
+                       for p in self.parameterDefinitions())
+        outs = "".join(f"<li><b>{o.name()}</b>: {o.description()}</li>" for o in self.outputDefinitions())
+        return (f"<p>{tr(self.HELP)}</p><p>{tr('Parameters')}:</p><ul>{rows}</ul>"
+                f"<p>{tr('Outputs')}:</p><ul>{outs}</ul>")
+
+    def checkParameterValues(self, parameters, context):  # noqa: N802
+        """Enumerations take value names only (see ui.parameters.enum_refusal); an empty text is
+        'not given', as the toolbox's '[Not selected]' is. The rest is QGIS's own check."""
+        given = dict(parameters)
+        for definition in self.parameterDefinitions():
+            if isinstance(definition, QgsProcessingParameterEnum):
+                refusal = enum_refusal(definition, given.get(definition.name()))
+                if refusal:
+                    return False, refusal
+                if given.get(definition.name()) == "":
+                    given[definition.name()] = None
+        return super().checkParameterValues(given, context)
+
+    # --- the adapter around core calls ---------------------------------------------------------
+    def core_errors(self, default: str = ""):
+        """Context manager: a core error raised inside becomes a QgsProcessingException that starts
+        with the parameter CORE_PARAMETERS gives for the input the error names, else with
+        ``default`` (a parameter name; '' for none)."""
+        return processing_errors(f"{default}: " if default else "", self.CORE_PARAMETERS)
+
+    def push_core_lines(self, feedback, lines) -> None:
+        """The core's log sentences (:class:`core.adjust.report.LogLine`) to the Processing log, a
+        sentence about an input named by the parameter CORE_PARAMETERS gives for it."""
+        push_lines(feedback, lines, self.CORE_PARAMETERS)

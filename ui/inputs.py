@@ -1,0 +1,264 @@
+"""QGIS parameters and layers to core inputs: scene files and cameras, layers' files, CRSs and
+attributes, DEM parameters to core surfaces, heights of points, raw images and matching settings.
+
+Every refusal names the parameter at fault.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from pyproj import CRS, Transformer
+from pyproj.exceptions import CRSError
+from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProcessingException, QgsProviderRegistry,
+                       QgsWkbTypes)
+
+from ..core.dem import ConstantHeight, Dem
+from ..core.formats import load_scene
+from ..core.measure.matching import MatchSettings
+from ..core.observations.tables import Heights
+from ..core.validation import check_terrain_height
+from . import parameters as vocabulary
+from .feedback import core_call, processing_errors
+from .parameters import CAMERA, DEM, DEM_DATUM, HEIGHT, HEIGHT_SOURCE, SCENE, Z_DATUM, enum_value
+
+
+# --- scenes and cameras ------------------------------------------------------------------------
+def add_scene_parameters(alg, with_camera: bool = True) -> None:
+    """SCENE (any supported metadata or scene JSON) and, optionally, CAMERA."""
+    alg.addParameter(vocabulary.scene())
+    if with_camera:
+        alg.addParameter(vocabulary.camera())
+
+
+def load_scene_for(parameter_name: str, path: str, feedback=None):
+    """Load any supported scene file (core.formats.load_scene) given by a parameter.
+
+    The error message names the parameter, e.g. "SCENE: /x/y.xml: no such file". The reader's
+    warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``.
+    """
+    if not path:
+        raise QgsProcessingException(f"{parameter_name}: no scene file given")
+    with processing_errors(f"{parameter_name}: "):
+        scene = load_scene(path)
+    if feedback is not None:
+        for warning in scene.info.get("warnings", []):
+            feedback.pushWarning(f"{parameter_name}: {warning}")
+    return scene
+
+
+def camera_for(parameter_name: str, scene, text: str | None) -> int:
+    """Camera index of a scene from a parameter holding a camera name or index ('' = first)."""
+    text = (text or "").strip()
+    if not text:
+        return 0
+    with processing_errors(f"{parameter_name}: "):
+        return scene.camera_index(int(text) if text.isdigit() else text)
+
+
+def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT", feedback=None):
+    """(scene, camera index, feature source, its features) from SCENE, CAMERA and a feature
+    source parameter; errors name the parameter, the reader's warnings go to ``feedback``."""
+    scene = load_scene_for(SCENE, alg.parameterAsFile(parameters, SCENE, context), feedback)
+    camera = camera_for(CAMERA, scene, alg.parameterAsString(parameters, CAMERA, context))
+    source = alg.parameterAsSource(parameters, input_name, context)
+    if source is None:
+        raise QgsProcessingException(alg.invalidSourceError(parameters, input_name))
+    return scene, camera, source, list(source.getFeatures())
+
+
+# --- the files behind layers -------------------------------------------------------------------
+def layer_file(layer: QgsMapLayer | None) -> str:
+    """The file behind a layer ('' for memory layers, databases and services)."""
+    if layer is None:
+        return ""
+    return QgsProviderRegistry.instance().decodeUri(layer.providerType(), layer.source()).get("path") or ""
+
+
+def split_ogr_source(source: str) -> tuple[str, str | None]:
+    """(file path, layer name or None for the first) of an OGR layer's source 'path|layername=...'."""
+    path, _, options = source.partition("|")
+    return path, dict(o.split("=", 1) for o in options.split("|") if "=" in o).get("layername")
+
+
+def ogr_source(parameter_name: str, layer, what: str) -> tuple[str, str | None]:
+    """(file path, layer name or None) of a file-based OGR vector layer given by a parameter;
+    ``what``: the layer's kind, for the messages."""
+    if layer is None:
+        raise QgsProcessingException(f"{parameter_name}: no {what} given")
+    path, name = split_ogr_source(layer.source())
+    if layer.providerType() != "ogr" or not Path(path).is_file():
+        raise QgsProcessingException(f"{parameter_name}: {layer.source()} is not a file-based vector layer; save the "
+                                     f"{what} to a GeoPackage or shapefile first")
+    return path, name
+
+
+# --- coordinates and attributes ----------------------------------------------------------------
+def lonlat_of(parameter_name: str, crs, x, y) -> tuple[np.ndarray, np.ndarray]:
+    """WGS84 (lon, lat) degrees of coordinates (x, y) in a layer's QgsCoordinateReferenceSystem."""
+    if not crs.isValid():
+        raise QgsProcessingException(f"{parameter_name}: the layer has no valid CRS; assign one first")
+    try:
+        source = CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
+    except CRSError as exc:
+        raise QgsProcessingException(f"{parameter_name}: unknown CRS {crs.authid() or crs.description()} ({exc})") \
+            from None
+    lon, lat = Transformer.from_crs(source, CRS.from_epsg(4326), always_xy=True).transform(x, y)
+    lon, lat = np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
+    bad = ~(np.isfinite(lon) & np.isfinite(lat))
+    if bad.any():
+        raise QgsProcessingException(f"{parameter_name}: {bad.sum()} points cannot be converted from "
+                                     f"{crs.authid()} to WGS84 longitude/latitude")
+    return lon, lat
+
+
+def require_points(parameter_name: str, source) -> None:
+    """Refuse a feature source whose geometries are not points (a line or polygon layer where
+    points are meant: taking one vertex of each would be silently wrong)."""
+    kind = QgsWkbTypes.geometryType(source.wkbType())
+    if kind != QgsWkbTypes.PointGeometry:
+        raise QgsProcessingException(f"{parameter_name}: the layer holds {QgsWkbTypes.displayString(source.wkbType())} "
+                                     f"geometries; a point layer is needed")
+
+
+def z_datum_of_crs(crs) -> str | None:
+    """What the Z values of a layer in QgsCoordinateReferenceSystem ``crs`` are measured from, when
+    the CRS says it: 'ellipsoid' for a 3D geographic CRS (EPSG:4979, the output of 'Image to
+    ground'), 'geoid' for a compound CRS with EGM96 heights (EPSG:4326+5773); else None."""
+    if not crs.isValid():
+        return None
+    try:
+        pyproj_crs = CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
+    except CRSError:
+        return None
+    if pyproj_crs.is_geographic and len(pyproj_crs.axis_info) == 3:
+        return "ellipsoid"
+    if pyproj_crs.is_compound and any("EGM96" in (sub.name or "") for sub in pyproj_crs.sub_crs_list[1:]):
+        return "geoid"
+    return None
+
+
+def nonfinite_message(parameter_name: str, what: str, ids, bad) -> str:
+    """Message naming (some of) the features whose values are NaN, missing or infinite."""
+    first = ", ".join(str(i) for i in np.asarray(ids)[bad][:5])
+    return f"{parameter_name}: {int(np.sum(bad))} features have missing or non-finite {what} (feature ids {first}...)"
+
+
+def field_values(alg, parameters, context, source, features) -> Callable[[str, bool], list | None]:
+    """column(param, required): the values of ``features`` in the field of ``source`` that string
+    parameter ``param`` names; None when the parameter is empty and not required. Errors name
+    the parameter (and list the layer's fields)."""
+    names = source.fields().names()
+
+    def column(param: str, required: bool):
+        name = alg.parameterAsString(parameters, param, context).strip()
+        if not name:
+            if required:
+                raise QgsProcessingException(f"{param}: name the field of the layer that holds it")
+            return None
+        if name not in names:
+            raise QgsProcessingException(f"{param}: the layer has no field {name!r} (fields: {', '.join(names)})")
+        return [f[name] for f in features]
+
+    return column
+
+
+def attribute_floats(values) -> np.ndarray:
+    """Attribute values as floats; NULL and non-numeric text become NaN (reported with ids by the core)."""
+    def number(v):
+        try:
+            return float(v)
+        except (TypeError, ValueError):
+            return np.nan
+    return np.array([number(v) for v in values], dtype=float)
+
+
+def attribute_texts(values):
+    """Attribute values as stripped strings (NULL -> ''); None (no field) stays None."""
+    return None if values is None else ["" if v is None or v == NULL else str(v).strip() for v in values]
+
+
+# --- terrain and heights -----------------------------------------------------------------------
+def add_dem_parameters(alg) -> None:
+    """Add the optional DEM raster, its height datum and the constant-height fallback."""
+    for p in (vocabulary.dem(), vocabulary.dem_datum(), vocabulary.height()):
+        alg.addParameter(p)
+
+
+def dem_from_parameters(alg, parameters, context, scene=None, feedback=None):
+    """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one.
+
+    With an RPC ``scene`` (core.model.rpcscene.RpcScene), heights that do not meet the RPC's
+    height range are refused and heights partly outside it are a warning to ``feedback``."""
+    layer = alg.parameterAsRasterLayer(parameters, DEM, context)
+    if layer is None:
+        with processing_errors():
+            surface = ConstantHeight(check_terrain_height(alg.parameterAsDouble(parameters, HEIGHT, context), HEIGHT))
+        what = f"{HEIGHT} {surface.value:g} m"
+    else:
+        datum = enum_value(alg, parameters, DEM_DATUM, context)
+        path = layer.source().split("|")[0]
+        with processing_errors(f"{DEM}: "):
+            surface = Dem(path, datum)
+            surface.height_range  # reads the DEM's overview: implausible heights are refused before any output
+        what = f"{DEM} {path}"
+    if hasattr(scene, "check_surface"):
+        with processing_errors():
+            warning = scene.check_surface(surface.height_range, what)
+        if warning and feedback is not None:
+            feedback.pushWarning(warning)
+    return surface
+
+
+def heights_from_parameters(alg, parameters, context, crs) -> Heights:
+    """Where the heights of imported points come from (HEIGHT_SOURCE: their Z values, the DEM or
+    the constant HEIGHT); Z_DATUM, when not given, from the points' QgsCoordinateReferenceSystem
+    ``crs`` if it says."""
+    kind = enum_value(alg, parameters, HEIGHT_SOURCE, context)
+    if kind == "constant":
+        value = alg.parameterAsDouble(parameters, HEIGHT, context)
+        return Heights("constant", "ellipsoid", value=core_call(check_terrain_height, value, HEIGHT))
+    if kind == "dem":
+        dem = dem_from_parameters(alg, parameters, context)
+        if not hasattr(dem, "path"):
+            raise QgsProcessingException("HEIGHT_SOURCE is dem but no DEM was given")
+        return Heights("dem", enum_value(alg, parameters, DEM_DATUM, context), dem=dem)
+    datum = enum_value(alg, parameters, Z_DATUM, context) or z_datum_of_crs(crs)
+    if datum is None:
+        raise QgsProcessingException(f"{Z_DATUM}: HEIGHT_SOURCE is z and the points' CRS ({crs.authid()}) "
+                                     "does not say what the Z values are measured from: give Z_DATUM=geoid or "
+                                     f"Z_DATUM=ellipsoid ({DEM_DATUM} is the DEM's datum only)")
+    return Heights("z", datum)
+
+
+# --- raw images and matching settings ----------------------------------------------------------
+def camera_images_for(alg, parameters, context, scene) -> dict[int, str]:
+    """{camera index: file} of INPUTS, one raw image per camera of ``scene`` in its camera order;
+    QgsProcessingException naming the cameras when the count differs or a layer is not a file."""
+    layers = alg.parameterAsLayerList(parameters, vocabulary.INPUTS, context)
+    names = [cam.name for cam in scene.cameras]
+    if len(layers) != len(names):
+        raise QgsProcessingException(f"{vocabulary.INPUTS}: {len(layers)} raw image(s) given, but the scene has "
+                                     f"{len(names)} camera(s) ({', '.join(names)}): give one image per camera, "
+                                     "in that order")
+    images = {k: layer_file(layer) for k, layer in enumerate(layers)}
+    missing = [names[k] for k, path in images.items() if not path]
+    if missing:
+        raise QgsProcessingException(f"{vocabulary.INPUTS}: the image(s) of camera(s) {', '.join(missing)} are not "
+                                     "files (memory or service layers); save them as GeoTIFF first")
+    return images
+
+
+def matching_settings(alg, parameters, context, **fixed) -> MatchSettings:
+    """core.measure.matching.MatchSettings of the matching parameters
+    (ui.parameters.matching_parameters), checked; ``fixed``: other MatchSettings fields."""
+    with processing_errors():
+        settings = MatchSettings(spacing=alg.parameterAsDouble(parameters, vocabulary.SPACING, context),
+                                 count=alg.parameterAsInt(parameters, vocabulary.N_POINTS, context),
+                                 window=alg.parameterAsInt(parameters, vocabulary.WINDOW, context),
+                                 min_correlation=alg.parameterAsDouble(parameters, vocabulary.MIN_CORRELATION,
+                                                                       context),
+                                 search=alg.parameterAsDouble(parameters, vocabulary.SEARCH_RANGE, context), **fixed)
+        settings.validate()
+    return settings

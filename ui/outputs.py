@@ -1,0 +1,195 @@
+"""Destinations, sinks and styles of outputs: nothing lost, nothing partial.
+
+Outputs are checked before any work (none may replace an input or another output, each must
+be writable), written completely or not at all, checked to hold what was written, and styled
+when Processing loads them into the project.
+"""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+
+from qgis.core import (QgsDataSourceUri, QgsFeatureSink, QgsProcessingException,
+                       QgsProcessingLayerPostProcessorInterface, QgsProcessingOutputLayerDefinition,
+                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterFolderDestination, QgsProperty)
+
+from ..core.files import atomic_output
+from ..core.files import check_outputs as check_files
+from ..core.observations import tiepoints
+from ..core.vector_io import feature_count
+from . import RESOURCES
+from .feedback import processing_errors
+from .inputs import layer_file
+
+STYLES = RESOURCES / "styles"  # QML styles of the output layers
+
+
+# --- destinations, checked before any work -----------------------------------------------------
+def destination_file(destination: str) -> str:
+    """The file an output layer destination writes to: the path itself, the database of an
+    'ogr:dbname=...' table; '' for memory layers and services."""
+    if destination.startswith("ogr:"):
+        return QgsDataSourceUri(destination[4:]).database()
+    if destination.startswith(("memory:", "postgis:", "postgres:", "spatialite:", "mssql:", "oracle:")):
+        return ""
+    return destination.split("|")[0]
+
+
+def input_files(alg, parameters, context) -> dict[str, list[str]]:
+    """{parameter: files it reads} for the input parameters given: files, and the files behind
+    layers (loaded in the project or given by path)."""
+    files = {}
+    for definition in alg.parameterDefinitions():
+        name = definition.name()
+        if definition.isDestination() or parameters.get(name) in (None, ""):
+            continue
+        if isinstance(definition, QgsProcessingParameterFile):
+            files[name] = [alg.parameterAsFile(parameters, name, context)]
+        elif definition.type() in ("raster", "vector", "source", "layer", "mesh", "pointcloud"):
+            files[name] = [layer_file(alg.parameterAsLayer(parameters, name, context))]
+        elif definition.type() == "multilayer":
+            files[name] = [layer_file(layer) for layer in alg.parameterAsLayerList(parameters, name, context)]
+    return files
+
+
+def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None:
+    """Before any work: refuse outputs that would replace an input or each other (derived files
+    included) and destinations that cannot be written, naming both parameters
+    (:func:`core.files.check_outputs`). ``outputs``: {parameter: [its file, Output(derived file,
+    label)...]} for outputs whose paths the algorithm resolved itself; every other destination
+    parameter given is checked with the file its value names."""
+    outputs = dict(outputs or {})
+    for definition in alg.destinationParameterDefinitions():
+        name = definition.name()
+        if name in outputs or parameters.get(name) in (None, ""):
+            continue
+        if isinstance(definition, QgsProcessingParameterFolderDestination):
+            continue  # the algorithm knows which files it writes there
+        if isinstance(definition, QgsProcessingParameterFileDestination):
+            outputs[name] = [alg.parameterAsFileOutput(parameters, name, context)]
+        else:
+            outputs[name] = [destination_file(alg.parameterAsOutputLayer(parameters, name, context))]
+    with processing_errors():
+        check_files(input_files(alg, parameters, context), outputs)
+
+
+def geopackage_output(alg, parameters, context, name: str, temporary_name: str, what: str) -> str:
+    """The file of vector output ``name``, a GeoPackage (``what``: what it holds, plural, for
+    the message: 'GCP layers', 'control lines'), checked against the inputs
+    (:func:`check_outputs`) before any work."""
+    dest = alg.output_path(parameters, context, name, temporary_name)
+    if Path(dest).suffix.lower() != ".gpkg":
+        raise QgsProcessingException(f"{name}: {what} are written as GeoPackage; choose a .gpkg file (got {dest})")
+    check_outputs(alg, parameters, context, {name: [dest]})
+    return dest
+
+
+# --- feature sinks: every feature or nothing ---------------------------------------------------
+class CheckedSink:
+    """A feature sink whose failures are errors: a feature the sink does not take (a full disk,
+    a format that cannot hold it) stops the algorithm with a message naming the output."""
+
+    def __init__(self, sink, parameter: str):
+        self.sink, self.parameter, self.count = sink, parameter, 0
+
+    def add(self, feature) -> None:
+        if not self.sink.addFeature(feature, QgsFeatureSink.FastInsert):
+            raise QgsProcessingException(f"{self.parameter}: the output did not take feature {self.count + 1} "
+                                         f"({self.sink.lastError() or 'write error'}); nothing was written")
+        self.count += 1
+
+
+@contextmanager
+def output_sink(alg, parameters, context, name: str, fields, wkb_type, crs):
+    """(CheckedSink, destination) of feature sink parameter ``name``, written completely or not
+    at all: a file destination is written under a temporary name in its folder
+    (:func:`core.files.atomic_output`), checked to hold every feature once closed, and renamed
+    over the destination when the block ends normally; nothing is left when it raises. Memory
+    layers and tables added to a database are written in place."""
+    final = alg.parameterAsOutputLayer(parameters, name, context)  # registers it for loading, if asked
+    path = destination_file(final) if not final.startswith("ogr:") else ""
+    if not path:
+        sink, dest = alg.parameterAsSink(parameters, name, context, fields, wkb_type, crs)
+        if sink is None:
+            raise QgsProcessingException(alg.invalidSinkError(parameters, name))
+        yield CheckedSink(sink, name), dest
+        return
+    with processing_errors(f"{name}: "), atomic_output(path) as tmp:
+        given = parameters.get(name)
+        staged = QgsProcessingOutputLayerDefinition(QgsProperty.fromValue(str(tmp)))  # not loaded: the final is
+        if isinstance(given, QgsProcessingOutputLayerDefinition):
+            staged.createOptions = given.createOptions
+        sink, _ = alg.parameterAsSink({**parameters, name: staged}, name, context, fields, wkb_type, crs)
+        if sink is None:
+            raise QgsProcessingException(alg.invalidSinkError(parameters, name))
+        checked = CheckedSink(sink, name)
+        try:
+            yield checked, final
+        finally:
+            checked.sink = sink = None  # closes the file (before it is renamed, or removed on errors)
+        _check_written(name, tmp, checked.count)
+
+
+def _check_written(name: str, path, expected: int) -> None:
+    """QgsProcessingException unless the closed output file holds ``expected`` features (a full
+    disk can lose them when the file is closed, where the sink reports nothing)."""
+    found = feature_count(path)
+    if found != expected:
+        raise QgsProcessingException(f"{name}: the written file holds {found} of {expected} features (disk full?); "
+                                     "nothing was written")
+
+
+# --- styles on load ----------------------------------------------------------------------------
+class _StyleOnLoad(QgsProcessingLayerPostProcessorInterface):
+    """Applies a QML style to an output layer when Processing loads it into the project."""
+
+    def __init__(self, qml_path: str):
+        super().__init__()
+        self.qml_path = qml_path
+
+    def postProcessLayer(self, layer, context, feedback):  # noqa: N802 (QGIS API name)
+        if layer is not None:
+            layer.loadNamedStyle(self.qml_path)
+            layer.triggerRepaint()
+
+
+# QGIS holds post-processors by C++ pointer only: keep the Python objects alive here.
+_post_processors: dict[str, _StyleOnLoad] = {}
+
+
+def style_output_on_load(context, layer_id: str, qml_path: str | Path) -> None:
+    """Style output ``layer_id`` with ``qml_path`` if Processing will load it on completion."""
+    if not context.willLoadLayerOnCompletion(layer_id):
+        return
+    post = _StyleOnLoad(str(qml_path))
+    _post_processors[layer_id] = post
+    context.layerToLoadOnCompletionDetails(layer_id).setPostProcessor(post)
+
+
+# --- layers two algorithms write ---------------------------------------------------------------
+def write_tie_layer(table: tiepoints.TieTable, name: str, dest: str, context, feedback) -> dict:
+    """Write the checked tie-point table to output ``name`` (file ``dest``), say what it holds,
+    style it on load; the algorithm's results (importtiepoints and matchtiepoints)."""
+    with processing_errors(f"{name}: "):
+        tiepoints.write_gpkg(table, dest)
+    _report_tie_table(table, feedback)
+    style_output_on_load(context, dest, STYLES / "tie_points.qml")
+    feedback.setProgress(100)
+    return {name: dest}
+
+
+def _report_tie_table(table: tiepoints.TieTable, feedback) -> None:
+    """Points and observations per camera, points seen in one camera, a-priori residuals."""
+    s = tiepoints.summary(table)
+    histogram = ", ".join(f"{points} in {rays} camera{'s' if rays != 1 else ''}"
+                          for rays, points in sorted(s["cameras_per_point"].items()))
+    feedback.pushInfo(f"{s['points']} tie points, {s['observations']} observations ("
+                      + ", ".join(f"{k}: {v}" for k, v in s["cameras"].items()) + f"); points seen {histogram}")
+    if s["single"]:
+        feedback.pushWarning(f"{s['single']} point(s) seen in one camera only: kept in the layer (rays = 1, "
+                             "empty geometry) but left out of the adjustment")
+    if s["rms_px"] == s["rms_px"]:  # not NaN: some point was intersected
+        feedback.pushInfo(f"a-priori intersection residuals (onboard model, {s['points'] - s['single']} "
+                          f"intersected points): RMS {s['rms_px']:.2f} px; {s['suspect']} point(s) likely "
+                          "mismatched")
