@@ -1,0 +1,43 @@
+"""A Maxar scene's rigorous model against the RPB that comes with it: image points of a grid put
+on the ground by the RPB at three heights, and the distance of the model's projections from them."""
+import numpy as np
+
+from pushbroom_adjust.core.formats.maxar import read_maxar_rpc
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.geodesy import geodetic_to_ecef
+
+
+def rpb_grid(path, n=15):
+    """(scene, rpc, ground points (3 n n, 3) ECEF, RPB col, RPB row): n x n image points at the
+    lowest, middle and highest height of the RPB, put on the ground by the RPB."""
+    scene, rpc = load_scene(path), read_maxar_rpc(path)
+    cam = scene.cameras[0]
+    c, r = (a.ravel() for a in np.meshgrid(np.linspace(0.5, cam.cols - 0.5, n), np.linspace(0.5, cam.rows - 0.5, n)))
+    lo, hi = scene.info["height_range"]
+    ground, cols, rows = [], [], []
+    for h in (lo, 0.5 * (lo + hi), hi):
+        lon, lat = rpc.image_to_ground(c, r, h)
+        ground.append(geodetic_to_ecef(lon, lat, h))
+        cols.append(c)
+        rows.append(r)
+    return scene, rpc, np.concatenate(ground), np.concatenate(cols), np.concatenate(rows)
+
+
+def projected(scene, ground, aberration=True, refraction=True):
+    """The scene's ground_to_image (col, row) with the corrections switched as given."""
+    scene.aberration, scene.refraction = aberration, refraction
+    scene.clear_guesses()
+    try:
+        c, r = scene.ground_to_image(ground)
+    finally:
+        scene.aberration = scene.refraction = True
+        scene.clear_guesses()
+    assert np.all(np.isfinite(c)) and np.all(np.isfinite(r))
+    return c, r
+
+
+def misfit(scene, ground, col, row, aberration=True, refraction=True):
+    """(max, RMS) px distance between the scene's ground_to_image and the RPB image points."""
+    c, r = projected(scene, ground, aberration, refraction)
+    d = np.hypot(c - col, r - row)
+    return d.max(), np.sqrt(np.mean(d * d))
