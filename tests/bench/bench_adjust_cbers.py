@@ -46,10 +46,12 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, enu_rotations, geodetic_to_ecef  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 
 IMAGE_NOISE, GROUND_XY, GROUND_Z = 0.7, 3.0, 10.0
 SCHEMES = [  # seed 000 Table II: x0, y0, a0 = left chip (HRC-1), x1.. middle (HRC-2), x2.. right (HRC-3)
@@ -78,7 +80,7 @@ def strip(folder: Path, scenes: int, gcps: int, seed: int = 1, **measure) -> tup
 
 def read_table(path) -> G.GcpTable:
     return G.read_csv(path, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                      G.Heights("z", datum="ellipsoid"), sigma_px=IMAGE_NOISE, sigma_xy=GROUND_XY, sigma_z=GROUND_Z)
+                      Heights("z", datum="ellipsoid"), sigma_px=IMAGE_NOISE, sigma_xy=GROUND_XY, sigma_z=GROUND_Z)
 
 
 def truth_of(result) -> dict:

@@ -34,12 +34,13 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
 from pushbroom_adjust.core.adjust.checks import check_inputs  # noqa: E402
 from pushbroom_adjust.core.adjust.determinability import check_determinability  # noqa: E402
 from pushbroom_adjust.core.adjust.problem import Problem  # noqa: E402
 from pushbroom_adjust.core.adjust.solver import solve  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
 from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 
@@ -114,7 +115,7 @@ def main() -> None:
                      gcp_settings=GcpSettings(n_gcps=args.gcps, image_noise=0.7, check_fraction=0.5,
                                               ground_noise_xy=3.0, ground_noise_z=10.0))
         table = G.read_csv(r.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                           G.Heights("z", datum="ellipsoid"), sigma_px=0.7, sigma_xy=3.0, sigma_z=10.0)
+                           Heights("z", datum="ellipsoid"), sigma_px=0.7, sigma_xy=3.0, sigma_z=10.0)
         scene = load_scene(r.onboard_scene)
     t0 = time.perf_counter()
     ours = adjust(scene, table, SETTINGS)

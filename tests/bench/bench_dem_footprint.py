@@ -26,14 +26,16 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
-from pushbroom_adjust.simulation.simulator import PRESETS, simulate, terrain_heights  # noqa: E402
+from pushbroom_adjust.simulation.presets import PRESETS  # noqa: E402
+from pushbroom_adjust.simulation.terrain import terrain_heights  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 
 CHILD = """
 import json, re, sys, time
 sys.path.insert(0, {repo!r})
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.products.footprint import footprints
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 def peak_mib():  # this process's own high-water mark (ru_maxrss would include the parent's before exec)
     return int(re.search(r"VmHWM:\\s+(\\d+) kB", open("/proc/self/status").read()).group(1)) / 1024
 scene = load_scene({scene!r})

@@ -32,10 +32,12 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
 from pushbroom_adjust.core.errors import InputError  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 from pushbroom_adjust.core.observations.tiepoints import TieTable  # noqa: E402
 
 FREE_SET = "*.f, *.dxp, *.dyp, *.k1, *.k2, *.p1, *.p2, *.b1, *.b2, *.b3, FWD.roll, FWD.pitch, FWD.yaw, " \
@@ -59,7 +61,7 @@ def block(preset: str, seed: int, n_control: int, n_ties: int, folder: Path) -> 
         n_gcps=300, check_fraction=(300 - n_control) / 300, image_noise=0.3, n_tie_points=n_ties))
     scene = load_scene(result.onboard_scene)
     table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.1, sigma_z=0.2)
+                       Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.1, sigma_z=0.2)
     ties = _ties(result.tie_points) if n_ties else None
     conv = figures(adjust(scene, table, AdjustmentSettings(), ties=ties).report)
     cells = [f"{preset:8s} seed {seed:2d} {n_control} GCPs {n_ties:3d} ties  conventional {_cell(conv)}"]

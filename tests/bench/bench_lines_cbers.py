@@ -38,12 +38,14 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
 from pushbroom_adjust.core.adjust.linepoints import ControlLines  # noqa: E402
 from pushbroom_adjust.core.observations.lines import ImageLines, read_ground_lines, read_image_lines  # noqa: E402
 from pushbroom_adjust.simulation.roads import RoadSettings  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 
 GSD = 2.36
 DIRECTION_WINDOW = 4.0   # deg
@@ -62,7 +64,7 @@ def dataset(folder: Path, seed: int, wrong: float = 0.0):
     result = simulate("cbers02b_hrc", folder, seed=seed, gcp_settings=GCP_SETTINGS, errors=ERRORS,
                       road_settings=RoadSettings(n_lines=73, wrong_fraction=wrong))
     table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.5, sigma_z=1.0)
+                       Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.5, sigma_z=1.0)
     lines = ControlLines(read_ground_lines(result.lines), read_image_lines(result.lines))
     ds = ogr.Open(str(result.lines))
     kinds = {f.GetField("line_id"): f.GetField("kind") or "correct" for f in ds.GetLayer("ground_lines")}

@@ -37,7 +37,7 @@ from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E40
 from pushbroom_adjust.core.dem import Dem  # noqa: E402
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef  # noqa: E402
 from pushbroom_adjust.core.measure.matching import MatchSettings, match_gcps  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 
 

@@ -41,8 +41,9 @@ import tests.support.plugin_package  # noqa: E402,F401 (registers the package pu
 
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
 from pushbroom_adjust.core.measure.matching import MatchSettings  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
-from pushbroom_adjust.simulation.simulator import GcpSettings, SimulationResult, simulate  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
+from pushbroom_adjust.simulation.simulator import SimulationResult, simulate  # noqa: E402
 from pushbroom_adjust.core.observations.tiepoints import summary  # noqa: E402
 from tests.support.matchscene import compare_ties, th1_cut  # noqa: E402
 

@@ -24,7 +24,7 @@ import tests.support.plugin_package  # noqa: E402,F401 (registers the package pu
 
 from pushbroom_adjust.core.dem import Dem  # noqa: E402
 from pushbroom_adjust.core.products.ortho import default_grid  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from tests.bench.bench_ortho_vs_gdalwarp import main  # noqa: E402
 from tests.conftest import TEST_DATA  # noqa: E402
 from tests.support.rpcdata import padded_dem, pleiades_rpc, scaled, write_image  # noqa: E402

@@ -49,10 +49,14 @@ from osgeo import gdal  # noqa: E402
 from pyproj import CRS  # noqa: E402
 
 from pushbroom_adjust.core.dem import Dem  # noqa: E402
-from pushbroom_adjust.core.products.ortho import OrthoGrid, default_grid, orthorectify, overview_levels  # noqa: E402
-from pushbroom_adjust.simulation.render import render_image, texture_frame  # noqa: E402
-from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc, sidecar_path, write_rpc  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.core.products.mapping import OrthoGrid  # noqa: E402
+from pushbroom_adjust.core.products.ortho import default_grid, orthorectify  # noqa: E402
+from pushbroom_adjust.core.products.resampling import overview_levels  # noqa: E402
+from pushbroom_adjust.simulation.texture import texture_frame  # noqa: E402
+from pushbroom_adjust.simulation.render import render_image  # noqa: E402
+from pushbroom_adjust.core.formats.rpcfiles import sidecar_path, write_rpc  # noqa: E402
+from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 from tests.support.ortho_compare import gdal_rpc_against_rigorous, image_difference  # noqa: E402
 

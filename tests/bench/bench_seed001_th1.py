@@ -41,11 +41,13 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
 from pushbroom_adjust.core.observations import tiepoints as T  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from pushbroom_adjust.core.adjust.parameters import CAMERA_TERMS  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.model.camera import CAMERA_TERMS  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 
 IMAGE_NOISE, GROUND_XY, GROUND_Z = 0.7, 0.1, 0.2  # seed 001: manual measurement 0.5-1 px; GCPs 0.1 m / 0.2 m
 CONTROL, TIES, CHECKS = 9, 25, 80
@@ -131,7 +133,7 @@ def block(seed: int, folder: Path, checks: int = CHECKS, runs=RUNS, control: int
         n_gcps=points, check_fraction=checks / points, image_noise=IMAGE_NOISE, ground_noise_xy=GROUND_XY,
         ground_noise_z=GROUND_Z, n_tie_points=TIES))
     table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=IMAGE_NOISE, sigma_xy=GROUND_XY,
+                       Heights("z", datum="ellipsoid"), sigma_px=IMAGE_NOISE, sigma_xy=GROUND_XY,
                        sigma_z=GROUND_Z)
     ties = T.read_csv(result.tie_points, sigma_px=IMAGE_NOISE)
     onboard, true = load_scene(result.onboard_scene), load_scene(result.true_scene)

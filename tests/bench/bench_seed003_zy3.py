@@ -56,12 +56,16 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
 from pushbroom_adjust.core.adjust.checkpoints import intersection_accuracy  # noqa: E402
-from pushbroom_adjust.core.adjust.parameters import ANGLES, ARCSEC, DEFAULT_INSTALLATION_ARCSEC  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.core.adjust.parameters import ANGLES, DEFAULT_INSTALLATION_ARCSEC  # noqa: E402
+from pushbroom_adjust.core.rotations import ARCSEC  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from pushbroom_adjust.core.model.sensor import SceneModel  # noqa: E402
-from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, PRESETS, GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.simulation.presets import CAMERA_ERRORS, PRESETS  # noqa: E402
+from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 from pushbroom_adjust.core.observations.tiepoints import CsvMapping, TieTable, read_csv  # noqa: E402
 
 NOISE_PX, GROUND_M = 0.3, 0.1
@@ -100,7 +104,7 @@ def simulate_strip(folder: Path, seed: int, scenes: int, gcps: int, ties: int, p
                                                ground_noise_z=GROUND_M, n_tie_points=ties))
     def read(**image) -> G.GcpTable:
         return G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera", **image), "EPSG:4326",
-                          G.Heights("z", datum="ellipsoid"), sigma_px=NOISE_PX, sigma_xy=GROUND_M, sigma_z=GROUND_M)
+                          Heights("z", datum="ellipsoid"), sigma_px=NOISE_PX, sigma_xy=GROUND_M, sigma_z=GROUND_M)
 
     table = read()
     onboard, true = load_scene(result.onboard_scene), load_scene(result.true_scene)

@@ -28,7 +28,7 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.dem import Dem  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 from tests.support.seams import round_trip_errors  # noqa: E402
 

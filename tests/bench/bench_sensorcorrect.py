@@ -30,7 +30,7 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.dem import Dem  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from pushbroom_adjust.core.products.sensorcorrect import sensor_correct  # noqa: E402
 from tests.bench.bench_ortho_vs_gdalwarp import prepare as prepare_ortho_bench  # noqa: E402
 

@@ -27,12 +27,14 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from pushbroom_adjust.core.adjust.parameters import CAMERA_TERMS  # noqa: E402
+from pushbroom_adjust.core.model.camera import CAMERA_TERMS  # noqa: E402
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, enu_rotations, geodetic_to_ecef  # noqa: E402
 from pushbroom_adjust.core.model.intersection import intersect  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 
 IMAGE_NOISE, GROUND_XY, GROUND_Z = 0.7, 0.1, 0.2
 CAMERAS = ("NAD", "FWD", "BWD")
@@ -61,7 +63,7 @@ def block(seed: int, points: int, control: int, folder: Path) -> dict:
         n_gcps=points, check_fraction=(points - control) / points, image_noise=IMAGE_NOISE,
         ground_noise_xy=GROUND_XY, ground_noise_z=GROUND_Z))
     table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=IMAGE_NOISE, sigma_xy=GROUND_XY,
+                       Heights("z", datum="ellipsoid"), sigma_px=IMAGE_NOISE, sigma_xy=GROUND_XY,
                        sigma_z=GROUND_Z)
     raw = np.genfromtxt(result.gcps, delimiter=",", names=True, dtype=None, encoding=None)
     truth = dict(zip(raw["id"], geodetic_to_ecef(raw["lon_true"], raw["lat_true"], raw["h_true"])))

@@ -37,10 +37,13 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
+from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef  # noqa: E402
-from pushbroom_adjust.core.formats.scene_json import load_scene  # noqa: E402
-from pushbroom_adjust.simulation.simulator import ErrorSettings, GcpSettings, simulate  # noqa: E402
+from pushbroom_adjust.core.formats import load_scene  # noqa: E402
+from pushbroom_adjust.simulation.presets import ErrorSettings  # noqa: E402
+from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
+from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
 from pushbroom_adjust.core.observations.tiepoints import TieTable  # noqa: E402
 
 NOISE = 0.5  # px
@@ -94,7 +97,7 @@ def main() -> None:
     t0 = time.perf_counter()
     scene = load_scene(folder / "onboard_scene.json")
     gcps = G.read_csv(folder / "gcps.csv", G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                      G.Heights("z", datum="ellipsoid"), sigma_px=NOISE, sigma_xy=GROUND, sigma_z=GROUND)
+                      Heights("z", datum="ellipsoid"), sigma_px=NOISE, sigma_xy=GROUND, sigma_z=GROUND)
     ties, truth = read_ties(folder / "tie_points.csv")
     setup_time, setup_peak = time.perf_counter() - t0, peak_mb()
     settings = AdjustmentSettings(position_model="lagrange", position_interval=20.0, attitude_model="lagrange",

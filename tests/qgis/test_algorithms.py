@@ -14,7 +14,7 @@ import processing
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from pushbroom_adjust.core.products.footprint import footprints
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.seams import round_trip_errors
 
 RNG = np.random.default_rng(11)

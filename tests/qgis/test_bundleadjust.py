@@ -15,7 +15,7 @@ from qgis.core import (QgsExpression, QgsExpressionContext, QgsExpressionContext
 import processing
 from pushbroom_adjust.core.observations.gcps import read_gpkg
 from pushbroom_adjust.core.geodesy import enu_rotations, geodetic_to_ecef
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 
 from .test_qgis_process import _run_json
 

@@ -176,7 +176,7 @@ def _cli(qgis_process, alg: str, *args) -> dict:
 
 
 def test_the_three_line_chain_from_the_command_line(qgis_process, tmp_path):
-    """The README's worked example: simulate, import GCPs and tie points, adjust with 4 GCPs,
+    """The worked example of docs/three-line-cameras.md: simulate, import GCPs and tie points, adjust with 4 GCPs,
     orthorectify every camera of the adjusted scene."""
     sim = _cli(qgis_process, "pushbroom:simulatescene", *(f"{k}={v}" for k, v in SIMULATION.items()),
                f"OUTPUT_FOLDER={tmp_path / 'sim'}")["results"]

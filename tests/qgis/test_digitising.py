@@ -26,7 +26,7 @@ def blank_raw_image(path, cols: int, rows: int):
 @pytest.fixture(scope="module")
 def roads(plugin, tmp_path_factory):
     """A CBERS-02B HRC scene with 6 roads, its raw image (blank) and its display copy."""
-    from pushbroom_adjust.core.formats.scene_json import load_scene
+    from pushbroom_adjust.core.formats import load_scene
     from pushbroom_adjust.simulation.simulator import simulate
     folder = tmp_path_factory.mktemp("roads")
     result = simulate("cbers02b_hrc", folder / "sim", seed=5, n_gcps=12, n_lines=6)

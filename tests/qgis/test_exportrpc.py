@@ -12,7 +12,7 @@ from qgis.core import QgsProcessingException, QgsProcessingFeedback
 import processing
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 
 from .conftest import PLUGIN
 from .test_qgis_process import _run_json

@@ -46,7 +46,7 @@ def sim_dem(simulated):
 @pytest.fixture(scope="module")
 def raw_image(simulated, tmp_path_factory):
     """A raw image of the scene camera's size (sparse, a few KB): what orthorectify needs as INPUT."""
-    from pushbroom_adjust.core.formats.scene_json import load_scene
+    from pushbroom_adjust.core.formats import load_scene
     cam = load_scene(simulated["TRUE_SCENE"]).cameras[0]
     path = tmp_path_factory.mktemp("raw") / "raw.tif"
     gdal.GetDriverByName("GTiff").Create(str(path), cam.cols, cam.rows, 1, gdal.GDT_Byte, ["SPARSE_OK=TRUE"])

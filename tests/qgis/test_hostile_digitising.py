@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from osgeo import gdal
 
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 
 from tests.support.hostile import assert_refused, assert_refused_cli
 from .test_digitising import blank_raw_image

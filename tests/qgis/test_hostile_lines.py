@@ -16,7 +16,8 @@ from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cl
 @pytest.fixture(scope="module")
 def lines_sim(provider, tmp_path_factory):
     from pushbroom_adjust.simulation.roads import RoadSettings
-    from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
+    from pushbroom_adjust.simulation.measurements import GcpSettings
+    from pushbroom_adjust.simulation.simulator import simulate
     folder = tmp_path_factory.mktemp("hostile_lines")
     result = simulate("cbers02b_hrc", folder / "sim", seed=4, errors=dict(ccd_shift=0.0, ccd_rotation=0.0),
                       gcp_settings=GcpSettings(n_gcps=30, check_fraction=0.3, image_noise=0.5),
@@ -201,7 +202,7 @@ def test_lines_only_parallel_to_each_other_adjust_with_the_free_direction_named(
     direction they leave to the points."""
     import processing
     from pushbroom_adjust.core.observations import lines as core_lines
-    from pushbroom_adjust.core.formats.scene_json import load_scene
+    from pushbroom_adjust.core.formats import load_scene
     from tests.unit.test_adjust_lines import _parallel_lines
     parallel = _parallel_lines(load_scene(lines_sim["result"].true_scene))
     path = tmp_path / "parallel.gpkg"

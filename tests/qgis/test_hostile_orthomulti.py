@@ -14,7 +14,8 @@ from pathlib import Path
 import pytest
 from osgeo import gdal
 
-from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.formats.scene_json import save_scene
 from pushbroom_adjust.simulation.simulator import simulate
 
 from tests.support.hostile import assert_refused, assert_refused_cli, snapshot

@@ -11,7 +11,8 @@ from osgeo import gdal
 
 import processing
 from pushbroom_adjust.core.model.rpcscene import RpcScene
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.formats.scene_json import rpc_scene_to_dict
 from tests.support.hostile import assert_refused, assert_refused_cli
 from tests.support.rpcdata import padded_dem, pleiades_rpc, rpc_files, scaled, write_image
 
@@ -62,7 +63,7 @@ def test_broken_rpc_text_is_refused_naming_file_and_key(good, tmp_path, edit, ex
 
 
 def test_rpc_scene_json_with_a_zero_scale(good, tmp_path):
-    d = RpcScene(good["rpc"], load_scene(good["txt"]).camera).to_dict()
+    d = rpc_scene_to_dict(RpcScene(good["rpc"], load_scene(good["txt"]).camera))
     d["rpc"]["LINE_SCALE"] = 0
     scene = tmp_path / "s.json"
     scene.write_text(json.dumps(d))

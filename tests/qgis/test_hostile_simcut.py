@@ -29,7 +29,7 @@ def test_a_cut_block_has_the_cut_cameras(provider, tmp_path):
     in simulation.json."""
     import json
 
-    from pushbroom_adjust.core.formats.scene_json import load_scene
+    from pushbroom_adjust.core.formats import load_scene
     out = processing.run("pushbroom:simulatescene", {"PRESET": "th1_tlc", "N_GCPS": 5, "IMAGE_SIZE": 600,
                                                      "OUTPUT_FOLDER": str(tmp_path / "sim")})
     scene = load_scene(out["ONBOARD_SCENE"])

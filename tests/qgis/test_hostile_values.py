@@ -15,8 +15,8 @@ from qgis.core import (QgsCoordinateTransformContext, QgsFeature, QgsGeometry, Q
 
 import processing
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
-from pushbroom_adjust.core.products.ortho import utm_crs
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.products.mapping import utm_crs
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.hostile import assert_refused, assert_refused_cli
 from tests.qgis.test_algorithms import RecordingFeedback
 

@@ -11,7 +11,7 @@ from qgis.core import (QgsFeature, QgsGeometry, QgsPoint, QgsProcessingException
 import processing
 from pushbroom_adjust.core.dem import to_ellipsoidal
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 
 from tests.support.hostile import assert_refused, assert_refused_cli
 

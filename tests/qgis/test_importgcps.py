@@ -20,7 +20,9 @@ FIELDS = ["id", "role", "camera", "col", "row", "h", "sigma_px", "sigma_xy", "si
 @pytest.fixture(scope="module")
 def core(plugin):
     """The plugin's core modules, imported the way QGIS imports the plugin."""
-    return {name: importlib.import_module(f"{PLUGIN}.core.{name}") for name in ("gcps", "scene_io", "geodesy")}
+    return {name: importlib.import_module(f"{PLUGIN}.core.{path}") for name, path in
+            (("gcps", "observations.gcps"), ("formats", "formats"), ("scene_json", "formats.scene_json"),
+             ("geodesy", "geodesy"))}
 
 
 class _Log(QgsProcessingFeedback):
@@ -58,7 +60,7 @@ def test_import_simulated_gcps_csv(simulated, core, tmp_path):
     assert np.allclose(table.h, [float(by_id[i]["h"]) for i in table.id], atol=1e-6)
     assert (table.sigma_px == 0.3).all() and table.scene == simulated["ONBOARD_SCENE"]
     # a-priori residuals: the onboard model's projection minus the measured position
-    scene = core["scene_io"].load_scene(simulated["ONBOARD_SCENE"])
+    scene = core["formats"].load_scene(simulated["ONBOARD_SCENE"])
     for cam in np.unique(table.camera):
         sel = table.camera == cam
         col, row = scene.ground_to_image(core["geodesy"].geodetic_to_ecef(
@@ -71,9 +73,9 @@ def test_import_simulated_gcps_csv(simulated, core, tmp_path):
 def _tiny_scene_json(core, path):
     """A one-camera scene: 1000 x 2000 px, ~12 m pixels, over (0 E, 0 N), flying north."""
     from importlib import import_module
-    cam_mod = import_module(f"{PLUGIN}.core.camera")
-    traj = import_module(f"{PLUGIN}.core.trajectory")
-    sensor = import_module(f"{PLUGIN}.core.sensor")
+    cam_mod = import_module(f"{PLUGIN}.core.model.camera")
+    traj = import_module(f"{PLUGIN}.core.model.trajectory")
+    sensor = import_module(f"{PLUGIN}.core.model.sensor")
     t = np.arange(-20.0, 21.0, 5.0)
     pos = np.stack([7.0e6 + 0 * t, 1000.0 + 0 * t, 7000.0 * t], 1)
     att = traj.QuaternionPolynomial(0.0, 1.0, np.array([[0.5 ** 0.5, 0], [0, 0], [-(0.5 ** 0.5), 0], [0, 0]]))
@@ -81,7 +83,7 @@ def _tiny_scene_json(core, path):
     cam = cam_mod.Camera("PAN", 1000, 2000, cam_mod.LineTiming(-1.0, 1e-3), [chip])
     scene = sensor.SceneModel("2020-01-01T00:00:00Z", traj.Platform(traj.Ephemeris(t, pos), att), [cam],
                               info={"height_range": [0.0, 100.0]})
-    core["scene_io"].save_scene(scene, path)
+    core["scene_json"].save_scene(scene, path)
     return scene
 
 
@@ -111,7 +113,7 @@ def test_points_file_with_disabled_and_outside_points(core, provider, tmp_path):
     assert table.residuals.m[1] == pytest.approx(20 * 12.4, rel=0.01)
 
     layer = QgsVectorLayer(out, "gcps", "ogr")
-    styles = importlib.import_module(f"{PLUGIN}.ui.common").STYLES
+    styles = importlib.import_module(f"{PLUGIN}.ui.outputs").STYLES
     _, ok = layer.loadNamedStyle(str(styles / "gcps.qml"))
     assert ok
     ctx = QgsRenderContext()

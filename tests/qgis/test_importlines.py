@@ -6,7 +6,8 @@ import pytest
 from osgeo import ogr
 
 from pushbroom_adjust.simulation.roads import RoadSettings
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 
 
 @pytest.fixture(scope="module")

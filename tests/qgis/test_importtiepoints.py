@@ -16,7 +16,7 @@ FIELDS = ["id", "camera", "col", "row", "sigma_px", "scene", "rays", "res_col", 
 
 @pytest.fixture(scope="module")
 def tiepoints(plugin):
-    return importlib.import_module(f"{PLUGIN}.core.tiepoints")
+    return importlib.import_module(f"{PLUGIN}.core.observations.tiepoints")
 
 
 def _run(params, feedback=None):

@@ -8,7 +8,7 @@ import pytest
 import processing
 from pushbroom_adjust.core.observations import gcps
 from pushbroom_adjust.core.dem import Dem
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.matchscene import SEARCH, mini_scene, true_errors
 
 

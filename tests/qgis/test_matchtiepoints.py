@@ -7,7 +7,7 @@ import pytest
 import processing
 from pushbroom_adjust.core.observations import tiepoints
 from pushbroom_adjust.core.dem import Dem
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.matchscene import mini_tlc_scene
 from tests.support.hostile import LogFeedback
 

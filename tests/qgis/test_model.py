@@ -14,7 +14,7 @@ from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 import processing
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
 from pushbroom_adjust.core.products.rpcfit import fit_rpc
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.ortho_compare import shift_against_texture
 
 

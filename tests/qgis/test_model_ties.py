@@ -11,8 +11,9 @@ from osgeo import ogr
 
 import processing
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust.checkpoints import intersection_accuracy
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 
 from tests.support.modelcheck import assert_shipped_model
 
@@ -34,7 +35,7 @@ def test_the_three_line_model_adjusts_the_block_to_matched_tie_points(provider, 
     rep = json.loads((tmp_path / "r.json").read_text())
     sim = tmp_path / "sim"
     table = G.read_csv(sim / "gcps.csv", G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"))
+                       Heights("z", datum="ellipsoid"))
     checks = np.nonzero(table.role == "check")[0]
     n_checks = np.unique(table.id[checks]).size
     # the floor: the same check observations intersected with the true model (their 0.3 px noise only)

@@ -11,7 +11,7 @@ from osgeo import ogr, osr
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
 from pushbroom_adjust.core.products.footprint import footprints
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 
 from .test_provider import ALGORITHMS
 

@@ -13,9 +13,9 @@ from qgis.core import QgsProcessingException
 import processing
 from pushbroom_adjust.core.observations.gcps import write_gpkg
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
-from pushbroom_adjust.core.products.rpcfit import rpc_metadata, write_rpc
+from pushbroom_adjust.core.formats.rpcfiles import rpc_metadata, write_rpc
 from pushbroom_adjust.core.model.rpcscene import RpcScene
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.rpcdata import worldview2_rpc
 from tests.unit.test_rpc_adjust import BIAS, NOISE, _table
 

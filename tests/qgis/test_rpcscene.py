@@ -15,7 +15,7 @@ from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from pushbroom_adjust.core.products.ortho import default_grid
 from pushbroom_adjust.core.products.footprint import footprints
 from pushbroom_adjust.core.model.rpcscene import RpcScene
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.ortho_compare import gdal_rpc_against_rigorous, gdalwarp_rpc, image_difference
 from tests.support.rpcdata import PLEIADES, padded_dem, pleiades_rpc, rpc_files, scaled
 

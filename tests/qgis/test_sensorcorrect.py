@@ -9,7 +9,7 @@ import pytest
 from osgeo import gdal
 
 import processing
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 
 from tests.support.ortho_compare import saved_cut
 

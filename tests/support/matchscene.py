@@ -11,12 +11,14 @@ from pathlib import Path
 import numpy as np
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef
 from pushbroom_adjust.core.measure.matching import MatchSettings, match_tiepoints
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import PRESETS, CameraSpec, ErrorSettings, Preset, SimulationResult, cut_preset, simulate
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.presets import PRESETS, CameraSpec, ErrorSettings, Preset, cut_preset
+from pushbroom_adjust.simulation.simulator import SimulationResult, simulate
 from pushbroom_adjust.core.observations.tiepoints import TieTable
 
 MINI = Preset("mini_hrc", "CBERS-02B HRC geometry, 2 CCDs of 1024 px, 1200 rows", 778e3,
@@ -57,7 +59,7 @@ def mini_tlc_scene(folder: Path, seed: int = 7) -> SimulationResult:
 def th1_cut(cols: int, rows: int) -> Preset:
     """The TH-1 preset (its trajectory, installation and interior errors; seed 001) with its three
     cameras cut down to ``cols`` detectors and ``rows`` lines, so it renders in seconds
-    (:func:`simulation.simulator.cut_preset`: the interior errors scaled by cols / 12000)."""
+    (:func:`simulation.presets.cut_preset`: the interior errors scaled by cols / 12000)."""
     return cut_preset(PRESETS["th1_tlc"], cols, rows)
 
 
@@ -111,7 +113,7 @@ def compare_ties(sim: SimulationResult, n_control: int, settings: MatchSettings,
     e = tie_errors(exact, matched)
     errors = {c.name: e[matched.camera == c.name] for c in onboard.cameras[1:]}
     table = few_control(G.read_csv(sim.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                                   G.Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.01, sigma_z=0.01),
+                                   Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.01, sigma_z=0.01),
                         onboard.cameras[0], n_control)
     runs = {name: adjust(onboard, table, adjustment, ties=ties).report
             for name, ties in (("matched", matched), ("exact", exact))}

@@ -10,9 +10,11 @@ from pyproj import CRS, Transformer
 from dataclasses import replace
 
 from pushbroom_adjust.core.dem import Dem
-from pushbroom_adjust.core.products.ortho import OrthoGrid, _Mapper
-from pushbroom_adjust.simulation.render import render_image, texture_at, texture_frame
-from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
+from pushbroom_adjust.core.products.mapping import Mapper, OrthoGrid
+from pushbroom_adjust.simulation.texture import texture_at, texture_frame
+from pushbroom_adjust.simulation.render import render_image
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.formats.scene_json import save_scene
 from pushbroom_adjust.simulation.simulator import simulate
 
 gdal.UseExceptions()
@@ -133,7 +135,7 @@ def gdal_rpc_against_rigorous(scene, dem_path, raw_path, grid: OrthoGrid, n: int
     """|image position by our rigorous model - by GDAL's RPC transformer| (px of the raw image)
     at n random output positions of ``grid`` that fall inside the image, both on the DEM at
     ``dem_path`` (ellipsoidal heights; GDAL reads the RPC beside ``raw_path``)."""
-    mapper = _Mapper(scene, 0, Dem(dem_path, datum="ellipsoid"), grid)
+    mapper = Mapper(scene, 0, Dem(dem_path, datum="ellipsoid"), grid)
     rng = np.random.default_rng(seed)
     i, j = rng.uniform(0, grid.rows, n), rng.uniform(0, grid.cols, n)
     col, row = mapper.exact(i - 0.5, j - 0.5)  # exact() takes pixel-centre units

@@ -12,7 +12,7 @@ from osgeo import gdal
 from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
 from pushbroom_adjust.core.formats.maxar import read_maxar_rpc
 from pushbroom_adjust.core.model.rpc import RpcModel
-from pushbroom_adjust.core.products.rpcfit import set_geotiff_rpc, write_rpc
+from pushbroom_adjust.core.formats.rpcfiles import set_geotiff_rpc, write_rpc
 from pushbroom_adjust.core.model.rpcscene import size_from_rpc
 
 PLEIADES = "pleiades/PHRDIMAP_P1BP--2018122638935449CP.XML"

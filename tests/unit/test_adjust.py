@@ -7,12 +7,14 @@ import numpy as np
 import pytest
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.checks import check_inputs
 from pushbroom_adjust.core.adjust.problem import Problem
 from pushbroom_adjust.core.adjust.model import Model
 from pushbroom_adjust.core.errors import ConvergenceError, InputError
-from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.formats.scene_json import save_scene
 from pushbroom_adjust.simulation.presets import CAMERA_ERRORS
 from pushbroom_adjust.simulation.measurements import GcpSettings
 from pushbroom_adjust.simulation.simulator import simulate
@@ -22,7 +24,7 @@ CBERS_CHIPS = "HRC-1.*, HRC-3.*"
 
 def _table(result, sigma_px=0.5, sigma_xy=0.01, sigma_z=0.01) -> G.GcpTable:
     return G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                      G.Heights("z", datum="ellipsoid"), sigma_px=sigma_px, sigma_xy=sigma_xy, sigma_z=sigma_z)
+                      Heights("z", datum="ellipsoid"), sigma_px=sigma_px, sigma_xy=sigma_xy, sigma_z=sigma_z)
 
 
 @pytest.fixture(scope="module")

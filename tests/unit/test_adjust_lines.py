@@ -11,14 +11,16 @@ import pytest
 from osgeo import ogr
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.linepoints import ControlLines
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
 from pushbroom_adjust.core.observations.lines import GroundLines, ImageLines, read_ground_lines, read_image_lines
 from pushbroom_adjust.simulation.roads import RoadSettings
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 
 # seed 002's setting: a polynomial trajectory estimated from ground control alone
 SETTINGS = dict(position_model="polynomial", position_order=1, attitude_model="polynomial", attitude_order=2,
@@ -31,7 +33,7 @@ def _data(folder, wrong=0.0, n_lines=30):
                                                ground_noise_z=1.0),
                       road_settings=RoadSettings(n_lines=n_lines, wrong_fraction=wrong))
     table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.5, sigma_z=1.0)
+                       Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.5, sigma_z=1.0)
     lines = ControlLines(read_ground_lines(result.lines), read_image_lines(result.lines))
     ds = ogr.Open(str(result.lines))
     kinds = {f.GetField("line_id"): f.GetField("kind") or "correct" for f in ds.GetLayer("ground_lines")}
@@ -187,7 +189,7 @@ def test_group_median_matches_numpy():
 
 
 def test_html_report_lists_the_control_lines(runs, tmp_path):
-    from pushbroom_adjust.core.adjust.report import write_report_html
+    from pushbroom_adjust.core.adjust.report_html import write_report_html
     out = runs["lines"]
     rep = out.report["lines"]
     write_report_html(out.report, out.points, tmp_path / "r.html")
@@ -204,7 +206,7 @@ def test_html_report_lists_the_control_lines(runs, tmp_path):
 
 
 def test_html_report_names_wrong_lines_and_a_free_direction(runs, tmp_path):
-    from pushbroom_adjust.core.adjust.report import _lines_section
+    from pushbroom_adjust.core.adjust.report_html import _lines_section
     rep = dict(runs["lines"].report["lines"])
     per = {k: list(v) for k, v in rep["per_line"].items()}
     per["flagged"][1] = True

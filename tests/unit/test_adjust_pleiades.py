@@ -22,7 +22,7 @@ from pushbroom_adjust.core.observations.gcps import GcpTable
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef
 from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
 from pushbroom_adjust.core.rotations import matrix_to_quat, rotation_from_angles
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.model.sensor import SceneModel
 from pushbroom_adjust.core.model.timebasis import TimeBasis
 from pushbroom_adjust.core.model.trajectory import Platform, QuaternionSamples, TrajectoryCorrection

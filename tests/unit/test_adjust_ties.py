@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.linepoints import ControlLines
 from pushbroom_adjust.core.adjust.ties import datum
@@ -17,8 +18,10 @@ from pushbroom_adjust.core.geodesy import geodetic_to_ecef
 from pushbroom_adjust.core.model.intersection import intersect
 from pushbroom_adjust.core.observations.lines import read_ground_lines, read_image_lines
 from pushbroom_adjust.simulation.roads import RoadSettings
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import ErrorSettings, GcpSettings, simulate
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.presets import ErrorSettings
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 from pushbroom_adjust.core.observations.tiepoints import TieTable
 
 ARCSEC = np.pi / 648000.0
@@ -40,7 +43,7 @@ def _ties(path, sigma=NOISE) -> tuple[TieTable, np.ndarray]:
 
 def _gcps(result) -> G.GcpTable:
     return G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                      G.Heights("z", datum="ellipsoid"), sigma_px=NOISE, sigma_xy=0.01, sigma_z=0.01)
+                      Heights("z", datum="ellipsoid"), sigma_px=NOISE, sigma_xy=0.01, sigma_z=0.01)
 
 
 @pytest.fixture(scope="module")
@@ -302,7 +305,7 @@ def test_redundancy_numbers_of_multi_ray_points_sum_to_the_degrees_of_freedom(th
 
 
 def test_html_report_tells_the_datum_and_tie_points(th1, tmp_path):
-    from pushbroom_adjust.core.adjust.report import write_report_html
+    from pushbroom_adjust.core.adjust.report_html import write_report_html
     scene, table, ties, _ = th1
     lonely = ties.select(~np.isin(np.arange(len(ties)), np.nonzero(ties.id == ties.id[0])[0][1:]))
     out = adjust(scene, table.select(table.role == "check"),
@@ -354,7 +357,7 @@ def test_exact_tie_points_hold_their_variance_components_at_the_floor(tmp_path, 
         rows = list(csv.DictReader(f))
     col = {k: np.array([r[k] for r in rows]) for k in rows[0]}
     exact = TieTable(col["id"], col["camera"], col["col_true"].astype(float), col["row_true"].astype(float), NOISE, "")
-    with caplog.at_level(logging.WARNING, logger="core.adjust.robust"):
+    with caplog.at_level(logging.WARNING, logger="pushbroom_adjust.core.adjust.robust"):
         rep = adjust(load_scene(result.onboard_scene), _corner_control(_gcps(result), 4),
                      AdjustmentSettings(position_sigma=100.0, interior="default", interior_selection="keep"),
                      ties=exact).report

@@ -8,13 +8,16 @@ import pytest
 from scipy.optimize import least_squares
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.checkpoints import (MODEL_ERROR_SHARE, blunder_test, intersection_accuracy, summary_lines,
                                      without_label)
-from pushbroom_adjust.core.adjust.report import write_report_html
+from pushbroom_adjust.core.adjust.report_html import write_report_html
 from pushbroom_adjust.core.geodesy import enu_rotations, geodetic_to_ecef
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.presets import CAMERA_ERRORS
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 
 # The preset's camera (interior) errors switched off: these tests are about the check figures,
 # not self-calibration; what the default adjustment leaves of the TH-1 interior errors (20 m
@@ -26,7 +29,7 @@ KEYS = ("rmse_east", "rmse_north", "rmse_plan", "rmse_height", "max_plan", "max_
 
 def _table(path) -> G.GcpTable:
     return G.read_csv(path, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                      G.Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.01, sigma_z=0.01)
+                      Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.01, sigma_z=0.01)
 
 
 @pytest.fixture(scope="module")

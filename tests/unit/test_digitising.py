@@ -10,9 +10,9 @@ from pushbroom_adjust.core.measure.digitising import LineEditor, PredictedLine, 
 from pushbroom_adjust.core.measure.display import (PIXEL_GEOTRANSFORM, check_image_size, read_display_source, write_display_vrt,
                           write_empty_lines)
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.observations.gcps import Heights
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.observations.lines import read_image_lines
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.simulation.simulator import simulate
 
 

@@ -6,6 +6,7 @@ from osgeo import ogr
 from pyproj import CRS
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights, resolve_cameras
 from pushbroom_adjust.core.model.camera import Camera, Chip, LineTiming
 from pushbroom_adjust.core.dem import geoid_undulation
 from pushbroom_adjust.core.errors import InputError
@@ -37,7 +38,7 @@ def _ground_truth(col, row, h):
 
 
 def _ellipsoid(value=0.0):
-    return G.Heights("constant", "ellipsoid", value=value)
+    return Heights("constant", "ellipsoid", value=value)
 
 
 # --- CSV ------------------------------------------------------------------------------------
@@ -48,7 +49,7 @@ def test_csv_mapping_semicolons_decimal_commas_roles_and_z(tmp_path):
                     "B2; 500.5 ;1000.5;2.6;45.2;200;Check;PAN\n"
                     "C3;800;1500;2.7;45.3;300;;PAN\n")
     mapping = G.CsvMapping(id="Name", col="Pixel", row="Line", x="E", y="N", z="Alt", role="Kind", camera="Cam")
-    t = G.read_csv(path, mapping, "EPSG:4326", G.Heights("z", "ellipsoid"), sigma_px=0.3)
+    t = G.read_csv(path, mapping, "EPSG:4326", Heights("z", "ellipsoid"), sigma_px=0.3)
     assert t.id.tolist() == ["A1", "B2", "C3"]
     assert t.col.tolist() == [10.5, 500.5, 800.0] and t.row.tolist() == [20.25, 1000.5, 1500.0]
     assert t.lon.tolist() == pytest.approx([2.5, 2.6, 2.7], abs=1e-12)
@@ -75,9 +76,9 @@ def test_csv_errors_name_columns_rows_and_crs(tmp_path):
     with pytest.raises(InputError, match="unknown ground CRS '\\+proj=nonsense'"):
         G.read_csv(path, G.CsvMapping(), "+proj=nonsense", _ellipsoid())
     with pytest.raises(InputError, match="no column 'height' \\(columns: id, col, row, lon, lat\\)"):
-        G.read_csv(path, G.CsvMapping(z="height"), "EPSG:4326", G.Heights("z"))
+        G.read_csv(path, G.CsvMapping(z="height"), "EPSG:4326", Heights("z"))
     with pytest.raises(InputError, match="no Z values"):
-        G.read_csv(path, G.CsvMapping(), "EPSG:4326", G.Heights("z"))
+        G.read_csv(path, G.CsvMapping(), "EPSG:4326", Heights("z"))
     path.write_text("id,col,row,lon,lat,kind\np1,1,2,3,4,tie\n")
     with pytest.raises(InputError, match=r"unknown role\(s\) \['tie'\] for point\(s\) p1"):
         G.read_csv(path, G.CsvMapping(role="kind"), "EPSG:4326", _ellipsoid())
@@ -94,24 +95,24 @@ def test_utm_csv_is_converted_to_wgs84(tmp_path):
     # 45 deg N is 4 984 944.378 m, times the scale factor 0.9996 -> northing 4 982 950.400 m.
     path = tmp_path / "utm.csv"
     path.write_text("id,col,row,x,y,z\nm,1,1,500000,4982950.400,0\ne,2,2,500000,0,0\n")
-    t = G.read_csv(path, G.CsvMapping(x="x", y="y", z="z"), "EPSG:32631", G.Heights("z"))
+    t = G.read_csv(path, G.CsvMapping(x="x", y="y", z="z"), "EPSG:32631", Heights("z"))
     assert t.lon == pytest.approx([3.0, 3.0], abs=1e-9)
     assert t.lat == pytest.approx([45.0, 0.0], abs=1e-8)  # 1e-8 deg ~ 1 mm
     wkt = CRS.from_epsg(32631).to_wkt()
-    assert G.read_csv(path, G.CsvMapping(x="x", y="y", z="z"), wkt, G.Heights("z")).lat[0] == pytest.approx(45.0)
+    assert G.read_csv(path, G.CsvMapping(x="x", y="y", z="z"), wkt, Heights("z")).lat[0] == pytest.approx(45.0)
 
 
 def test_geoid_heights_differ_from_ellipsoidal_by_egm96_undulation(tmp_path):
     path = tmp_path / "h.csv"
     path.write_text("id,col,row,lon,lat,h\na,1,1,0,0,100\nb,2,2,80,27,250\n")
     mapping = G.CsvMapping(z="h")
-    geo = G.read_csv(path, mapping, "EPSG:4326", G.Heights("z", "geoid"))
-    ell = G.read_csv(path, mapping, "EPSG:4326", G.Heights("z", "ellipsoid"))
+    geo = G.read_csv(path, mapping, "EPSG:4326", Heights("z", "geoid"))
+    ell = G.read_csv(path, mapping, "EPSG:4326", Heights("z", "ellipsoid"))
     diff = geo.h - ell.h
     assert diff == pytest.approx(geoid_undulation(geo.lon, geo.lat), abs=1e-9)
     # EGM96: +17.16 m at (0, 0); the Indian geoid low at (80 E, 27 N)
     assert abs(diff[0] - 17.16) < 0.05 and -70 < diff[1] < -50
-    const = G.read_csv(path, mapping, "EPSG:4326", G.Heights("constant", "geoid", value=10.0))
+    const = G.read_csv(path, mapping, "EPSG:4326", Heights("constant", "geoid", value=10.0))
     assert const.h - 10.0 == pytest.approx(diff, abs=1e-9)
 
 
@@ -126,9 +127,9 @@ def test_heights_from_a_dem_and_uncovered_points(tmp_path):
     path = tmp_path / "p.csv"
     path.write_text("id,col,row,lon,lat\na,1,1,0,0\nb,2,2,0.5,0\n")
     with pytest.raises(InputError, match=r"dem.tif does not cover point\(s\) b"):
-        G.read_csv(path, G.CsvMapping(), "EPSG:4326", G.Heights("dem", "ellipsoid", dem=dem_path))
+        G.read_csv(path, G.CsvMapping(), "EPSG:4326", Heights("dem", "ellipsoid", dem=dem_path))
     path.write_text("id,col,row,lon,lat\na,1,1,0,0\n")
-    t = G.read_csv(path, G.CsvMapping(), "EPSG:4326", G.Heights("dem", "geoid", dem=dem_path))
+    t = G.read_csv(path, G.CsvMapping(), "EPSG:4326", Heights("dem", "geoid", dem=dem_path))
     assert t.h[0] == pytest.approx(123.0 + 17.16, abs=0.05)
 
 
@@ -164,7 +165,7 @@ def test_points_file_pixel_header_without_crs_and_line_numbers(tmp_path):
     tabbed.write_text("2.5\t45.5\t100\t-200\n")
     assert G.read_points_file(tabbed, _ellipsoid(), crs="EPSG:4326").row.tolist() == [200.0]
     with pytest.raises(InputError, match="carry no heights"):
-        G.read_points_file(path, G.Heights("z"), crs="EPSG:4326")
+        G.read_points_file(path, Heights("z"), crs="EPSG:4326")
     path.write_text("#CRS: LOCAL_CS[\"nowhere\"]\nmapX,mapY,sourceX,sourceY\n1,2,3,-4\n")
     with pytest.raises(InputError, match="ground CRS 'nowhere' is not a horizontal"):
         G.read_points_file(path, _ellipsoid())
@@ -192,11 +193,11 @@ def test_check_fraction_is_deterministic_and_spread_along_track():
 def test_cameras_are_resolved_by_name_index_or_single_camera():
     scene = _scene()
     table = G.GcpTable(np.array(["a", "b"]), "control", np.array(["", "0"]), 1.0, 1.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.0)
-    assert G.resolve_cameras(table, scene).camera.tolist() == ["PAN", "PAN"]
-    assert G.resolve_cameras(table, scene, "0").camera.tolist() == ["PAN", "PAN"]
+    assert resolve_cameras(table, scene).camera.tolist() == ["PAN", "PAN"]
+    assert resolve_cameras(table, scene, "0").camera.tolist() == ["PAN", "PAN"]
     bad = G.GcpTable(np.array(["a"]), "control", np.array(["NAD"]), 1.0, 1.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.0)
     with pytest.raises(InputError, match=r"camera 'NAD' of point\(s\) a is not in the scene \(cameras: PAN\)"):
-        G.resolve_cameras(bad, scene)
+        resolve_cameras(bad, scene)
 
 
 # --- a-priori residuals ---------------------------------------------------------------------
@@ -210,7 +211,7 @@ def test_apriori_residuals_equal_the_known_roll_offset_and_outside_points_are_ma
     h = np.array([0.0, 100.0, 200.0, 50.0, 300.0, 10.0, 0.0, 0.0])
     lon, lat = _ground_truth(col, row, h)
     ids = np.array([f"g{i}" for i in range(col.size)])
-    table = G.build_table(ids, col, row, lon, lat, crs="EPSG:4326", heights=G.Heights("z"), z=h)
+    table = G.build_table(ids, col, row, lon, lat, crs="EPSG:4326", heights=Heights("z"), z=h)
     out = G.check_against_scene(table, _scene(ROLL), "onboard.json", check_fraction=0.25)
     uy = -0.01 + IFOV * (col - 0.5)
     expected = (np.tan(np.arctan(uy) + ROLL) - uy) / IFOV  # ~5 px

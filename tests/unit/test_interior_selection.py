@@ -7,12 +7,16 @@ import numpy as np
 import pytest
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
-from pushbroom_adjust.core.adjust.parameters import ARCSEC, ParameterSet, parse_interior, sigma_in_si
+from pushbroom_adjust.core.adjust.parameters import ParameterSet, parse_interior, sigma_in_si
+from pushbroom_adjust.core.rotations import ARCSEC
 from pushbroom_adjust.core.adjust.selection import _batch, information_shares
 from pushbroom_adjust.core.errors import ConvergenceError, InputError
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.presets import CAMERA_ERRORS
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 from pushbroom_adjust.core.model.timebasis import TimeBasis
 
 FREE_SET = "*.f, *.dxp, *.dyp, *.k1, *.k2, *.p1, *.p2, *.b1, *.b2, *.b3, FWD.roll, FWD.pitch, FWD.yaw, " \
@@ -21,7 +25,7 @@ FREE_SET = "*.f, *.dxp, *.dyp, *.k1, *.k2, *.p1, *.p2, *.b1, *.b2, *.b3, FWD.rol
 
 def _table(result) -> G.GcpTable:
     return G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                      G.Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.1, sigma_z=0.2)
+                      Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.1, sigma_z=0.2)
 
 
 def _params(scene, interior=None) -> ParameterSet:

@@ -6,8 +6,9 @@ import pytest
 
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef
 from pushbroom_adjust.core.model.intersection import intersect
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 
 
 @pytest.fixture(scope="module")

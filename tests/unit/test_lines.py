@@ -1,4 +1,4 @@
-"""Control lines (core.observations.lines): the rank-2 line constraint, nearest-segment association, its
+"""Control lines (core.observations.lines, linemodel): the rank-2 line constraint, nearest-segment association, its
 first-order equivalence with the coplanarity condition of Tommaselli & Marcato Junior 2012
 (eq. 4), geometry checks, direction checks and the GeoPackage layers."""
 from __future__ import annotations
@@ -10,13 +10,14 @@ import pytest
 
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.observations.gcps import Heights
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, enu_rotation, geodetic_to_ecef, up_vector
-from pushbroom_adjust.core.observations.lines import (GroundLines, ImageLines, LineSegments, build_ground_lines, build_image_lines,
-                        check_image_lines, check_in_scene, coplanarity_residual, direction_check, line_constraints,
-                        nearest_segments, pair, read_ground_lines, read_image_lines, segment_directions, start_points,
-                        write_gpkg)
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.observations.linemodel import (LineSegments, check_image_lines, check_in_scene,
+                                                          coplanarity_residual, direction_check, line_constraints,
+                                                          nearest_segments, pair, segment_directions, start_points)
+from pushbroom_adjust.core.observations.lines import (GroundLines, ImageLines, build_ground_lines, build_image_lines,
+                                                      read_ground_lines, read_image_lines, write_gpkg)
+from pushbroom_adjust.core.observations.tables import Heights
+from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.simulation.simulator import simulate
 
 FLAT = Heights("constant", "ellipsoid", value=300.0)

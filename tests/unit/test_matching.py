@@ -6,9 +6,10 @@ from pyproj import CRS, Transformer
 
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.measure.matching import REASONS, MatchSettings, find_peaks, match_gcps, ncc
-from pushbroom_adjust.simulation.render import texture_at
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.measure.correlation import find_peaks, ncc
+from pushbroom_adjust.core.measure.matching import REASONS, MatchSettings, match_gcps
+from pushbroom_adjust.simulation.texture import texture_at
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.matchscene import SEARCH, manifest, mini_scene, true_errors
 
 

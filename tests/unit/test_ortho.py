@@ -111,15 +111,15 @@ def test_cancel_or_a_failure_midway_leaves_no_file(rendered, tmp_path, monkeypat
     with pytest.raises(Cancelled):
         orthorectify(scene, folder / "raw.tif", dem, tmp_path / "o.tif", is_cancelled=cancel_after_three)
     assert list(tmp_path.iterdir()) == []
-    from pushbroom_adjust.core.products import ortho
-    real = ortho._overview_blocks
+    from pushbroom_adjust.core.products import resampling
+    real = resampling._overview_blocks
 
     def fail_at_tile_five(*args, _n=[0]):
         _n[0] += 1
         if _n[0] == 5:
             raise RuntimeError("No space left on device")
         return real(*args)
-    monkeypatch.setattr(ortho, "_overview_blocks", fail_at_tile_five)
+    monkeypatch.setattr(resampling, "_overview_blocks", fail_at_tile_five)
     with pytest.raises(InputError, match=r"cannot write .*o.tif: No space left on device"):
         orthorectify(scene, folder / "raw.tif", dem, tmp_path / "o.tif")
     assert list(tmp_path.iterdir()) == []

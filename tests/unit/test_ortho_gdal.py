@@ -7,7 +7,8 @@ from osgeo import gdal
 
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.products.ortho import default_grid, orthorectify
-from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc, sidecar_path, write_rpc
+from pushbroom_adjust.core.formats.rpcfiles import sidecar_path, write_rpc
+from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc
 from tests.support.ortho_compare import gdal_rpc_against_rigorous, gdalwarp_rpc, image_difference, rendered_cut
 
 

@@ -11,8 +11,8 @@ import pytest
 from osgeo import gdal
 
 from pushbroom_adjust.core.errors import Cancelled, InputError
-from pushbroom_adjust.core.products.ortho import (OrthoJob, default_grid, orthorectify, orthorectify_products, run_job, strip_products,
-                        surface_description)
+from pushbroom_adjust.core.products.ortho import default_grid, orthorectify, orthorectify_products, strip_products
+from pushbroom_adjust.core.products.orthojobs import OrthoJob, run_job, surface_description
 from tests.support.ortho_compare import rendered_cameras, shift_against_texture
 
 RESOLUTION = 40.0  # m: small grids keep the test quick; the mapping is exact at any resolution
@@ -88,13 +88,13 @@ def test_a_failure_or_a_cancel_leaves_no_orthoimage(strip, tmp_path):
 def test_a_job_is_plain_data_and_runs_alone(strip, tmp_path):
     """An OrthoJob survives pickling and a worker's run of it gives the tile of the threaded run."""
     scene, dem, _, images, products, grids = strip
-    from pushbroom_adjust.core.products.ortho import _Mapper
+    from pushbroom_adjust.core.products.mapping import Mapper
     from pushbroom_adjust.core.formats.scene_json import scene_to_dict
     import json
     p, grid = products[0], grids[0]
     whole = tmp_path / "whole.tif"
     orthorectify(scene, images[0], dem, whole, 0, grid, rows=p.rows)
-    planned = _Mapper(scene, 0, dem, grid, p.rows).nodes(0, grid.rows, 0, grid.cols, 32)
+    planned = Mapper(scene, 0, dem, grid, p.rows).nodes(0, grid.rows, 0, grid.cols, 32)
     window = (0, min(512, grid.rows), 512, min(1024, grid.cols))
     job = OrthoJob(json.dumps(scene_to_dict(scene)), 0, images[0],
                    (grid.crs.to_wkt(), grid.x0, grid.y0, grid.resolution, grid.cols, grid.rows), window,

@@ -12,10 +12,11 @@ from scipy import ndimage
 
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
-from pushbroom_adjust.core.products.ortho import default_grid, orthorectify, utm_crs
+from pushbroom_adjust.core.products.mapping import utm_crs
+from pushbroom_adjust.core.products.ortho import default_grid, orthorectify
 from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
-from pushbroom_adjust.core.products.rpcfit import sidecar_path, write_rpc
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats.rpcfiles import sidecar_path, write_rpc
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.ortho_compare import gdalwarp_rpc, image_difference
 
 XML = "pleiades/PHRDIMAP_P1BP--2018122638935449CP.XML"

@@ -13,13 +13,16 @@ import numpy as np
 import pytest
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.errors import InputError, MetadataError
 from pushbroom_adjust.core.geodesy import enu_rotations, geodetic_to_ecef
 from pushbroom_adjust.core.model.intersection import intersect
-from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene, scene_from_dict, scene_to_dict
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.formats.scene_json import save_scene, scene_from_dict, scene_to_dict
 from pushbroom_adjust.core.model.sensor import SceneModel
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 
 INSTALLATION = "FWD.roll, FWD.pitch, FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw"
 ARCSEC = np.pi / 648000.0
@@ -37,7 +40,7 @@ def strip(tmp_path_factory):
                       gcp_settings=GcpSettings(n_gcps=100, check_fraction=0.8, image_noise=0.3,
                                                ground_noise_xy=0.5, ground_noise_z=0.5))
     table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.5, sigma_z=0.5)
+                       Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.5, sigma_z=0.5)
     truth = json.loads(result.manifest.read_text())["truth"]
     return load_scene(result.onboard_scene), table, truth
 

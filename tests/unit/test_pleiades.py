@@ -13,7 +13,7 @@ from pushbroom_adjust.core.dem import ConstantHeight, Dem
 from pushbroom_adjust.core.errors import MetadataError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats import load_scene
 
 XML = "pleiades/PHRDIMAP_P1BP--2018122638935449CP.XML"
 GRID = "pleiades/GRID_P1BP--2018122638935449CP.tif"

@@ -10,12 +10,17 @@ import numpy as np
 import pytest
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.checkpoints import without_label
-from pushbroom_adjust.core.adjust.report import MAX_ARROWS, report_to_json, write_report_html, write_report_json
+from pushbroom_adjust.core.adjust.report import report_to_json, write_report_json
+from pushbroom_adjust.core.adjust.report_html import write_report_html
+from pushbroom_adjust.core.adjust.report_plots import MAX_ARROWS
 from pushbroom_adjust.core.files import OutputError
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.presets import CAMERA_ERRORS
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 IMAGES = re.compile(r"data:image/png;base64,([A-Za-z0-9+/=]+)")
@@ -27,7 +32,7 @@ def simulated(tmp_path_factory):
     sim = simulate("cbers02b_hrc", tmp_path_factory.mktemp("sim"), seed=6,
                    gcp_settings=GcpSettings(n_gcps=400, image_noise=0.5, check_fraction=0.5, gross_fraction=0.05))
     table = G.read_csv(sim.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.01, sigma_z=0.01)
+                       Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=0.01, sigma_z=0.01)
     return sim, table
 
 
@@ -172,7 +177,7 @@ def test_html_has_the_3d_intersection_table(tmp_path):
     sim = simulate("th1_tlc", tmp_path / "th1", seed=2, errors=dict.fromkeys(CAMERA_ERRORS, 0.0),
                    gcp_settings=GcpSettings(n_gcps=60, check_fraction=0.5))
     table = G.read_csv(sim.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.01, sigma_z=0.01)
+                       Heights("z", datum="ellipsoid"), sigma_px=0.3, sigma_xy=0.01, sigma_z=0.01)
     out = adjust(load_scene(sim.onboard_scene), table, AdjustmentSettings())
     path = tmp_path / "report.html"
     write_report_html(out.report, out.points, path)

@@ -9,11 +9,14 @@ import numpy as np
 import pytest
 
 from pushbroom_adjust.core.observations import gcps as G
+from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.robust import rayleigh_p, truncation
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.presets import CAMERA_ERRORS
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 
 IMAGE_NOISE, GROUND_XY, GROUND_Z = 0.7, 3.0, 10.0
 CHIPS = "HRC-1.*, HRC-3.*"
@@ -31,7 +34,7 @@ def _scene(folder, gross: float = 0.0):
         n_gcps=1500, image_noise=IMAGE_NOISE, check_fraction=0.5, ground_noise_xy=GROUND_XY,
         ground_noise_z=GROUND_Z, gross_fraction=gross))
     table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=IMAGE_NOISE, sigma_xy=GROUND_XY, sigma_z=GROUND_Z)
+                       Heights("z", datum="ellipsoid"), sigma_px=IMAGE_NOISE, sigma_xy=GROUND_XY, sigma_z=GROUND_Z)
     gross_flags = np.genfromtxt(result.gcps, delimiter=",", names=True, usecols=("gross",), dtype=int)["gross"] == 1
     return load_scene(result.onboard_scene), table, gross_flags
 
@@ -72,7 +75,7 @@ def test_three_line_components_are_separated_per_camera(tmp_path):
     result = simulate("th1_tlc", tmp_path, seed=4, errors=dict.fromkeys(CAMERA_ERRORS, 0.0),
                       gcp_settings=GcpSettings(n_gcps=600, image_noise=0.5, ground_noise_xy=2.0, ground_noise_z=3.0))
     table = G.read_csv(result.gcps, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                       G.Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=2.0, sigma_z=3.0)
+                       Heights("z", datum="ellipsoid"), sigma_px=0.5, sigma_xy=2.0, sigma_z=3.0)
     table = replace(table, sigma_px=np.where(table.camera == "NAD", 0.5 / 3, 0.5))
     rep = adjust(load_scene(result.onboard_scene), table, AdjustmentSettings(
         interior="FWD.roll, FWD.pitch, FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw", robust="none")).report
@@ -195,11 +198,11 @@ def test_per_point_sigma_columns(tmp_path):
                     "surveyed,10,20,-50.0,-10.0,100,0.3,0.05,0.1\n"
                     "digitised,11,21,-50.001,-10.001,100,,8,\n")
     mapping = G.CsvMapping(z="h", sigma_px="spx", sigma_xy="sxy", sigma_z="sz")
-    t = G.read_csv(path, mapping, "EPSG:4326", G.Heights("z"), sigma_px=0.7, sigma_z=15.0)
+    t = G.read_csv(path, mapping, "EPSG:4326", Heights("z"), sigma_px=0.7, sigma_z=15.0)
     assert t.sigma_px.tolist() == [0.3, 0.7] and t.sigma_xy.tolist() == [0.05, 8.0] and t.sigma_z.tolist() == [0.1, 15.0]
     for bad in ("0", "-1", "nan", "inf", "x", "1e308"):
         path.write_text(f"id,col,row,lon,lat,h,spx\nP1,10,20,-50.0,-10.0,100,{bad}\n")
         with pytest.raises(InputError, match=rf"gcps.csv: per-point sigma field 'spx'.*P1: '{bad}'"):
-            G.read_csv(path, G.CsvMapping(z="h", sigma_px="spx"), "EPSG:4326", G.Heights("z"))
+            G.read_csv(path, G.CsvMapping(z="h", sigma_px="spx"), "EPSG:4326", Heights("z"))
     with pytest.raises(InputError, match="no column 'spx2'"):
-        G.read_csv(tmp_path / "gcps.csv", G.CsvMapping(z="h", sigma_xy="spx2"), "EPSG:4326", G.Heights("z"))
+        G.read_csv(tmp_path / "gcps.csv", G.CsvMapping(z="h", sigma_xy="spx2"), "EPSG:4326", Heights("z"))

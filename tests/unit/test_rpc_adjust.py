@@ -4,7 +4,7 @@ to simulated measurements (noise 0.3 px): the bias is recovered within its sigma
 reach the noise, the refined RPC read by gdal.Transformer reproduces the adjusted scene; the
 Pleiades rigorous model adjusted to the same GCPs gives the same check figures.
 
-Measured (seed 5, 30 control + 50 check points, drift mode): see the README section "RPC scenes".
+Measured (seed 5, 30 control + 50 check points, drift mode): see docs/accuracy.md, "RPC scenes".
 """
 from __future__ import annotations
 
@@ -17,9 +17,9 @@ from osgeo import gdal
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.observations.gcps import GcpTable
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
-from pushbroom_adjust.core.products.rpcfit import rpc_metadata, write_rpc
-from pushbroom_adjust.core.model.rpcscene import refined_rpc
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.formats.rpcfiles import rpc_metadata, write_rpc
+from pushbroom_adjust.core.products.rpcfit import refined_rpc
+from pushbroom_adjust.core.formats import load_scene
 from tests.support.rpcdata import PLEIADES, pleiades_rpc, worldview2_rpc
 
 gdal.UseExceptions()

@@ -16,9 +16,10 @@ from osgeo import gdal
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import MetadataError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
-from pushbroom_adjust.core.products.rpcfit import rpc_metadata, write_rpc
+from pushbroom_adjust.core.formats.rpcfiles import rpc_metadata, write_rpc
 from pushbroom_adjust.core.model.rpcscene import RpcScene
-from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.formats.scene_json import save_scene
 from tests.support.rpcdata import PLEIADES, PLEIADES_DEM, pleiades_rpc, rpc_files, scaled, worldview2_rpc
 
 gdal.UseExceptions()

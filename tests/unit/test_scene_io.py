@@ -6,7 +6,8 @@ import pytest
 
 from pushbroom_adjust.core.model.camera import Camera, Chip, LineTiming
 from pushbroom_adjust.core.errors import MetadataError
-from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene, scene_to_dict
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.formats.scene_json import save_scene, scene_to_dict
 from pushbroom_adjust.core.model.sensor import SceneModel
 from pushbroom_adjust.core.model.trajectory import Ephemeris, Platform, QuaternionPolynomial
 

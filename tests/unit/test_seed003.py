@@ -7,7 +7,7 @@ the relative accuracy at the noise and an absolute offset of the onboard class."
 import numpy as np
 import pytest
 
-from pushbroom_adjust.simulation.simulator import PRESETS
+from pushbroom_adjust.simulation.presets import PRESETS
 from tests.bench.bench_seed003_zy3 import (BASE, WEIGHTED, control_layouts, gcp_table, noise_free_control, run,
                                            simulate_strip)
 

@@ -14,9 +14,10 @@ from pyproj import Transformer
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import Cancelled, InputError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
-from pushbroom_adjust.core.products.ortho import OrthoGrid, default_grid, orthorectify
-from pushbroom_adjust.simulation.render import texture_at
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.core.products.mapping import OrthoGrid
+from pushbroom_adjust.core.products.ortho import default_grid, orthorectify
+from pushbroom_adjust.simulation.texture import texture_at
+from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.products.sensorcorrect import output_files, sensor_correct, virtual_camera
 from tests.support.ortho_compare import gdalwarp_rpc, image_difference, rendered_cut
 

@@ -12,10 +12,13 @@ import pytest
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import Cancelled, InputError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from pushbroom_adjust.simulation.render import render_image, texture_at, texture_frame, to_digital_numbers
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import (CAMERA_ERRORS, PRESETS, ErrorSettings, GcpSettings, camera_term, nominal_camera,
-                            perturbed_camera, simulate)
+from pushbroom_adjust.simulation.texture import texture_at, texture_frame, to_digital_numbers
+from pushbroom_adjust.simulation.render import render_image
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.presets import CAMERA_ERRORS, PRESETS, ErrorSettings, camera_term
+from pushbroom_adjust.simulation.geometry import nominal_camera, perturbed_camera
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 from tests.support.seams import round_trip_errors
 
 

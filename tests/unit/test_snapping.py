@@ -13,9 +13,11 @@ from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from pushbroom_adjust.core.observations.lines import ImageLines
-from pushbroom_adjust.simulation.render import render_image, texture_frame, texture_plane
-from pushbroom_adjust.simulation.roads import RoadSettings, plane_to_lonlat, road_curve
-from pushbroom_adjust.core.formats.scene_json import load_scene
+from pushbroom_adjust.simulation.texture import texture_frame, texture_plane
+from pushbroom_adjust.simulation.render import render_image
+from pushbroom_adjust.simulation.texture import plane_to_lonlat
+from pushbroom_adjust.simulation.roads import RoadSettings, road_curve
+from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.simulation.simulator import simulate
 from pushbroom_adjust.core.measure.snapping import SnapSettings, snap_lines
 

@@ -8,7 +8,8 @@ import pytest
 
 from pushbroom_adjust.core.adjust import AdjustmentSettings
 from pushbroom_adjust.core.measure.matching import MatchSettings
-from pushbroom_adjust.simulation.simulator import GcpSettings, simulate
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 from pushbroom_adjust.core.observations.tiepoints import summary
 from tests.support.matchscene import compare_ties, th1_cut
 

@@ -8,8 +8,10 @@ import pytest
 from pushbroom_adjust.core.observations import tiepoints as tp
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef
-from pushbroom_adjust.core.formats.scene_json import load_scene
-from pushbroom_adjust.simulation.simulator import CAMERA_ERRORS, GcpSettings, simulate
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.simulation.presets import CAMERA_ERRORS
+from pushbroom_adjust.simulation.measurements import GcpSettings
+from pushbroom_adjust.simulation.simulator import simulate
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +100,7 @@ def test_a_mismatched_point_is_named(th1, caplog):
     t = tp.read_csv(th1["csv"])
     col = t.col.copy()
     col[np.nonzero(t.id == "T7")[0][0]] += 40.0
-    with caplog.at_level(logging.WARNING, logger="core.observations.tiepoints"):
+    with caplog.at_level(logging.WARNING, logger="pushbroom_adjust.core.observations.tiepoints"):
         checked = tp.check_against_scene(_table(th1, col=col), th1["onboard"])
     assert tp.suspect_points(checked).tolist() == ["T7"]
     assert "likely mismatched points, check them: T7" in caplog.text
@@ -107,7 +109,7 @@ def test_a_mismatched_point_is_named(th1, caplog):
 def test_a_point_in_one_camera_is_kept_with_a_warning(th1, caplog, tmp_path):
     t = tp.read_csv(th1["csv"])
     keep = ~((t.id == "T5") & (t.camera != "NAD"))
-    with caplog.at_level(logging.WARNING, logger="core.observations.tiepoints"):
+    with caplog.at_level(logging.WARNING, logger="pushbroom_adjust.core.observations.tiepoints"):
         checked = tp.check_against_scene(t.select(keep), th1["onboard"])
     assert "1 tie point(s) seen in one camera only" in caplog.text and ": T5" in caplog.text
     one = checked.id == "T5"

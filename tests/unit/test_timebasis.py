@@ -7,7 +7,8 @@ import pytest
 
 from pushbroom_adjust.core.errors import InputError, MetadataError
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef
-from pushbroom_adjust.core.formats.scene_json import load_scene, save_scene
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.formats.scene_json import save_scene
 from pushbroom_adjust.simulation.simulator import simulate
 from pushbroom_adjust.core.model.timebasis import TimeBasis
 from pushbroom_adjust.core.model.trajectory import TrajectoryCorrection

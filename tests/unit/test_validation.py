@@ -7,8 +7,10 @@ import pytest
 
 from pushbroom_adjust.core.errors import InputError, MetadataError
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef, ray_height_intersection
-from pushbroom_adjust.core.formats.scene_json import FORMAT, VERSION, load_scene, scene_to_dict
-from pushbroom_adjust.core.validation import (PLAUSIBLE_HEIGHTS, check_nodata, check_scene_dict, check_surface_heights,
+from pushbroom_adjust.core.formats import load_scene
+from pushbroom_adjust.core.formats.scene_json import scene_to_dict
+from pushbroom_adjust.core.formats.schema import check_scene_dict
+from pushbroom_adjust.core.validation import (PLAUSIBLE_HEIGHTS, check_nodata, check_surface_heights,
                              check_terrain_height, implausible_heights, implausible_image_coordinates)
 from tests.unit.test_scene_io import _tiny_scene
 
@@ -19,7 +21,7 @@ def scene_dict() -> dict:
 
 
 def _check(d):
-    return check_scene_dict(d, "s.json", FORMAT, VERSION)
+    return check_scene_dict(d, "s.json")
 
 
 def test_the_tiny_scene_passes_unchanged(scene_dict):
