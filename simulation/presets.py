@@ -116,7 +116,7 @@ _TLC_TRAJECTORY = ErrorSettings(position_bias=10.0, position_drift=0.02, attitud
 # as systematic check errors of about 4 px (20 m at 5 m GSD) and self-calibration removes.
 # Seed 001 names the principal point and decentring distortion the dominant terms, the focal
 # length not negligible (1-2 um), b1 and b2 negligible (~1e-14); see the magnitudes' notes in
-# README (Simulate a scene).
+# docs/algorithms/simulatescene.md.
 TH1_ERRORS = replace(_TLC_TRAJECTORY, principal_point_x=10.0, principal_point_y=10.0, focal=4.0, radial_k1=5.0,
                      radial_k2=1.5, decentring_p1=8.0, decentring_p2=7.0, affinity_b3=3.0)
 # ZY-3 (seed 003): the cameras are calibrated in orbit (their lines of sight are given as

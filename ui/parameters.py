@@ -247,7 +247,7 @@ def scene() -> QgsProcessingParameterFile:
     parameter.setHelp(tr("The sensor model of the scene: a Pushbroom Adjust scene JSON (written by the simulator "
                          "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, "
                          "Maxar/DigitalGlobe *.XML), or an RPC alone: an image with RPC metadata GDAL reads, "
-                         "<name>_RPC.TXT, <name>.RPB or DIMAP RPC_*.XML (see the README, 'RPC scenes')."))
+                         "<name>_RPC.TXT, <name>.RPB or DIMAP RPC_*.XML (see docs/rpc-scenes.md)."))
     return parameter
 
 

@@ -17,7 +17,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     """Base of the plugin's algorithms: id, name, group and help from class attributes.
 
     shortHelpString() is HELP followed by every parameter's name and help text (setHelp), so
-    the toolbox, qgis_process help and the README say the same. NAME, GROUP and HELP are
+    the toolbox, qgis_process help and docs/ say the same. NAME, GROUP and HELP are
     English and shown through tr(); GROUP_ID never changes with the language.
     Enumeration values are checked before a run (checkParameterValues): an unknown name or an
     option number is refused with the parameter's value names.

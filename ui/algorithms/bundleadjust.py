@@ -134,9 +134,9 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterString(self.INTERIOR, tr("Interior parameters to estimate"),
                                                         optional=True, defaultValue=""),
                   tr("Interior and installation parameters to estimate, comma-separated; every other one stays "
-                  "at the scene's value. 'default' estimates the usual set with priors: every camera's 10 terms "
-                  "with 3 px, the installation angles of every camera but the first with 30 arcsec, the shifts "
-                  "and rotation of every CCD chip but the middle one with 2 px (later items override it, e.g. "
+                  "at the scene's value. 'default' estimates the usual set with priors: every focal-plane camera's "
+                  "10 terms with 3 px, the installation angles of every camera but the first with 30 arcsec, the "
+                  "shifts and rotation of every CCD chip but the middle one with 2 px (later items override it, e.g. "
                   "'default, NAD.k2=0.5px'). A name alone makes the parameter free; 'name=sigma' makes it weighted "
                   "(a pseudo-observation of 0 correction with that sigma), the sigma in image terms: 'px' is the "
                   "largest displacement the parameter causes at the ends of the detector array, in detector "
@@ -199,8 +199,9 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                                                                  fileFilter="RPC text (*_RPC.TXT)", optional=True),
                            tr("Optional, for a SCENE given by its RPC: the RPC with the adjusted correction in it, "
                               "as <image>_RPC.TXT, which GDAL and QGIS read for <image>.tif beside it. A correction "
-                              "of each coordinate by itself (shift) is folded exactly into the RPC's numerators; one "
-                              "mixing rows and columns (drift, affine) is refitted to the adjusted scene (about "
+                              "of each coordinate by itself (a shift, or an affine one without cross terms a2, b1) is "
+                              "folded exactly into the RPC's numerators; one mixing rows and columns (drift, affine) "
+                              "is refitted to the adjusted scene (about "
                               "1e-5 px)."))
         self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, tr("Report (JSON)")))
         self._add_line_parameters()

@@ -20,7 +20,8 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
     GROUP, GROUP_ID = "Control", "control"
     HELP = ("Finds ground control points without a click, as Zheng et al. 2015 did for CBERS-02B: a grid of points "
             "over the raw image is matched against a reference orthoimage (a national orthophoto, a Sentinel-2 "
-            "scene, an earlier adjusted product; any projected CRS and GSD) through the scene's model and the DEM. "
+            "scene, an earlier adjusted product; any projected or geographic CRS and GSD) through the scene's model "
+            "and the DEM. "
             "For each point the reference is resampled into the raw image's geometry (the onboard model maps each "
             "pixel of the window to the DEM), correlated with the raw image (normalised cross-correlation by FFT) "
             "and refined to sub-pixel. A coarse pass at low resolution first finds onboard errors of hundreds of "
@@ -39,7 +40,7 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
                            tr("The scene's raw image (first band matched), of the size the scene's camera images."))
         add_scene_parameters(self)
         self.add_parameter(QgsProcessingParameterRasterLayer(self.REFERENCE, tr("Reference orthoimage")),
-                           tr("A north-up orthoimage of the scene's ground in a projected CRS (metres), any GSD "
+                           tr("A north-up orthoimage of the scene's ground in a projected or geographic CRS, any GSD "
                               "(first band matched; its nodata value is honoured). It must overlap the scene."))
         add_dem_parameters(self)
         for parameter in matching_parameters():

@@ -51,8 +51,7 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
         add_scene_parameters(self)
         add_dem_parameters(self)
         self.addParameter(resampling())
-        self.add_parameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Sensor-corrected image"),
-                                                                   "GeoTIFF (*.tif *.tiff)"),
+        self.add_parameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Sensor-corrected image")),
                            tr("GeoTIFF (.tif) of the sensor-corrected image; <name>_RPC.TXT, its report "
                               "<name>_RPC.TXT.json and <name>.vrt are written beside it."))
         self.addParameter(output_scene())

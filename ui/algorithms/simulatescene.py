@@ -15,7 +15,7 @@ from .base import PushbroomAlgorithm
 
 MICRO = 1e-6
 
-# Error magnitudes the user may override: (parameter, core.simulator.ErrorSettings field,
+# Error magnitudes the user may override: (parameter, simulation.presets.ErrorSettings field,
 # label, factor from the parameter's unit to the core's SI unit, help).
 ERROR_PARAMETERS = (
     ("POSITION_BIAS", "position_bias", "Position bias (m)", 1.0, "Bias of the onboard ephemeris per ECEF axis."),
@@ -61,7 +61,7 @@ ERROR_PARAMETERS = (
      "(three-line presets)."),
 )
 
-# Measurement settings: (parameter, core.simulator.GcpSettings field, label, type, default, min, max, help);
+# Measurement settings: (parameter, simulation.measurements.GcpSettings field, label, type, default, min, max, help);
 # CHECK_FRACTION (field check_fraction) is the shared definition of ui.parameters.
 MEASUREMENT_PARAMETERS = (
     ("GROUND_NOISE_XY", "ground_noise_xy", "Ground planimetric noise (m)", "d", 0.0, 0.0, 1000.0,
