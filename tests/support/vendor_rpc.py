@@ -3,6 +3,7 @@ on the ground by the RPB at three heights, and the distance of the model's proje
 import numpy as np
 
 from pushbroom_adjust.core.formats.maxar import read_maxar_rpc
+from pushbroom_adjust.core.formats.vendor_xml import parse_xml
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef
 
@@ -41,3 +42,19 @@ def misfit(scene, ground, col, row, aberration=True, refraction=True):
     c, r = projected(scene, ground, aberration, refraction)
     d = np.hypot(c - col, r - row)
     return d.max(), np.sqrt(np.mean(d * d))
+
+
+def imd_corner_misses(path, scene) -> dict[str, float]:
+    """Per IMD corner (UL, UR, LR, LL) of the Maxar file ``path``: the distance (px) between the
+    scene's projection of the corner's coordinates and the corner pixel's centre (the IMD corners are
+    the centres of the corner pixels, 0-based vendor (0, 0) ... (cols-1, rows-1): GDAL half-integers)."""
+    band = parse_xml(path).find("IMD/BAND_P")
+    cam = scene.cameras[0]
+    expected = {"UL": (0.5, 0.5), "UR": (cam.cols - 0.5, 0.5), "LR": (cam.cols - 0.5, cam.rows - 0.5),
+                "LL": (0.5, cam.rows - 0.5)}
+    out = {}
+    for corner, (c, r) in expected.items():
+        lon, lat, h = (float(band.findtext(corner + k)) for k in ("LON", "LAT", "HAE"))
+        col, row = scene.ground_to_image_geodetic(lon, lat, h)
+        out[corner] = float(np.hypot(col[0] - c, row[0] - r))
+    return out
