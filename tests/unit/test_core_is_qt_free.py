@@ -54,8 +54,8 @@ def _imports(path: Path, root: Path, modules: set[str]) -> list[tuple[str, str |
     return out
 
 
-def _graph(root: Path) -> dict[str, list[tuple[str, str | None, bool]]]:
-    files = {_module_name(p, root): p for p in sorted((root / "core").rglob("*.py"))}
+def _graph(root: Path, folders=("core",)) -> dict[str, list[tuple[str, str | None, bool]]]:
+    files = {_module_name(p, root): p for folder in folders for p in sorted((root / folder).rglob("*.py"))}
     return {m: _imports(p, root, set(files)) for m, p in files.items()}
 
 
@@ -172,3 +172,15 @@ def test_layer_scanner_finds_each_kind_of_problem(tmp_path):
     assert problems["in_function"] == ["core.model.sensor -> core.model.camera"]
     assert problems["above"] == ["core.model.camera: ui"] and problems["qt"] == ["core.model.camera: qgis.core"]
     assert problems["long"] == [f"core/adjust/engine.py: {MAX_LINES + 1} lines"]
+
+
+def test_the_whole_plugin_has_no_circles_private_imports_or_hidden_imports():
+    """simulation/ and ui/ too: no import circle, no private name imported from another module, no import
+    of the plugin's own modules inside a function."""
+    graph = _graph(REPO, ("core", "simulation", "ui"))
+    assert any(m.startswith("simulation.") for m in graph) and any(m.startswith("ui.") for m in graph)
+    edges = {m: {t for t, _, _ in imports if t in graph and t != m} for m, imports in graph.items()}
+    private = [f"{m}: {n} from {t}" for m, imports in graph.items() for t, n, _ in imports
+               if t in graph and t != m and n and n.startswith("_") and not n.startswith("__")]
+    hidden = [f"{m} -> {t}" for m, imports in graph.items() for t, _, nested in imports if t in graph and nested]
+    assert (_cycles(edges), private, hidden) == ([], [], [])
