@@ -17,7 +17,7 @@ from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProce
 from ..core.dem import ConstantHeight, Dem
 from ..core.formats import load_scene
 from ..core.measure.matching import MatchSettings
-from ..core.observations.tables import Heights
+from ..core.observations.tables import Heights, present
 from ..core.validation import check_terrain_height
 from . import parameters as vocabulary
 from .feedback import core_call, processing_errors
@@ -146,13 +146,15 @@ def nonfinite_message(parameter_name: str, what: str, ids, bad) -> str:
 
 
 def field_values(alg, parameters, context, source, features) -> Callable[[str, bool], list | None]:
-    """column(param, required): the values of ``features`` in the field of ``source`` that string
-    parameter ``param`` names; None when the parameter is empty and not required. Errors name
-    the parameter (and list the layer's fields)."""
+    """column(param, required, conventional=None): the values of ``features`` in the field of
+    ``source`` that string parameter ``param`` names; when the parameter is empty, the field named
+    ``conventional`` if the layer has one (core.observations.tables.present), else None (not
+    required) or an error. Errors name the parameter (and list the layer's fields)."""
     names = source.fields().names()
 
-    def column(param: str, required: bool):
-        name = alg.parameterAsString(parameters, param, context).strip()
+    def column(param: str, required: bool, conventional: str | None = None):
+        name = alg.parameterAsString(parameters, param, context).strip() or \
+            (present(names, conventional) if conventional else None)
         if not name:
             if required:
                 raise QgsProcessingException(f"{param}: name the field of the layer that holds it")

@@ -355,8 +355,8 @@ def camera_field() -> QgsProcessingParameterString:
     """CAMERA_FIELD of the point imports."""
     parameter = QgsProcessingParameterString(CAMERA_FIELD, tr("Camera field"), optional=True, defaultValue="")
     parameter.setHelp(tr("Camera name (or 0-based index) of each row, for scenes with several cameras (e.g. "
-                         "CAMERA_FIELD=camera). Empty: the scene's only camera. A CAMERA parameter, where the "
-                         "algorithm has one, overrides it."))
+                         "CAMERA_FIELD=camera). Empty: the column/field 'camera' when the input has one, else the "
+                         "scene's only camera. A CAMERA parameter, where the algorithm has one, overrides it."))
     return parameter
 
 

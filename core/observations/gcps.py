@@ -36,7 +36,7 @@ from ..geodesy import geodetic_to_ecef
 from ..validation import (MAX_IMAGE_COORDINATE, PLAUSIBLE_HEIGHTS, implausible_heights,
                          implausible_image_coordinates)
 from ..vector_io import layer_to_wgs84_3d, open_layer, wgs84_3d, write_layer
-from .tables import (MAX_SIGMA, SCENE_METADATA_KEY, Heights, csv_column, ellipsoidal_heights, listed,
+from .tables import (MAX_SIGMA, SCENE_METADATA_KEY, Heights, csv_column, ellipsoidal_heights, listed, present,
                      nullable_floats, parse_numbers, per_point_sigmas, read_delimited, require_finite,
                      require_unique, resolve_cameras, to_lonlat)
 
@@ -128,8 +128,9 @@ class GcpTable:
 class CsvMapping:
     """Which CSV columns hold what. id None: ids are the data line numbers (1-based).
     x, y: ground coordinates in the CRS given to :func:`read_csv` (lon/lat order for degrees).
-    z, role, camera: optional columns. sigma_px (px), sigma_xy, sigma_z (m): optional columns
-    of per-point sigmas (empty cells take the sigma given to :func:`read_csv`)."""
+    z, role, camera: optional columns (role, camera None: the columns ``role``, ``camera`` when the
+    file has them, else all control points of the scene's only camera). sigma_px (px), sigma_xy,
+    sigma_z (m): optional columns of per-point sigmas (empty cells take the sigma given to :func:`read_csv`)."""
     col: str = "col"
     row: str = "row"
     x: str = "lon"
@@ -229,8 +230,10 @@ def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpT
             sigmas[key] = per_point_sigmas(text(column), sigmas.get(key, _DEFAULT_SIGMAS[key]), column, ids, source,
                                            key)
     return build_table(ids, number(mapping.col), number(mapping.row), number(mapping.x), number(mapping.y),
-                       crs=crs, heights=heights, z=number(mapping.z), role=text(mapping.role),
-                       camera=text(mapping.camera), source=source, **sigmas)
+                       crs=crs, heights=heights, z=number(mapping.z),
+                       role=text(mapping.role if mapping.role is not None else present(header, "role")),
+                       camera=text(mapping.camera if mapping.camera is not None else present(header, "camera")),
+                       source=source, **sigmas)
 
 
 def read_points_file(path, heights: Heights, crs=None, **sigmas) -> GcpTable:

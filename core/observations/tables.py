@@ -177,6 +177,13 @@ def read_delimited(path: Path) -> tuple[list[str], np.ndarray]:
     return header, values
 
 
+def present(header: list[str], name: str) -> str | None:
+    """``name`` when the header (or a layer's field list) has that column, else None: the optional
+    columns ``camera`` and ``role`` are read under these names when nothing else is named (the
+    simulator, the plugin's own layers and most exports call them so)."""
+    return name if name in header else None
+
+
 def csv_column(header: list[str], cells: np.ndarray, name: str, source: str) -> np.ndarray:
     """The stripped text (n,) of column ``name`` of :func:`read_delimited`'s cells; InputError
     naming the file and listing its columns when there is none of that name."""

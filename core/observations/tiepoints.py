@@ -31,7 +31,7 @@ from ..geodesy import ecef_to_geodetic
 from ..model.intersection import intersect
 from ..validation import MAX_IMAGE_COORDINATE, implausible_image_coordinates, spread_problem
 from ..vector_io import layer_to_wgs84_3d, open_layer, wgs84_3d, write_layer
-from .tables import (SCENE_METADATA_KEY, csv_column, listed, nullable_floats, parse_numbers, per_point_sigmas,
+from .tables import (SCENE_METADATA_KEY, csv_column, listed, nullable_floats, parse_numbers, per_point_sigmas, present,
                      read_delimited, require_finite, require_unique, resolve_cameras)
 
 log = logging.getLogger(__name__)
@@ -109,8 +109,8 @@ class TieTable:
 @dataclass
 class CsvMapping:
     """Which CSV columns hold what: id, camera, col, row; optional scene and sigma_px (px;
-    empty cells take the sigma given to :func:`read_csv`). camera None: no camera column (a
-    single-camera scene)."""
+    empty cells take the sigma given to :func:`read_csv`). camera None: the column ``camera``
+    when the file has one, else none (a single-camera scene)."""
     id: str = "id"
     camera: str | None = "camera"
     col: str = "col"
@@ -159,7 +159,8 @@ def read_csv(path, mapping: CsvMapping | None = None, sigma_px: float = DEFAULT_
     col, row = (parse_numbers(text(name), name, ids, source) for name in (mapping.col, mapping.row))
     sigmas = sigma_px if mapping.sigma_px is None else \
         per_point_sigmas(text(mapping.sigma_px), sigma_px, mapping.sigma_px, ids, source, "sigma_px")
-    return build_table(ids, text(mapping.camera), col, row, scene=text(mapping.scene),
+    camera = mapping.camera if mapping.camera is not None else present(header, "camera")
+    return build_table(ids, text(camera), col, row, scene=text(mapping.scene),
                        sigma_px=sigmas, source=source)
 
 

@@ -44,10 +44,20 @@ def _run(params, feedback=None):
     return processing.run("pushbroom:importgcps", params, feedback=feedback)
 
 
-def test_import_simulated_gcps_csv(simulated, core, tmp_path):
+@pytest.mark.parametrize("fields", [{"ROLE_FIELD": "role", "CAMERA_FIELD": "camera"}, {}], ids=["named", "as_it_is"])
+def test_import_simulated_gcps_csv(simulated, core, tmp_path, fields):
+    """With the role and camera fields named, and without: the columns role and camera are read under
+    their own names."""
     rows = list(csv.DictReader(open(simulated["GCPS"])))
-    out = _run({"SCENE": simulated["ONBOARD_SCENE"], "INPUT_FILE": simulated["GCPS"], "Z_FIELD": "h",
-                "ROLE_FIELD": "role", "CAMERA_FIELD": "camera", "HEIGHT_SOURCE": "z", "Z_DATUM": "ellipsoid",
+    for r in rows[::4]:  # some check points, so that the roles are read, not assumed
+        r["role"] = "check"
+    gcps_csv = tmp_path / "gcps.csv"
+    with open(gcps_csv, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    out = _run({"SCENE": simulated["ONBOARD_SCENE"], "INPUT_FILE": str(gcps_csv), "Z_FIELD": "h",
+                **fields, "HEIGHT_SOURCE": "z", "Z_DATUM": "ellipsoid",
                 "SIGMA_PX": 0.3, "OUTPUT": str(tmp_path / "gcps.gpkg")})["OUTPUT"]
     layer = QgsVectorLayer(out, "gcps", "ogr")
     assert layer.isValid() and layer.featureCount() == len(rows)
@@ -55,7 +65,7 @@ def test_import_simulated_gcps_csv(simulated, core, tmp_path):
     assert layer.crs().authid() == "EPSG:4979"
     table = core["gcps"].read_gpkg(out)
     by_id = {r["id"]: r for r in rows}
-    assert [by_id[i]["role"] for i in table.id] == table.role.tolist()
+    assert [by_id[i]["role"] for i in table.id] == table.role.tolist() and "check" in table.role
     assert np.allclose(table.col, [float(by_id[i]["col"]) for i in table.id], atol=1e-9)
     assert np.allclose(table.h, [float(by_id[i]["h"]) for i in table.id], atol=1e-6)
     assert (table.sigma_px == 0.3).all() and table.scene == simulated["ONBOARD_SCENE"]

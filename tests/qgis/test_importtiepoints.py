@@ -25,15 +25,16 @@ def _run(params, feedback=None):
 
 
 def test_the_simulators_tie_points_import_as_they_are(three_line, tiepoints, tmp_path):
+    """No field parameter: the columns id and camera are read under their own names."""
     rows = list(csv.DictReader(open(three_line["TIE_POINTS"])))
     log = LogFeedback()
-    out = _run({"SCENE": three_line["ONBOARD_SCENE"], "INPUT_FILE": three_line["TIE_POINTS"],
-                "CAMERA_FIELD": "camera", "SIGMA_PX": 0.3, "OUTPUT": str(tmp_path / "ties.gpkg")}, log)["OUTPUT"]
+    out = _run({"SCENE": three_line["ONBOARD_SCENE"], "INPUT_FILE": three_line["TIE_POINTS"], "SIGMA_PX": 0.3, "OUTPUT": str(tmp_path / "ties.gpkg")}, log)["OUTPUT"]
     layer = QgsVectorLayer(out, "ties", "ogr")
     assert layer.isValid() and layer.featureCount() == len(rows)
     assert layer.fields().names()[1:] == FIELDS and layer.crs().authid() == "EPSG:4979"
     table = tiepoints.read_gpkg(out)
     assert table.id.tolist() == [r["id"] for r in rows] and (table.sigma_px == 0.3).all()
+    assert table.camera.tolist() == [r["camera"] for r in rows] and len(set(table.camera)) == 3
     assert table.scene_path == three_line["ONBOARD_SCENE"]
     s = tiepoints.summary(table)
     assert s["points"] == 40 and s["single"] == 0 and 1.0 < s["rms_px"] < 10.0
@@ -83,7 +84,7 @@ def test_the_style_draws_intersected_points(three_line, tmp_path):
 def test_qgis_process_runs_it(three_line, qgis_process, tiepoints, tmp_path):
     out = tmp_path / "ties.gpkg"
     done = qgis_process("run", "pushbroom:importtiepoints", "--", f"SCENE={three_line['ONBOARD_SCENE']}",
-                        f"INPUT_FILE={three_line['TIE_POINTS']}", "CAMERA_FIELD=camera", f"OUTPUT={out}")
+                        f"INPUT_FILE={three_line['TIE_POINTS']}", f"OUTPUT={out}")
     assert done.returncode == 0, done.stdout + done.stderr
     assert "40 tie points" in done.stdout + done.stderr
     assert tiepoints.summary(tiepoints.read_gpkg(out))["points"] == 40

@@ -64,7 +64,8 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                   (self.Z_FIELD, tr("Height field"), "", tr("Height in metres (datum: Z_DATUM), used when "
                    "HEIGHT_SOURCE is z. Empty: the layer's point Z.")),
                   (self.ROLE_FIELD, tr("Role field"), "", tr("Values control/gcp or check/cp/checkpoint (empty cell "
-                   "= control). Empty: all points are control points (see CHECK_FRACTION).")))
+                   "= control). Empty: the column/field 'role' when the input has one, else all points are control "
+                   "points (see CHECK_FRACTION).")))
         for name, label, default, help_text in fields:
             self.add_parameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default),
                                help_text)
@@ -164,9 +165,9 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                          attribute_floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
                          crs=_crs_text(source.sourceCrs()), heights=heights,
                          z=None if z is None else attribute_floats(z),
-                         role=attribute_texts(column(self.ROLE_FIELD, False)),
-                         camera=attribute_texts(column(self.CAMERA_FIELD, False)), source=f"{self.INPUT} layer",
-                         **sigmas)
+                         role=attribute_texts(column(self.ROLE_FIELD, False, "role")),
+                         camera=attribute_texts(column(self.CAMERA_FIELD, False, "camera")),
+                         source=f"{self.INPUT} layer", **sigmas)
 
     # --- report ---------------------------------------------------------------------------
     @staticmethod

@@ -108,6 +108,6 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
             sigma = core_call(per_point_sigmas, attribute_texts(sigmas), sigma,
                               self.parameterAsString(parameters, self.SIGMA_PX_FIELD, context).strip(), ids, what,
                               "sigma_px")
-        return core_call(tiepoints.build_table, ids, attribute_texts(column(self.CAMERA_FIELD, False)),
+        return core_call(tiepoints.build_table, ids, attribute_texts(column(self.CAMERA_FIELD, False, "camera")),
                          attribute_floats(column(self.COL_FIELD, True)), attribute_floats(column(self.ROW_FIELD, True)),
                          scene=attribute_texts(column(self.SCENE_FIELD, False)), sigma_px=sigma, source=what)
