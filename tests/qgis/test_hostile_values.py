@@ -307,7 +307,8 @@ def test_line_layer_as_gcps_of_the_adjustment(provider, simulated, files, tmp_pa
 OPTIONS = [
     ("bundleadjust", "RESIDUAL_SCALE", 1e308), ("footprint", "SAMPLES", 10 ** 9), ("exportrpc", "HEIGHT_SPAN", 1e9),
     ("exportrpc", "GRID", 10 ** 6), ("simulatescene", "N_GCPS", 10 ** 9), ("simulatescene", "N_SCENES", 10 ** 6),
-    ("simulatescene", "IMAGE_NOISE", 1e308),
+    ("simulatescene", "IMAGE_NOISE", 1e308), ("simulatescene", "POSITION_BIAS", 1e308),
+    ("simulatescene", "ATTITUDE_DRIFT", 1e9), ("simulatescene", "FOCAL_ERROR", 1e6),
 ]
 
 

@@ -16,7 +16,9 @@ from .base import PushbroomAlgorithm
 MICRO = 1e-6
 
 # Error magnitudes the user may override: (parameter, simulation.presets.ErrorSettings field,
-# label, factor from the parameter's unit to the core's SI unit, help).
+# label, factor from the parameter's unit to the core's SI unit, help). Each is at most ERROR_LIMITS
+# in the parameter's unit: far beyond any onboard error (100 km of position, 0.1 rad of attitude),
+# so that a typing error is refused instead of simulating a scene whose rays miss the Earth.
 ERROR_PARAMETERS = (
     ("POSITION_BIAS", "position_bias", "Position bias (m)", 1.0, "Bias of the onboard ephemeris per ECEF axis."),
     ("POSITION_DRIFT", "position_drift", "Position drift (m/s)", 1.0,
@@ -60,6 +62,11 @@ ERROR_PARAMETERS = (
      "Error of each camera's mounting angles relative to the reference (nadir) camera, per axis "
      "(three-line presets)."),
 )
+
+ERROR_LIMITS = {"POSITION_BIAS": 1e5, "POSITION_DRIFT": 1e3, "POSITION_QUADRATIC": 1e2, "ATTITUDE_BIAS": 1e5,
+                "ATTITUDE_DRIFT": 1e4, "ATTITUDE_QUADRATIC": 1e4, "CCD_SHIFT": 1e3, "CCD_ROTATION": 1e5,
+                "INSTALLATION": 1e5}
+LENS_LIMIT = 1e3  # px at the array end: every lens and focal-plane term
 
 # Measurement settings: (parameter, simulation.measurements.GcpSettings field, label, type, default, min, max, help);
 # CHECK_FRACTION (field check_fraction) is the shared definition of ui.parameters.
@@ -165,7 +172,8 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                                tr(help_text), advanced=True)
         for name, _, label, _, help_text in ERROR_PARAMETERS:
             self.add_parameter(QgsProcessingParameterNumber(name, tr(label), QgsProcessingParameterNumber.Double,
-                                                            optional=True, minValue=0.0),
+                                                            optional=True, minValue=0.0,
+                                                            maxValue=ERROR_LIMITS.get(name, LENS_LIMIT)),
                                tr(help_text) + " " + tr("Empty: the preset's value (see simulation.json)."),
                                advanced=True)
         self.addParameter(folder)
