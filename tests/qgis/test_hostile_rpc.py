@@ -52,8 +52,11 @@ def _set(key, value):
     (_set("LINE_NUM_COEFF_2", "nan"), ("bad_RPC.TXT", "LINE_NUM_COEFF", "not a finite number")),
     (_set("LONG_SCALE", "0.0 degrees"), ("bad_RPC.TXT", "LONG_SCALE", "a scale must be a non-zero number")),
     (_set("LINE_DEN_COEFF_1", "0"), ("bad_RPC.TXT", "LINE_DEN_COEFF is 0", "denominator vanishes")),
+    (_set("LAT_OFF", "1e300 degrees"), ("bad_RPC.TXT", "LAT_OFF", "between -90 and 90")),
+    (_set("HEIGHT_SCALE", "-1e9 meters"), ("bad_RPC.TXT", "HEIGHT_SCALE", "between 0 and 100000")),
+    (_set("LINE_OFF", "1e12 pixels"), ("bad_RPC.TXT", "LINE_OFF", "between -1e+08 and 1e+08")),
 ], ids=["missing coefficient", "missing offset", "non-numeric coefficient", "comma decimal", "NaN coefficient",
-        "zero scale", "zero denominator"])
+        "zero scale", "zero denominator", "latitude beyond the poles", "absurd height scale", "absurd line offset"])
 def test_broken_rpc_text_is_refused_naming_file_and_key(good, tmp_path, edit, expected):
     scene = _edited(good, tmp_path, edit)
     out = tmp_path / "out"
