@@ -163,6 +163,9 @@ class Dem:
         self.datum = datum
         self.max_bytes = int(max_bytes)
         ds = self._open()
+        if ds.GetMetadata("RPC") and ds.GetGeoTransform(can_return_null=True) is None:
+            raise InputError(f"DEM {self.path}: a raw image with an RPC (no map georeferencing), not a DEM; give a "
+                             "DEM (heights on a map grid with a CRS)")
         wkt = ds.GetProjection()
         if not wkt:
             raise InputError(f"DEM {self.path}: has no coordinate reference system; assign one (e.g. EPSG:4326)")

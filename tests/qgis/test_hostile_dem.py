@@ -62,6 +62,19 @@ def _params(alg, simulated, dem, raw_image, out_dir):
     return {**base, "INPUT": raw_image, "OUTPUT": str(out_dir / "ortho.tif")}
 
 
+def _raw_image_with_rpc(path, z):
+    """A raw image (no geotransform) whose RPC tags put it on the ground: an image, not a DEM."""
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), z.shape[1], z.shape[0], 1, gdal.GDT_Float32)
+    coefficients = " ".join(["1"] + ["0"] * 19)
+    ds.SetMetadata({"LINE_OFF": "100", "SAMP_OFF": "100", "LAT_OFF": "30", "LONG_OFF": "110", "HEIGHT_OFF": "500",
+                    "LINE_SCALE": "100", "SAMP_SCALE": "100", "LAT_SCALE": "0.1", "LONG_SCALE": "0.1",
+                    "HEIGHT_SCALE": "500", "LINE_NUM_COEFF": coefficients, "LINE_DEN_COEFF": coefficients,
+                    "SAMP_NUM_COEFF": coefficients, "SAMP_DEN_COEFF": coefficients}, "RPC")
+    ds.GetRasterBand(1).WriteArray(z)
+    ds = None
+    return str(path)
+
+
 def _points(folder):
     (folder / "points.csv").write_text("col,row\n100.5,200.5\n6000,6000\n12000,12000\n")
 
@@ -79,10 +92,12 @@ def _bad_dems(folder, sim_dem):
         "complex band": (_write(folder / "complex.tif", z.astype(np.complex64), gt, wkt, dtype=gdal.GDT_CFloat32),
                          "real numbers"),
         "rotated": (_write(folder / "rotated.tif", z, (gt[0], gt[1], 1e-5, gt[3], 1e-5, gt[5]), wkt), "rotated"),
+        "raw image with an RPC": (_raw_image_with_rpc(folder / "raw_rpc.tif", z), "a raw image with an RPC"),
     }
 
 
-BAD = ("no CRS", "all nodata", "constant 1e30", "outside the scene", "one pixel", "complex band", "rotated")
+BAD = ("no CRS", "all nodata", "constant 1e30", "outside the scene", "one pixel", "complex band", "rotated",
+       "raw image with an RPC")
 
 
 @pytest.mark.parametrize("alg", ALGORITHMS)
