@@ -180,6 +180,22 @@ def image_effect(scene: SceneModel, p: Parameter) -> float:
     return float(max(effects, default=0.0))
 
 
+MIN_PRIOR_PX = 1e-6  # px at the array end: a prior tighter than this holds its parameter fixed
+
+
+def check_prior(scene: SceneModel, p: Parameter, pattern: str, value: float, unit: str) -> None:
+    """A prior sigma (``p.sigma``, SI) must weigh something finite and let its parameter move the image by
+    at least MIN_PRIOR_PX: a tighter one (e.g. HRC.f=1e-300) holds the parameter fixed and overflows
+    the normal equations. InputError naming the INTERIOR item."""
+    moves = p.sigma * image_effect(scene, p)
+    with np.errstate(all="ignore"):
+        weight = 1.0 / np.float64(p.sigma) ** 2
+    if not np.isfinite(weight) or (moves > 0 and moves < MIN_PRIOR_PX):
+        raise InputError(f"interior parameter {pattern}={value:g}{unit}: a sigma this small holds {p.name} fixed "
+                         f"({moves:.2g} px at the array end); give a plausible sigma (e.g. 1px), or leave it "
+                         "out to keep the scene's value", parameter="settings.interior")
+
+
 def sigma_in_si(scene: SceneModel, p: Parameter, value: float, unit: str) -> float:
     """A prior sigma given in ``unit`` ('' SI, 'px' at the array end, 'arcsec') in the
     parameter's SI unit (``p.unit``): px / :func:`image_effect`, arcsec * pi / 648000."""
@@ -254,6 +270,8 @@ class ParameterSet:
                     log.info("%s does not move this camera's image at the array ends: left fixed", p.name)
                     continue
                 p.mode, p.sigma = ("weighted", sigma_in_si(self.scene, p, sigma, unit)) if sigma else ("free", 0.0)
+                if sigma:
+                    check_prior(self.scene, p, pattern, sigma, unit)
 
     # --- the unknown vector ------------------------------------------------------------------
     @property

@@ -157,3 +157,14 @@ def test_surveyed_and_digitised_points_mixed_by_per_point_sigmas(sims, tmp_path)
     assert rep["robust"]["flagged"] <= 0.01 * rep["observations"]["image_observations"]
     assert rep["variance_components"]["image HRC"]["estimated_sigma"] == pytest.approx(0.5, rel=0.15)
     assert any(w.startswith("variance component image HRC: stated sigma 0.5 px, estimated") for w in log.info)
+
+
+def test_a_prior_that_holds_a_parameter_fixed_is_refused_naming_interior(sims, tmp_path):
+    """INTERIOR=HRC.f=1e-300 overflowed the normal equations (a LinAlgError traceback): now INTERIOR is
+    named."""
+    sim = sims[0.0]
+    gcps = _gcps(sim, tmp_path)
+    params = {"SCENE": sim["ONBOARD_SCENE"], "GCPS": gcps, "INTERIOR": "HRC.f=1e-300",
+              "OUTPUT_SCENE": str(tmp_path / "adjusted.json")}
+    assert_refused("pushbroom:bundleadjust", params, "INTERIOR", "a sigma this small holds HRC.f fixed",
+                   watch=[tmp_path])

@@ -242,6 +242,15 @@ def test_unknown_interior_parameter_names_the_choices(cbers):
         adjust(scene, table, AdjustmentSettings(interior="HRC-9.*"))
 
 
+@pytest.mark.parametrize("interior", ["HRC.f=1e-300", "HRC.k1=1e-12px", "HRC-1.dx=1e-200, HRC-3.*"])
+def test_a_prior_that_holds_its_parameter_fixed_is_refused(cbers, interior):
+    """A sigma too small to weigh (it overflowed the normal equations into a LinAlgError) is named."""
+    _, scene, table, _ = cbers
+    with pytest.raises(InputError, match=r"a sigma this small holds HRC") as info:
+        adjust(scene, table, AdjustmentSettings(interior=interior))
+    assert info.value.parameter == "settings.interior"
+
+
 def test_a_run_that_does_not_converge_says_what_it_tried(cbers):
     _, scene, table, _ = cbers
     with pytest.raises(ConvergenceError, match=r"did not converge: still changing after 1 iteration\. .*#1: .*step 1\d\d\.?\d* px"):
