@@ -45,9 +45,12 @@ def load_scene(path: str | Path) -> SceneModel | RpcScene:
     if head.startswith((b"{", b"[")):
         try:
             d = json.loads(path.read_text(encoding="utf-8-sig"))
+            scene = scene_from_dict(d, str(path))
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise MetadataError(f"{path}: invalid JSON ({exc})") from None
-        scene = scene_from_dict(d, str(path))
+        except RecursionError:
+            raise MetadataError(f"{path}: JSON nested far more deeply than a scene file (a few levels); not a "
+                                "scene JSON") from None
         if isinstance(scene, SceneModel):
             check_scene_model(scene, str(path))
     elif head.startswith(b"<") and path.name.upper().startswith("RPC_"):

@@ -45,6 +45,7 @@ def test_scene_json_round_trip_keeps_geometry(tmp_path):
     ("GIF89a binary junk", "neither scene JSON nor XML"),
     ("<?xml version='1.0'?><Dimap_Document><Metadata_Identification>", "not well-formed XML"),
     ("<?xml version='1.0'?><kml></kml>", "unrecognised XML metadata"),
+    ("[" * 100_000, "nested far more deeply than a scene file"),
 ])
 def test_bad_scene_files_get_clear_errors(tmp_path, content, message):
     path = tmp_path / "scene.txt"
