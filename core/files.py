@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -303,3 +304,46 @@ def write_text(path, text: str, files: OutputSet | None = None, encoding: str = 
     ``files``, as part of that set."""
     with atomic_output(path, files) as tmp:
         tmp.write_text(text, encoding=encoding)
+
+
+@dataclass
+class ClosingErrors:
+    """What GDAL/OGR said while datasets were closed in a :func:`closing_errors` block ('' if nothing)."""
+    message: str = ""
+
+
+@contextmanager
+def closing_errors() -> Iterator[ClosingErrors]:
+    """A block in which GDAL/OGR datasets are closed (their last references dropped). Closing flushes
+    the last blocks, and an error then (a full disk) cannot be raised from a destructor: Python hands
+    it to ``sys.unraisablehook``, which prints it to stderr as 'Exception ignored'. Within the block
+    the hook keeps it instead, and the failure is returned in ``.message``."""
+    found = ClosingErrors()
+    previous = sys.unraisablehook
+
+    def keep(unraisable) -> None:
+        found.message = found.message or str(unraisable.exc_value)
+
+    sys.unraisablehook = keep
+    try:
+        yield found
+    finally:
+        sys.unraisablehook = previous
+
+
+FULL_DISK_BYTES = 1 << 20  # a device with less than this free after a failed write was filled by it
+
+
+def write_failure(path, message: str) -> str:
+    """A GDAL/OGR write failure of ``path`` in words: a full disk named as such (by GDAL's message, or
+    by the device left with almost no free space: GDAL then often reports a follow-up error instead,
+    e.g. SQLite's 'no such table')."""
+    text = message.lower()
+    folder = Path(path).parent
+    try:
+        nearly_full = shutil.disk_usage(folder).free < FULL_DISK_BYTES
+    except OSError:
+        nearly_full = False
+    if nearly_full or any(s in text for s in ("no space left", "disk is full", "disk full", "enospc")):
+        return f"no space left on the device holding {path} ({message})"
+    return message

@@ -14,7 +14,7 @@ import numpy as np
 from osgeo import ogr, osr
 
 from .errors import InputError
-from .files import OutputError, OutputSet, atomic_output
+from .files import OutputError, OutputSet, atomic_output, closing_errors, write_failure
 
 ogr.UseExceptions()
 
@@ -133,13 +133,15 @@ def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geomet
     except RuntimeError as exc:  # OGR: disk full, file system errors
         failed = str(exc)
     finally:
-        try:
-            feat = lyr = ds = None  # closes the file
-        except RuntimeError as exc:
-            failed = failed or str(exc)
-    if not failed and _layer_count(path, layer) != written:  # errors on closing are not raised
-        failed = f"the layer {layer} holds {_layer_count(path, layer)} of {written} features"
-    return failed
+        with closing_errors() as closing:
+            feat = lyr = ds = None  # closes the file, flushing what is left
+        failed = failed or closing.message
+    count = None if failed else _layer_count(path, layer)
+    if not failed and count is None:
+        failed = f"the layer {layer} cannot be read back after writing"
+    elif not failed and count != written:
+        failed = f"the layer {layer} holds {count} of {written} features"
+    return write_failure(path, failed) if failed else failed
 
 
 def _layer_count(path, layer: str) -> int | None:

@@ -14,7 +14,7 @@ from qgis.core import (QgsDataSourceUri, QgsFeatureSink, QgsProcessingException,
                        QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterFolderDestination, QgsProperty)
 
-from ..core.files import atomic_output
+from ..core.files import atomic_output, write_failure
 from ..core.files import check_outputs as check_files
 from ..core.observations import tiepoints
 from ..core.vector_io import feature_count
@@ -90,13 +90,15 @@ class CheckedSink:
     """A feature sink whose failures are errors: a feature the sink does not take (a full disk,
     a format that cannot hold it) stops the algorithm with a message naming the output."""
 
-    def __init__(self, sink, parameter: str):
-        self.sink, self.parameter, self.count = sink, parameter, 0
+    def __init__(self, sink, parameter: str, path: str = ""):
+        self.sink, self.parameter, self.path, self.count = sink, parameter, path, 0
 
     def add(self, feature) -> None:
         if not self.sink.addFeature(feature, QgsFeatureSink.FastInsert):
+            error = self.sink.lastError() or "write error"
+            error = write_failure(self.path, error) if self.path else error
             raise QgsProcessingException(f"{self.parameter}: the output did not take feature {self.count + 1} "
-                                         f"({self.sink.lastError() or 'write error'}); nothing was written")
+                                         f"({error}); nothing was written")
         self.count += 1
 
 
@@ -123,7 +125,7 @@ def output_sink(alg, parameters, context, name: str, fields, wkb_type, crs):
         sink, _ = alg.parameterAsSink({**parameters, name: staged}, name, context, fields, wkb_type, crs)
         if sink is None:
             raise QgsProcessingException(alg.invalidSinkError(parameters, name))
-        checked = CheckedSink(sink, name)
+        checked = CheckedSink(sink, name, str(tmp))
         try:
             yield checked, final
         finally:
@@ -136,8 +138,8 @@ def _check_written(name: str, path, expected: int) -> None:
     disk can lose them when the file is closed, where the sink reports nothing)."""
     found = feature_count(path)
     if found != expected:
-        raise QgsProcessingException(f"{name}: the written file holds {found} of {expected} features (disk full?); "
-                                     "nothing was written")
+        written = f"the written file holds {found} of {expected} features"
+        raise QgsProcessingException(f"{name}: {write_failure(path, written)}; nothing was written")
 
 
 # --- styles on load ----------------------------------------------------------------------------

@@ -14,7 +14,7 @@ import numpy as np
 from osgeo import gdal
 
 from ..errors import Cancelled, InputError
-from ..files import OutputSet
+from ..files import OutputSet, closing_errors, write_failure
 from .mapping import Mapper, Nodes
 from .rawimage import RawImage, resample
 
@@ -166,12 +166,11 @@ def write_resampled(raw: RawImage, mapper: Mapper, planned: Nodes, shape: tuple[
     except RuntimeError as exc:  # GDAL: disk full, file system errors; raised below, as this error's
         failed = str(exc)        # traceback holds the file open
     finally:
-        try:
-            out_bands = out = None  # closes the file
-        except RuntimeError as exc:  # flushing it failed
-            failed = failed or str(exc)
+        with closing_errors() as closing:
+            out_bands = out = None  # closes the file, flushing what is left
+        failed = failed or closing.message
         if own:
             files.discard()
     if failed:
-        raise InputError(f"cannot write {output_path}: {failed}")
+        raise InputError(f"cannot write {output_path}: {write_failure(output_path, failed)}")
     return worst
