@@ -331,6 +331,12 @@ def closing_errors() -> Iterator[ClosingErrors]:
         sys.unraisablehook = previous
 
 
+def check_closed(path, closing: ClosingErrors) -> None:
+    """OutputError naming ``path`` (and a full disk) when closing it failed (see :func:`closing_errors`)."""
+    if closing.message:
+        raise OutputError(f"cannot write {path}: {write_failure(path, closing.message)}")
+
+
 FULL_DISK_BYTES = 1 << 20  # a device with less than this free after a failed write was filled by it
 
 

@@ -28,6 +28,7 @@ from pyproj import CRS, Transformer
 from scipy.ndimage import gaussian_filter, map_coordinates
 
 from ..core.errors import Cancelled, InputError
+from ..core.files import check_closed, closing_errors
 from ..core.model.sensor import SceneModel
 from ..core.products.mapping import utm_crs
 from ..core.products.ortho import default_grid
@@ -156,7 +157,9 @@ def write_reference(scene: SceneModel, dem, frame: dict, path, seed: int,
             for r0, block in zip(range(0, rows, TILE_ROWS), pool.map(tile, range(0, rows, TILE_ROWS))):
                 band.WriteArray(block, 0, r0)
     finally:
-        band = ds = None
+        with closing_errors() as closing:
+            band = ds = None  # closes the file, also when cancelled
+    check_closed(path, closing)
     return {"file": os.path.basename(str(path)), "crs": f"EPSG:{crs.to_epsg()}",
             "geotransform": [x0, res, 0.0, y0, 0.0, -res], "size": [cols, rows],
             "settings": asdict(settings), "changed_discs_utm_m": changed.round(1).tolist(),

@@ -22,6 +22,7 @@ import numpy as np
 from osgeo import gdal
 
 from ..core.errors import Cancelled, InputError
+from ..core.files import check_closed, closing_errors
 from ..core.geodesy import ecef_to_geodetic
 from ..core.model.sensor import SceneModel
 from .roads import painter_for
@@ -125,7 +126,9 @@ def render_image(scene: SceneModel, camera: int, dem, path, frame: dict,
                 if progress:
                     progress((n + 1) / len(starts))
     finally:
-        band = ds = None  # closes the file, also when cancelled
+        with closing_errors() as closing:
+            band = ds = None  # closes the file, also when cancelled
+    check_closed(path, closing)
     error = interpolation_error(grids, cam.rows, gsd)
     log.info("rendered %s (%d x %d); ground interpolation error max %.2e px", cam.name, cam.cols, cam.rows, error)
     return error

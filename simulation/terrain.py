@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 from osgeo import gdal, osr
 
+from ..core.files import check_closed, closing_errors
 from .texture import texture_plane
 
 gdal.UseExceptions()
@@ -53,4 +54,6 @@ def write_dem(path: Path, bounds: tuple[float, float, float, float], centre, rel
     band.WriteArray(z)
     band.SetNoDataValue(-32768.0)
     band.SetDescription("height above the EGM96 geoid (m)")
-    ds = None
+    with closing_errors() as closing:
+        band = ds = None  # closes the file
+    check_closed(path, closing)

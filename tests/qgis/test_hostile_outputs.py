@@ -9,9 +9,11 @@ Each case gets its own folder ``d`` with copies of the inputs (d/scene.json, d/d
 d/gcps.gpkg, d/gcps.csv, d/pixels.csv, d/cut.json + d/raw.tif for orthorectify) and watches it
 whole: nothing there may change, appear or disappear.
 """
+import gc
 import json
 import os
 import shutil
+import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -286,17 +288,25 @@ FULL_DISK = [
     ("orthorectify", lambda d, disk: _ortho(d, OUTPUT=str(disk / "o.tif"), RESOLUTION=2.0), "o.tif"),
     ("bundleadjust", lambda d, disk: _adjust(d, OUTPUT_REPORT=str(disk / "r.html"), OUTPUT_GCPS=str(disk / "g.gpkg")),
      "OUTPUT_"),
+    ("simulatescene", lambda d, disk: {"N_GCPS": 5, "OUTPUT_FOLDER": str(disk / "sim")}, "sim"),
 ]
 
 
 @pytest.mark.parametrize("alg, make, text", FULL_DISK, ids=[c[0] for c in FULL_DISK])
-def test_a_full_disk_is_an_error_and_leaves_nothing(provider, d, tmp_path, alg, make, text):
-    """A 256 KiB disk holding a user's file: the run fails naming the output, the disk keeps only that file."""
+def test_a_full_disk_is_an_error_and_leaves_nothing(provider, d, tmp_path, monkeypatch, alg, make, text):
+    """A 256 KiB disk holding a user's file: the run fails naming the output and the full disk (where the
+    plugin writes the file), the disk keeps only that file, and GDAL's errors on closing the file are
+    caught (none reaches Python's 'Exception ignored' hook, i.e. stderr)."""
     (d / "many.csv").write_text("id,col,row,lon,lat\n" + "".join(
         f"{i},{i % 12000 + 0.5},{i % 9000 + 0.5},114.0,34.5\n" for i in range(MANY)))
+    ignored = []
+    monkeypatch.setattr(sys, "unraisablehook", ignored.append)
     with tiny_disk(tmp_path / "disk") as disk:
         (disk / "mine.txt").write_text("a user's file")
-        assert_refused(f"pushbroom:{alg}", make(d, disk), text, watch=[d, disk])
+        message = assert_refused(f"pushbroom:{alg}", make(d, disk), text, watch=[d, disk]).lower()
+        assert "no space left on the device" in message or "disk is full" in message, message
+    gc.collect()
+    assert [str(u.exc_value) for u in ignored] == []
 
 
 # --- legitimate requests, done right ------------------------------------------------------------
