@@ -1,4 +1,5 @@
-"""Shared test fixtures: where the real vendor metadata lives.
+"""Shared test fixtures: where the real vendor metadata lives, and the rendered scene with roads of
+the snapping tests (``rendered``, tests/support/snapping.py).
 
 The real test data (Pleiades DIMAP, WorldView-2 and WorldView-3 Maxar XML, with their attribution
 and licences in tests/data/README.md) is kept in the repository under tests/data/, so a bare clone
@@ -9,9 +10,8 @@ from pathlib import Path
 import pytest
 
 from tests.support import plugin_package  # noqa: F401 (registers the package pushbroom_adjust)
-
-REPO = Path(__file__).resolve().parents[1]
-TEST_DATA = REPO / "tests" / "data"
+from tests.support.paths import TEST_DATA
+from tests.support.snapping import rendered  # noqa: F401 (a fixture: test_snapping.py, test_snaplines.py)
 
 
 @pytest.fixture(scope="session")

@@ -9,7 +9,8 @@ errors (position bias/drift, attitude bias/drift/2nd order: ~400 m on the ground
 CCD shifts of 1-3 px and rotations of 3e-4-1e-3 rad (the middle CCD is the reference); --gcps
 ground points with 0.7 px image noise and 3 m / 10 m ground noise (seed 000's matched points),
 half of them check points. Trajectory: orientation images every 20 s (4-point Lagrange) for
-position and attitude, onboard GPS as 100 m pseudo-observations, weighted ground.
+position and attitude, onboard GPS as 100 m pseudo-observations, weighted ground (the strip and
+these settings: tests/support/cbers_strip.py).
 
 Experiments:
   table2        seed 000 Table II: schemes 1-11 of interior parameters; image residual RMSE of
@@ -46,14 +47,11 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
-from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
-from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust  # noqa: E402
-from pushbroom_adjust.core.geodesy import ecef_to_geodetic, enu_rotations, geodetic_to_ecef  # noqa: E402
+from pushbroom_adjust.core.adjust import adjust  # noqa: E402
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, enu_rotations  # noqa: E402
 from pushbroom_adjust.core.formats import load_scene  # noqa: E402
-from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
-from pushbroom_adjust.simulation.simulator import simulate  # noqa: E402
+from tests.support.cbers_strip import GROUND_XY, GROUND_Z, IMAGE_NOISE, model_error, settings, strip  # noqa: E402
 
-IMAGE_NOISE, GROUND_XY, GROUND_Z = 0.7, 3.0, 10.0
 SCHEMES = [  # seed 000 Table II: x0, y0, a0 = left chip (HRC-1), x1.. middle (HRC-2), x2.. right (HRC-3)
     ("1", "HRC.f, HRC-1.*, HRC-2.*, HRC-3.*"), ("2", "HRC-1.*, HRC-2.*, HRC-3.*"),
     ("3", "HRC.f, HRC-1.*, HRC-3.*"), ("4", "HRC-1.*, HRC-3.*"),
@@ -63,26 +61,6 @@ SCHEMES = [  # seed 000 Table II: x0, y0, a0 = left chip (HRC-1), x1.. middle (H
 ]
 
 
-def settings(**kw) -> AdjustmentSettings:
-    base = dict(position_model="lagrange", position_interval=20.0, attitude_model="lagrange",
-                attitude_interval=20.0, position_sigma=100.0, robust="none")
-    return AdjustmentSettings(**{**base, **kw})
-
-
-def strip(folder: Path, scenes: int, gcps: int, seed: int = 1, **measure) -> tuple:
-    """(simulation result, onboard scene, GCP table) of a simulated strip."""
-    m = dict(n_gcps=gcps, image_noise=IMAGE_NOISE, check_fraction=0.5, ground_noise_xy=GROUND_XY,
-             ground_noise_z=GROUND_Z)
-    m.update(measure)
-    result = simulate("cbers02b_hrc", folder, seed=seed, n_scenes=scenes, gcp_settings=GcpSettings(**m))
-    return result, load_scene(result.onboard_scene), read_table(result.gcps)
-
-
-def read_table(path) -> G.GcpTable:
-    return G.read_csv(path, G.CsvMapping(z="h", role="role", camera="camera"), "EPSG:4326",
-                      Heights("z", datum="ellipsoid"), sigma_px=IMAGE_NOISE, sigma_xy=GROUND_XY, sigma_z=GROUND_Z)
-
-
 def truth_of(result) -> dict:
     """{'HRC-1.dx': metres, ...} of the simulated CCD errors."""
     chips = json.loads(result.manifest.read_text())["truth"]["interior"][0]["chips"]
@@ -90,14 +68,6 @@ def truth_of(result) -> dict:
     for c in chips:
         out.update({f"{c['chip']}.dx": c["dx_m"], f"{c['chip']}.dy": c["dy_m"], f"{c['chip']}.theta": c["dtheta_rad"]})
     return out
-
-
-def model_error(scene, result, rows: np.ndarray) -> float:
-    """RMSE (px) of a scene's ground -> image of the true check points against their true image
-    positions: the model's own error, free of the measurement noise only a simulation can remove."""
-    g = np.genfromtxt(result.gcps, delimiter=",", names=True, dtype=None, encoding=None)[rows]
-    col, row = scene.ground_to_image(geodetic_to_ecef(g["lon_true"], g["lat_true"], g["h_true"]))
-    return float(np.sqrt(np.mean((col - g["col_true"]) ** 2 + (row - g["row_true"]) ** 2)))
 
 
 # --- experiments ------------------------------------------------------------------------------

@@ -9,9 +9,10 @@ image (3.27 times coarser pixels, the same ground), an 8-bit tiled GeoTIFF with 
 tags; the DEM: the vendor's (ellipsoidal heights) extended by its edge values so that it covers
 the whole scene. Our side reads the scene from the image itself (SCENE = the image), gdalwarp
 uses ``-rpc -to RPC_DEM=dem``; same grid (the image's footprint in its UTM zone at the native GSD),
-bilinear resampling, nodata 0 and output options, as in bench_ortho_vs_gdalwarp.py (whose
-harness runs it: timings per process, alternating, peak memory; geometry at 200 000 output
-pixels against GDAL's RPC transformer; image shift by least squares on gradients).
+bilinear resampling, nodata 0 and output options, as in bench_ortho_vs_gdalwarp.py (the same
+harness, tests/support/ortho_bench.py, runs it: timings per process, alternating, peak memory;
+geometry at 200 000 output pixels against GDAL's RPC transformer; image shift by least squares on
+gradients).
 """
 from __future__ import annotations
 
@@ -25,8 +26,8 @@ import tests.support.plugin_package  # noqa: E402,F401 (registers the package pu
 from pushbroom_adjust.core.dem import Dem  # noqa: E402
 from pushbroom_adjust.core.products.ortho import default_grid  # noqa: E402
 from pushbroom_adjust.core.formats import load_scene  # noqa: E402
-from tests.bench.bench_ortho_vs_gdalwarp import main  # noqa: E402
-from tests.conftest import TEST_DATA  # noqa: E402
+from tests.support.ortho_bench import run_benchmark  # noqa: E402
+from tests.support.paths import TEST_DATA  # noqa: E402
 from tests.support.rpcdata import padded_dem, pleiades_rpc, scaled, write_image  # noqa: E402
 from pushbroom_adjust.core.model.rpcscene import size_from_rpc  # noqa: E402
 
@@ -45,4 +46,4 @@ def prepare(work: Path) -> dict:
 
 
 if __name__ == "__main__":
-    main(prepare, __doc__, __file__)
+    run_benchmark(prepare, __doc__, __file__)

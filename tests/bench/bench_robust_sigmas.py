@@ -33,7 +33,7 @@ sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
 
 from pushbroom_adjust.core.adjust import adjust  # noqa: E402
-from tests.bench.bench_adjust_cbers import model_error, settings, strip  # noqa: E402
+from tests.support.cbers_strip import model_error, settings, strip  # noqa: E402
 
 STATED = [("right", 1.0, 1.0), ("x0.5", 0.5, 0.5), ("x2", 2.0, 2.0), ("image x0.5, ground x2", 0.5, 2.0),
           ("image x2, ground x0.5", 2.0, 0.5)]

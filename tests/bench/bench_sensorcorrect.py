@@ -32,7 +32,7 @@ import tests.support.plugin_package  # noqa: E402,F401 (registers the package pu
 from pushbroom_adjust.core.dem import Dem  # noqa: E402
 from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from pushbroom_adjust.core.products.sensorcorrect import sensor_correct  # noqa: E402
-from tests.bench.bench_ortho_vs_gdalwarp import prepare as prepare_ortho_bench  # noqa: E402
+from tests.support.ortho_bench import prepare_cbers  # noqa: E402
 
 log = logging.getLogger("bench_sensorcorrect")
 # Runs a command and prints its CPU seconds (user + system) and peak resident memory (kB) last.
@@ -46,7 +46,7 @@ MEASURE = ("import resource, subprocess, sys\n"
 def prepare(work: Path) -> dict:
     """The scene of bench_ortho_vs_gdalwarp (seed 0, raw image rendered with the true model over
     the ellipsoidal DEM), with its true camera: the staggered, misaligned CCDs."""
-    setup = prepare_ortho_bench(work)
+    setup = prepare_cbers(work)
     return {"scene": str(Path(setup["scene"]).with_name("true_scene.json")), "raw": setup["raw"], "dem": setup["dem"]}
 
 

@@ -14,9 +14,7 @@ from pathlib import Path
 import pytest
 from qgis.core import QgsApplication
 
-REPO = Path(__file__).resolve().parents[2]
-PLUGIN = "pushbroom_adjust"
-QGIS_PROCESS = "/usr/bin/qgis_process.bin"  # Debian's /usr/bin/qgis_process wrapper is broken here
+from tests.support.paths import PLUGIN, QGIS_PROCESS, REPO
 
 
 @pytest.fixture(scope="session")

@@ -7,33 +7,17 @@ import numpy as np
 import pytest
 from osgeo import gdal, osr
 from pyproj import Transformer
-from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsGeometry, QgsPoint, QgsPointXY, QgsProject,
-                       QgsProcessingException, QgsProcessingFeedback, QgsVectorLayer)
+from qgis.core import QgsGeometry, QgsPointXY, QgsProject, QgsProcessingException
 
 import processing
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from pushbroom_adjust.core.products.footprint import footprints
 from pushbroom_adjust.core.formats import load_scene
+from tests.support.processing import RecordingFeedback, field_values, image_table, point_layer
 from tests.support.seams import round_trip_errors
 
 RNG = np.random.default_rng(11)
-
-
-class RecordingFeedback(QgsProcessingFeedback):
-    """Keeps the warnings and the information an algorithm pushes."""
-
-    def __init__(self):
-        super().__init__()
-        self.warnings, self.infos = [], []
-
-    def pushWarning(self, warning):  # noqa: N802 (QGIS API name)
-        self.warnings.append(warning)
-        super().pushWarning(warning)
-
-    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.infos.append(info)
-        super().pushInfo(info)
 
 
 @pytest.fixture(scope="session")
@@ -44,38 +28,6 @@ def scene(simulated):
 @pytest.fixture(scope="session")
 def dem(simulated):
     return Dem(simulated["DEM"], datum="geoid")
-
-
-def _table(col, row, extra_null=False) -> QgsVectorLayer:
-    """A geometry-less memory table with fields id, col, row."""
-    layer = QgsVectorLayer("None?field=id:integer&field=col:double&field=row:double", "image points", "memory")
-    feats = []
-    for i, (c, r) in enumerate(zip(col, row)):
-        f = QgsFeature(layer.fields())
-        f.setAttributes([i, float(c), None if extra_null and i == 1 else float(r)])
-        feats.append(f)
-    layer.dataProvider().addFeatures(feats)
-    return layer
-
-
-def _points(x, y, z=None, crs="EPSG:4326") -> QgsVectorLayer:
-    """A memory point layer (with Z when z is given) with a 'name' field."""
-    kind = "Point" if z is None else "PointZ"
-    layer = QgsVectorLayer(f"{kind}?field=name:string", "ground points", "memory")
-    layer.setCrs(QgsCoordinateReferenceSystem(crs) if crs else QgsCoordinateReferenceSystem())
-    feats = []
-    for i in range(len(x)):
-        f = QgsFeature(layer.fields())
-        p = QgsPoint(float(x[i]), float(y[i])) if z is None else QgsPoint(float(x[i]), float(y[i]), float(z[i]))
-        f.setGeometry(QgsGeometry(p))
-        f.setAttributes([f"p{i}"])
-        feats.append(f)
-    layer.dataProvider().addFeatures(feats)
-    return layer
-
-
-def _values(layer, *names) -> np.ndarray:
-    return np.array([[f[n] for n in names] for f in layer.getFeatures()], dtype=float)
 
 
 def _random_image_points(scene, n):
@@ -142,11 +94,11 @@ def _tiny_dem(path, scene, dem, size_deg=0.001):
 # --- image <-> ground ---------------------------------------------------------------------------------
 def test_image_to_ground_then_back_returns_the_pixels(simulated, scene, dem):
     col, row = _random_image_points(scene, 200)
-    ground = processing.run("pushbroom:imagetoground", {"SCENE": simulated["TRUE_SCENE"], "INPUT": _table(col, row),
+    ground = processing.run("pushbroom:imagetoground", {"SCENE": simulated["TRUE_SCENE"], "INPUT": image_table(col, row),
                                                         "DEM": simulated["DEM"], "DEM_DATUM": "geoid",
                                                         "OUTPUT": "memory:"})["OUTPUT"]
     assert ground.crs().authid() == "EPSG:4979" and ground.featureCount() == 200
-    lon, lat, h = _values(ground, "lon", "lat", "h_ellipsoid").T
+    lon, lat, h = field_values(ground, "lon", "lat", "h_ellipsoid").T
     # the points lie on the DEM (ellipsoidal heights), where the core puts them
     assert np.abs(h - dem.height(lon, lat)).max() < 1e-3
     truth = scene.image_to_ground_dem(col, row, dem)
@@ -154,8 +106,8 @@ def test_image_to_ground_then_back_returns_the_pixels(simulated, scene, dem):
     back = processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"], "INPUT": ground,
                                                       "OUTPUT": "memory:"})["OUTPUT"]
     # input fields kept; the new image coordinates get a suffix since the input has col/row already
-    c2, r2, inside = _values(back, "col_2", "row_2", "in_image").T
-    assert np.abs(_values(back, "id")[:, 0] - np.arange(200)).max() == 0
+    c2, r2, inside = field_values(back, "col_2", "row_2", "in_image").T
+    assert np.abs(field_values(back, "id")[:, 0] - np.arange(200)).max() == 0
     err, _ = round_trip_errors(scene, dem, col, row, c2, r2)
     assert err.max() < 1e-4
     assert inside.min() == 1
@@ -167,12 +119,12 @@ def test_ground_to_image_in_a_projected_crs_with_heights_from_the_dem(simulated,
     zone = int((lon.mean() + 180) // 6) + 1
     epsg = (32600 if lat.mean() >= 0 else 32700) + zone
     x, y = Transformer.from_crs(4326, epsg, always_xy=True).transform(lon, lat)
-    layer = _points(x, y, crs=f"EPSG:{epsg}")
+    layer = point_layer(x, y, crs=f"EPSG:{epsg}")
     out = processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"], "INPUT": layer,
                                                      "DEM": simulated["DEM"], "DEM_DATUM": "geoid",
                                                      "OUTPUT": "memory:"})["OUTPUT"]
     assert out.crs().authid() == f"EPSG:{epsg}" and [f["name"] for f in out.getFeatures()][:2] == ["p0", "p1"]
-    c2, r2 = _values(out, "col", "row").T
+    c2, r2 = field_values(out, "col", "row").T
     err, _ = round_trip_errors(scene, dem, col, row, c2, r2)
     assert err.max() < 1e-3
 
@@ -183,9 +135,9 @@ def test_points_outside_the_image_are_kept_flagged_and_counted(simulated, scene,
     row = np.array([cam.rows * 0.5, cam.rows * 0.5, cam.rows * 0.2])
     lon, lat, h = ecef_to_geodetic(scene.image_to_ground(col, row, 100.0))
     feedback = RecordingFeedback()
-    out = processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"], "INPUT": _points(lon, lat, h),
+    out = processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"], "INPUT": point_layer(lon, lat, h),
                                                      "Z_DATUM": "ellipsoid", "OUTPUT": "memory:"}, feedback=feedback)["OUTPUT"]
-    c2, r2, inside = _values(out, "col", "row", "in_image").T
+    c2, r2, inside = field_values(out, "col", "row", "in_image").T
     assert list(inside) == [1, 0, 0]
     assert np.abs(c2 - col).max() < 1e-3 and np.abs(r2 - row).max() < 1e-3
     assert any("2 of 3 points fall outside the image" in w for w in feedback.warnings)
@@ -197,9 +149,9 @@ def test_camera_by_name_and_index(simulated, scene):
     results = []
     for camera in (cam.name, str(len(scene.cameras) - 1)):
         out = processing.run("pushbroom:imagetoground", {"SCENE": simulated["TRUE_SCENE"], "CAMERA": camera,
-                                                         "INPUT": _table(col, row), "HEIGHT": 250.0,
+                                                         "INPUT": image_table(col, row), "HEIGHT": 250.0,
                                                          "OUTPUT": "memory:"})["OUTPUT"]
-        results.append(_values(out, "lon", "lat", "h_ellipsoid")[0])
+        results.append(field_values(out, "lon", "lat", "h_ellipsoid")[0])
     truth = scene.image_to_ground(col, row, 250.0, camera=len(scene.cameras) - 1)
     assert np.allclose(results[0], results[1])
     assert np.abs(geodetic_to_ecef(*results[0]) - truth[0]).max() < 1e-3
@@ -216,26 +168,26 @@ def test_unreadable_metadata_names_the_parameter(tmp_path, provider):
 def test_unknown_camera_lists_the_cameras(simulated, scene):
     with pytest.raises(QgsProcessingException, match=f"CAMERA: camera 'XYZ' is not in this scene.*{scene.cameras[0].name}"):
         processing.run("pushbroom:imagetoground", {"SCENE": simulated["TRUE_SCENE"], "CAMERA": "XYZ",
-                                                   "INPUT": _table([1.0], [1.0]), "OUTPUT": "memory:"})
+                                                   "INPUT": image_table([1.0], [1.0]), "OUTPUT": "memory:"})
 
 
 def test_nan_image_coordinates_are_refused(simulated):
     with pytest.raises(QgsProcessingException, match=r"INPUT: 1 features have missing or non-finite col/row"):
         processing.run("pushbroom:imagetoground", {"SCENE": simulated["TRUE_SCENE"],
-                                                   "INPUT": _table([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], extra_null=True),
+                                                   "INPUT": image_table([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], extra_null=True),
                                                    "OUTPUT": "memory:"})
 
 
 def test_nan_ground_coordinates_are_refused(simulated):
     with pytest.raises(QgsProcessingException, match=r"INPUT: 1 features have missing or non-finite point coord"):
         processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"],
-                                                   "INPUT": _points([0.1, np.nan], [0.2, 0.3]), "OUTPUT": "memory:"})
+                                                   "INPUT": point_layer([0.1, np.nan], [0.2, 0.3]), "OUTPUT": "memory:"})
 
 
 def test_a_layer_without_a_crs_is_refused(simulated):
     with pytest.raises(QgsProcessingException, match="INPUT: the layer has no valid CRS"):
         processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"],
-                                                   "INPUT": _points([0.1], [0.2], crs=None), "OUTPUT": "memory:"})
+                                                   "INPUT": point_layer([0.1], [0.2], crs=None), "OUTPUT": "memory:"})
 
 
 def test_points_off_the_dem_are_refused(simulated, tmp_path, scene, dem):
@@ -243,10 +195,10 @@ def test_points_off_the_dem_are_refused(simulated, tmp_path, scene, dem):
     col, row = _random_image_points(scene, 5)
     lon, lat, _ = ecef_to_geodetic(scene.image_to_ground(col, row, 0.0))
     with pytest.raises(QgsProcessingException, match="INPUT: 5 features have missing or non-finite DEM heights"):
-        processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"], "INPUT": _points(lon, lat),
+        processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"], "INPUT": point_layer(lon, lat),
                                                    "DEM": str(small), "OUTPUT": "memory:"})
     with pytest.raises(QgsProcessingException, match="DEM: the lines of sight of 5 points leave the DEM"):
-        processing.run("pushbroom:imagetoground", {"SCENE": simulated["TRUE_SCENE"], "INPUT": _table(col, row),
+        processing.run("pushbroom:imagetoground", {"SCENE": simulated["TRUE_SCENE"], "INPUT": image_table(col, row),
                                                    "DEM": str(small), "OUTPUT": "memory:"})
 
 
@@ -268,7 +220,7 @@ def test_output_layers_are_styled_when_loaded_into_the_project(simulated, scene)
     layer = project.mapLayer(fp)
     assert layer.labelsEnabled() and layer.labeling().settings().fieldName == "camera"
     pts = processing.runAndLoadResults("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"],
-                                                                   "INPUT": _points([0.0], [0.0], [0.0]),
+                                                                   "INPUT": point_layer([0.0], [0.0], [0.0]),
                                                                    "Z_DATUM": "ellipsoid", "OUTPUT": "memory:"}
                                        )["OUTPUT"]
     renderer = project.mapLayer(pts).renderer()

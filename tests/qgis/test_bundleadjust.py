@@ -17,7 +17,7 @@ from pushbroom_adjust.core.observations.gcps import read_gpkg
 from pushbroom_adjust.core.geodesy import enu_rotations, geodetic_to_ecef
 from pushbroom_adjust.core.formats import load_scene
 
-from .test_qgis_process import _run_json
+from tests.support.qgis_process import run_json
 
 INTERIOR = "HRC-1.*, HRC-3.*"
 NEW_FIELDS = ("res_col", "res_row", "res_px", "res_m", "w_col", "w_row", "redundancy", "weight", "flagged")
@@ -274,7 +274,7 @@ def _few_gcps(sim, folder: Path, n_control: int) -> str:
 def test_bundleadjust_from_the_command_line(qgis_process, chain, tmp_path):
     """Orientation images for position and attitude, from qgis_process, with the GCP file path."""
     sim, gcps, _, _ = chain
-    results = _run_json(qgis_process, "pushbroom:bundleadjust", SCENE=sim["ONBOARD_SCENE"], GCPS=gcps,
+    results = run_json(qgis_process, "pushbroom:bundleadjust", SCENE=sim["ONBOARD_SCENE"], GCPS=gcps,
                         INTERIOR=INTERIOR, POSITION_MODEL="lagrange", POSITION_INTERVAL=2, ATTITUDE_MODEL="lagrange",
                         ATTITUDE_INTERVAL=2, ATTITUDE_SIGMA=20, OUTPUT_SCENE=tmp_path / "s.json",
                         OUTPUT_REPORT=tmp_path / "r.html", OUTPUT_GCPS=tmp_path / "g.gpkg",

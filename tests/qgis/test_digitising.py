@@ -2,51 +2,21 @@
 copy (pushbroom:preparedigitising), digitise two image lines on the dock's canvas, undo a vertex,
 pair each with its ground line on the main canvas, predict the ground lines, save; the saved
 layer reads back through core.observations.lines with the clicked pixels and the ids."""
-import csv
-
 import numpy as np
-import pytest
 from osgeo import gdal, ogr
-from qgis.core import QgsApplication, QgsCoordinateReferenceSystem, QgsProject, QgsVectorLayer
+from qgis.core import QgsApplication
 from qgis.PyQt.QtCore import QPoint, Qt
 from qgis.PyQt.QtTest import QTest
 
-import processing
+from tests.support.digitising import click, digitise, pick, true_points, zoom_to
+from tests.support.digitising import ground_layer, prepared, roads  # noqa: F401 (the fixtures)
+from tests.support.polylines import distances_to_polylines
+from tests.support.snapping import across_error, clicks_along, render_roads
 
 CLICK_TOLERANCE_PX = 0.5
 
 
-def blank_raw_image(path, cols: int, rows: int):
-    """A raw image of the camera's size (sparse: blocks never written take no disk)."""
-    gdal.GetDriverByName("GTiff").Create(str(path), cols, rows, 1, gdal.GDT_Byte,
-                                         options=["SPARSE_OK=TRUE", "TILED=YES"])  # closed when released
-    return path
-
-
-@pytest.fixture(scope="module")
-def roads(plugin, tmp_path_factory):
-    """A CBERS-02B HRC scene with 6 roads, its raw image (blank) and its display copy."""
-    from pushbroom_adjust.core.formats import load_scene
-    from pushbroom_adjust.simulation.simulator import simulate
-    folder = tmp_path_factory.mktemp("roads")
-    result = simulate("cbers02b_hrc", folder / "sim", seed=5, n_gcps=12, n_lines=6)
-    camera = load_scene(result.true_scene).cameras[0]
-    raw = blank_raw_image(folder / "raw.tif", camera.cols, camera.rows)
-    with open(result.folder / "line_points.csv", newline="") as f:
-        points = list(csv.DictReader(f))
-    return {"result": result, "raw": raw, "folder": folder, "points": points, "camera": camera}
-
-
-@pytest.fixture(scope="module")
-def prepared(provider, roads):
-    out = roads["folder"]
-    done = processing.run("pushbroom:preparedigitising", {
-        "INPUT": str(roads["raw"]), "SCENE": str(roads["result"].true_scene), "CAMERA": "HRC",
-        "OUTPUT": str(out / "display.vrt"), "OUTPUT_LINES": str(out / "empty.gpkg")})
-    return done
-
-
-def test_prepare_writes_the_display_copy_and_an_empty_layer(prepared, roads):
+def test_prepare_writes_the_display_copy_and_an_empty_layer(prepared, roads):  # noqa: F811
     from pushbroom_adjust.core.measure.display import read_display_source
     ds = gdal.Open(prepared["OUTPUT"])
     assert ds.GetGeoTransform() == (0.0, 1.0, 0.0, 0.0, 0.0, -1.0)
@@ -61,56 +31,7 @@ def test_prepare_writes_the_display_copy_and_an_empty_layer(prepared, roads):
     assert layer.extent().xMaximum() == roads["camera"].cols and layer.extent().yMinimum() == -roads["camera"].rows
 
 
-def _true_points(roads, line_id):
-    return np.array([[float(p["col_true"]), float(p["row_true"])] for p in roads["points"]
-                     if p["line_id"] == line_id])
-
-
-def _click(canvas, x, y, button=Qt.LeftButton):
-    QTest.mouseClick(canvas.viewport(), button, Qt.NoModifier, QPoint(int(x), int(y)))
-
-
-def _digitise(dock, pixels) -> np.ndarray:
-    """Click the screen pixels nearest to image pixels (col, row) on the dock's canvas; returns
-    the image positions the clicks stand for (through the canvas transform)."""
-    transform = dock.canvas.getCoordinateTransform()
-    clicked = []
-    for col, row in pixels:
-        screen = transform.transform(col, -row)
-        x, y = round(screen.x()), round(screen.y())
-        _click(dock.canvas, x, y)
-        at = transform.toMapCoordinates(x, y)
-        clicked.append((at.x(), -at.y()))
-    return np.array(clicked)
-
-
-def _zoom_to(canvas, pixels, margin=20.0):
-    from qgis.core import QgsRectangle
-    canvas.setExtent(QgsRectangle(pixels[:, 0].min() - margin, -pixels[:, 1].max() - margin,
-                                  pixels[:, 0].max() + margin, -pixels[:, 1].min() + margin))
-    canvas.refresh()
-
-
-def _pick(main, lon, lat):
-    """Click the main canvas (EPSG:4326) at (lon, lat)."""
-    screen = main.getCoordinateTransform().transform(lon, lat)
-    _click(main, screen.x(), screen.y())
-
-
-@pytest.fixture()
-def ground_layer(roads, qgis_canvas, qgis_new_project):
-    layer = QgsVectorLayer(f"{roads['result'].lines}|layername=ground_lines", "roads", "ogr")
-    assert layer.isValid()
-    QgsProject.instance().addMapLayer(layer)
-    qgis_canvas.resize(800, 800)
-    qgis_canvas.setDestinationCrs(QgsCoordinateReferenceSystem("EPSG:4326"))
-    qgis_canvas.setLayers([layer])
-    qgis_canvas.setExtent(layer.extent())
-    qgis_canvas.refresh()
-    return layer
-
-
-def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground_layer, qgis_iface, qgis_canvas,
+def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground_layer, qgis_iface, qgis_canvas,  # noqa: F811
                                                  tmp_path):
     from pushbroom_adjust.core.observations.lines import read_image_lines
     from pushbroom_adjust.ui.digitising.dock import DigitisingDock
@@ -125,17 +46,17 @@ def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground
 
     expected = {}
     for line_id in ("R1", "R2"):
-        truth = _true_points(roads, line_id)[::3]
-        _zoom_to(dock.canvas, truth)
-        clicked = _digitise(dock, truth)
-        _click(dock.canvas, 400, 300)  # a stray vertex ...
+        truth = true_points(roads, line_id)[::3]
+        zoom_to(dock.canvas, truth)
+        clicked = digitise(dock, truth)
+        click(dock.canvas, 400, 300)  # a stray vertex ...
         assert len(dock.editor.current) == len(truth) + 1
         QTest.mouseClick(dock.undo_button, Qt.LeftButton)  # ... undone
-        _click(dock.canvas, 10, 10, Qt.RightButton)  # right click finishes the line
+        click(dock.canvas, 10, 10, Qt.RightButton)  # right click finishes the line
         assert dock.editor.current == [] and dock.editor.selected == len(expected)
         QTest.mouseClick(dock.pair_button, Qt.LeftButton)
         middle = ground[line_id][len(ground[line_id]) // 2]
-        _pick(qgis_canvas, middle[0], middle[1])
+        pick(qgis_canvas, middle[0], middle[1])
         assert dock.editor.lines[-1].line_id == line_id, dock.message_label.text()
         expected[line_id] = clicked
         # the clicks stand for points within a screen pixel of the road's true image
@@ -144,9 +65,8 @@ def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground
     dock.height_combo.setCurrentText("z")
     QTest.mouseClick(dock.predict_button, Qt.LeftButton)
     assert len(dock.predicted) == 6 and len(dock.bands) >= 6 + 2
-    from tests.unit.test_digitising import _distances
     r1 = next(p for p in dock.predicted if p.line_id == "R1")
-    assert _distances(_true_points(roads, "R1"), r1.runs()).max() < 1.6
+    assert distances_to_polylines(true_points(roads, "R1"), r1.runs()).max() < 1.6
 
     # a third, unpaired line is refused on saving and leaves no file; deleted, the rest saves
     dock.add_vertex(5000.0, 5000.0)
@@ -196,24 +116,24 @@ def _snap_in(dock, tmp_path):
     (In the dock of the test above, with a second display copy.)"""
     from pushbroom_adjust.core.measure.display import write_display_vrt
     from pushbroom_adjust.core.observations.lines import read_image_lines
-    from tests.unit.test_snapping import _across_error, _clicks, rendered
-    path, scene, truth = rendered.__wrapped__(_Factory(tmp_path))
+    (tmp_path / "snap").mkdir()
+    path, scene, truth = render_roads(tmp_path / "snap")  # the scene of the fixture ``rendered``
     write_display_vrt(path, tmp_path / "display.vrt")
     dock.editor.lines.clear()
     dock.editor.selected = None
     assert dock.open_image(str(tmp_path / "display.vrt")) and dock.raw_image == str(path)
-    clicks = _clicks(truth[:1], 40.0, 2.0, np.random.default_rng(3), scene.cameras[0].cols)
+    clicks = clicks_along(truth[:1], 40.0, 2.0, np.random.default_rng(3), scene.cameras[0].cols)
     pixels = np.c_[clicks.col, clicks.row]
-    _zoom_to(dock.canvas, pixels)
-    clicked = _digitise(dock, pixels)
-    _click(dock.canvas, 10, 10, Qt.RightButton)
+    zoom_to(dock.canvas, pixels)
+    clicked = digitise(dock, pixels)
+    click(dock.canvas, 10, 10, Qt.RightButton)
     clicked_lines = type(clicks)(["R0"], "HRC", [0, len(clicked)], clicked[:, 0], clicked[:, 1], 1.0)
-    before = _across_error(clicked_lines, truth[:1])
+    before = across_error(clicked_lines, truth[:1])
     QTest.mouseClick(dock.snap_button, Qt.LeftButton)
     assert "vertices snapped" in dock.message_label.text(), dock.message_label.text()
     line = dock.editor.lines[0]
     snapped = type(clicks)(["R0"], "HRC", [0, len(clicked)], *np.array(line.vertices).T, line.sigmas)
-    after = _across_error(snapped, truth[:1])
+    after = across_error(snapped, truth[:1])
     refined = np.array(line.sigmas) != 1.0
     print(f"dock snap: {refined.sum()} of {len(clicked)} vertices, RMS across {np.sqrt(np.mean(before ** 2)):.2f} "
           f"-> {np.sqrt(np.mean(after[refined] ** 2)):.3f} px")
@@ -229,15 +149,3 @@ def _snap_in(dock, tmp_path):
     np.testing.assert_allclose(back.sigma_px, dock.editor.lines[0].sigmas)
     assert np.all((back.sigma_px[refined] >= 0.1) & (back.sigma_px[refined] < 0.5))  # the fit's, per vertex
     assert np.all(back.sigma_px[~refined] == 1.0)
-
-
-class _Factory:
-    """A stand-in for pytest's tmp_path_factory (the fixture of tests/unit/test_snapping.py
-    called directly)."""
-
-    def __init__(self, folder):
-        self.folder = folder
-
-    def mktemp(self, name):
-        (self.folder / name).mkdir()
-        return self.folder / name

@@ -14,8 +14,8 @@ from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc
 from pushbroom_adjust.core.formats import load_scene
 
-from .conftest import PLUGIN
-from .test_qgis_process import _run_json
+from tests.support.paths import PLUGIN
+from tests.support.qgis_process import run_json
 
 gdal.UseExceptions()
 
@@ -137,7 +137,7 @@ def test_a_dem_that_does_not_cover_the_scene(simulated, tmp_path):
 
 def test_run_exportrpc_from_the_command_line(qgis_process, simulated, tmp_path):
     out = tmp_path / "scene_RPC.TXT"
-    results = _run_json(qgis_process, "pushbroom:exportrpc", SCENE=simulated["TRUE_SCENE"], HEIGHT=700,
+    results = run_json(qgis_process, "pushbroom:exportrpc", SCENE=simulated["TRUE_SCENE"], HEIGHT=700,
                         HEIGHT_SPAN=600, GRID=21, OUTPUT=out)
     assert Path(results["OUTPUT"]) == out
     report = json.loads(Path(results["REPORT"]).read_text())

@@ -13,7 +13,7 @@ import processing
 from pushbroom_adjust.core.observations.gcps import read_gpkg
 
 from tests.support.hostile import assert_refused, assert_unchanged, snapshot
-from .test_algorithms import RecordingFeedback
+from tests.support.processing import RecordingFeedback
 
 INTERIOR = "HRC-1.*, HRC-3.*"
 

@@ -9,8 +9,8 @@ from osgeo import gdal
 
 from pushbroom_adjust.core.formats import load_scene
 
+from tests.support.digitising import blank_raw_image
 from tests.support.hostile import assert_refused, assert_refused_cli
-from .test_digitising import blank_raw_image
 
 ALG = "pushbroom:preparedigitising"
 

@@ -203,8 +203,8 @@ def test_lines_only_parallel_to_each_other_adjust_with_the_free_direction_named(
     import processing
     from pushbroom_adjust.core.observations import lines as core_lines
     from pushbroom_adjust.core.formats import load_scene
-    from tests.unit.test_adjust_lines import _parallel_lines
-    parallel = _parallel_lines(load_scene(lines_sim["result"].true_scene))
+    from tests.support.control_lines import parallel_lines
+    parallel = parallel_lines(load_scene(lines_sim["result"].true_scene))
     path = tmp_path / "parallel.gpkg"
     core_lines.write_gpkg(path, parallel.ground, parallel.image)
     (tmp_path / "out").mkdir()

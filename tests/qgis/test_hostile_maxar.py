@@ -16,7 +16,7 @@ import pytest
 import processing
 
 from tests.support.hostile import assert_refused, assert_refused_cli
-from .test_algorithms import RecordingFeedback
+from tests.support.processing import RecordingFeedback
 
 SOURCE = "wv_mvp_1.xml"
 

@@ -8,7 +8,7 @@ from osgeo import gdal
 
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.formats.scene_json import save_scene
-from tests.conftest import TEST_DATA
+from tests.support.paths import TEST_DATA
 from tests.support.ortho_compare import saved_cut
 from tests.support.rpcdata import pleiades_rpc, rpc_files, scaled
 

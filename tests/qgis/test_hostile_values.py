@@ -18,7 +18,7 @@ from pushbroom_adjust.core.geodesy import ecef_to_geodetic
 from pushbroom_adjust.core.products.mapping import utm_crs
 from pushbroom_adjust.core.formats import load_scene
 from tests.support.hostile import assert_refused, assert_refused_cli
-from tests.qgis.test_algorithms import RecordingFeedback
+from tests.support.processing import RecordingFeedback
 
 gdal.UseExceptions()
 

@@ -11,7 +11,7 @@ from qgis.core import (QgsExpressionContextUtils, QgsFeature, QgsField, QgsGeome
                        QgsProcessingException, QgsProcessingFeedback, QgsRenderContext, QgsVectorLayer)
 from qgis.PyQt.QtCore import QVariant
 
-from .conftest import PLUGIN
+from tests.support.paths import PLUGIN
 
 FIELDS = ["id", "role", "camera", "col", "row", "h", "sigma_px", "sigma_xy", "sigma_z", "res_col", "res_row",
           "res_px", "res_m", "inside"]

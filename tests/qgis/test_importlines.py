@@ -2,22 +2,9 @@
 (Tommaselli & Marcato Junior 2012), through processing.run and qgis_process."""
 from __future__ import annotations
 
-import pytest
 from osgeo import ogr
 
-from pushbroom_adjust.simulation.roads import RoadSettings
-from pushbroom_adjust.simulation.measurements import GcpSettings
-from pushbroom_adjust.simulation.simulator import simulate
-
-
-@pytest.fixture(scope="module")
-def roads(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("roads")
-    result = simulate("cbers02b_hrc", folder / "sim", seed=2, errors=dict(ccd_shift=0.0, ccd_rotation=0.0),
-                      gcp_settings=GcpSettings(n_gcps=40, check_fraction=0.5, image_noise=0.5, ground_noise_xy=0.5,
-                                               ground_noise_z=1.0),
-                      road_settings=RoadSettings(n_lines=20, wrong_fraction=0.1))
-    return result, folder
+from tests.support.control_lines import roads  # noqa: F401 (the fixture)
 
 
 def _import(provider, result, out, **extra):
@@ -35,7 +22,7 @@ def _gcps(provider, result, out):
         "Z_FIELD": "h", "HEIGHT_SOURCE": "z", "Z_DATUM": "ellipsoid", "OUTPUT": str(out)})
 
 
-def test_importlines_writes_ground_and_image_lines_with_apriori_offsets(provider, roads):
+def test_importlines_writes_ground_and_image_lines_with_apriori_offsets(provider, roads):  # noqa: F811
     result, folder = roads
     out = folder / "control_lines.gpkg"
     _import(provider, result, out)
@@ -48,7 +35,7 @@ def test_importlines_writes_ground_and_image_lines_with_apriori_offsets(provider
     assert len(rms) == 20 and 10.0 < sorted(rms)[10] < 2000.0
 
 
-def test_bundleadjust_with_lines_names_the_wrong_ones(provider, roads):
+def test_bundleadjust_with_lines_names_the_wrong_ones(provider, roads):  # noqa: F811
     import processing
     result, folder = roads
     lines = folder / "control_lines_ba.gpkg"
@@ -74,7 +61,7 @@ def test_bundleadjust_with_lines_names_the_wrong_ones(provider, roads):
     assert ds.GetLayer("line_points").GetFeatureCount() == rep["lines"]["points"]
 
 
-def test_importlines_runs_from_qgis_process(qgis_process, roads, tmp_path):
+def test_importlines_runs_from_qgis_process(qgis_process, roads, tmp_path):  # noqa: F811
     result, _ = roads
     out = tmp_path / "cl.gpkg"
     done = qgis_process("run", "pushbroom:importlines", "--", f"SCENE={result.onboard_scene}",
@@ -86,7 +73,7 @@ def test_importlines_runs_from_qgis_process(qgis_process, roads, tmp_path):
     assert ds.GetLayer("ground_lines").GetFeatureCount() == 20
 
 
-def test_bundleadjust_with_lines_runs_from_qgis_process(provider, qgis_process, roads, tmp_path):
+def test_bundleadjust_with_lines_runs_from_qgis_process(provider, qgis_process, roads, tmp_path):  # noqa: F811
     import json
     result, folder = roads
     lines, gcps = tmp_path / "cl.gpkg", tmp_path / "gcps.gpkg"

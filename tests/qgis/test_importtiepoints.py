@@ -8,7 +8,7 @@ import pytest
 from qgis.core import (QgsFeature, QgsField, QgsRenderContext, QgsVectorLayer)
 from qgis.PyQt.QtCore import QVariant
 
-from .conftest import PLUGIN
+from tests.support.paths import PLUGIN
 from tests.support.hostile import LogFeedback
 
 FIELDS = ["id", "camera", "col", "row", "sigma_px", "scene", "rays", "res_col", "res_row", "res_px"]

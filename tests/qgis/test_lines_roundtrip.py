@@ -9,7 +9,8 @@ from qgis.PyQt.QtTest import QTest
 
 import processing
 
-from .test_digitising import _click, _digitise, _pick, _true_points, _zoom_to, ground_layer, prepared, roads  # noqa: F401
+from tests.support.digitising import click, digitise, pick, true_points, zoom_to
+from tests.support.digitising import ground_layer, prepared, roads  # noqa: F401 (the fixtures)
 
 LINES = ("R1", "R2", "R3", "R4", "R5", "R6")
 
@@ -26,16 +27,16 @@ def test_dock_lines_round_trip_through_importlines_and_bundleadjust(plugin, prep
     ground = {f["line_id"]: np.array(f.geometry().asPolyline()) for f in ground_layer.getFeatures()}
     digitised = []
     for line_id in LINES:
-        truth = _true_points(roads, line_id)
+        truth = true_points(roads, line_id)
         if truth.shape[0] < 4:
             continue  # a road the camera barely sees
         truth = truth[::2]
-        _zoom_to(dock.canvas, truth)
-        _digitise(dock, truth)
-        _click(dock.canvas, 10, 10, Qt.RightButton)
+        zoom_to(dock.canvas, truth)
+        digitise(dock, truth)
+        click(dock.canvas, 10, 10, Qt.RightButton)
         QTest.mouseClick(dock.pair_button, Qt.LeftButton)
         middle = ground[line_id][len(ground[line_id]) // 2]
-        _pick(qgis_canvas, middle[0], middle[1])
+        pick(qgis_canvas, middle[0], middle[1])
         assert dock.editor.lines[-1].line_id == line_id, dock.message_label.text()
         digitised.append(line_id)
     saved = tmp_path / "digitised.gpkg"

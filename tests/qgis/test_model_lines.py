@@ -9,7 +9,7 @@ from osgeo import ogr
 import processing
 
 from tests.support.modelcheck import assert_shipped_model
-from .test_importlines import roads  # noqa: F401
+from tests.support.control_lines import roads  # noqa: F401 (the fixture)
 
 MODEL_FILE = Path(__file__).resolve().parents[2] / "resources" / "models" / "adjust_with_lines.model3"
 MODEL_ID = "pushbroom:Adjust with GCPs and control lines"

@@ -11,8 +11,8 @@ import processing
 from pushbroom_adjust.core.formats.scene_json import save_scene
 from tests.support.ortho_compare import rendered_cameras, rendered_cut
 
-from .test_algorithms import RecordingFeedback
-from .test_qgis_process import _run_json
+from tests.support.processing import RecordingFeedback
+from tests.support.qgis_process import run_json
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +87,7 @@ def test_a_dem_covering_part_of_the_scene_is_warned(provider, raw, tmp_path):
 
 def test_orthorectify_from_the_command_line(qgis_process, raw, tmp_path):
     scene, image, dem = raw
-    results = _run_json(qgis_process, "pushbroom:orthorectify", INPUT=image, SCENE=scene, DEM=dem, DEM_DATUM="geoid",
+    results = run_json(qgis_process, "pushbroom:orthorectify", INPUT=image, SCENE=scene, DEM=dem, DEM_DATUM="geoid",
                         CRS="EPSG:32650", RESOLUTION=10, OUTPUT=tmp_path / "o.tif")
     ds = gdal.Open(results["OUTPUT"])
     assert ds.GetGeoTransform()[1] == 10.0 and ds.RasterCount == 1

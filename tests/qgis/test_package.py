@@ -20,9 +20,9 @@ from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.products.footprint import footprints
 from pushbroom_adjust.core.formats import load_scene
 
-from .conftest import PLUGIN, QGIS_PROCESS, REPO
-from .test_provider import ALGORITHMS, MODELS
-from .test_qgis_process import _run_json
+from tests.support.paths import PLUGIN, QGIS_PROCESS, REPO
+from tests.support.provider import ALGORITHMS, MODELS
+from tests.support.qgis_process import run_json
 
 CONTENT = ("metadata.txt", "__init__.py", "plugin.py", "LICENSE", "README.md", "docs", "core", "simulation", "ui",
            "resources")
@@ -205,9 +205,9 @@ def test_installed_zip_enables_and_runs_in_a_fresh_profile(installed, tmp_path):
     assert listed.returncode == 0, listed.stderr
     for alg in ALGORITHMS + MODELS:  # the models come from the zip's resources/models/
         assert f"\t{alg}\t" in listed.stdout, alg
-    sim = _run_json(run, "pushbroom:simulatescene", SEED=3, N_GCPS=12, OUTPUT_FOLDER=tmp_path / "sim")
+    sim = run_json(run, "pushbroom:simulatescene", SEED=3, N_GCPS=12, OUTPUT_FOLDER=tmp_path / "sim")
     out = tmp_path / "footprint.gpkg"
-    _run_json(run, "pushbroom:footprint", SCENE=sim["TRUE_SCENE"], DEM=sim["DEM"], DEM_DATUM="geoid", SAMPLES=16,
+    run_json(run, "pushbroom:footprint", SCENE=sim["TRUE_SCENE"], DEM=sim["DEM"], DEM_DATUM="geoid", SAMPLES=16,
               OUTPUT=out)
 
     ds = ogr.Open(str(out))  # kept: its layer dies with it

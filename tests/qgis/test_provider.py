@@ -3,18 +3,8 @@ import importlib
 
 from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
 
-from .conftest import PLUGIN
-
-ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:importtiepoints", "pushbroom:importlines",
-              "pushbroom:matchgcps", "pushbroom:matchtiepoints",
-              "pushbroom:bundleadjust", "pushbroom:groundtoimage",
-              "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",
-              "pushbroom:exportrpc", "pushbroom:sensorcorrect", "pushbroom:preparedigitising",
-              "pushbroom:snaplines"]
-MODELS = ["pushbroom:Simulate, adjust, orthorectify and export RPC",  # resources/models/*.model3
-          "pushbroom:Simulate, match GCPs, adjust, orthorectify and export RPC",
-          "pushbroom:Adjust with GCPs and control lines",
-          "pushbroom:Three-line block: simulate, match tie points, adjust"]
+from tests.support.paths import PLUGIN
+from tests.support.provider import ALGORITHMS, MODELS
 
 
 def test_provider_lists_its_algorithms(provider):

@@ -13,24 +13,8 @@ from pushbroom_adjust.core.geodesy import ecef_to_geodetic
 from pushbroom_adjust.core.products.footprint import footprints
 from pushbroom_adjust.core.formats import load_scene
 
-from .test_provider import ALGORITHMS
-
-
-def _run_json(qgis_process, alg, **params) -> dict:
-    done = qgis_process("--json", "run", alg, "--", *(f"{k}={v}" for k, v in params.items()))
-    assert done.returncode == 0, done.stdout + done.stderr
-    return json.loads(done.stdout)["results"]
-
-
-def _read_layer(path, *fields):
-    """(attributes (n, len(fields)), geometries as WKT) of the first layer of a vector file."""
-    ds = ogr.Open(str(path))
-    layer = ds.GetLayer(0)
-    values, wkts = [], []
-    for f in layer:
-        values.append([f.GetField(n) for n in fields])
-        wkts.append(f.GetGeometryRef().ExportToWkt())
-    return np.array(values, dtype=object), wkts
+from tests.support.provider import ALGORITHMS
+from tests.support.qgis_process import read_layer, run_json
 
 
 def test_list_shows_the_algorithms(qgis_process):
@@ -48,10 +32,10 @@ def test_help_shows_parameter_help(qgis_process):
 
 def test_run_footprint_from_the_command_line(qgis_process, simulated, tmp_path):
     out = tmp_path / "footprint.gpkg"
-    results = _run_json(qgis_process, "pushbroom:footprint", SCENE=simulated["TRUE_SCENE"], DEM=simulated["DEM"],
+    results = run_json(qgis_process, "pushbroom:footprint", SCENE=simulated["TRUE_SCENE"], DEM=simulated["DEM"],
                         DEM_DATUM="geoid", SAMPLES=16, OUTPUT=out)
     assert Path(results["OUTPUT"].split("|")[0]) == out
-    values, _ = _read_layer(out, "camera", "area_km2")
+    values, _ = read_layer(out, "camera", "area_km2")
     truth = footprints(load_scene(simulated["TRUE_SCENE"]), Dem(simulated["DEM"], "geoid"), samples_per_edge=16)
     assert list(values[:, 0]) == [fp.camera for fp in truth]
     assert np.allclose(values[:, 1].astype(float), [fp.area_km2 for fp in truth], rtol=1e-9)
@@ -66,9 +50,9 @@ def test_run_groundtoimage_from_the_command_line(qgis_process, simulated, tmp_pa
     lon, lat, h = ecef_to_geodetic(scene.image_to_ground_dem(col, row, dem))
     points = _write_points(tmp_path / "points.gpkg", lon, lat, h)
     out = tmp_path / "image_points.gpkg"
-    _run_json(qgis_process, "pushbroom:groundtoimage", SCENE=simulated["TRUE_SCENE"], INPUT=points,
+    run_json(qgis_process, "pushbroom:groundtoimage", SCENE=simulated["TRUE_SCENE"], INPUT=points,
               Z_DATUM="ellipsoid", OUTPUT=out)
-    values, _ = _read_layer(out, "name", "col", "row", "in_image")
+    values, _ = read_layer(out, "name", "col", "row", "in_image")
     assert list(values[:, 0]) == [f"p{i}" for i in range(7)]
     assert np.abs(values[:, 1].astype(float) - col).max() < 1e-4
     assert np.abs(values[:, 2].astype(float) - row).max() < 1e-4
@@ -77,7 +61,7 @@ def test_run_groundtoimage_from_the_command_line(qgis_process, simulated, tmp_pa
 
 def test_simulate_import_and_image_to_ground_chained_on_the_command_line(qgis_process, tmp_path):
     """Three-line preset, noise-free, with advanced settings in their user units (µrad)."""
-    sim = _run_json(qgis_process, "pushbroom:simulatescene", PRESET="th1_tlc", SEED=2, N_GCPS=30, IMAGE_NOISE=0,
+    sim = run_json(qgis_process, "pushbroom:simulatescene", PRESET="th1_tlc", SEED=2, N_GCPS=30, IMAGE_NOISE=0,
                     CHECK_FRACTION=0.5, POSITION_BIAS=0, ATTITUDE_BIAS=100, OUTPUT_FOLDER=tmp_path / "sim")
     manifest = json.loads(Path(sim["MANIFEST"]).read_text())
     assert manifest["preset"] == "th1_tlc" and manifest["errors"]["position_bias"] == 0.0
@@ -85,18 +69,18 @@ def test_simulate_import_and_image_to_ground_chained_on_the_command_line(qgis_pr
     assert manifest["errors"]["attitude_drift"] == pytest.approx(5e-7)  # preset default kept
     # import against the true scene: noise-free measurements have zero a-priori residuals
     gcps = tmp_path / "gcps.gpkg"
-    _run_json(qgis_process, "pushbroom:importgcps", SCENE=sim["TRUE_SCENE"], INPUT_FILE=sim["GCPS"], Z_FIELD="h",
+    run_json(qgis_process, "pushbroom:importgcps", SCENE=sim["TRUE_SCENE"], INPUT_FILE=sim["GCPS"], Z_FIELD="h",
               Z_DATUM="ellipsoid", ROLE_FIELD="role", CAMERA_FIELD="camera", OUTPUT=gcps)
-    values, _ = _read_layer(gcps, "id", "camera", "role", "res_px", "col", "row")
+    values, _ = read_layer(gcps, "id", "camera", "role", "res_px", "col", "row")
     with open(sim["GCPS"]) as f:
         n_rows = sum(1 for _ in f) - 1
     assert len(values) == n_rows > 60 and set(values[:, 1]) == {"NAD", "FWD", "BWD"}
     assert np.sum(values[:, 2] == "check") > 0 and np.max(values[:, 3].astype(float)) < 1e-5
     # the nadir measurements back to the ground on the DEM land on the true points
     ground = tmp_path / "ground.gpkg"
-    _run_json(qgis_process, "pushbroom:imagetoground", SCENE=sim["TRUE_SCENE"], CAMERA="NAD", INPUT=gcps,
+    run_json(qgis_process, "pushbroom:imagetoground", SCENE=sim["TRUE_SCENE"], CAMERA="NAD", INPUT=gcps,
               DEM=sim["DEM"], DEM_DATUM="geoid", OUTPUT=ground)
-    out, _ = _read_layer(ground, "id", "camera", "lon", "lat")
+    out, _ = read_layer(ground, "id", "camera", "lon", "lat")
     nad = out[:, 1] == "NAD"
     truth = {r["id"]: (float(r["lon_true"]), float(r["lat_true"]))
              for r in csv.DictReader(open(sim["GCPS"])) if r["camera"] == "NAD"}

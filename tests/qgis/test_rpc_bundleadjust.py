@@ -17,10 +17,9 @@ from pushbroom_adjust.core.formats.rpcfiles import rpc_metadata, write_rpc
 from pushbroom_adjust.core.model.rpcscene import RpcScene
 from pushbroom_adjust.core.formats import load_scene
 from tests.support.rpcdata import worldview2_rpc
-from tests.unit.test_rpc_adjust import BIAS, NOISE, _table
-
-from .test_algorithms import _points, _values
-from .test_qgis_process import _run_json
+from tests.support.processing import field_values, point_layer
+from tests.support.qgis_process import run_json
+from tests.support.rpc_bias import BIAS, NOISE, biased_gcps
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +27,7 @@ def wv2(provider, shared_data, tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("rpcadj")
     scene_path = write_rpc(worldview2_rpc(shared_data), folder / "wv2.RPB")
     scene = load_scene(scene_path)
-    table, _, _ = _table(scene, BIAS)
+    table, _, _ = biased_gcps(scene, BIAS)
     gcps = folder / "gcps.gpkg"
     write_gpkg(table, gcps)
     return {"scene": str(scene_path), "gcps": str(gcps), "folder": folder}
@@ -71,7 +70,7 @@ def test_rpc_options_that_do_not_apply_are_refused(wv2, tmp_path, simulated):
 
 
 def test_rpc_bundleadjust_from_the_command_line(qgis_process, wv2, tmp_path):
-    res = _run_json(qgis_process, "pushbroom:bundleadjust", SCENE=wv2["scene"], GCPS=wv2["gcps"],
+    res = run_json(qgis_process, "pushbroom:bundleadjust", SCENE=wv2["scene"], GCPS=wv2["gcps"],
                     RPC_CORRECTION="shift", OUTPUT_SCENE=tmp_path / "s.json", OUTPUT_RPC=tmp_path / "r_RPC.TXT")
     adjusted, refined = load_scene(res["OUTPUT_SCENE"]), load_scene(res["OUTPUT_RPC"])
     assert adjusted.correction[0, 0] == pytest.approx(3.2, abs=0.5) and adjusted.correction[0, 2] == 0.0
@@ -86,7 +85,7 @@ def test_import_adjust_and_use_the_adjusted_scene(wv2, tmp_path):
     scene JSON given to another algorithm (groundtoimage projects the check points to their
     measured image positions, to the noise)."""
     scene = load_scene(wv2["scene"])
-    table, _, _ = _table(scene, BIAS)
+    table, _, _ = biased_gcps(scene, BIAS)
     path = tmp_path / "gcps.csv"
     with open(path, "w", newline="") as f:
         writer = csv.writer(f)
@@ -98,9 +97,9 @@ def test_import_adjust_and_use_the_adjusted_scene(wv2, tmp_path):
     adjusted = processing.run("pushbroom:bundleadjust", {"SCENE": wv2["scene"], "GCPS": gpkg,
                                                          "OUTPUT_SCENE": str(tmp_path / "adj.json")})["OUTPUT_SCENE"]
     check = table.role == "check"
-    points = _points(table.lon[check], table.lat[check], table.h[check], crs="EPSG:4979")
+    points = point_layer(table.lon[check], table.lat[check], table.h[check], crs="EPSG:4979")
     out = processing.run("pushbroom:groundtoimage", {"SCENE": adjusted, "INPUT": points, "USE_Z": True,
                                                      "Z_DATUM": "ellipsoid", "OUTPUT": "memory:"})["OUTPUT"]
-    c, r = _values(out, "col", "row").T
+    c, r = field_values(out, "col", "row").T
     err = np.hypot(c - table.col[check], r - table.row[check])
     assert np.sqrt(np.mean(err ** 2)) < 1.25 * np.sqrt(2) * NOISE

@@ -17,10 +17,9 @@ from pushbroom_adjust.core.products.footprint import footprints
 from pushbroom_adjust.core.model.rpcscene import RpcScene
 from pushbroom_adjust.core.formats import load_scene
 from tests.support.ortho_compare import gdal_rpc_against_rigorous, gdalwarp_rpc, image_difference
+from tests.support.processing import RecordingFeedback, field_values, image_table
+from tests.support.qgis_process import read_layer, run_json
 from tests.support.rpcdata import PLEIADES, padded_dem, pleiades_rpc, rpc_files, scaled
-
-from .test_algorithms import RecordingFeedback, _table, _values
-from .test_qgis_process import _read_layer, _run_json
 
 
 @pytest.fixture(scope="module")
@@ -42,21 +41,21 @@ def test_image_to_ground_and_back_on_the_dem(rpc, source):
     assert isinstance(scene, RpcScene)
     col, row = _points(scene, 100)
     dem = Dem(rpc["dem"], "ellipsoid")
-    ground = processing.run("pushbroom:imagetoground", {"SCENE": str(rpc[source]), "INPUT": _table(col, row),
+    ground = processing.run("pushbroom:imagetoground", {"SCENE": str(rpc[source]), "INPUT": image_table(col, row),
                                                         "DEM": rpc["dem"], "DEM_DATUM": "ellipsoid",
                                                         "OUTPUT": "memory:"})["OUTPUT"]
-    lon, lat, h = _values(ground, "lon", "lat", "h_ellipsoid").T
+    lon, lat, h = field_values(ground, "lon", "lat", "h_ellipsoid").T
     assert np.abs(h - dem.height(lon, lat)).max() < 0.01
     assert np.abs(geodetic_to_ecef(lon, lat, h) - scene.image_to_ground_dem(col, row, dem)).max() < 1e-3
     back = processing.run("pushbroom:groundtoimage", {"SCENE": str(rpc[source]), "INPUT": ground,
                                                       "OUTPUT": "memory:"})["OUTPUT"]
-    c2, r2, inside = _values(back, "col_2", "row_2", "in_image").T
+    c2, r2, inside = field_values(back, "col_2", "row_2", "in_image").T
     assert np.hypot(c2 - col, r2 - row).max() < 1e-3 and inside.min() == 1
 
 
 def test_a_constant_height_outside_the_rpc_range_is_refused_and_one_partly_outside_warned(rpc):
     col, row = _points(load_scene(rpc["tif"]), 5)
-    params = {"SCENE": str(rpc["tif"]), "INPUT": _table(col, row), "OUTPUT": "memory:"}
+    params = {"SCENE": str(rpc["tif"]), "INPUT": image_table(col, row), "OUTPUT": "memory:"}
     with pytest.raises(QgsProcessingException, match=r"HEIGHT 3000 m: heights 3000 to 3000 m lie outside the RPC's "
                                                      r"height range 490 to 660 m"):
         processing.run("pushbroom:imagetoground", {**params, "HEIGHT": 3000.0})
@@ -112,11 +111,11 @@ def test_exportrpc_of_an_rpc_scene_reproduces_it(rpc, tmp_path):
 
 def test_footprint_of_an_rpc_image_from_the_command_line(qgis_process, rpc, tmp_path):
     out = tmp_path / "fp.gpkg"
-    res = _run_json(qgis_process, "pushbroom:footprint", SCENE=rpc["tif"], DEM=rpc["dem"], DEM_DATUM="ellipsoid",
+    res = run_json(qgis_process, "pushbroom:footprint", SCENE=rpc["tif"], DEM=rpc["dem"], DEM_DATUM="ellipsoid",
                     OUTPUT=out)
     assert Path(res["OUTPUT"]).is_file()
     scene = load_scene(rpc["tif"])
     lon, lat, _ = ecef_to_geodetic(scene.image_to_ground_dem([0.0], [0.0], Dem(rpc["dem"], "ellipsoid")))
-    _, (wkt,) = _read_layer(out, "cols")
+    _, (wkt,) = read_layer(out, "cols")
     corners = np.array([[float(v) for v in p.split()[:2]] for p in wkt.split("((")[1].rstrip(")").split(",")])
     assert np.hypot(*(corners - [lon[0], lat[0]]).T).min() < 1e-6

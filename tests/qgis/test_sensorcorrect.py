@@ -13,8 +13,8 @@ from pushbroom_adjust.core.formats import load_scene
 
 from tests.support.ortho_compare import saved_cut
 
-from .test_algorithms import RecordingFeedback
-from .test_qgis_process import _run_json
+from tests.support.processing import RecordingFeedback
+from tests.support.qgis_process import run_json
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +62,7 @@ def test_virtual_scene_serves_as_scene_for_the_other_algorithms(provider, raw, t
 
 def test_sensorcorrect_from_the_command_line(qgis_process, raw, tmp_path):
     scene, image, dem = raw
-    results = _run_json(qgis_process, "pushbroom:sensorcorrect", INPUT=image, SCENE=scene, DEM=dem,
+    results = run_json(qgis_process, "pushbroom:sensorcorrect", INPUT=image, SCENE=scene, DEM=dem,
                         DEM_DATUM="geoid", RESAMPLING="bilinear", OUTPUT=tmp_path / "c.tif",
                         OUTPUT_SCENE=tmp_path / "c.json")
     ds = gdal.Open(results["OUTPUT"])

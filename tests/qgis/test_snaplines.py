@@ -6,7 +6,7 @@ import numpy as np
 from osgeo import ogr
 
 from pushbroom_adjust.core.observations.lines import read_image_lines, write_gpkg
-from tests.unit.test_snapping import _across_error, _clicks, rendered  # noqa: F401 (the fixture)
+from tests.support.snapping import across_error, clicks_along
 
 
 def test_simulatescene_with_n_lines_writes_roads_importlines_reads(provider, tmp_path):
@@ -33,17 +33,17 @@ def test_simulatescene_without_n_lines_writes_no_roads(simulated):
     assert simulated["LINES"] is None
 
 
-def test_snaplines_refines_clicks_to_0_3px_across_the_rendered_road(provider, rendered, tmp_path):  # noqa: F811
+def test_snaplines_refines_clicks_to_0_3px_across_the_rendered_road(provider, rendered, tmp_path):
     import processing
     path, scene, truth = rendered
-    clicks = _clicks(truth, 40.0, 2.0, np.random.default_rng(1), scene.cameras[0].cols)
+    clicks = clicks_along(truth, 40.0, 2.0, np.random.default_rng(1), scene.cameras[0].cols)
     write_gpkg(tmp_path / "clicks.gpkg", image=clicks)
     out = tmp_path / "snapped.gpkg"
     processing.run("pushbroom:snaplines", {"INPUT": str(path), "IMAGE_LINES": str(tmp_path / "clicks.gpkg"),
                                            "MODE": "centre", "WIDTH": 3.0, "SEARCH": 10.0, "OUTPUT": str(out)})
     snapped = read_image_lines(out)
     refined = snapped.sigma_px != 2.0          # kept vertices keep the clicks' sigma
-    before, after = _across_error(clicks, truth), _across_error(snapped, truth)
+    before, after = across_error(clicks, truth), across_error(snapped, truth)
     rms_before, rms_after = np.sqrt(np.mean(before ** 2)), np.sqrt(np.mean(after[refined] ** 2))
     print(f"snaplines: {before.size} clicks, RMS across {rms_before:.2f} px -> {rms_after:.3f} px, "
           f"refined {refined.sum()}")

@@ -14,7 +14,7 @@ import pytest
 from qgis.core import (QgsProcessingContext, QgsProcessingModelAlgorithm, QgsProcessingParameterDefinition,
                        QgsProcessingParameterEnum, QgsProcessingParameterNumber)
 
-from .conftest import PLUGIN, REPO
+from tests.support.paths import PLUGIN, REPO
 
 # QGIS's convention (native:buffer, gdal:warpreproject): the algorithm's main input and output,
 # whose type is the algorithm's own (a raster for orthorectify, a point layer for groundtoimage);

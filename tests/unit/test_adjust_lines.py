@@ -4,8 +4,6 @@ freedom (two constraints per line point), wrong lines named as a whole, lines of
 named, and the per line point / per line results."""
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from osgeo import ogr
@@ -15,12 +13,12 @@ from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.linepoints import ControlLines
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.geodesy import ecef_to_geodetic
-from pushbroom_adjust.core.observations.lines import GroundLines, ImageLines, read_ground_lines, read_image_lines
+from pushbroom_adjust.core.observations.lines import ImageLines, read_ground_lines, read_image_lines
 from pushbroom_adjust.simulation.roads import RoadSettings
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.simulation.measurements import GcpSettings
 from pushbroom_adjust.simulation.simulator import simulate
+from tests.support.control_lines import parallel_lines
 
 # seed 002's setting: a polynomial trajectory estimated from ground control alone
 SETTINGS = dict(position_model="polynomial", position_order=1, attitude_model="polynomial", attitude_order=2,
@@ -128,35 +126,9 @@ def test_wrong_lines_are_named_as_a_whole(tmp_path):
     assert min(r for i, r in zip(per["line_id"], per["max_across_m"]) if i in wrong) > 15.0
 
 
-def _parallel_lines(true_scene, count=5, points=10, noise=0.3, seed=0):
-    """Straight east-west lines (5 km apart, 20 km long, at 500 m) and their image lines through the
-    true scene with ``noise`` px."""
-    rng = np.random.default_rng(seed)
-    cam = true_scene.cameras[0]
-    lon0, lat0, _ = ecef_to_geodetic(true_scene.image_to_ground(np.array([cam.cols / 2]), np.array([cam.rows / 2]),
-                                                                500.0, 0))
-    lon0, lat0 = float(lon0[0]), float(lat0[0])
-    k = 1.0 / (111320.0 * math.cos(math.radians(lat0)))
-    ids, parts, cols, rows = [], [], [], []
-    for i, north in enumerate(np.linspace(-10e3, 10e3, count)):
-        lon = lon0 + np.array([-10e3, 10e3]) * k
-        lat = np.full(2, lat0 + north / 110574.0)
-        ids.append(f"P{i}")
-        parts.append((lon, lat))
-        s = np.linspace(-9e3, 9e3, points) * k + lon0
-        from pushbroom_adjust.core.geodesy import geodetic_to_ecef
-        c, r = true_scene.ground_to_image(geodetic_to_ecef(s, np.full(points, lat[0]), np.full(points, 500.0)), 0)
-        cols.append(c + rng.normal(0, noise, points))
-        rows.append(r + rng.normal(0, noise, points))
-    ground = GroundLines(ids, np.arange(count + 1) * 2, np.concatenate([p[0] for p in parts]),
-                         np.concatenate([p[1] for p in parts]), np.full(2 * count, 500.0), 1.0, 2.0)
-    image = ImageLines(ids, "HRC", np.arange(count + 1) * points, np.concatenate(cols), np.concatenate(rows), noise)
-    return ControlLines(ground, image)
-
-
 def test_lines_of_one_direction_are_named_with_the_free_azimuth(clean):
     result, scene, table, _, _ = clean
-    parallel = _parallel_lines(load_scene(result.true_scene))
+    parallel = parallel_lines(load_scene(result.true_scene))
     onboard = {**SETTINGS, "position_sigma": 100.0, "attitude_sigma": 5e-4}
     out = adjust(scene, _control(table, 0), AdjustmentSettings(**onboard), lines=parallel)
     d = out.report["lines"]["directions"]

@@ -14,6 +14,7 @@ from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.observations.lines import read_image_lines
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.simulation.simulator import simulate
+from tests.support.polylines import distances_to_polylines
 
 
 @pytest.fixture(scope="module")
@@ -147,15 +148,6 @@ def test_predicted_runs_split_at_gaps():
     assert [run[:, 0].tolist() for run in line.runs()] == [[1.0, 2.0], [6.0, 7.0, 8.0]]
 
 
-def _distances(points: np.ndarray, runs: list) -> np.ndarray:
-    """Distance (px) of each point (n, 2) to the nearest segment of the polylines ``runs``."""
-    a = np.concatenate([r[:-1] for r in runs])
-    b = np.concatenate([r[1:] for r in runs])
-    d = b - a
-    t = np.clip(np.einsum("nkj,kj->nk", points[:, None, :] - a, d) / np.einsum("kj,kj->k", d, d), 0.0, 1.0)
-    return np.linalg.norm(points[:, None, :] - a - t[..., None] * d, axis=2).min(axis=1)
-
-
 def test_ground_lines_predicted_by_the_true_scene_lie_on_their_true_images(roads):
     """Map lines with 1 m horizontal and 2 m height noise (0.4 px at 2.36 m GSD), densified and
     projected by the true scene, pass within 1.6 px of every true image point of the road and
@@ -169,7 +161,7 @@ def test_ground_lines_predicted_by_the_true_scene_lie_on_their_true_images(roads
         for line in predicted:
             true = np.array([[float(p["col_true"]), float(p["row_true"])] for p in roads["points"]
                              if p["line_id"] == line.line_id])
-            distance = _distances(true, line.runs())
+            distance = distances_to_polylines(true, line.runs())
             if worst is None:
                 assert np.median(distance) > 5.0, (line.line_id, np.median(distance))
             else:

@@ -15,32 +15,14 @@ import pytest
 from osgeo import gdal
 
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
-from pushbroom_adjust.core.observations.gcps import GcpTable
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
 from pushbroom_adjust.core.formats.rpcfiles import rpc_metadata, write_rpc
 from pushbroom_adjust.core.products.rpcfit import refined_rpc
 from pushbroom_adjust.core.formats import load_scene
+from tests.support.rpc_bias import BIAS, NOISE, biased_gcps
 from tests.support.rpcdata import PLEIADES, pleiades_rpc, worldview2_rpc
 
 gdal.UseExceptions()
-NOISE = 0.3  # px
-BIAS = np.array([[3.2, 0.0, 2e-5], [-1.7, 0.0, -1.5e-5]])  # shift and drift along the rows
-
-
-def _table(scene, bias, n=80, n_control=30, seed=5) -> tuple[GcpTable, np.ndarray, np.ndarray]:
-    """GCPs at random image points and heights: ground by the vendor RPC, image positions with
-    ``bias`` (the RPC scene's correction layout) and NOISE; (table, true col, true row)."""
-    rng = np.random.default_rng(seed)
-    cam = scene.cameras[0]
-    col, row = rng.uniform(0, cam.cols, n), rng.uniform(0, cam.rows, n)
-    lo, hi = scene.height_range
-    lon, lat, h = ecef_to_geodetic(scene.image_to_ground(col, row, rng.uniform(lo, hi, n)))
-    measured_col = col + bias[0, 0] + bias[0, 1] * col + bias[0, 2] * row + rng.normal(0, NOISE, n)
-    measured_row = row + bias[1, 0] + bias[1, 1] * col + bias[1, 2] * row + rng.normal(0, NOISE, n)
-    role = np.where(np.arange(n) < n_control, "control", "check")
-    table = GcpTable(id=[f"p{i}" for i in range(n)], role=role, camera="", col=measured_col, row=measured_row,
-                     lon=lon, lat=lat, h=h, sigma_px=NOISE, sigma_xy=0.05, sigma_z=0.1)
-    return table, col, row
 
 
 @pytest.fixture(scope="module", params=["pleiades", "worldview2"])
@@ -51,7 +33,7 @@ def vendor(request, shared_data, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def drift(vendor):
-    table, _, _ = _table(vendor, BIAS)
+    table, _, _ = biased_gcps(vendor, BIAS)
     return adjust(vendor, table, AdjustmentSettings(rpc_correction="drift")), table
 
 
@@ -107,7 +89,7 @@ def test_a_correction_of_each_coordinate_alone_is_folded_exactly(vendor):
 
 @pytest.mark.parametrize("mode, free", [("shift", {"a0", "b0"}), ("affine", {"a0", "a1", "a2", "b0", "b1", "b2"})])
 def test_other_modes(vendor, mode, free):
-    table, _, _ = _table(vendor, BIAS)
+    table, _, _ = biased_gcps(vendor, BIAS)
     result = adjust(vendor, table, AdjustmentSettings(rpc_correction=mode))
     assert {p["name"].split(".")[-1] for p in result.report["parameters"] if p["mode"] == "free"} == free
     rmse = result.report["check_points"]["image"]["rmse"]
@@ -117,7 +99,7 @@ def test_other_modes(vendor, mode, free):
 
 def test_rigorous_and_rpc_adjustments_agree_on_pleiades(shared_data, tmp_path):
     rpc_scene = load_scene(write_rpc(pleiades_rpc(shared_data), tmp_path / "phr_RPC.TXT"))
-    table, _, _ = _table(rpc_scene, BIAS)
+    table, _, _ = biased_gcps(rpc_scene, BIAS)
     by_rpc = adjust(rpc_scene, table, AdjustmentSettings(rpc_correction="drift"))
     rigorous = load_scene(shared_data / PLEIADES)
     by_model = adjust(rigorous, replace(table, camera=np.full(len(table), rigorous.cameras[0].name)),

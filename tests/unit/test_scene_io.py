@@ -4,27 +4,14 @@ import json
 import numpy as np
 import pytest
 
-from pushbroom_adjust.core.model.camera import Camera, Chip, LineTiming
 from pushbroom_adjust.core.errors import MetadataError
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.formats.scene_json import save_scene, scene_to_dict
-from pushbroom_adjust.core.model.sensor import SceneModel
-from pushbroom_adjust.core.model.trajectory import Ephemeris, Platform, QuaternionPolynomial
-
-
-def _tiny_scene() -> SceneModel:
-    t = np.arange(-20.0, 21.0, 5.0)
-    pos = np.stack([7.0e6 + 0 * t, 7000.0 * t, 1000.0 + 0 * t], 1)
-    # body z (the view) toward -x ECEF, i.e. toward the Earth from x = 7000 km
-    att = QuaternionPolynomial(0.0, 1.0, np.array([[0.5 ** 0.5, 0.0], [0.0, 0.0], [-(0.5 ** 0.5), 0.0], [0.0, 0.0]]))
-    chip = Chip(col_offset=0, n_pixels=1000, kind="look_angle", ux_poly=[0.0], uy_poly=[-0.01, 2e-5])
-    cam = Camera("PAN", 1000, 2000, LineTiming(-1.0, 1e-3), [chip])
-    return SceneModel("2020-01-01T00:00:00Z", Platform(Ephemeris(t, pos), att), [cam], aberration=True,
-                      info={"sensor": "test", "height_range": [0.0, 100.0]})
+from tests.support.tiny_scene import tiny_scene
 
 
 def test_scene_json_round_trip_keeps_geometry(tmp_path):
-    scene = _tiny_scene()
+    scene = tiny_scene()
     save_scene(scene, tmp_path / "s.json")
     back = load_scene(tmp_path / "s.json")
     assert back.aberration and not back.refraction and back.info["sensor"] == "test"
@@ -61,7 +48,7 @@ def test_missing_file_is_named(tmp_path):
 
 
 def test_ground_to_image_rejects_nan_and_names_cameras(tmp_path):
-    scene = _tiny_scene()
+    scene = tiny_scene()
     from pushbroom_adjust.core.errors import InputError
     with pytest.raises(InputError, match="NaN"):
         scene.ground_to_image(np.array([[np.nan, 0.0, 0.0]]))

@@ -1,7 +1,8 @@
-"""Zhang et al. 2015 (seed 001) analogue on one simulated TH-1 block (tests/bench/bench_seed001_th1.py,
-seed 1, 50 check points): 9 GCPs in all cameras and 25 tie points. Self-calibration (INTERIOR=default with
-automatic removal) against the conventional adjustment and the floor (the true interior given), and the
-block with 1 GCP. The figures (m, 3D intersection of the check points) were measured on this block:
+"""Zhang et al. 2015 (seed 001) analogue on one simulated TH-1 block (tests/support/th1_block.py, as
+tests/bench/bench_seed001_th1.py prints it; seed 1, 50 check points): 9 GCPs in all cameras and 25 tie
+points. Self-calibration (INTERIOR=default with automatic removal) against the conventional adjustment
+and the floor (the true interior given), and the block with 1 GCP. The figures (m, 3D intersection of
+the check points) were measured on this block:
 
                       plan   height
     conventional      8.35   21.80
@@ -16,7 +17,7 @@ few GCPs fall; with 150 GCPs the same run reaches the floor (3.32 m against 3.26
 """
 import pytest
 
-from tests.bench.bench_seed001_th1 import block
+from tests.support.th1_block import block
 
 RUNS = ("conventional", "default + removal", "floor (true interior)", "1 GCP + ties + attitude")
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from pushbroom_adjust.simulation.presets import PRESETS
-from tests.bench.bench_seed003_zy3 import (BASE, WEIGHTED, control_layouts, gcp_table, noise_free_control, run,
-                                           simulate_strip)
+from tests.support.zy3_strip import (BASE, WEIGHTED, control_layouts, gcp_table, noise_free_control, run,
+                                     simulate_strip)
 
 
 @pytest.fixture(scope="module")

@@ -12,12 +12,12 @@ from pushbroom_adjust.core.formats.scene_json import scene_to_dict
 from pushbroom_adjust.core.formats.schema import check_scene_dict
 from pushbroom_adjust.core.validation import (PLAUSIBLE_HEIGHTS, check_nodata, check_surface_heights,
                              check_terrain_height, implausible_heights, implausible_image_coordinates)
-from tests.unit.test_scene_io import _tiny_scene
+from tests.support.tiny_scene import tiny_scene
 
 
 @pytest.fixture()
 def scene_dict() -> dict:
-    return json.loads(json.dumps(scene_to_dict(_tiny_scene())))
+    return json.loads(json.dumps(scene_to_dict(tiny_scene())))
 
 
 def _check(d):
@@ -48,7 +48,7 @@ def test_schema_names_the_key_path_and_value(scene_dict, mutate, message):
 
 
 def test_quaternions_slightly_off_unit_are_normalised_in_a_copy(tmp_path):
-    scene = _tiny_scene()
+    scene = tiny_scene()
     from pushbroom_adjust.core.model.trajectory import QuaternionSamples
     t = np.linspace(-20.0, 20.0, 9)
     q = np.tile([0.5 ** 0.5, 0.0, -(0.5 ** 0.5), 0.0], (9, 1))
@@ -64,7 +64,7 @@ def test_quaternions_slightly_off_unit_are_normalised_in_a_copy(tmp_path):
 
 
 def test_bom_is_accepted_and_the_model_checks_run(tmp_path):
-    text = json.dumps(scene_to_dict(_tiny_scene()))
+    text = json.dumps(scene_to_dict(tiny_scene()))
     (tmp_path / "bom.json").write_bytes(b"\xef\xbb\xbf" + text.encode())
     assert load_scene(tmp_path / "bom.json").cameras[0].cols == 1000
     d = json.loads(text)
@@ -85,7 +85,7 @@ def test_rays_never_meet_a_surface_behind_their_origin():
 
 
 def test_image_to_ground_above_the_satellite_is_nan():
-    scene = _tiny_scene()
+    scene = tiny_scene()
     p = scene.image_to_ground(np.array([500.0]), np.array([1000.0]), np.array([1e6]))
     assert np.isnan(p).all()
 
