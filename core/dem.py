@@ -29,6 +29,7 @@ from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 
 from .errors import InputError
+from .files import check_closed, closing_errors
 from .validation import check_surface_heights
 
 gdal.UseExceptions()
@@ -258,7 +259,9 @@ class Dem:
             grid = _Grid(self._read(src, r0, 0, min(_STRIP_NODES, rows - r0), cols, 1), r0, 0, 1)
             pj, pi = np.meshgrid(np.arange(cols) + 0.5, np.arange(grid.z.shape[0]) + r0 + 0.5)
             band.WriteArray(self._ellipsoidal(grid.z, pj, pi).astype(np.float32), 0, r0)
-        band = ds = None
+        with closing_errors() as closing:
+            band = ds = None  # closes the file: GDAL's error then (a full disk) is kept, not printed
+        check_closed(path, closing)
         return Path(path)
 
     # --- windows ---------------------------------------------------------------------------------

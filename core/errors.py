@@ -32,5 +32,10 @@ class NoDescentError(ConvergenceError):
     """No step lowers the residuals: the normal matrix is (nearly) singular for the model chosen."""
 
 
+class ConsistencyError(PushbroomError):
+    """A result failed its own check (e.g. the adjusted scene as written does not image the points
+    where the adjustment fitted them): nothing is written; the message names the cause."""
+
+
 class Cancelled(PushbroomError):
     """The user cancelled a long computation; nothing was written."""

@@ -25,10 +25,12 @@ writable. Messages name both parameters.
 """
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import sys
 import tempfile
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -223,7 +225,7 @@ class OutputSet:
                 self._folders[folder] = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".part",
                                                               dir=folder))
             except OSError as exc:
-                raise OutputError(f"cannot write {final}: {exc.strerror or exc}") from None
+                raise OutputError(f"cannot write {final}: {os_failure(final, exc)}") from None
         tmp = self._folders[folder] / final.name
         if tmp in self._files.values():  # the same name for two folders' files is fine, twice in one is not
             raise OutputError(f"cannot write {final}: another output of this run has the same name")
@@ -246,7 +248,8 @@ class OutputSet:
                 os.chmod(tmp, mode)
                 os.replace(tmp, final)
         except OSError as exc:
-            raise OutputError(f"cannot write {exc.filename or final}: {exc.strerror or exc}") from None
+            where = exc.filename or final
+            raise OutputError(f"cannot write {where}: {os_failure(where, exc)}") from None
         finally:
             self.discard()
         return list(self._files)
@@ -268,7 +271,8 @@ def atomic_outputs() -> Iterator[OutputSet]:
         yield files
     except OSError as exc:
         files.discard()
-        raise OutputError(f"cannot write {exc.filename or 'the output'}: {exc.strerror or exc}") from None
+        raise OutputError(f"cannot write {exc.filename or 'the output'}: "
+                          f"{os_failure(exc.filename or 'the output', exc)}") from None
     except BaseException:
         files.discard()
         raise
@@ -296,7 +300,7 @@ def atomic_output(path, files: OutputSet | None = None) -> Iterator[Path]:
         try:
             yield tmp
         except OSError as exc:  # a full disk, a quota: named by the destination, not the temporary path
-            raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+            raise OutputError(f"cannot write {path}: {os_failure(path, exc)}") from None
 
 
 def write_text(path, text: str, files: OutputSet | None = None, encoding: str = "utf-8") -> None:
@@ -312,29 +316,67 @@ class ClosingErrors:
     message: str = ""
 
 
+# closing_errors blocks under way, per thread (ident -> innermost last), and the hook they replace:
+# the hook is process-wide, blocks of several threads (QGIS tasks, Dask worker threads) overlap.
+_CLOSING: dict[int, list[ClosingErrors]] = {}
+_CLOSING_LOCK = threading.Lock()
+_OUTER_HOOK = [sys.unraisablehook]
+
+
+def _keep_closing_error(unraisable) -> None:
+    """sys.unraisablehook while a :func:`closing_errors` block is open: an error of a thread in such a
+    block is kept there, any other goes to the hook the blocks replaced."""
+    blocks = _CLOSING.get(threading.get_ident())
+    if blocks:
+        blocks[-1].message = blocks[-1].message or str(unraisable.exc_value)
+    else:
+        _OUTER_HOOK[0](unraisable)
+
+
 @contextmanager
 def closing_errors() -> Iterator[ClosingErrors]:
     """A block in which GDAL/OGR datasets are closed (their last references dropped). Closing flushes
     the last blocks, and an error then (a full disk) cannot be raised from a destructor: Python hands
     it to ``sys.unraisablehook``, which prints it to stderr as 'Exception ignored'. Within the block
-    the hook keeps it instead, and the failure is returned in ``.message``."""
+    the hook keeps it instead (errors of this thread only), and the failure is returned in ``.message``."""
     found = ClosingErrors()
-    previous = sys.unraisablehook
-
-    def keep(unraisable) -> None:
-        found.message = found.message or str(unraisable.exc_value)
-
-    sys.unraisablehook = keep
+    me = threading.get_ident()
+    with _CLOSING_LOCK:
+        if not _CLOSING:
+            _OUTER_HOOK[0] = sys.unraisablehook
+            sys.unraisablehook = _keep_closing_error
+        _CLOSING.setdefault(me, []).append(found)
     try:
         yield found
     finally:
-        sys.unraisablehook = previous
+        with _CLOSING_LOCK:
+            _CLOSING[me].pop()
+            if not _CLOSING[me]:
+                del _CLOSING[me]
+            if not _CLOSING:
+                sys.unraisablehook = _OUTER_HOOK[0]
 
 
 def check_closed(path, closing: ClosingErrors) -> None:
-    """OutputError naming ``path`` (and a full disk) when closing it failed (see :func:`closing_errors`)."""
+    """OutputError naming ``path`` (its destination, when it is a temporary file of an OutputSet) and
+    a full disk when closing it failed (see :func:`closing_errors`)."""
     if closing.message:
-        raise OutputError(f"cannot write {path}: {write_failure(path, closing.message)}")
+        raise OutputError(f"cannot write {destination_of(path)}: {write_failure(path, closing.message)}")
+
+
+def destination_of(path) -> Path:
+    """The destination a temporary path of :meth:`OutputSet.path` (``<folder>/.<name>.<random>.part/<file>``)
+    stands for, ``<folder>/<file>``; any other path itself. Messages name the file the user asked for."""
+    path = Path(path)
+    folder = path.parent.name
+    return path.parent.parent / path.name if folder.startswith(".") and folder.endswith(".part") else path
+
+
+def os_failure(path, exc: OSError) -> str:
+    """An OSError writing ``path`` in words: a full disk (or quota) named as such, else the system's text."""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"no space left on the device holding {path}"
+    return exc.strerror or str(exc)
 
 
 FULL_DISK_BYTES = 1 << 20  # a device with less than this free after a failed write was filled by it
@@ -345,11 +387,10 @@ def write_failure(path, message: str) -> str:
     by the device left with almost no free space: GDAL then often reports a follow-up error instead,
     e.g. SQLite's 'no such table')."""
     text = message.lower()
-    folder = Path(path).parent
     try:
-        nearly_full = shutil.disk_usage(folder).free < FULL_DISK_BYTES
+        nearly_full = shutil.disk_usage(Path(path).parent).free < FULL_DISK_BYTES
     except OSError:
         nearly_full = False
     if nearly_full or any(s in text for s in ("no space left", "disk is full", "disk full", "enospc")):
-        return f"no space left on the device holding {path} ({message})"
+        return f"no space left on the device holding {destination_of(path)} ({message})"
     return message

@@ -54,6 +54,27 @@ def implausible_image_coordinates(col, row) -> np.ndarray:
         return ~((np.abs(col) <= MAX_IMAGE_COORDINATE) & (np.abs(row) <= MAX_IMAGE_COORDINATE))
 
 
+# The plausible range of each RPC offset and of each |scale| (degrees, metres, pixels), by RpcModel field:
+# an RPC beyond them is a broken file (a typo, another format's field), not a scene on the Earth.
+PLAUSIBLE_RPC = {"lat_off": (-90.0, 90.0), "lon_off": (-180.0, 360.0), "height_off": (-12000.0, 100000.0),
+                 "line_off": (-MAX_IMAGE_COORDINATE, MAX_IMAGE_COORDINATE),
+                 "samp_off": (-MAX_IMAGE_COORDINATE, MAX_IMAGE_COORDINATE),
+                 "lat_scale": (0.0, 90.0), "lon_scale": (0.0, 180.0), "height_scale": (0.0, 100000.0),
+                 "line_scale": (0.0, MAX_IMAGE_COORDINATE), "samp_scale": (0.0, MAX_IMAGE_COORDINATE)}
+
+
+def rpc_value_problem(field: str, value: float) -> str | None:
+    """Why an RPC offset or scale (RpcModel field ``field``: lat_off, line_scale, ...) is implausible,
+    in words for a message naming the file and the key; None when it is plausible."""
+    low, high = PLAUSIBLE_RPC[field]
+    scale = field.endswith("_scale")
+    if scale and not (value != 0 and math.isfinite(value)):
+        return "a scale must be a non-zero number"
+    if not (math.isfinite(value) and low <= (abs(value) if scale else value) <= high):
+        return f"a plausible {'|scale|' if scale else 'value'} lies between {low:g} and {high:g}"
+    return None
+
+
 # Points must reach beyond this share of the image in one direction at least (below it in both
 # they sit in one corner), and their second principal spread must exceed this share of the first
 # (below it they lie on a line). The adjustment's control-point check uses the same rule.

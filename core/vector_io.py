@@ -99,8 +99,8 @@ def write_layers(path, layers: list[LayerData], files: OutputSet | None = None) 
         for layer in layers:
             failed = failed or _write_gpkg(tmp, layer.name, layer.srs, layer.geometry_type, layer.columns,
                                            layer.geometries, layer.metadata)
-        if failed:
-            raise OutputError(f"cannot write {path}: {failed}")
+        if failed:  # while the file still fills the disk: a full disk is named as such
+            raise OutputError(f"cannot write {path}: {write_failure(path, failed)}")
 
 
 def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geometries, metadata) -> str:
@@ -141,7 +141,7 @@ def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geomet
         failed = f"the layer {layer} cannot be read back after writing"
     elif not failed and count != written:
         failed = f"the layer {layer} holds {count} of {written} features"
-    return write_failure(path, failed) if failed else failed
+    return failed
 
 
 def _layer_count(path, layer: str) -> int | None:

@@ -125,21 +125,23 @@ def output_sink(alg, parameters, context, name: str, fields, wkb_type, crs):
         sink, _ = alg.parameterAsSink({**parameters, name: staged}, name, context, fields, wkb_type, crs)
         if sink is None:
             raise QgsProcessingException(alg.invalidSinkError(parameters, name))
-        checked = CheckedSink(sink, name, str(tmp))
+        checked = CheckedSink(sink, name, path)  # failures named by the destination, not the temporary file
         try:
             yield checked, final
         finally:
             checked.sink = sink = None  # closes the file (before it is renamed, or removed on errors)
-        _check_written(name, tmp, checked.count)
+        _check_written(name, tmp, checked.count, path)
 
 
-def _check_written(name: str, path, expected: int) -> None:
-    """QgsProcessingException unless the closed output file holds ``expected`` features (a full
-    disk can lose them when the file is closed, where the sink reports nothing)."""
+def _check_written(name: str, path, expected: int, shown) -> None:
+    """QgsProcessingException unless the closed output file ``path`` holds ``expected`` features (a
+    full disk can lose them when the file is closed, where the sink reports nothing); the message
+    names ``shown`` (the destination the file was to become)."""
     found = feature_count(path)
     if found != expected:
-        written = f"the written file holds {found} of {expected} features"
-        raise QgsProcessingException(f"{name}: {write_failure(path, written)}; nothing was written")
+        written = ("the written file cannot be read back" if found is None else
+                   f"the written file holds {found} of {expected} features")
+        raise QgsProcessingException(f"{name}: {write_failure(shown, written)}; nothing was written")
 
 
 # --- styles on load ----------------------------------------------------------------------------

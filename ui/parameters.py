@@ -345,9 +345,10 @@ SIGMA_FIELDS = {"sigma_px": "SIGMA_PX_FIELD", "sigma_xy": "SIGMA_XY_FIELD", "sig
 
 def id_field() -> QgsProcessingParameterString:
     """ID_FIELD of the point imports: rows with one id are one ground point."""
-    parameter = QgsProcessingParameterString(ID_FIELD, tr("Point id field"), optional=True, defaultValue="id")
+    parameter = QgsProcessingParameterString(ID_FIELD, tr("Point id field"), optional=True, defaultValue="")
     parameter.setHelp(tr("Point id; rows with the same id are one ground point seen in several cameras. Empty: "
-                         "the line number (CSV) or feature id (layer), every row a point of its own."))
+                         "the column/field 'id' when the input has one, else the line number (CSV) or feature id "
+                         "(layer), every row a point of its own (tie points need ids: an error)."))
     return parameter
 
 

@@ -33,6 +33,7 @@ from ..errors import MetadataError
 from ..model.rpc import RationalDirectModel, RpcModel
 from ..model.sensor import SceneModel
 from ..model.trajectory import Ephemeris, Platform, QuaternionPolynomial
+from ..validation import rpc_value_problem
 from .vendor_xml import parse_floats as _floats, parse_xml
 
 SENSOR_MODEL = "Geometric_Data/Sensor_Model_Characteristics"
@@ -77,6 +78,10 @@ def read_dimap(path: str | Path, root: ElementTree.Element) -> SceneModel:
     return scene
 
 
+# RFM_Validity's elements: the RpcModel fields (<field>_off, <field>_scale) their B and A fill
+RFM_FIELDS = {"Lon": "lon", "Lat": "lat", "Alt": "height", "Col": "samp", "Row": "line"}
+
+
 def read_dimap_rfm(path: str | Path, root: ElementTree.Element | None = None
                    ) -> tuple[RpcModel, RationalDirectModel]:
     """The vendor's Global_RFM: (inverse model ground -> image, direct model image -> ground),
@@ -94,8 +99,10 @@ def read_dimap_rfm(path: str | Path, root: ElementTree.Element | None = None
         where = f"{GLOBAL_RFM}/RFM_Validity/{tag}"
         elem = _find(rfm, f"RFM_Validity/{tag}", src, "RFM normalisation", GLOBAL_RFM)
         scale, offset = _number(elem, "A", src, where), _number(elem, "B", src, where)
-        if scale == 0:
-            raise MetadataError(f"{src}: {where}/A (scale) is zero")
+        for letter, value, field, word in (("A", scale, "scale", "scale"), ("B", offset, "off", "offset")):
+            problem = rpc_value_problem(f"{RFM_FIELDS[tag]}_{field}", value)
+            if problem:
+                raise MetadataError(f"{src}: <{where}/{letter}> ({word}) is {value:g}; {problem}")
         norm[tag] = (offset, scale)
     coef = {tag: _rfm_coefficients(rfm, path_, src) for tag, path_ in
             (("lon", "Direct_Model/F_LON"), ("lat", "Direct_Model/F_LAT"),

@@ -57,6 +57,7 @@ from ..rotations import quat_to_matrix
 from ..model.rpc import RpcModel
 from ..model.sensor import SceneModel
 from ..model.trajectory import Ephemeris, Platform, QuaternionSamples
+from ..validation import rpc_value_problem
 from .vendor_xml import parse_floats as _floats, parse_xml
 
 log = logging.getLogger(__name__)
@@ -138,11 +139,15 @@ def read_maxar_rpc(path: str | Path, root: ElementTree.Element | None = None) ->
                      ("samp_num", "SAMPNUMCOEF"), ("samp_den", "SAMPDENCOEF")):
         text = _text(_child(img, tag + "List", src, where), tag, src, f"{where}/{tag}List")
         coef[key] = _floats(text, src, f"{where}/{tag}List/{tag}")
-    scalars = {key: _number(img, tag, src, where) for key, tag in (
-        ("lon_off", "LONGOFFSET"), ("lon_scale", "LONGSCALE"), ("lat_off", "LATOFFSET"),
-        ("lat_scale", "LATSCALE"), ("height_off", "HEIGHTOFFSET"), ("height_scale", "HEIGHTSCALE"),
-        ("line_off", "LINEOFFSET"), ("line_scale", "LINESCALE"), ("samp_off", "SAMPOFFSET"),
-        ("samp_scale", "SAMPSCALE"))}
+    tags = (("lon_off", "LONGOFFSET"), ("lon_scale", "LONGSCALE"), ("lat_off", "LATOFFSET"),
+            ("lat_scale", "LATSCALE"), ("height_off", "HEIGHTOFFSET"), ("height_scale", "HEIGHTSCALE"),
+            ("line_off", "LINEOFFSET"), ("line_scale", "LINESCALE"), ("samp_off", "SAMPOFFSET"),
+            ("samp_scale", "SAMPSCALE"))
+    scalars = {key: _number(img, tag, src, where) for key, tag in tags}
+    for key, tag in tags:
+        problem = rpc_value_problem(key, scalars[key])
+        if problem:
+            raise MetadataError(f"{src}: {where}/{tag} is {scalars[key]:g}; {problem}")
     try:
         return RpcModel(**coef, **scalars, origin=0.0)
     except MetadataError as exc:

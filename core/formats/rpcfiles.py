@@ -20,9 +20,9 @@ import numpy as np
 from osgeo import gdal
 
 from ..errors import InputError, MetadataError
-from ..files import OutputSet, output_set, write_text
+from ..files import OutputSet, check_closed, closing_errors, output_set, write_text
 from ..model.rpc import RpcModel
-from ..validation import MAX_IMAGE_COORDINATE
+from ..validation import rpc_value_problem
 from ..model.rpcscene import RpcCamera, RpcScene, check_image_size, size_from_rpc
 from .dimap import read_dimap_rfm
 
@@ -47,31 +47,19 @@ IMAGE_SUFFIXES = (".tif", ".tiff", ".ntf", ".jp2", ".img", ".vrt")
 
 
 # --- reading -----------------------------------------------------------------------------------
-# The plausible range of each offset and the largest plausible |scale| (degrees, metres, pixels): an
-# RPC beyond them is a broken file (a typo, another format's field), not a scene on the Earth.
-PLAUSIBLE_RPC = {"LAT_OFF": (-90.0, 90.0), "LONG_OFF": (-180.0, 360.0), "HEIGHT_OFF": (-12000.0, 100000.0),
-                 "LINE_OFF": (-MAX_IMAGE_COORDINATE, MAX_IMAGE_COORDINATE),
-                 "SAMP_OFF": (-MAX_IMAGE_COORDINATE, MAX_IMAGE_COORDINATE),
-                 "LAT_SCALE": (0.0, 90.0), "LONG_SCALE": (0.0, 180.0), "HEIGHT_SCALE": (0.0, 100000.0),
-                 "LINE_SCALE": (0.0, MAX_IMAGE_COORDINATE), "SAMP_SCALE": (0.0, MAX_IMAGE_COORDINATE)}
-
-
 def rpc_from_metadata(md: dict, source: str) -> RpcModel:
     """RpcModel (origin 0) of GDAL 'RPC' metadata (keys LINE_OFF..., coefficient lists as text
     of 20 numbers or lists); MetadataError naming ``source`` and the key when one is missing,
-    not a number, or a scale is zero."""
+    not a finite number, or an offset or scale is beyond any scene on the Earth
+    (core.validation.PLAUSIBLE_RPC)."""
     values = {}
     for key, fld in zip(RPC_KEYS, RPC_FIELDS):
         if key not in md or str(md[key]).strip() == "":
             raise MetadataError(f"{source}: {key} is missing")
         values[fld] = _number(md[key], source, key)
-        if fld.endswith("_scale") and not (values[fld] != 0 and math.isfinite(values[fld])):
-            raise MetadataError(f"{source}: {key} is {md[key]!r}; a scale must be a non-zero number")
-        low, high = PLAUSIBLE_RPC[key]
-        size = abs(values[fld]) if fld.endswith("_scale") else values[fld]
-        if not low <= size <= high:
-            what = "|scale|" if fld.endswith("_scale") else "value"
-            raise MetadataError(f"{source}: {key} is {md[key]!r}; a plausible {what} lies between {low:g} and {high:g}")
+        problem = rpc_value_problem(fld, values[fld])
+        if problem:
+            raise MetadataError(f"{source}: {key} is {md[key]!r}; {problem}")
     for key, fld in RPC_COEFFS:
         if key not in md:
             raise MetadataError(f"{source}: {key} is missing (20 coefficients expected)")
@@ -266,8 +254,9 @@ def set_geotiff_rpc(rpc: RpcModel, tif_path) -> None:
     if ds.GetDriver().ShortName != "GTiff":
         raise InputError(f"{tif_path} is not a GeoTIFF; write an _RPC.TXT or .RPB beside it instead")
     ds.SetMetadata(rpc_metadata(rpc), "RPC")
-    ds.FlushCache()
-    ds = None
+    with closing_errors() as closing:
+        ds = None  # closes the file, writing the tag: GDAL's error then (a full disk) is kept, not printed
+    check_closed(tif_path, closing)
 
 
 def image_vrt_with_rpc(rpc: RpcModel, image, vrt_path, cols: int | None = None, rows: int | None = None,

@@ -126,7 +126,8 @@ class GcpTable:
 
 @dataclass
 class CsvMapping:
-    """Which CSV columns hold what. id None: ids are the data line numbers (1-based).
+    """Which CSV columns hold what. id None: the column ``id`` when the file has one, else the data
+    line numbers (1-based); '' always the line numbers.
     x, y: ground coordinates in the CRS given to :func:`read_csv` (lon/lat order for degrees).
     z, role, camera: optional columns (role, camera None: the columns ``role``, ``camera`` when the
     file has them, else all control points of the scene's only camera). sigma_px (px), sigma_xy,
@@ -219,7 +220,8 @@ def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpT
     def text(name: str | None):
         return None if name is None else csv_column(header, cells, name, source)
 
-    ids = text(mapping.id) if mapping.id else np.arange(1, len(cells) + 1).astype(str)
+    id_column = mapping.id if mapping.id is not None else present(header, "id")
+    ids = text(id_column) if id_column else np.arange(1, len(cells) + 1).astype(str)
 
     def number(name: str | None):
         return None if name is None else parse_numbers(text(name), name, ids, source)

@@ -18,6 +18,7 @@ from pyproj import CRS
 
 from ..dem import ConstantHeight, Dem
 from ..errors import Cancelled, InputError
+from ..files import check_closed, closing_errors
 from ..formats.scene_json import scene_from_dict
 from .mapping import Mapper, Nodes, OrthoGrid
 from .rawimage import RawImage
@@ -86,12 +87,16 @@ def run_job(job: OrthoJob) -> float:
                                          RESAMPLING[job.resampling], fill, levels, job.nodata)
     r0, r1, c0, c1 = job.window
     out = create_geotiff(job.output, c1 - c0, r1 - r0, raw.count, raw.data_type, levels, job.nodata, [])
-    wkt, x0, y0, resolution, _, _ = job.grid
-    out.SetGeoTransform((x0 + c0 * resolution, resolution, 0.0, y0 - r0 * resolution, 0.0, -resolution))
-    out.SetProjection(wkt)
-    write_tile([out.GetRasterBand(k + 1) for k in range(raw.count)], levels, (0, 0, 0, 0), blocks, overviews)
-    out = None
-    raw.close()
+    try:
+        wkt, x0, y0, resolution, _, _ = job.grid
+        out.SetGeoTransform((x0 + c0 * resolution, resolution, 0.0, y0 - r0 * resolution, 0.0, -resolution))
+        out.SetProjection(wkt)
+        write_tile([out.GetRasterBand(k + 1) for k in range(raw.count)], levels, (0, 0, 0, 0), blocks, overviews)
+    finally:
+        with closing_errors() as closing:
+            out = None  # closes the tile, also after an error (a full disk): GDAL's error is kept, not printed
+        raw.close()
+    check_closed(job.output, closing)
     return err
 
 

@@ -160,8 +160,10 @@ def write_resampled(raw: RawImage, mapper: Mapper, planned: Nodes, shape: tuple[
                     report((n + 1) / len(windows))
         out_bands = None
         out.FlushCache()
-        out = None
-        if own:
+        with closing_errors() as closing:
+            out = None  # closes the file: writing its last directories can still fail (a full disk)
+        failed = closing.message
+        if own and not failed:
             files.commit()
     except RuntimeError as exc:  # GDAL: disk full, file system errors; raised below, as this error's
         failed = str(exc)        # traceback holds the file open
@@ -169,8 +171,10 @@ def write_resampled(raw: RawImage, mapper: Mapper, planned: Nodes, shape: tuple[
         with closing_errors() as closing:
             out_bands = out = None  # closes the file, flushing what is left
         failed = failed or closing.message
+        if failed:  # in words while the partial file still fills the disk: a full disk is named as such
+            failed = write_failure(output_path, failed)
         if own:
             files.discard()
     if failed:
-        raise InputError(f"cannot write {output_path}: {write_failure(output_path, failed)}")
+        raise InputError(f"cannot write {output_path}: {failed}")
     return worst

@@ -9,24 +9,22 @@ Each case gets its own folder ``d`` with copies of the inputs (d/scene.json, d/d
 d/gcps.gpkg, d/gcps.csv, d/pixels.csv, d/cut.json + d/raw.tif for orthorectify) and watches it
 whole: nothing there may change, appear or disappear.
 """
-import gc
 import json
 import os
 import shutil
-import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
 from osgeo import gdal
-from qgis.core import QgsProcessingFeedback, QgsProject, QgsRasterLayer, QgsVectorLayer
+from qgis.core import QgsProcessingException, QgsProcessingFeedback, QgsProject, QgsRasterLayer, QgsVectorLayer
 
 import processing
 from pushbroom_adjust.core.formats.scene_json import save_scene
 from tests.support.mounts import read_only_folder, tiny_disk
 from tests.support.ortho_compare import rendered_cut
 
-from tests.support.hostile import assert_refused, assert_refused_cli, snapshot
+from tests.support.hostile import assert_clean_stderr, assert_refused, assert_refused_cli, no_unraisable, snapshot
 
 
 @pytest.fixture(scope="module")
@@ -289,24 +287,88 @@ FULL_DISK = [
     ("bundleadjust", lambda d, disk: _adjust(d, OUTPUT_REPORT=str(disk / "r.html"), OUTPUT_GCPS=str(disk / "g.gpkg")),
      "OUTPUT_"),
     ("simulatescene", lambda d, disk: {"N_GCPS": 5, "OUTPUT_FOLDER": str(disk / "sim")}, "sim"),
+    ("sensorcorrect", lambda d, disk: _sensorcorrect(d, OUTPUT=str(disk / "sc.tif"), OUTPUT_SCENE=str(disk / "s.json")),
+     "sc.tif"),
+    ("orthorectify-all-cameras", lambda d, disk: _all_cameras(d, disk / "orthos"), "ortho_HRC.tif"),
 ]
 
 
+def _sensorcorrect(d, **kw) -> dict:
+    return {"INPUT": str(d / "raw.tif"), "SCENE": str(d / "cut.json"), "DEM": str(d / "dem.tif"),
+            "DEM_DATUM": "geoid", "OUTPUT": str(d / "out" / "sc.tif"), "OUTPUT_SCENE": str(d / "out" / "sc.json"), **kw}
+
+
+def _all_cameras(d, folder) -> dict:
+    return {"SCENE": str(d / "cut.json"), "DEM": str(d / "dem.tif"), "RESOLUTION": 2.0, "ALL_CAMERAS": True,
+            "INPUTS": [str(d / "raw.tif")], "ORTHO_FOLDER": str(folder)}
+
+
+def _full_disk_message(message: str) -> None:
+    message = message.lower()
+    assert "no space left on the device" in message or "disk is full" in message, message
+
+
 @pytest.mark.parametrize("alg, make, text", FULL_DISK, ids=[c[0] for c in FULL_DISK])
-def test_a_full_disk_is_an_error_and_leaves_nothing(provider, d, tmp_path, monkeypatch, alg, make, text):
+def test_a_full_disk_is_an_error_and_leaves_nothing(provider, d, tmp_path, capfd, alg, make, text):
     """A 256 KiB disk holding a user's file: the run fails naming the output and the full disk (where the
     plugin writes the file), the disk keeps only that file, and GDAL's errors on closing the file are
-    caught (none reaches Python's 'Exception ignored' hook, i.e. stderr)."""
+    caught: none reaches Python's 'Exception ignored' hook, nothing like a traceback on stderr."""
     (d / "many.csv").write_text("id,col,row,lon,lat\n" + "".join(
         f"{i},{i % 12000 + 0.5},{i % 9000 + 0.5},114.0,34.5\n" for i in range(MANY)))
-    ignored = []
-    monkeypatch.setattr(sys, "unraisablehook", ignored.append)
     with tiny_disk(tmp_path / "disk") as disk:
         (disk / "mine.txt").write_text("a user's file")
-        message = assert_refused(f"pushbroom:{alg}", make(d, disk), text, watch=[d, disk]).lower()
-        assert "no space left on the device" in message or "disk is full" in message, message
-    gc.collect()
-    assert [str(u.exc_value) for u in ignored] == []
+        _full_disk_message(assert_refused(f"pushbroom:{alg.split('-')[0]}", make(d, disk), text, watch=[d, disk],
+                                          capfd=capfd))
+
+
+CLI_FULL_DISK = [c for c in FULL_DISK if c[0] in ("orthorectify", "simulatescene", "sensorcorrect",
+                                                   "orthorectify-all-cameras", "footprint")]
+
+
+@pytest.mark.parametrize("alg, make, text", CLI_FULL_DISK, ids=[c[0] for c in CLI_FULL_DISK])
+def test_a_full_disk_from_the_command_line(qgis_process, d, tmp_path, alg, make, text):
+    """The same through qgis_process: the full disk named, no traceback nor 'Exception ignored' on
+    either stream (GDAL's errors on closing files were printed there once). QGIS itself may add its
+    statistics cache (*.aux.xml) of the rasters it opens as layers: the inputs are watched file by file."""
+    inputs = sorted(f for f in d.iterdir() if f.is_file())
+    with tiny_disk(tmp_path / "disk") as disk:
+        (disk / "mine.txt").write_text("a user's file")
+        params = {k: ",".join(v) if isinstance(v, list) else v for k, v in make(d, disk).items()}
+        _full_disk_message(assert_refused_cli(qgis_process, f"pushbroom:{alg.split('-')[0]}", params, text,
+                                              watch=[*inputs, disk]))
+
+
+# sensorcorrect's files on disks from a quarter of what they need to a little more: the disk fills while
+# the image is written, while it is closed (its last directories: GDAL's error then came from a
+# destructor, 'Exception ignored'), or while its RPC, VRT and scene are written after it.
+DISK_SHARES = (0.25, 0.6, 0.85, 0.95, 1.05, 1.3)
+
+
+@pytest.fixture(scope="module")
+def sensorcorrect_bytes(provider, sources, tmp_path_factory) -> int:
+    """What sensorcorrect writes (bytes): its files on an ample disk."""
+    folder = tmp_path_factory.mktemp("sc_ample")
+    processing.run("pushbroom:sensorcorrect", _sensorcorrect(sources, OUTPUT=str(folder / "sc.tif"),
+                                                             OUTPUT_SCENE=str(folder / "sc.json")))
+    return sum(f.stat().st_size for f in folder.iterdir())
+
+
+@pytest.mark.parametrize("share", DISK_SHARES)
+def test_sensorcorrect_on_disks_filling_at_every_step(provider, d, tmp_path, capfd, sensorcorrect_bytes, share):
+    """Whatever step the disk fills at, the run either writes every file or fails naming the full disk and
+    leaves nothing; never a traceback or 'Exception ignored' on stderr."""
+    size = f"{int(share * sensorcorrect_bytes) // 4096 * 4 + 8}k"
+    with tiny_disk(tmp_path / "disk", size) as disk:
+        params = _sensorcorrect(d, OUTPUT=str(disk / "sc.tif"), OUTPUT_SCENE=str(disk / "sc.json"))
+        with no_unraisable():
+            try:
+                processing.run("pushbroom:sensorcorrect", params)
+            except QgsProcessingException as exc:
+                _full_disk_message(str(exc))
+                assert os.listdir(disk) == []
+            else:
+                assert sorted(os.listdir(disk)) == ["sc.json", "sc.tif", "sc.vrt", "sc_RPC.TXT", "sc_RPC.TXT.json"]
+    assert_clean_stderr(capfd.readouterr().err)
 
 
 # --- legitimate requests, done right ------------------------------------------------------------

@@ -211,6 +211,8 @@ CASES = [
     ("height range reversed", _set("info.height_range", [1432, 301]), ["info.height_range", "lowest"]),
     ("height range above the orbit", _set("info.height_range", [0, 1e6]), ["info.height_range", "terrain"]),
     ("height range a string", _set("info.height_range", "300..1400"), ["info.height_range", "list"]),
+    # not a scene at all: JSON nested 100000 levels deep (a RecursionError once)
+    ("nested 100000 levels deep", lambda d: "[" * 50_000 + "{}" + "]" * 50_000, ["nested far more deeply"]),
 ]
 
 
@@ -227,13 +229,13 @@ def _write(tmp_path, scene_dict, mutation) -> Path:
 
 
 @pytest.mark.parametrize("case, mutation, texts", CASES, ids=[c[0] for c in CASES])
-def test_hand_edited_scene_is_refused_naming_the_key(provider, scene_dict, tmp_path, case, mutation, texts):
+def test_hand_edited_scene_is_refused_naming_the_key(provider, scene_dict, tmp_path, capfd, case, mutation, texts):
     path = _write(tmp_path, scene_dict, mutation)
     assert_refused("pushbroom:footprint", {"SCENE": str(path), "HEIGHT": 800.0, "OUTPUT": str(tmp_path / "fp.gpkg")},
-                   "SCENE", "scene.json", *texts, watch=[tmp_path])
+                   "SCENE", "scene.json", *texts, watch=[tmp_path], capfd=capfd)
 
 
-CLI_CASES = [CASES[i] for i in (0, 1, 4)]
+CLI_CASES = [CASES[i] for i in (0, 1, 4, -1)]
 
 
 @pytest.mark.parametrize("case, mutation, texts", CLI_CASES, ids=[c[0] for c in CLI_CASES])

@@ -42,7 +42,6 @@ CASES = {
                                  ["have no camera", "NAD, FWD, BWD"]),
     "absurd image coordinate": (lambda rows: _edit(rows, "T8", col="1e15"), {}, ["T8", "beyond any image"]),
     "sigma field of text": (lambda rows: rows, {"SIGMA_PX_FIELD": "camera"}, ["per-point sigma field 'camera'"]),
-    "no id field": (lambda rows: rows, {"ID_FIELD": ""}, ["ID_FIELD", "id field"]),
 }
 
 
@@ -55,6 +54,17 @@ def test_bad_tie_points_are_refused(three_line, tmp_path, case):
     params = {"SCENE": three_line["ONBOARD_SCENE"], "INPUT_FILE": str(source), "CAMERA_FIELD": "camera",
               "OUTPUT": str(out / "ties.gpkg"), **extra}
     assert_refused("pushbroom:importtiepoints", params, *texts, watch=[source, out])
+
+
+def test_a_file_without_ids_is_refused_naming_its_columns(three_line, tmp_path):
+    """ID_FIELD empty (its default) reads the column id; a file without one is refused, its columns listed."""
+    rows = [{**r, "pid": r["id"]} for r in _rows(three_line)]
+    source = _csv(tmp_path / "ties.csv", rows, columns=("pid", "camera", "col", "row"))
+    out = tmp_path / "out"
+    out.mkdir()
+    assert_refused("pushbroom:importtiepoints", {"SCENE": three_line["ONBOARD_SCENE"], "INPUT_FILE": str(source),
+                                                 "OUTPUT": str(out / "ties.gpkg")},
+                   "ties.csv", "no column 'id'", "columns: pid, camera, col, row", watch=[source, out])
 
 
 def test_an_empty_file_is_refused(three_line, tmp_path):

@@ -172,3 +172,45 @@ def test_point_layer_in_utm_and_input_errors(core, provider, tmp_path):
         _run({**params, "ROW_FIELD": "rr"})
     with pytest.raises(QgsProcessingException, match="GeoPackage"):
         _run({**params, "OUTPUT": str(tmp_path / "layer.shp")})
+
+
+def _csv_rows(path) -> list[dict]:
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def test_the_simulators_three_camera_gcps_import_as_they_are_on_the_command_line(three_line, qgis_process, core,
+                                                                                  tmp_path):
+    """No ID_FIELD, ROLE_FIELD nor CAMERA_FIELD: the columns id, role and camera of the simulator's gcps.csv
+    (three cameras: without the camera column it would be refused) are read under their own names."""
+    rows = _csv_rows(three_line["GCPS"])
+    out = tmp_path / "gcps.gpkg"
+    done = qgis_process("run", "pushbroom:importgcps", "--", f"SCENE={three_line['ONBOARD_SCENE']}",
+                        f"INPUT_FILE={three_line['GCPS']}", "Z_FIELD=h", "Z_DATUM=ellipsoid", f"OUTPUT={out}")
+    assert done.returncode == 0, done.stdout + done.stderr
+    table = core["gcps"].read_gpkg(out)
+    expected = {(r["id"], r["camera"]): r["role"] for r in rows}
+    assert {(i, c): r for i, c, r in zip(table.id, table.camera, table.role)} == expected
+    assert len(set(table.camera)) == 3
+
+
+def test_ids_from_line_numbers_and_the_plugins_own_layer_as_it_is(simulated, core, tmp_path):
+    """A CSV without an id column: the data line numbers are the ids (ID_FIELD empty, its default). The
+    layer importgcps wrote, imported again without field parameters: ids, roles and cameras kept."""
+    rows = _csv_rows(simulated["GCPS"])
+    for r in rows[::3]:
+        r["role"] = "check"
+    no_ids = tmp_path / "no_ids.csv"
+    with open(no_ids, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=[k for k in rows[0] if k != "id"], extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+    common = {"SCENE": simulated["ONBOARD_SCENE"], "HEIGHT_SOURCE": "z", "Z_DATUM": "ellipsoid"}
+    first = _run({**common, "INPUT_FILE": str(no_ids), "Z_FIELD": "h", "OUTPUT": str(tmp_path / "a.gpkg")})["OUTPUT"]
+    table = core["gcps"].read_gpkg(first)
+    assert table.id.tolist() == [str(i) for i in range(1, len(rows) + 1)]
+    assert table.role.tolist() == [r["role"] for r in rows] and "check" in table.role
+    again = core["gcps"].read_gpkg(_run({**common, "INPUT": first, "OUTPUT": str(tmp_path / "b.gpkg")})["OUTPUT"])
+    assert again.id.tolist() == table.id.tolist() and again.role.tolist() == table.role.tolist()
+    assert again.camera.tolist() == table.camera.tolist()
+    assert np.allclose(again.h, table.h, atol=1e-6) and np.allclose(again.col, table.col, atol=1e-9)

@@ -28,7 +28,8 @@ def test_the_simulators_tie_points_import_as_they_are(three_line, tiepoints, tmp
     """No field parameter: the columns id and camera are read under their own names."""
     rows = list(csv.DictReader(open(three_line["TIE_POINTS"])))
     log = LogFeedback()
-    out = _run({"SCENE": three_line["ONBOARD_SCENE"], "INPUT_FILE": three_line["TIE_POINTS"], "SIGMA_PX": 0.3, "OUTPUT": str(tmp_path / "ties.gpkg")}, log)["OUTPUT"]
+    out = _run({"SCENE": three_line["ONBOARD_SCENE"], "INPUT_FILE": three_line["TIE_POINTS"], "SIGMA_PX": 0.3,
+                "OUTPUT": str(tmp_path / "ties.gpkg")}, log)["OUTPUT"]
     layer = QgsVectorLayer(out, "ties", "ogr")
     assert layer.isValid() and layer.featureCount() == len(rows)
     assert layer.fields().names()[1:] == FIELDS and layer.crs().authid() == "EPSG:4979"
@@ -41,6 +42,17 @@ def test_the_simulators_tie_points_import_as_they_are(three_line, tiepoints, tmp
     histogram = ", ".join(f"{v} in {k} cameras" for k, v in sorted(s["cameras_per_point"].items()))
     assert f"40 tie points, {len(rows)} observations" in log.lines[0] and histogram in log.lines[0]
     assert any(f"RMS {s['rms_px']:.2f} px" in line for line in log.lines)
+
+
+def test_the_plugins_own_layer_imports_as_it_is(three_line, tiepoints, tmp_path):
+    """The layer importtiepoints wrote, imported again without field parameters (its fields id and
+    camera read under their own names): the same observations."""
+    first = _run({"SCENE": three_line["ONBOARD_SCENE"], "INPUT_FILE": three_line["TIE_POINTS"],
+                  "OUTPUT": str(tmp_path / "a.gpkg")})["OUTPUT"]
+    again = _run({"SCENE": three_line["ONBOARD_SCENE"], "INPUT": first, "OUTPUT": str(tmp_path / "b.gpkg")})["OUTPUT"]
+    a, b = tiepoints.read_gpkg(first), tiepoints.read_gpkg(again)
+    assert b.id.tolist() == a.id.tolist() and b.camera.tolist() == a.camera.tolist() and len(set(b.camera)) == 3
+    assert (b.col == a.col).all() and (b.row == a.row).all()
 
 
 def test_a_table_layer_with_other_field_names(three_line, tiepoints, tmp_path):

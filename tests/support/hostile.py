@@ -9,8 +9,11 @@ Each case names what it watches; ``snapshot`` records size, mtime and a hash of 
 """
 from __future__ import annotations
 
+import gc
 import hashlib
 import subprocess
+import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -38,29 +41,61 @@ def assert_unchanged(before: dict, watch) -> None:
     assert not (added or removed or changed), f"files added {added}, removed {removed}, changed {changed}"
 
 
-def assert_refused(alg_id: str, params: dict, *contains: str, watch=()) -> str:
+STDERR_TRACEBACKS = ("Traceback", "Exception ignored")
+"""What a Python error the user should never see leaves on stderr: a traceback, or an error Python could
+not raise (e.g. GDAL's on closing a file in a destructor: 'Exception ignored in: delete_Dataset')."""
+
+
+def assert_clean_stderr(text: str) -> None:
+    """No Python traceback of any kind in ``text`` (stderr, or stdout + stderr of a run)."""
+    for mark in STDERR_TRACEBACKS:
+        assert mark not in text, f"{mark!r} on stderr: {text}"
+
+
+@contextmanager
+def no_unraisable():
+    """A block during which no error may reach Python's unraisable hook: an error raised where Python
+    cannot raise it (a destructor: GDAL's on closing a file), printed as 'Exception ignored' on stderr
+    outside pytest, which turns it into a mere warning. Objects left to the collector are collected
+    before the block ends."""
+    ignored = []
+    previous, sys.unraisablehook = sys.unraisablehook, ignored.append
+    try:
+        yield
+        gc.collect()
+    finally:
+        sys.unraisablehook = previous
+    assert not ignored, f"'Exception ignored' on stderr: {[f'{u.object}: {u.exc_value!r}' for u in ignored]}"
+
+
+def assert_refused(alg_id: str, params: dict, *contains: str, watch=(), capfd=None) -> str:
     """Run ``alg_id`` with ``params`` through processing.run; it must raise QgsProcessingException
     whose message contains every string of ``contains`` (case-insensitive), and leave the files and
-    folders in ``watch`` unchanged. Returns the message."""
+    folders in ``watch`` unchanged. No error may reach Python's unraisable hook during the run (what
+    prints 'Exception ignored' on stderr; objects it leaves to the collector are collected first), and
+    with pytest's ``capfd`` fixture the captured stderr must hold no traceback. Returns the message."""
     before = snapshot(*watch)
-    with pytest.raises(QgsProcessingException) as info:
+    with no_unraisable(), pytest.raises(QgsProcessingException) as info:
         processing.run(alg_id, params, feedback=QgsProcessingFeedback())
     message = str(info.value)
     for text in contains:
         assert text.lower() in message.lower(), f"{text!r} not in the message: {message}"
     assert "Traceback" not in message
+    if capfd is not None:
+        assert_clean_stderr(capfd.readouterr().err)
     assert_unchanged(before, watch)
     return message
 
 
 def assert_refused_cli(qgis_process, alg_id: str, params: dict, *contains: str, watch=()) -> str:
     """The same through qgis_process (a fixture of conftest): exit code not 0, no Python
-    traceback on either stream, the message on one of them. Returns stdout + stderr."""
+    traceback (nor 'Exception ignored') on either stream, the message on one of them. Returns
+    stdout + stderr."""
     before = snapshot(*watch)
     done: subprocess.CompletedProcess = qgis_process("run", alg_id, "--", *(f"{k}={v}" for k, v in params.items()))
     text = done.stdout + done.stderr
     assert done.returncode != 0, f"exit 0 for bad input: {text}"
-    assert "Traceback" not in text, text
+    assert_clean_stderr(text)
     for t in contains:
         assert t.lower() in text.lower(), f"{t!r} not in the output: {text}"
     assert_unchanged(before, watch)

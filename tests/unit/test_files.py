@@ -154,7 +154,7 @@ def test_a_full_disk_is_an_error_and_keeps_the_old_file(tiny, monkeypatch):
     ignored = []
     monkeypatch.setattr(sys, "unraisablehook", ignored.append)
     (tiny / "a.json").write_text("old")
-    with pytest.raises(OutputError, match="No space left"):
+    with pytest.raises(OutputError, match="a.json: no space left on the device holding"):
         write_text(tiny / "a.json", "x" * 1_000_000)
     with pytest.raises(OutputError, match="b.gpkg: no space left on the device holding"):
         _gpkg(tiny / "b.gpkg", n=20000)
@@ -233,3 +233,59 @@ def test_distinct_outputs_and_optional_ones_not_asked_for_pass(tmp_path):
     (tmp_path / "in.tif").write_text("x")
     check_outputs({"INPUT": [str(tmp_path / "in.tif")]},
                   {"OUTPUT": [str(tmp_path / "o.tif"), Output(None, "its report")], "OPTIONAL": [""]})
+
+
+def test_closing_errors_of_overlapping_threads_stay_in_their_blocks(monkeypatch):
+    """closing_errors swaps the process-wide unraisable hook: blocks of two threads overlapping in any
+    order each keep their own thread's error, an error of a thread outside any block goes to the hook
+    they replaced, and that hook is back once the last block ends (an unraisable error is raised here
+    as GDAL's is: by a destructor that fails)."""
+    import threading
+
+    class FailsOnClose:
+        def __init__(self, text):
+            self.text = text
+
+        def __del__(self):
+            raise RuntimeError(self.text)
+
+    outer = []
+    monkeypatch.setattr(sys, "unraisablehook", outer.append)
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+    found = {}
+
+    def block(name, entered, wait_for, then=None):
+        with F.closing_errors() as closing:
+            entered.set()
+            wait_for.wait(5)
+            obj = FailsOnClose(f"closing {name}")
+            obj = None  # noqa: F841 (the destructor fails here)
+        found[name] = closing.message
+        if then:
+            then.set()
+
+    a = threading.Thread(target=block, args=("a", a_in, b_in, a_out))
+    b = threading.Thread(target=block, args=("b", b_in, a_out))
+    a.start()
+    a_in.wait(5)
+    b.start()  # b enters after a and leaves after it
+    for t in (a, b):
+        t.join(5)
+    stray = FailsOnClose("outside any block")
+    stray = None  # noqa: F841
+    assert found == {"a": "closing a", "b": "closing b"}
+    assert sys.unraisablehook == outer.append and [str(u.exc_value) for u in outer] == ["outside any block"]
+
+
+def test_messages_name_the_destination_not_the_temporary_file(tmp_path):
+    files = F.OutputSet()
+    tmp = files.path(tmp_path / "o.tif")
+    second = files.path(tmp_path / "p.json")  # the same private folder, named after the first file
+    try:
+        assert F.destination_of(tmp) == tmp_path / "o.tif" and F.destination_of(second) == tmp_path / "p.json"
+        assert F.destination_of(tmp_path / "o.tif") == tmp_path / "o.tif"
+        closing = F.ClosingErrors("TIFFRewriteDirectory:Error fetching directory count")
+        with pytest.raises(OutputError, match=rf"^cannot write {tmp_path / 'o.tif'}: TIFFRewrite"):
+            F.check_closed(tmp, closing)
+    finally:
+        files.discard()

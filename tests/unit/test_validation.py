@@ -11,7 +11,8 @@ from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.formats.scene_json import scene_to_dict
 from pushbroom_adjust.core.formats.schema import check_scene_dict
 from pushbroom_adjust.core.validation import (PLAUSIBLE_HEIGHTS, check_nodata, check_surface_heights,
-                             check_terrain_height, implausible_heights, implausible_image_coordinates)
+                             check_terrain_height, implausible_heights, implausible_image_coordinates,
+                             rpc_value_problem)
 from tests.support.tiny_scene import tiny_scene
 
 
@@ -115,3 +116,17 @@ def test_nodata_fits_the_data_type(value, dtype, ok):
         with pytest.raises(InputError, match=f"nodata value .* cannot be stored in the output's data type "
                                              f"{np.dtype(dtype).name}"):
             check_nodata(value, dtype)
+
+
+@pytest.mark.parametrize("field, value, problem", [
+    ("lat_off", 1e300, "a plausible value lies between -90 and 90"), ("lat_off", 31.0, None),
+    ("lon_off", 359.0, None), ("lon_off", -181.0, "between -180 and 360"),
+    ("height_off", -12001.0, "between -12000 and 100000"), ("height_scale", -500.0, None),
+    ("line_scale", 0.0, "a scale must be a non-zero number"), ("samp_scale", float("nan"), "non-zero number"),
+    ("samp_off", 2e8, "between -1e+08 and 1e+08"), ("lat_scale", 91.0, "a plausible |scale| lies between 0 and 90"),
+])
+def test_rpc_offsets_and_scales_in_their_plausible_ranges(field, value, problem):
+    """Every RPC reader (RPC text, RPB, GDAL metadata, DIMAP RFM, Maxar RPB) refuses an offset or |scale|
+    no scene on the Earth has, naming the file and key with this reason."""
+    found = rpc_value_problem(field, value)
+    assert found is None if problem is None else problem in found

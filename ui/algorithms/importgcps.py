@@ -49,7 +49,9 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                                       optional=True,
                                                       fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"),
                   tr("Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas accepted "
-                     "with ; TAB |), or a QGIS Georeferencer .points file. Give this or INPUT, not both."))
+                     "with ; TAB |), or a QGIS Georeferencer .points file. The columns id, role and camera are read "
+                     "under these names unless ID_FIELD, ROLE_FIELD or CAMERA_FIELD name others, so the simulator's "
+                     "gcps.csv needs no field parameter for them. Give this or INPUT, not both."))
         self.add_parameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("GCP point layer"),
                                                                [QgsProcessing.TypeVectorPoint], optional=True),
                   tr("Point layer whose geometry is the ground position (its own CRS) and whose fields hold the "
@@ -151,7 +153,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
             raise QgsProcessingException(f"{self.INPUT}: the layer has no features")
         column = field_values(self, parameters, context, source, features)
         xyz = np.array([_point_xyz(f) for f in features], dtype=float)
-        ids = column(self.ID_FIELD, False) or [f.id() for f in features]
+        ids = column(self.ID_FIELD, False, "id") or [f.id() for f in features]
         for key, name in self.SIGMA_FIELDS.items():
             values = column(name, False)
             if values is not None:

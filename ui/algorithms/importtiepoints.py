@@ -39,8 +39,10 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterFile(self.INPUT_FILE, tr("Tie-point file (CSV)"), optional=True,
                                                       fileFilter="Tie-point files (*.csv *.txt);;All files (*)"),
                            tr("Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas "
-                              "accepted with ; TAB |), one row per point and camera; other columns are ignored "
-                              "(the simulator's tie_points.csv reads as it is). Give this or INPUT, not both."))
+                              "accepted with ; TAB |), one row per point and camera; other columns are ignored. The "
+                              "columns id, camera, col and row are read under these names unless ID_FIELD, "
+                              "CAMERA_FIELD, COL_FIELD or ROW_FIELD name others, so the simulator's tie_points.csv "
+                              "needs no field parameter. Give this or INPUT, not both."))
         self.add_parameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("Tie-point layer or table"),
                                                                [QgsProcessing.TypeVector], optional=True),
                            tr("A layer or table whose fields hold the observations (its geometry, if any, is "
@@ -87,10 +89,8 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         text = {name: self.parameterAsString(parameters, name, context).strip() or None
                 for name in (self.ID_FIELD, self.CAMERA_FIELD, self.COL_FIELD, self.ROW_FIELD, self.SCENE_FIELD,
                              self.SIGMA_PX_FIELD)}
-        if text[self.ID_FIELD] is None:
-            raise QgsProcessingException(f"{self.ID_FIELD}: tie points need an id field (rows with one id are one "
-                                         "ground point)")
-        mapping = tiepoints.CsvMapping(id=text[self.ID_FIELD], camera=text[self.CAMERA_FIELD],
+        # ID_FIELD empty: the column 'id' (the core names the file and its columns when there is none)
+        mapping = tiepoints.CsvMapping(id=text[self.ID_FIELD] or "id", camera=text[self.CAMERA_FIELD],
                                        col=text[self.COL_FIELD] or "col", row=text[self.ROW_FIELD] or "row",
                                        scene=text[self.SCENE_FIELD], sigma_px=text[self.SIGMA_PX_FIELD])
         return core_call(tiepoints.read_csv, path, mapping, sigma)
@@ -101,7 +101,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         if not features:
             raise QgsProcessingException(f"{self.INPUT}: the layer has no features")
         column = field_values(self, parameters, context, source, features)
-        ids = attribute_texts(column(self.ID_FIELD, True))
+        ids = attribute_texts(column(self.ID_FIELD, True, "id"))
         what = f"{self.INPUT} layer"
         sigmas = column(self.SIGMA_PX_FIELD, False)
         if sigmas is not None:
