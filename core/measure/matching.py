@@ -16,11 +16,15 @@ For each point p0 (col, row; GDAL pixel centres) of a grid over the raw image:
    +-``fine_radius`` px around the coarse prediction: normalised cross-correlation computed
    by FFT (scipy.fft, vectorised over a batch of chips; local sums by integral images), the
    peak refined to sub-pixel by a least-squares paraboloid on its 3 x 3 neighbourhood.
-4. **Rejection.** A point is rejected, with its reason counted, when its window leaves the
-   image or the reference, its ray misses the DEM, the raw chip has too little texture
+4. **Rejection.** A point is rejected, with its reason counted, when a chip it compares would
+   straddle a CCD seam (its predicted window, the raw search area where the coarse pass puts the
+   match, or for tie points the other camera's window: the chips on either side of a seam look at
+   different ground along track, so such a chip mixes two views and its match is biased by up to
+   a pixel), its window leaves the image or the reference, its ray misses the DEM, the raw chip has too little texture
    (standard deviation < ``min_texture`` DN), the correlation peak is low (< ``min_correlation``:
    clouds, changed land cover, water), ambiguous (second peak / first peak > ``max_peak_ratio``)
-   or on the border of the search area.
+   or on the border of the search area, or its offset disagrees with its neighbours' on the same
+   chip by a pixel or more (:func:`core.measure.matchchecks.inconsistent`).
 
 Tie points (:func:`match_tiepoints`) use the same machinery with another camera's raw image
 as the reference (ground -> its image through the scene model): the images are compared in
@@ -29,7 +33,7 @@ the base camera's geometry, so different view angles do not defeat the correlati
 A match says: the ground point G0 the onboard model sees at p0 (on the DEM) is seen in the
 raw image at p0 + d. So the GCP is ground G0 (lon, lat, ellipsoidal h) at image p0 + d.
 Its sigma (px) follows least-squares matching precision: sigma^2 = (1 - rho) / sum(g'^2) per
-axis, g the raw chip in standard units, rho the correlation (floor 0.05 px).
+axis, g the raw chip in standard units, rho the correlation (floor SIGMA_FLOOR).
 """
 from __future__ import annotations
 
@@ -51,18 +55,21 @@ from ..observations.gcps import GcpTable
 from ..observations.tiepoints import TieTable
 from ..products.rawimage import RawImage
 from .correlation import Peaks, block_mean, find_peaks, ncc, sample
+from .matchchecks import inconsistent, within_one_chip
 from .reference import MEMORY_BUDGET, ImageReference, Reference, check_overlap, open_checked
 
 log = logging.getLogger(__name__)
 
+INCONSISTENT = "inconsistent with its neighbours"
 REASONS = ("near a CCD seam", "outside the image", "off the DEM", "outside the reference", "low texture",
-           "low correlation", "ambiguous peak", "peak on the search border")
+           "low correlation", "ambiguous peak", "peak on the search border", INCONSISTENT)
 OUTSIDE_OTHER = "outside the other camera's image"  # REASONS[3] for tie points
 COARSE_TEMPLATE = 64      # coarse chip size (coarse px)
 COARSE_RADIUS = 40        # coarse search radius (coarse px): sets the block-averaging factor
 COARSE_GRID = 5           # coarse chips per side
 MIN_CONSISTENT = 3        # coarse matches that must agree
-SIGMA_FLOOR = 0.1         # px: the error floor the bench measures (spline sampling, peak fit), unseen by the formula
+SIGMA_FLOOR = 0.08        # px per axis: the error floor bench_matchgcps.py measures (RMSE 0.081 px per axis of the
+                          # matches within 1 px of the truth: spline sampling, peak fit), unseen by the formula
 
 
 @dataclass(frozen=True)
@@ -291,7 +298,8 @@ class _GridMatch:
     """Per grid point (n,): its position (col, row), the matched position, correlation, peak
     ratio, sigma, the reference position matching the grid point itself (ref_col, ref_row: GDAL
     px of the reference's array; the local affine map applied to the match's offset), the ECEF
-    ground (n, 3) of the grid point and the reason index (-1: passed)."""
+    ground (n, 3) of the grid point and the reason index (-1: passed); near_seam: the grid points
+    left out before matching because their own window straddles a CCD seam."""
     col: np.ndarray
     row: np.ndarray
     out: dict
@@ -302,7 +310,7 @@ class _GridMatch:
     seconds: float
 
     def rejected(self) -> dict:
-        return {REASONS[0]: self.near_seam,
+        return {REASONS[0]: self.near_seam + int((self.reasons == 0).sum()),
                 **{REASONS[i]: int((self.reasons == i).sum()) for i in range(1, len(REASONS))}}
 
 
@@ -324,21 +332,33 @@ def _match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem,
         raise InputError(f"no grid point fits in the image ({cam.cols} x {cam.rows} px) with window "
                          f"{settings.window} px and spacing {settings.spacing:g} px")
     shift_c, shift_r = (np.rint(v).astype(int) for v in _plane(coarse, cam, col, row))
+    # The raw search area sits where the coarse pass predicts the match (tens of pixels from the
+    # grid point): it too must lie in one chip, or the matched chip mixes two chips' views.
+    s = settings.window + 2 * settings.fine_radius
+    first = np.floor(col) + shift_c - (s - 1) // 2
+    straddles = ~within_one_chip(cam, first, first + s - 1)
+    reasons = np.full(col.size, 2)
+    reasons[straddles] = 0
     order = np.argsort(np.floor(row / (settings.spacing * 8)) * cam.cols + col, kind="stable")
+    order = order[~straddles[order]]
     batches = [order[i:i + settings.batch] for i in range(0, order.size, settings.batch)]
     workers = settings.workers or os.cpu_count() or 1
     out = {k: np.full(col.size, np.nan) for k in ("col", "row", "value", "ratio", "sigma", "ref_col", "ref_row")}
     ground = np.full((col.size, 3), np.nan)
-    reasons = np.full(col.size, 2)
 
-    def run(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
-        """Predict and match one batch of grid points (indices idx)."""
+    def run(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
+        """Predict and match one batch of grid points (indices idx); also the indices whose
+        reference window straddles a seam of the other camera (tie points)."""
         if cancelled():
             raise Cancelled("matching cancelled by the user")
         px, py, g = predicted_positions(scene, camera, dem, ref, col[idx], row[idx], half, settings.window, 1.0)
         ok = np.isfinite(g).all(axis=1) & np.isfinite(px).all(axis=(1, 2)) & np.isfinite(py).all(axis=(1, 2))
+        seam = np.zeros_like(ok)
+        seam[ok] = ref.straddles_seam(px[ok])
+        ok &= ~seam
         if not ok.any():
-            return idx[:0], g[:0], {}
+            return idx[:0], g[:0], {}, idx[seam]
+        seam_idx = idx[seam]
         px, py, idx = px[ok], py[ok], idx[ok]
         res = _fine_batch(px, py, col[idx], row[idx], shift_c[idx], shift_r[idx], ref, raw, nodata, settings, 1)
         # the reference position of the grid point's own match: centre minus the local map of the offset
@@ -347,15 +367,17 @@ def _match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem,
         jy = ((py[:, h, h + 1] - py[:, h, h - 1]) / 2, (py[:, h + 1, h] - py[:, h - 1, h]) / 2)
         res["ref_col"] = px[:, h, h] + 0.5 - jx[0] * dc - jx[1] * dr
         res["ref_row"] = py[:, h, h] + 0.5 - jy[0] * dc - jy[1] * dr
-        return idx, g[ok], res
+        return idx, g[ok], res, seam_idx
 
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        for n, (idx, g, res) in enumerate(pool.map(run, batches)):
+        for n, (idx, g, res, seam_idx) in enumerate(pool.map(run, batches)):
+            reasons[seam_idx] = 0
             if idx.size:
                 for k in out:
                     out[k][idx] = res[k]
                 reasons[idx], ground[idx] = res["reasons"], g
             report(0.1 + 0.85 * (n + 1) / len(batches), None)
+    reasons[inconsistent(cam, col, row, out["col"], out["row"], reasons < 0)] = REASONS.index(INCONSISTENT)
     return _GridMatch(col, row, out, ground, reasons, near_seam, coarse, time.perf_counter() - start)
 
 

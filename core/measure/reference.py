@@ -21,6 +21,7 @@ from ..products.rawimage import image_on_surface, open_raw
 gdal.UseExceptions()
 
 MEMORY_BUDGET = 2 ** 30   # bytes of raw image / reference pixels held in memory
+CUBIC_TAPS = 2            # px either side of a sample that cubic convolution reads
 
 
 class Reference:
@@ -65,6 +66,11 @@ class Reference:
         self._local = threading.local()
         self.data = ds.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
         ds = None
+
+    def straddles_seam(self, x: np.ndarray) -> np.ndarray:
+        """(n,) whether the windows at array columns x (n, ...) straddle a CCD seam of the image
+        they sample: never for an orthoimage."""
+        return np.zeros(x.shape[0], bool)
 
     def dataset(self):
         if not hasattr(self._local, "ds"):
@@ -118,6 +124,14 @@ class ImageReference(Reference):
     def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         col, row = self.scene.ground_to_image(ground, self.camera)
         return col - 0.5, row - 0.5
+
+    def straddles_seam(self, x: np.ndarray) -> np.ndarray:
+        """(n,) whether the windows at array columns x (n, ...) of this camera's image, with the
+        taps of the cubic convolution (2 px either side), reach across one of its CCD seams."""
+        flat = x.reshape(x.shape[0], -1)
+        cam = self.scene.cameras[self.camera]
+        first, last = flat.min(axis=1) + 0.5 - CUBIC_TAPS, flat.max(axis=1) + 0.5 + CUBIC_TAPS
+        return cam.chip_index(first) != cam.chip_index(last)
 
 
 def _blanked(a: np.ndarray, nodata) -> np.ndarray:

@@ -10,6 +10,7 @@ import pytest
 from osgeo import gdal, osr
 
 import processing
+from pushbroom_adjust.core.measure.matching import SIGMA_FLOOR
 from pushbroom_adjust.core.observations import tiepoints
 from tests.support.matchscene import mini_tlc_scene
 from tests.support.hostile import assert_refused, assert_refused_cli
@@ -133,4 +134,4 @@ def test_an_image_in_another_format_is_legitimate(tlc, tmp_path):
     table = tiepoints.read_gpkg(out["OUTPUT"])
     pairs = tiepoints.summary(table)["pairs"]
     assert pairs["NAD-FWD"] >= 100 and pairs["NAD-BWD"] >= 100, pairs  # 15 x 12 grid points
-    assert np.all(table.sigma_px >= 0.1)
+    assert np.all(table.sigma_px >= SIGMA_FLOOR)

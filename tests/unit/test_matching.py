@@ -7,7 +7,7 @@ from pyproj import CRS, Transformer
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.measure.correlation import find_peaks, ncc
-from pushbroom_adjust.core.measure.matching import REASONS, MatchSettings, match_gcps
+from pushbroom_adjust.core.measure.matching import REASONS, SIGMA_FLOOR, MatchSettings, match_gcps
 from pushbroom_adjust.simulation.texture import texture_at
 from pushbroom_adjust.core.formats import load_scene
 from tests.support.matchscene import SEARCH, manifest, mini_scene, true_errors
@@ -72,7 +72,7 @@ def test_matched_gcps_are_accurate_against_the_truth(mini, matched):
     assert sum(matched.rejected.values()) + len(matched.table) == matched.grid_points
     assert set(matched.rejected) == set(REASONS)
     assert matched.rejected["low correlation"] > 0  # clouds and changed land cover are seen
-    assert np.all(matched.table.sigma_px >= 0.1) and np.all(matched.quality >= 0.6)
+    assert np.all(matched.table.sigma_px >= SIGMA_FLOOR) and np.all(matched.quality >= 0.6)
     # the onboard model is ~200 m off: the matches found it, not a local optimum near zero
     assert np.hypot(*np.median(matched.offset, axis=0)) > 50
 

@@ -27,11 +27,12 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
             "and refined to sub-pixel. A coarse pass at low resolution first finds onboard errors of hundreds of "
             "metres, up to SEARCH_RANGE. Weak matches are rejected and counted by reason (low texture, low "
             "correlation: clouds, water, changed land cover; ambiguous peaks; windows leaving the image or the "
-            "reference); what passes may still hold a few gross errors, which the adjustment's robust estimation "
-            "removes. Each GCP is the ground point the onboard model sees at a grid point (lon, lat and the "
+            "reference or straddling a CCD seam; offsets that disagree with the neighbours'); what passes may "
+            "still hold a few gross errors, which the adjustment's robust estimation removes. Each GCP is the "
+            "ground point the onboard model sees at a grid point (lon, lat and the "
             "DEM's ellipsoidal height) at the matched image position, with fields quality (the correlation "
             "peak), peak_ratio (second peak / first) and sigma_px (from the correlation and the image "
-            "gradients, at least 0.1 px). The output is the GeoPackage layer pushbroom:importgcps writes, "
+            "gradients, at least 0.08 px). The output is the GeoPackage layer pushbroom:importgcps writes, "
             "read directly by pushbroom:bundleadjust (use robust estimation).")
     INPUT, REFERENCE, OUTPUT = "INPUT", "REFERENCE", "OUTPUT"
 

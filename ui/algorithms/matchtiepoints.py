@@ -33,7 +33,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
             "image); what passes may hold a few mismatches, which the adjustment's robust estimation removes. "
             "The output is the tie-point layer pushbroom:importtiepoints writes (checked against the scene and "
             "intersected with its model, likely mismatches flagged), with sigma_px from the correlation and "
-            "the image gradients (at least 0.1 px); pushbroom:bundleadjust reads it as TIE_POINTS.")
+            "the image gradients (at least 0.08 px); pushbroom:bundleadjust reads it as TIE_POINTS.")
     OUTPUT = "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
