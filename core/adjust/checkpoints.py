@@ -163,7 +163,7 @@ def summary_lines(before: dict, after: dict) -> list[str]:
 
 # --- monoplotted check-point figures ------------------------------------------------------------------
 def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float,
-             scale: dict[str, float] | None = None) -> dict:
+             scale: dict[str, float] | None = None, ground_sigmas: bool = True) -> dict:
     """Check-point accuracy of a scene: ground -> image residuals (px) and image -> ground at
     the known height in a local east-north frame (m): RMSE per axis, max, CE90.
 
@@ -175,7 +175,9 @@ def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float,
     (image sigma, planimetric ground sigma over the GSD and the image shift of a height error of
     sigma_z, per axis), each times its group's variance component factor in ``scale`` (the
     check points are measured as the control points are: the factors estimated on those make
-    the test independent of the stated sigmas' scale). ``blunders`` counts those observations,
+    the test independent of the stated sigmas' scale). Without ``ground_sigmas`` (an adjustment
+    that held the control points' ground fixed: its image factor took the ground errors too)
+    the image sigma alone. ``blunders`` counts those observations,
     ``blunder_points`` the points with any. A model error makes many exceed it:
     ``blunder_test`` (:func:`core.adjust.checkpoints.blunder_test`) decides, and with
     ``model_error`` the figures without them are not meaningful.
@@ -198,11 +200,11 @@ def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float,
         seen = scene.image_to_ground(sub.col[m], sub.row[m], sub.h[m], c)
         en[m] = np.einsum("nij,nj->ni", enu_rotations(sub.lon[m], sub.lat[m]), seen - ground[m])[:, :2]
         # a height error moves the image point by its relief displacement only
-        sigma_z = sub.sigma_z[m] * scale.get("ground_z", 1.0)
+        sigma_z = sub.sigma_z[m] * scale.get("ground_z", 1.0) * ground_sigmas
         up = ground[m] + sigma_z[:, None] * up_vector(sub.lon[m], sub.lat[m])
         relief = np.hypot(*(a - b for a, b in zip(scene.ground_to_image(up, c), (col, row))))
         sigma_px = sub.sigma_px[m] * scale.get(image_group(cam.name), 1.0)
-        sigma_xy = sub.sigma_xy[m] * scale.get("ground_xy", 1.0)
+        sigma_xy = sub.sigma_xy[m] * scale.get("ground_xy", 1.0) * ground_sigmas
         allowed[m] = crit * np.sqrt(sigma_px ** 2 + (sigma_xy / _gsd(scene, c)) ** 2 + relief ** 2)
     flagged = ~(np.abs(res) <= allowed[:, None]).all(axis=1)
     test = blunder_test(int(flagged.sum()), rows.size, alpha)

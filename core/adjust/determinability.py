@@ -34,27 +34,51 @@ def non_determinable(N: np.ndarray, names: list[str], trajectory: np.ndarray) ->
     information once the trajectory is free (the Schur complement of the trajectory block,
     scaled by the interior diagonal), named with the trajectory parameters that absorb them.
     """
+    _check_finite(N, names)
     d = np.sqrt(np.maximum(np.diag(N), 0.0))
     dead = np.nonzero(d <= 0)[0]
     if dead.size:
         return [[names[i]] for i in dead]
-    C = N / np.outer(d, d)
+    C = N / d[:, None] / d[None, :]  # one side at a time: |N_ij| <= d_i d_j, nothing overflows on the way
     t = np.nonzero(trajectory)[0]
-    if t.size == 0:  # an RPC scene's correction: no trajectory to absorb anything
-        vals, vecs = np.linalg.eigh(C)
-        return [_members(vecs[:, k], np.arange(len(names)), names) for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
-    vals, vecs = np.linalg.eigh(C[np.ix_(t, t)])
-    sets = [_members(vecs[:, k], t, names) for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
-    if sets or trajectory.all():
-        return sets
-    i = np.nonzero(~trajectory)[0]
-    absorb = np.linalg.solve(C[np.ix_(t, t)], C[np.ix_(t, i)])
-    vals, vecs = np.linalg.eigh(C[np.ix_(i, i)] - C[np.ix_(i, t)] @ absorb)
+    try:
+        if t.size == 0:  # an RPC scene's correction: no trajectory to absorb anything
+            vals, vecs = np.linalg.eigh(C)
+            return [_members(vecs[:, k], np.arange(len(names)), names)
+                    for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
+        vals, vecs = np.linalg.eigh(C[np.ix_(t, t)])
+        sets = [_members(vecs[:, k], t, names) for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
+        if sets or trajectory.all():
+            return sets
+        i = np.nonzero(~trajectory)[0]
+        absorb = np.linalg.solve(C[np.ix_(t, t)], C[np.ix_(t, i)])
+        vals, vecs = np.linalg.eigh(C[np.ix_(i, i)] - C[np.ix_(i, t)] @ absorb)
+    except np.linalg.LinAlgError as exc:  # finite but numerically singular beyond what eigh resolves
+        raise InputError(f"the normal equations of {_listed(names)} cannot be analysed ({exc}): these parameters "
+                         "are not determined by the observations; give onboard GPS/attitude sigmas "
+                         "(POSITION_SIGMA, ATTITUDE_SIGMA), more or better spread GCPs, or fewer unknowns",
+                         parameter="") from None
     for k in np.nonzero(vals < INTERIOR_SINGULAR)[0]:
         inner = _members(vecs[:, k], i, names)
         outer = _members(-absorb @ vecs[:, k], t, names)[:2]
         sets.append(inner + outer)
     return sets
+
+
+def _check_finite(N: np.ndarray, names: list[str]) -> None:
+    """InputError naming the parameters whose normal equations are not finite numbers: a weight that
+    overflowed (a sigma far too small or too large) leaves nothing to analyse."""
+    bad = ~np.isfinite(N).all(axis=1)
+    if bad.any():
+        raise InputError(f"the normal equations of {_listed([n for n, b in zip(names, bad) if b])} are not finite "
+                         "numbers: a weight overflowed; check the sigmas that weigh them (image and ground sigmas of "
+                         "the points, POSITION_SIGMA, ATTITUDE_SIGMA, INTERIOR priors) for values far too small or "
+                         "too large", parameter="")
+
+
+def _listed(names: list[str], shown: int = 8) -> str:
+    more = f" and {len(names) - shown} more" if len(names) > shown else ""
+    return ", ".join(names[:shown]) + more
 
 
 def _members(v: np.ndarray, index: np.ndarray, names: list[str]) -> list[str]:
@@ -90,7 +114,10 @@ def check_determinability(problem: Problem, system: System) -> list[dict]:
         sets = non_determinable(system.N, names, trajectory)
         if not sets:
             return found
-        members = sets[0]
+        # Null directions of one eigenvalue (~rounding) come in any order: take the set whose
+        # parameter to fix comes first among the parameters, so the order does not hang on rounding.
+        index = problem.params.index
+        members = min(sets, key=lambda m: index.get(_choose_to_fix(problem, m), len(index)))
         chosen = _choose_to_fix(problem, members) if problem.settings.on_singular == "fix" else None
         if chosen is None:
             hint = ("" if problem.settings.on_singular == "stop" and any(

@@ -23,9 +23,11 @@ from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..observations.tiepoints import TieTable
 from .checks import block_datum, check_inputs, check_redundancy
+from .consistency import check_written_scene
 from .determinability import check_determinability
 from .estimation import estimate
 from .linepoints import ControlLines, LineSetUp, set_up_lines
+from .minimalprior import hold_weak_trajectory
 from .problem import Problem
 from .results import AdjustmentResult, record_in_scene, result_of, with_yaw
 from .rpcbias import RpcProblem
@@ -68,6 +70,7 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     check_redundancy(problem)
     _, system = problem.system()
     determinability = check_determinability(problem, system)
+    trajectory_prior = hold_weak_trajectory(problem, problem.system()[1] if determinability else system)
     selection = None
     selecting = settings.interior_selection == "significant" and interior_free(problem).size > 0
     try:
@@ -85,9 +88,12 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
                     len(est.passes))
     progress(0.92, "evaluating check points")
     adjusted = problem.params.adjusted_scene()
+    written_vs_fitted = check_written_scene(problem, adjusted)
     out = result_of(problem, table, adjusted, est, determinability)
     rep = out.report
     rep["interior_selection"] = selection
+    rep["trajectory_prior"] = trajectory_prior
+    rep["written_vs_fitted"] = written_vs_fitted
     if held is not None:
         held = rep["datum"] = with_yaw(held, problem, est.st)
         log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")

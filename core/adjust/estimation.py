@@ -3,15 +3,15 @@ neither the flags nor the component factors change (see :mod:`core.adjust.robust
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .problem import Problem
-from .robust import (COMPONENT_TOLERANCE, components, critical, flag_lines, inliers, rescale, robust_scale,
-                     robust_weights, truncation)
+from .robust import (COMPONENT_TOLERANCE, components, critical, flag_lines, inliers, joint_groups, rescale,
+                     robust_scale, robust_weights, truncation)
 from .solver import solve
-from .statistics import Statistics, normalised, statistics
+from .statistics import Statistics, component_coupling, normalised, statistics
 
 log = logging.getLogger(__name__)
 
@@ -19,7 +19,9 @@ log = logging.getLogger(__name__)
 class Estimate:
     """The last solution and its statistics, the robust passes' log, whether the loop stopped
     at its pass limit, the variance components (group -> (sum of p v^2 with the stated sigmas,
-    redundancy, count)) over the inliers (n,) of the last pass, and the truncation factor."""
+    redundancy, count)) over the inliers (n,) of the last pass, the truncation factor, and the
+    sets of groups whose factors could not be told apart (each estimated as one,
+    :func:`core.adjust.robust.joint_groups`)."""
     result: dict
     st: Statistics
     passes: list
@@ -27,6 +29,7 @@ class Estimate:
     components: dict
     inlier: np.ndarray
     kappa: float
+    joint: list = field(default_factory=list)
 
 
 def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
@@ -38,6 +41,7 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
     kappa = truncation(crit) if robust else 1.0
     iterate = robust or s.variance_components
     passes = []
+    joint: list[tuple[str, ...]] = []
     for k in range(s.max_robust_iterations if iterate else 1):
         label = f"robust pass {k + 1}: " if robust else f"variance component pass {k + 1}: " if iterate else ""
         result = solve(problem, progress, is_cancelled, label)
@@ -49,7 +53,9 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
         comps = components(problem, st, inlier)
         component_change = 0.0
         if s.variance_components:
-            component_change = rescale(problem, comps, kappa)
+            labels, H = component_coupling(problem, result["linearization"], result["system"], st.redundancy, inlier)
+            joint = joint_groups(comps, labels, H, joint)
+            component_change = rescale(problem, comps, kappa, joint, (labels, H))
             st.w, scale = normalised(problem, st.v, st.redundancy), 1.0
         before = problem.factor[:, 0] < 1.0
         lines_before = problem.line_flagged.copy()
@@ -58,7 +64,8 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
             change = max(change, flag_lines(problem, st, scale, crit))
         after = problem.factor[:, 0] < 1.0
         passes.append({"pass": k + 1, "sigma0": st.sigma0, "down_weighted": int(after.sum()),
-                       "largest_change": change, "component_change": component_change})
+                       "largest_change": change, "component_change": component_change,
+                       "joint_groups": [list(j) for j in joint]})
         log.info("%ssigma0 %.3f, %d observations down-weighted, variance components changed by %.1f %%", label,
                  st.sigma0, int(after.sum()), 100 * component_change)
         # Done when no observation changes side (the weights of the down-weighted ones then only
@@ -69,6 +76,6 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
         settled = (change < 1e-3 or (k > 0 and (np.array_equal(before, after) or not result["iterations"]))) and \
             np.array_equal(lines_before, problem.line_flagged)
         if not iterate or (settled and component_change < COMPONENT_TOLERANCE):
-            return Estimate(result, st, passes, False, comps, inlier, kappa)
-    return Estimate(result, st, passes, True, comps, inlier, kappa)
+            return Estimate(result, st, passes, False, comps, inlier, kappa, joint)
+    return Estimate(result, st, passes, True, comps, inlier, kappa, joint)
 

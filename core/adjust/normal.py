@@ -50,12 +50,14 @@ class GroundPrior:
 @dataclass
 class System:
     """Reduced normal equations N dx = -b of the n_unknowns parameters, with what is needed
-    to back-substitute the ground points (K (m,3,3), b_g (m,3))."""
+    to back-substitute the ground points (K (m,3,3), b_g (m,3)), the weighted squared residuals
+    (cost) and the ground prior they were made with."""
     N: np.ndarray
     b: np.ndarray
     K: np.ndarray
     bg: np.ndarray
     cost: float
+    prior: GroundPrior | None = None
 
 
 def groups(columns: np.ndarray) -> list[slice]:
@@ -68,8 +70,11 @@ def groups(columns: np.ndarray) -> list[slice]:
     return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs_groups: list[slice]) -> System:
-    """Reduced normal equations of the image observations (ground eliminated)."""
+def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs_groups: list[slice],
+             ground_damping: float = 0.0) -> System:
+    """Reduced normal equations of the image observations (ground eliminated). ground_damping:
+    Levenberg-Marquardt damping of the ground unknowns, lambda diag(N_gg) added to each point's
+    block before it is eliminated (the parameters' own damping is the solver's)."""
     N = np.zeros((n_unknowns, n_unknowns))
     b = np.zeros(n_unknowns)
     n_points = 0 if prior is None else prior.weight.shape[0]
@@ -85,6 +90,8 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
         counts = np.bincount(lin.point[seen], minlength=n_points)
         jtp = lin.jg.transpose(0, 2, 1) * lin.p[:, None, :]                # J_g' P (n,3,2)
         ngg = prior.weight + sum_by_point(lin.point[seen], (jtp @ lin.jg)[seen], n_points)
+        if ground_damping:
+            ngg = ngg + ground_damping * ngg * np.eye(3)
         bg = np.einsum("mij,mj->mi", prior.weight, prior.misfit) + \
             sum_by_point(lin.point[seen], np.einsum("nil,nl->ni", jtp, lin.r)[seen], n_points)
         # A ridge far below any ray's weight: a tie point (no prior) whose rays are all but one
@@ -124,7 +131,7 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
         N[np.ix_(c, c)] += a.T @ a
     if multi.any():
         _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns)
-    return System(N, b, K, bg, cost)
+    return System(N, b, K, bg, cost, prior)
 
 
 def inverse3(a: np.ndarray) -> np.ndarray:

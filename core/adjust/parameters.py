@@ -180,20 +180,53 @@ def image_effect(scene: SceneModel, p: Parameter) -> float:
     return float(max(effects, default=0.0))
 
 
+# A term moving the array ends by less than this share of what its block's terms of the same unit
+# do (b1 against b2, b3) moves them by rounding only: b1 (x b1) of an array on the line x = 0 comes
+# out at ~1e-12 px per unit from sin(pi) ~ 1e-16; a px prior would make its sigma ~1e12 and the
+# step it allows (~1e11) wrecks the linearisation of every other term (ZY-3 INTERIOR=default).
+ROUNDING_EFFECT_SHARE = 1e-9
+
+
+def moves_image(scene: SceneModel, p: Parameter) -> bool:
+    """Whether ``p`` moves the end detectors of its camera at all (beyond rounding): its
+    :func:`image_effect` is above ROUNDING_EFFECT_SHARE of the largest effect among the terms of
+    its block (camera terms, the chip's terms, installation angles) that share its unit."""
+    effect = image_effect(scene, p)
+    terms = {"camera": CAMERA_TERMS, "installation": ANGLES}.get(p.block)
+    if terms is None:
+        terms = CHIP_TERMS if scene.cameras[p.camera].chips[p.chip].kind == "focal_plane" else LOOK_TERMS
+    unit = UNITS.get(p.term, "rad")
+    siblings = [replace(p, term=t) for t in terms if UNITS.get(t, "rad") == unit]
+    largest = max([image_effect(scene, q) for q in siblings] + [effect])
+    return effect > ROUNDING_EFFECT_SHARE * largest and effect > 0
+
+
 MIN_PRIOR_PX = 1e-6  # px at the array end: a prior tighter than this holds its parameter fixed
+MAX_PRIOR_PX = 1e6   # px at the array end: a prior looser than this weighs nothing (no sigma: free)
 
 
 def check_prior(scene: SceneModel, p: Parameter, pattern: str, value: float, unit: str) -> None:
-    """A prior sigma (``p.sigma``, SI) must weigh something finite and let its parameter move the image by
-    at least MIN_PRIOR_PX: a tighter one (e.g. HRC.f=1e-300) holds the parameter fixed and overflows
-    the normal equations. InputError naming the INTERIOR item."""
-    moves = p.sigma * image_effect(scene, p)
+    """A prior sigma (``p.sigma``, SI) must weigh something finite and non-zero and let its parameter
+    move the image by MIN_PRIOR_PX to MAX_PRIOR_PX at the array end: a tighter one (e.g. HRC.f=1e-300)
+    holds the parameter fixed and overflowed the normal equations, a looser one (HRC.f=1e300) weighs
+    nothing and overflowed 1/sigma^2. InputError naming the INTERIOR item and the plausible range (in
+    px and in the item's own unit)."""
+    effect = image_effect(scene, p)
+    moves = p.sigma * effect
     with np.errstate(all="ignore"):
         weight = 1.0 / np.float64(p.sigma) ** 2
-    if not np.isfinite(weight) or (moves > 0 and moves < MIN_PRIOR_PX):
-        raise InputError(f"interior parameter {pattern}={value:g}{unit}: a sigma this small holds {p.name} fixed "
-                         f"({moves:.2g} px at the array end); give a plausible sigma (e.g. 1px), or leave it "
-                         "out to keep the scene's value", parameter="settings.interior")
+    small = not np.isfinite(weight) or 0 < moves < MIN_PRIOR_PX
+    if not small and weight > 0 and not moves > MAX_PRIOR_PX:
+        return
+    per_unit = {"px": 1.0, "arcsec": effect * ARCSEC}.get(unit, effect)  # px per unit of the item's sigma
+    plausible = f"{MIN_PRIOR_PX:g} to {MAX_PRIOR_PX:g} px at the array end"
+    if unit != "px" and per_unit > 0:
+        shown = unit or (f" {p.unit}" if p.unit else "")
+        plausible += f", i.e. {pattern}={MIN_PRIOR_PX / per_unit:.3g}{shown} to {MAX_PRIOR_PX / per_unit:.3g}{shown}"
+    what = f"holds {p.name} fixed" if small else f"weighs nothing: leave the sigma out to free {p.name}"
+    raise InputError(f"interior parameter {pattern}={value:g}{unit}: a sigma this {'small' if small else 'large'} "
+                     f"{what} ({moves:.2g} px at the array end); a plausible sigma moves the image by {plausible} "
+                     "(e.g. 1px), or leave the item out to keep the scene's value", parameter="settings.interior")
 
 
 def sigma_in_si(scene: SceneModel, p: Parameter, value: float, unit: str) -> float:
@@ -207,7 +240,7 @@ def sigma_in_si(scene: SceneModel, p: Parameter, value: float, unit: str) -> flo
                              f"{p.unit or 'none'}); give px or its SI unit", parameter="settings.interior")
         return value * ARCSEC
     effect = image_effect(scene, p)
-    if not effect > 1e-12:
+    if not moves_image(scene, p):
         raise InputError(f"interior parameter {p.name} does not move the image at the array ends; a sigma in px "
                          "cannot be converted (leave it out or give its SI unit)", parameter="settings.interior")
     return value / effect
@@ -265,7 +298,7 @@ class ParameterSet:
                                  f"(e.g. {', '.join(p.name for p in selectable[:12])}, ...)",
                                  parameter="settings.interior")
             for p in hits:
-                if default and unit == "px" and not image_effect(self.scene, p) > 1e-12:
+                if default and unit == "px" and not moves_image(self.scene, p):
                     p.mode, p.sigma = "fixed", 0.0  # e.g. b1 of an array through the principal point
                     log.info("%s does not move this camera's image at the array ends: left fixed", p.name)
                     continue
@@ -304,6 +337,17 @@ class ParameterSet:
         basis = self.position_basis if block == "position" else self.attitude_basis
         first, weights = basis.window(t)
         return (first + camera * basis.size if self.per_camera else first), weights
+
+    def window_weights(self, block: str, t: np.ndarray, first: np.ndarray, rates: bool = False) -> np.ndarray:
+        """(n, w) the basis weights (``rates``: their time derivatives, 1/s, as the written
+        correction takes them, :meth:`core.model.timebasis.TimeBasis.derivative`) at times t (n,) s
+        of the rows ``first`` (n,) .. first + w - 1 of a :meth:`window`, wherever t lies: an
+        observation imaged across a knot keeps the columns of its measured time."""
+        basis = self.position_basis if block == "position" else self.attitude_basis
+        if not rates and basis.kind == "polynomial":
+            return basis.window(t)[1]
+        full = basis.derivative(t) if rates else basis.matrix(t)
+        return np.take_along_axis(full, (first % basis.size)[:, None] + np.arange(basis.width), axis=1)
 
     def trajectory_correction(self, camera: int = 0) -> TrajectoryCorrection:
         """The current trajectory correction (of camera ``camera`` when there is one per camera)."""

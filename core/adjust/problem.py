@@ -12,18 +12,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import ConvergenceError, InputError
 from ..geodesy import enu_rotations, geodetic_to_ecef
 from ..model.sensor import SceneModel
 from ..model.timebasis import TimeBasis
 from ..observations.gcps import GcpTable
 from . import linepoints
 from .linepoints import LineSetUp
-from .model import Jacobian, Model, build_observations
+from .model import ImageObservations, Imaging, Jacobian, Model, build_observations, project
 from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
 from .settings import AdjustmentSettings
 from .ties import TieSetUp, camera_indices
+
+
+# The pseudo-observation group of the minimal trajectory prior (core.adjust.minimalprior). Like the
+# constraints of a minimal datum it decides what the observations leave open: no redundancy, so
+# its rows do not count among the equations (they would lower sigma0 by adding degrees of freedom
+# their near-zero residuals do not fill).
+HELD_GROUP = "minimal trajectory prior"
 
 
 def image_group(camera: str) -> str:
@@ -54,17 +61,20 @@ class Problem:
         self._set_up_ground(table, sel, ties.ground, lines)
         # GCP observations, then tie observations (their points after the GCPs'), then line points
         kind = np.repeat([0, 1, 2], [control.size, len(ties), len(lines)])
-        obs = build_observations(scene, self.params,
+        self.imaging = Imaging(scene, self.params)
+        obs = build_observations(self.imaging,
                                  np.r_[camera_indices(scene, table.camera[control]), ties.camera, lines.camera],
                                  np.r_[table.col[control], ties.table.col[ties.rows], lines.obs.col],
                                  np.r_[table.row[control], ties.table.row[ties.rows], lines.obs.row],
                                  np.r_[point, sel.size + ties.point, self.line_first + np.arange(len(lines))],
-                                 np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows], lines.obs.sigma_px],
-                                 self.ground)
+                                 np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows], lines.obs.sigma_px])
         # Observations sorted by what decides their parameter columns, so that observations
         # sharing columns are contiguous whatever the free parameters: groups are slices.
         order = np.lexsort((obs.att_first, obs.pos_first, obs.chip, obs.camera))
         self.obs = obs.select(order)
+        # where the current model images the observations (the last projection: the next one's
+        # start) and the pixel map there; see :meth:`project`
+        self.imaged, self.map = self.obs, None
         self.is_tie, self.is_line = kind[order] == 1, kind[order] == 2
         # rows of the GCP table, of the tie table for ties, of the line points for lines
         self.rows = np.r_[control, ties.rows, np.arange(len(lines))][order]
@@ -73,6 +83,7 @@ class Problem:
         self.ties = ties
         self.factor = np.ones((len(self.obs), 2))  # robust weight factors per residual row
         self.scale: dict[str, float] = {}  # variance component factor on the stated sigmas, per group
+        self.held: list[Pseudo] = []  # the minimal trajectory prior, if any (core.adjust.minimalprior)
         self.rescaled()
         self.structure()
 
@@ -169,7 +180,7 @@ class Problem:
         """(equations, unknowns): image rows, ground priors and pseudo-observations against the
         free parameters and the ground unknowns."""
         n_eq = 2 * len(self.obs) + 3 * self.enu.shape[0] + 2 * len(self.lines) + \
-            sum(p.B.shape[0] for p in self.pseudo())
+            sum(p.B.shape[0] for p in self.pseudo() if p.group != HELD_GROUP)
         return n_eq, int(self.params.free.size) + 3 * int(self.estimated.size)
 
     def structure(self) -> None:
@@ -199,17 +210,20 @@ class Problem:
         self.columns = columns[:, self.slots]
         self.groups = groups(self.columns)
 
-    def values(self, jac: Jacobian) -> np.ndarray:
-        """Jacobian values (n, 2, q) in the column layout of :meth:`structure`."""
+    def values(self, jac: Jacobian, imaged: ImageObservations) -> np.ndarray:
+        """Jacobian values (n, 2, q) in the column layout of :meth:`structure`, of the
+        observations imaged at ``imaged`` (whose trajectory windows the layout has)."""
         obs = self.obs
         wp, wa = obs.pos_weights.shape[1], obs.att_weights.shape[1]
+        pos_weights, pos_rates, att_weights = imaged.pos_weights, imaged.pos_rates, imaged.att_weights
         out = np.empty((len(obs), 2, self.slots.size))
         for j, slot in enumerate(self.slots):
             if slot < 3 * wp:
-                out[:, :, j] = jac.S[:, :, slot % 3] * obs.pos_weights[:, slot // 3, None]
+                out[:, :, j] = jac.S[:, :, slot % 3] * pos_weights[:, slot // 3, None] + \
+                    jac.V[:, :, slot % 3] * pos_rates[:, slot // 3, None]
             elif slot < 3 * (wp + wa):
                 k = slot - 3 * wp
-                out[:, :, j] = jac.angles[:, :, k % 3] * obs.att_weights[:, k // 3, None]
+                out[:, :, j] = jac.angles[:, :, k % 3] * att_weights[:, k // 3, None]
             else:
                 k = slot - 3 * (wp + wa)
                 block, k = ((jac.installation, k) if k < 3 else (jac.chip, k - 3) if k < 7 else (jac.camera, k - 7))
@@ -220,9 +234,37 @@ class Problem:
     def weights(self) -> np.ndarray:
         return self.factor / self.image_sigma()[:, None] ** 2
 
+    def project(self, new_map: bool = False) -> tuple[Model, np.ndarray]:
+        """Where the current model images the observations' ground points: (the model, the
+        imaged (col, row) (n,2) px, NaN where it does not). Newton from the last projection
+        (:func:`core.adjust.model.project`) with its pixel map, or (``new_map``) a new one."""
+        model = Model(self.scene, self.params)
+        self.imaged, self.map, predicted = project(model, self.imaging, self.obs, self.ground[self.obs.point],
+                                                   self.imaged, None if new_map else self.map)
+        return model, predicted
+
+    def fitted(self) -> np.ndarray:
+        """(n,2) px: where the current model images the observations' ground points."""
+        return self.project()[1]
+
     def linearize(self) -> tuple[Linearization, GroundPrior | None]:
-        r, jac = Model(self.scene, self.params).linearize(self.obs, self.ground[self.obs.point])
-        return Linearization(r, self.weights(), self.columns, self.values(jac), jac.ground,
+        model, predicted = self.project(new_map=True)
+        r = predicted - np.stack([self.obs.col, self.obs.row], axis=1)
+        if not np.all(np.isfinite(r)):
+            bad = ~np.all(np.isfinite(r), axis=1)
+            kinds = np.where(self.is_tie, "tie point", np.where(self.is_line, "line point", "GCP"))[bad]
+            raise ConvergenceError(f"the current model images {int(bad.sum())} observation(s) nowhere on their chips "
+                                   f"({', '.join(f'{k} row {i}' for k, i in zip(kinds[:5], self.rows[bad][:5]))}): "
+                                   "the solution diverged, or the points lie behind the camera")
+        imaged = self.imaged
+        if not (np.array_equal(imaged.pos_first, self.obs.pos_first) and
+                np.array_equal(imaged.att_first, self.obs.att_first)):
+            # imaged across a knot of a piecewise trajectory model: the columns follow the
+            # coefficients that act where the point is imaged (those of its measured time may not)
+            self.obs.pos_first, self.obs.att_first = imaged.pos_first, imaged.att_first
+            self.structure()
+        jac = model.linearize(imaged, self.ground[self.obs.point], self.map)
+        return Linearization(r, self.weights(), self.columns, self.values(jac, self.imaged), jac.ground,
                              self.ground_point[self.obs.point]), self.ground_prior()
 
     def ground_prior(self) -> GroundPrior | None:
@@ -236,28 +278,48 @@ class Problem:
         if len(self.lines):
             c = self.lines.constraints(self.line_ground(), self.scale, self.line_flagged)
             weight[-len(self.lines):], misfit[-len(self.lines):] = c.weight, c.misfit
+            self.line_association = (self.line_ground().copy(), c.weight, c.misfit, dict(self.scale),
+                                     self.line_flagged.copy())
         return GroundPrior(weight, misfit)
+
+    def line_cost(self) -> float:
+        """The line constraints' weighted squared misfits at the current ground. Within one
+        linearisation the association of each point with its segment is kept (the constraint of
+        that segment, a plane pair, at the new ground): refreshed at every step, a point far off its
+        line (a line paired with the wrong road) that changes segment makes the cost jump by
+        hundreds for a millimetre's move, and no step would be taken."""
+        x = self.line_ground()
+        kept = getattr(self, "line_association", None)
+        if kept is not None and kept[3] == self.scale and np.array_equal(kept[4], self.line_flagged):
+            e = kept[2] + (x - kept[0])
+            return float(np.einsum("mi,mij,mj->", e, kept[1], e))
+        line = self.lines.constraints(x, self.scale, self.line_flagged)
+        return float(np.einsum("mi,mij,mj->", line.misfit, line.weight, line.misfit))
 
     def line_ground(self) -> np.ndarray:
         """(n, 3) ECEF m: the line points' current ground positions."""
         return self.ground[self.line_first:]
 
     def residuals(self) -> np.ndarray:
-        return Model(self.scene, self.params).residuals(self.obs, self.ground[self.obs.point])
+        """(n,2) px: imaged minus measured (col, row), NaN where the model does not image a point."""
+        return self.fitted() - np.stack([self.obs.col, self.obs.row], axis=1)
 
     def cost(self) -> float:
+        """Weighted squared residuals of the current state (inf where a point is not imaged)."""
         r = self.residuals()
+        if not np.all(np.isfinite(r)):
+            return float("inf")
         c = float(np.sum(self.weights() * r * r))
         if self.weighted:
             e = (self.ground - self.ground0)[:self.n_control]
             c += float(np.einsum("mi,mij,mj->", e, self.ground_weight, e))
         if len(self.lines):
-            line = self.lines.constraints(self.line_ground(), self.scale, self.line_flagged)
-            c += float(np.einsum("mi,mij,mj->", line.misfit, line.weight, line.misfit))
+            c += self.line_cost()
         return c + sum(float(np.sum(p.weight * p.misfit(self.params) ** 2)) for p in self.pseudo())
 
     def pseudo(self) -> list["Pseudo"]:
-        """Pseudo-observations: trajectory corrections at the knots, weighted parameters."""
+        """Pseudo-observations: trajectory corrections at the knots, weighted parameters, the
+        minimal trajectory prior (:attr:`held`; its weights are not variance components')."""
         out = []
         s = self.settings
         for block, basis, sigma in (("position", self.params.position_basis, s.position_sigma),
@@ -277,11 +339,14 @@ class Problem:
             group = "interior pseudo-observations"
             sigmas = np.array([self.params.params[i].sigma for i in weighted]) * self.scale.get(group, 1.0)
             out.append(Pseudo(group, np.array(weighted), np.eye(len(weighted)), 1.0 / sigmas ** 2))
-        return out
+        return out + self.held
 
-    def system(self) -> tuple[Linearization, System]:
-        lin, prior = self.linearize()
-        system = assemble(lin, prior, int(self.params.free.size), self.groups)
+    def system(self, linearized: tuple[Linearization, GroundPrior | None] | None = None,
+               ground_damping: float = 0.0) -> tuple[Linearization, System]:
+        """The linearisation (made now, or ``linearized``: (lin, ground prior)) and its reduced
+        normal equations with the pseudo-observations (ground_damping: see :func:`assemble`)."""
+        lin, prior = linearized or self.linearize()
+        system = assemble(lin, prior, int(self.params.free.size), self.groups, ground_damping)
         for p in self.pseudo():
             cols = self.unknown[p.index]
             m = p.misfit(self.params)
@@ -290,6 +355,22 @@ class Problem:
             system.b += np.bincount(cols, weights=p.B.T @ (w * m), minlength=system.b.size)
             system.cost += float(np.sum(w * m * m))
         return lin, system
+
+    def model_cost(self, lin: Linearization, prior: GroundPrior | None, dx: np.ndarray, dg: np.ndarray) -> float:
+        """The weighted squared residuals the linearisation ``lin`` (with its ground prior) predicts
+        after the parameter step dx and the ground step dg (k,3) of the ground unknowns."""
+        step = np.einsum("nkq,nq->nk", lin.values, np.where(lin.columns >= 0, dx[np.maximum(lin.columns, 0)], 0.0))
+        seen = lin.point >= 0
+        step[seen] += np.einsum("nki,ni->nk", lin.jg[seen], dg[lin.point[seen]])
+        r = lin.r + step
+        cost = float(np.sum(lin.p * r * r))
+        if prior is not None and dg.size:
+            e = prior.misfit + dg
+            cost += float(np.einsum("mi,mij,mj->", e, prior.weight, e))
+        for p in self.pseudo():
+            m = p.misfit(self.params) + p.B @ dx[self.unknown[p.index]]
+            cost += float(np.sum(p.weight * m * m))
+        return cost
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """The current parameter values and ground positions, for :meth:`restore`."""

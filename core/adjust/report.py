@@ -80,6 +80,51 @@ def tie_point_lines(ties: dict) -> list[tuple[str, bool]]:
     return lines
 
 
+def joint_sets(components: dict) -> list[list[str]]:
+    """The groups of ``report["variance_components"]`` that share one factor, each set once."""
+    out = []
+    for group, c in components.items():
+        members = [group, *c.get("joint_with", [])]
+        if len(members) > 1 and not any(group in m for m in out):
+            out.append(members)
+    return out
+
+
+def joint_sentence(members: list[str]) -> str:
+    """Why the groups ``members`` share one variance component factor."""
+    names = ", ".join(members[:-1]) + " and " + members[-1]
+    return (f"the variance components of {names} cannot be told apart (their residuals are nearly proportional, "
+            "e.g. points seen in one image split their misfit between image and ground in the ratio of the stated "
+            "sigmas): one factor is estimated for them, their split kept as stated")
+
+
+def ground_taken_sentence(ground: dict) -> str:
+    """What the control points' ground unknowns took of their misfit (``report["control_ground"]``)."""
+    at = ground["at_stated_ground"]
+    share = ground.get("ground_share")
+    took = f" took {100 * share:.1f} % of the misfit" if share is not None else ""
+    return (f"control points: their ground unknowns{took} (shifts RMSE {ground['shift_rmse_horizontal_m']:.3f} m "
+            f"horizontal, {ground['shift_rmse_vertical_m']:.3f} m vertical); residuals at the stated ground "
+            f"coordinates RMSE col {at.get('rmse_col', float('nan')):.3f} px, row "
+            f"{at.get('rmse_row', float('nan')):.3f} px")
+
+
+ONBOARD_SIGMA_PARAMETERS = (("POSITION_SIGMA", "position_sigma", "GNSS position"),
+                            ("ATTITUDE_SIGMA", "attitude_sigma", "attitude"))
+
+
+def onboard_advice(settings: dict) -> str:
+    """What holds two correlated trajectory corrections apart, from the run's ``settings``: the
+    onboard sigmas given, and which to give (those left empty: no pseudo-observations)."""
+    given = [name for name, key, _ in ONBOARD_SIGMA_PARAMETERS if settings.get(key) is not None]
+    missing = [(name, what) for name, key, what in ONBOARD_SIGMA_PARAMETERS if settings.get(key) is None]
+    held = f"their split rests on {' and '.join(given)}" if given else "nothing but the GCPs holds their split"
+    if not missing:
+        return held
+    return (f"{held}; give {' and '.join(name for name, _ in missing)} (the onboard "
+            f"{' and '.join(what for _, what in missing)} accuracy) to hold it")
+
+
 class LogLine(NamedTuple):
     """A sentence for the run's log. ``parameter``: the input it concerns, in the core's terms (as
     :attr:`core.errors.InputError.parameter`: 'ties'...), for the caller to name; None: none."""
@@ -100,16 +145,20 @@ def outcome_lines(rep: dict) -> list[LogLine]:
     """Correlations the control hardly separates, parameters fixed as not determinable, variance
     components, a robust estimation stopped at its limit, reliability problems, sigma0 and the
     control residuals, and the check point figures before and after."""
-    out = [LogLine(f"{c['a']} and {c['b']} are correlated {c['r']:.4f}: the GCPs hardly separate them; give "
-                   "onboard sigmas (POSITION_SIGMA, ATTITUDE_SIGMA)", True)
+    out = [LogLine(f"{c['a']} and {c['b']} are correlated {c['r']:.4f}: the GCPs hardly separate them; "
+                   f"{onboard_advice(rep.get('settings', {}))}", True)
            for c in rep["high_correlations"] if c["trajectory"]]
     out += [LogLine(f"not determinable together from these GCPs: {', '.join(d['parameters'])}; {d['fixed']} was "
                     "fixed at its input value (ON_SINGULAR)", True) for d in rep["determinability"]]
     for group, c in rep["variance_components"].items():
         if c["apriori_sigma"] is not None and c["estimated_sigma"] is not None:
+            joint = c.get("joint_with")
+            how = (f"; one factor with {', '.join(joint)}" if joint else "") if c["estimated"] else \
+                ", too small: not used"
             out.append(LogLine(f"variance component {group}: stated sigma {c['apriori_sigma']:.4g} {c['unit']}, "
                                f"estimated {c['estimated_sigma']:.4g} {c['unit']} (redundancy "
-                               f"{c['redundancy']:.1f}{'' if c['estimated'] else ', too small: not used'})"))
+                               f"{c['redundancy']:.1f}{how})"))
+    out += [LogLine(joint_sentence(members)) for members in joint_sets(rep["variance_components"])]
     if rep["robust"]["stopped_at_limit"]:
         out.append(LogLine(f"robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; the "
                            "flags may be incomplete", True))
@@ -120,6 +169,8 @@ def outcome_lines(rep: dict) -> list[LogLine]:
                        f"95 % test); control residuals RMSE col {ctl.get('rmse_col', float('nan')):.3f} px, row "
                        f"{ctl.get('rmse_row', float('nan')):.3f} px; {rep['robust']['flagged']} observations "
                        "flagged as gross errors"))
+    if rep.get("control_ground"):
+        out.append(LogLine(ground_taken_sentence(rep["control_ground"])))
     before, after = rep["check_points_before"], rep["check_points"]
     if after.get("model_error"):
         out.append(LogLine(model_error_message(after), True))

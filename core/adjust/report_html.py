@@ -16,7 +16,7 @@ import logging
 from ..files import OutputSet, write_text
 from ..rotations import ARCSEC_PER_RAD
 from .checkpoints import model_error_message, without_label
-from .report import datum_sentence, plain, tie_point_lines
+from .report import datum_sentence, ground_taken_sentence, joint_sentence, joint_sets, plain, tie_point_lines
 from .report_plots import chip_figure, residual_vector_figure, trajectory_figure
 
 log = logging.getLogger(__name__)
@@ -82,13 +82,16 @@ def _reliability_section(rep: dict) -> str:
 
 
 def _sigma0_sentence(rep: dict) -> str:
-    """sigma0 (unitless: 1 when the residuals match the stated sigmas) and its chi-square test."""
-    lo, hi = rep["sigma0_test"]["ratio_bounds_95"]
+    """sigma0 (unitless: 1 when the residuals match the stated sigmas) and its test."""
+    test = rep["sigma0_test"]
+    lo, hi = test["ratio_bounds_95"]
     verdict = ("<span class='ok'>passed: the residuals agree with the stated sigmas</span>"
-               if rep["sigma0_test"]["passed"] else
+               if test["passed"] else
                "<span class='bad'>failed: the residuals do not agree with the stated sigmas</span>")
+    known = (f", the stated sigmas taken as known to {test['stated_dof']} degrees of freedom (about 10 %)"
+             if test.get("stated_dof") else "")
     return (f"<p class='big'><b>sigma0 = {_fmt(rep['sigma0'])}</b> (95 % acceptance interval "
-            f"{_fmt(lo)}–{_fmt(hi)}): {verdict}.</p>")
+            f"{_fmt(lo)}–{_fmt(hi)}{known}): {verdict}.</p>")
 
 
 def _check_point_row(label: str, figures: dict, count) -> list[str]:
@@ -164,6 +167,11 @@ def _headline_section(rep: dict) -> str:
            "<h2>Control point residuals</h2>",
            f"<p class='big'>RMSE col {_fmt(ctl.get('rmse_col'))} px, row {_fmt(ctl.get('rmse_row'))} px; "
            f"largest {_fmt(ctl.get('max'), '.2f')} px ({ctl.get('count', 0)} observations{left_out}).</p>"]
+    if rep.get("control_ground"):
+        text = ground_taken_sentence(rep["control_ground"])
+        out.append(f"<p>{html.escape(text[:1].upper() + text[1:])}. The image residuals above are what the ground "
+                   "unknowns left; the residuals at the stated ground coordinates are what the adjusted model "
+                   "misses by, comparable with the check points'.</p>")
     before, after = rep["check_points_before"], rep["check_points"]
     out.append("<h2>Check points (independent accuracy)</h2>")
     if not after.get("points"):
@@ -365,7 +373,8 @@ def _variance_components_section(rep: dict) -> str:
     def row(k: str, v: dict) -> list[str]:
         test = "–" if v.get("passed") is None else ("<span class='ok'>passed</span>" if v["passed"] else
                                                      "<span class='bad'>failed</span>")
-        used = ("at the floor 0.01 x stated (far more precise than stated)" if v.get("held_at_floor") else "yes") \
+        used = ("at the floor 0.01 x stated (far more precise than stated)" if v.get("held_at_floor") else
+                "yes" + (f", one factor with {', '.join(v['joint_with'])}" if v.get("joint_with") else "")) \
             if v.get("estimated") else "no (redundancy below 10)"
         return [html.escape(k), str(v.get("observations", "–")), _fmt(v.get("redundancy"), ".1f"),
                 _fmt(v.get("apriori_sigma"), ".4g"), _fmt(v.get("estimated_sigma"), ".4g"),
@@ -374,9 +383,11 @@ def _variance_components_section(rep: dict) -> str:
     return ("<h2>Variance components</h2><p>Per observation group, the stated (a-priori, median) sigma and the "
             "sigma the residuals of the inliers imply (Förstner's estimator); their ratio is the group's sigma0. "
             "Estimated factors replace the stated sigmas before the outlier test and in the check-point blunder "
-            "test.</p>"
+            "test; the test allows the stated sigma 10 % of its own (F test, 50 degrees of freedom).</p>"
+            + "".join(f"<p>{html.escape(joint_sentence(m)[:1].upper() + joint_sentence(m)[1:])}.</p>"
+                      for m in joint_sets(rep["variance_components"]))
             + _table(["group", "observations", "redundancy", "stated sigma", "estimated sigma", "unit",
-                      "ratio", "chi² test (95 %)", "used"], rows))
+                      "ratio", "test (95 %)", "used"], rows))
 
 
 def _iterations_section(rep: dict) -> str:

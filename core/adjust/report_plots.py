@@ -63,50 +63,70 @@ def _nice_length(value: float) -> float:
     return max(m * power for m in (1, 2, 5) if m * power <= value)
 
 
+def _vector_panel(ax, col: np.ndarray, row: np.ndarray, dc: np.ndarray, dr: np.ndarray, good: np.ndarray,
+                  flagged: np.ndarray, colour: str, name: str, limits: tuple) -> float:
+    """One panel of residual vectors: the ``good`` points (indices) as arrows exaggerated by the
+    panel's own factor (returned), the ``flagged`` ones as red crosses; image axes (y down)."""
+    extent = max(limits[1] - limits[0], limits[3] - limits[2], 1.0)
+    scale = _exaggeration(dc[good], dr[good], extent)
+    if good.size:
+        arrows = ax.quiver(col[good], row[good], dc[good] * scale, dr[good] * scale, angles="xy",
+                           scale_units="xy", scale=1, color=colour, width=0.0025, label=f"{name} ({good.size})")
+        key = _nice_length(0.1 * extent / scale)
+        ax.quiverkey(arrows, 0.84, 0.04, key * scale, f"{key:g} px", labelpos="W", coordinates="axes", color="k",
+                     fontproperties={"size": "small"})
+    if flagged.size:
+        ax.plot(col[flagged], row[flagged], "x", color="#d00", ms=5, mew=1.2,
+                label=f"flagged ({flagged.size}), not drawn as vectors")
+    ax.set_xlim(limits[0] - 0.02 * extent, limits[1] + 0.02 * extent)
+    ax.set_ylim(limits[3] + 0.02 * extent, limits[2] - 0.02 * extent)  # image y down
+    ax.set_aspect("equal" if limits[3] - limits[2] < 4 * max(limits[1] - limits[0], 1.0) else "auto")
+    ax.set_xlabel("column (px)")
+    ax.set_title(f"{name}: exaggerated {scale:.3g}×", loc="left")
+    if good.size or flagged.size:
+        ax.legend(loc="lower left", fontsize="small", framealpha=0.9)
+    return scale
+
+
 def residual_vector_figure(points: dict) -> str:
-    """Plot (a): image residual vectors (predicted - measured, px) at the measured positions,
-    exaggerated; control points blue, check points (adjusted model) orange, flagged ones red
-    crosses (their vectors would swamp the others). Subsampled to MAX_ARROWS points."""
+    """Plot (a): image residual vectors (predicted - measured, px) at the measured positions, one
+    panel for the control points and one for the check points, each exaggerated by its own
+    factor (the 95th percentile of its unflagged vectors drawn as 2.5 % of the image): control
+    residuals are what the adjustment left, often far smaller than the check points', and one
+    factor for both would swamp the plot with check vectors. The control points' vectors are
+    their residuals at the stated ground coordinates (``res_col_stated``, when given: the image
+    residual plus what the ground unknowns took), so that both panels show how far the adjusted
+    model misses the stated points. Flagged observations are red crosses (their vectors would
+    swamp the others). Subsampled to MAX_ARROWS points."""
     col, row = np.asarray(points["col"], dtype=float), np.asarray(points["row"], dtype=float)
-    dc, dr = np.asarray(points["res_col"], dtype=float), np.asarray(points["res_row"], dtype=float)
     role, flagged = np.asarray(points["role"]), np.asarray(points["flagged"], dtype=bool)
+    check = role == "check"
+    dc, dr = (np.where(check, np.asarray(points[k], dtype=float),
+                       np.asarray(points.get(f"{k}_stated", points[k]), dtype=float)) for k in ("res_col", "res_row"))
     usable = np.isfinite(dc) & np.isfinite(dr) & np.isfinite(col) & np.isfinite(row)
     if not usable.any():
         return "<p>No image residuals to plot.</p>"
     shown = _subsample(np.nonzero(usable)[0], MAX_ARROWS)
-    groups = {"control": shown[(role[shown] == "control") & ~flagged[shown]],
-              "check": shown[(role[shown] == "check") & ~flagged[shown]], "flagged": shown[flagged[shown]]}
-    extent = max(np.ptp(col[usable]), np.ptp(row[usable]), 1.0)
-    basis = groups["control"] if groups["control"].size else groups["check"]  # unflagged vectors set the scale
-    scale = _exaggeration(dc[basis], dr[basis], extent)
-    fig = _new_figure(10, 8)
-    ax = fig.add_subplot()
-    arrows = None
-    for name, colour in (("control", "#1f5fa8"), ("check", "#e08a00")):
-        i = groups[name]
-        if i.size:
-            arrows = ax.quiver(col[i], row[i], dc[i] * scale, dr[i] * scale, angles="xy", scale_units="xy",
-                               scale=1, color=colour, width=0.0018, label=f"{name} ({i.size})")
-    i = groups["flagged"]
-    if i.size:
-        ax.plot(col[i], row[i], "x", color="#d00", ms=5, mew=1.2, label=f"flagged ({i.size}), not drawn as vectors")
-    if arrows is not None:
-        key = _nice_length(0.1 * extent / scale)
-        ax.quiverkey(arrows, 0.97, 1.025, key * scale, f"scale: {key:g} px", labelpos="W", coordinates="axes",
-                     color="k")
-    ax.set_xlim(col[usable].min() - 0.02 * extent, col[usable].max() + 0.02 * extent)
-    ax.set_ylim(row[usable].max() + 0.02 * extent, row[usable].min() - 0.02 * extent)  # image y down
-    ax.set_aspect("equal" if np.ptp(row[usable]) < 4 * max(np.ptp(col[usable]), 1.0) else "auto")
-    ax.set_xlabel("column (px)")
-    ax.set_ylabel("row (px, down)")
-    ax.set_title(f"image residuals (predicted − measured), exaggerated {scale:.3g}×", loc="left")
-    ax.legend(loc="lower left", fontsize="small", framealpha=0.9)
+    limits = (col[usable].min(), col[usable].max(), row[usable].min(), row[usable].max())
+    panels = [(name, colour, shown[(check[shown] == is_check)])
+              for name, colour, is_check in (("control points", "#1f5fa8", False), ("check points", "#e08a00", True))]
+    panels = [p for p in panels if p[2].size]
+    fig = _new_figure(7.5 * len(panels) + 1, 8)
+    axes = fig.subplots(1, len(panels), sharey=True, squeeze=False)[0]
+    scales = []
+    for ax, (name, colour, idx) in zip(axes, panels):
+        scales.append((name, _vector_panel(ax, col, row, dc, dr, idx[~flagged[idx]], idx[flagged[idx]], colour,
+                                           name, limits)))
+    axes[0].set_ylabel("row (px, down)")
     total = int(usable.sum())
     sampled = (f" {shown.size} of the {total} points are drawn (a uniform random subsample)."
                if shown.size < total else "")
-    caption = (f"Image residual vectors, predicted − measured, drawn {scale:.3g} times their length (scale arrow "
-               "above the plot). Control points blue, check points (from the adjusted model) orange, flagged "
-               f"observations as red crosses.{sampled}")
+    factors = "; ".join(f"{name} {scale:.3g} times" for name, scale in scales)
+    stated = " at their stated ground coordinates (image residual plus what the ground unknowns took)" \
+        if "res_col_stated" in points else ""
+    caption = (f"Image residual vectors, predicted − measured, each panel exaggerated by its own factor ({factors}; "
+               f"scale arrow at the lower right of each panel): control points{stated}, check points from the "
+               f"adjusted model. Flagged observations as red crosses.{sampled}")
     return _figure_html(_png(fig), "image residual vectors", caption)
 
 

@@ -4,13 +4,11 @@ final solution and its statistics."""
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy import stats
 
-from ..geodesy import ecef_to_geodetic
+from ..geodesy import ecef_to_geodetic, geodetic_to_ecef
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..observations.tables import listed
@@ -19,7 +17,7 @@ from .estimation import Estimate
 from .linepoints import directions, per_line, ray_offsets
 from .problem import Problem
 from .settings import AdjustmentSettings
-from .robust import breakdown, component_report, critical, stated_sigma0
+from .robust import breakdown, component_report, critical, sigma0_test, stated_sigma0
 from .statistics import Statistics, correlated_pairs
 from .ties import yaw_hold, yaw_sentence
 
@@ -30,8 +28,11 @@ class AdjustmentResult:
     """scene: the adjusted scene; report: JSON-ready statistics; points: per input row
     (control and check) arrays: id, role, camera, col, row, res_col, res_row (px,
     predicted - measured), res_px, w_col, w_row (normalised residuals), redundancy, weight
-    (final weight factor), flagged (bool); for check points the residuals are those of the
-    adjusted scene's ground -> image. tie_points: per input tie observation (input order)
+    (final weight factor), flagged (bool), res_col_stated, res_row_stated (px: the adjusted
+    scene's ground -> image of the point's stated ground coordinates minus measured: for a
+    control point its image residual plus what its ground unknowns took, with fixed ground its
+    residual); for check points the residuals are those of the adjusted scene's ground -> image.
+    tie_points: per input tie observation (input order)
     arrays: id, camera, col, row, res_col, res_row (px), w_col, w_row, weight, flagged, and the
     adjusted ground position of its point lon, lat (deg), h (ellipsoidal m); NaN for the
     observations of points left out (empty without tie points). lines: per line point (one per
@@ -82,8 +83,8 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
     points["weight"][rows] = problem.factor[gcp, 0]
     points["flagged"][rows] = flagged[gcp]
     checks = np.nonzero(table.role == "check")[0]
-    after = accuracy(adjusted, table, checks, problem.settings.alpha, problem.scale)
-    before = accuracy(problem.scene, table, checks, problem.settings.alpha, problem.scale)
+    after = accuracy(adjusted, table, checks, problem.settings.alpha, problem.scale, problem.weighted)
+    before = accuracy(problem.scene, table, checks, problem.settings.alpha, problem.scale, problem.weighted)
     if checks.size:
         points["res_col"][checks], points["res_row"][checks] = after["residuals"][:, 0], after["residuals"][:, 1]
         points["flagged"][checks] = after["is_flagged"]
@@ -91,13 +92,14 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
     before["intersection"] = intersection_accuracy(problem.scene, table, checks)
     log_check_points(before, after)
     points["res_px"] = np.hypot(points["res_col"], points["res_row"])
+    stated = _at_stated_ground(adjusted, table)
+    points["res_col_stated"], points["res_row_stated"] = stated[:, 0], stated[:, 1]
     # Robust runs leave their flagged observations out of the residual figures; plain ones keep all.
     good = ~flagged if problem.settings.robust != "none" else np.ones_like(flagged)
     # sigma0 of the stated sigmas: over the inliers (with their redundancy) when the variance
     # components are estimated, else over all observations as weighted.
     sigma0, dof = stated_sigma0(est.components, est.kappa) if problem.settings.variance_components else \
         (st.sigma0, st.dof)
-    chi2_lo, chi2_hi = stats.chi2.ppf([0.025, 0.975], dof) / dof
     problems = breakdown(problem, st, flagged, est.inlier)
     reliable = all(p["reliable"] for p in problems)
     for p in problems:
@@ -119,13 +121,13 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
         "reliability": {"reliable": reliable, "problems": problems},
         "sigma0": sigma0,
         "sigma0_adjusted": st.sigma0,
-        "sigma0_test": {"ratio_bounds_95": [math.sqrt(chi2_lo), math.sqrt(chi2_hi)],
-                        "passed": bool(chi2_lo <= sigma0 ** 2 <= chi2_hi)},
-        "variance_components": component_report(problem, est.components, est.kappa),
+        "sigma0_test": sigma0_test(sigma0, dof),
+        "variance_components": component_report(problem, est.components, est.kappa, est.joint),
         "determinability": determinability,
         "parameters": parameters,
         "high_correlations": pairs,
         "control_residuals": _residual_summary(st.v[good & gcp]),
+        "control_ground": _ground_taken(problem, good & gcp, st.v, stated[problem.rows[good & gcp]]),
         "control_residuals_per_chip": {
             f"{c.name}/{ch.name or k + 1}": _residual_summary(st.v[good & gcp & (problem.obs.camera == ci)
                                                                     & (problem.obs.chip == k)])
@@ -220,6 +222,37 @@ def with_yaw(held: dict, problem: Problem, st: Statistics) -> dict:
     sentence appended to the note."""
     yaw = yaw_hold(problem.params, st.sigma0 ** 2 * st.Q)
     return {**held, "yaw": yaw, "note": "; ".join(filter(None, (held.get("note"), yaw_sentence(yaw))))}
+
+
+def _at_stated_ground(scene, table: GcpTable) -> np.ndarray:
+    """(n, 2) px: ``scene``'s ground -> image of every point's stated ground minus its measured
+    (col, row)."""
+    out = np.full((len(table), 2), np.nan)
+    ground = geodetic_to_ecef(table.lon, table.lat, table.h).reshape(-1, 3)
+    for c, cam in enumerate(scene.cameras):
+        m = (table.camera == cam.name) | ((table.camera == "") & (len(scene.cameras) == 1))
+        if m.any():
+            col, row = scene.ground_to_image(ground[m], c)
+            out[m] = np.stack([col - table.col[m], row - table.row[m]], axis=1)
+    return out
+
+
+def _ground_taken(problem: Problem, mask: np.ndarray, v: np.ndarray, stated: np.ndarray) -> dict | None:
+    """How much of the control observations' (``mask`` (n,)) misfit the ground unknowns took
+    (weighted ground; None with fixed ground): the RMSE of their horizontal and vertical shifts
+    (m, per observation), the residuals at the stated ground (``stated`` (k, 2) px, a summary as
+    control_residuals'), and the share of that misfit's sum of squares the shifts took (the image
+    residuals v (n, 2) px keep the rest)."""
+    if not (problem.weighted and problem.n_control) or not mask.any():
+        return None
+    point = problem.obs.point[mask]
+    shift = np.einsum("nij,nj->ni", problem.enu[point], (problem.ground - problem.ground0)[point])
+    rms = lambda a: float(np.sqrt(np.mean(a * a)))  # noqa: E731
+    total = float(np.nansum(stated ** 2))
+    return {"shift_rmse_horizontal_m": rms(np.hypot(shift[:, 0], shift[:, 1])),
+            "shift_rmse_vertical_m": rms(shift[:, 2]),
+            "at_stated_ground": _residual_summary(stated[np.isfinite(stated).all(axis=1)]),
+            "ground_share": 1.0 - float(np.sum(v[mask] ** 2)) / total if total > 0 else None}
 
 
 def _residual_summary(v: np.ndarray) -> dict:

@@ -21,10 +21,41 @@ standard normal w truncated at the critical value c corrects for the tails the o
 test cuts off (0.988 at alpha = 0.001). A group's factor is estimated only when its
 redundancy is at least MIN_REDUNDANCY: below it the estimate scatters by more than 45 %
 (the relative standard deviation of a variance from r degrees of freedom is sqrt(2 / r))
-and the a-priori sigma stays. With points seen once, the image and ground groups cannot be
-separated (their residuals are proportional): both get the same factor, which is what the
-outlier test needs, since the normalised residual of such a point depends on the sum of its
-image and ground variances only.
+and the a-priori sigma stays.
+
+Separability. Groups that share ground points can be told apart only as far as their residuals
+are not proportional. A control point seen in one image has 2 image rows and 3 ground rows
+against 3 unknowns: its misfit is split between the image residual and the ground shift in the
+ratio of their stated variances, at every point alike, so the image and ground factors are not
+separable, only the sum of the two variances is (the simplified estimator then drifts along the
+inseparable direction pass after pass, and the image group's share, a redundancy of ~50 of
+~5000 in the demo's matched GCPs, is no estimate of the matching's real error). The
+estimation's matrix H_kl = tr(R_kl R_lk), E[Omega_k] = sum_l H_kl theta_l
+(:func:`core.adjust.statistics.component_coupling`; the simplified estimator keeps its row
+sums r_k only) says how well: a group's effective redundancy, 1 / (H^-1)_kk (r_k when H is
+diagonal), is what the other groups leave of its redundancy. A group too weak to estimate alone
+whose residuals are all but proportional to an estimable group's (coupling |H_kl| / sqrt(H_kk
+H_ll) >= PROPORTIONAL) joins it; a group whose effective redundancy is below MIN_REDUNDANCY, or
+below SEPARATE_SHARE of its redundancy r_k (most of its misfit is then decided by the others'
+factors; the GCP heights of the demo's near-nadir image: r_k 215, effective 20, against 0.25 of
+r_k for the groups of points seen in three cameras, which separate), is joined with the group
+it is most coupled with, until every group or joint set is separable (:func:`joint_groups`). A
+joint set gets one factor, estimated from its members' residuals together, and keeps the split
+between them as stated, which is what the outlier test needs: the normalised residual of such a
+point depends on the sum of its image and ground variances only. A join is kept for the rest of
+the loop (so the loop converges); the report names each joint set. The separable groups and
+sets of H are estimated together by Helmert's estimator, H theta = Omega
+(:func:`helmert_factors`), so that coupled groups (each camera's image group and the ground of
+points seen in three cameras) converge in a pass or two, where the simplified estimator creeps
+or swings; the other groups (pseudo-observations) by the simplified one.
+
+sigma0 of the stated sigmas (:func:`sigma0_test`): its 95 % acceptance interval is that of
+the ratio of two variance estimates, F(r, STATED_DOF): the residuals' (r degrees of freedom)
+and the stated sigmas' own, taken as known to about 10 % (STATED_DOF = 50; the relative
+standard deviation of a variance from f degrees of freedom is sqrt(2 / f) = 0.2). A chi-square
+test (the stated sigmas taken as exact) with thousands of matched points asks whether they
+were stated to 2 %, which no sigma ever is, and fails whatever the fit; with tens of points
+both intervals are alike.
 
 The outlier test then compares normalised residuals w = v / (s_k sigma sqrt(r)) with the
 critical value: flags do not depend on the a-priori sigmas' scale. In the first pass, before
@@ -88,6 +119,9 @@ INFLATED_RATIO = 1.5
 MAD_TO_SIGMA = 1.4826
 WRONG_SHARE = 0.5       # a line with more than this share of its points failing the point test is wrong
 MIN_FACTOR = 0.01  # lowest factor on stated sigmas: no measured group is 100 times more precise than stated
+SEPARATE_SHARE = 0.2  # a separable group's effective redundancy is at least this share of its redundancy
+PROPORTIONAL = 0.95  # coupling of two groups' residuals beyond which a weak group shares the other's factor
+STATED_DOF = 50    # degrees of freedom of a stated sigma: known to about 10 % (see the module docstring)
 
 
 def critical(alpha: float) -> float:
@@ -142,20 +176,126 @@ def estimable(pvv: float, r: float) -> bool:
     return r >= MIN_REDUNDANCY and pvv > 0
 
 
-def rescale(problem: Problem, comps: dict, kappa: float) -> float:
+def effective_redundancy(H: np.ndarray) -> np.ndarray:
+    """(g,) 1 / (H^-1)_kk of the estimation matrix H (g, g), by each group's Schur complement
+    (0 where the others leave a group nothing, H singular included)."""
+    out = np.empty(H.shape[0])
+    for k in range(H.shape[0]):
+        other = np.arange(H.shape[0]) != k
+        if not other.any():
+            out[k] = H[k, k]
+            continue
+        h = H[other, k]
+        out[k] = H[k, k] - h @ np.linalg.lstsq(H[np.ix_(other, other)], h, rcond=None)[0]
+    return np.maximum(out, 0.0)
+
+
+def joint_groups(comps: dict, labels: list[str], H: np.ndarray, joined: list[tuple[str, ...]]) -> list[tuple[str, ...]]:
+    """The sets of groups (of ``labels``, with the estimation matrix ``H``, see
+    :func:`core.adjust.statistics.component_coupling`) whose factors cannot be estimated apart:
+    the sets already ``joined`` (a join is kept); a group not estimable on its own (redundancy
+    below MIN_REDUNDANCY) whose residuals are all but proportional to an estimable group's
+    (coupling |H_kl| / sqrt(H_kk H_ll) >= PROPORTIONAL), joined with it (estimating that one
+    alone would change the split between them, which nothing in the data decides); then, while
+    a set's effective redundancy is below MIN_REDUNDANCY or SEPARATE_SHARE of its redundancy
+    (the row sum of H), the set joined with the one it is most coupled with. Other groups not
+    estimable on their own keep their stated sigmas and take no part. Only sets of two or more
+    groups are returned."""
+    index = {k: i for i, k in enumerate(labels)}
+    before = {k for j in joined for k in j}
+    present = [k for k in labels if k in comps and H[index[k], index[k]] > 0]
+    live = [k for k in present if k in before or estimable(comps[k][0], comps[k][1])]
+    sets = [[k] for k in live if k not in before]
+    sets += [[k for k in j if k in live] for j in joined]
+    sets = [m for m in sets if m]
+    d = np.sqrt(np.diag(H))
+    for k in present:
+        if k in live or not sets:
+            continue
+        coupling = [max(abs(H[index[k], index[j]]) / (d[index[k]] * d[index[j]]) for j in m) for m in sets]
+        best = int(np.argmax(coupling))
+        if coupling[best] >= PROPORTIONAL:
+            sets[best].append(k)
+    while len(sets) > 1:
+        M = np.zeros((len(labels), len(sets)))
+        for n, members in enumerate(sets):
+            M[[index[k] for k in members], n] = 1.0
+        Hs = M.T @ H @ M
+        eff = effective_redundancy(Hs)
+        short = eff / np.maximum(MIN_REDUNDANCY, SEPARATE_SHARE * Hs.sum(axis=1))
+        worst = int(np.argmin(short))
+        if short[worst] >= 1.0:
+            break
+        ds = np.sqrt(np.diag(Hs))
+        coupling = np.abs(Hs[worst]) / (ds[worst] * ds)
+        coupling[worst] = -1.0
+        partner = int(np.argmax(coupling))
+        sets[worst] = sets[worst] + sets[partner]
+        del sets[partner]
+    return [tuple(sorted(m, key=labels.index)) for m in sets if len(m) > 1]
+
+
+def factor_units(comps: dict, joint: list[tuple[str, ...]]) -> list[tuple[str, ...]]:
+    """The groups that share a factor: each joint set, and every other group alone."""
+    together = {k for j in joint for k in j}
+    return list(joint) + [(k,) for k in comps if k not in together]
+
+
+def helmert_factors(problem: Problem, comps: dict, kappa: float, units: list[tuple[str, ...]], labels: list[str],
+                    H: np.ndarray) -> dict[tuple[str, ...], float]:
+    """Squared factors on the stated sigmas of ``units`` (groups, or joint sets of them, all in
+    ``labels``) by Helmert's estimator: E[Omega_k] = sum_l H_kl theta_l solved for the units'
+    factors together (``H`` from :func:`core.adjust.statistics.component_coupling`, each row
+    scaled to sum to the group's exact redundancy; groups of ``labels`` in no unit held at their
+    current factor). Coupled groups then converge in a pass or two where the simplified
+    estimator, which divides each Omega_k by r_k alone, creeps or swings. A unit whose solution
+    is not positive is left out (the simplified value stays)."""
+    if len(units) < 2:
+        return {}
+    index = {k: i for i, k in enumerate(labels)}
+    current = np.array([problem.scale.get(k, 1.0) ** 2 for k in labels])
+    r = np.array([comps[k][1] if k in comps else 0.0 for k in labels])
+    rowsum = H.sum(axis=1)
+    Ht = H * np.where(rowsum > 0, r / np.where(rowsum > 0, rowsum, 1.0), 0.0)[:, None]
+    held = np.ones(len(labels), bool)
+    G, omega = np.zeros((len(units), len(units))), np.zeros(len(units))
+    for b, members in enumerate(units):
+        held[[index[k] for k in members]] = False
+    for a, members in enumerate(units):
+        rows = [index[k] for k in members]
+        omega[a] = sum(comps[k][0] / current[index[k]] for k in members) / kappa - Ht[np.ix_(rows, held)].sum()
+        for b, others in enumerate(units):
+            cols = [index[k] for k in others]
+            G[a, b] = (Ht[np.ix_(rows, cols)] / current[cols][None, :]).sum()
+    squared = np.linalg.lstsq(G, omega, rcond=None)[0]
+    return {u: float(f) for u, f in zip(units, squared) if f > 0}
+
+
+def rescale(problem: Problem, comps: dict, kappa: float, joint: list[tuple[str, ...]] = (),
+            coupling: tuple[list[str], np.ndarray] | None = None) -> float:
     """Set each estimable group's factor on its stated sigmas to sqrt(Omega / (kappa r)) (see
-    :func:`components`); returns the largest relative change of a factor (0: none estimable)."""
+    :func:`components`), one factor over each ``joint`` set's members together, and for the
+    groups of ``coupling`` (labels, H: :func:`core.adjust.statistics.component_coupling`) by
+    Helmert's estimator (:func:`helmert_factors`); returns the largest relative change of a
+    factor (0: none estimable)."""
     change = 0.0
     scale = dict(problem.scale)
-    for group, (pvv, r, _) in comps.items():
-        if estimable(pvv, r):
-            factor = max(math.sqrt(pvv / (kappa * r)), MIN_FACTOR)
-            if factor == MIN_FACTOR and problem.scale.get(group) != MIN_FACTOR:
-                log.warning("%s: residuals %.2g times their stated sigmas; the factor on them is held at %g "
-                            "(observations far more precise than stated, e.g. exact ones: state their sigmas)",
-                            group, math.sqrt(pvv / (kappa * r)), MIN_FACTOR)
-            change = max(change, abs(factor / problem.scale.get(group, 1.0) - 1.0))
-            scale[group] = factor
+    units = [u for u in factor_units(comps, list(joint))
+             if estimable(sum(comps[k][0] for k in u), sum(comps[k][1] for k in u))]
+    squared = {u: sum(comps[k][0] for k in u) / (kappa * sum(comps[k][1] for k in u)) for u in units}
+    if coupling is not None:
+        labels, H = coupling
+        squared.update(helmert_factors(problem, comps, kappa, [u for u in units if set(u) <= set(labels)],
+                                       labels, H))
+    for members in units:
+        factor = max(math.sqrt(squared[members]), MIN_FACTOR)
+        if factor == MIN_FACTOR and any(problem.scale.get(k) != MIN_FACTOR for k in members):
+            log.warning("%s: residuals %.2g times their stated sigmas; the factor on them is held at %g "
+                        "(observations far more precise than stated, e.g. exact ones: state their sigmas)",
+                        " and ".join(members), math.sqrt(squared[members]), MIN_FACTOR)
+        for k in members:
+            change = max(change, abs(factor / problem.scale.get(k, 1.0) - 1.0))
+            scale[k] = factor
     problem.set_scale(scale)
     return change
 
@@ -184,21 +324,28 @@ def robust_weights(problem: Problem, st: Statistics, scale: float) -> float:
     return float(np.max(np.abs(problem.factor - old), initial=0.0))
 
 
-def component_report(problem: Problem, comps: dict, kappa: float) -> dict:
+def component_report(problem: Problem, comps: dict, kappa: float, joint: list[tuple[str, ...]] = ()) -> dict:
     """Per group: observations, redundancy, sum of pvv (with the stated sigmas), the ratio
-    sigma0 = estimated / stated sigma, the median stated and estimated sigma with their unit,
-    whether the factor was estimated (and used), whether it is held at MIN_FACTOR, and whether
-    the stated sigma passes the chi-square test at 95 %."""
+    sigma0 = estimated / stated sigma its residuals imply (of its joint set, for a member of
+    one), the median stated and estimated sigma with their unit, factor: the factor on the stated
+    sigmas in use (None: none estimated; a group whose redundancy fell below MIN_REDUNDANCY once
+    its factor made it stronger keeps that factor), whether one was estimated (and used), whether
+    it is held at MIN_FACTOR, whether the stated sigma passes the 95 % test (:func:`sigma0_test`),
+    and joint_with: the groups it shares its factor with (empty: estimated on its own)."""
     out = {}
-    for group, (pvv, r, n) in comps.items():
+    for members in factor_units(comps, list(joint)):
+        pvv, r = sum(comps[k][0] for k in members), sum(comps[k][1] for k in members)
         ratio = math.sqrt(pvv / (kappa * r)) if r > 0 else None
-        stated, unit = problem.stated_sigma(group)
-        lo, hi = stats.chi2.ppf([0.025, 0.975], r) / r if r > 0 else (None, None)
-        out[group] = {"observations": n, "redundancy": r, "sum_pvv": pvv, "sigma0": ratio,
-                      "apriori_sigma": stated, "estimated_sigma": None if ratio is None or stated is None
-                      else stated * ratio, "unit": unit, "estimated": estimable(pvv, r),
-                      "held_at_floor": estimable(pvv, r) and ratio < MIN_FACTOR,
-                      "passed": None if ratio is None else bool(lo <= ratio ** 2 <= hi)}
+        for group in members:
+            stated, unit = problem.stated_sigma(group)
+            used = problem.scale.get(group)
+            out[group] = {"observations": comps[group][2], "redundancy": comps[group][1], "sum_pvv": comps[group][0],
+                          "sigma0": ratio, "apriori_sigma": stated,
+                          "estimated_sigma": None if ratio is None or stated is None else stated * ratio,
+                          "unit": unit, "factor": used, "estimated": used is not None,
+                          "held_at_floor": used == MIN_FACTOR,
+                          "passed": None if ratio is None else sigma0_test(ratio, r)["passed"],
+                          "joint_with": [k for k in members if k != group]}
     return out
 
 
@@ -207,6 +354,15 @@ def stated_sigma0(comps: dict, kappa: float) -> tuple[float, float]:
     pvv = sum(c[0] for c in comps.values())
     r = sum(c[1] for c in comps.values())
     return (math.sqrt(pvv / (kappa * r)) if r > 0 else float("nan")), r
+
+
+def sigma0_test(sigma0: float, dof: float) -> dict:
+    """The 95 % acceptance interval of sigma0 (ratio bounds) with ``dof`` degrees of freedom
+    against stated sigmas known to STATED_DOF degrees of freedom (see the module docstring),
+    and whether ``sigma0`` lies in it."""
+    lo, hi = stats.f.ppf([0.025, 0.975], dof, STATED_DOF) if dof > 0 else (float("nan"), float("nan"))
+    return {"ratio_bounds_95": [math.sqrt(lo), math.sqrt(hi)], "stated_dof": STATED_DOF,
+            "passed": bool(lo <= sigma0 ** 2 <= hi)}
 
 
 def rayleigh_p(n: int, resultant: float) -> float:

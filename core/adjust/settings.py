@@ -4,8 +4,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import InputError
+from ..rotations import ARCSEC
 
 ROBUST = ("none", "selection", "snooping")
+# Plausible onboard sigmas (low, high, unit): from far better than any onboard GNSS / star tracker (0.1 mm,
+# 1e-4 arcsec: the trajectory held fixed) to far worse than none (1000 km, 10 degrees); beyond them
+# 1/sigma^2 heads for overflow or weighs nothing.
+ONBOARD_SIGMAS = {"position_sigma": (1e-4, 1e6, "m"), "attitude_sigma": (1e-4 * ARCSEC, 3.6e4 * ARCSEC, "rad")}
 CAMERA_TRAJECTORY = ("shared", "per_camera")
 SELECTION = ("keep", "significant")
 
@@ -66,10 +71,14 @@ class AdjustmentSettings:
                              parameter="settings.on_singular")
         if not 0 < self.alpha < 0.5:
             raise InputError(f"alpha must be between 0 and 0.5 (got {self.alpha})", parameter="settings.alpha")
-        for name in ("position_sigma", "attitude_sigma"):
+        for name, (low, high, unit) in ONBOARD_SIGMAS.items():
             v = getattr(self, name)
-            if v is not None and not v > 0:
-                raise InputError(f"{name} must be positive or empty (got {v})", parameter=f"settings.{name}")
+            if v is not None and not low <= v <= high:
+                arcsec = f" ({low / ARCSEC:g} to {high / ARCSEC:g} arcsec)" if unit == "rad" else ""
+                got = f"{v:g} {unit}" + (f", {v / ARCSEC:g} arcsec" if unit == "rad" else "")
+                raise InputError(f"{name} must be empty (no pseudo-observations) or between {low:g} and {high:g} "
+                                 f"{unit}{arcsec} (got {got}): beyond this range it weighs nothing or holds the "
+                                 "trajectory fixed", parameter=f"settings.{name}")
         if self.rpc_correction not in ("shift", "drift", "affine"):
             raise InputError(f"RPC correction must be shift, drift or affine (got {self.rpc_correction!r})",
                              parameter="settings.rpc_correction")

@@ -11,7 +11,10 @@ from scipy import linalg
 from ..errors import InputError
 from .linepoints import ACROSS_GROUP, HEIGHT_GROUP
 from .normal import Linearization, System, point_couplings
-from .problem import Problem
+from .problem import Problem, image_group
+
+GROUND_GROUPS = ("ground_xy", "ground_z", ACROSS_GROUP, HEIGHT_GROUP)  # the groups of the ground points' priors
+BLOCK_NUMBERS = 5_000_000  # numbers in one batch of per-point blocks (40 MB)
 
 @dataclass
 class LineStatistics:
@@ -161,6 +164,71 @@ def line_group_sums(problem: Problem, st: Statistics, inlier: np.ndarray) -> dic
             HEIGHT_GROUP: (float(np.sum(ls.w_height[good] * ls.d_height[good] ** 2)), float(ls.r_height[good].sum()),
                            int(good.sum()))}
 
+
+
+def component_coupling(problem: Problem, lin: Linearization, system: System, redundancy: np.ndarray,
+                       inlier: np.ndarray) -> tuple[list[str], np.ndarray]:
+    """The observation groups that share ground points (each camera's image group, ground_xy,
+    ground_z, lines_across, lines_height) and the matrix H (g, g) of their variance component
+    estimation, H_kl = sum over the rows i of group k and j of group l of R_ij R_ji, R = Q_vv P:
+    E[Omega_k] = sum_l H_kl s_l^2 with the current factors s_l. Förstner's simplified estimator
+    takes H as diagonal (row sums: the redundancy r_k); its off-diagonal terms say how well the
+    groups can be told apart (see :func:`core.adjust.robust.joint_groups`).
+
+    R is taken from each ground point's own block: its inlier image observations and its prior
+    rows (east, north, up of a weighted control point; across and normal of a line point, lines
+    named wrong left out; none for a tie point) with the point's eliminated cofactor K of the
+    reduced system, R = I - A K A' P with A the rows' derivatives by the point. The parameters'
+    share of R (a few tens of unknowns among thousands of redundancy numbers) is left out.
+    Image observations of points without ground unknowns (fixed ground) add their redundancy
+    numbers ``redundancy`` (n, 2) to the diagonal. ``inlier`` (n,): the image observations the
+    robust step keeps; a control point's prior counts when all its observations are inliers."""
+    cams = problem.scene.cameras
+    labels = [image_group(c.name) for c in cams] + list(GROUND_GROUPS)
+    n_cams, g = len(cams), len(labels)
+    flat = np.zeros(g * g)
+    n_u = system.K.shape[0]
+    seen = lin.point >= 0
+    fixed = ~seen & inlier
+    np.add.at(flat, problem.obs.camera[fixed] * (g + 1), redundancy[fixed].sum(axis=1))
+    if n_u == 0:
+        return labels, flat.reshape(g, g)
+    # the prior rows of each ground unknown: unit directions (u,3,3) ECEF, weights (u,3), group (u,3) (-1: none)
+    direction, weight, label = np.zeros((n_u, 3, 3)), np.zeros((n_u, 3)), -np.ones((n_u, 3), np.int64)
+    if problem.weighted and problem.n_control:
+        u = problem.ground_point[:problem.n_control]
+        direction[u] = problem.enu
+        weight[u] = np.einsum("mij,mjk,mik->mi", problem.enu, problem.ground_weight, problem.enu)
+        label[u] = n_cams + np.array([0, 0, 1])
+    if len(problem.lines):
+        c = problem.lines.constraints(problem.line_ground(), problem.scale, problem.line_flagged)
+        u = problem.ground_point[problem.line_first:]
+        direction[u, 0], direction[u, 1] = c.across, c.normal
+        weight[u, 0] = np.einsum("ni,nij,nj->n", c.across, c.weight, c.across)
+        weight[u, 1] = np.einsum("ni,nij,nj->n", c.normal, c.weight, c.normal)
+        wrong = problem.line_flagged[problem.lines.obs.key]
+        label[u, 0], label[u, 1] = np.where(wrong, -1, n_cams + 2), np.where(wrong, -1, n_cams + 3)
+    outlying = np.bincount(lin.point[seen], weights=~inlier[seen], minlength=n_u) > 0
+    label[outlying] = -1
+    counts = np.bincount(lin.point[seen], minlength=n_u)
+    order = np.nonzero(seen)[0]
+    order = order[np.argsort(lin.point[order], kind="stable")]
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    for k in np.unique(counts[counts > 0]):
+        points = np.nonzero(counts == k)[0]
+        n = 2 * k + 3
+        for chunk in np.array_split(points, max(1, points.size * n * n // BLOCK_NUMBERS)):
+            obs = order[starts[chunk][:, None] + np.arange(k)]                              # (m, k)
+            m = chunk.size
+            A = np.concatenate([lin.jg[obs].reshape(m, 2 * k, 3), direction[chunk]], axis=1)  # (m, n, 3)
+            p = np.concatenate([lin.p[obs].reshape(m, 2 * k), weight[chunk]], axis=1)        # (m, n)
+            rows = np.where(inlier[obs], problem.obs.camera[obs], -1)
+            lab = np.concatenate([np.repeat(rows, 2, axis=1), label[chunk]], axis=1)         # (m, n)
+            R = np.eye(n) - np.einsum("mia,mab,mjb->mij", A, system.K[chunk], A) * p[:, None, :]
+            both = (lab[:, :, None] >= 0) & (lab[:, None, :] >= 0)
+            index = np.broadcast_to(lab[:, :, None] * g, both.shape) + np.broadcast_to(lab[:, None, :], both.shape)
+            flat += np.bincount(index[both], weights=(R * R.transpose(0, 2, 1))[both], minlength=g * g)
+    return labels, flat.reshape(g, g)
 
 
 def correlated_pairs(corr: np.ndarray, params: list) -> list[dict]:

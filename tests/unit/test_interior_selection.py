@@ -12,7 +12,7 @@ from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.parameters import ParameterSet, parse_interior, sigma_in_si
 from pushbroom_adjust.core.rotations import ARCSEC
 from pushbroom_adjust.core.adjust.selection import _batch, information_shares
-from pushbroom_adjust.core.errors import ConvergenceError, InputError
+from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.simulation.presets import CAMERA_ERRORS
 from pushbroom_adjust.simulation.measurements import GcpSettings
@@ -221,11 +221,14 @@ def test_the_report_names_removed_free_parameters(blocks):
 def test_weighted_parameters_are_held_by_their_priors_and_named(blocks):
     """INTERIOR=default (every term weighted): nothing is removed; the terms the control cannot
     support are kept, held by their priors, and named with the failed tests (on block (1, 9):
-    measured 22 of 36, e.g. the principal point against the installation angles)."""
+    measured 22 of 33, e.g. the principal point against the installation angles). 33: 9 terms of
+    each camera and the 6 installation angles of FWD and BWD; b1 (x b1) of the arrays on the line
+    x = 0 moves the image by rounding only and is left fixed (it was weighted with a sigma of
+    ~1e12 until issue 22)."""
     for b in blocks:
         sel = b["selection"]
         _guard_consistent(sel)
-        assert sel["removed"] == [] and len(sel["kept"]) == 36, b["seed"]
+        assert sel["removed"] == [] and len(sel["kept"]) == 33, b["seed"]
         held = [k for k in sel["kept"] if k.get("held_by_prior")]
         assert all(k["t"] < 1.96 or abs(k["correlation"]) > 0.98 or k["information"] < 1e-4 for k in held)
         assert all(k["t"] >= 1.96 for k in sel["kept"] if not k.get("held_by_prior"))
@@ -275,22 +278,22 @@ def test_a_self_calibration_that_cannot_be_solved_is_never_reported_as_solved(tm
     """ZY-3 (three multi-chip cameras), 9 GCPs, INTERIOR=default: 58 lens, chip and installation
     terms held by their priors leave the normal matrix nearly singular; Gauss-Newton's damped
     steps were all refused and the solver returned the onboard model as "converged" (measured:
-    29.6 px at the check points, sigma0 45.8, against 1.32 px conventional). Kept as given the
-    run must now either converge to a fit or say it did not; with the automatic removal it falls
-    back to the conventional adjustment and names why."""
+    29.6 px at the check points, sigma0 45.8, against 1.32 px conventional). Until issue 22 it then
+    said "no step reduces the residuals": the px prior of NAD.b1, an array on the line x = 0 that
+    b1 moves by rounding only (~1e-12 px per unit), was ~1e12, and the step it allowed wrecked
+    the linearisation. b1 is left fixed there now, and the run kept as given converges (measured
+    0.64 px at the check points, sigma0 0.61); with the automatic removal it falls back to the
+    conventional adjustment and names why (53 effective parameters, 45 degrees of freedom)."""
     result = simulate("zy3_tlc", tmp_path, seed=5,
                       gcp_settings=GcpSettings(n_gcps=300, check_fraction=291 / 300, image_noise=0.3))
     scene, table = load_scene(result.onboard_scene), _table(result)
     rmse = lambda out: out.report["check_points"]["image"]["rmse"]  # noqa: E731
     conventional = rmse(adjust(scene, table, AdjustmentSettings()))
-    try:
-        kept = adjust(scene, table, AdjustmentSettings(interior="default", interior_selection="keep"))
-    except ConvergenceError as err:
-        assert "no step reduces the residuals" in str(err)
-    else:
-        assert kept.report["sigma0"] < 3.0 and rmse(kept) < 2.0 * conventional
+    kept = adjust(scene, table, AdjustmentSettings(interior="default", interior_selection="keep"))
+    assert kept.report["sigma0"] < 1.0 and rmse(kept) < 0.6 * conventional
+    assert {p["name"]: p["mode"] for p in kept.report["parameters"]}["NAD.b1"] == "fixed"
     selected = adjust(scene, table, AdjustmentSettings(interior="default"))
     assert rmse(selected) <= TOLERANCE * conventional
     sel = selected.report["interior_selection"]
     if sel["outcome"] == "conventional" and sel["guard"]["F"] is None:
-        assert sel["guard"]["reason"].startswith("the self-calibrating solution did not converge")
+        assert "did not converge" not in sel["guard"]["reason"] and sel["guard"]["reason"]

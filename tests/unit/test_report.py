@@ -13,7 +13,7 @@ from pushbroom_adjust.core.observations import gcps as G
 from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.checkpoints import without_label
-from pushbroom_adjust.core.adjust.report import report_to_json, write_report_json
+from pushbroom_adjust.core.adjust.report import onboard_advice, report_to_json, write_report_json
 from pushbroom_adjust.core.adjust.report_html import write_report_html
 from pushbroom_adjust.core.adjust.report_plots import MAX_ARROWS
 from pushbroom_adjust.core.files import OutputError
@@ -192,3 +192,14 @@ def test_html_has_the_3d_intersection_table(tmp_path):
     before = out.report["check_points_before"]["intersection"]
     assert f"<td>{before['le90']:.2f}</td>" in page and before["le90"] > 5 * inter["le90"]
     assert "(30 points, 90 observations)" in page
+
+
+def test_a_trajectory_correlation_names_the_onboard_sigma_that_is_missing():
+    """Correlated position and attitude corrections: the log says which onboard sigma holds their
+    split and asks only for the one that was not given."""
+    from_position = onboard_advice({"position_sigma": 100.0, "attitude_sigma": None})
+    assert from_position.startswith("their split rests on POSITION_SIGMA; give ATTITUDE_SIGMA")
+    assert "POSITION_SIGMA and" not in from_position
+    assert onboard_advice({"position_sigma": 100.0, "attitude_sigma": 1e-5}) == \
+        "their split rests on POSITION_SIGMA and ATTITUDE_SIGMA"
+    assert onboard_advice({}).startswith("nothing but the GCPs holds their split; give POSITION_SIGMA and ATTITUDE_SIGMA")

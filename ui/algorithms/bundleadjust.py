@@ -21,6 +21,7 @@ from ...core.adjust.outputs import (ground_residuals, write_adjusted_gcps, write
 from ...core.adjust.parameters import ParameterSet
 from ...core.adjust.report import log_lines, write_report_json
 from ...core.adjust.report_html import write_report_html
+from ...core.adjust.settings import ONBOARD_SIGMAS
 from ...core.errors import InputError, PushbroomError
 from ...core.files import Output, atomic_outputs
 from ...core.formats.rpcfiles import write_rpc
@@ -128,9 +129,13 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                 QgsProcessingParameterNumber.Double, 20.0, minValue=0.01),
                 tr("Seconds between orientation images or knots (lagrange and spline models). Shorter intervals "
                    "follow faster motion but let position and attitude trade off (Zheng et al. 2015, Fig. 7-11)."))
+            low, high, _ = ONBOARD_SIGMAS[f"{block.lower()}_sigma"]
+            low, high = (low / ARCSEC, high / ARCSEC) if unit == "arcsec" else (low, high)
             self.add_parameter(QgsProcessingParameterNumber(
                 f"{block}_SIGMA", tr("Onboard {what} sigma ({unit})").format(what=what, unit=unit),
-                QgsProcessingParameterNumber.Double, default_sigma, minValue=0.0), sigma_help)
+                QgsProcessingParameterNumber.Double, default_sigma, minValue=0.0, maxValue=high),
+                sigma_help + " " + tr("Otherwise from {low:g} to {high:g} {unit}.").format(low=low, high=high,
+                                                                                         unit=unit))
         self.add_parameter(QgsProcessingParameterString(self.INTERIOR, tr("Interior parameters to estimate"),
                                                         optional=True, defaultValue=""),
                   tr("Interior and installation parameters to estimate, comma-separated; every other one stays "
