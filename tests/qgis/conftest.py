@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from qgis.core import QgsApplication
 
+from tests.support.hostile import assert_clean_stderr
 from tests.support.paths import PLUGIN, QGIS_PROCESS, REPO
 
 
@@ -88,3 +89,16 @@ def three_line(provider, tmp_path_factory) -> dict:
     return processing.run("pushbroom:simulatescene", {"PRESET": "th1_tlc", "SEED": 3, "N_SCENES": 1, "N_GCPS": 10,
                                                       "N_TIE_POINTS": 40, "IMAGE_NOISE": 0.3, "RENDER": False,
                                                       "OUTPUT_FOLDER": str(out)})
+
+
+@pytest.fixture(autouse=True)
+def hostile_stderr_is_clean(request):
+    """Every test of the hostile suite (test_hostile_*.py): whatever it leaves on stderr (the
+    process's file descriptor 2: QGIS, GDAL and Python alike) holds no traceback and no
+    'Exception ignored' (see tests/support/hostile.py), refused inputs and accepted ones alike."""
+    if not request.module.__name__.rsplit(".", 1)[-1].startswith("test_hostile"):
+        yield
+        return
+    capfd = request.getfixturevalue("capfd")
+    yield
+    assert_clean_stderr(capfd.readouterr().err)
