@@ -17,6 +17,7 @@ from pushbroom_adjust.core.observations.gcps import read_gpkg
 from pushbroom_adjust.core.geodesy import enu_rotations, geodetic_to_ecef
 from pushbroom_adjust.core.formats import load_scene
 
+from tests.support.csvrows import read_rows, write_rows
 from tests.support.qgis_process import run_json
 
 INTERIOR = "HRC-1.*, HRC-3.*"
@@ -254,17 +255,12 @@ def test_bad_input_is_named(chain, tmp_path):
 def _few_gcps(sim, folder: Path, n_control: int) -> str:
     """A GCP GeoPackage with only ``n_control`` control points (spread over the image) and some
     check points, imported as a user would."""
-    with open(sim["GCPS"]) as f:
-        rows = list(csv.DictReader(f))
+    rows = read_rows(sim["GCPS"])
     control = sorted((r for r in rows if r["role"] == "control" and r["gross"] == "0"),
                      key=lambda r: float(r["row"]) + float(r["col"]))
     keep = [control[int(i)] for i in np.linspace(0, len(control) - 1, n_control)]
     keep += [r for r in rows if r["role"] == "check"][:5]
-    path = folder / f"few{n_control}.csv"
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(keep)
+    path = write_rows(folder / f"few{n_control}.csv", keep, list(rows[0]))
     return processing.run("pushbroom:importgcps", {"SCENE": sim["ONBOARD_SCENE"], "INPUT_FILE": str(path),
                                                    "Z_FIELD": "h", "Z_DATUM": "ellipsoid", "ROLE_FIELD": "role",
                                                    "CAMERA_FIELD": "camera",

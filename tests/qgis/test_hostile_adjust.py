@@ -2,7 +2,6 @@
 text or missing (refused at import, naming the field and the points, nothing written), and
 legitimate but hard data (half of the points gross, a CCD half shifted, a pass limit hit,
 surveyed and digitised points mixed) that must give a result that says what is wrong."""
-import csv
 import json
 from pathlib import Path
 
@@ -12,6 +11,7 @@ import pytest
 import processing
 from pushbroom_adjust.core.observations.gcps import read_gpkg
 
+from tests.support.csvrows import read_rows, write_rows
 from tests.support.hostile import assert_refused, assert_unchanged, snapshot
 from tests.support.processing import RecordingFeedback
 
@@ -37,19 +37,6 @@ def sims(provider, tmp_path_factory) -> dict:
         for gross in (0.0, 0.5)}
 
 
-def _rows(sim) -> list[dict]:
-    with open(sim["GCPS"]) as f:
-        return list(csv.DictReader(f))
-
-
-def _write(path: Path, rows: list[dict]) -> Path:
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    return path
-
-
 def _import_params(sim, path: Path, output: Path, **extra) -> dict:
     return {"SCENE": sim["ONBOARD_SCENE"], "INPUT_FILE": str(path), "Z_FIELD": "h", "Z_DATUM": "ellipsoid",
             "ROLE_FIELD": "role", "CAMERA_FIELD": "camera", "OUTPUT": str(output), **extra}
@@ -65,10 +52,10 @@ def _import_params(sim, path: Path, output: Path, **extra) -> dict:
 ])
 def test_bad_per_point_sigmas_are_refused_at_import(sims, tmp_path, field, values, expected):
     sim = sims[0.0]
-    rows = _rows(sim)
+    rows = read_rows(sim["GCPS"])
     for i, r in enumerate(rows):
         r[field] = values(i)
-    path = _write(tmp_path / "gcps.csv", rows)
+    path = write_rows(tmp_path / "gcps.csv", rows)
     param = {"sigma_px": "SIGMA_PX_FIELD", "sigma_xy": "SIGMA_XY_FIELD", "sigma_z": "SIGMA_Z_FIELD"}[field]
     assert_refused("pushbroom:importgcps", _import_params(sim, path, tmp_path / "out.gpkg", **{param: field}),
                    str(path), "per-point sigma field", expected, watch=[tmp_path])
@@ -76,7 +63,7 @@ def test_bad_per_point_sigmas_are_refused_at_import(sims, tmp_path, field, value
 
 def test_a_sigma_field_the_file_does_not_have_is_named(sims, tmp_path):
     sim = sims[0.0]
-    path = _write(tmp_path / "gcps.csv", _rows(sim))
+    path = write_rows(tmp_path / "gcps.csv", read_rows(sim["GCPS"]))
     assert_refused("pushbroom:importgcps", _import_params(sim, path, tmp_path / "out.gpkg",
                                                           SIGMA_Z_FIELD="sz"),
                    "no column 'sz'", "sigma_z", watch=[tmp_path])
@@ -84,7 +71,7 @@ def test_a_sigma_field_the_file_does_not_have_is_named(sims, tmp_path):
 
 # --- hard but legitimate data: a result that says what is wrong ---------------------------------------
 def _gcps(sim, folder: Path, rows: list[dict] | None = None, **extra) -> str:
-    path = _write(folder / "gcps.csv", rows) if rows else Path(sim["GCPS"])
+    path = write_rows(folder / "gcps.csv", rows) if rows else Path(sim["GCPS"])
     return processing.run("pushbroom:importgcps", _import_params(sim, path, folder / "gcps.gpkg",
                                                                  SIGMA_PX=0.5, **extra))["OUTPUT"]
 
@@ -114,7 +101,7 @@ def test_half_of_one_ccd_shifted_the_same_way_names_the_ccd(sims, tmp_path):
     """Half of HRC-3's points moved 20 px the same way: the robust weights flag the whole chip;
     the log names HRC-3 and calls the result not reliable."""
     sim = sims[0.0]
-    rows = _rows(sim)
+    rows = read_rows(sim["GCPS"])
     cols = np.array([float(r["col"]) for r in rows])
     third = cols > 2 * cols.max() / 3
     for i in np.nonzero(third)[0][::2]:
@@ -138,7 +125,7 @@ def test_surveyed_and_digitised_points_mixed_by_per_point_sigmas(sims, tmp_path)
     well and saying so; one cell left empty (the default, 3 m): they reach the GCP layer and the
     adjustment, which converges, keeps the good points and logs the components."""
     sim = sims[0.0]
-    rows = _rows(sim)
+    rows = read_rows(sim["GCPS"])
     rng = np.random.default_rng(3)
     for i, r in enumerate(rows):
         sigma = 3.0 if i == 0 else (0.2 if i % 2 else 5.0)

@@ -15,13 +15,13 @@ test_hostile_scene_json.py.
 """
 from __future__ import annotations
 
-import csv
 import re
 
 import pytest
 from osgeo import gdal
 
 import processing
+from tests.support.csvrows import read_rows, write_rows
 from tests.support.hostile import assert_refused, assert_refused_cli
 from tests.support.rpcdata import pleiades_rpc, rpc_files, scaled
 
@@ -33,14 +33,10 @@ def block(provider, simulated, tmp_path_factory) -> dict:
     """The simulated CBERS-02B scene's GCPs imported (as they are: id, role, camera read by name), and
     the same with image sigmas of 1e-300 px."""
     folder = tmp_path_factory.mktemp("fuzz_block")
-    rows = list(csv.DictReader(open(simulated["GCPS"])))
+    rows = read_rows(simulated["GCPS"])
     for r in rows:
         r["sigma_px"] = "1e-300"
-    tiny = folder / "tiny_sigmas.csv"
-    with open(tiny, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    tiny = write_rows(folder / "tiny_sigmas.csv", rows)
     common = {"SCENE": simulated["ONBOARD_SCENE"], "Z_FIELD": "h", "Z_DATUM": "ellipsoid"}
     processing.run("pushbroom:importgcps", {**common, "INPUT_FILE": simulated["GCPS"],
                                             "OUTPUT": str(folder / "gcps.gpkg")})

@@ -1,7 +1,6 @@
 """pushbroom:importgcps in real QGIS: a simulated scene's gcps.csv, a georeferencer .points file
 and a point layer in UTM, each written as a GeoPackage the core reads back; the style flags
 outside points and large residuals."""
-import csv
 import importlib
 
 import numpy as np
@@ -11,6 +10,7 @@ from qgis.core import (QgsExpressionContextUtils, QgsFeature, QgsField, QgsGeome
                        QgsProcessingException, QgsProcessingFeedback, QgsRenderContext, QgsVectorLayer)
 from qgis.PyQt.QtCore import QVariant
 
+from tests.support.csvrows import read_rows, write_rows
 from tests.support.paths import PLUGIN
 
 FIELDS = ["id", "role", "camera", "col", "row", "h", "sigma_px", "sigma_xy", "sigma_z", "res_col", "res_row",
@@ -48,14 +48,10 @@ def _run(params, feedback=None):
 def test_import_simulated_gcps_csv(simulated, core, tmp_path, fields):
     """With the role and camera fields named, and without: the columns role and camera are read under
     their own names."""
-    rows = list(csv.DictReader(open(simulated["GCPS"])))
+    rows = read_rows(simulated["GCPS"])
     for r in rows[::4]:  # some check points, so that the roles are read, not assumed
         r["role"] = "check"
-    gcps_csv = tmp_path / "gcps.csv"
-    with open(gcps_csv, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    gcps_csv = write_rows(tmp_path / "gcps.csv", rows)
     out = _run({"SCENE": simulated["ONBOARD_SCENE"], "INPUT_FILE": str(gcps_csv), "Z_FIELD": "h",
                 **fields, "HEIGHT_SOURCE": "z", "Z_DATUM": "ellipsoid",
                 "SIGMA_PX": 0.3, "OUTPUT": str(tmp_path / "gcps.gpkg")})["OUTPUT"]
@@ -174,16 +170,12 @@ def test_point_layer_in_utm_and_input_errors(core, provider, tmp_path):
         _run({**params, "OUTPUT": str(tmp_path / "layer.shp")})
 
 
-def _csv_rows(path) -> list[dict]:
-    with open(path) as f:
-        return list(csv.DictReader(f))
-
 
 def test_the_simulators_three_camera_gcps_import_as_they_are_on_the_command_line(three_line, qgis_process, core,
                                                                                   tmp_path):
     """No ID_FIELD, ROLE_FIELD nor CAMERA_FIELD: the columns id, role and camera of the simulator's gcps.csv
     (three cameras: without the camera column it would be refused) are read under their own names."""
-    rows = _csv_rows(three_line["GCPS"])
+    rows = read_rows(three_line["GCPS"])
     out = tmp_path / "gcps.gpkg"
     done = qgis_process("run", "pushbroom:importgcps", "--", f"SCENE={three_line['ONBOARD_SCENE']}",
                         f"INPUT_FILE={three_line['GCPS']}", "Z_FIELD=h", "Z_DATUM=ellipsoid", f"OUTPUT={out}")
@@ -197,14 +189,10 @@ def test_the_simulators_three_camera_gcps_import_as_they_are_on_the_command_line
 def test_ids_from_line_numbers_and_the_plugins_own_layer_as_it_is(simulated, core, tmp_path):
     """A CSV without an id column: the data line numbers are the ids (ID_FIELD empty, its default). The
     layer importgcps wrote, imported again without field parameters: ids, roles and cameras kept."""
-    rows = _csv_rows(simulated["GCPS"])
+    rows = read_rows(simulated["GCPS"])
     for r in rows[::3]:
         r["role"] = "check"
-    no_ids = tmp_path / "no_ids.csv"
-    with open(no_ids, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=[k for k in rows[0] if k != "id"], extrasaction="ignore")
-        writer.writeheader()
-        writer.writerows(rows)
+    no_ids = write_rows(tmp_path / "no_ids.csv", rows, [k for k in rows[0] if k != "id"])
     common = {"SCENE": simulated["ONBOARD_SCENE"], "HEIGHT_SOURCE": "z", "Z_DATUM": "ellipsoid"}
     first = _run({**common, "INPUT_FILE": str(no_ids), "Z_FIELD": "h", "OUTPUT": str(tmp_path / "a.gpkg")})["OUTPUT"]
     table = core["gcps"].read_gpkg(first)
