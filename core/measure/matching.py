@@ -26,9 +26,9 @@ For each point p0 (col, row; GDAL pixel centres) of a grid over the raw image:
    or on the border of the search area, or its offset disagrees with its neighbours' on the same
    chip by a pixel or more (:func:`core.measure.matchchecks.inconsistent`).
 
-Tie points (:func:`match_tiepoints`) use the same machinery with another camera's raw image
-as the reference (ground -> its image through the scene model): the images are compared in
-the base camera's geometry, so different view angles do not defeat the correlation.
+Tie points (:mod:`core.measure.tiematching`) use the same machinery (:func:`match_grid`) with
+another raw image as the reference (ground -> its image through its scene model): the images are
+compared in the base image's geometry, so different view angles do not defeat the correlation.
 
 A match says: the ground point G0 the onboard model sees at p0 (on the DEM) is seen in the
 raw image at p0 + d. So the GCP is ground G0 (lon, lat, ellipsoidal h) at image p0 + d.
@@ -52,18 +52,16 @@ from ..errors import Cancelled, InputError
 from ..geodesy import ecef_to_geodetic
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
-from ..observations.tiepoints import TieTable
 from ..products.rawimage import RawImage
 from .correlation import Peaks, block_mean, find_peaks, ncc, sample
 from .matchchecks import inconsistent, within_one_chip
-from .reference import MEMORY_BUDGET, ImageReference, Reference, check_overlap, open_checked
+from .reference import MEMORY_BUDGET, Reference, check_overlap, open_checked
 
 log = logging.getLogger(__name__)
 
 INCONSISTENT = "inconsistent with its neighbours"
 REASONS = ("near a CCD seam", "outside the image", "off the DEM", "outside the reference", "low texture",
            "low correlation", "ambiguous peak", "peak on the search border", INCONSISTENT)
-OUTSIDE_OTHER = "outside the other camera's image"  # REASONS[3] for tie points
 COARSE_TEMPLATE = 64      # coarse chip size (coarse px)
 COARSE_RADIUS = 40        # coarse search radius (coarse px): sets the block-averaging factor
 COARSE_GRID = 5           # coarse chips per side
@@ -294,7 +292,7 @@ def _reasons(outside, no_ref, texture, p: Peaks, settings: MatchSettings) -> np.
 
 
 @dataclass
-class _GridMatch:
+class GridMatch:
     """Per grid point (n,): its position (col, row), the matched position, correlation, peak
     ratio, sigma, the reference position matching the grid point itself (ref_col, ref_row: GDAL
     px of the reference's array; the local affine map applied to the match's offset), the ECEF
@@ -314,8 +312,8 @@ class _GridMatch:
                 **{REASONS[i]: int((self.reasons == i).sum()) for i in range(1, len(REASONS))}}
 
 
-def _match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, gsd: float,
-                settings: MatchSettings, report, cancelled) -> _GridMatch:
+def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, gsd: float,
+                settings: MatchSettings, report, cancelled) -> GridMatch:
     """Match the grid of camera ``camera``'s raw image against ``ref`` (coarse, then fine pass)."""
     cam = scene.cameras[camera]
     src, nodata = open_checked(scene, camera, image_path)
@@ -378,7 +376,7 @@ def _match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem,
                 reasons[idx], ground[idx] = res["reasons"], g
             report(0.1 + 0.85 * (n + 1) / len(batches), None)
     reasons[inconsistent(cam, col, row, out["col"], out["row"], reasons < 0)] = REASONS.index(INCONSISTENT)
-    return _GridMatch(col, row, out, ground, reasons, near_seam, coarse, time.perf_counter() - start)
+    return GridMatch(col, row, out, ground, reasons, near_seam, coarse, time.perf_counter() - start)
 
 
 def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
@@ -393,75 +391,32 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
     cancelled = is_cancelled or (lambda: False)
     cam = scene.cameras[camera]
     ref = Reference(reference_path)
-    gsd = float(scene.info.get("gsd_m") or _gsd(scene, camera, dem))
+    gsd = float(scene.info.get("gsd_m") or ground_sample_distance(scene, camera, dem))
     check_overlap(scene, camera, dem, ref, settings.search)
-    m = _match_grid(scene, camera, image_path, ref, dem, gsd, settings, report, cancelled)
+    m = match_grid(scene, camera, image_path, ref, dem, gsd, settings, report, cancelled)
     ok = m.reasons < 0
     rejected = m.rejected()
     n, total = int(ok.sum()), int(m.col.size + m.near_seam)
     if n == 0:
-        raise InputError(f"no point of {total} matched: " + _reason_text(rejected) +
+        raise InputError(f"no point of {total} matched: " + reason_text(rejected) +
                          ". Lower the quality threshold, enlarge the window, or check the reference")
     lon, lat, h = ecef_to_geodetic(m.ground[ok])
     table = GcpTable(id=np.char.add("M", (np.nonzero(ok)[0] + 1).astype(str)), role="control", camera=cam.name,
                      col=m.out["col"][ok], row=m.out["row"][ok], lon=lon, lat=lat, h=h, sigma_px=m.out["sigma"][ok],
                      sigma_xy=0.5 * ref.gsd if settings.sigma_xy is None else settings.sigma_xy,
                      sigma_z=settings.sigma_z)
-    log.info("matched %d of %d grid points in %.2f s; rejected: %s", n, total, m.seconds, _reason_text(rejected))
+    log.info("matched %d of %d grid points in %.2f s; rejected: %s", n, total, m.seconds, reason_text(rejected))
     return MatchResult(table, m.out["value"][ok], m.out["ratio"][ok],
                        np.stack([m.out["col"][ok] - m.col[ok], m.out["row"][ok] - m.row[ok]], axis=1),
                        total, rejected, m.coarse, m.seconds)
 
 
-def match_tiepoints(scene: SceneModel, images: dict, dem, settings: MatchSettings = MatchSettings(search=300.0),
-                    base: int = 0, progress: Callable[[float, str | None], None] | None = None,
-                    is_cancelled: Callable[[], bool] | None = None) -> tuple[TieTable, dict]:
-    """Tie points between camera ``base`` of ``scene`` and every other camera of ``images``
-    ({camera index: raw image path}). Each other camera's image is resampled into the base
-    image's geometry through the onboard model on ``dem`` (the common ground geometry, so the
-    view angles do not defeat correlation) and matched like a reference; a grid point that
-    matches in k cameras is one tie point observed k + 1 times (its base position is the grid
-    point itself, the others the matched positions mapped back to it through the local map
-    base -> camera). ``search`` (m) bounds the cameras' relative error. Returns the table and
-    {camera name: rejected counts by reason} (REASONS, 'outside the reference' named
-    OUTSIDE_OTHER: the window leaves that camera's image). InputError when no grid point
-    matches in any camera, with the counts."""
-    settings.validate()
-    report = progress or (lambda fraction, message=None: None)
-    cancelled = is_cancelled or (lambda: False)
-    if base not in images or len(images) < 2:
-        raise InputError("tie points need the base camera's image and at least one other camera's")
-    gsd = float(scene.info.get("gsd_m") or _gsd(scene, base, dem))
-    observations, rejected = [], {}
-    others = [k for k in sorted(images) if k != base]
-    for n, k in enumerate(others):
-        ref = ImageReference(scene, k, images[k], gsd)
-        m = _match_grid(scene, base, images[base], ref, dem, gsd, settings,
-                        lambda f, msg=None, n=n: report((n + f) / len(others), msg), cancelled)
-        ok = m.reasons < 0
-        rejected[scene.cameras[k].name] = {OUTSIDE_OTHER if r == REASONS[3] else r: v for r, v in m.rejected().items()}
-        ids = np.char.add("T", (np.nonzero(ok)[0] + 1).astype(str))
-        observations.append((ids, scene.cameras[base].name, m.col[ok], m.row[ok], m.out["sigma"][ok]))
-        observations.append((ids, scene.cameras[k].name, m.out["ref_col"][ok], m.out["ref_row"][ok],
-                             m.out["sigma"][ok]))
-    if not any(o[0].size for o in observations):
-        raise InputError("no tie point matched between camera " + scene.cameras[base].name + " and the others: "
-                         + "; ".join(f"{name}: {_reason_text(r)}" for name, r in rejected.items())
-                         + ". Lower the quality threshold, enlarge the window or the search range, or check that "
-                           "the images are the scene's")
-    ids, cams, col, row, sigma = (np.concatenate([np.broadcast_to(o[i], o[0].shape) for o in observations])
-                                  for i in range(5))
-    # the base observation of a point matched in several cameras once
-    _, first = np.unique(np.char.add(np.char.add(ids, "|"), cams), return_index=True)
-    keep = np.sort(first)
-    return TieTable(ids[keep], cams[keep], col[keep], row[keep], sigma[keep], ""), rejected
-
-
-def _reason_text(rejected: dict) -> str:
+def reason_text(rejected: dict) -> str:
+    """Rejection counts {reason: n} in words ('none rejected' without any)."""
     return ", ".join(f"{v} {k}" for k, v in rejected.items() if v) or "none rejected"
 
 
-def _gsd(scene: SceneModel, camera: int, dem) -> float:
+def ground_sample_distance(scene: SceneModel, camera: int, dem) -> float:
     """Ground distance (m) between two neighbouring pixels at the image centre."""
     cam = scene.cameras[camera]
     g = scene.image_to_ground_dem(np.array([cam.cols / 2, cam.cols / 2 + 1]), np.array([cam.rows / 2] * 2), dem,

@@ -15,7 +15,8 @@ from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef
-from pushbroom_adjust.core.measure.matching import MatchSettings, match_tiepoints
+from pushbroom_adjust.core.measure.matching import MatchSettings
+from pushbroom_adjust.core.measure.tiematching import match_tiepoints
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.simulation.presets import PRESETS, CameraSpec, ErrorSettings, Preset, cut_preset
 from pushbroom_adjust.simulation.simulator import SimulationResult, simulate

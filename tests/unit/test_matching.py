@@ -10,7 +10,8 @@ from pushbroom_adjust.core.measure.correlation import find_peaks, ncc
 from pushbroom_adjust.core.measure.matching import REASONS, SIGMA_FLOOR, MatchSettings, match_gcps
 from pushbroom_adjust.simulation.texture import texture_at
 from pushbroom_adjust.core.formats import load_scene
-from tests.support.matchscene import SEARCH, manifest, mini_scene, true_errors
+from pushbroom_adjust.core.measure.tiematching import match_tiepoints
+from tests.support.matchscene import SEARCH, manifest, mini_scene, mini_tlc_scene, true_errors
 
 
 @pytest.fixture(scope="module")
@@ -103,8 +104,6 @@ def test_grid_count_and_settings_are_checked(mini):
 def test_tie_points_between_the_three_cameras_of_a_line_scanner(tmp_path):
     """TH-1-like three-line scene: FWD and BWD (+-25 deg) matched to NAD in NAD's geometry; each
     observation against the true scene's projection of the NAD point's true ground."""
-    from pushbroom_adjust.core.measure.matching import match_tiepoints
-    from tests.support.matchscene import mini_tlc_scene
     sim = mini_tlc_scene(tmp_path)
     onboard, true, dem = load_scene(sim.onboard_scene), load_scene(sim.true_scene), Dem(sim.dem, "geoid")
     images = {k: sim.images[c.name] for k, c in enumerate(onboard.cameras)}

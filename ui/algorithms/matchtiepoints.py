@@ -4,7 +4,7 @@ adjustment reads."""
 from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParameterVectorDestination
 
 from ...core.observations import tiepoints
-from ...core.measure.matching import match_tiepoints
+from ...core.measure.tiematching import match_tiepoints
 from ...core.products.ortho import check_images
 from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
 from ..inputs import (add_dem_parameters, add_scene_parameters, camera_images_for, dem_from_parameters, load_scene_for,

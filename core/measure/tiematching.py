@@ -1,0 +1,126 @@
+"""Automatic tie points: raw images matched with each other through their scene models, the
+cameras of one scene (:func:`match_tiepoints`) or images of several scenes of a block, other
+passes, dates or sensors (:func:`match_block_tiepoints`).
+
+Each other image is resampled into the base image's geometry through its own scene model on the
+DEM (the common ground geometry, so view angles do not defeat the correlation) and matched with
+the grid of the base image like a reference orthoimage (:func:`core.measure.matching.match_grid`:
+the same coarse and fine passes, sub-pixel peaks and rejections). Normalised cross-correlation is
+blind to gain and offset, so images of other dates and sensors match as long as the ground looks
+alike (clouds and changed land cover are rejected as 'low correlation'). A grid point matched in
+k other images is one tie point observed k + 1 times: its base observation is the grid point
+itself, the others the matched positions mapped back to it through the local map base -> image.
+``search`` (m) bounds the images' relative error (their models' errors together).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..errors import InputError
+from ..model.sensor import SceneModel
+from ..observations.tiepoints import TieTable
+from .matching import REASONS, MatchSettings, ground_sample_distance, match_grid, reason_text
+from .reference import ImageReference
+
+OUTSIDE_OTHER = "outside the other camera's image"  # REASONS[3] for tie points
+
+
+@dataclass(frozen=True)
+class View:
+    """One raw image of a block: the name of its scene ('' within one scene), the scene model,
+    the camera's index in it and the image file."""
+    scene_name: str
+    scene: SceneModel
+    camera: int
+    image: Path
+
+    @property
+    def camera_name(self) -> str:
+        return self.scene.cameras[self.camera].name
+
+    @property
+    def label(self) -> str:
+        """'<scene>/<camera>' in a block, the camera's name within one scene."""
+        return f"{self.scene_name}/{self.camera_name}" if self.scene_name else self.camera_name
+
+
+def match_tiepoints(scene: SceneModel, images: dict, dem, settings: MatchSettings = MatchSettings(search=300.0),
+                    base: int = 0, progress: Callable[[float, str | None], None] | None = None,
+                    is_cancelled: Callable[[], bool] | None = None) -> tuple[TieTable, dict]:
+    """Tie points between camera ``base`` of ``scene`` and every other camera of ``images``
+    ({camera index: raw image path}), see the module docstring. Returns the table (scene column
+    empty) and {camera name: rejected counts by reason} (REASONS, 'outside the reference' named
+    OUTSIDE_OTHER). InputError when no grid point matches in any camera, with the counts."""
+    if base not in images or len(images) < 2:
+        raise InputError("tie points need the base camera's image and at least one other camera's")
+    order = sorted(images)
+    views = [View("", scene, k, Path(images[k])) for k in order]
+    return match_views(views, dem, settings, order.index(base), progress, is_cancelled)
+
+
+def match_block_tiepoints(views: list[View], dem, settings: MatchSettings = MatchSettings(search=1000.0),
+                          base: int = 0, progress: Callable[[float, str | None], None] | None = None,
+                          is_cancelled: Callable[[], bool] | None = None) -> tuple[TieTable, dict]:
+    """Tie points between image ``views[base]`` and each other image of a block of scenes (see
+    the module docstring); the table's scene column names each observation's scene. Returns it
+    and {'<scene>/<camera>': rejected counts by reason}. InputError naming the views for a view
+    listed twice, an image given for two views, fewer than two scenes, or no match at all (and
+    'do not overlap' when no grid point of the base image falls in another image)."""
+    labels = [v.label for v in views]
+    twice = sorted({k for k in labels if labels.count(k) > 1})
+    if twice:
+        raise InputError(f"{', '.join(twice)} listed twice: give each scene's camera once", parameter="scenes")
+    paths = [str(Path(v.image).resolve()) for v in views]
+    shared = sorted({p for p in paths if paths.count(p) > 1})
+    if shared:
+        raise InputError(f"the image {shared[0]} is given for "
+                         f"{' and '.join(v.label for v, p in zip(views, paths) if p == shared[0])}: each scene "
+                         "needs its own image", parameter="images")
+    if len({v.scene_name for v in views}) < 2:
+        raise InputError("tie points between scenes need images of at least two scenes", parameter="scenes")
+    if not 0 <= base < len(views):
+        raise InputError(f"the base image {base} is not one of the {len(views)} given", parameter="base")
+    return match_views(views, dem, settings, base, progress, is_cancelled)
+
+
+def match_views(views: list[View], dem, settings: MatchSettings, base: int,
+                progress: Callable[[float, str | None], None] | None = None,
+                is_cancelled: Callable[[], bool] | None = None) -> tuple[TieTable, dict]:
+    """Match ``views[base]``'s grid in every other view (see :func:`match_block_tiepoints`)."""
+    settings.validate()
+    report = progress or (lambda fraction, message=None: None)
+    cancelled = is_cancelled or (lambda: False)
+    b = views[base]
+    gsd = float(b.scene.info.get("gsd_m") or ground_sample_distance(b.scene, b.camera, dem))
+    observations, rejected, outside = [], {}, []
+    others = [v for k, v in enumerate(views) if k != base]
+    for n, v in enumerate(others):
+        ref = ImageReference(v.scene, v.camera, v.image, gsd)
+        m = match_grid(b.scene, b.camera, b.image, ref, dem, gsd, settings,
+                       lambda f, msg=None, n=n: report((n + f) / len(others), msg), cancelled)
+        ok = m.reasons < 0
+        counts = {OUTSIDE_OTHER if r == REASONS[3] else r: c for r, c in m.rejected().items()}
+        rejected[v.label] = counts
+        if counts[OUTSIDE_OTHER] == m.col.size:
+            outside.append(v.label)
+        ids = np.char.add("T", (np.nonzero(ok)[0] + 1).astype(str))
+        observations.append((ids, b.camera_name, m.col[ok], m.row[ok], m.out["sigma"][ok], b.scene_name))
+        observations.append((ids, v.camera_name, m.out["ref_col"][ok], m.out["ref_row"][ok], m.out["sigma"][ok],
+                             v.scene_name))
+    if not any(o[0].size for o in observations):
+        apart = f" ({', '.join(outside)} do{'es' * (len(outside) == 1)} not overlap {b.label})" if outside else ""
+        raise InputError(f"no tie point matched between {b.label} and the others{apart}: "
+                         + "; ".join(f"{name}: {reason_text(r)}" for name, r in rejected.items())
+                         + ". Lower the quality threshold, enlarge the window or the search range, or check that "
+                           "the images are the scenes'")
+    ids, cams, col, row, sigma, scenes = (np.concatenate([np.broadcast_to(o[i], o[0].shape) for o in observations])
+                                          for i in range(6))
+    # the base observation of a point matched in several images once
+    key = np.char.add(np.char.add(np.char.add(ids, "|"), np.char.add(scenes, "|")), cams)
+    _, first = np.unique(key, return_index=True)
+    keep = np.sort(first)
+    return TieTable(ids[keep], cams[keep], col[keep], row[keep], sigma[keep], scenes[keep]), rejected
