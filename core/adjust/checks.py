@@ -16,6 +16,28 @@ from .problem import Problem
 from .settings import AdjustmentSettings
 from .ties import check_ties, datum
 
+# No measurement is stated this precisely (the best image matching reaches about 0.01 px, the best
+# ground survey a millimetre): a smaller sigma is a unit or typing error, and its weight (1/sigma^2)
+# would overflow the normal equations.
+MIN_SIGMA_PX = 1e-4       # px
+MIN_SIGMA_GROUND = 1e-4   # m
+
+
+def check_sigma_floor(table: GcpTable, weighted_ground: bool) -> None:
+    """InputError naming the GCPs (up to 10) whose image sigma is below MIN_SIGMA_PX, or (weighted
+    ground) whose ground sigmas are below MIN_SIGMA_GROUND."""
+    checks = [("sigma_px", table.sigma_px, MIN_SIGMA_PX, "px")]
+    if weighted_ground:
+        checks += [("sigma_xy", table.sigma_xy, MIN_SIGMA_GROUND, "m"),
+                   ("sigma_z", table.sigma_z, MIN_SIGMA_GROUND, "m")]
+    for name, values, floor, unit in checks:
+        low = values < floor
+        if low.any():
+            raise InputError(f"GCPs {', '.join(table.id[low][:10])}{' …' * int(low.sum() > 10)} have {name} below "
+                             f"{floor:g} {unit} (smallest {values.min():.3g}): no measurement is that precise; "
+                             "check the sigma field and its unit", parameter="gcps")
+
+
 def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
                  ties: TieTable | None = None, lines: ControlLines | None = None) -> GcpTable:
     """Cameras resolved and the GCPs (and tie points) checked before anything is solved:
@@ -36,6 +58,7 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
                                        (np.any(table.sigma_xy <= 0) or np.any(table.sigma_z <= 0))):
         raise InputError("GCP sigmas must be positive (sigma_px, and sigma_xy, sigma_z for weighted ground)",
                          parameter="gcps")
+    check_sigma_floor(table, settings.ground == "weighted")
     control = table.role == "control"
     with_ties = ties is not None and len(ties) > 0
     if with_ties:
