@@ -179,7 +179,10 @@ def aim_member(m: ResolvedMember, target: tuple[float, float, float]) -> None:
     x, y = right * m.orbit_offset_km * 1e3
     aim_lon, aim_lat = (float(v) for v in plane_to_lonlat(x, y, centre))
     pitch, roll = (math.radians(v) for v in m.view)
-    pass_point = aim_pass_point(m.spec, pitch, roll, (aim_lon, aim_lat, h))
+    try:
+        pass_point = aim_pass_point(m.spec, pitch, roll, (aim_lon, aim_lat, h))
+    except InputError as exc:
+        raise InputError(f"members[{m.index}].view: {exc}", parameter=f"members[{m.index}].view") from None
     m.pointing = Pointing(pitch, roll, pass_point)
     px, py = texture_plane(*pass_point, centre)
     m.epoch = member_epoch(m.date, float(np.array([px - x, py - y]) @ along) / speed)

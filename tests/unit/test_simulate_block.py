@@ -151,6 +151,28 @@ def test_tie_points_of_one_id_are_one_ground_point_in_every_scene(block):
     assert 0.8 * NOISE < np.std(noise) < 1.2 * NOISE
 
 
+def test_an_orbit_offset_moves_the_strip_across_track(tmp_path):
+    """A neighbour strip 1.5 km to the right of the track: its image centre moves 1.5 km across the
+    track and not along it; the 1 km of shared ground carries the tie points."""
+    members = [BlockMember("left", ONE), BlockMember("right", ONE, orbit_offset_km=1.5)]
+    sim = _load(simulate_block(members, tmp_path / "b", seed=2, n_gcps=20, n_tie_points=20))
+    centres = []
+    for name in ("left", "right"):
+        scene = sim["true"][name]
+        cam = scene.cameras[0]
+        centres.append(scene.image_to_ground_dem(np.array([cam.cols / 2, cam.cols / 2]),
+                                                 np.array([cam.rows / 2, cam.rows / 2 + 100]), sim["dem"]))
+    along = centres[0][1] - centres[0][0]                   # 100 rows along the track
+    step = centres[1][0] - centres[0][0]
+    along_m = float(step @ along / np.linalg.norm(along))
+    across_m = float(np.linalg.norm(step - along_m * along / np.linalg.norm(along)))
+    assert abs(across_m - 1500.0) < 25.0 and abs(along_m) < 25.0   # measured 1501.5 m and -7.1 m
+    # right of the (descending, south-going) track is west: the right strip's columns see it
+    col, _ = sim["true"]["left"].ground_to_image(centres[1][:1])
+    assert abs(col[0] - (250.0 - 300.0)) < 10.0                # 1.5 km = 300 px west of the centre: measured -51.0
+    assert set(sim["ties"]["scene"]) == {"left", "right"}
+
+
 # --- rendering: one ground texture in every image --------------------------------------------------------
 def _chips(image: Path, col: np.ndarray, row: np.ndarray, half: int = 10) -> np.ndarray:
     """(n, 2 half + 1, 2 half + 1) chips of an image centred on (col, row) (GDAL, pixel centres at +0.5)."""
