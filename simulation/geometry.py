@@ -150,28 +150,59 @@ class SimulatedScenes:
     truth: dict
 
 
-def _line_period(spec: CameraSpec, altitude: float, ground_speed: float) -> float:
-    """Line period (s) giving square pixels on the ground for a camera's view angle."""
-    slant = altitude / math.cos(spec.tilt)
-    return slant * spec.pitch / spec.focal_length / math.cos(spec.tilt) / ground_speed
+@dataclass(frozen=True)
+class Pointing:
+    """How the whole platform points and where its orbit passes.
+
+    pitch, roll (rad): the platform turned from yaw-steered nadir pointing by
+    ``rotation_from_angles(roll, pitch, 0)`` in the body frame (x along track, y right of it, z
+    down): pitch > 0 looks forward (as a camera's tilt), roll > 0 turns the line of sight to the
+    left of the track (a right-hand turn about x). pass_point: (lon, lat) degrees the orbit passes
+    over (descending) at t = 0, the middle of the imaging span; None: the preset's centre. The
+    default is the nadir strip :func:`simulation.simulator.simulate` builds."""
+    pitch: float = 0.0
+    roll: float = 0.0
+    pass_point: tuple[float, float] | None = None
 
 
-def build_scenes(preset: Preset, n_scenes: int, errors: ErrorSettings, rng: np.random.Generator) -> SimulatedScenes:
-    """True and onboard scene models of a strip of ``n_scenes`` scenes of ``preset``."""
-    lon0, lat0 = preset.centre
+def _line_period(spec: CameraSpec, altitude: float, ground_speed: float, pitch: float = 0.0,
+                 roll: float = 0.0) -> float:
+    """Line period (s) giving square pixels on the ground for a camera's view angle (its tilt
+    plus the platform's pitch; the roll lengthens the slant range)."""
+    tilt = spec.tilt + pitch
+    slant = altitude / (math.cos(tilt) * math.cos(roll))
+    return slant * spec.pitch / spec.focal_length / math.cos(tilt) / ground_speed
+
+
+@dataclass
+class _Design:
+    """The nominal acquisition, before anything is drawn: cameras, ephemeris samples (t_eph,
+    pos, vel; s and ECEF m, m/s) and attitude samples (t_att, rot: body -> ECEF (n, 3, 3),
+    without the platform's wobble)."""
+    cams: list
+    t_eph: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    t_att: np.ndarray
+    rot: np.ndarray
+
+
+def _design(preset: Preset, n_scenes: int, pointing: Pointing) -> _Design:
+    """The nominal cameras and trajectory of a strip of ``n_scenes`` scenes of ``preset``."""
+    lon0, lat0 = pointing.pass_point or preset.centre
     # Ground speed at the centre: the sub-satellite point's speed scaled from orbit to ground.
     p, v = circular_orbit(preset.altitude, preset.inclination, lon0, lat0, np.array([0.0]))
     ground_speed = float(np.linalg.norm(v[0]) * (np.linalg.norm(p[0]) - preset.altitude) / np.linalg.norm(p[0]))
     ref = preset.cameras[0]
-    ref_period = _line_period(ref, preset.altitude, ground_speed)
+    ref_period = _line_period(ref, preset.altitude, ground_speed, pointing.pitch, pointing.roll)
     rows = preset.scene_rows * n_scenes
     duration = rows * ref_period
     cams = []
     for spec in preset.cameras:
-        period = _line_period(spec, preset.altitude, ground_speed)
-        # A forward camera sees a ground line before the nadir one: by the time the platform
-        # takes to fly the along-track distance of its view.
-        lead = preset.altitude * math.tan(spec.tilt) / ground_speed
+        period = _line_period(spec, preset.altitude, ground_speed, pointing.pitch, pointing.roll)
+        # A forward camera sees a ground line before the reference one: by the time the platform
+        # takes to fly the along-track distance between their views.
+        lead = preset.altitude * (math.tan(spec.tilt + pointing.pitch) - math.tan(pointing.pitch)) / ground_speed
         cam_rows = int(round(duration / period))
         cams.append(nominal_camera(spec, cam_rows, -0.5 * duration - lead, period))
     t_first = min(c.timing.t0 + min(ch.time_offset for ch in c.chips) for c in cams) - TRAJECTORY_MARGIN
@@ -180,7 +211,64 @@ def build_scenes(preset: Preset, n_scenes: int, errors: ErrorSettings, rng: np.r
     pos, vel = circular_orbit(preset.altitude, preset.inclination, lon0, lat0, t_eph)
     t_att = np.arange(t_first, t_last + ATTITUDE_STEP, ATTITUDE_STEP)
     pa, va = circular_orbit(preset.altitude, preset.inclination, lon0, lat0, t_att)
-    rot_true = nadir_attitude(pa, va) @ rotation_from_angles(*_platform_wobble(t_att, rng).T)
+    rot = nadir_attitude(pa, va)
+    if pointing.pitch or pointing.roll:  # the nadir strip keeps its exact numbers
+        rot = rot @ rotation_from_angles(pointing.roll, pointing.pitch, 0.0)
+    return _Design(cams, t_eph, pos, vel, t_att, rot)
+
+
+def _scene_info(preset: Preset, n_scenes: int) -> dict:
+    ref = preset.cameras[0]
+    return {"sensor": preset.name, "description": preset.description, "simulated": True,
+            "n_scenes": n_scenes, "scene_rows": preset.scene_rows,
+            "gsd_m": ref.pitch / ref.focal_length * preset.altitude,
+            "height_range": [-100.0, preset.relief + 1000.0]}
+
+
+def nominal_scene(preset: Preset, n_scenes: int = 1, pointing: Pointing | None = None,
+                  epoch: str = EPOCH) -> SceneModel:
+    """The nominal scene model of a strip (nothing drawn: no wobble, no errors): where the
+    platform looks, e.g. to aim it (:func:`aim_pass_point`)."""
+    d = _design(preset, n_scenes, pointing or Pointing())
+    platform = Platform(Ephemeris(d.t_eph, d.pos, d.vel), QuaternionSamples(d.t_att, matrix_to_quat(d.rot)))
+    return SceneModel(epoch, platform, d.cams, aberration=True, refraction=True,
+                      info={**_scene_info(preset, n_scenes), "model": "nominal"})
+
+
+def aim_pass_point(preset: Preset, pitch: float, roll: float, target: tuple[float, float, float],
+                   tol_deg: float = 1e-8, max_iter: int = 12) -> tuple[float, float]:
+    """(lon, lat) degrees the orbit must pass over at t = 0 so that the reference camera's image
+    centre, with the platform pitched and rolled (rad, :class:`Pointing`), sees ``target`` (lon,
+    lat degrees, ellipsoidal height m) at t = 0. Fixed-point iteration: the view moves with the
+    pass point almost rigidly, so each step shifts the pass point by the last miss (degrees);
+    converges to ~1e-9 deg in a few steps. InputError when it does not (a view beyond the Earth's
+    limb)."""
+    lon_t, lat_t, h_t = target
+    point = np.array([lon_t, lat_t], dtype=float)
+    miss = np.array([np.inf, np.inf])
+    for _ in range(max_iter):
+        scene = nominal_scene(preset, 1, Pointing(pitch, roll, (float(point[0]), float(point[1]))))
+        cam = scene.cameras[0]
+        hit = scene.image_to_ground(np.array([cam.cols / 2.0]), np.array([cam.rows / 2.0]), h_t, 0)
+        lon, lat, _ = ecef_to_geodetic(hit)
+        miss = np.array([lon_t - lon[0], lat_t - lat[0]])
+        if not np.all(np.isfinite(miss)):
+            break
+        point = point + miss
+        if np.max(np.abs(miss)) < tol_deg:
+            return float(point[0]), float(point[1])
+    raise InputError(f"the view (pitch {math.degrees(pitch):.1f} deg, roll {math.degrees(roll):.1f} deg) of "
+                     f"{preset.name} cannot be aimed at ({lon_t:.4f}, {lat_t:.4f}): last miss {miss} deg")
+
+
+def build_scenes(preset: Preset, n_scenes: int, errors: ErrorSettings, rng: np.random.Generator,
+                 pointing: Pointing | None = None, epoch: str = EPOCH) -> SimulatedScenes:
+    """True and onboard scene models of a strip of ``n_scenes`` scenes of ``preset``, the platform
+    pointed by ``pointing`` (default: nadir over the preset's centre); times in seconds from
+    ``epoch`` (UTC), t = 0 the middle of the imaging span."""
+    d = _design(preset, n_scenes, pointing or Pointing())
+    t_eph, pos, vel, t_att, cams = d.t_eph, d.pos, d.vel, d.t_att, d.cams
+    rot_true = d.rot @ rotation_from_angles(*_platform_wobble(t_att, rng).T)
 
     traj = {name: _draw(rng, getattr(errors, name), 3) for name in
             ("position_bias", "position_drift", "position_quadratic", "attitude_bias", "attitude_drift",
@@ -197,13 +285,10 @@ def build_scenes(preset: Preset, n_scenes: int, errors: ErrorSettings, rng: np.r
         true_cams.append(true_cam)
         interior.append(truth)
 
-    info = {"sensor": preset.name, "description": preset.description, "simulated": True,
-            "n_scenes": n_scenes, "scene_rows": preset.scene_rows,
-            "gsd_m": ref.pitch / ref.focal_length * preset.altitude,
-            "height_range": [-100.0, preset.relief + 1000.0]}
-    true = SceneModel(EPOCH, Platform(Ephemeris(t_eph, pos, vel), QuaternionSamples(t_att, matrix_to_quat(rot_true))),
+    info = _scene_info(preset, n_scenes)
+    true = SceneModel(epoch, Platform(Ephemeris(t_eph, pos, vel), QuaternionSamples(t_att, matrix_to_quat(rot_true))),
                       true_cams, aberration=True, refraction=True, info={**info, "model": "true"})
-    onboard = SceneModel(EPOCH, Platform(Ephemeris(t_eph, pos_on, vel_on),
+    onboard = SceneModel(epoch, Platform(Ephemeris(t_eph, pos_on, vel_on),
                                          QuaternionSamples(t_att, matrix_to_quat(rot_on))),
                          cams, aberration=True, refraction=True, info={**info, "model": "onboard"})
     truth = {"trajectory": {k: v.tolist() for k, v in traj.items()}, "reference_time_s": 0.0,

@@ -145,8 +145,22 @@ def gcp_columns(scene: SceneModel, dem: Dem, settings: GcpSettings, n_scenes: in
                  rng: np.random.Generator) -> dict:
     """The GCP CSV columns: points on the DEM, measured in every camera that sees them."""
     ground, placed_row = place_ground_points(scene, dem, settings.n_gcps, rng)
-    ids = np.char.add("G", np.arange(1, ground.shape[0] + 1).astype(str))
-    data = measure_points(scene, ground, ids, settings, rng)
+    data = measure_points(scene, ground, point_ids("G", ground.shape[0]), settings, rng)
+    idx = add_ground_columns(data, ground, settings, rng)
+    data["scene"] = scene_of_rows(placed_row[idx], scene.cameras[0].rows, n_scenes)
+    return data
+
+
+def point_ids(prefix: str, n: int) -> np.ndarray:
+    """Point ids prefix1 .. prefix<n> (n,)."""
+    return np.char.add(prefix, np.arange(1, n + 1).astype(str))
+
+
+def add_ground_columns(data: dict, ground: np.ndarray, settings: GcpSettings, rng: np.random.Generator) -> np.ndarray:
+    """Complete measured ground points ``data`` (:func:`measure_points` columns, its '_index'
+    popped and returned: each row's index into ``ground`` (n, 3) ECEF) into GCP columns: the ground
+    coordinates with noise (lon, lat degrees, h ellipsoidal m; one draw per ground point, shared by
+    all its rows), the role (check points drawn as whole ground points) and the sigmas."""
     idx = data.pop("_index")
     lon, lat, h = _ground_noise(ground, settings, rng)
     data["lon"], data["lat"], data["h"] = lon[idx], lat[idx], h[idx]
@@ -157,8 +171,7 @@ def gcp_columns(scene: SceneModel, dem: Dem, settings: GcpSettings, n_scenes: in
     data["sigma_px"] = np.full(n, max(settings.image_noise, 1e-3))
     data["sigma_xy"] = np.full(n, max(settings.ground_noise_xy, 1e-3))
     data["sigma_z"] = np.full(n, max(settings.ground_noise_z, 1e-3))
-    data["scene"] = scene_of_rows(placed_row[idx], scene.cameras[0].rows, n_scenes)
-    return data
+    return idx
 
 
 def tie_columns(scene: SceneModel, dem: Dem, settings: GcpSettings, n_scenes: int,
@@ -166,7 +179,7 @@ def tie_columns(scene: SceneModel, dem: Dem, settings: GcpSettings, n_scenes: in
     """The tie-point CSV columns: points on the DEM, measured (no ground coordinates) in every
     camera that sees them, each observation in the scene its camera sees it in."""
     ground, _ = place_ground_points(scene, dem, settings.n_tie_points, rng)
-    tie = measure_points(scene, ground, np.char.add("T", np.arange(1, ground.shape[0] + 1).astype(str)), settings, rng)
+    tie = measure_points(scene, ground, point_ids("T", ground.shape[0]), settings, rng)
     # the scene of each observation: where a tie point's cameras see it in neighbouring
     # scenes, it ties them
     names, camera = np.unique(tie["camera"], return_inverse=True)

@@ -32,6 +32,7 @@ from ..core.files import check_closed, closing_errors
 from ..core.model.sensor import SceneModel
 from ..core.products.mapping import utm_crs
 from ..core.products.ortho import default_grid
+from .radiometry import CHANGED_SEED_OFFSET, disc_weight, patches, radiometric_dn
 from .texture import texture_at
 
 gdal.UseExceptions()
@@ -39,7 +40,6 @@ gdal.UseExceptions()
 REFERENCE_NAME = "reference.tif"
 TILE_ROWS = 512
 NODE_STEP = 32               # px between exactly projected nodes of the reference grid
-CHANGED_SEED_OFFSET = 7919   # texture seed of changed land cover: another ground, same statistics
 
 
 @dataclass(frozen=True)
@@ -64,28 +64,6 @@ class ReferenceSettings:
                 and 0 <= self.changed < 1 and 0 <= self.cloud < 1 and self.margin >= 0
                 and 0 < self.patch_radius[0] <= self.patch_radius[1]):
             raise InputError(f"implausible reference settings: {self}")
-
-
-def _patches(extent: tuple[float, float, float, float], share: float, radius: tuple[float, float],
-             rng: np.random.Generator) -> np.ndarray:
-    """(n, 3) discs (easting, northing, radius; m) covering about ``share`` of the extent."""
-    xmin, ymin, xmax, ymax = extent
-    mean_area = math.pi * (radius[0] ** 2 + radius[0] * radius[1] + radius[1] ** 2) / 3.0
-    n = int(round(share * (xmax - xmin) * (ymax - ymin) / mean_area))
-    return np.stack([rng.uniform(xmin, xmax, n), rng.uniform(ymin, ymax, n),
-                     rng.uniform(radius[0], radius[1], n)], axis=1)
-
-
-def _disc_weight(x: np.ndarray, y: np.ndarray, discs: np.ndarray, soft: bool) -> np.ndarray:
-    """Largest weight of the discs at (x, y): 1 inside a disc (``soft``: a Gaussian-like fade
-    to 0 at its radius, for clouds)."""
-    w = np.zeros(x.shape, np.float32)
-    for cx, cy, r in discs:  # a few hundred discs; each touches a few tiles
-        if cx + r < x[0, 0] or cx - r > x[0, -1] or cy + r < y[-1, 0] or cy - r > y[0, 0]:
-            continue
-        d2 = ((x - cx) ** 2 + (y - cy) ** 2) / (r * r)
-        w = np.maximum(w, np.clip(1.0 - d2, 0.0, 1.0) ** 2 if soft else (d2 <= 1.0))
-    return w
 
 
 def _lonlat(to_lonlat: Transformer, x: np.ndarray, y: np.ndarray, step: int = NODE_STEP):
@@ -122,8 +100,8 @@ def write_reference(scene: SceneModel, dem, frame: dict, path, seed: int,
     cols, rows = int(math.ceil((x1 - x0) / res)), int(math.ceil((y0 - y1) / res))
     rng = np.random.default_rng(seed + 104729)
     extent = (x0, y0 - rows * res, x0 + cols * res, y0)
-    changed = _patches(extent, settings.changed, settings.patch_radius, rng)
-    clouds = _patches(extent, settings.cloud, settings.patch_radius, rng)
+    changed = patches(extent, settings.changed, settings.patch_radius, rng)
+    clouds = patches(extent, settings.cloud, settings.patch_radius, rng)
     to_lonlat = Transformer.from_crs(crs, CRS.from_epsg(4326), always_xy=True)
     gsd_raw, tex_seed = float(frame["gsd_m"]), int(frame["seed"])
     halo = int(math.ceil(4 * settings.blur)) + 1
@@ -135,11 +113,11 @@ def write_reference(scene: SceneModel, dem, frame: dict, path, seed: int,
         x, y = np.meshgrid(x0 + (np.arange(cols) + 0.5) * res, y0 - (np.arange(ra, rb) + 0.5) * res)
         lon, lat = _lonlat(to_lonlat, x, y)
         v = texture_at(lon, lat, centre, gsd_raw, tex_seed).astype(np.float32)
-        inside = _disc_weight(x, y, changed, soft=False) > 0
+        inside = disc_weight(x, y, changed, soft=False) > 0
         v[inside] = texture_at(lon[inside], lat[inside], centre, gsd_raw, tex_seed + CHANGED_SEED_OFFSET)
-        cloud = _disc_weight(x, y, clouds, soft=True)
+        cloud = disc_weight(x, y, clouds, soft=True)
         v = v + cloud * (1.05 - v)
-        dn = settings.offset + settings.gain * (20.0 + 215.0 * np.clip(v, 0.0, 1.0) ** settings.gamma)
+        dn = radiometric_dn(v, settings.gain, settings.offset, settings.gamma)
         if settings.blur > 0:
             dn = gaussian_filter(dn, settings.blur, mode="nearest")
         dn = dn[r0 - ra:r0 - ra + min(TILE_ROWS, rows - r0)]

@@ -25,6 +25,7 @@ from ..core.errors import Cancelled, InputError
 from ..core.files import check_closed, closing_errors
 from ..core.geodesy import ecef_to_geodetic
 from ..core.model.sensor import SceneModel
+from .radiometry import Radiometry
 from .roads import painter_for
 from .texture import texture, texture_plane, to_digital_numbers
 
@@ -89,12 +90,13 @@ class _ChipGrid:
 
 def render_image(scene: SceneModel, camera: int, dem, path, frame: dict,
                  progress: Callable[[float], None] | None = None,
-                 is_cancelled: Callable[[], bool] | None = None) -> float:
+                 is_cancelled: Callable[[], bool] | None = None, radiometry: Radiometry | None = None) -> float:
     """Render camera ``camera`` of ``scene`` over ``dem`` into an 8-bit GeoTIFF at ``path``
     (no georeferencing: raw image geometry), with the texture of ``frame`` (see
     :func:`simulation.texture.texture_frame`) and its roads (``frame['roads']``, :mod:`simulation.roads`). Returns the
     largest interpolation error of the ground position measured on sample pixels, in pixels
-    (ground metres / GSD).
+    (ground metres / GSD). radiometry: the acquisition's gain, gamma, noise and changed land
+    cover (:class:`simulation.radiometry.Radiometry`); None: DN = 20 + 215 v, noise-free.
     """
     cam = scene.cameras[camera]
     centre, gsd, seed = tuple(frame["centre"]), float(frame["gsd_m"]), int(frame["seed"])
@@ -112,11 +114,16 @@ def render_image(scene: SceneModel, camera: int, dem, path, frame: dict,
             raise Cancelled("rendering cancelled by the user")
         rows = np.arange(r0, min(r0 + TILE_ROWS, cam.rows)) + 0.5
         out = np.empty((rows.size, cam.cols), np.uint8)
-        for g in grids:
+        for k, g in enumerate(grids):
             x, y = g.plane(rows)
             c0 = int(g.cols[0])
             value = texture(x, y, gsd, seed)
-            out[:, c0:c0 + g.cols.size] = to_digital_numbers(value if roads is None else roads.paint(x, y, value))
+            if radiometry is not None:
+                value = radiometry.change(x, y, value, gsd, seed)
+            if roads is not None:
+                value = roads.paint(x, y, value)
+            out[:, c0:c0 + g.cols.size] = (to_digital_numbers(value) if radiometry is None
+                                           else radiometry.digital_numbers(value, (r0, k)))
         return out
 
     try:

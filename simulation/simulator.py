@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -55,7 +54,7 @@ from .presets import PRESETS, ErrorSettings, Preset, resolve_errors
 from .reference import REFERENCE_NAME, write_reference
 from .render import render_image
 from .roads import LINES_FILE, POINTS_FILE, RoadSettings, simulate_roads
-from .terrain import write_dem
+from .terrain import set_height_range, write_dem
 from .texture import texture_frame
 
 log = logging.getLogger(__name__)
@@ -111,14 +110,14 @@ def simulate(preset: "str | Preset", folder, seed: int = 0, n_scenes: int = 1, n
     roads.validate()
     folder = Path(folder)
     check_folder(folder, output_names(spec, settings, render) + ([LINES_FILE, POINTS_FILE] if roads.n_lines else []))
-    with _new_folder(folder):
+    with new_folder(folder):
         return _simulate(spec, folder, seed, int(n_scenes), render, errors, settings, report, cancelled, roads)
 
 
 @contextmanager
-def _new_folder(folder: Path):
-    """Create ``folder`` (and missing parents) for the block; remove the ones it created, if still
-    empty, when the block raises."""
+def new_folder(folder: Path):
+    """Create ``folder`` (and missing parents) for the ``with`` block; remove the ones it created,
+    if still empty, when the block raises."""
     created = [p for p in (folder, *folder.parents) if not p.exists()]
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -155,9 +154,7 @@ def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool
         bounds = scene_bounds(geo.true, tuple(geo.true.height_range))
         write_dem(dem_tmp, bounds, spec.centre, spec.relief, seed)
         dem = Dem(dem_tmp, datum="geoid")
-        lo, hi = dem.height_range
-        for scene in (geo.true, geo.onboard):
-            scene.info["height_range"] = [math.floor(lo - 50.0), math.ceil(hi + 50.0)]
+        set_height_range((geo.true, geo.onboard), dem)
         step(0.3, f"measuring {settings.n_gcps} ground control points")
         gcp_data = gcp_columns(geo.true, dem, settings, int(n_scenes), rng)
         gcp_tmp = files.path(folder / "gcps.csv")
@@ -219,17 +216,20 @@ def output_names(spec: Preset, settings: GcpSettings, render: bool) -> list[str]
     return names + ([f"image_{cam.name}.tif" for cam in spec.cameras] + ["reference.tif"] if render else [])
 
 
-def check_folder(folder, names) -> None:
-    """OutputError unless ``folder`` (existing or not) can take the files ``names``: each one it
-    already holds must be a file an earlier simulation wrote there (listed in its
-    simulation.json) and not modified since; anything else is a user's file, never replaced."""
+def check_folder(folder, names, manifest: str = MANIFEST,
+                 listed: Callable[[Path], set[str]] | None = None) -> None:
+    """OutputError unless ``folder`` (existing or not) can take the files ``names`` (paths
+    relative to it): each one it already holds must be a file an earlier simulation wrote there
+    (listed in its manifest, ``manifest``: simulation.json, read by ``listed(folder)``, default
+    :func:`simulate`'s reader) and not modified since; anything else is a user's file, never
+    replaced."""
     folder = Path(folder)
     check_folder_destination(folder)
     present = [n for n in names if (folder / n).exists() or (folder / n).is_symlink()]
     if not present:
         return
-    ours = _simulated_files(folder)
-    manifest_time = (folder / MANIFEST).stat().st_mtime_ns if ours else 0
+    ours = (listed or _simulated_files)(folder)
+    manifest_time = (folder / manifest).stat().st_mtime_ns if ours else 0
     foreign = [n for n in present if n not in ours or not (folder / n).is_file()
                or (folder / n).stat().st_mtime_ns > manifest_time]
     if foreign:

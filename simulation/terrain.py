@@ -57,3 +57,11 @@ def write_dem(path: Path, bounds: tuple[float, float, float, float], centre, rel
     with closing_errors() as closing:
         band = ds = None  # closes the file
     check_closed(path, closing)
+
+
+def set_height_range(scenes, dem, margin: float = 50.0) -> None:
+    """Set each scene model's ``info['height_range']`` to the DEM's (ellipsoidal m) widened by
+    ``margin`` m and rounded outward to whole metres: the heights its products and RPCs span."""
+    lo, hi = dem.height_range
+    for scene in scenes:
+        scene.info["height_range"] = [math.floor(lo - margin), math.ceil(hi + margin)]
