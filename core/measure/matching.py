@@ -319,6 +319,9 @@ def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, 
     src, nodata = open_checked(scene, camera, image_path)
     report(0.01, "reading the images")
     raw = RawImage(image_path, src, MEMORY_BUDGET)
+    # Closed at once: a dataset that an error's traceback keeps alive is destroyed after GDAL at
+    # the interpreter's exit, which crashes it (a refused block ended Python with SIGSEGV).
+    src = None
     start = time.perf_counter()
     report(0.02, "coarse pass: looking for the onboard model's offset")
     coarse = coarse_offsets(scene, camera, dem, ref, raw, gsd, settings)

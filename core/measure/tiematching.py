@@ -84,7 +84,31 @@ def match_block_tiepoints(views: list[View], dem, settings: MatchSettings = Matc
         raise InputError("tie points between scenes need images of at least two scenes", parameter="scenes")
     if not 0 <= base < len(views):
         raise InputError(f"the base image {base} is not one of the {len(views)} given", parameter="base")
+    apart = [v.label for k, v in enumerate(views) if k != base and not overlapping(views[base], v, dem)]
+    if apart:
+        raise InputError(f"{', '.join(apart)} do{'es' * (len(apart) == 1)} not overlap {views[base].label}: no "
+                         f"point of its image, on the DEM through its onboard model, falls in "
+                         f"{'theirs' if len(apart) > 1 else 'its image'}; leave out scenes of other ground",
+                         parameter="scenes")
     return match_views(views, dem, settings, base, progress, is_cancelled)
+
+
+OVERLAP_GRID = 7  # points per side of the base image tried for an overlap
+
+
+def overlapping(base: View, other: View, dem) -> bool:
+    """Whether a point of an OVERLAP_GRID x OVERLAP_GRID grid over ``base``'s image, on ``dem``
+    through its model, falls in ``other``'s image through its model (the onboard models' errors,
+    tens of metres, do not decide an overlap of kilometres)."""
+    cam = base.scene.cameras[base.camera]
+    col, row = (v.ravel() for v in np.meshgrid(np.linspace(0.5, cam.cols - 0.5, OVERLAP_GRID),
+                                               np.linspace(0.5, cam.rows - 0.5, OVERLAP_GRID)))
+    ground = base.scene.image_to_ground_dem(col, row, dem, base.camera)
+    ground = ground[np.isfinite(ground).all(axis=1)]
+    if not ground.size:
+        return False
+    c, r = other.scene.ground_to_image(ground, other.camera)
+    return bool(np.any(other.scene.cameras[other.camera].in_image(c, r)))
 
 
 def match_views(views: list[View], dem, settings: MatchSettings, base: int,
