@@ -18,13 +18,15 @@ from .algorithms.matchtiepoints import MatchTiePointsAlgorithm
 from .algorithms.orthorectify import OrthorectifyAlgorithm
 from .algorithms.preparedigitising import PrepareDigitisingAlgorithm
 from .algorithms.sensorcorrect import SensorCorrectAlgorithm
+from .algorithms.simulateblock import SimulateBlockAlgorithm
 from .algorithms.simulatescene import SimulateSceneAlgorithm
 from .algorithms.snaplines import SnapLinesAlgorithm
 from .parameters import tr
 
 log = logging.getLogger(__name__)
 MODELS = RESOURCES / "models"  # graphical models (.model3) shipped with the plugin, in the toolbox too
-ALGORITHMS = (SimulateSceneAlgorithm, ImportGcpsAlgorithm, ImportTiePointsAlgorithm, ImportLinesAlgorithm,
+ALGORITHMS = (SimulateSceneAlgorithm, SimulateBlockAlgorithm, ImportGcpsAlgorithm, ImportTiePointsAlgorithm,
+              ImportLinesAlgorithm,
               MatchGcpsAlgorithm, MatchTiePointsAlgorithm,
               BundleAdjustAlgorithm, GroundToImageAlgorithm, ImageToGroundAlgorithm, FootprintAlgorithm,
               OrthorectifyAlgorithm, ExportRpcAlgorithm, SensorCorrectAlgorithm, PrepareDigitisingAlgorithm,

@@ -78,7 +78,7 @@ def vocabulary_problems(algorithms) -> list[str]:
 
 def test_the_provider_speaks_one_vocabulary(provider):
     algorithms = provider.algorithms()
-    assert len(algorithms) == 19  # 15 algorithms and the four shipped models
+    assert len(algorithms) == 20  # 16 algorithms and the four shipped models
     assert vocabulary_problems(algorithms) == []
 
 
@@ -89,12 +89,13 @@ def test_shared_concepts_are_shared(provider):
         for definition in alg.parameterDefinitions():
             counts[definition.name()] = counts.get(definition.name(), 0) + 1
     assert counts["DEM_DATUM"] == 10 and counts["HEIGHT"] == 10 and counts["SCENE"] == 14
-    assert counts["Z_DATUM"] == 3 and counts["CAMERA"] == 8 and counts["CHECK_FRACTION"] == 3
+    assert counts["Z_DATUM"] == 3 and counts["CAMERA"] == 8 and counts["CHECK_FRACTION"] == 4
     assert counts["RESAMPLING"] == 2 and counts["OUTPUT_SCENE"] == 2
     assert counts["COL_FIELD"] == 3 and counts["ROW_FIELD"] == 3
     assert counts["ID_FIELD"] == 2 and counts["CAMERA_FIELD"] == 2 and counts["SIGMA_PX"] == 2
     assert counts["SIGMA_PX_FIELD"] == 2 and counts["IMAGE_LINES"] == 3  # importlines, snaplines, the model with lines
     assert counts["INPUTS"] == 2 and counts["SEARCH_RANGE"] == 2 and counts["WINDOW"] == 2
+    assert counts["RENDER"] == counts["IMAGE_SIZE"] == counts["N_TIE_POINTS"] == 2  # the two simulators
 
 
 def _copy_of_groundtoimage(plugin, change):
@@ -216,7 +217,7 @@ def test_qgis_process_help_lists_the_value_names(provider, qgis_process):
             for k, value in enumerate(d.options()):
                 assert f"- {k}: {value}\n" in section and f"<b>{value}</b>: " in section, (alg.id(), value)
             checked += 1
-    assert checked == 28  # every enumeration of every algorithm (DEM_DATUM in ten of them)
+    assert checked == 30  # every enumeration of every algorithm (DEM_DATUM in ten of them)
 
 
 def test_the_readme_demo_and_models_use_value_names():

@@ -1,6 +1,6 @@
 """What the plugin's Processing provider ('pushbroom') is expected to list."""
 
-ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:importgcps", "pushbroom:importtiepoints", "pushbroom:importlines",
+ALGORITHMS = ["pushbroom:simulatescene", "pushbroom:simulateblock", "pushbroom:importgcps", "pushbroom:importtiepoints", "pushbroom:importlines",
               "pushbroom:matchgcps", "pushbroom:matchtiepoints",
               "pushbroom:bundleadjust", "pushbroom:groundtoimage",
               "pushbroom:imagetoground", "pushbroom:footprint", "pushbroom:orthorectify",

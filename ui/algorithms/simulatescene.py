@@ -2,15 +2,16 @@
 GCPs, tie points, a DEM and optionally rendered raw images, from a preset sensor."""
 from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputMultipleLayers,
                        QgsProcessingOutputRasterLayer,
-                       QgsProcessingParameterBoolean,
-                       QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber)
+                       QgsProcessingParameterNumber)
 
 from ...simulation.roads import LINES_FILE, POINTS_FILE, RoadSettings
-from ...simulation.presets import MIN_CUT, PRESETS, cut_preset
+from ...simulation.presets import PRESETS, cut_preset
 from ...simulation.measurements import GcpSettings
 from ...simulation.simulator import check_folder, output_names, simulate
 from ..feedback import core_call, feedback_callbacks, processing_errors
 from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_value, preset, tr
+from ..simparameters import (IMAGE_NOISE, IMAGE_SIZE, N_GCPS, N_TIE_POINTS, RENDER, SEED, image_noise, image_size,
+                             n_gcps, n_tie_points, output_folder, render, seed)
 from .base import PushbroomAlgorithm
 
 MICRO = 1e-6
@@ -81,9 +82,6 @@ MEASUREMENT_PARAMETERS = (
      "CSV)."),
     ("GROSS_MIN", "gross_min", "Smallest gross error (px)", "d", 5.0, 0.0, 1e5, "Lower bound of the gross errors."),
     ("GROSS_MAX", "gross_max", "Largest gross error (px)", "d", 100.0, 0.0, 1e5, "Upper bound of the gross errors."),
-    ("N_TIE_POINTS", "n_tie_points", "Number of tie points", "i", 0, 0, 1_000_000,
-     "Ground points measured in every camera that sees them, without ground coordinates (presets with several "
-     "cameras); written to tie_points.csv."),
 )
 
 
@@ -105,50 +103,26 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
             "WRONG_LINE_FRACTION of them shifted or turned 20-200 m off as a real map's can be), the measured "
             "image lines (image_lines) and a user's clicks with 2 px error (image_clicks); line_points.csv the "
             "truth; with RENDER the roads are drawn into the raw images.")
-    PRESET, SEED, N_SCENES, N_GCPS, IMAGE_NOISE, RENDER = PRESET, "SEED", "N_SCENES", "N_GCPS", "IMAGE_NOISE", \
-        "RENDER"
+    PRESET, SEED, N_SCENES, N_GCPS, IMAGE_NOISE, RENDER = PRESET, SEED, "N_SCENES", N_GCPS, IMAGE_NOISE, RENDER
     N_LINES, WRONG_LINE_FRACTION, LINES = "N_LINES", "WRONG_LINE_FRACTION", "LINES"
-    IMAGE_SIZE, IMAGES = "IMAGE_SIZE", "IMAGES"
+    IMAGE_SIZE, IMAGES = IMAGE_SIZE, "IMAGES"
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
     ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM = "ONBOARD_SCENE", "TRUE_SCENE", "GCPS", "DEM"
     TIE_POINTS, MANIFEST, IMAGE, REFERENCE = "TIE_POINTS", "MANIFEST", "IMAGE", "REFERENCE"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        seed = QgsProcessingParameterNumber(self.SEED, tr("Random seed"), QgsProcessingParameterNumber.Integer, 0,
-                                            minValue=0)
-        seed.setHelp(tr("Seed of the random errors, terrain, texture and point positions: the same seed gives the "
-                        "same simulation."))
         n_scenes = QgsProcessingParameterNumber(self.N_SCENES, tr("Number of scenes along the strip"),
                                                 QgsProcessingParameterNumber.Integer, 1, minValue=1, maxValue=200)
         n_scenes.setHelp(tr("How many consecutive scenes of one orbit strip to simulate. The strip is one image per "
                             "camera (scenes × rows per scene) sharing one trajectory and its errors, as the scenes "
                             "of one pass do."))
-        n_gcps = QgsProcessingParameterNumber(self.N_GCPS, tr("Number of ground control points"),
-                                              QgsProcessingParameterNumber.Integer, 200, minValue=0,
-                                              maxValue=2_000_000)
-        n_gcps.setHelp(tr("How many ground points (uniform over the reference camera's image, on the terrain) to "
-                          "measure; each is measured in every camera that sees it. Written to gcps.csv."))
-        noise = QgsProcessingParameterNumber(self.IMAGE_NOISE, tr("Image measurement noise (px)"),
-                                             QgsProcessingParameterNumber.Double, 0.3, minValue=0.0, maxValue=100.0)
-        noise.setHelp(tr("Standard deviation in pixels of the random error added to the measured image "
-                         "coordinates (0: perfect measurements)."))
-        render = QgsProcessingParameterBoolean(self.RENDER, tr("Render the images"), defaultValue=False)
-        render.setHelp(tr("Also write each camera's raw image (8-bit GeoTIFF without georeferencing, "
-                          "image_<CAMERA>.tif) rendered from a known texture over the DEM, for orthorectification. "
-                          "A 12246 × 12246 CBERS-02B scene takes about 20 s and 80 MB. With the images comes "
-                          "reference.tif, a reference orthoimage of the same ground (UTM, 5 m or twice the GSD, "
-                          "blurred, another radiometry, noise, patches of changed land cover and cloud) for "
-                          "pushbroom:matchgcps."))
         n_lines = QgsProcessingParameterNumber(self.N_LINES, tr("Number of roads (control lines)"),
                                                QgsProcessingParameterNumber.Integer, 0, minValue=0, maxValue=10000)
         n_lines.setHelp(tr("How many roads (straight and curved, 2-6 km, on the terrain) to simulate as control "
                            "lines: written to lines.gpkg (layers ground_lines, image_lines, image_clicks) and "
                            "line_points.csv; drawn into the raw images with RENDER. 0: none."))
-        folder = QgsProcessingParameterFolderDestination(self.OUTPUT_FOLDER, tr("Output folder"))
-        folder.setHelp(tr("Folder the simulated files are written to (created if missing). Files there of the "
-                          "names the simulation writes are replaced only when an earlier simulation wrote them "
-                          "and they were not changed since; a user's files are never replaced (the run stops)."))
-        for p in (preset(), seed, n_scenes, n_gcps, noise, render, n_lines):
+        folder = output_folder()
+        for p in (preset(), seed(), n_scenes, n_gcps(), image_noise(), render(), n_lines):
             self.addParameter(p)
         self.add_parameter(check_fraction(), advanced=True)
         self.add_parameter(QgsProcessingParameterNumber(self.WRONG_LINE_FRACTION, tr("Share of wrong map lines"),
@@ -157,15 +131,8 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                            tr("0 to 1: this share of the simulated road map is wrong, shifted as a whole or turned "
                               "about one of its points so that it ends 20-200 m off (fields kind and shift_m of "
                               "ground_lines; truth, not read by the adjustment)."), advanced=True)
-        self.add_parameter(QgsProcessingParameterNumber(self.IMAGE_SIZE, tr("Cut the cameras to (px)"),
-                                                        QgsProcessingParameterNumber.Integer, 0, optional=True,
-                                                        minValue=0),
-                           tr(f"0: the preset's full cameras. Otherwise each camera is cut to this many detectors and "
-                              f"each scene to this many lines ({MIN_CUT} or more; presets whose cameras are one "
-                              "detector line, e.g. th1_tlc and zy3_tlc), so a three-line block renders in seconds; "
-                              "the preset's lens and CCD errors (px at the array end) are scaled by the cut's share "
-                              "of the full array, so the distortion bends the images as in the full camera."),
-                           advanced=True)
+        self.addParameter(image_size())
+        self.add_parameter(n_tie_points(), advanced=True)
         for name, _, label, kind, default, lo, hi, help_text in MEASUREMENT_PARAMETERS:
             kind = QgsProcessingParameterNumber.Integer if kind == "i" else QgsProcessingParameterNumber.Double
             self.add_parameter(QgsProcessingParameterNumber(name, tr(label), kind, default, minValue=lo, maxValue=hi),
@@ -201,6 +168,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         measurements = {field: (self.parameterAsInt if kind == "i" else self.parameterAsDouble)(parameters, name,
                                                                                               context)
                         for name, field, _, kind, *_ in MEASUREMENT_PARAMETERS}
+        measurements["n_tie_points"] = self.parameterAsInt(parameters, N_TIE_POINTS, context)
         measurements["check_fraction"] = self.parameterAsDouble(parameters, CHECK_FRACTION, context)
         settings = GcpSettings(n_gcps=self.parameterAsInt(parameters, self.N_GCPS, context),
                                image_noise=self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
