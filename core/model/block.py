@@ -2,12 +2,13 @@
 composite :class:`SceneModel`, and back.
 
 The composite's cameras are every scene's cameras, renamed ``<scene>/<camera>`` (their named
-chips likewise), in the order of the scenes. Each camera looks through its own scene's platform (ephemeris, attitude and any
-corrections, :attr:`core.model.trajectory.Platform.camera_platforms`), with its times counted from
-its own scene's epoch: the composite has no common time axis, and :meth:`SceneModel.time_span`
-of it is meaningful only for the cameras of one scene. The composite's own ``platform`` (the
-first scene's ephemeris and attitude, no correction) is a placeholder no camera sees; the
-composite is never written (:func:`split_block` gives the scenes to write).
+chips likewise), in the order of the scenes. Each camera looks through its own scene's platform
+(ephemeris, attitude and any corrections, :attr:`core.model.trajectory.Platform.camera_platforms`),
+with its times counted from its own scene's epoch: the composite has no common time axis, and
+:meth:`SceneModel.time_span` of it is meaningful only for the cameras of one scene. The
+composite's own ``platform`` (the first scene's ephemeris and attitude, no correction) is a
+placeholder no camera sees; the composite is never written (:func:`split_block` gives the
+scenes to write).
 
 Ground <-> image, tie-point intersection and the whole bundle adjustment work on the composite as
 on any scene (:mod:`core.adjust.block`); the adjustment gives each scene's cameras one trajectory
