@@ -48,6 +48,9 @@ from .settings import AdjustmentSettings
 log = logging.getLogger(__name__)
 
 GRID = 3  # image points per axis at which each camera's move from its onboard geolocation is measured
+# deg: tie points whose onboard rays are all closer than this meet at a weakly determined height
+# (seen from one direction only, e.g. by the nadir cameras of scenes from one orbit)
+MIN_CONVERGENCE_DEG = 1.0
 
 
 @dataclass
@@ -55,7 +58,8 @@ class BlockResult:
     """scenes: the adjusted scenes (name -> SceneModel, the block's order), each writable with
     :func:`core.formats.scene_json.save_scene`; report: JSON-ready figures (see :func:`block_report`);
     tie_points: per tie point (m,) arrays id, lon, lat (deg), h (ellipsoidal m) of its adjusted
-    ground (NaN for points left out), rays (observations used), scenes (scenes it was seen in);
+    ground (NaN for points left out), rays (observations used), scenes (scenes it was seen in),
+    convergence_deg (the largest angle between its onboard rays, :func:`ray_convergence`);
     adjustment: the composite's :class:`AdjustmentResult` (per-observation arrays, camera names
     ``<scene>/<camera>``, the full engine report)."""
     scenes: dict[str, SceneModel]
@@ -142,19 +146,48 @@ def adjust_block(scenes: dict[str, SceneModel], gcps: GcpTable | None, ties: Tie
     composite, gcps, ties = block_inputs(scenes, gcps, ties)
     log.info("adjusting a block of %d scenes (%s): %d GCP and %d tie observations", len(scenes),
              ", ".join(scenes), len(gcps), 0 if ties is None else len(ties))
+    convergence = None
+    if ties is not None and len(ties):
+        convergence = ray_convergence(composite, ties)
+        weak = convergence[1] < MIN_CONVERGENCE_DEG
+        if weak.any():
+            log.warning("%d tie point(s) are seen from one direction only (their rays less than %g degree apart): "
+                        "their heights are weakly determined: %s", int(weak.sum()), MIN_CONVERGENCE_DEG,
+                        listed(convergence[0][weak]))
     out = adjust(composite, gcps, settings, progress, is_cancelled, ties=ties)
     adjusted = split_block(out.scene)
     for name, scene in adjusted.items():
         if "adjustment" in scene.info:
             scene.info["adjustment"] = {**scene.info["adjustment"], "block": {"scene": name, "scenes": list(scenes)}}
     report = block_report(scenes, composite, out, gcps, ties, settings)
-    return BlockResult(adjusted, report, tie_point_ground(out, ties), out)
+    tie_points = tie_point_ground(out, ties)
+    if convergence is not None:
+        tie_points["convergence_deg"] = convergence[1]
+    return BlockResult(adjusted, report, tie_points, out)
+
+
+def ray_convergence(scene: SceneModel, ties: TieTable) -> tuple[np.ndarray, np.ndarray]:
+    """(ids (m,), angle (m,) deg): per tie point the largest angle between one of its onboard lines
+    of sight in ``scene`` (camera names of the scene) and its first one; near 0 when all rays are
+    parallel and the point's height is undetermined."""
+    names = [c.name for c in scene.cameras]
+    camera = np.array([names.index(c) for c in ties.camera.tolist()], dtype=np.int64)
+    ids, point = np.unique(ties.id, return_inverse=True)
+    u = np.empty((len(ties), 3))
+    for c in np.unique(camera):
+        m = camera == c
+        u[m] = scene.line_of_sight(ties.col[m], ties.row[m], int(c))[3]
+    first = np.unique(point, return_index=True)[1]
+    angle = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", u, u[first][point]), -1.0, 1.0)))
+    out = np.zeros(ids.size)
+    np.maximum.at(out, point, angle)
+    return ids, out
 
 
 def tie_point_ground(out: AdjustmentResult, ties: TieTable | None) -> dict:
     """Per tie point: id, adjusted lon, lat, h, rays (observations used) and scenes (seen in)."""
     if ties is None or not len(ties):
-        return {k: np.zeros(0) for k in ("id", "lon", "lat", "h", "rays", "scenes")}
+        return {k: np.zeros(0) for k in ("id", "lon", "lat", "h", "rays", "scenes", "convergence_deg")}
     ids, point = np.unique(ties.id, return_inverse=True)
     first = np.unique(point, return_index=True)[1]
     used = np.isfinite(out.tie_points["res_col"])

@@ -15,11 +15,12 @@ import numpy as np
 import pytest
 
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
-from pushbroom_adjust.core.adjust.block import adjust_block
+from pushbroom_adjust.core.adjust.block import adjust_block, ray_convergence
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.formats.scene_json import save_scene
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
+from pushbroom_adjust.core.model.block import compose_block
 from pushbroom_adjust.core.model.rpcscene import RpcCamera, RpcScene
 from pushbroom_adjust.core.observations.gcps import GcpTable
 from pushbroom_adjust.core.observations.tiepoints import TieTable
@@ -125,6 +126,7 @@ def test_ties_only_block(block, ties_only):
     assert 0.7 < rep["block"]["sigma0"] < 1.3
     tp = ties_only.tie_points
     assert tp["id"].size == 32 and np.all(tp["scenes"] == 3) and np.all(tp["rays"] == 6)
+    assert tp["convergence_deg"].min() > 20.0  # nadir to forward or backward: 25 degrees
     assert np.all(tp["rays"] == np.bincount(np.unique(block.ties.id, return_inverse=True)[1]))
     # one adjusted scene per input, under its own name, epoch and camera names
     for name, scene in ties_only.scenes.items():
@@ -211,6 +213,9 @@ def test_bad_block_input_is_named(block, shared_data):
     with pytest.raises(InputError, match="no scene"):
         adjust_block(block.onboard, None, replace(ties, scene=np.where(ties.scene == "S2", "", ties.scene)),
                      SETTINGS)
+    nadir = ties.select(np.char.endswith(ties.camera, "NAD"))  # one direction, one orbit: parallel rays
+    assert ray_convergence(compose_block(block.onboard), replace(nadir, camera=np.char.add(
+        np.char.add(nadir.scene, "/"), nadir.camera)))[1].max() < 0.1  # measured 0.027 (the scenes' attitude errors)
     rpc = RpcScene(pleiades_rpc(shared_data), RpcCamera("PAN", 1000, 1000))
     with pytest.raises(InputError, match="'P'.*RPC"):
         adjust_block({**block.onboard, "P": rpc}, None, ties, SETTINGS)
