@@ -6,8 +6,9 @@ model (:class:`core.model.sensor.SceneModel`, baked into its trajectory, cameras
 RPC and its correction. Any difference between the two (a term the writer drops, a convention the
 model and the sensor disagree on, a velocity or a time left uncorrected) would make every product
 of the written scene miss what the adjustment reports, silently. So the written scene, after a
-round trip through the scene JSON, images every fitted observation's ground point (control, tie and
-line points at their adjusted positions) on the observation's own chip, and the run fails with a
+round trip through the scene JSON (a block's: each of its scenes'), images every fitted
+observation's ground point (control, tie and line points at their adjusted positions) on the
+observation's own chip, and the run fails with a
 :class:`core.errors.ConsistencyError` naming the largest difference when one exceeds
 FITTED_TOLERANCE.
 """
@@ -17,6 +18,7 @@ import numpy as np
 
 from ..errors import ConsistencyError
 from ..formats.scene_json import rpc_scene_from_dict, rpc_scene_to_dict, scene_from_dict, scene_to_dict
+from ..model.block import compose_block, is_block, split_block
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from .problem import Problem
@@ -25,7 +27,10 @@ FITTED_TOLERANCE = 0.01  # px: the written scene against the fitted image positi
 
 
 def written(scene: SceneModel | RpcScene) -> SceneModel | RpcScene:
-    """``scene`` as it reads back from its scene JSON."""
+    """``scene`` as it reads back from its scene JSON; a block's composite as its scenes read
+    back (:func:`core.model.block.split_block`), composed again."""
+    if is_block(scene):
+        return compose_block({name: written(s) for name, s in split_block(scene).items()})
     if isinstance(scene, RpcScene):
         return rpc_scene_from_dict(rpc_scene_to_dict(scene), "the adjusted scene")
     return scene_from_dict(scene_to_dict(scene), "the adjusted scene")

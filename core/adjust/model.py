@@ -34,7 +34,7 @@ from ..model.camera import CAMERA_TERMS, corrected_image_plane
 from ..model.sensor import SceneModel
 from ..model.trajectory import Platform
 from ..rotations import rotation_and_derivatives
-from .parameters import ANGLES, ParameterSet
+from .parameters import ANGLES, ParameterSet, trajectory_groups
 
 PROJECTION_TOLERANCE = 1e-8  # px: the last Newton step of an exact projection (rounding: ~5e-10 px)
 PROJECTION_ITERATIONS = 40
@@ -75,14 +75,22 @@ class ImageObservations:
 
 class Imaging:
     """Moves observations along their detector line and in time: the measured trajectory of a
-    scene (tabulated once over its time span) and the trajectory bases of a parameter set."""
+    scene (tabulated once over its time span; in a block's composite each scene's over its own)
+    and the trajectory bases of a parameter set."""
 
     def __init__(self, scene: SceneModel, params: ParameterSet):
         self.scene, self.params = scene, params
-        # The measured trajectory alone, tabulated (1 ms steps) rather than Lagrange per point.
-        self.platform = Platform(scene.platform.ephemeris, scene.platform.attitude,
-                                 cache_step=scene.platform.cache_step)
-        self.platform.prepare(*scene.time_span())
+        # The measured trajectories alone, tabulated (1 ms steps) rather than Lagrange per point.
+        self.groups = [np.array(cams, dtype=np.int64) for cams in trajectory_groups(scene)]
+        self.platforms = []
+        for cams in self.groups:
+            measured = scene.platform.trajectory_of(scene.cameras[cams[0]].name)
+            platform = Platform(measured.ephemeris, measured.attitude, cache_step=scene.platform.cache_step)
+            platform.prepare(*scene.time_span(cams))
+            self.platforms.append(platform)
+        self.group_of = np.empty(len(scene.cameras), dtype=np.int64)
+        for g, cams in enumerate(self.groups):
+            self.group_of[cams] = g
         self.offsets = [np.array([ch.col_offset for ch in cam.chips], dtype=float) for cam in scene.cameras]
 
     def at(self, obs: ImageObservations, col: np.ndarray, row: np.ndarray) -> ImageObservations:
@@ -93,7 +101,14 @@ class Imaging:
             m = obs.camera == c
             d[m] = col[m] - self.offsets[c][obs.chip[m]] - 0.5
             t[m] = cam.timing.time(row[m]) + cam.time_offset(obs.chip[m])
-        pos, vel, rot = self.platform.state(t)
+        if len(self.platforms) == 1:
+            pos, vel, rot = self.platforms[0].state(t)
+        else:
+            pos, vel, rot = np.empty((t.size, 3)), np.empty((t.size, 3)), np.empty((t.size, 3, 3))
+            group = self.group_of[obs.camera]
+            for g, platform in enumerate(self.platforms):
+                m = group == g
+                pos[m], vel[m], rot[m] = platform.state(t[m])
         pos_first, pos_weights = self.params.window("position", t, obs.camera)
         att_first, att_weights = self.params.window("attitude", t, obs.camera)
         pos_rates = self.params.window_weights("position", t, pos_first, rates=True)

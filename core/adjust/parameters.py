@@ -11,9 +11,12 @@ Blocks (values are corrections to the input scene, SI units):
 - ``camera``: per focal-plane camera the 10 terms of seed 001 eq. 7: ``f`` (its df, m),
   ``dxp, dyp`` (m), ``k1`` (1/m^2), ``k2`` (1/m^4), ``p1, p2`` (1/m), ``b1, b2, b3``.
 
-With one trajectory correction per camera (seed 003 Plan A) the position and attitude blocks
-hold one (m, 3) set per camera, camera after camera ((n_cam * m, 3) in all), named
-``<camera>.position.X.bias``; an observation's basis window then starts at ``camera * m``.
+Trajectory corrections: one per measured trajectory the cameras see (one for a scene; one per
+scene of a block's composite, :mod:`core.model.block`, each on a basis over its own scene's time
+span), or with one per camera (seed 003 Plan A) one per camera on its trajectory's basis. The
+position and attitude blocks hold their (m_o, 3) sets one after the other, named
+``<camera>.position.X.bias`` (per camera) or ``<scene>.position.X.bias`` (per block scene); an
+observation's basis window starts at its correction's offset (:attr:`ParameterSet.offsets`).
 
 Names: ``position.X.bias``, ``attitude.pitch.OI3 t=12.0s``, ``<camera>.roll``,
 ``<chip>.dx``, ``<camera>.k1``. Trajectory coefficients are always free (onboard GPS and
@@ -246,25 +249,48 @@ def sigma_in_si(scene: SceneModel, p: Parameter, value: float, unit: str) -> flo
     return value / effect
 
 
-class ParameterSet:
-    """All unknowns of an adjustment of one scene, with the trajectory bases; ``per_camera``:
-    one trajectory correction per camera (a single-camera scene has one either way)."""
+def trajectory_groups(scene: SceneModel) -> list[list[int]]:
+    """Camera indices of each measured trajectory the scene's cameras see, in camera order: one
+    for a scene, one per scene of a block's composite (:meth:`Platform.trajectory_of`)."""
+    groups: dict[int, list[int]] = {}
+    for c, cam in enumerate(scene.cameras):
+        groups.setdefault(id(scene.platform.trajectory_of(cam.name)), []).append(c)
+    return list(groups.values())
 
-    def __init__(self, scene: SceneModel, position: TimeBasis, attitude: TimeBasis, interior=None,
-                 per_camera: bool = False):
+
+class ParameterSet:
+    """All unknowns of an adjustment of one scene (or a block's composite), with the trajectory
+    bases. position / attitude: one TimeBasis for every trajectory, or a list with one per
+    trajectory group (:func:`trajectory_groups`); ``per_camera``: one trajectory correction per
+    camera (a single-camera scene has one either way), else one per trajectory group."""
+
+    def __init__(self, scene: SceneModel, position: TimeBasis | list[TimeBasis], attitude: TimeBasis | list[TimeBasis],
+                 interior=None, per_camera: bool = False):
         self.scene = scene
-        self.position_basis = position
-        self.attitude_basis = attitude
+        groups = trajectory_groups(scene)
+        bases = [(position[g] if isinstance(position, list) else position,
+                  attitude[g] if isinstance(attitude, list) else attitude) for g in range(len(groups))]
         self.per_camera = per_camera and len(scene.cameras) > 1
+        owners = [([c], g) for g, cams in enumerate(groups) for c in cams] if self.per_camera else \
+            [(cams, g) for g, cams in enumerate(groups)]
+        owners.sort()
+        # the cameras of each trajectory correction, its bases, and each camera's correction
+        self.owners = [np.array(cams, dtype=np.int64) for cams, _ in owners]
+        self.bases = {"position": [bases[g][0] for _, g in owners], "attitude": [bases[g][1] for _, g in owners]}
+        self.position_basis, self.attitude_basis = self.bases["position"][0], self.bases["attitude"][0]
+        self.owner_of = np.empty(len(scene.cameras), dtype=np.int64)
+        for o, cams in enumerate(self.owners):
+            self.owner_of[cams] = o
+        # first row of each correction in the (sum m_o, 3) position / attitude block
+        self.offsets = {b: np.cumsum([0] + [basis.size for basis in v])[:-1] for b, v in self.bases.items()}
         self.params: list[Parameter] = []
-        owners = list(enumerate(scene.cameras)) if self.per_camera else [(-1, None)]
-        for block, basis, terms, unit in (("position", position, AXES, "m"), ("attitude", attitude, ANGLES, "rad")):
-            for c, cam in owners:
-                prefix = f"{cam.name}." if cam is not None else ""
-                for label in basis.labels():
+        for block, terms, unit in (("position", AXES, "m"), ("attitude", ANGLES, "rad")):
+            for o, cams in enumerate(self.owners):
+                prefix = f"{self.owner_name(o)}." if len(self.owners) > 1 else ""
+                for label in self.bases[block][o].labels():
                     for term in terms:
                         self.params.append(Parameter(f"{prefix}{block}.{term}.{label}", block, mode="free", unit=unit,
-                                                     camera=c, term=term))
+                                                     camera=int(cams[0]) if len(self.owners) > 1 else -1, term=term))
         for c, cam in enumerate(scene.cameras):
             for term in ANGLES:
                 self.params.append(Parameter(f"{cam.name}.{term}", "installation", unit="rad", camera=c, term=term))
@@ -331,31 +357,54 @@ class ParameterSet:
         """(m, 3) parameter indices of the position or attitude block."""
         return np.array([i for i, p in enumerate(self.params) if p.block == block], dtype=np.int64).reshape(-1, 3)
 
+    def owner_name(self, owner: int) -> str:
+        """The name of trajectory correction ``owner``: its camera's (one per camera), else its
+        scene's in a block's composite (the camera names' part before the first '/')."""
+        name = self.scene.cameras[int(self.owners[owner][0])].name
+        return name if self.per_camera else name.split("/")[0]
+
     def window(self, block: str, t: np.ndarray, camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(first (n,), weights (n, w)): the rows of the position or attitude block that times t
-        (n,) s of observations in cameras ``camera`` (n,) use, and their basis weights."""
-        basis = self.position_basis if block == "position" else self.attitude_basis
-        first, weights = basis.window(t)
-        return (first + camera * basis.size if self.per_camera else first), weights
+        (n,) s of observations in cameras ``camera`` (n,) use, and their basis weights, on the
+        basis of each camera's trajectory correction (all of one width w)."""
+        bases, offsets = self.bases[block], self.offsets[block]
+        if len(bases) == 1:
+            return bases[0].window(t)
+        owner = self.owner_of[camera]
+        first, weights = np.empty(t.size, dtype=np.int64), np.empty((t.size, bases[0].width))
+        for o, basis in enumerate(bases):
+            m = owner == o
+            f, weights[m] = basis.window(t[m])
+            first[m] = f + offsets[o]
+        return first, weights
 
     def window_weights(self, block: str, t: np.ndarray, first: np.ndarray, rates: bool = False) -> np.ndarray:
         """(n, w) the basis weights (``rates``: their time derivatives, 1/s, as the written
         correction takes them, :meth:`core.model.timebasis.TimeBasis.derivative`) at times t (n,) s
         of the rows ``first`` (n,) .. first + w - 1 of a :meth:`window`, wherever t lies: an
         observation imaged across a knot keeps the columns of its measured time."""
-        basis = self.position_basis if block == "position" else self.attitude_basis
-        if not rates and basis.kind == "polynomial":
-            return basis.window(t)[1]
-        full = basis.derivative(t) if rates else basis.matrix(t)
-        return np.take_along_axis(full, (first % basis.size)[:, None] + np.arange(basis.width), axis=1)
+        bases, offsets = self.bases[block], self.offsets[block]
+        owner = np.searchsorted(offsets, first, side="right") - 1
+        out = np.empty((t.size, bases[0].width))
+        for o, basis in enumerate(bases):
+            m = owner == o
+            if not rates and basis.kind == "polynomial":
+                out[m] = basis.window(t[m])[1]
+                continue
+            full = basis.derivative(t[m]) if rates else basis.matrix(t[m])
+            out[m] = np.take_along_axis(full, (first[m] - offsets[o])[:, None] + np.arange(basis.width), axis=1)
+        return out
+
+    def owner_rows(self, block: str, owner: int) -> slice:
+        """The rows of trajectory correction ``owner`` in the position or attitude block."""
+        first = int(self.offsets[block][owner])
+        return slice(first, first + self.bases[block][owner].size)
 
     def trajectory_correction(self, camera: int = 0) -> TrajectoryCorrection:
-        """The current trajectory correction (of camera ``camera`` when there is one per camera)."""
-        rows = [slice(None), slice(None)]
-        if self.per_camera:
-            rows = [slice(camera * b.size, (camera + 1) * b.size) for b in (self.position_basis, self.attitude_basis)]
-        return TrajectoryCorrection(self.position_basis, self.block_values("position")[rows[0]],
-                                    self.attitude_basis, self.block_values("attitude")[rows[1]])
+        """The current trajectory correction camera ``camera`` sees."""
+        o = int(self.owner_of[camera])
+        pos, att = (self.block_values(b)[self.owner_rows(b, o)] for b in ("position", "attitude"))
+        return TrajectoryCorrection(self.bases["position"][o], pos, self.bases["attitude"][o], att)
 
     def camera_indices(self, camera: int, block: str, terms) -> np.ndarray:
         """Parameter indices (len(terms),) of a camera's installation or camera terms (-1: none)."""
@@ -372,15 +421,25 @@ class ParameterSet:
     # --- the adjusted scene ------------------------------------------------------------------
     def adjusted_scene(self) -> SceneModel:
         """A copy of the input scene with the current corrections baked in: the trajectory
-        correction on the platform (or one per camera among its camera corrections), chip/camera
-        terms and installation in the cameras."""
+        correction on the platform (or one per camera among its camera corrections; in a block's
+        composite, each scene's on its own platform), chip/camera terms and installation in the
+        cameras."""
         s = self.scene
-        if self.per_camera:
+        platforms = []
+        for cams in trajectory_groups(s):
+            measured = s.platform.trajectory_of(s.cameras[cams[0]].name)
+            owners = np.unique(self.owner_of[cams])
+            if owners.size == 1:
+                platform = Platform(measured.ephemeris, measured.attitude, self.trajectory_correction(cams[0]),
+                                    s.platform.cache_step)
+            else:
+                platform = Platform(measured.ephemeris, measured.attitude, None, s.platform.cache_step,
+                                    {s.cameras[c].name: self.trajectory_correction(c) for c in cams})
+            platforms += [(c, platform) for c in cams]
+        platform = platforms[0][1]
+        if len({id(p) for _, p in platforms}) > 1:
             platform = Platform(s.platform.ephemeris, s.platform.attitude, None, s.platform.cache_step,
-                                {cam.name: self.trajectory_correction(c) for c, cam in enumerate(s.cameras)})
-        else:
-            platform = Platform(s.platform.ephemeris, s.platform.attitude, self.trajectory_correction(),
-                                s.platform.cache_step)
+                                camera_platforms={s.cameras[c].name: p for c, p in platforms})
         cameras = []
         for c, cam in enumerate(s.cameras):
             v = {p.term: p.value for p in self.params if p.camera == c and p.block in ("installation", "camera")}

@@ -21,7 +21,7 @@ from . import linepoints
 from .linepoints import LineSetUp
 from .model import ImageObservations, Imaging, Jacobian, Model, build_observations, project
 from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups
-from .parameters import ANGLES, CAMERA_TERMS, ParameterSet
+from .parameters import ANGLES, CAMERA_TERMS, ParameterSet, trajectory_groups
 from .settings import AdjustmentSettings
 from .ties import TieSetUp, camera_indices
 
@@ -46,13 +46,14 @@ class Problem:
         self.scene, self.settings = scene, settings
         ties = ties or TieSetUp.empty()
         lines = lines or LineSetUp.empty()
-        t_min, t_max = scene.time_span()
+        # trajectory bases over each measured trajectory's time span (the scene's; a block scene's)
+        spans = [scene.time_span(cams) for cams in trajectory_groups(scene)]
         self.params = ParameterSet(
             scene,
-            TimeBasis.covering(settings.position_model, t_min, t_max, settings.position_order,
-                               settings.position_interval),
-            TimeBasis.covering(settings.attitude_model, t_min, t_max, settings.attitude_order,
-                               settings.attitude_interval),
+            [TimeBasis.covering(settings.position_model, *span, settings.position_order, settings.position_interval)
+             for span in spans],
+            [TimeBasis.covering(settings.attitude_model, *span, settings.attitude_order, settings.attitude_interval)
+             for span in spans],
             settings.interior, per_camera=settings.camera_trajectory == "per_camera")
         _start_from_existing_correction(scene, self.params)
         control = np.nonzero(table.role == "control")[0]
@@ -322,16 +323,15 @@ class Problem:
         minimal trajectory prior (:attr:`held`; its weights are not variance components')."""
         out = []
         s = self.settings
-        for block, basis, sigma in (("position", self.params.position_basis, s.position_sigma),
-                                    ("attitude", self.params.attitude_basis, s.attitude_sigma)):
+        for block, sigma in (("position", s.position_sigma), ("attitude", s.attitude_sigma)):
             if sigma is None:
                 continue
-            times = basis.knot_times() if basis.kind != "polynomial" else \
-                basis.t0 + basis.scale * np.linspace(-1.0, 1.0, basis.size)
-            B = basis.matrix(times)  # (k, m)
-            idx = self.params.block_indices(block).reshape(-1, basis.size, 3)  # per trajectory (camera)
             group = f"{block} pseudo-observations"
-            for rows in idx:
+            for o, basis in enumerate(self.params.bases[block]):  # per trajectory correction
+                times = basis.knot_times() if basis.kind != "polynomial" else \
+                    basis.t0 + basis.scale * np.linspace(-1.0, 1.0, basis.size)
+                B = basis.matrix(times)  # (k, m)
+                rows = self.params.block_indices(block)[self.params.owner_rows(block, o)]
                 for a in range(3):
                     out.append(Pseudo(group, rows[:, a], B, 1.0 / (sigma * self.scale.get(group, 1.0)) ** 2))
         weighted = [i for i, p in enumerate(self.params.params) if p.mode == "weighted"]
@@ -407,28 +407,24 @@ def _start_from_existing_correction(scene: SceneModel, params: ParameterSet) -> 
     shared correction starts every camera's of a per-camera run; corrections per camera
     cannot start a shared one."""
     platform = scene.platform
-    own = [cam.name for cam in scene.cameras if cam.name in platform.camera_corrections]
-    if own and not params.per_camera:
-        raise InputError(f"the scene was adjusted with a trajectory correction per camera ({', '.join(own)}); "
-                         "adjust it again with one correction per camera, or adjust the original (onboard) scene",
-                         parameter="scene")
-    starts = [platform.for_camera(cam.name).correction for cam in scene.cameras] if params.per_camera else \
-        [platform.correction]
-    if all(corr is None for corr in starts):
-        return
     position, attitude = params.block_values("position"), params.block_values("attitude")
-    m_p, m_a = params.position_basis.size, params.attitude_basis.size
-    for k, corr in enumerate(starts):
+    for o, cams in enumerate(params.owners):
+        starts = [platform.for_camera(scene.cameras[c].name).correction for c in cams]
+        if any(corr is not starts[0] for corr in starts):
+            own = [scene.cameras[c].name for c in cams]
+            raise InputError(f"the scene was adjusted with a trajectory correction per camera ({', '.join(own)}); "
+                             "adjust it again with one correction per camera, or adjust the original (onboard) "
+                             "scene", parameter="scene")
+        corr = starts[0]
         if corr is None:
             continue
-        if corr.position.to_dict() != params.position_basis.to_dict() or \
-                corr.attitude.to_dict() != params.attitude_basis.to_dict():
+        if corr.position.to_dict() != params.bases["position"][o].to_dict() or \
+                corr.attitude.to_dict() != params.bases["attitude"][o].to_dict():
             raise InputError("the scene was adjusted with another trajectory model; adjust the original (onboard) "
                              "scene, or choose the same model and interval", parameter="scene")
-        position[k * m_p:(k + 1) * m_p] = corr.position_coefficients
-        attitude[k * m_a:(k + 1) * m_a] = corr.attitude_coefficients
+        position[params.owner_rows("position", o)] = corr.position_coefficients
+        attitude[params.owner_rows("attitude", o)] = corr.attitude_coefficients
     values = params.values()
     values[params.block_indices("position")] = position
     values[params.block_indices("attitude")] = attitude
     params.set_values(values)
-

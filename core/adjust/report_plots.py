@@ -145,8 +145,9 @@ def trajectory_figure(trajectory: dict) -> str:
             ax.axvline(knot, color="#aaa", lw=0.8, ls="--", zorder=0, label="knots" if k == 0 else None)
         for c, (camera, curves) in enumerate(sets.items()):
             values = np.asarray(curves[key], dtype=float).reshape(-1, 3) * scale
+            times = np.asarray(curves.get("time", t), dtype=float)  # a block scene's own time span
             for a, name in enumerate(names):
-                ax.plot(t, values[:, a], lw=1.5, ls=("-", "--", ":", "-.")[c % 4], color=f"C{a}",
+                ax.plot(times, values[:, a], lw=1.5, ls=("-", "--", ":", "-.")[c % 4], color=f"C{a}",
                         label=f"{camera} {name}".strip())
         ax.grid(alpha=0.3)
         ax.legend(loc="best", fontsize="small", ncol=4)

@@ -19,6 +19,7 @@ from .problem import Problem
 from .settings import AdjustmentSettings
 from .robust import breakdown, component_report, critical, sigma0_test, stated_sigma0
 from .statistics import Statistics, correlated_pairs
+from .parameters import trajectory_groups
 from .ties import yaw_hold, yaw_sentence
 
 log = logging.getLogger(__name__)
@@ -265,23 +266,23 @@ def _residual_summary(v: np.ndarray) -> dict:
 
 
 def _trajectory_curves(problem: Problem, samples: int = 200) -> dict:
-    """Corrections against time, for plots: position (m, ECEF) and attitude (rad); with one
-    correction per camera, the reference (first) camera's there and every camera's in
-    ``per_camera`` (camera name -> {position, attitude})."""
-    t_min, t_max = problem.scene.time_span()
-    t = np.linspace(t_min, t_max, samples)
+    """Corrections against time, for plots: position (m, ECEF) and attitude (rad); with several
+    trajectory corrections (one per camera, or per scene of a block), the reference (first)
+    one's there and every one's in ``per_camera`` (camera or scene name -> {position, attitude,
+    time: over its own trajectory's span})."""
     params = problem.params
-    pb, ab = params.position_basis, params.attitude_basis
+    groups = trajectory_groups(problem.scene)
 
-    def curves(camera: int) -> dict:
-        corr = params.trajectory_correction(camera)
-        return {"position": (pb.matrix(t) @ corr.position_coefficients).tolist(),
-                "attitude": (ab.matrix(t) @ corr.attitude_coefficients).tolist()}
+    def curves(o: int) -> dict:
+        t = np.linspace(*problem.scene.time_span(next(g for g in groups if params.owners[o][0] in g)), samples)
+        corr = params.trajectory_correction(int(params.owners[o][0]))
+        return {"time": t.tolist(), "position": (corr.position.matrix(t) @ corr.position_coefficients).tolist(),
+                "attitude": (corr.attitude.matrix(t) @ corr.attitude_coefficients).tolist()}
 
-    out = {"time": t.tolist(), **curves(0), "position_knots": pb.knot_times().tolist(),
-           "attitude_knots": ab.knot_times().tolist()}
-    if params.per_camera:
-        out["per_camera"] = {cam.name: curves(c) for c, cam in enumerate(problem.scene.cameras)}
+    out = {**curves(0), "position_knots": params.position_basis.knot_times().tolist(),
+           "attitude_knots": params.attitude_basis.knot_times().tolist()}
+    if len(params.owners) > 1:
+        out["per_camera"] = {params.owner_name(o): curves(o) for o in range(len(params.owners))}
     return out
 
 

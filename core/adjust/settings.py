@@ -25,7 +25,9 @@ class AdjustmentSettings:
     pseudo-observations of the corrections at the knots; None: no pseudo-observations.
     camera_trajectory: 'shared' (one trajectory correction for all cameras; with installation
     angles free in ``interior`` this is seed 003's Plans B-D, by the attitude order 0/1/2) or
-    'per_camera' (one correction per camera, each with its own pseudo-observations: Plan A).
+    'per_camera' (one correction per camera, each with its own pseudo-observations: Plan A). In a
+    block of scenes (:mod:`core.adjust.block`) 'shared' is one correction per scene, each on its
+    own scene's time span with its own pseudo-observations.
     interior: free/weighted interior and installation parameters (see
     :func:`core.adjust.parameters.parse_interior`). ground: 'weighted' (GCP sigmas) or 'fixed'.
     robust: 'none', 'selection' or 'snooping'; alpha: significance of the outlier test.

@@ -240,7 +240,8 @@ def yaw_hold(params: ParameterSet, covariance: np.ndarray, grid: int = 3) -> dic
         # A coarse trajectory table: tabulating the whole strip at its fine step for 9 points
         # would cost a quarter second per parameter; the interpolation error is common to the
         # two sides of each difference (the same grid), so it cancels.
-        scene.platform.cache_step = YAW_TABLE_STEP
+        for c in range(len(scene.cameras)):
+            scene.platform_of(c).cache_step = YAW_TABLE_STEP
         return scene.image_to_ground(col, row, height, 0)
 
     try:

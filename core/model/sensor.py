@@ -57,26 +57,24 @@ class SceneModel:
             raise InputError(f"camera index {camera} is out of range (scene has {len(self.cameras)} cameras)")
         return int(camera)
 
-    def time_span(self) -> tuple[float, float]:
-        """(first, last) acquisition time (s) over all cameras and chips."""
+    def time_span(self, cameras=None) -> tuple[float, float]:
+        """(first, last) acquisition time (s) over all cameras (or the camera indices ``cameras``)
+        and their chips. In a block's composite every camera's times count from its own scene's
+        epoch: span only the cameras of one scene."""
         ts = []
-        for cam in self.cameras:
+        for cam in (self.cameras if cameras is None else [self.cameras[c] for c in cameras]):
             t = cam.timing.time(np.array([0.0, cam.rows]))
             ts += [t.min() + min(cam._time_offsets), t.max() + max(cam._time_offsets)]
         return min(ts), max(ts)
 
     def prepare(self) -> None:
-        """Tabulate the trajectory over the scene's time span (done once, lazily); a camera with
-        a trajectory correction of its own (:meth:`platform_of`) gets its own table, over its
-        own lines."""
-        own = [cam for cam in self.cameras if cam.name in self.platform.camera_corrections]
-        if self.platform._cache is None and len(own) < len(self.cameras):
-            self.platform.prepare(*self.time_span())
-        for cam in own:
-            platform = self.platform.for_camera(cam.name)
+        """Tabulate the trajectory over the scene's time span (done once, lazily): each platform
+        the cameras see (:meth:`platform_of`: the scene's, a camera's own correction, a block
+        scene's) over the lines of the cameras that see it."""
+        platforms = [self.platform_of(c) for c in range(len(self.cameras))]
+        for platform in {id(p): p for p in platforms}.values():
             if platform._cache is None:
-                t = cam.timing.time(np.array([0.0, cam.rows]))
-                platform.prepare(t.min() + min(cam._time_offsets), t.max() + max(cam._time_offsets))
+                platform.prepare(*self.time_span([c for c, p in enumerate(platforms) if p is platform]))
 
     def platform_of(self, camera: int) -> Platform:
         """The trajectory camera ``camera`` (index) sees: the platform's, or its own correction's

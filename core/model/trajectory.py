@@ -225,6 +225,11 @@ class Platform:
     trajectory correction per camera (seed 003 Plan A): a camera listed there sees the measured
     trajectory under its own correction instead of ``correction`` (:meth:`for_camera`).
 
+    ``camera_platforms`` (camera name -> platform) belong to the composite scene of a block of
+    scenes (:mod:`core.model.block`): a camera listed there sees that platform (its own scene's
+    ephemeris, attitude and corrections, times from its own scene's epoch) instead of this one.
+    Such a composite is never written: its scenes are (:func:`core.model.block.split_block`).
+
     The cache tabulates position, velocity and rotation every ``cache_step`` seconds over
     [t_min, t_max] and interpolates linearly: at 1 ms steps the error is below 1e-6 m and
     1e-12 rad for orbital motion, far under any image measurement. Outside the cached
@@ -235,18 +240,27 @@ class Platform:
     correction: TrajectoryCorrection | None = None
     cache_step: float = 1e-3
     camera_corrections: dict[str, TrajectoryCorrection] = field(default_factory=dict)
+    camera_platforms: dict[str, "Platform"] = field(default_factory=dict)
     _cache: tuple | None = field(default=None, repr=False, compare=False)
     _views: dict = field(default_factory=dict, repr=False, compare=False)
 
     def for_camera(self, name: str) -> "Platform":
         """The trajectory camera ``name`` sees: this platform, or (with a correction of its own)
-        the measured trajectory under that correction, made once and kept (with its own cache)."""
+        the measured trajectory under that correction, made once and kept (with its own cache); in a
+        block's composite, what the camera's own platform gives it."""
+        if name in self.camera_platforms:
+            return self.camera_platforms[name].for_camera(name)
         if name not in self.camera_corrections:
             return self
         if name not in self._views:
             self._views[name] = Platform(self.ephemeris, self.attitude, self.camera_corrections[name],
                                          self.cache_step)
         return self._views[name]
+
+    def trajectory_of(self, name: str) -> "Platform":
+        """The platform whose measured trajectory (ephemeris and attitude) camera ``name`` sees:
+        this one, or in a block's composite its own scene's."""
+        return self.camera_platforms.get(name, self)
 
     def prepare(self, t_min: float, t_max: float) -> None:
         """Tabulate the trajectory over [t_min, t_max] s (with a small margin)."""
@@ -287,6 +301,8 @@ class Platform:
         return state if self.correction is None else self.correction.apply(t, *state)
 
     def to_dict(self) -> dict:
+        if self.camera_platforms:
+            raise ValueError("a block's composite platform is not written: write its scenes (split_block)")
         d = {"ephemeris": self.ephemeris.to_dict(), "attitude": self.attitude.to_dict()}
         if self.correction is not None:
             d["correction"] = self.correction.to_dict()

@@ -83,7 +83,9 @@ class GcpTable:
     :func:`core.observations.tables.resolve_cameras`), col, row (GDAL px), lon, lat (WGS84
     deg), h (ellipsoidal m), sigma_px (px), sigma_xy, sigma_z (m). One ground point measured in several cameras is
     several rows with the same id. ``residuals`` and ``scene`` (the scene file they were
-    computed against) are set by :func:`apriori_residuals`.
+    computed against) are set by :func:`apriori_residuals`. ``block_scene`` (n,) str: in a block
+    of scenes (:mod:`core.adjust.block`) the name of the scene each row was measured in ('' when
+    not stated; None: all '').
     """
     id: np.ndarray
     role: np.ndarray
@@ -98,6 +100,7 @@ class GcpTable:
     sigma_z: np.ndarray
     residuals: Residuals | None = None
     scene: str = ""
+    block_scene: np.ndarray | None = None
     ARRAYS = ("id", "role", "camera", "col", "row", "lon", "lat", "h", "sigma_px", "sigma_xy", "sigma_z")
 
     def __post_init__(self):
@@ -106,6 +109,8 @@ class GcpTable:
             kind = str if name in ("id", "role", "camera") else float
             value = np.broadcast_to(np.asarray(getattr(self, name), dtype=kind), (n,)).copy()
             setattr(self, name, value)
+        self.block_scene = np.broadcast_to(np.asarray("" if self.block_scene is None else self.block_scene,
+                                                      dtype=str), (n,)).copy()
         bad = sorted(set(self.role) - set(ROLES))
         if bad:
             raise InputError(f"GCP roles must be 'control' or 'check' (got {', '.join(map(repr, bad))})")
@@ -117,7 +122,7 @@ class GcpTable:
         """The points where ``mask`` (boolean or index array) selects."""
         arrays = {name: getattr(self, name)[mask] for name in self.ARRAYS}
         res = None if self.residuals is None else self.residuals.select(mask)
-        return GcpTable(**arrays, residuals=res, scene=self.scene)
+        return GcpTable(**arrays, residuals=res, scene=self.scene, block_scene=self.block_scene[mask])
 
     def ecef(self) -> np.ndarray:
         """Ground points as ECEF metres (n, 3)."""

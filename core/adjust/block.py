@@ -1,0 +1,276 @@
+"""Bundle adjustment of a block of independent scenes (stereo pair, tri-stereo, multi-date,
+neighbouring orbits) as one: :func:`adjust_block`.
+
+Route: the block is one composite scene (:func:`core.model.block.compose_block`: every scene's
+cameras renamed ``<scene>/<camera>``, each looking through its own scene's platform, times from
+its own scene's epoch), adjusted by the single-scene engine (:func:`core.adjust.engine.adjust`)
+unchanged in its stages, and split back into one adjusted scene per input
+(:func:`core.model.block.split_block`). The engine's parameters already group cameras into
+trajectory corrections (:func:`core.adjust.parameters.trajectory_groups`): one per measured
+trajectory, i.e. one per scene of the block (``camera_trajectory='shared'``) on a time basis over
+that scene's own lines with its own onboard pseudo-observations, or one per camera
+(``'per_camera'``); interior and installation parameters per camera as the settings ask (camera
+names carry the scene: ``INTERIOR=B/FWD.roll``). Ground points (GCPs and tie points) are shared
+unknowns across scenes, eliminated from the normal equations as in one scene. This reuses the
+determinability checks, Levenberg-Marquardt, robust estimation, variance components, check
+points, the report and the written-vs-fitted check (which writes and reads back each scene of the
+block), where composing per-scene normal equations (the other route) would have had to repeat
+each of those stages for a block.
+
+Observations name their scene: ``GcpTable.block_scene`` and ``TieTable.scene`` (a block of one
+scene may leave them empty). Cameras are resolved within the scene (a single-camera scene's empty
+camera is its camera). RPC scenes are refused (not yet supported in a block).
+
+Datum: with tie points and no GCPs nothing but the onboard pseudo-observations (POSITION_SIGMA,
+ATTITUDE_SIGMA of every scene) holds where the block is: the report's ``datum`` says so, and the
+block then lies within those sigmas (averaged over its scenes) of where the onboard data put it.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+from typing import Callable
+
+import numpy as np
+
+from ..errors import InputError
+from ..model.block import block_camera, compose_block, scene_cameras, split_block
+from ..model.intersection import intersect
+from ..model.rpcscene import RpcScene
+from ..model.sensor import SceneModel
+from ..observations.gcps import GcpTable
+from ..observations.tables import listed, resolve_cameras
+from ..observations.tiepoints import TieTable
+from .engine import adjust
+from .results import AdjustmentResult
+from .settings import AdjustmentSettings
+
+log = logging.getLogger(__name__)
+
+GRID = 3  # image points per axis at which each camera's move from its onboard geolocation is measured
+# deg: tie points whose onboard rays are all closer than this meet at a weakly determined height
+# (seen from one direction only, e.g. by the nadir cameras of scenes from one orbit)
+MIN_CONVERGENCE_DEG = 1.0
+
+
+@dataclass
+class BlockResult:
+    """scenes: the adjusted scenes (name -> SceneModel, the block's order), each writable with
+    :func:`core.formats.scene_json.save_scene`; report: JSON-ready figures (see :func:`block_report`);
+    tie_points: per tie point (m,) arrays id, lon, lat (deg), h (ellipsoidal m) of its adjusted
+    ground (NaN for points left out), rays (observations used), scenes (scenes it was seen in),
+    convergence_deg (the largest angle between its onboard rays, :func:`ray_convergence`);
+    adjustment: the composite's :class:`AdjustmentResult` (per-observation arrays, camera names
+    ``<scene>/<camera>``, the full engine report)."""
+    scenes: dict[str, SceneModel]
+    report: dict
+    tie_points: dict
+    adjustment: AdjustmentResult
+
+
+def _scene_column(names: np.ndarray, ids: np.ndarray, scenes: dict, what: str) -> np.ndarray:
+    """The scene name of every row (n,) str: '' allowed for a block of one scene; InputError
+    naming the unknown scenes (and their points) or the points without one."""
+    names = np.char.strip(np.asarray(names, dtype=str))
+    if len(scenes) == 1:
+        names = np.where(names == "", next(iter(scenes)), names)
+    missing = names == ""
+    if missing.any():
+        raise InputError(f"{what}: point(s) {listed(np.unique(ids[missing]))} have no scene; in a block of "
+                         f"{len(scenes)} scenes ({', '.join(scenes)}) every observation names its scene",
+                         parameter=what)
+    unknown = ~np.isin(names, list(scenes))
+    if unknown.any():
+        raise InputError(f"{what}: scene(s) {listed(np.unique(names[unknown]))} of point(s) "
+                         f"{listed(np.unique(ids[unknown]))} not in the block (scenes: {', '.join(scenes)})",
+                         parameter=what)
+    return names
+
+
+def _block_cameras(table, scene_of: np.ndarray, scenes: dict):
+    """``table`` (GCP or tie) with each row's camera resolved in its own scene and renamed to the
+    composite's ``<scene>/<camera>``."""
+    cameras = np.array(table.camera, dtype=object)
+    for name, scene in scenes.items():
+        m = scene_of == name
+        if m.any():
+            resolved = resolve_cameras(table.select(m), scene).camera
+            cameras[m] = [block_camera(name, c) for c in resolved]
+    return replace(table, camera=cameras.astype(str))
+
+
+def _check_ties_span_scenes(ties: TieTable, scene_of: np.ndarray) -> None:
+    """Every tie point must be seen in two scenes or more (it ties scenes together)."""
+    ids, point = np.unique(ties.id, return_inverse=True)
+    pairs = np.unique(np.stack([point, np.unique(scene_of, return_inverse=True)[1]], axis=1), axis=0)
+    n_scenes = np.bincount(pairs[:, 0], minlength=ids.size)
+    lonely = ids[n_scenes < 2]
+    if lonely.size:
+        where = {i: s for i, s in zip(ties.id, scene_of)}
+        raise InputError(f"tie points: point(s) {listed(lonely)} are seen in one scene only "
+                         f"({', '.join(sorted({where[i] for i in lonely}))}); a block's tie points tie its scenes "
+                         "together: measure them in another scene or leave them out", parameter="ties")
+
+
+def block_inputs(scenes: dict[str, SceneModel], gcps: GcpTable | None,
+                 ties: TieTable | None) -> tuple[SceneModel, GcpTable, TieTable | None]:
+    """(the composite scene, the GCP table, the tie table) with cameras named as in the composite;
+    InputError for an RPC scene, a scene listed twice, observations naming a scene not in the
+    block, tie points seen in one scene only."""
+    if not isinstance(scenes, dict) or not scenes:
+        raise InputError("a block needs a dict of one or more named scenes", parameter="scenes")
+    for name, scene in scenes.items():
+        if isinstance(scene, RpcScene):
+            raise InputError(f"scene {name!r} is an RPC scene: a block adjusts rigorous (physical) scene models "
+                             "only so far; adjust it alone", parameter="scenes")
+    composite = compose_block(scenes)
+    if gcps is None:
+        none = np.zeros(0)
+        gcps = GcpTable(none.astype(str), "control", none.astype(str), *(none,) * 8)
+    gcp_scene = _scene_column(gcps.block_scene, gcps.id, scenes, "gcps")
+    gcps = replace(_block_cameras(gcps, gcp_scene, scenes), block_scene=gcp_scene)
+    if ties is not None and len(ties):
+        tie_scene = _scene_column(ties.scene, ties.id, scenes, "ties")
+        _check_ties_span_scenes(ties, tie_scene)
+        ties = replace(_block_cameras(ties, tie_scene, scenes), scene=tie_scene)
+    return composite, gcps, ties
+
+
+def adjust_block(scenes: dict[str, SceneModel], gcps: GcpTable | None, ties: TieTable | None,
+                 settings: AdjustmentSettings | None = None,
+                 progress: Callable[[float, str | None], None] | None = None,
+                 is_cancelled: Callable[[], bool] | None = None) -> BlockResult:
+    """Adjust the block ``scenes`` (name -> rigorous scene) to the GCPs and tie points (each row
+    naming its scene, see the module docstring) with ``settings`` (the same for every scene)."""
+    settings = settings or AdjustmentSettings()
+    composite, gcps, ties = block_inputs(scenes, gcps, ties)
+    log.info("adjusting a block of %d scenes (%s): %d GCP and %d tie observations", len(scenes),
+             ", ".join(scenes), len(gcps), 0 if ties is None else len(ties))
+    convergence = None
+    if ties is not None and len(ties):
+        convergence = ray_convergence(composite, ties)
+        weak = convergence[1] < MIN_CONVERGENCE_DEG
+        if weak.any():
+            log.warning("%d tie point(s) are seen from one direction only (their rays less than %g degree apart): "
+                        "their heights are weakly determined: %s", int(weak.sum()), MIN_CONVERGENCE_DEG,
+                        listed(convergence[0][weak]))
+    out = adjust(composite, gcps, settings, progress, is_cancelled, ties=ties)
+    adjusted = split_block(out.scene)
+    for name, scene in adjusted.items():
+        if "adjustment" in scene.info:
+            scene.info["adjustment"] = {**scene.info["adjustment"], "block": {"scene": name, "scenes": list(scenes)}}
+    report = block_report(scenes, composite, out, gcps, ties, settings)
+    tie_points = tie_point_ground(out, ties)
+    if convergence is not None:
+        tie_points["convergence_deg"] = convergence[1]
+    return BlockResult(adjusted, report, tie_points, out)
+
+
+def ray_convergence(scene: SceneModel, ties: TieTable) -> tuple[np.ndarray, np.ndarray]:
+    """(ids (m,), angle (m,) deg): per tie point the largest angle between one of its onboard lines
+    of sight in ``scene`` (camera names of the scene) and its first one; near 0 when all rays are
+    parallel and the point's height is undetermined."""
+    names = [c.name for c in scene.cameras]
+    camera = np.array([names.index(c) for c in ties.camera.tolist()], dtype=np.int64)
+    ids, point = np.unique(ties.id, return_inverse=True)
+    u = np.empty((len(ties), 3))
+    for c in np.unique(camera):
+        m = camera == c
+        u[m] = scene.line_of_sight(ties.col[m], ties.row[m], int(c))[3]
+    first = np.unique(point, return_index=True)[1]
+    angle = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", u, u[first][point]), -1.0, 1.0)))
+    out = np.zeros(ids.size)
+    np.maximum.at(out, point, angle)
+    return ids, out
+
+
+def tie_point_ground(out: AdjustmentResult, ties: TieTable | None) -> dict:
+    """Per tie point: id, adjusted lon, lat, h, rays (observations used) and scenes (seen in)."""
+    if ties is None or not len(ties):
+        return {k: np.zeros(0) for k in ("id", "lon", "lat", "h", "rays", "scenes", "convergence_deg")}
+    ids, point = np.unique(ties.id, return_inverse=True)
+    first = np.unique(point, return_index=True)[1]
+    used = np.isfinite(out.tie_points["res_col"])
+    scene_index = np.unique(ties.scene, return_inverse=True)[1]
+    seen = np.unique(np.stack([point, scene_index], axis=1), axis=0)
+    return {"id": ids, **{k: out.tie_points[k][first] for k in ("lon", "lat", "h")},
+            "rays": np.bincount(point[used], minlength=ids.size),
+            "scenes": np.bincount(seen[:, 0], minlength=ids.size)}
+
+
+def _rms_px(res_col: np.ndarray, res_row: np.ndarray) -> float | None:
+    """Root mean square length (px) of finite residual vectors (None without any)."""
+    ok = np.isfinite(res_col) & np.isfinite(res_row)
+    return float(np.sqrt(np.mean(res_col[ok] ** 2 + res_row[ok] ** 2))) if ok.any() else None
+
+
+def onboard_move(before: SceneModel, after: SceneModel, cameras: list[int],
+                 settings: AdjustmentSettings) -> dict:
+    """How far the adjustment moved a scene's ground from where its onboard model puts it: the
+    largest distance (m) between the ground seen through ``before`` and ``after`` (composites) at a
+    GRID x GRID lattice of each of its ``cameras``, at the block's mean height; and the onboard
+    sigma (m) of that ground, sqrt(position_sigma^2 + (attitude_sigma * range)^2) with range (m)
+    the largest satellite-to-ground distance (None when a sigma is not stated)."""
+    height = float(np.mean(before.height_range))
+    moved, ranges = 0.0, []
+    for c in cameras:
+        cam = before.cameras[c]
+        col, row = (a.ravel() for a in np.meshgrid(np.linspace(0, cam.cols, GRID), np.linspace(0, cam.rows, GRID)))
+        g0, g1 = before.image_to_ground(col, row, height, c), after.image_to_ground(col, row, height, c)
+        moved = max(moved, float(np.nanmax(np.linalg.norm(g1 - g0, axis=1))))
+        ranges.append(float(np.linalg.norm(before.line_of_sight(col, row, c)[1] - g0, axis=1).max()))
+    ps, at = settings.position_sigma, settings.attitude_sigma
+    sigma = None if ps is None or at is None else float(np.hypot(ps, at * max(ranges)))
+    return {"moved_m": moved, "onboard_sigma_m": sigma}
+
+
+def datum_sentence(report: dict) -> str:
+    """How the block's datum is held, in words (from the engine report's ``datum``)."""
+    held = report.get("datum")
+    if held is None:
+        return "datum held by the control points (no tie points)"
+    sentence = f"datum held by the {held['held_by']}"
+    return f"{sentence}: {held['note']}" if held.get("note") else sentence
+
+
+def block_report(scenes: dict[str, SceneModel], composite: SceneModel, out: AdjustmentResult,
+                 gcps: GcpTable, ties: TieTable | None, settings: AdjustmentSettings) -> dict:
+    """Per scene and block figures: image residual RMS (px) of control observations, tie
+    observations (after; before: through the onboard scenes with the onboard intersection) and
+    check points (the adjusted scene's ground -> image of their stated ground), the move from the
+    onboard geolocation (:func:`onboard_move`); sigma0, the datum sentence, the written-vs-fitted
+    figures and the engine's whole report (``adjustment``)."""
+    rep, pts = out.report, out.points
+    control, check = pts["role"] == "control", pts["role"] == "check"
+    tie_res = (out.tie_points["res_col"], out.tie_points["res_row"]) if ties is not None and len(ties) else None
+    before = None
+    if tie_res is not None:
+        ids, point = np.unique(ties.id, return_inverse=True)
+        names = [c.name for c in composite.cameras]
+        camera = np.array([names.index(c) for c in ties.camera.tolist()], dtype=np.int64)
+        before = intersect(composite, camera, ties.col, ties.row, point, ids.size).residuals
+    per_scene = {}
+    for name in scenes:
+        g, t = gcps.block_scene == name, (ties.scene == name) if tie_res is not None else None
+        entry = {"cameras": [c.name for c in scenes[name].cameras],
+                 "control": {"observations": int((g & control).sum()),
+                             "rmse_px": _rms_px(pts["res_col"][g & control], pts["res_row"][g & control])},
+                 "check_points": {"observations": int((g & check).sum()),
+                                  "rmse_px": _rms_px(pts["res_col"][g & check], pts["res_row"][g & check])},
+                 **onboard_move(composite, out.scene, scene_cameras(composite, name), settings)}
+        if tie_res is not None:
+            entry["ties"] = {"observations": int(t.sum()), "rmse_px": _rms_px(tie_res[0][t], tie_res[1][t]),
+                             "rmse_before_px": _rms_px(before[t, 0], before[t, 1])}
+        per_scene[name] = entry
+    block = {"scenes": len(scenes), "sigma0": rep["sigma0"],
+             "control_rmse_px": _rms_px(pts["res_col"][control], pts["res_row"][control]),
+             "check_rmse_px": _rms_px(pts["res_col"][check], pts["res_row"][check]),
+             "tie_points": rep["observations"]["tie_points"],
+             "tie_rmse_px": None if tie_res is None else _rms_px(*tie_res),
+             "tie_rmse_before_px": None if before is None else _rms_px(before[:, 0], before[:, 1])}
+    datum = datum_sentence(rep)
+    log.info("block of %d scenes: sigma0 %.3f, tie RMS %s px; %s", len(scenes), rep["sigma0"],
+             "-" if block["tie_rmse_px"] is None else f"{block['tie_rmse_px']:.3f}", datum)
+    return {"block": block, "scenes": per_scene, "datum": datum, "written_vs_fitted": rep.get("written_vs_fitted"),
+            "adjustment": rep}
+
