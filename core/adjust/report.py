@@ -154,7 +154,7 @@ def outcome_lines(rep: dict) -> list[LogLine]:
         if c["apriori_sigma"] is not None and c["estimated_sigma"] is not None:
             joint = c.get("joint_with")
             how = (f"; one factor with {', '.join(joint)}" if joint else "") if c["estimated"] else \
-                ", too small: not used"
+                ", holds the datum: not estimated" if c.get("holds_datum") else ", too small: not used"
             out.append(LogLine(f"variance component {group}: stated sigma {c['apriori_sigma']:.4g} {c['unit']}, "
                                f"estimated {c['estimated_sigma']:.4g} {c['unit']} (redundancy "
                                f"{c['redundancy']:.1f}{how})"))

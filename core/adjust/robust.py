@@ -271,6 +271,21 @@ def helmert_factors(problem: Problem, comps: dict, kappa: float, units: list[tup
     return {u: float(f) for u, f in zip(units, squared) if f > 0}
 
 
+TRAJECTORY_PSEUDO_GROUPS = ("position pseudo-observations", "attitude pseudo-observations")
+
+
+def datum_groups(problem: Problem) -> set[str]:
+    """The onboard pseudo-observation groups that alone hold the datum (no control point, no
+    control line: tie points fix the block's shape, nothing else where it lies). Their factors are
+    not estimated: their residuals measure only how far the ties pull the block from the onboard
+    data, so a factor from them would loosen the datum pass after pass (a block of 5 scenes with
+    2000 tie points: the position factor swung by 60-160 % per pass and the solution crept along
+    the loosened datum without converging)."""
+    if problem.n_control or len(problem.lines):
+        return set()
+    return set(TRAJECTORY_PSEUDO_GROUPS)
+
+
 def rescale(problem: Problem, comps: dict, kappa: float, joint: list[tuple[str, ...]] = (),
             coupling: tuple[list[str], np.ndarray] | None = None) -> float:
     """Set each estimable group's factor on its stated sigmas to sqrt(Omega / (kappa r)) (see
@@ -280,8 +295,9 @@ def rescale(problem: Problem, comps: dict, kappa: float, joint: list[tuple[str, 
     factor (0: none estimable)."""
     change = 0.0
     scale = dict(problem.scale)
+    held = datum_groups(problem)
     units = [u for u in factor_units(comps, list(joint))
-             if estimable(sum(comps[k][0] for k in u), sum(comps[k][1] for k in u))]
+             if not held & set(u) and estimable(sum(comps[k][0] for k in u), sum(comps[k][1] for k in u))]
     squared = {u: sum(comps[k][0] for k in u) / (kappa * sum(comps[k][1] for k in u)) for u in units}
     if coupling is not None:
         labels, H = coupling
@@ -330,8 +346,9 @@ def component_report(problem: Problem, comps: dict, kappa: float, joint: list[tu
     one), the median stated and estimated sigma with their unit, factor: the factor on the stated
     sigmas in use (None: none estimated; a group whose redundancy fell below MIN_REDUNDANCY once
     its factor made it stronger keeps that factor), whether one was estimated (and used), whether
-    it is held at MIN_FACTOR, whether the stated sigma passes the 95 % test (:func:`sigma0_test`),
-    and joint_with: the groups it shares its factor with (empty: estimated on its own)."""
+    it is held at MIN_FACTOR, whether it alone holds the datum (:func:`datum_groups`: not
+    estimated), whether the stated sigma passes the 95 % test (:func:`sigma0_test`), and
+    joint_with: the groups it shares its factor with (empty: estimated on its own)."""
     out = {}
     for members in factor_units(comps, list(joint)):
         pvv, r = sum(comps[k][0] for k in members), sum(comps[k][1] for k in members)
@@ -343,7 +360,7 @@ def component_report(problem: Problem, comps: dict, kappa: float, joint: list[tu
                           "sigma0": ratio, "apriori_sigma": stated,
                           "estimated_sigma": None if ratio is None or stated is None else stated * ratio,
                           "unit": unit, "factor": used, "estimated": used is not None,
-                          "held_at_floor": used == MIN_FACTOR,
+                          "held_at_floor": used == MIN_FACTOR, "holds_datum": group in datum_groups(problem),
                           "passed": None if ratio is None else sigma0_test(ratio, r)["passed"],
                           "joint_with": [k for k in members if k != group]}
     return out

@@ -16,6 +16,7 @@ import pytest
 
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.adjust.block import adjust_block, ray_convergence
+from pushbroom_adjust.core.adjust.report import log_lines
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.formats.scene_json import save_scene
@@ -124,6 +125,12 @@ def test_ties_only_block(block, ties_only):
         assert entry["ties"]["rmse_px"] <= 0.5, name
         assert entry["moved_m"] <= 3.0 * entry["onboard_sigma_m"], (name, entry["moved_m"], entry["onboard_sigma_m"])
     assert 0.7 < rep["block"]["sigma0"] < 1.3
+    # the onboard sigmas alone hold the datum: their variance components are not estimated (a factor
+    # from the ties' pull would loosen the datum pass after pass), and the log says why
+    components = ties_only.adjustment.report["variance_components"]
+    for group in ("position pseudo-observations", "attitude pseudo-observations"):
+        assert components[group]["holds_datum"] and not components[group]["estimated"], group
+    assert any("holds the datum: not estimated" in line.text for line in log_lines(ties_only.adjustment.report))
     tp = ties_only.tie_points
     assert tp["id"].size == 32 and np.all(tp["scenes"] == 3) and np.all(tp["rays"] == 6)
     assert tp["convergence_deg"].min() > 20.0  # nadir to forward or backward: 25 degrees
