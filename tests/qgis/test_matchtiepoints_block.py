@@ -2,6 +2,7 @@
 and qgis_process, on the block pushbroom:simulateblock writes (a TH-1 tri-stereo of one pass and an
 RPC product of another date): every match checked against the truth, the layer naming each
 observation's scene, the log per scene pair, and bad blocks refused naming the parameter."""
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -110,6 +111,17 @@ def far_scene(block, tmp_path_factory) -> str:
 
 
 @pytest.fixture(scope="module")
+def three_line_scene(tmp_path_factory) -> str:
+    """A TH-1 three-line scene of the block's ground whose cameras NAD and FWD both image 600 x 600 px."""
+    spec = cut_preset(PRESETS["th1_tlc"], 600, 600)
+    path = simulate(spec, tmp_path_factory.mktemp("tlc") / "tlc", seed=1, n_gcps=5).onboard_scene
+    scene = json.loads(path.read_text())
+    scene["cameras"][1]["rows"] = scene["cameras"][0]["rows"]
+    path.write_text(json.dumps(scene))
+    return str(path)
+
+
+@pytest.fixture(scope="module")
 def small_image(tmp_path_factory) -> str:
     path = str(tmp_path_factory.mktemp("small") / "small.tif")
     ds = gdal.GetDriverByName("GTiff").Create(path, 100, 80, 1, gdal.GDT_Byte)
@@ -127,12 +139,16 @@ def small_image(tmp_path_factory) -> str:
     (lambda b, far, **_: {"SCENES": [b["SCENES"][0], far], "INPUTS": b["IMAGES"][:2]},
      r"^SCENES: far/NAD does not overlap nad/NAD"),
     (lambda b, **_: {"SCENES": b["SCENES"][:1], "INPUTS": b["IMAGES"][:1]}, r"^SCENES: 1 scene given; .* two or more"),
+    (lambda b, tlc, **_: {"SCENES": [b["SCENES"][0], tlc], "INPUTS": b["IMAGES"][:2]},
+     r"^INPUTS: .*fwd/image_NAD.tif has the size of 2 cameras of scene tlc \(NAD 600 x 600, FWD 600 x 600, BWD "
+     r"600 x 493\), so which camera it is cannot be told: give single-camera products in SCENES"),
 ])
-def test_bad_blocks_are_refused_naming_the_parameter(block, far_scene, small_image, tmp_path, change, message):
+def test_bad_blocks_are_refused_naming_the_parameter(block, far_scene, three_line_scene, small_image, tmp_path,
+                                                     change, message):
     output = tmp_path / "ties.gpkg"
+    given = change(block, small=small_image, far=far_scene, tlc=three_line_scene)
     with pytest.raises(QgsProcessingException, match=message):
-        processing.run("pushbroom:matchtiepoints", params(block, output, **change(block, small=small_image,
-                                                                                  far=far_scene)))
+        processing.run("pushbroom:matchtiepoints", params(block, output, **given))
     assert not output.exists()
 
 
