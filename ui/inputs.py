@@ -68,6 +68,31 @@ def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT
     return scene, camera, source, list(source.getFeatures())
 
 
+# Scene JSON files a block's folder layout names by their folder (pushbroom:simulateblock, bundleadjust)
+FOLDER_NAMED_SCENES = ("onboard_scene.json", "true_scene.json", "adjusted_scene.json")
+
+
+def block_scene_names(paths) -> list[str]:
+    """The name of each scene file of a block (SCENES): its file's stem, or its folder's name for
+    the scene JSON files of FOLDER_NAMED_SCENES (the layout pushbroom:simulateblock writes).
+    QgsProcessingException naming both files when two scenes get one name (or one file is
+    listed twice)."""
+    names, first = [], {}
+    for path in map(Path, paths):
+        name = path.parent.name if path.name.lower() in FOLDER_NAMED_SCENES else path.stem
+        if name in first:
+            other = first[name]
+            if other.resolve() == path.resolve():
+                raise QgsProcessingException(f"{vocabulary.SCENES}: {path} is listed twice; give each scene once")
+            raise QgsProcessingException(f"{vocabulary.SCENES}: {other} and {path} are both named {name!r} (a scene's "
+                                         "name is its file's stem, or its folder's for "
+                                         f"{' / '.join(FOLDER_NAMED_SCENES)}); rename one so that observations "
+                                         "can name their scene")
+        first[name] = path
+        names.append(name)
+    return names
+
+
 # --- the files behind layers -------------------------------------------------------------------
 def layer_file(layer: QgsMapLayer | None) -> str:
     """The file behind a layer ('' for memory layers, databases and services)."""

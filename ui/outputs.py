@@ -9,7 +9,7 @@ from __future__ import annotations
 from contextlib import contextmanager
 from pathlib import Path
 
-from qgis.core import (QgsDataSourceUri, QgsFeatureSink, QgsProcessingException,
+from qgis.core import (QgsDataSourceUri, QgsProcessing, QgsFeatureSink, QgsProcessingException,
                        QgsProcessingLayerPostProcessorInterface, QgsProcessingOutputLayerDefinition,
                        QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterFolderDestination, QgsProperty)
@@ -48,6 +48,8 @@ def input_files(alg, parameters, context) -> dict[str, list[str]]:
             files[name] = [alg.parameterAsFile(parameters, name, context)]
         elif definition.type() in ("raster", "vector", "source", "layer", "mesh", "pointcloud"):
             files[name] = [layer_file(alg.parameterAsLayer(parameters, name, context))]
+        elif definition.type() == "multilayer" and definition.layerType() == QgsProcessing.TypeFile:
+            files[name] = [f for f in alg.parameterAsFileList(parameters, name, context) if f]  # files (SCENES)
         elif definition.type() == "multilayer":
             files[name] = [layer_file(layer) for layer in alg.parameterAsLayerList(parameters, name, context)]
     return files
@@ -172,21 +174,24 @@ def style_output_on_load(context, layer_id: str, qml_path: str | Path) -> None:
 
 
 # --- layers two algorithms write ---------------------------------------------------------------
-def write_tie_layer(table: tiepoints.TieTable, name: str, dest: str, context, feedback) -> dict:
+def write_tie_layer(table: tiepoints.TieTable, name: str, dest: str, context, feedback,
+                    by_scene: bool = False) -> dict:
     """Write the checked tie-point table to output ``name`` (file ``dest``), say what it holds,
-    style it on load; the algorithm's results (importtiepoints and matchtiepoints)."""
+    style it on load; the algorithm's results (importtiepoints and matchtiepoints). ``by_scene``:
+    cameras named '<scene>/<camera>' in the log (a block of scenes)."""
     with processing_errors(f"{name}: "):
         tiepoints.write_gpkg(table, dest)
-    _report_tie_table(table, feedback)
+    _report_tie_table(table, feedback, by_scene)
     style_output_on_load(context, dest, STYLES / "tie_points.qml")
     feedback.setProgress(100)
     return {name: dest}
 
 
-def _report_tie_table(table: tiepoints.TieTable, feedback) -> None:
+def _report_tie_table(table: tiepoints.TieTable, feedback, by_scene: bool = False) -> None:
     """Points and observations per camera, points seen in one camera, a-priori residuals."""
-    s = tiepoints.summary(table)
-    histogram = ", ".join(f"{points} in {rays} camera{'s' if rays != 1 else ''}"
+    s = tiepoints.summary(table, by_scene)
+    seen = "image" if by_scene else "camera"
+    histogram = ", ".join(f"{points} in {rays} {seen}{'s' if rays != 1 else ''}"
                           for rays, points in sorted(s["cameras_per_point"].items()))
     feedback.pushInfo(f"{s['points']} tie points, {s['observations']} observations ("
                       + ", ".join(f"{k}: {v}" for k, v in s["cameras"].items()) + f"); points seen {histogram}")

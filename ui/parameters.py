@@ -27,7 +27,7 @@ from ..core.model.timebasis import KINDS
 
 TR_CONTEXT = "PushbroomAdjust"
 
-SCENE, CAMERA = "SCENE", "CAMERA"
+SCENE, SCENES, CAMERA = "SCENE", "SCENES", "CAMERA"
 DEM, DEM_DATUM, Z_DATUM, HEIGHT, HEIGHT_SOURCE = "DEM", "DEM_DATUM", "Z_DATUM", "HEIGHT", "HEIGHT_SOURCE"
 CHECK_FRACTION, COL_FIELD, ROW_FIELD = "CHECK_FRACTION", "COL_FIELD", "ROW_FIELD"
 POSITION_MODEL, ATTITUDE_MODEL = "POSITION_MODEL", "ATTITUDE_MODEL"
@@ -248,6 +248,18 @@ def scene() -> QgsProcessingParameterFile:
                          "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, "
                          "Maxar/DigitalGlobe *.XML), or an RPC alone: an image with RPC metadata GDAL reads, "
                          "<name>_RPC.TXT, <name>.RPB or DIMAP RPC_*.XML (see docs/rpc-scenes.md)."))
+    return parameter
+
+
+def scenes() -> QgsProcessingParameterMultipleLayers:
+    """SCENES: the scene files of a block (matchtiepoints, bundleadjust), the alternative to SCENE."""
+    parameter = QgsProcessingParameterMultipleLayers(SCENES, tr("Scenes of the block (metadata, RPC or scene JSON "
+                                                                "files)"), QgsProcessing.TypeFile, optional=True)
+    parameter.setHelp(tr("Several scenes adjusted or matched as one block: any files the plugin reads as a scene "
+                         "(scene JSON, DIMAP, Maxar XML, RPC). A scene's name is its file's stem, or for "
+                         "onboard_scene.json / true_scene.json / adjusted_scene.json its folder's name (the layout "
+                         "pushbroom:simulateblock writes); observations name their scene in a field 'scene'. Give "
+                         "SCENE or SCENES, not both."))
     return parameter
 
 

@@ -242,21 +242,24 @@ def suspect_points(table: TieTable) -> np.ndarray:
         return ids[largest > _suspect_threshold(table)]
 
 
-def summary(table: TieTable) -> dict:
+def summary(table: TieTable, by_scene: bool = False) -> dict:
     """Figures for the log: points, observations, cameras_per_point {rays: points}, single (points
     with one ray, left out), suspect (points likely mismatched), rms_px (a-priori residual RMS over
     the observations of intersected points, px; NaN without any), cameras {name: observations},
-    pairs {"A-B": points seen by both cameras A and B} (cameras in the table's order of appearance)."""
+    pairs {"A-B": points seen by both cameras A and B} (cameras in the table's order of appearance).
+    ``by_scene``: a camera is '<scene>/<camera>' (a block of scenes, whose cameras may share a
+    name: every scene's 'NAD')."""
     ids, point = table.points()
     rays = np.bincount(point, minlength=ids.size)
-    names, camera = np.unique(table.camera, return_inverse=True)
+    cameras = np.char.add(np.char.add(table.scene, "/"), table.camera) if by_scene else table.camera
+    names, camera = np.unique(cameras, return_inverse=True)
     seen = np.zeros((ids.size, names.size), bool)
     seen[point, camera] = True
     shared = seen.T.astype(int) @ seen.astype(int)  # (cameras, cameras): points seen by both
     order = sorted(range(names.size), key=lambda k: int(np.argmax(camera == k)))
     out = {"points": int(ids.size), "observations": len(table),
            "cameras_per_point": {int(k): int(v) for k, v in zip(*np.unique(rays, return_counts=True))},
-           "single": int(np.sum(rays < 2)), "cameras": dict(zip(*np.unique(table.camera, return_counts=True))),
+           "single": int(np.sum(rays < 2)), "cameras": dict(zip(*np.unique(cameras, return_counts=True))),
            "suspect": 0, "rms_px": float("nan"),
            "pairs": {f"{names[a]}-{names[b]}": int(shared[a, b]) for i, a in enumerate(order) for b in order[i + 1:]}}
     if table.apriori is not None:

@@ -7,9 +7,11 @@ from osgeo import ogr
 
 
 def run_json(qgis_process, alg, **params) -> dict:
-    """Run algorithm ``alg`` with ``params`` (KEY=value) through the ``qgis_process`` fixture's
-    runner with --json; asserts exit code 0 and returns the run's "results"."""
-    done = qgis_process("--json", "run", alg, "--", *(f"{k}={v}" for k, v in params.items()))
+    """Run algorithm ``alg`` with ``params`` (KEY=value; a list: KEY=value once per item, as
+    multiple-layer parameters take them) through the ``qgis_process`` fixture's runner with
+    --json; asserts exit code 0 and returns the run's "results"."""
+    done = qgis_process("--json", "run", alg, "--", *(f"{k}={v}" for k, values in params.items()
+                                                        for v in (values if isinstance(values, list) else [values])))
     assert done.returncode == 0, done.stdout + done.stderr
     return json.loads(done.stdout)["results"]
 

@@ -154,3 +154,17 @@ def test_an_empty_table_is_refused(th1):
         tp.check_against_scene(tp.TieTable([], [], [], [], 0.5, ""), th1["onboard"])
     with pytest.raises(InputError, match="no tie points"):
         tp.build_table([], [], [], [])
+
+
+def test_a_block_whose_scenes_share_a_camera_name_is_summed_up_by_scene(tmp_path):
+    """Every scene of a block may call its camera 'NAD': by_scene keys the cameras by '<scene>/<camera>';
+    the layer keeps each observation's scene without an a-priori intersection."""
+    t = tp.build_table(["T1", "T1", "T1", "T2", "T2"], ["NAD"] * 5, [10.0, 12, 11, 20, 21], [5.0, 6, 7, 8, 9],
+                       scene=["a", "b", "c", "a", "b"])
+    assert tp.summary(t)["cameras"] == {"NAD": 5}
+    s = tp.summary(t, by_scene=True)
+    assert s["cameras"] == {"a/NAD": 2, "b/NAD": 2, "c/NAD": 1} and s["cameras_per_point"] == {2: 1, 3: 1}
+    assert s["pairs"] == {"a/NAD-b/NAD": 2, "a/NAD-c/NAD": 1, "b/NAD-c/NAD": 1} and s["single"] == 0
+    tp.write_gpkg(t, tmp_path / "t.gpkg")
+    back = tp.read_gpkg(tmp_path / "t.gpkg")
+    assert back.scene.tolist() == ["a", "b", "c", "a", "b"] and back.apriori is None

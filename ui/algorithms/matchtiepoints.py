@@ -1,16 +1,17 @@
-"""pushbroom:matchtiepoints — tie points between the cameras of a three-line scene (or strip)
-matched automatically in a common ground geometry, written as the tie-point layer the
-adjustment reads."""
+"""pushbroom:matchtiepoints — tie points between the cameras of a three-line scene (or strip),
+or between the images of several scenes of a block (SCENES, ui.blockmatch), matched
+automatically in a common ground geometry, written as the tie-point layer the adjustment reads."""
 from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParameterVectorDestination
 
 from ...core.observations import tiepoints
 from ...core.measure.tiematching import match_tiepoints
 from ...core.products.ortho import check_images
+from ..blockmatch import block_given, match_block, scene_or_scenes
 from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
 from ..inputs import (add_dem_parameters, add_scene_parameters, camera_images_for, dem_from_parameters, load_scene_for,
                       matching_settings)
 from ..outputs import geopackage_output, write_tie_layer
-from ..parameters import INPUTS, SCENE, camera_images, matching_parameters, tr
+from ..parameters import INPUTS, SCENE, camera_images, matching_parameters, scenes, tr
 from .base import PushbroomAlgorithm
 
 
@@ -33,11 +34,17 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
             "image); what passes may hold a few mismatches, which the adjustment's robust estimation removes. "
             "The output is the tie-point layer pushbroom:importtiepoints writes (checked against the scene and "
             "intersected with its model, likely mismatches flagged), with sigma_px from the correlation and "
-            "the image gradients (at least 0.08 px); pushbroom:bundleadjust reads it as TIE_POINTS.")
+            "the image gradients (at least 0.08 px); pushbroom:bundleadjust reads it as TIE_POINTS. Between "
+            "scenes: SCENES (two or more, e.g. the SCENES output of pushbroom:simulateblock) instead of SCENE, and "
+            "INPUTS one raw image per scene in the same order (each taken as its scene's camera of that size; a "
+            "product with several cameras of one size is refused); the first image's grid is matched in every "
+            "other through each scene's own model, the field 'scene' names each observation's scene, and the "
+            "checks against one scene (and the a-priori intersection) are left out.")
     OUTPUT = "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
+        self.addParameter(scenes())
         self.addParameter(camera_images())
         add_dem_parameters(self)
         for parameter in matching_parameters():
@@ -51,6 +58,9 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         dest = geopackage_output(self, parameters, context, self.OUTPUT, "matched_tie_points.gpkg", "tie-point layers")
+        if block_given(self, parameters, context):
+            table = match_block(self, parameters, context, feedback)
+            return write_tie_layer(table, self.OUTPUT, dest, context, feedback, by_scene=True)
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         if len(scene.cameras) < 2:
@@ -74,6 +84,10 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
             table = core_call(tiepoints.check_against_scene, table, scene, scene_path, "matched tie points")
         check_cancelled(feedback)
         return write_tie_layer(table, self.OUTPUT, dest, context, feedback)
+
+    def checkParameterValues(self, parameters, context):  # noqa: N802
+        """SCENE may be empty when SCENES is given (ui.blockmatch.scene_or_scenes)."""
+        return super().checkParameterValues(scene_or_scenes(parameters), context)
 
     @staticmethod
     def _report_matching(scene, table, rejected: dict, feedback) -> None:

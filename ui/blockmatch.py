@@ -1,0 +1,142 @@
+"""pushbroom:matchtiepoints between the raw images of several scenes of a block (SCENES): each
+scene's image given to its camera, the block matched by
+core.measure.tiematching.match_block_tiepoints and reported per scene pair.
+
+A block's scenes are independent sensor models, so the checks and the forward intersection of
+core.observations.tiepoints.check_against_scene (made against one scene) do not apply: the
+layer is written without a-priori intersection, its observations naming their scene.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from osgeo import gdal
+from qgis.core import QgsProcessingException
+
+from ..core.measure.tiematching import View, match_block_tiepoints
+from ..core.observations import tiepoints
+from ..core.products.ortho import check_images
+from .feedback import check_cancelled, feedback_callbacks, processing_errors
+from .inputs import block_scene_names, dem_from_parameters, layer_file, load_scene_for, matching_settings
+from .parameters import INPUTS, SCENE, SCENES
+
+# The core's names of the block's inputs (InputError.parameter) -> the algorithm's parameters
+CORE_PARAMETERS = {"scenes": SCENES, "images": INPUTS, "base": SCENES}
+
+
+def scene_or_scenes(parameters: dict) -> dict:
+    """The parameters QGIS's own check (checkParameterValues) is to see: with SCENES and without
+    SCENE, SCENE (mandatory for one scene) stands for the first of SCENES, so that a block run is
+    not refused before it starts; processAlgorithm decides between them (:func:`block_given`)."""
+    given = parameters.get(SCENES)
+    if not given or parameters.get(SCENE) not in (None, ""):
+        return parameters
+    first = given[0] if isinstance(given, (list, tuple)) else given
+    return {**parameters, SCENE: str(first)}
+
+
+def scene_files(alg, parameters, context) -> list[str]:
+    """The files of SCENES ([] when not given: QGIS 3.22 reads an empty list as [''])."""
+    return [path for path in alg.parameterAsFileList(parameters, SCENES, context) if path]
+
+
+def block_given(alg, parameters, context) -> bool:
+    """Whether SCENES is given (tie points between scenes); QgsProcessingException naming both
+    parameters when SCENE is given too."""
+    if not scene_files(alg, parameters, context):
+        return False
+    if alg.parameterAsFile(parameters, SCENE, context):
+        raise QgsProcessingException(f"{SCENE} and {SCENES} are both given: give {SCENE} (tie points between the "
+                                     f"cameras of one scene) or {SCENES} (tie points between the images of several "
+                                     "scenes), not both")
+    return True
+
+
+def raster_size(path: str) -> tuple[int, int]:
+    """(cols, rows) of a raw image file as GDAL opens it (a QGIS layer of an image with RPC metadata
+    is a warped view of another size); QgsProcessingException (INPUTS) when it cannot be opened."""
+    try:
+        ds = gdal.OpenEx(path, gdal.OF_RASTER)
+    except RuntimeError as exc:
+        raise QgsProcessingException(f"{INPUTS}: {path} cannot be opened as a raster ({exc})") from None
+    if ds is None:
+        raise QgsProcessingException(f"{INPUTS}: {path} cannot be opened as a raster")
+    return ds.RasterXSize, ds.RasterYSize
+
+
+def image_camera(name: str, scene, path: str, size: tuple[int, int]) -> int:
+    """The camera of scene ``name`` whose size (cols, rows) is the image's; QgsProcessingException
+    (INPUTS) when none is, or when several are (a multi-camera product: which camera the image
+    is cannot be told)."""
+    fits = [k for k, c in enumerate(scene.cameras) if (int(c.cols), int(c.rows)) == size]
+    cameras = ", ".join(f"{c.name} {int(c.cols)} x {int(c.rows)}" for c in scene.cameras)
+    if not fits:
+        raise QgsProcessingException(f"{INPUTS}: {path} is {size[0]} x {size[1]} px, but no camera of scene {name} "
+                                     f"has that size ({cameras}): give one raw image per scene, in the order of "
+                                     f"{SCENES}")
+    if len(fits) > 1:
+        raise QgsProcessingException(f"{INPUTS}: {path} has the size of {len(fits)} cameras of scene {name} "
+                                     f"({cameras}), so which camera it is cannot be told: give single-camera "
+                                     f"products in {SCENES} (one scene file per image), or match the cameras of "
+                                     f"one scene with {SCENE}")
+    return fits[0]
+
+
+def block_views(alg, parameters, context, feedback) -> list[View]:
+    """The block's views: SCENES (two or more, named by :func:`ui.inputs.block_scene_names`) with
+    INPUTS, one raw image per scene in the same order, each given to the camera of its size."""
+    paths = scene_files(alg, parameters, context)
+    if len(paths) < 2:
+        raise QgsProcessingException(f"{SCENES}: {len(paths)} scene given; tie points between scenes need two or "
+                                     f"more (the cameras of one scene: {SCENE})")
+    names = block_scene_names(paths)
+    scenes = [load_scene_for(SCENES, path, feedback) for path in paths]
+    layers = alg.parameterAsLayerList(parameters, INPUTS, context)
+    if len(layers) != len(paths):
+        raise QgsProcessingException(f"{INPUTS}: {len(layers)} raw image(s) given for the {len(paths)} scenes of "
+                                     f"{SCENES} ({', '.join(names)}): give one image per scene, in that order")
+    views = []
+    for name, scene, path, layer in zip(names, scenes, paths, layers):
+        image = layer_file(layer)
+        if not image:
+            raise QgsProcessingException(f"{INPUTS}: the image of scene {name} is not a file (a memory or service "
+                                         "layer); save it as GeoTIFF first")
+        camera = image_camera(name, scene, image, raster_size(image))
+        with processing_errors(f"{INPUTS}: "):
+            check_images(scene, {camera: image})
+        feedback.pushInfo(f"scene {name} ({path}): camera {scene.cameras[camera].name}, image {image}")
+        views.append(View(name, scene, camera, Path(image)))
+    return views
+
+
+def match_block(alg, parameters, context, feedback):
+    """Tie points between the first image of the block and every other (a TieTable whose scene
+    column names each observation's scene), reported per scene pair."""
+    views = block_views(alg, parameters, context, feedback)
+    surface = dem_from_parameters(alg, parameters, context, views[0].scene, feedback)
+    settings = matching_settings(alg, parameters, context)
+    progress, is_cancelled = feedback_callbacks(feedback)
+    with processing_errors("", CORE_PARAMETERS):
+        table, rejected = match_block_tiepoints(views, surface, settings, 0,
+                                                lambda f, m=None: progress(0.9 * f, m), is_cancelled)
+    check_cancelled(feedback)
+    report_block(views, table, rejected, feedback)
+    feedback.pushInfo("block of scenes: the checks against one scene (cameras, image bounds, onboard forward "
+                      "intersection, likely mismatches) do not apply and were skipped; the layer holds no "
+                      "a-priori intersection (rays and residuals empty)")
+    return table
+
+
+def report_block(views: list[View], table, rejected: dict, feedback) -> None:
+    """Per scene matched against the first: grid points matched, rejections by reason; then the tie
+    points per pair of scenes (a point matched in several scenes ties each pair of them)."""
+    base = views[0]
+    for view in views[1:]:
+        counts = rejected[view.label]
+        matched = int(np.sum((table.scene == view.scene_name) & (table.camera == view.camera_name)))
+        total = matched + sum(counts.values())
+        reasons = ", ".join(f"{v} {k}" for k, v in counts.items() if v) or "none"
+        feedback.pushInfo(f"{base.label}-{view.label}: matched {matched} of {total} grid points; rejected: {reasons}")
+    pairs = tiepoints.summary(table, by_scene=True)["pairs"]
+    feedback.pushInfo("tie points per scene pair: " + ", ".join(f"{k} {v}" for k, v in pairs.items()))
