@@ -25,15 +25,12 @@ from .parameters import INPUTS, SCENE, SCENES
 CORE_PARAMETERS = {"scenes": SCENES, "images": INPUTS, "base": SCENES}
 
 
-def scene_or_scenes(parameters: dict) -> dict:
-    """The parameters QGIS's own check (checkParameterValues) is to see: with SCENES and without
-    SCENE, SCENE (mandatory for one scene) stands for the first of SCENES, so that a block run is
-    not refused before it starts; processAlgorithm decides between them (:func:`block_given`)."""
-    given = parameters.get(SCENES)
-    if not given or parameters.get(SCENE) not in (None, ""):
-        return parameters
-    first = given[0] if isinstance(given, (list, tuple)) else given
-    return {**parameters, SCENE: str(first)}
+def one_scene_file(alg, parameters, context) -> str:
+    """SCENE's file when SCENES is not given; QgsProcessingException naming both when neither is."""
+    path = alg.parameterAsFile(parameters, SCENE, context)
+    if not path:
+        raise QgsProcessingException(f"give {SCENE} (one scene) or {SCENES} (a block of scenes): neither is given")
+    return path
 
 
 def scene_files(alg, parameters, context) -> list[str]:

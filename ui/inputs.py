@@ -25,9 +25,12 @@ from .parameters import CAMERA, DEM, DEM_DATUM, HEIGHT, HEIGHT_SOURCE, SCENE, Z_
 
 
 # --- scenes and cameras ------------------------------------------------------------------------
-def add_scene_parameters(alg, with_camera: bool = True) -> None:
-    """SCENE (any supported metadata or scene JSON) and, optionally, CAMERA."""
-    alg.addParameter(vocabulary.scene())
+def add_scene_parameters(alg, with_camera: bool = True, or_scenes: bool = False) -> None:
+    """SCENE (any supported metadata or scene JSON) and, optionally, CAMERA; with ``or_scenes``
+    SCENE is optional and SCENES follows it (a block of scenes instead of one)."""
+    alg.addParameter(vocabulary.scene(optional=or_scenes))
+    if or_scenes:
+        alg.addParameter(vocabulary.scenes())
     if with_camera:
         alg.addParameter(vocabulary.camera())
 
@@ -72,14 +75,19 @@ def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT
 FOLDER_NAMED_SCENES = ("onboard_scene.json", "true_scene.json", "adjusted_scene.json")
 
 
+RPC_SUFFIX = "_RPC"  # GDAL's RPC sidecar of <name>.tif: <name>_RPC.TXT
+
+
 def block_scene_names(paths) -> list[str]:
-    """The name of each scene file of a block (SCENES): its file's stem, or its folder's name for
-    the scene JSON files of FOLDER_NAMED_SCENES (the layout pushbroom:simulateblock writes).
+    """The name of each scene file of a block (SCENES): its file's stem (less the suffix of an RPC
+    sidecar, <name>_RPC.TXT: the image's name), or its folder's name for the scene JSON files of
+    FOLDER_NAMED_SCENES (the layout pushbroom:simulateblock writes).
     QgsProcessingException naming both files when two scenes get one name (or one file is
     listed twice)."""
     names, first = [], {}
     for path in map(Path, paths):
-        name = path.parent.name if path.name.lower() in FOLDER_NAMED_SCENES else path.stem
+        stem = path.stem[:-len(RPC_SUFFIX)] if path.stem.upper().endswith(RPC_SUFFIX) else path.stem
+        name = path.parent.name if path.name.lower() in FOLDER_NAMED_SCENES else stem
         if name in first:
             other = first[name]
             if other.resolve() == path.resolve():

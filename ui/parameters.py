@@ -240,10 +240,11 @@ def preset() -> QgsProcessingParameterEnum:
 
 
 # --- shared plain parameters --------------------------------------------------------------
-def scene() -> QgsProcessingParameterFile:
+def scene(optional: bool = False) -> QgsProcessingParameterFile:
+    """SCENE; optional in the algorithms that take a block's SCENES instead."""
     parameter = QgsProcessingParameterFile(SCENE, tr("Scene (metadata, RPC or scene JSON)"), extension="",
                                            fileFilter="Scene files (*.json *.xml *.XML *.txt *.TXT *.rpb *.RPB *.tif "
-                                                      "*.ntf *.jp2);;All files (*)")
+                                                      "*.ntf *.jp2);;All files (*)", optional=optional)
     parameter.setHelp(tr("The sensor model of the scene: a Pushbroom Adjust scene JSON (written by the simulator "
                          "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, "
                          "Maxar/DigitalGlobe *.XML), or an RPC alone: an image with RPC metadata GDAL reads, "
@@ -256,10 +257,10 @@ def scenes() -> QgsProcessingParameterMultipleLayers:
     parameter = QgsProcessingParameterMultipleLayers(SCENES, tr("Scenes of the block (metadata, RPC or scene JSON "
                                                                 "files)"), QgsProcessing.TypeFile, optional=True)
     parameter.setHelp(tr("Several scenes adjusted or matched as one block: any files the plugin reads as a scene "
-                         "(scene JSON, DIMAP, Maxar XML, RPC). A scene's name is its file's stem, or for "
-                         "onboard_scene.json / true_scene.json / adjusted_scene.json its folder's name (the layout "
-                         "pushbroom:simulateblock writes); observations name their scene in a field 'scene'. Give "
-                         "SCENE or SCENES, not both."))
+                         "(scene JSON, DIMAP, Maxar XML, RPC). A scene's name is its file's stem (without the _RPC of "
+                         "<name>_RPC.TXT), or for onboard_scene.json / true_scene.json / adjusted_scene.json its "
+                         "folder's name (the layout pushbroom:simulateblock writes); observations name their scene "
+                         "in a field 'scene'. Give SCENE or SCENES, not both."))
     return parameter
 
 

@@ -19,7 +19,7 @@ from pushbroom_adjust.simulation.simulator import simulate
 from tests.support.hostile import LogFeedback
 from tests.support.qgis_process import run_json
 
-NAMES = ("nad", "fwd", "bwd", "date2_RPC")  # the scenes of LAYOUT tristereo_and_other_date by their files, in order
+NAMES = ("nad", "fwd", "bwd", "date2")  # the scenes of LAYOUT tristereo_and_other_date by their files, in order
 
 
 @pytest.fixture(scope="module")
@@ -66,7 +66,7 @@ def check_against_truth(block, table) -> dict:
     for name, error in errors.items():
         assert error.size > 150 and np.median(error) < 0.1 and np.quantile(error, 0.95) < 0.2, \
             (name, error.size, np.median(error), np.quantile(error, 0.95))
-        assert error.max() < (1.0 if name == "date2_RPC" else 0.2), (name, error.max())
+        assert error.max() < (1.0 if name == "date2" else 0.2), (name, error.max())
     return errors
 
 
@@ -78,8 +78,8 @@ def test_ties_between_the_scenes_of_a_block_meet_the_truth(block, matched):
     key = np.char.add(np.char.add(table.id, "|"), table.scene)
     assert np.unique(key).size == len(table) and set(table.id) == set(table.id[table.scene == "nad"])
     s = tiepoints.summary(table, by_scene=True)  # every scene's camera of the tri-stereo is 'NAD'
-    assert set(s["cameras"]) == {"nad/NAD", "fwd/NAD", "bwd/NAD", "date2_RPC/date2"}
-    assert s["single"] == 0 and all(s["pairs"][f"nad/NAD-{k}"] > 150 for k in ("fwd/NAD", "bwd/NAD", "date2_RPC/date2"))
+    assert set(s["cameras"]) == {"nad/NAD", "fwd/NAD", "bwd/NAD", "date2/date2"}
+    assert s["single"] == 0 and all(s["pairs"][f"nad/NAD-{k}"] > 150 for k in ("fwd/NAD", "bwd/NAD", "date2/date2"))
 
 
 def test_the_log_per_scene_pair(block, matched):
@@ -90,13 +90,13 @@ def test_the_log_per_scene_pair(block, matched):
         assert " of 324 grid points; rejected: " in line  # the base image's grid: 18 x 18 points
     assert "checks against one scene" in text and "skipped" in text
     assert f"scene fwd ({block['SCENES'][1]}): camera NAD, image {block['IMAGES'][1]}" in text
-    assert "nad/NAD:" in text and "date2_RPC/date2:" in text  # observations per scene and camera
+    assert "nad/NAD:" in text and "date2/date2:" in text  # observations per scene and camera
     assert "tie points per scene pair: nad/NAD-fwd/NAD" in text and "fwd/NAD-bwd/NAD" in text
 
 
 def test_a_block_from_the_command_line(block, qgis_process, tmp_path):
-    """qgis_process asks for every mandatory parameter by name: SCENE is given empty."""
-    out = run_json(qgis_process, "pushbroom:matchtiepoints", **params(block, tmp_path / "ties.gpkg", SCENE=""))
+    """SCENES alone, as a user types it (SCENE is optional where SCENES may replace it)."""
+    out = run_json(qgis_process, "pushbroom:matchtiepoints", **params(block, tmp_path / "ties.gpkg"))
     table = tiepoints.read_gpkg(out["OUTPUT"])
     assert set(table.scene) == set(NAMES)
     check_against_truth(block, table)
@@ -132,6 +132,7 @@ def small_image(tmp_path_factory) -> str:
 
 @pytest.mark.parametrize("change, message", [
     (lambda b, **_: {"SCENE": b["SCENES"][0]}, r"^SCENE and SCENES are both given"),
+    (lambda b, **_: {"SCENES": []}, r"^give SCENE \(one scene\) or SCENES \(a block of scenes\): neither is given"),
     (lambda b, **_: {"SCENES": b["SCENES"][:3] + [b["SCENES"][1]]}, r"^SCENES: .*fwd/onboard_scene.json is listed twice"),
     (lambda b, **_: {"INPUTS": b["IMAGES"][:3]}, r"^INPUTS: 3 raw image\(s\) given for the 4 scenes of SCENES"),
     (lambda b, small, **_: {"INPUTS": [b["IMAGES"][0], small] + b["IMAGES"][2:]},

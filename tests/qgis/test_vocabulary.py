@@ -63,6 +63,9 @@ def vocabulary_problems(algorithms) -> list[str]:
             if name in GENERIC:
                 continue
             signature = _signature(definition)
+            if name == "SCENE" and alg.parameterDefinition("SCENES") is not None:
+                # optional where a block's SCENES may replace it, and only there
+                signature["flags"] = int(signature["flags"]) & ~int(QgsProcessingParameterDefinition.FlagOptional)
             if name not in first:
                 if not model:
                     first[name] = (alg.id(), signature)

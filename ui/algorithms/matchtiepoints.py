@@ -6,12 +6,12 @@ from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParame
 from ...core.observations import tiepoints
 from ...core.measure.tiematching import match_tiepoints
 from ...core.products.ortho import check_images
-from ..blockmatch import block_given, match_block, scene_or_scenes
+from ..blockmatch import block_given, match_block, one_scene_file
 from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
 from ..inputs import (add_dem_parameters, add_scene_parameters, camera_images_for, dem_from_parameters, load_scene_for,
                       matching_settings)
 from ..outputs import geopackage_output, write_tie_layer
-from ..parameters import INPUTS, SCENE, camera_images, matching_parameters, scenes, tr
+from ..parameters import INPUTS, SCENE, camera_images, matching_parameters, tr
 from .base import PushbroomAlgorithm
 
 
@@ -43,8 +43,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
     OUTPUT = "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        add_scene_parameters(self, with_camera=False)
-        self.addParameter(scenes())
+        add_scene_parameters(self, with_camera=False, or_scenes=True)
         self.addParameter(camera_images())
         add_dem_parameters(self)
         for parameter in matching_parameters():
@@ -61,7 +60,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
         if block_given(self, parameters, context):
             table = match_block(self, parameters, context, feedback)
             return write_tie_layer(table, self.OUTPUT, dest, context, feedback, by_scene=True)
-        scene_path = self.parameterAsFile(parameters, SCENE, context)
+        scene_path = one_scene_file(self, parameters, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         if len(scene.cameras) < 2:
             raise QgsProcessingException(f"{SCENE}: {scene_path} has one camera ({scene.cameras[0].name}); tie points "
@@ -84,10 +83,6 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
             table = core_call(tiepoints.check_against_scene, table, scene, scene_path, "matched tie points")
         check_cancelled(feedback)
         return write_tie_layer(table, self.OUTPUT, dest, context, feedback)
-
-    def checkParameterValues(self, parameters, context):  # noqa: N802
-        """SCENE may be empty when SCENES is given (ui.blockmatch.scene_or_scenes)."""
-        return super().checkParameterValues(scene_or_scenes(parameters), context)
 
     @staticmethod
     def _report_matching(scene, table, rejected: dict, feedback) -> None:
