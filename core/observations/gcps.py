@@ -385,6 +385,7 @@ _GPKG_FIELDS = (("id", ogr.OFTString), ("role", ogr.OFTString), ("camera", ogr.O
                 ("sigma_xy", ogr.OFTReal), ("sigma_z", ogr.OFTReal), ("res_col", ogr.OFTReal),
                 ("res_row", ogr.OFTReal), ("res_px", ogr.OFTReal), ("res_m", ogr.OFTReal),
                 ("inside", ogr.OFTInteger))
+_READ_FIELDS = tuple(n for n, _ in _GPKG_FIELDS) + ("scene",)
 
 
 def write_gpkg(table: GcpTable, path, layer: str = GPKG_LAYER, extra: dict | None = None,
@@ -394,10 +395,12 @@ def write_gpkg(table: GcpTable, path, layer: str = GPKG_LAYER, extra: dict | Non
 
     Geometry: Point Z (lon, lat, ellipsoidal h) in EPSG:4979. Fields: id, role, camera, col, row,
     h, sigma_px, sigma_xy, sigma_z, res_col, res_row, res_px, res_m, inside (0/1; NULL = not
-    checked), then the ``extra`` columns {name: (n,) array}. Missing values are NULL. The
-    scene file the residuals were computed against is the layer metadata item PUSHBROOM_SCENE.
+    checked), scene (the block scene each row was measured in; only when a row names one), then
+    the ``extra`` columns {name: (n,) array}. Missing values are NULL. The scene file the
+    residuals were computed against is the layer metadata item PUSHBROOM_SCENE.
     """
-    columns = {**_gpkg_columns(table), **(extra or {})}
+    block_scene = {"scene": table.block_scene} if (table.block_scene != "").any() else {}
+    columns = {**_gpkg_columns(table), **block_scene, **(extra or {})}
     points = (f"POINT Z ({lo!r} {la!r} {h!r})" for lo, la, h in zip(table.lon.tolist(), table.lat.tolist(),
                                                                        table.h.tolist()))
     write_layer(path, layer, wgs84_3d(), ogr.wkbPoint25D, columns, points,
@@ -419,7 +422,8 @@ def read_gpkg(path, layer: str | None = None) -> GcpTable:
 
     Ground positions come from the geometry (transformed to EPSG:4979 if the layer has another
     CRS); h from the geometry's Z (the 'h' field when the geometry has no Z). Residuals are
-    restored when every point has them.
+    restored when every point has them; an optional text field ``scene`` gives each row's
+    ``block_scene`` (the product of a block it was measured in; NULL: '').
     """
     path = Path(path)
     ds, lyr = open_layer(path, layer)
@@ -441,10 +445,10 @@ def read_gpkg(path, layer: str | None = None) -> GcpTable:
             geom.Transform(to_wgs)
         coords.append((geom.GetX(), geom.GetY(), geom.GetZ() if geom.Is3D() else np.nan))
         records.append([feat.GetField(n) if n in names and feat.IsFieldSetAndNotNull(n) else None
-                        for n, _ in _GPKG_FIELDS])
+                        for n in _READ_FIELDS])
     if not records:
         raise InputError(f"{path}: layer {lyr.GetName()!r} holds no points")
-    cols = {n: [r[k] for r in records] for k, (n, _) in enumerate(_GPKG_FIELDS)}
+    cols = {n: [r[k] for r in records] for k, n in enumerate(_READ_FIELDS)}
     lon, lat, z = np.array(coords, dtype=float).T
     num = {n: nullable_floats(cols[n]) for n in ("h", "col", "row", "inside", "res_col", "res_row", "res_px", "res_m")}
     h = np.where(np.isfinite(z), z, num["h"])
@@ -453,7 +457,8 @@ def read_gpkg(path, layer: str | None = None) -> GcpTable:
     table = GcpTable(ids, np.array([v or "control" for v in cols["role"]]),
                      np.array([v or "" for v in cols["camera"]]), num["col"], num["row"], lon, lat, h,
                      *(nullable_floats(cols[k], _DEFAULT_SIGMAS[k]) for k in ("sigma_px", "sigma_xy", "sigma_z")),
-                     scene=lyr.GetMetadataItem(SCENE_METADATA_KEY) or "")
+                     scene=lyr.GetMetadataItem(SCENE_METADATA_KEY) or "",
+                     block_scene=np.array([str(v).strip() if v is not None else "" for v in cols["scene"]]))
     _require_plausible(table, str(path))
     if np.isfinite(num["inside"]).all():
         table.residuals = Residuals(num["res_col"], num["res_row"], num["res_px"], num["res_m"], num["inside"] != 0)

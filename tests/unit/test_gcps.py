@@ -1,5 +1,7 @@
 """GCP import: CSV mapping, QGIS .points files, CRS and height conversion, a-priori residuals
 against a scene with a known attitude error, outside-image marking, errors, GeoPackage."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from osgeo import ogr
@@ -269,3 +271,21 @@ def test_gpkg_round_trip_fields_crs_and_scene(tmp_path):
     assert G.read_gpkg(plain).residuals is None
     with pytest.raises(InputError, match="use a .gpkg file name"):
         G.write_gpkg(table, tmp_path / "gcps.shp")
+
+
+def test_gpkg_carries_the_block_scene_of_every_row(tmp_path):
+    """A GCP measured in the products of a block names its product in the field 'scene' (written
+    only when a row names one); rows without a name read back as ''."""
+    table = G.build_table(["a", "a", "b"], [1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [3.0] * 3, [4.0] * 3,
+                          crs="EPSG:4326", heights=_ellipsoid(), camera=["P", "MS", "P"])
+    assert (G.read_gpkg(_written(table, tmp_path / "none.gpkg")).block_scene == "").all()
+    named = replace(table, block_scene=np.array(["PHR_A", "PHR_B", ""]))
+    ds = ogr.Open(str(_written(named, tmp_path / "named.gpkg")))
+    assert ds.GetLayer(0).GetLayerDefn().GetFieldIndex("scene") >= 0
+    ds = None
+    assert G.read_gpkg(tmp_path / "named.gpkg").block_scene.tolist() == ["PHR_A", "PHR_B", ""]
+
+
+def _written(table, path):
+    G.write_gpkg(table, path)
+    return path
