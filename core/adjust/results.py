@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..geodesy import ecef_to_geodetic, geodetic_to_ecef
+from ..model.block import chip_label
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..observations.tables import listed
@@ -130,9 +131,9 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
         "control_residuals": _residual_summary(st.v[good & gcp]),
         "control_ground": _ground_taken(problem, good & gcp, st.v, stated[problem.rows[good & gcp]]),
         "control_residuals_per_chip": {
-            f"{c.name}/{ch.name or k + 1}": _residual_summary(st.v[good & gcp & (problem.obs.camera == ci)
+            chip_label(c, k): _residual_summary(st.v[good & gcp & (problem.obs.camera == ci)
                                                                     & (problem.obs.chip == k)])
-            for ci, c in enumerate(problem.scene.cameras) for k, ch in enumerate(c.chips)},
+            for ci, c in enumerate(problem.scene.cameras) for k in range(len(c.chips))},
         "check_points": check_point_report(after),
         "check_points_before": check_point_report(before),
         "trajectory": _trajectory_curves(problem) if problem.params.position_basis is not None else None,

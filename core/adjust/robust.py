@@ -103,6 +103,7 @@ import math
 import numpy as np
 from scipy import stats
 
+from ..model.block import chip_label
 from .problem import Problem, image_group
 from .statistics import Statistics, line_group_sums
 
@@ -400,7 +401,7 @@ def breakdown(problem: Problem, st: Statistics, flagged: np.ndarray, inlier: np.
         chips = [(k, (obs.camera == c) & (obs.chip == k)) for k in range(len(cam.chips))]
         chips = [(k, m) for k, m in chips if m.sum() >= MIN_GROUP]
         for k, m in chips:
-            name = f"{cam.name}/{cam.chips[k].name or k + 1}"
+            name = chip_label(cam, k)
             n = int(m.sum())
             share = float(flagged[m].mean())
             if share > BREAKDOWN_SHARE:

@@ -105,6 +105,18 @@ def _renamed(camera, rename):
     return replace(camera, name=rename(camera.name), chips=chips)
 
 
+def chip_label(camera, k: int) -> str:
+    """``<camera>/<chip>`` naming chip ``k`` of ``camera`` in reports (its number from 1 when the
+    chip has no name); in a composite the chip's own copy of the scene prefix is left out
+    (``A/NAD/NAD-1``, not ``A/NAD/A/NAD-1``)."""
+    chip = camera.chips[k].name
+    if not chip:
+        return f"{camera.name}/{k + 1}"
+    scene = camera.name.rpartition(SEPARATOR)[0]
+    prefix = f"{scene}{SEPARATOR}"
+    return f"{camera.name}/{chip[len(prefix):] if scene and chip.startswith(prefix) else chip}"
+
+
 def scene_cameras(composite: SceneModel, scene: str) -> list[int]:
     """Indices of the composite's cameras of block scene ``scene``."""
     prefix = f"{scene}{SEPARATOR}"

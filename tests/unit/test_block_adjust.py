@@ -155,6 +155,8 @@ def test_gcps_block_against_each_scene_alone(block):
     of points seen by two directions, base-to-height 0.47-0.93, at 5 m GSD)."""
     out = adjust_block(block.onboard, block.gcps, block.ties, SETTINGS)
     assert "control points" in out.report["datum"]
+    chips = out.adjustment.report["control_residuals_per_chip"]  # <scene>/<camera>/<chip>, the scene once
+    assert len(chips) == 9 and all(label.count("/") == 2 for label in chips), list(chips)
     block_px, alone_px = {}, {}
     for name in block.onboard:
         block_px[name] = block.check_px(name, out.scenes[name])
