@@ -48,7 +48,8 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
         st = statistics(problem, result["linearization"], result["system"])
         # Before any component is estimated the scale is robust: sigma0 of a first pass is
         # inflated by the gross errors themselves and would hide most of them.
-        scale = robust_scale(st.w, st.redundancy) if robust and (k == 0 or not s.variance_components) else 1.0
+        unscaled = np.ones(len(problem.obs))
+        scale = robust_scale(problem, st) if robust and (k == 0 or not s.variance_components) else unscaled
         inlier = inliers(st, scale, crit) if robust else np.ones(len(problem.obs), bool)
         comps = components(problem, st, inlier)
         component_change = 0.0
@@ -56,7 +57,7 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
             labels, H = component_coupling(problem, result["linearization"], result["system"], st.redundancy, inlier)
             joint = joint_groups(comps, labels, H, joint)
             component_change = rescale(problem, comps, kappa, joint, (labels, H))
-            st.w, scale = normalised(problem, st.v, st.redundancy), 1.0
+            st.w, scale = normalised(problem, st.v, st.redundancy), unscaled
         before = problem.factor[:, 0] < 1.0
         lines_before = problem.line_flagged.copy()
         change = robust_weights(problem, st, scale) if robust else 0.0

@@ -1,22 +1,26 @@
 """Robust estimation that does not trust the a-priori sigmas.
 
 Variance components. The observations fall into groups: the image observations of each
-camera ("image <camera>"), the planimetric and the height coordinates of the weighted
-control points ("ground_xy", "ground_z") and the pseudo-observations (onboard position and
-attitude, weighted interior parameters). Each group k gets a factor s_k on its a-priori
+camera's control and line points ("image <camera>") and of its tie points ("tie points
+<camera>", apart: matched ties are often far more precise than control points measured by
+hand), the planimetric and the height coordinates of the weighted control points
+("ground_xy", "ground_z") and the pseudo-observations (onboard position and attitude,
+weighted interior parameters). Each group k gets a factor s_k on its a-priori
 sigmas, estimated by Förstner's simplified Helmert estimator (Förstner 1979)
 
     s_k^2 <- s_k^2 * Omega_k / (kappa * r_k),   Omega_k = sum of p v^2,  r_k = sum of redundancy numbers
 
 over the group's inliers (observations the robust step keeps), iterated with the solution
-until every factor changes by less than COMPONENT_TOLERANCE. A factor is never below
-MIN_FACTOR, nor is the first pass's robust scale: observations fitting far better than
-their stated sigmas (exact, e.g. simulated, tie points among measured control points in one
-camera's group) would otherwise drive it towards 0 pass after pass (the measured
-observations flagged against the exact ones' scale, the exact ones then fitted alone), their
-weights towards infinity, and the normal matrix towards singularity (the passes stopped
-without converging). Measured groups stay well above it (matched GCPs of a rendered
-simulation: 0.07). The report says when the floor holds a factor. kappa = E[w^2 | |w| <= c] of a
+until every factor changes by less than COMPONENT_TOLERANCE. A factor is never below its
+floor (:func:`factor_floor`), nor is the first pass's robust scale: MIN_FACTOR, because
+observations fitting far better than their stated sigmas (exact, e.g. simulated, ones) would
+otherwise drive it towards 0 pass after pass, their weights towards infinity, and the normal
+matrix towards singularity (the passes stopped without converging); measured groups stay well
+above it (matched GCPs of a rendered simulation: 0.07). Tie-point groups' floor is 1: their
+stated sigma is the most they are trusted, because their residuals leave out the part of their
+errors the self-calibration absorbs (matched tie points of a rendered TH-1 scene: 0.012 px
+estimated, about 0.03 px against the truth; weighted by the estimate, their systematic part bent
+the heights of the block by 0.9 m RMS). The report says when the floor holds a factor. kappa = E[w^2 | |w| <= c] of a
 standard normal w truncated at the critical value c corrects for the tails the outlier
 test cuts off (0.988 at alpha = 0.001). A group's factor is estimated only when its
 redundancy is at least MIN_REDUNDANCY: below it the estimate scatters by more than 45 %
@@ -60,7 +64,8 @@ both intervals are alike.
 The outlier test then compares normalised residuals w = v / (s_k sigma sqrt(r)) with the
 critical value: flags do not depend on the a-priori sigmas' scale. In the first pass, before
 any component is known, the scale is the robust 1.4826 x median |w| (MAD), which gross
-errors up to nearly half of the observations cannot inflate to their own size.
+errors up to nearly half of the observations cannot inflate to their own size; it is taken per
+image group, so that precise tie points do not set the scale of the control points.
 
 Breakdown. A robust estimator fails when the bad observations are too many or agree with
 each other: it then keeps the wrong ones, or flags the good ones, and reports small
@@ -104,7 +109,7 @@ import numpy as np
 from scipy import stats
 
 from ..model.block import chip_label
-from .problem import Problem, image_group
+from .problem import TIE_GROUP_PREFIX, Problem
 from .statistics import Statistics, line_group_sums
 
 log = logging.getLogger(__name__)
@@ -120,6 +125,15 @@ INFLATED_RATIO = 1.5
 MAD_TO_SIGMA = 1.4826
 WRONG_SHARE = 0.5       # a line with more than this share of its points failing the point test is wrong
 MIN_FACTOR = 0.01  # lowest factor on stated sigmas: no measured group is 100 times more precise than stated
+
+
+def factor_floor(group: str) -> float:
+    """The lowest factor on a group's stated sigmas: MIN_FACTOR, and 1 for tie-point groups (matched
+    tie points fit better than they are: their residuals leave out the part of their errors the
+    interior parameters absorb, measured 0.012 px estimated against 0.03 px true on a rendered TH-1
+    scene, and with their factor below 1 that part bent the block's heights: 3.67 against 2.99 m
+    with exact ties)."""
+    return 1.0 if group.startswith(TIE_GROUP_PREFIX) else MIN_FACTOR
 SEPARATE_SHARE = 0.2  # a separable group's effective redundancy is at least this share of its redundancy
 PROPORTIONAL = 0.95  # coupling of two groups' residuals beyond which a weak group shares the other's factor
 STATED_DOF = 50    # degrees of freedom of a stated sigma: known to about 10 % (see the module docstring)
@@ -136,15 +150,22 @@ def truncation(c: float) -> float:
     return float(1.0 - 2.0 * c * stats.norm.pdf(c) / (2.0 * stats.norm.cdf(c) - 1.0))
 
 
-def robust_scale(w: np.ndarray, redundancy: np.ndarray) -> float:
-    """1.4826 x median |w| of the normalised residuals (n, 2) with a redundancy."""
-    live = redundancy > 1e-6
-    return max(MAD_TO_SIGMA * float(np.median(np.abs(w[live]))) if live.any() else 1.0, MIN_FACTOR)
+def robust_scale(problem: Problem, st: Statistics) -> np.ndarray:
+    """(n,) per image observation 1.4826 x median |w| of the normalised residuals (n, 2) with a
+    redundancy of its group (:attr:`Problem.image_groups`); 1 in a group without any."""
+    labels, index = problem.image_groups
+    live = st.redundancy > 1e-6
+    scale = np.ones(len(labels))
+    for k in range(len(labels)):
+        w = np.abs(st.w[index == k][live[index == k]])
+        scale[k] = max(MAD_TO_SIGMA * float(np.median(w)), factor_floor(labels[k])) if w.size else 1.0
+    return scale[index]
 
 
-def inliers(st: Statistics, scale: float, crit: float) -> np.ndarray:
-    """(n,) image observations whose normalised residuals |w| / scale stay within ``crit``."""
-    return (np.abs(st.w) <= crit * scale).all(axis=1)
+def inliers(st: Statistics, scale: np.ndarray, crit: float) -> np.ndarray:
+    """(n,) image observations whose normalised residuals |w| / scale ((n,) per observation) stay
+    within ``crit``."""
+    return (np.abs(st.w) <= crit * scale[:, None]).all(axis=1)
 
 
 def components(problem: Problem, st: Statistics, inlier: np.ndarray) -> dict[str, tuple[float, float, int]]:
@@ -158,10 +179,11 @@ def components(problem: Problem, st: Statistics, inlier: np.ndarray) -> dict[str
 def _sums(problem: Problem, st: Statistics, inlier: np.ndarray) -> dict[str, tuple[float, float, int]]:
     """(sum of p v^2, redundancy, count) per group with the current weights (see :func:`components`)."""
     out = {}
-    for c, cam in enumerate(problem.scene.cameras):
-        m = inlier & (problem.obs.camera == c)
+    labels, index = problem.image_groups
+    for k, label in enumerate(labels):
+        m = inlier & (index == k)
         if m.any():
-            out[image_group(cam.name)] = (float(st.pvv[m].sum()), float(st.redundancy[m].sum()), 2 * int(m.sum()))
+            out[label] = (float(st.pvv[m].sum()), float(st.redundancy[m].sum()), 2 * int(m.sum()))
     if problem.weighted and problem.n_control:
         n_points = problem.ground.shape[0]
         good = (np.bincount(problem.obs.point, weights=~inlier, minlength=n_points) == 0)[:problem.n_control]
@@ -305,11 +327,10 @@ def rescale(problem: Problem, comps: dict, kappa: float, joint: list[tuple[str, 
         squared.update(helmert_factors(problem, comps, kappa, [u for u in units if set(u) <= set(labels)],
                                        labels, H))
     for members in units:
-        factor = max(math.sqrt(squared[members]), MIN_FACTOR)
-        if factor == MIN_FACTOR and any(problem.scale.get(k) != MIN_FACTOR for k in members):
-            log.warning("%s: residuals %.2g times their stated sigmas; the factor on them is held at %g "
-                        "(observations far more precise than stated, e.g. exact ones: state their sigmas)",
-                        " and ".join(members), math.sqrt(squared[members]), MIN_FACTOR)
+        floor = max(factor_floor(k) for k in members)
+        factor = max(math.sqrt(squared[members]), floor)
+        if factor == floor and any(problem.scale.get(k) != floor for k in members):
+            _say_floor(members, math.sqrt(squared[members]), floor)
         for k in members:
             change = max(change, abs(factor / problem.scale.get(k, 1.0) - 1.0))
             scale[k] = factor
@@ -317,18 +338,31 @@ def rescale(problem: Problem, comps: dict, kappa: float, joint: list[tuple[str, 
     return change
 
 
-def robust_weights(problem: Problem, st: Statistics, scale: float) -> float:
-    """One step of the robust method against the normalised residuals divided by ``scale``;
-    returns the largest change of a weight factor."""
+def _say_floor(members: tuple[str, ...], ratio: float, floor: float) -> None:
+    """Log that the factor of ``members`` is held at its floor (a warning below 1: observations far
+    more precise than stated)."""
+    names = " and ".join(members)
+    if floor >= 1.0:
+        log.info("%s: residuals %.2g times their stated sigmas; the stated sigmas are kept (tie points are never "
+                 "weighted above them)", names, ratio)
+        return
+    log.warning("%s: residuals %.2g times their stated sigmas; the factor on them is held at %g (observations far "
+                "more precise than stated, e.g. exact ones: state their sigmas)", names, ratio, floor)
+
+
+def robust_weights(problem: Problem, st: Statistics, scale: np.ndarray) -> float:
+    """One step of the robust method against the normalised residuals divided by ``scale`` ((n,)
+    per observation); returns the largest change of a weight factor."""
     crit = critical(problem.settings.alpha)
     old = problem.factor.copy()
     if problem.settings.robust == "selection":
         # Li Deren's selection weights: rows whose normalised residual exceeds the critical
         # value get the weight of their posterior variance.
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.abs(st.w) / scale
+            s = scale[:, None]
+            t = np.abs(st.w) / s
             sigma = problem.image_sigma()[:, None]
-            ratio = np.where(t > crit, scale ** 2 * st.redundancy * sigma ** 2 / np.maximum(st.v * st.v, 1e-300), 1.0)
+            ratio = np.where(t > crit, s ** 2 * st.redundancy * sigma ** 2 / np.maximum(st.v * st.v, 1e-300), 1.0)
         problem.set_weight_factors(np.repeat(np.clip(ratio.min(axis=1), 1e-8, 1.0)[:, None], 2, axis=1))
     elif problem.settings.robust == "snooping":
         live = problem.factor[:, 0] > 0
@@ -347,7 +381,7 @@ def component_report(problem: Problem, comps: dict, kappa: float, joint: list[tu
     one), the median stated and estimated sigma with their unit, factor: the factor on the stated
     sigmas in use (None: none estimated; a group whose redundancy fell below MIN_REDUNDANCY once
     its factor made it stronger keeps that factor), whether one was estimated (and used), whether
-    it is held at MIN_FACTOR, whether it alone holds the datum (:func:`datum_groups`: not
+    it is held at its floor (:func:`factor_floor`), whether it alone holds the datum (:func:`datum_groups`: not
     estimated), whether the stated sigma passes the 95 % test (:func:`sigma0_test`), and
     joint_with: the groups it shares its factor with (empty: estimated on its own)."""
     out = {}
@@ -361,7 +395,7 @@ def component_report(problem: Problem, comps: dict, kappa: float, joint: list[tu
                           "sigma0": ratio, "apriori_sigma": stated,
                           "estimated_sigma": None if ratio is None or stated is None else stated * ratio,
                           "unit": unit, "factor": used, "estimated": used is not None,
-                          "held_at_floor": used == MIN_FACTOR, "holds_datum": group in datum_groups(problem),
+                          "held_at_floor": used == factor_floor(group), "holds_datum": group in datum_groups(problem),
                           "passed": None if ratio is None else sigma0_test(ratio, r)["passed"],
                           "joint_with": [k for k in members if k != group]}
     return out
@@ -477,13 +511,13 @@ def line_tests(problem: Problem, score: np.ndarray, crit: float) -> tuple[np.nda
     return (share > WRONG_SHARE) | (chi2 > limit), rms
 
 
-def flag_lines(problem: Problem, st: Statistics, scale: float, crit: float) -> float:
+def flag_lines(problem: Problem, st: Statistics, scale: np.ndarray, crit: float) -> float:
     """Name the lines that do not fit as a whole (see the module docstring) and release their
     across-line constraints; returns 1.0 when a line changed side, else 0.0. ``scale``: the
-    robust scale of the normalised residuals of this pass."""
+    robust scale of the normalised residuals of this pass ((n,) per image observation)."""
     if len(problem.lines) == 0:
         return 0.0
-    fails, rms = line_tests(problem, point_scores(problem, st) / scale, crit)
+    fails, rms = line_tests(problem, point_scores(problem, st) / scale[problem.line_obs], crit)
     old = problem.line_flagged
     # As iterated data snooping: only the worst of the new failures (within a factor 2 of the
     # worst) are released per pass; a wrong line distorts the others' residuals until it is.

@@ -11,7 +11,7 @@ from scipy import linalg
 from ..errors import InputError
 from .linepoints import ACROSS_GROUP, HEIGHT_GROUP
 from .normal import Linearization, System, point_couplings
-from .problem import Problem, image_group
+from .problem import Problem
 
 GROUND_GROUPS = ("ground_xy", "ground_z", ACROSS_GROUP, HEIGHT_GROUP)  # the groups of the ground points' priors
 BLOCK_NUMBERS = 5_000_000  # numbers in one batch of per-point blocks (40 MB)
@@ -183,14 +183,14 @@ def component_coupling(problem: Problem, lin: Linearization, system: System, red
     Image observations of points without ground unknowns (fixed ground) add their redundancy
     numbers ``redundancy`` (n, 2) to the diagonal. ``inlier`` (n,): the image observations the
     robust step keeps; a control point's prior counts when all its observations are inliers."""
-    cams = problem.scene.cameras
-    labels = [image_group(c.name) for c in cams] + list(GROUND_GROUPS)
-    n_cams, g = len(cams), len(labels)
+    images, group = problem.image_groups
+    labels = images + list(GROUND_GROUPS)
+    n_images, g = len(images), len(labels)
     flat = np.zeros(g * g)
     n_u = system.K.shape[0]
     seen = lin.point >= 0
     fixed = ~seen & inlier
-    np.add.at(flat, problem.obs.camera[fixed] * (g + 1), redundancy[fixed].sum(axis=1))
+    np.add.at(flat, group[fixed] * (g + 1), redundancy[fixed].sum(axis=1))
     if n_u == 0:
         return labels, flat.reshape(g, g)
     # the prior rows of each ground unknown: unit directions (u,3,3) ECEF, weights (u,3), group (u,3) (-1: none)
@@ -199,7 +199,7 @@ def component_coupling(problem: Problem, lin: Linearization, system: System, red
         u = problem.ground_point[:problem.n_control]
         direction[u] = problem.enu
         weight[u] = np.einsum("mij,mjk,mik->mi", problem.enu, problem.ground_weight, problem.enu)
-        label[u] = n_cams + np.array([0, 0, 1])
+        label[u] = n_images + np.array([0, 0, 1])
     if len(problem.lines):
         c = problem.lines.constraints(problem.line_ground(), problem.scale, problem.line_flagged)
         u = problem.ground_point[problem.line_first:]
@@ -207,7 +207,7 @@ def component_coupling(problem: Problem, lin: Linearization, system: System, red
         weight[u, 0] = np.einsum("ni,nij,nj->n", c.across, c.weight, c.across)
         weight[u, 1] = np.einsum("ni,nij,nj->n", c.normal, c.weight, c.normal)
         wrong = problem.line_flagged[problem.lines.obs.key]
-        label[u, 0], label[u, 1] = np.where(wrong, -1, n_cams + 2), np.where(wrong, -1, n_cams + 3)
+        label[u, 0], label[u, 1] = np.where(wrong, -1, n_images + 2), np.where(wrong, -1, n_images + 3)
     outlying = np.bincount(lin.point[seen], weights=~inlier[seen], minlength=n_u) > 0
     label[outlying] = -1
     counts = np.bincount(lin.point[seen], minlength=n_u)
@@ -222,7 +222,7 @@ def component_coupling(problem: Problem, lin: Linearization, system: System, red
             m = chunk.size
             A = np.concatenate([lin.jg[obs].reshape(m, 2 * k, 3), direction[chunk]], axis=1)  # (m, n, 3)
             p = np.concatenate([lin.p[obs].reshape(m, 2 * k), weight[chunk]], axis=1)        # (m, n)
-            rows = np.where(inlier[obs], problem.obs.camera[obs], -1)
+            rows = np.where(inlier[obs], group[obs], -1)
             lab = np.concatenate([np.repeat(rows, 2, axis=1), label[chunk]], axis=1)         # (m, n)
             R = np.eye(n) - np.einsum("mia,mab,mjb->mij", A, system.K[chunk], A) * p[:, None, :]
             both = (lab[:, :, None] >= 0) & (lab[:, None, :] >= 0)

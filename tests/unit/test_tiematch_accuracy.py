@@ -14,10 +14,9 @@ from pushbroom_adjust.core.observations.tiepoints import summary
 from tests.support.matchscene import compare_ties, th1_cut
 
 # Self-calibration of every camera (INTERIOR=default) with the automatic removal, 9 control points,
-# 30 check points seen in all three cameras; robust estimation off (with exact tie points the
-# selection-weight passes have no scale for the measured control points: the cameras' variance
-# components stop at their 0.01 floor and the run does not converge or keeps other terms).
-ADJUSTMENT = AdjustmentSettings(interior="default", robust="none")
+# 30 check points seen in all three cameras, selection weights (the robust default: the tie points'
+# variance components apart from the control points', never below their stated sigmas).
+ADJUSTMENT = AdjustmentSettings(interior="default")
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +37,8 @@ def test_tie_points_between_all_camera_pairs_are_accurate(comparison):
 def test_the_adjustment_with_matched_ties_is_as_accurate_as_with_exact_ones(comparison):
     m, x = comparison.with_matched, comparison.with_exact
     assert m["intersected"] == x["intersected"] == 30
-    # measured: plan 1.60 / 1.57 m, height 2.99 / 2.99 m (matched / exact; every term kept: 1.64 / 1.63 m,
-    # 3.00 / 3.00 m)
+    # measured: plan 1.70 / 1.69 m, height 2.87 / 2.87 m (matched / exact); with the tie points' variance
+    # components free to go below 1 the matched ties' systematic part bent the heights: 3.82 against 2.99 m
     for key in ("rmse_plan", "rmse_height"):
         assert m[key] <= 1.1 * x[key], (key, m[key], x[key])
     # and both are a few metres (5 m GSD) where the onboard model is tens of metres off

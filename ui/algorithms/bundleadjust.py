@@ -169,10 +169,11 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                   tr("Probability of flagging a good observation (0.001: |w| > 3.29)."), advanced=True)
         self.add_parameter(QgsProcessingParameterBoolean(self.VARIANCE_COMPONENTS, tr("Estimate variance components"),
                                                          defaultValue=True),
-                  tr("Estimate a factor on the stated sigmas per observation group (image observations per camera, "
-                     "ground xy, ground z, onboard pseudo-observations) from the residuals and use it before the "
-                     "outlier test, so that flags and check figures do not depend on how well the sigmas were "
-                     "guessed (Förstner 1979). Off: the stated sigmas are trusted as they are."), advanced=True)
+                  tr("Estimate a factor on the stated sigmas per observation group (per camera the image observations "
+                     "of control points and, apart, of tie points; ground xy, ground z, onboard pseudo-observations) "
+                     "from the residuals and use it before the outlier test, so that flags and check figures do not "
+                     "depend on how well the sigmas were guessed (Förstner 1979). Off: the stated sigmas are trusted "
+                     "as they are."), advanced=True)
         self.add_parameter(QgsProcessingParameterNumber(self.MAX_ROBUST_PASSES, tr("Robust passes at most"),
                                                         QgsProcessingParameterNumber.Integer, 12, minValue=1,
                                                         maxValue=100),
