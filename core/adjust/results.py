@@ -18,7 +18,8 @@ from .estimation import Estimate
 from .linepoints import directions, per_line, ray_offsets
 from .problem import Problem
 from .settings import AdjustmentSettings
-from .robust import breakdown, component_report, critical, sigma0_test, stated_sigma0
+from .breakdown import breakdown
+from .robust import component_report, critical, sigma0_test, stated_sigma0
 from .statistics import Statistics, correlated_pairs
 from .parameters import trajectory_groups
 from .ties import yaw_hold, yaw_sentence

@@ -11,7 +11,8 @@ import pytest
 from pushbroom_adjust.core.observations import gcps as G
 from pushbroom_adjust.core.observations.tables import Heights
 from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
-from pushbroom_adjust.core.adjust.robust import rayleigh_p, truncation
+from pushbroom_adjust.core.adjust.breakdown import rayleigh_p
+from pushbroom_adjust.core.adjust.robust import truncation
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.simulation.presets import CAMERA_ERRORS
