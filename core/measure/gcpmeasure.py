@@ -147,8 +147,9 @@ class PointEditor:
     def edit(self, point_id: str | None = None, role: str | None = None, sigma_xy: float | None = None,
              sigma_z: float | None = None, sigma_px: tuple[str, str, float] | None = None) -> None:
         """Change the selected point's id, role, ground sigmas (m) or one observation's sigma
-        (scene, camera, px). InputError (nothing changed) for an id taken or empty, an unknown
-        role, a sigma not > 0 (sigma_xy, sigma_z >= 0)."""
+        (scene, camera, px); nothing is recorded when nothing changes. InputError (nothing
+        changed) for an id taken or empty, an unknown role, a sigma not > 0 (sigma_xy, sigma_z
+        >= 0)."""
         point = self.current()
         if point_id is not None and point_id.strip() != point.id:
             self._require_new_id(point_id.strip())
@@ -161,16 +162,20 @@ class PointEditor:
                                  f"(got {value})")
         if (sigma_xy is not None or sigma_z is not None) and point.ground is None:
             raise InputError(f"point {point.id} has no ground yet: give it first, then its sigmas")
-        seen = self._seen(*sigma_px[:2]) if sigma_px is not None else None
-        self._record("edit")
-        point.id = point.id if point_id is None else point_id.strip()
-        point.role = role or point.role
+        if sigma_px is not None:
+            self._seen(*sigma_px[:2])
+        changed = copy.deepcopy(point)
+        changed.id = point.id if point_id is None else point_id.strip()
+        changed.role = role or point.role
         if sigma_xy is not None:
-            point.ground.sigma_xy = float(sigma_xy)
+            changed.ground.sigma_xy = float(sigma_xy)
         if sigma_z is not None:
-            point.ground.sigma_z = float(sigma_z)
-        if seen is not None:
-            seen.sigma_px = float(sigma_px[2])
+            changed.ground.sigma_z = float(sigma_z)
+        if sigma_px is not None:
+            changed.observation(*sigma_px[:2]).sigma_px = float(sigma_px[2])
+        if changed != point:  # an edit that changes nothing leaves nothing to undo
+            self._record("edit")
+            self.points[self.selected] = changed
 
     def delete_observation(self, scene: str, camera: str) -> None:
         """Remove the selected point's observation in ``scene``'s ``camera``."""

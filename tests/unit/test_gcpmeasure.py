@@ -52,6 +52,7 @@ def test_editor_measures_moves_deletes_and_undoes_in_order():
     editor.new_point()
     assert editor.current().id == "G2"
     editor.edit(point_id="P7", role="check")
+    editor.edit(point_id="P7", role="check")                     # no change: nothing to undo
     with pytest.raises(InputError, match="sigma_px of point P7 must be > 0"):
         editor.edit(sigma_px=("a", "NAD", 0.0))
     assert editor.ids() == ["G1", "P7"] and editor.current().role == "check"
