@@ -14,7 +14,7 @@ models' absolute errors do not matter). Then:
 2. least-squares matching from that peak: the shift d (2) and a radiometric gain and offset
    that fit g(click + d + u) = a + b T(u) best, by Gauss-Newton (the clicked image resampled at
    each step, gradients by central differences); the shift's sigma (px, the larger axis) is
-   the fit's standard error, sigma0^2 (A^T A)^-1, floored at ``sigma_floor``.
+   the fit's standard error, sigma0^2 (A^T A)^-1, floored at SIGMA_FLOOR.
 
 A weak match is refused (InputError, the click kept): correlation peak below
 ``min_correlation``, a second peak nearly as high (> ``max_peak_ratio`` of the first), the peak
@@ -38,26 +38,27 @@ from .reference import Reference
 
 log = logging.getLogger(__name__)
 
+SIGMA_FLOOR = 0.03   # px: the least sigma reported (the formula knows nothing of resampling or the models)
+MAX_STEPS = 20       # Gauss-Newton steps of the least-squares matching
+
 
 @dataclass(frozen=True)
 class PointSnapSettings:
     """window (px, odd): template size; radius (px): search around the click; min_correlation,
-    max_peak_ratio: the correlation peak's tests; max_sigma, sigma_floor (px): the shift's sigma
-    refused above / floored at; max_iterations: Gauss-Newton steps."""
+    max_peak_ratio: the correlation peak's tests; max_sigma (px): the shift's sigma refused above."""
     window: int = 21
     radius: int = 6
     min_correlation: float = 0.7
     max_peak_ratio: float = 0.9
     max_sigma: float = 0.3
-    sigma_floor: float = 0.03
-    max_iterations: int = 20
 
-    def validate(self) -> None:
-        if not (7 <= self.window <= 101 and self.window % 2 == 1 and 2 <= self.radius <= 50
-                and 0 < self.min_correlation < 1 and 0 < self.max_peak_ratio <= 1
-                and 0 < self.sigma_floor < self.max_sigma and self.max_iterations >= 1):
-            raise InputError("point snapping settings: need an odd window of 7-101 px, a radius of 2-50 px, "
-                             "0 < min_correlation < 1, 0 < max_peak_ratio <= 1, 0 < sigma_floor < max_sigma")
+
+def require_valid(s: PointSnapSettings) -> None:
+    """InputError naming the ranges when settings ``s`` are out of them."""
+    if not (7 <= s.window <= 101 and s.window % 2 == 1 and 2 <= s.radius <= 50 and 0 < s.min_correlation < 1
+            and 0 < s.max_peak_ratio <= 1 and s.max_sigma > SIGMA_FLOOR):
+        raise InputError("point snapping settings: need an odd window of 7-101 px, a radius of 2-50 px, "
+                             f"0 < min_correlation < 1, 0 < max_peak_ratio <= 1, max_sigma > {SIGMA_FLOOR} px")
 
 
 @dataclass
@@ -96,7 +97,7 @@ def snap_point(target: Reference, col: float, row: float, template: Reference, t
     """Refine the click (col, row) px in ``target`` to the template of ``template`` around its
     array position (tx, ty) mapped by ``jacobian`` (see the module docstring). ``what`` names the
     template in messages. InputError (the click to be kept) when the match is weak."""
-    settings.validate()
+    require_valid(settings)
     h, r = settings.window // 2, settings.radius
     u = np.arange(-h, h + 1, dtype=float)
     uu, vv = np.meshgrid(u, u)
@@ -127,7 +128,7 @@ def snap_point(target: Reference, col: float, row: float, template: Reference, t
                          "closer to the point; the click is kept")
     d0 = np.array([peaks.dx[0] - r, peaks.dy[0] - r])
     d, sigma, rho, steps = _least_squares(window, ox, oy, x0, y0, uu, vv, t.astype(float), d0,
-                                          settings.max_iterations)
+                                          MAX_STEPS)
     if not (np.isfinite(d).all() and np.abs(d).max() <= r + 1.0 and np.hypot(*(d - d0)) < 1.5):
         raise InputError(f"snapping: least-squares matching with {what} did not converge near the correlation "
                          f"peak (shift {d0[0]:+.2f}, {d0[1]:+.2f} px); the click is kept")
@@ -137,7 +138,7 @@ def snap_point(target: Reference, col: float, row: float, template: Reference, t
     log.info("snapped (%.2f, %.2f) px by (%+.3f, %+.3f) px to %s: sigma %.3f px, correlation %.3f, %d steps",
              col, row, d[0], d[1], what, sigma, rho, steps)
     return PointSnap(col + float(d[0]), row + float(d[1]), (float(d[0]), float(d[1])),
-                     max(sigma, settings.sigma_floor), rho, steps)
+                     max(sigma, SIGMA_FLOOR), rho, steps)
 
 
 def _sampled(image: Reference, x: np.ndarray, y: np.ndarray, message: str) -> np.ndarray:
