@@ -96,6 +96,7 @@ def test_plugin_action_opens_the_dock(plugin_instance, qgis_iface, monkeypatch):
     from unittest.mock import Mock
 
     from pushbroom_adjust.ui.digitising.dock import DigitisingDock
+    from pushbroom_adjust.ui.digitising.gcpdock import GcpDock
     for name in ("removePluginMenu", "removeDockWidget"):  # not in pytest-qgis's interface
         monkeypatch.setattr(qgis_iface, name, Mock(), raising=False)
     plugin_instance.initGui()  # the provider is registered already: only the action is added
@@ -103,10 +104,14 @@ def test_plugin_action_opens_the_dock(plugin_instance, qgis_iface, monkeypatch):
         assert plugin_instance.action.text() == "Digitise control lines on the raw image"
         plugin_instance.action.trigger()
         assert isinstance(plugin_instance.dock, DigitisingDock) and not plugin_instance.dock.isHidden()
+        assert plugin_instance.gcp_action.text() == "Measure GCPs on the raw images"
+        plugin_instance.gcp_action.trigger()
+        assert isinstance(plugin_instance.gcp_dock, GcpDock) and not plugin_instance.gcp_dock.isHidden()
     finally:
         plugin_instance.remove_gui()
     assert plugin_instance.action is None and plugin_instance.dock is None
-    qgis_iface.removePluginMenu.assert_called_once()
+    assert plugin_instance.gcp_action is None and plugin_instance.gcp_dock is None
+    assert qgis_iface.removePluginMenu.call_count == 2 and qgis_iface.removeDockWidget.call_count == 2
     assert QgsApplication.processingRegistry().providerById("pushbroom") is not None
 
 

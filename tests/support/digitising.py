@@ -1,6 +1,6 @@
-"""Driving the digitising dock in QGIS with mouse events (tests/qgis/test_digitising.py,
-test_lines_roundtrip.py): a simulated scene with roads and its display copy, the ground lines on
-the main canvas, and clicks on the canvases at image pixels or map coordinates.
+"""Driving the digitising docks in QGIS with mouse events (tests/qgis/test_digitising.py,
+test_lines_roundtrip.py, test_digitising_gcps.py): a simulated scene with roads and its display copy,
+the ground lines on the main canvas, and clicks on the canvases at image pixels or map coordinates.
 
 The fixtures ``roads``, ``prepared`` and ``ground_layer`` are imported by the test modules that
 use them."""
@@ -99,3 +99,19 @@ def pick(main, lon, lat):
     """Click the main canvas (EPSG:4326) at (lon, lat)."""
     screen = main.getCoordinateTransform().transform(lon, lat)
     click(main, screen.x(), screen.y())
+
+
+def click_pixel(dock, pixel, margin: float = 3.0) -> np.ndarray:
+    """Zoom the dock's canvas to ``margin`` px around image pixel (col, row) (the view's centre
+    a fraction of a pixel away, so that the click falls between screen pixels as a person's does)
+    and click it there; the image position the click stands for."""
+    zoom_to(dock.canvas, np.array([pixel]) + [0.37, -0.21], margin)
+    return digitise(dock, [pixel])[0]
+
+
+def pick_ground(main, lon: float, lat: float, half_deg: float = 5e-6) -> None:
+    """Zoom the main canvas (EPSG:4326) to +-``half_deg`` around (lon, lat) and click there (the
+    offscreen canvas is a few dozen screen pixels high: +-0.5 m is a few cm per screen pixel)."""
+    main.setExtent(QgsRectangle(lon - half_deg, lat - half_deg, lon + half_deg, lat + half_deg))
+    main.refresh()
+    pick(main, lon, lat)

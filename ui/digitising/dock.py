@@ -5,87 +5,49 @@ the image by the scene model, Snap (the selected line to the road's centre or an
 image the display copy shows, :mod:`core.snapping`, undoable) and Save to an ``image_lines``
 GeoPackage layer.
 
-The logic lives in :mod:`core.digitising` (vertices, undo, pairing, prediction); this module
-turns mouse events and buttons into its calls and draws its state.
+The logic lives in :mod:`core.measure.digitising` (vertices, undo, pairing, prediction); this module
+turns mouse events and buttons into its calls and draws its state. The canvas, its map tool, picking
+on the main canvas, the heights form and the rubber bands are :mod:`.base`'s (shared with the GCP
+dock, :mod:`.gcpdock`).
 """
 from __future__ import annotations
 
 import numpy as np
 from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform, QgsGeometry, QgsMapLayerProxyModel,
-                       QgsPointXY, QgsProject, QgsRasterLayer, QgsWkbTypes)
-from qgis.gui import (QgsFieldComboBox, QgsMapCanvas, QgsMapLayerComboBox, QgsMapTool, QgsMapToolEmitPoint,
-                      QgsRubberBand)
+                       QgsProject, QgsWkbTypes)
+from qgis.gui import QgsFieldComboBox, QgsMapLayerComboBox
 from qgis.PyQt.QtCore import Qt
 from qgis.PyQt.QtGui import QColor
-from qgis.PyQt.QtWidgets import (QComboBox, QDockWidget, QDoubleSpinBox, QFileDialog, QFormLayout, QHBoxLayout,
-                                 QLabel, QLineEdit, QListWidget, QPushButton, QVBoxLayout, QWidget)
+from qgis.PyQt.QtWidgets import (QComboBox, QDoubleSpinBox, QFileDialog, QHBoxLayout, QLabel, QLineEdit, QPushButton)
 
+from ...core.errors import PushbroomError
+from ...core.formats import load_scene
 from ...core.measure.digitising import LineEditor, nearest_line, predict_lines
 from ...core.measure.display import read_display_source
-from ...core.errors import PushbroomError
-from ...core.observations.tables import Heights
-from ...core.observations.lines import write_gpkg
-from ...core.formats import load_scene
 from ...core.measure.snapping import MODES as SNAP_MODES
 from ...core.measure.snapping import SnapSettings
-from ..parameters import DATUMS, HEIGHT_SOURCES, tr
+from ...core.observations.lines import write_gpkg
+from ..parameters import tr
+from .base import PixelCanvasDock
 
 LINE_COLOUR, CURRENT_COLOUR, SELECTED_COLOUR, PREDICTED_COLOUR = (QColor(0, 200, 255), QColor(255, 220, 0),
                                                                     QColor(255, 60, 60), QColor(255, 0, 255))
 PREDICTION_STEP_M = 20.0  # ground spacing of predicted points: a few pixels of a 2-5 m GSD image
 
 
-def pixel_of(point: QgsPointXY) -> tuple[float, float]:
-    """(col, row) px of a point of the pixel frame (x = col, y = -row)."""
-    return point.x(), -point.y()
-
-
-def point_of(col: float, row: float) -> QgsPointXY:
-    return QgsPointXY(col, -row)
-
-
-class ImageLineTool(QgsMapTool):
-    """On the dock's canvas: left click adds a vertex, right click finishes the line; moving
-    shows the pixel under the cursor."""
-
-    def __init__(self, dock: "DigitisingDock"):
-        super().__init__(dock.canvas)
-        self.dock = dock
-
-    def canvasMoveEvent(self, event):  # noqa: N802 (QGIS API name)
-        self.dock.show_pixel(*pixel_of(event.mapPoint()))
-
-    def canvasReleaseEvent(self, event):  # noqa: N802
-        if event.button() == Qt.LeftButton:
-            self.dock.add_vertex(*pixel_of(event.mapPoint()))
-        elif event.button() == Qt.RightButton:
-            self.dock.finish_line()
-
-
-class DigitisingDock(QDockWidget):
+class DigitisingDock(PixelCanvasDock):
     """The dock. ``iface``: the QGIS interface (its mapCanvas() is where ground lines are picked)."""
 
     def __init__(self, iface, parent=None):
-        super().__init__(tr("Digitise control lines on the raw image"), parent)
-        self.setObjectName("PushbroomDigitisingDock")
-        self.iface = iface
+        super().__init__(tr("Digitise control lines on the raw image"), "PushbroomDigitisingDock", iface, parent)
         self.editor = LineEditor()
-        self.layer: QgsRasterLayer | None = None
         self.raw_image = ""  # the raw image the display copy shows (snapping reads its pixels)
         self.scene, self.camera_name, self.predicted = None, "", []
-        self.bands: list[QgsRubberBand] = []
-        self.previous_main_tool = None
         self._build()
-        self.tool = ImageLineTool(self)
-        self.canvas.setMapTool(self.tool)
-        self.pick_tool = QgsMapToolEmitPoint(iface.mapCanvas())
-        self.pick_tool.canvasClicked.connect(self.pair_at)
 
     # --- widgets -------------------------------------------------------------------------------
     def _build(self) -> None:
-        body = QWidget()
-        layout = QVBoxLayout(body)
-        form = QFormLayout()
+        form = self.form
         self.image_button = QPushButton(tr("Open display copy…"))
         self.image_button.clicked.connect(self._choose_image)
         form.addRow(tr("Image"), self.image_button)
@@ -100,21 +62,8 @@ class DigitisingDock(QDockWidget):
         self.id_combo.setLayer(self.ground_combo.currentLayer())
         form.addRow(tr("Ground lines"), self.ground_combo)
         form.addRow(tr("Line id field"), self.id_combo)
-        self.height_combo = QComboBox()
-        self.height_combo.addItems(HEIGHT_SOURCES)
-        self.height_combo.setToolTip(tr("Heights of the ground lines for the prediction: z = the lines' Z "
-                                        "values, dem = the DEM below, constant = the height below"))
-        self.dem_combo = QgsMapLayerComboBox()
-        self.dem_combo.setFilters(QgsMapLayerProxyModel.RasterLayer)
-        self.dem_combo.setAllowEmptyLayer(True)
-        self.datum_combo = QComboBox()
-        self.datum_combo.addItems(DATUMS)
-        self.height_spin = QDoubleSpinBox()
-        self.height_spin.setRange(-500.0, 9000.0)
-        form.addRow(tr("Heights from"), self.height_combo)
-        form.addRow(tr("DEM"), self.dem_combo)
-        form.addRow(tr("Height datum"), self.datum_combo)
-        form.addRow(tr("Constant height (m)"), self.height_spin)
+        self.add_height_rows(tr("Heights of the ground lines for the prediction: z = the lines' Z values, dem = the "
+                                "DEM below, constant = the height below"))
         self.snap_mode_combo = QComboBox()
         self.snap_mode_combo.addItems(SNAP_MODES)
         self.snap_mode_combo.setToolTip(tr("Snap moves the selected line's vertices across it to the centre of a "
@@ -127,39 +76,21 @@ class DigitisingDock(QDockWidget):
         snapping.addWidget(QLabel(tr("band width (px)")))
         snapping.addWidget(self.snap_width_spin)
         form.addRow(tr("Snap to"), snapping)
-        layout.addLayout(form)
-        buttons = QHBoxLayout()
-        for attr, text, slot in (("finish_button", tr("Finish"), self.finish_line),
-                                 ("undo_button", tr("Undo"), self.undo),
-                                 ("delete_button", tr("Delete"), self.delete_selected),
-                                 ("pair_button", tr("Pair"), self.start_pairing),
-                                 ("snap_button", tr("Snap"), self.snap),
-                                 ("predict_button", tr("Predict"), self.predict),
-                                 ("save_button", tr("Save…"), self._choose_save)):
-            button = QPushButton(text)
-            button.clicked.connect(slot)
-            setattr(self, attr, button)
-            buttons.addWidget(button)
-        layout.addLayout(buttons)
-        self.canvas = QgsMapCanvas()
-        self.canvas.setMinimumHeight(250)
-        layout.addWidget(self.canvas, 1)
-        self.line_list = QListWidget()
-        self.line_list.setMaximumHeight(110)
-        self.line_list.currentRowChanged.connect(self._list_selected)
-        layout.addWidget(self.line_list)
-        self.pixel_label, self.message_label = QLabel(), QLabel()
-        self.message_label.setWordWrap(True)
-        layout.addWidget(self.pixel_label)
-        layout.addWidget(self.message_label)
-        self.setWidget(body)
+        self.add_buttons((("finish_button", tr("Finish"), self.finish_line),
+                          ("undo_button", tr("Undo"), self.undo),
+                          ("delete_button", tr("Delete"), self.delete_selected),
+                          ("pair_button", tr("Pair"), self.start_pairing),
+                          ("snap_button", tr("Snap"), self.snap),
+                          ("predict_button", tr("Predict"), self.predict),
+                          ("save_button", tr("Save…"), self._choose_save)))
+        self.line_list = self.finish_with_list(self._list_selected)
 
-    def tell(self, text: str) -> None:
-        self.message_label.setText(text)
-
-    def show_pixel(self, col: float, row: float) -> None:
-        """Pixel coordinates under the cursor, in the dock's status line."""
-        self.pixel_label.setText(tr("col {col:.1f}, row {row:.1f} px").format(col=col, row=row))
+    def image_clicked(self, col: float, row: float, button) -> None:
+        """Left click adds a vertex, right click finishes the line."""
+        if button == Qt.LeftButton:
+            self.add_vertex(col, row)
+        else:
+            self.finish_line()
 
     # --- image and scene ------------------------------------------------------------------------
     def _choose_image(self) -> None:
@@ -175,15 +106,9 @@ class DigitisingDock(QDockWidget):
         except PushbroomError as exc:
             self.tell(str(exc))
             return False
-        layer = QgsRasterLayer(path, tr("Display copy"))
-        if not layer.isValid():
-            self.tell(tr("{path}: QGIS cannot show this raster").format(path=path))
+        if not self.show_raster(path, tr("Display copy")):
             return False
-        self.canvas.setDestinationCrs(layer.crs())
-        self.canvas.setLayers([layer])
-        self.layer, self.raw_image = layer, source.image
-        self.canvas.setExtent(layer.extent())
-        self.canvas.refresh()
+        self.raw_image = source.image
         self.scene_edit.setText(source.scene)
         self.camera_edit.setText(source.camera)
         self._load_scene()
@@ -254,10 +179,7 @@ class DigitisingDock(QDockWidget):
         if self.editor.selected is None:
             self.tell(tr("Select an image line first (in the list), then press Pair"))
             return
-        main = self.iface.mapCanvas()
-        self.previous_main_tool = main.mapTool()
-        main.setMapTool(self.pick_tool)
-        self.tell(tr("Click the matching ground line on the map"))
+        self.start_picking(tr("Click the matching ground line on the map"))
 
     def ground_parts(self, crs: QgsCoordinateReferenceSystem) -> tuple[list[str], list[np.ndarray]]:
         """(ids, parts [(n, 2|3)]) of the chosen ground layer's lines, x, y in ``crs`` (z kept)."""
@@ -278,13 +200,10 @@ class DigitisingDock(QDockWidget):
                 ids.append(str(feature[field]))
         return ids, parts
 
-    def pair_at(self, point: QgsPointXY, button=None) -> None:
+    def main_clicked(self, point) -> None:
         """Pair the selected image line with the ground line nearest to ``point`` (main canvas CRS)."""
-        main = self.iface.mapCanvas()
-        if self.previous_main_tool is not None:
-            main.setMapTool(self.previous_main_tool)
         try:
-            ids, parts = self.ground_parts(main.mapSettings().destinationCrs())
+            ids, parts = self.ground_parts(self.iface.mapCanvas().mapSettings().destinationCrs())
             index, _ = nearest_line(parts, point.x(), point.y())
             self.editor.pair_selected(ids[index])
         except (PushbroomError, ValueError) as exc:
@@ -294,11 +213,6 @@ class DigitisingDock(QDockWidget):
         self.redraw()
 
     # --- prediction ---------------------------------------------------------------------------
-    def heights(self) -> Heights:
-        dem = self.dem_combo.currentLayer()
-        return Heights(self.height_combo.currentText(), self.datum_combo.currentText(),
-                       dem.source().split("|")[0] if dem is not None else None, self.height_spin.value())
-
     def predict(self) -> None:
         """Draw the chosen ground lines as the scene model sees them in this camera."""
         if self.scene is None:
@@ -334,27 +248,16 @@ class DigitisingDock(QDockWidget):
         return True
 
     # --- drawing ------------------------------------------------------------------------------
-    def _band(self, vertices, colour: QColor, width: int, dashed: bool = False) -> None:
-        band = QgsRubberBand(self.canvas, QgsWkbTypes.LineGeometry)
-        band.setColor(colour)
-        band.setWidth(width)
-        if dashed:
-            band.setLineStyle(Qt.DashLine)
-        band.setToGeometry(QgsGeometry.fromPolylineXY([point_of(c, r) for c, r in vertices]), None)
-        self.bands.append(band)
-
     def redraw(self) -> None:
         """Rubber bands and the list from the editor's state and the prediction."""
-        for band in self.bands:
-            self.canvas.scene().removeItem(band)
-        self.bands = []
+        self.clear_bands()
         for line in self.predicted:
             for run in line.runs():
-                self._band(run.tolist(), PREDICTED_COLOUR, 1, dashed=True)
+                self.add_polyline(run.tolist(), PREDICTED_COLOUR, 1, dashed=True)
         for i, line in enumerate(self.editor.lines):
-            self._band(line.vertices, SELECTED_COLOUR if i == self.editor.selected else LINE_COLOUR, 2)
+            self.add_polyline(line.vertices, SELECTED_COLOUR if i == self.editor.selected else LINE_COLOUR, 2)
         if self.editor.current:
-            self._band(self.editor.current, CURRENT_COLOUR, 2)
+            self.add_polyline(self.editor.current, CURRENT_COLOUR, 2)
         self.line_list.blockSignals(True)
         self.line_list.clear()
         for i, line in enumerate(self.editor.lines):
@@ -362,20 +265,3 @@ class DigitisingDock(QDockWidget):
                 n=i + 1, id=line.line_id or tr("not paired"), v=len(line.vertices)))
         self.line_list.setCurrentRow(-1 if self.editor.selected is None else self.editor.selected)
         self.line_list.blockSignals(False)
-
-    def closeEvent(self, event):  # noqa: N802 (Qt API name)
-        main = self.iface.mapCanvas()
-        if main.mapTool() is self.pick_tool:
-            main.unsetMapTool(self.pick_tool)
-        super().closeEvent(event)
-
-    def dispose(self) -> None:
-        """Release the canvas's layer and rubber bands while QGIS is alive: a render job or a
-        raster layer outliving QGIS's exit frees a raster pipe whose provider is gone (a crash)."""
-        self.close()
-        self.canvas.stopRendering()
-        self.canvas.setLayers([])
-        for band in self.bands:
-            self.canvas.scene().removeItem(band)
-        self.bands = []
-        self.layer = None
