@@ -52,6 +52,8 @@ class MixedBlock:
             if camera not in names:
                 raise InputError(f"camera {camera!r} is not in this block (cameras: {', '.join(names)})")
             return names.index(camera)
+        if not 0 <= int(camera) < len(names):
+            raise InputError(f"camera index {camera} is out of range (the block has {len(names)} cameras)")
         return int(camera)
 
     def part(self, camera: int) -> tuple[SceneModel | RpcScene, int]:
@@ -70,10 +72,6 @@ class MixedBlock:
         """The trajectory a rigorous camera sees; None for an RPC image (no platform)."""
         scene, c = self.part(camera)
         return None if isinstance(scene, RpcScene) else scene.platform_of(c)
-
-    def prepare(self) -> None:
-        if self.rigorous is not None:
-            self.rigorous.prepare()
 
     # --- image <-> ground, by the camera's own scene ---------------------------------------------
     def ground_to_image(self, xyz, camera: int = 0, **kwargs) -> tuple[np.ndarray, np.ndarray]:
