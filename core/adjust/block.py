@@ -1,5 +1,5 @@
 """Bundle adjustment of a block of independent scenes (stereo pair, tri-stereo, multi-date,
-neighbouring orbits) as one: :func:`adjust_block`.
+neighbouring orbits; rigorous scenes and RPC products mixed) as one: :func:`adjust_block`.
 
 Route: the block is one composite scene (:func:`core.model.block.compose_block`: every scene's
 cameras renamed ``<scene>/<camera>``, each looking through its own scene's platform, times from
@@ -17,13 +17,27 @@ points, the report and the written-vs-fitted check (which writes and reads back 
 block), where composing per-scene normal equations (the other route) would have had to repeat
 each of those stages for a block.
 
-Observations name their scene: ``GcpTable.block_scene`` and ``TieTable.scene`` (a block of one
-scene may leave them empty). Cameras are resolved within the scene (a single-camera scene's empty
-camera is its camera). RPC scenes are refused (not yet supported in a block).
+RPC scenes (:class:`core.model.rpcscene.RpcScene`, any number, with or without rigorous scenes):
+the block is then a :class:`core.model.mixedblock.MixedBlock` (the rigorous scenes' composite and
+the RPC images, cameras named ``<scene>/<camera>`` alike) adjusted by the same engine through
+:class:`core.adjust.blockproblem.BlockProblem`: each RPC image keeps its own image-space correction
+(Grodecki & Dial 2003; RPC_CORRECTION shift, drift or affine, parameters ``<scene>/<camera>.a0``
+...), the rigorous scenes their trajectory and interior blocks, and the ground points are shared as
+above, so tie points join RPC images with each other and with rigorous scenes. Each adjusted RPC
+scene is written as a single RPC scene's adjustment is (scene JSON; a refined RPC by
+:func:`core.products.rpcfit.refined_rpc`, :meth:`BlockResult.refined_rpcs`).
 
-Datum: with tie points and no GCPs nothing but the onboard pseudo-observations (POSITION_SIGMA,
-ATTITUDE_SIGMA of every scene) holds where the block is: the report's ``datum`` says so, and the
-block then lies within those sigmas (averaged over its scenes) of where the onboard data put it.
+Observations name their scene: ``GcpTable.block_scene`` and ``TieTable.scene`` (a block of one
+scene may leave them empty). Cameras are resolved within the scene (a single-camera scene's and an
+RPC scene's empty camera is its camera).
+
+Datum: with tie points and no GCPs nothing but the priors holds where the block is: the onboard
+pseudo-observations of the rigorous scenes (POSITION_SIGMA, ATTITUDE_SIGMA) and the RPC images'
+stated accuracy (RPC_SIGMA, settings.rpc_sigma: a pseudo-observation on every correction term, as
+the onboard sigmas are of the trajectories). The report's ``datum`` names which, and the block then
+lies within those sigmas of where the onboard data and the vendor RPCs put it. A block of RPC
+images tied without GCPs and without RPC_SIGMA has a datum defect (free image shifts of every
+image together move the whole block): refused, naming settings.rpc_sigma.
 """
 from __future__ import annotations
 
@@ -36,11 +50,14 @@ import numpy as np
 from ..errors import InputError
 from ..model.block import block_camera, compose_block, scene_cameras, split_block
 from ..model.intersection import intersect
+from ..model.mixedblock import MixedBlock, compose_mixed
+from ..model.rpc import RpcModel
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..observations.tables import listed, resolve_cameras
 from ..observations.tiepoints import TieTable
+from ..products.rpcfit import refined_rpc
 from .engine import adjust
 from .results import AdjustmentResult
 from .settings import AdjustmentSettings
@@ -55,17 +72,23 @@ MIN_CONVERGENCE_DEG = 1.0
 
 @dataclass
 class BlockResult:
-    """scenes: the adjusted scenes (name -> SceneModel, the block's order), each writable with
-    :func:`core.formats.scene_json.save_scene`; report: JSON-ready figures (see :func:`block_report`);
+    """scenes: the adjusted scenes (name -> SceneModel or RpcScene, the block's order), each writable
+    with :func:`core.formats.scene_json.save_scene`; report: JSON-ready figures (see :func:`block_report`);
     tie_points: per tie point (m,) arrays id, lon, lat (deg), h (ellipsoidal m) of its adjusted
     ground (NaN for points left out), rays (observations used), scenes (scenes it was seen in),
     convergence_deg (the largest angle between its onboard rays, :func:`ray_convergence`);
     adjustment: the composite's :class:`AdjustmentResult` (per-observation arrays, camera names
     ``<scene>/<camera>``, the full engine report)."""
-    scenes: dict[str, SceneModel]
+    scenes: dict[str, SceneModel | RpcScene]
     report: dict
     tie_points: dict
     adjustment: AdjustmentResult
+
+    def refined_rpcs(self) -> dict[str, tuple[RpcModel, str]]:
+        """Per adjusted RPC scene its refined RPC and how it was made
+        (:func:`core.products.rpcfit.refined_rpc`: folded, or refitted for a correction that mixes
+        rows and columns), as a single RPC scene's adjustment writes it."""
+        return {name: refined_rpc(scene) for name, scene in self.scenes.items() if isinstance(scene, RpcScene)}
 
 
 def _scene_column(names: np.ndarray, ids: np.ndarray, scenes: dict, what: str) -> np.ndarray:
@@ -112,36 +135,40 @@ def _check_ties_span_scenes(ties: TieTable, scene_of: np.ndarray) -> None:
                          "together: measure them in another scene or leave them out", parameter="ties")
 
 
-def block_inputs(scenes: dict[str, SceneModel], gcps: GcpTable | None,
-                 ties: TieTable | None) -> tuple[SceneModel, GcpTable, TieTable | None]:
-    """(the composite scene, the GCP table, the tie table) with cameras named as in the composite;
-    InputError for an RPC scene, a scene listed twice, observations naming a scene not in the
-    block, tie points seen in one scene only."""
+def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None,
+                 ties: TieTable | None) -> tuple[SceneModel | MixedBlock, GcpTable, TieTable | None]:
+    """(the composite scene: a :class:`MixedBlock` when the block holds RPC scenes, the GCP table,
+    the tie table) with cameras named as in the composite; InputError for a scene listed twice,
+    observations naming a scene not in the block, tie points seen in one scene only, a scene
+    without control or tie observations."""
     if not isinstance(scenes, dict) or not scenes:
         raise InputError("a block needs a dict of one or more named scenes", parameter="scenes")
-    for name, scene in scenes.items():
-        if isinstance(scene, RpcScene):
-            raise InputError(f"scene {name!r} is an RPC scene: a block adjusts rigorous (physical) scene models "
-                             "only so far; adjust it alone", parameter="scenes")
-    composite = compose_block(scenes)
+    with_rpc = any(isinstance(scene, RpcScene) for scene in scenes.values())
+    composite = compose_mixed(scenes) if with_rpc else compose_block(scenes)
     if gcps is None:
         none = np.zeros(0)
         gcps = GcpTable(none.astype(str), "control", none.astype(str), *(none,) * 8)
     gcp_scene = _scene_column(gcps.block_scene, gcps.id, scenes, "gcps")
     gcps = replace(_block_cameras(gcps, gcp_scene, scenes), block_scene=gcp_scene)
+    tie_scene = np.zeros(0, str)
     if ties is not None and len(ties):
         tie_scene = _scene_column(ties.scene, ties.id, scenes, "ties")
         _check_ties_span_scenes(ties, tie_scene)
         ties = replace(_block_cameras(ties, tie_scene, scenes), scene=tie_scene)
+    alone = [name for name in scenes if name not in set(gcp_scene[gcps.role == "control"]) | set(tie_scene)]
+    if alone:
+        raise InputError(f"scene(s) {', '.join(map(repr, alone))} have no control point or tie point measured in "
+                         "them: nothing ties them to the block; measure tie points or GCPs there, or leave them out",
+                         parameter="scenes")
     return composite, gcps, ties
 
 
-def adjust_block(scenes: dict[str, SceneModel], gcps: GcpTable | None, ties: TieTable | None,
+def adjust_block(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None, ties: TieTable | None,
                  settings: AdjustmentSettings | None = None,
                  progress: Callable[[float, str | None], None] | None = None,
                  is_cancelled: Callable[[], bool] | None = None) -> BlockResult:
-    """Adjust the block ``scenes`` (name -> rigorous scene) to the GCPs and tie points (each row
-    naming its scene, see the module docstring) with ``settings`` (the same for every scene)."""
+    """Adjust the block ``scenes`` (name -> rigorous or RPC scene) to the GCPs and tie points (each
+    row naming its scene, see the module docstring) with ``settings`` (the same for every scene)."""
     settings = settings or AdjustmentSettings()
     composite, gcps, ties = block_inputs(scenes, gcps, ties)
     log.info("adjusting a block of %d scenes (%s): %d GCP and %d tie observations", len(scenes),
@@ -155,7 +182,7 @@ def adjust_block(scenes: dict[str, SceneModel], gcps: GcpTable | None, ties: Tie
                         "their heights are weakly determined: %s", int(weak.sum()), MIN_CONVERGENCE_DEG,
                         listed(convergence[0][weak]))
     out = adjust(composite, gcps, settings, progress, is_cancelled, ties=ties)
-    adjusted = split_block(out.scene)
+    adjusted = out.scene.split() if isinstance(out.scene, MixedBlock) else split_block(out.scene)
     for name, scene in adjusted.items():
         if "adjustment" in scene.info:
             scene.info["adjustment"] = {**scene.info["adjustment"], "block": {"scene": name, "scenes": list(scenes)}}
@@ -204,24 +231,65 @@ def _rms_px(res_col: np.ndarray, res_row: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean(res_col[ok] ** 2 + res_row[ok] ** 2))) if ok.any() else None
 
 
-def onboard_move(before: SceneModel, after: SceneModel, cameras: list[int],
-                 settings: AdjustmentSettings) -> dict:
-    """How far the adjustment moved a scene's ground from where its onboard model puts it: the
-    largest distance (m) between the ground seen through ``before`` and ``after`` (composites) at a
-    GRID x GRID lattice of each of its ``cameras``, at the block's mean height; and the onboard
-    sigma (m) of that ground, sqrt(position_sigma^2 + (attitude_sigma * range)^2) with range (m)
-    the largest satellite-to-ground distance (None when a sigma is not stated)."""
+def _lattice(cam) -> tuple[np.ndarray, np.ndarray]:
+    """(col, row) (GRID^2,) px of a GRID x GRID lattice over a camera's image."""
+    return tuple(a.ravel() for a in np.meshgrid(np.linspace(0, cam.cols, GRID), np.linspace(0, cam.rows, GRID)))
+
+
+def ground_move(before, after, cameras: list[int]) -> float:
+    """The largest distance (m) between the ground seen through ``before`` and ``after``
+    (composites) at a GRID x GRID lattice of each of their ``cameras``, at the mean height of
+    ``before``."""
     height = float(np.mean(before.height_range))
-    moved, ranges = 0.0, []
+    moved = 0.0
     for c in cameras:
-        cam = before.cameras[c]
-        col, row = (a.ravel() for a in np.meshgrid(np.linspace(0, cam.cols, GRID), np.linspace(0, cam.rows, GRID)))
+        col, row = _lattice(before.cameras[c])
         g0, g1 = before.image_to_ground(col, row, height, c), after.image_to_ground(col, row, height, c)
         moved = max(moved, float(np.nanmax(np.linalg.norm(g1 - g0, axis=1))))
-        ranges.append(float(np.linalg.norm(before.line_of_sight(col, row, c)[1] - g0, axis=1).max()))
+    return moved
+
+
+def onboard_move(before: SceneModel, after: SceneModel, cameras: list[int],
+                 settings: AdjustmentSettings) -> dict:
+    """How far the adjustment moved a rigorous scene's ground from where its onboard model puts it
+    (:func:`ground_move`); and the onboard sigma (m) of that ground, sqrt(position_sigma^2 +
+    (attitude_sigma * range)^2) with range (m) the largest satellite-to-ground distance at the
+    lattice (None when a sigma is not stated)."""
+    height = float(np.mean(before.height_range))
+    ranges = []
+    for c in cameras:
+        col, row = _lattice(before.cameras[c])
+        ground = before.image_to_ground(col, row, height, c)
+        ranges.append(float(np.linalg.norm(before.line_of_sight(col, row, c)[1] - ground, axis=1).max()))
     ps, at = settings.position_sigma, settings.attitude_sigma
     sigma = None if ps is None or at is None else float(np.hypot(ps, at * max(ranges)))
-    return {"moved_m": moved, "onboard_sigma_m": sigma}
+    return {"moved_m": ground_move(before, after, cameras), "onboard_sigma_m": sigma}
+
+
+def vendor_move(before: MixedBlock, after: MixedBlock, camera: int, out: AdjustmentResult,
+                settings: AdjustmentSettings) -> dict:
+    """How far the adjustment moved an RPC image's ground from where its vendor RPC (with its
+    input correction) puts it (:func:`ground_move`); the vendor's stated accuracy in metres on the
+    ground (settings.rpc_sigma times the ground sample distance at the image centre; None without
+    it); and its adjusted correction terms (value and posterior sigma, px and px per px)."""
+    cam = before.cameras[camera]
+    centre = before.image_to_ground([cam.cols / 2, cam.cols / 2 + 1], [cam.rows / 2] * 2,
+                                    float(np.mean(before.height_range)), camera)
+    gsd = float(np.linalg.norm(centre[1] - centre[0]))
+    prefix = f"{cam.name}."
+    terms = {p["name"][len(prefix):]: {"value": p["value"], "sigma": p["sigma"], "unit": p["unit"]}
+             for p in out.report["parameters"] if p["name"].startswith(prefix) and p["mode"] != "fixed"}
+    return {"moved_m": ground_move(before, after, [camera]),
+            "vendor_sigma_m": None if settings.rpc_sigma is None else settings.rpc_sigma * gsd,
+            "correction": terms}
+
+
+def _move(composite, out: AdjustmentResult, cameras: list[int], settings: AdjustmentSettings) -> dict:
+    """A scene's move from its input geolocation: :func:`vendor_move` for an RPC image,
+    :func:`onboard_move` for a rigorous scene; with its ``model`` ('rpc' or 'rigorous')."""
+    if isinstance(composite, MixedBlock) and cameras[0] >= composite.n_rigorous:
+        return {"model": "rpc", **vendor_move(composite, out.scene, cameras[0], out, settings)}
+    return {"model": "rigorous", **onboard_move(composite, out.scene, cameras, settings)}
 
 
 def datum_sentence(report: dict) -> str:
@@ -233,7 +301,7 @@ def datum_sentence(report: dict) -> str:
     return f"{sentence}: {held['note']}" if held.get("note") else sentence
 
 
-def block_report(scenes: dict[str, SceneModel], composite: SceneModel, out: AdjustmentResult,
+def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: AdjustmentResult,
                  gcps: GcpTable, ties: TieTable | None, settings: AdjustmentSettings) -> dict:
     """Per scene and block figures: image residual RMS (px) of control observations, tie
     observations (after; before: through the onboard scenes with the onboard intersection) and
@@ -257,7 +325,7 @@ def block_report(scenes: dict[str, SceneModel], composite: SceneModel, out: Adju
                              "rmse_px": _rms_px(pts["res_col"][g & control], pts["res_row"][g & control])},
                  "check_points": {"observations": int((g & check).sum()),
                                   "rmse_px": _rms_px(pts["res_col"][g & check], pts["res_row"][g & check])},
-                 **onboard_move(composite, out.scene, scene_cameras(composite, name), settings)}
+                 **_move(composite, out, scene_cameras(composite, name), settings)}
         if tie_res is not None:
             entry["ties"] = {"observations": int(t.sum()), "rmse_px": _rms_px(tie_res[0][t], tie_res[1][t]),
                              "rmse_before_px": _rms_px(before[t, 0], before[t, 1])}

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..model.mixedblock import MixedBlock
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
@@ -84,18 +85,23 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
         _check_seen_by_scene(scene, table.select(control))
     if not sparse_control or np.unique(table.id[control]).size >= 3:
         _check_spread(scene, table, control)
-    block_datum(table, settings, ties, lines)
+    block_datum(table, settings, ties, lines, scene)
     return table
 
 
 def block_datum(table: GcpTable, settings: AdjustmentSettings, ties: TieTable | None,
-           lines: ControlLines | None = None) -> dict | None:
+                lines: ControlLines | None = None, scene=None) -> dict | None:
     """How the datum of a block with tie points (and control lines) is held (None without tie
-    points; InputError naming a datum defect)."""
+    points; InputError naming a datum defect). ``scene``: a block with RPC images
+    (:class:`core.model.mixedblock.MixedBlock`) has onboard pseudo-observations only with rigorous
+    scenes, and its RPC images the prior settings.rpc_sigma."""
     if ties is None or len(ties) == 0:
         return None
-    return datum(np.unique(table.id[table.role == "control"]).size, settings.position_sigma, settings.attitude_sigma,
-                 *datum_lines(lines))
+    trajectories = not isinstance(scene, MixedBlock) or scene.rigorous is not None
+    images = len(scene.images) if isinstance(scene, MixedBlock) else 0
+    return datum(np.unique(table.id[table.role == "control"]).size,
+                 settings.position_sigma if trajectories else None, settings.attitude_sigma if trajectories else None,
+                 *datum_lines(lines), rpc_images=images, rpc_sigma=settings.rpc_sigma if images else None)
 
 
 def _check_seen_by_scene(scene: SceneModel, control: GcpTable) -> None:

@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import ConsistencyError
 from ..formats.scene_json import rpc_scene_from_dict, rpc_scene_to_dict, scene_from_dict, scene_to_dict
 from ..model.block import compose_block, is_block, split_block
+from ..model.mixedblock import MixedBlock
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from .problem import Problem
@@ -28,7 +29,11 @@ FITTED_TOLERANCE = 0.01  # px: the written scene against the fitted image positi
 
 def written(scene: SceneModel | RpcScene) -> SceneModel | RpcScene:
     """``scene`` as it reads back from its scene JSON; a block's composite as its scenes read
-    back (:func:`core.model.block.split_block`), composed again."""
+    back (:func:`core.model.block.split_block`), composed again; a block with RPC images as its
+    parts read back."""
+    if isinstance(scene, MixedBlock):
+        return scene.with_parts(written(scene.rigorous) if scene.rigorous is not None else None,
+                                {name: written(img) for name, img in scene.images.items()})
     if is_block(scene):
         return compose_block({name: written(s) for name, s in split_block(scene).items()})
     if isinstance(scene, RpcScene):

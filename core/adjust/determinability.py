@@ -23,6 +23,10 @@ SINGULAR = 1e-11           # trajectory: smallest / largest eigenvalue of the co
 # CBERS-02B: non-determinable sets keep <= 1.3e-5 (the middle chip's stagger barely separates
 # yaw from a common chip rotation), the weakest determinable term (focal length) >= 1.6e-3.
 INTERIOR_SINGULAR = 1e-4
+# Parameters that carry the datum: the trajectory corrections and the RPC images' corrections (a
+# block's common move is theirs; with weak priors they keep little information of their own once
+# the others are free, which is no defect), tested as a whole, never the one fixed.
+DATUM_BLOCKS = ("position", "attitude", "rpc_correction")
 
 
 def non_determinable(N: np.ndarray, names: list[str], trajectory: np.ndarray) -> list[list[str]]:
@@ -90,7 +94,7 @@ def _choose_to_fix(problem: Problem, members: list[str]) -> str | None:
     """The parameter to fix in a non-determinable set: an interior one, preferably of the
     reference (middle) chip, else the one taking the largest part."""
     params = problem.params
-    interior = [n for n in members if params.params[params.index[n]].block not in ("position", "attitude")]
+    interior = [n for n in members if params.params[params.index[n]].block not in DATUM_BLOCKS]
     for n in interior:
         p = params.params[params.index[n]]
         if p.block == "chip" and p.chip == len(problem.scene.cameras[p.camera].chips) // 2:
@@ -109,7 +113,7 @@ def check_determinability(problem: Problem, system: System) -> list[dict]:
         # the observations say: like the trajectory it may absorb the others, it is not tested.
         # Its prior is a small share of the information the image observations give it, so the
         # share test would call it non-determinable and fix it at 0, discarding the prior.
-        trajectory = np.array([problem.params.params[i].block in ("position", "attitude")
+        trajectory = np.array([problem.params.params[i].block in DATUM_BLOCKS
                                or problem.params.params[i].mode == "weighted" for i in free])
         sets = non_determinable(system.N, names, trajectory)
         if not sets:
@@ -120,10 +124,11 @@ def check_determinability(problem: Problem, system: System) -> list[dict]:
         members = min(sets, key=lambda m: index.get(_choose_to_fix(problem, m), len(index)))
         chosen = _choose_to_fix(problem, members) if problem.settings.on_singular == "fix" else None
         if chosen is None:
-            hint = ("" if problem.settings.on_singular == "stop" and any(
-                problem.params.params[problem.params.index[n]].block not in ("position", "attitude")
-                for n in members) else
-                "; give onboard GPS/attitude sigmas, more or better spread GCPs, or a simpler trajectory model")
+            blocks = {problem.params.params[problem.params.index[n]].block for n in members}
+            hint = ("" if problem.settings.on_singular == "stop" and blocks - set(DATUM_BLOCKS) else
+                    "; give onboard GPS/attitude sigmas, more or better spread GCPs, or a simpler trajectory model"
+                    + (" (RPC images: RPC_SIGMA, the vendor's stated accuracy, or a simpler RPC_CORRECTION)"
+                       if "rpc_correction" in blocks else ""))
             raise InputError(f"these parameters cannot be determined together from the observations: "
                              f"{', '.join(members)}{hint}")
         found.append({"parameters": members, "fixed": chosen})

@@ -18,10 +18,12 @@ import logging
 from typing import Callable
 
 from ..errors import InputError, NoDescentError
+from ..model.mixedblock import MixedBlock
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..observations.tiepoints import TieTable
+from .blockproblem import BlockProblem
 from .checks import block_datum, check_inputs, check_redundancy
 from .consistency import check_written_scene
 from .determinability import check_determinability
@@ -40,8 +42,13 @@ log = logging.getLogger(__name__)
 
 def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings, ties: TieSetUp,
                  lines: LineSetUp | None = None) -> Problem:
-    """The problem of a rigorous scene, or of an RPC scene (its image-space correction,
-    :mod:`core.adjust.rpcbias`)."""
+    """The problem of a rigorous scene, of an RPC scene (its image-space correction,
+    :mod:`core.adjust.rpcbias`), or of a block with RPC images (:mod:`core.adjust.blockproblem`)."""
+    if isinstance(scene, MixedBlock):
+        if len(lines or ()):
+            raise InputError("control lines need rigorous (physical) scene models; a block with RPC images is "
+                             "adjusted from GCPs and tie points", parameter="lines")
+        return BlockProblem(scene, table, settings, ties)
     if isinstance(scene, RpcScene):
         if len(ties):
             raise InputError("tie points need a rigorous (physical) scene model with several cameras; an RPC "
@@ -63,7 +70,7 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     progress = progress or (lambda fraction, message=None: None)
     is_cancelled = is_cancelled or (lambda: False)
     table = check_inputs(scene, table, settings, ties, lines)
-    held = block_datum(table, settings, ties, lines)
+    held = block_datum(table, settings, ties, lines, scene)
     progress(0.02, "setting up the observations")
     tie_set = set_up_ties(scene, ties) if ties is not None and len(ties) else TieSetUp.empty()
     problem = _problem_for(scene, table, settings, tie_set, set_up_lines(scene, lines))

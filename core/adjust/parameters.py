@@ -332,6 +332,12 @@ class ParameterSet:
                 if sigma:
                     check_prior(self.scene, p, pattern, sigma, unit)
 
+    @property
+    def trajectories(self) -> "ParameterSet | None":
+        """The parameter set of the trajectory corrections: this one (a block with RPC images: its
+        rigorous scenes', :class:`core.adjust.blockproblem.BlockParameters`)."""
+        return self
+
     # --- the unknown vector ------------------------------------------------------------------
     @property
     def free(self) -> np.ndarray:

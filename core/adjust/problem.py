@@ -32,6 +32,9 @@ from .ties import TieSetUp, camera_indices
 # its rows do not count among the equations (they would lower sigma0 by adding degrees of freedom
 # their near-zero residuals do not fill).
 HELD_GROUP = "minimal trajectory prior"
+# The pseudo-observation group of the RPC images' corrections: the vendor's stated accuracy
+# (settings.rpc_sigma, core.adjust.rpcbias).
+RPC_PRIOR_GROUP = "RPC correction pseudo-observations"
 
 
 def image_group(camera: str) -> str:
@@ -168,7 +171,8 @@ class Problem:
             return float(np.median(seg.sigma_across if group == linepoints.ACROSS_GROUP else seg.sigma_h)), "m"
         s = self.settings
         return {"position pseudo-observations": (s.position_sigma, "m"),
-                "attitude pseudo-observations": (s.attitude_sigma, "rad")}.get(group, (None, ""))
+                "attitude pseudo-observations": (s.attitude_sigma, "rad"),
+                RPC_PRIOR_GROUP: (s.rpc_sigma, "px")}.get(group, (None, ""))
 
     # --- unknowns and their columns -------------------------------------------------------
     def _set_up_ground(self, table: GcpTable, sel: np.ndarray, tie_ground: np.ndarray | None = None,

@@ -21,7 +21,7 @@ from .settings import AdjustmentSettings
 from .breakdown import breakdown
 from .robust import component_report, critical, sigma0_test, stated_sigma0
 from .statistics import Statistics, correlated_pairs
-from .parameters import trajectory_groups
+from .parameters import ParameterSet, trajectory_groups
 from .ties import yaw_hold, yaw_sentence
 
 log = logging.getLogger(__name__)
@@ -137,7 +137,8 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
             for ci, c in enumerate(problem.scene.cameras) for k in range(len(c.chips))},
         "check_points": check_point_report(after),
         "check_points_before": check_point_report(before),
-        "trajectory": _trajectory_curves(problem) if problem.params.position_basis is not None else None,
+        "trajectory": _trajectory_curves(problem.params.trajectories) if problem.params.position_basis is not None
+        else None,
     }
     if len(problem.ties.table):
         report["tie_points"], ties = _tie_points(problem, st, flagged, good)
@@ -267,16 +268,15 @@ def _residual_summary(v: np.ndarray) -> dict:
             "max_row": float(np.max(np.abs(v[:, 1]))), "max": float(px.max())}
 
 
-def _trajectory_curves(problem: Problem, samples: int = 200) -> dict:
-    """Corrections against time, for plots: position (m, ECEF) and attitude (rad); with several
-    trajectory corrections (one per camera, or per scene of a block), the reference (first)
-    one's there and every one's in ``per_camera`` (camera or scene name -> {position, attitude,
-    time: over its own trajectory's span})."""
-    params = problem.params
-    groups = trajectory_groups(problem.scene)
+def _trajectory_curves(params: ParameterSet, samples: int = 200) -> dict:
+    """Corrections against time of the trajectory parameters ``params`` (of its scene), for plots:
+    position (m, ECEF) and attitude (rad); with several trajectory corrections (one per camera, or
+    per scene of a block), the reference (first) one's there and every one's in ``per_camera``
+    (camera or scene name -> {position, attitude, time: over its own trajectory's span})."""
+    groups = trajectory_groups(params.scene)
 
     def curves(o: int) -> dict:
-        t = np.linspace(*problem.scene.time_span(next(g for g in groups if params.owners[o][0] in g)), samples)
+        t = np.linspace(*params.scene.time_span(next(g for g in groups if params.owners[o][0] in g)), samples)
         corr = params.trajectory_correction(int(params.owners[o][0]))
         return {"time": t.tolist(), "position": (corr.position.matrix(t) @ corr.position_coefficients).tolist(),
                 "attitude": (corr.attitude.matrix(t) @ corr.attitude_coefficients).tolist()}

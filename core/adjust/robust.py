@@ -84,7 +84,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from .problem import TIE_GROUP_PREFIX, Problem
+from .problem import RPC_PRIOR_GROUP, TIE_GROUP_PREFIX, Problem
 from .statistics import Statistics, line_group_sums
 
 log = logging.getLogger(__name__)
@@ -267,7 +267,7 @@ TRAJECTORY_PSEUDO_GROUPS = ("position pseudo-observations", "attitude pseudo-obs
 
 
 def datum_groups(problem: Problem) -> set[str]:
-    """The onboard pseudo-observation groups that alone hold the datum (no control point, no
+    """The onboard pseudo-observation groups (and the RPC images' prior) that alone hold the datum (no control point, no
     control line: tie points fix the block's shape, nothing else where it lies). Their factors are
     not estimated: their residuals measure only how far the ties pull the block from the onboard
     data, so a factor from them would loosen the datum pass after pass (a block of 5 scenes with
@@ -275,7 +275,7 @@ def datum_groups(problem: Problem) -> set[str]:
     the loosened datum without converging)."""
     if problem.n_control or len(problem.lines):
         return set()
-    return set(TRAJECTORY_PSEUDO_GROUPS)
+    return {*TRAJECTORY_PSEUDO_GROUPS, RPC_PRIOR_GROUP}
 
 
 def rescale(problem: Problem, comps: dict, kappa: float, joint: list[tuple[str, ...]] = (),

@@ -23,7 +23,7 @@ from ..errors import InputError
 from ..model.rpcscene import RpcScene
 from .normal import GroundPrior, Linearization, groups
 from .parameters import Parameter, ParameterSet
-from .problem import Problem
+from .problem import RPC_PRIOR_GROUP, Problem, Pseudo
 from .settings import AdjustmentSettings
 from .ties import TieSetUp
 
@@ -34,8 +34,9 @@ GROUND_STEP = 0.1  # m: central differences of the RPC with respect to the groun
 
 @dataclass
 class RpcObservations:
-    """Image observations of ground points in an RPC scene: camera and chip (0: one image),
-    point (index of the ground point), sigma (px), measured col, row (px); all (n,)."""
+    """Image observations of ground points by camera index (an RPC scene's: 0), chip (an RPC
+    image's: 0), point (index of the ground point), sigma (px), measured col, row (px); all (n,).
+    Also the observations of a block with RPC images (:mod:`core.adjust.blockproblem`)."""
     camera: np.ndarray
     chip: np.ndarray
     point: np.ndarray
@@ -73,6 +74,67 @@ class BiasParameters(ParameterSet):
         return RpcScene(s.rpc, s.camera, self.values().reshape(2, 3), dict(s.info))
 
 
+class RpcImage:
+    """One RPC image's correction (:class:`BiasParameters`) and how it images ground points: the
+    residuals and Jacobians of its observations, for :class:`RpcProblem` and for the RPC images of
+    a block (:mod:`core.adjust.blockproblem`)."""
+
+    def __init__(self, scene: RpcScene, mode: str):
+        self.params = BiasParameters(scene, mode)
+
+    @property
+    def slots(self) -> np.ndarray:
+        """Indices (k,) into TERMS of the free terms (the Jacobian's columns)."""
+        return self.params.free
+
+    def predicted(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(corrected col, row, the RPC's own col, row) (n,) px of ground points x (n, 3) ECEF m."""
+        scene = self.params.adjusted_scene()
+        c, r = scene.ground_to_image(x)
+        return c, r, *scene.uncorrect(c, r)
+
+    def residuals(self, x: np.ndarray, col: np.ndarray, row: np.ndarray) -> np.ndarray:
+        """(n, 2) px: where the corrected RPC images x (n, 3) minus the measured (col, row) (n,)."""
+        c, r, _, _ = self.predicted(x)
+        return np.stack([c - col, r - row], axis=1)
+
+    def linearize(self, x: np.ndarray, col: np.ndarray, row: np.ndarray,
+                  what: str = "a control point") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(residuals (n, 2) px, derivatives (n, 2, k) px per unit of the free terms, derivatives
+        (n, 2, 3) px/m by the ground points) of observations (col, row) (n,) of ground points x
+        (n, 3) ECEF m. InputError when one lies outside the RPC's ground domain (``what``: the
+        kind of point, for the message)."""
+        c, r, c0, r0 = self.predicted(x)
+        res = np.stack([c - col, r - row], axis=1)
+        if not np.all(np.isfinite(res)):
+            raise InputError(f"{what} lies outside the ground domain of the RPC of {self.params.scene.camera.name}; "
+                             "is the GCP layer from another scene?", parameter="gcps")
+        jg = np.empty((col.size, 2, 3))
+        for k in range(3):
+            step = np.zeros(3)
+            step[k] = GROUND_STEP
+            cp, rp, _, _ = self.predicted(x + step)
+            cm, rm, _, _ = self.predicted(x - step)
+            jg[:, 0, k], jg[:, 1, k] = (cp - cm) / (2 * GROUND_STEP), (rp - rm) / (2 * GROUND_STEP)
+        one, zero = np.ones_like(c0), np.zeros_like(c0)
+        full = np.stack([np.stack([one, c0, r0, zero, zero, zero], axis=1),
+                         np.stack([zero, zero, zero, one, c0, r0], axis=1)], axis=1)  # (n, 2, 6)
+        return res, full[:, :, self.slots], jg
+
+    def prior(self, sigma: float | None, factor: float, offset: int = 0) -> list[Pseudo]:
+        """The vendor's stated accuracy as pseudo-observations of value 0 on the free terms (none
+        when ``sigma`` is None): the shift terms with ``sigma`` px, the others with ``sigma`` over
+        the image's columns (a1, b1) or rows (a2, b2), so that each term moves the far edge of the
+        image by at most sigma; times ``factor`` (the group's variance component factor). Indices
+        into the parameters start at ``offset`` (the image's first term in a block)."""
+        if sigma is None or self.slots.size == 0:
+            return []
+        cam = self.params.scene.camera
+        extent = np.array([1.0, cam.cols, cam.rows, 1.0, cam.cols, cam.rows])[self.slots]
+        return [Pseudo(RPC_PRIOR_GROUP, offset + self.slots, np.eye(self.slots.size),
+                       1.0 / (sigma * factor / extent) ** 2)]
+
+
 class RpcProblem(Problem):
     """The engine's problem for an RPC scene (see the module docstring)."""
 
@@ -81,7 +143,8 @@ class RpcProblem(Problem):
             raise InputError("INTERIOR: an RPC scene has no interior parameters; its correction is chosen with "
                              "RPC_CORRECTION")
         self.scene, self.settings = scene, settings
-        self.params = BiasParameters(scene, settings.rpc_correction)
+        self.image = RpcImage(scene, settings.rpc_correction)
+        self.params = self.image.params
         control = np.nonzero(table.role == "control")[0]
         _, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
         self._set_up_ground(table, control[first])
@@ -94,6 +157,7 @@ class RpcProblem(Problem):
         self.ties = TieSetUp.empty()
         self.factor = np.ones((n, 2))
         self.scale = {}
+        self.held = []
         self.rescaled()
         self.structure()
 
@@ -106,34 +170,12 @@ class RpcProblem(Problem):
         self.groups = groups(self.columns)
 
     def pseudo(self) -> list:
-        return []
-
-    def _predicted(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(corrected col, row, the RPC's own col, row) (n,) of ground points x (n, 3)."""
-        scene = self.params.adjusted_scene()
-        c, r = scene.ground_to_image(x)
-        return c, r, *scene.uncorrect(c, r)
+        return self.image.prior(self.settings.rpc_sigma, self.scale.get(RPC_PRIOR_GROUP, 1.0))
 
     def residuals(self) -> np.ndarray:
-        c, r, _, _ = self._predicted(self.ground[self.obs.point])
-        return np.stack([c - self.obs.col, r - self.obs.row], axis=1)
+        return self.image.residuals(self.ground[self.obs.point], self.obs.col, self.obs.row)
 
     def linearize(self) -> tuple[Linearization, GroundPrior | None]:
-        x = self.ground[self.obs.point]
-        c, r, c0, r0 = self._predicted(x)
-        res = np.stack([c - self.obs.col, r - self.obs.row], axis=1)
-        if not np.all(np.isfinite(res)):
-            raise InputError("a control point lies outside the RPC's ground domain; is the GCP layer from another "
-                             "scene?", parameter="gcps")
-        jg = np.empty((len(self.obs), 2, 3))
-        for k in range(3):
-            step = np.zeros(3)
-            step[k] = GROUND_STEP
-            cp, rp, _, _ = self._predicted(x + step)
-            cm, rm, _, _ = self._predicted(x - step)
-            jg[:, 0, k], jg[:, 1, k] = (cp - cm) / (2 * GROUND_STEP), (rp - rm) / (2 * GROUND_STEP)
-        one, zero = np.ones_like(c0), np.zeros_like(c0)
-        full = np.stack([np.stack([one, c0, r0, zero, zero, zero], axis=1),
-                         np.stack([zero, zero, zero, one, c0, r0], axis=1)], axis=1)  # (n, 2, 6)
-        return Linearization(res, self.weights(), self.columns, full[:, :, self.slots], jg,
+        res, values, jg = self.image.linearize(self.ground[self.obs.point], self.obs.col, self.obs.row)
+        return Linearization(res, self.weights(), self.columns, values, jg,
                              self.ground_point[self.obs.point]), self.ground_prior()

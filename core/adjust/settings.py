@@ -38,6 +38,11 @@ class AdjustmentSettings:
     False trusts the stated sigmas. interior_selection: 'significant' removes interior
     parameters the control cannot support and falls back to no self-calibration when it is
     not significantly better (:mod:`core.adjust.selection`); 'keep' keeps the set as given.
+    rpc_correction: the image-space correction of RPC scenes, 'shift', 'drift' or 'affine'
+    (:mod:`core.adjust.rpcbias`). rpc_sigma (px): the vendor's stated accuracy of RPC images, a
+    pseudo-observation of 0 on each correction term (its displacement at the image's far edge, see
+    :meth:`core.adjust.rpcbias.RpcImage.prior`), as the onboard sigmas are of the trajectories; None:
+    none. A block of RPC images tied without control needs it: it holds where the block lies.
     """
     position_model: str = "polynomial"
     position_order: int = 1
@@ -57,6 +62,7 @@ class AdjustmentSettings:
     max_robust_iterations: int = 12
     variance_components: bool = True
     rpc_correction: str = "drift"
+    rpc_sigma: float | None = None
     interior_selection: str = "significant"
 
     def validate(self) -> None:
@@ -84,6 +90,9 @@ class AdjustmentSettings:
         if self.rpc_correction not in ("shift", "drift", "affine"):
             raise InputError(f"RPC correction must be shift, drift or affine (got {self.rpc_correction!r})",
                              parameter="settings.rpc_correction")
+        if self.rpc_sigma is not None and not 1e-3 <= self.rpc_sigma <= 1e5:
+            raise InputError(f"rpc_sigma must be empty (no prior on the RPC corrections) or between 0.001 and 1e5 px "
+                             f"(got {self.rpc_sigma:g})", parameter="settings.rpc_sigma")
         if self.interior_selection not in SELECTION:
             raise InputError(f"interior_selection must be one of {', '.join(SELECTION)} "
                              f"(got {self.interior_selection!r})", parameter="settings.interior_selection")

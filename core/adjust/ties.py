@@ -145,13 +145,19 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
     return out
 
 
+RPC_PRIOR = "RPC correction priors"  # the datum source of settings.rpc_sigma
+
+
 def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | None,
-          n_lines: int = 0, lines_determined: bool = False) -> dict:
+          n_lines: int = 0, lines_determined: bool = False, rpc_images: int = 0,
+          rpc_sigma: float | None = None) -> dict:
     """How the datum (shift X/Y/Z, roll, pitch, yaw, scale) of a block with tie points is held,
     for ``n_control`` control points (at least 3 are checked for spread elsewhere), ``n_lines``
     control lines (``lines_determined``: their directions determine both horizontal directions,
-    :func:`core.lines.direction_check`) and the onboard pseudo-observations. Raises InputError
-    naming the components nothing holds.
+    :func:`core.lines.direction_check`), the onboard pseudo-observations (sigmas None: none; a
+    block of RPC images alone has none) and, for a block with ``rpc_images`` RPC images, the prior
+    on their corrections (``rpc_sigma``, px: the vendor's stated accuracy). Raises InputError
+    naming the components nothing holds and the setting that would.
 
     Control points: 3 or more well spread hold all; 2 all but the rotation about the line
     through them; 1 the shifts. Control lines in several directions hold all (each fixes its
@@ -160,7 +166,10 @@ def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | 
     yaw and the scale free and hold the height, roll and pitch only. Onboard positions
     (pseudo-observations of the orbit, hundreds of km above the ground) hold the shifts, the
     scale, pitch and yaw; roll about the flight line leaves them in place, so it needs a GCP
-    (off that line), lines or the attitude. Onboard attitude holds the three rotations."""
+    (off that line), lines or the attitude. Onboard attitude holds the three rotations. The RPC
+    images' prior holds all: a move of the whole block moves every image's ground, which their
+    corrections would have to follow (tie points alone leave the common part of the images'
+    shifts, and with drift or affine terms their common rotation and scale, free)."""
     held: dict[str, list[str]] = {c: [] for c in SHIFTS + ROTATIONS + SCALE}
     extra_missing = []
 
@@ -178,34 +187,29 @@ def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | 
         hold("onboard positions", SHIFTS + SCALE + ROTATIONS[1:] + (ROTATIONS[:1] if n_control else ()))
     if attitude_sigma is not None:
         hold("onboard attitude", ROTATIONS)
-    if n_control == 2 and position_sigma is None and attitude_sigma is None and not (n_lines and lines_determined):
+    if rpc_images and rpc_sigma is not None:
+        hold(RPC_PRIOR, SHIFTS + ROTATIONS + SCALE)
+    if n_control == 2 and position_sigma is None and attitude_sigma is None and not (n_lines and lines_determined) \
+            and not (rpc_images and rpc_sigma is not None):
         extra_missing.append("rotation about the line through the 2 control points")
     missing = [c for c, sources in held.items() if not sources] + extra_missing
     if missing:
-        need = []
-        if any(c in SHIFTS + SCALE for c in missing):
-            need.append("POSITION_SIGMA (onboard position accuracy, m)")
-        if any(c not in SHIFTS + SCALE for c in missing):
-            need.append("ATTITUDE_SIGMA (onboard attitude accuracy)")
-        pseudo = [name for name, s in (("positions", position_sigma), ("attitude", attitude_sigma)) if s is not None]
-        given = "onboard pseudo-observations of the " + " and ".join(pseudo) if pseudo else \
-            "no onboard pseudo-observations"
-        lines = f", {n_lines} control line(s)" + ("" if lines_determined else " all running one way") \
-            if n_lines else ""
-        raise InputError(
-            f"datum defect: with {n_control} control point(s){lines} and {given}, the tie points fix the block's "
-            f"shape but not {', '.join(missing)}; the adjustment would drift freely in them. Give "
-            f"{' and '.join(need)}, or at least 3 well spread GCPs", parameter="")
+        _refuse_datum(missing, n_control, position_sigma, attitude_sigma, n_lines, lines_determined, rpc_images)
     sources = {s for v in held.values() for s in v}
     named = [name for name, present in (("control points", "control points" in sources),
                                         ("control lines", "control lines" in sources),
-                                        ("onboard pseudo-observations", any(s.startswith("onboard") for s in sources)))
+                                        ("onboard pseudo-observations", any(s.startswith("onboard") for s in sources)),
+                                        (f"{RPC_PRIOR} ({rpc_sigma} px, the RPC images' stated accuracy)",
+                                         RPC_PRIOR in sources))
              if present]
     by = named[0] if len(named) == 1 else ", ".join(named[:-1]) + " and " + named[-1]
     out = {"held_by": by, "control_points": n_control, "control_lines": n_lines, "components": held}
+    absolute = " and ".join(filter(None, (
+        "the onboard orbit and attitude (the pseudo-observations' sigmas)" if position_sigma or attitude_sigma else "",
+        "the RPC images' stated accuracy (RPC_SIGMA)" if RPC_PRIOR in sources else "")))
     if not n_control and not n_lines:
         out["note"] = ("no control points: the tie points fix the block's relative geometry only; its absolute "
-                       "accuracy is that of the onboard orbit and attitude (the pseudo-observations' sigmas)")
+                       f"accuracy is that of {absolute}")
     elif n_control < 3:
         rest = " and ".join(name for name in named if name != "control points")
         who = f"{n_control} control point(s): the datum components they do not hold are" if n_control else \
@@ -213,6 +217,31 @@ def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | 
         out["note"] = (f"{who} held by the {rest}"
                        + (", at the onboard accuracy" if rest == "onboard pseudo-observations" else ""))
     return out
+
+
+def _refuse_datum(missing: list[str], n_control: int, position_sigma, attitude_sigma, n_lines: int,
+                  lines_determined: bool, rpc_images: int) -> None:
+    """The InputError of a datum defect: the components nothing holds and what would hold them."""
+    trajectories = not rpc_images or position_sigma is not None or attitude_sigma is not None
+    need = []
+    if trajectories and any(c in SHIFTS + SCALE for c in missing):
+        need.append("POSITION_SIGMA (onboard position accuracy, m)")
+    if trajectories and any(c not in SHIFTS + SCALE for c in missing):
+        need.append("ATTITUDE_SIGMA (onboard attitude accuracy)")
+    if rpc_images:
+        need.append("RPC_SIGMA (settings.rpc_sigma: the vendor's stated accuracy of the RPC images, px)")
+    pseudo = [name for name, s in (("positions", position_sigma), ("attitude", attitude_sigma)) if s is not None]
+    given = "onboard pseudo-observations of the " + " and ".join(pseudo) if pseudo else \
+        "no onboard pseudo-observations"
+    if rpc_images:
+        given += f" and no prior on the corrections of its {rpc_images} RPC image(s)"
+    lines = f", {n_lines} control line(s)" + ("" if lines_determined else " all running one way") \
+        if n_lines else ""
+    raise InputError(
+        f"datum defect: with {n_control} control point(s){lines} and {given}, the tie points fix the block's "
+        f"shape but not {', '.join(missing)}; the adjustment would drift freely in them. Give "
+        f"{' or '.join(need) if rpc_images else ' and '.join(need)}, or at least 3 well spread GCPs",
+        parameter="settings.rpc_sigma" if rpc_images and not trajectories else "")
 
 
 def yaw_hold(params: ParameterSet, covariance: np.ndarray, grid: int = 3) -> dict:
@@ -240,8 +269,8 @@ def yaw_hold(params: ParameterSet, covariance: np.ndarray, grid: int = 3) -> dic
         # A coarse trajectory table: tabulating the whole strip at its fine step for 9 points
         # would cost a quarter second per parameter; the interpolation error is common to the
         # two sides of each difference (the same grid), so it cancels.
-        for c in range(len(scene.cameras)):
-            scene.platform_of(c).cache_step = YAW_TABLE_STEP
+        for platform in filter(None, (scene.platform_of(c) for c in range(len(scene.cameras)))):
+            platform.cache_step = YAW_TABLE_STEP  # an RPC image of a block has none
         return scene.image_to_ground(col, row, height, 0)
 
     try:

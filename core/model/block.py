@@ -36,10 +36,9 @@ def is_block(scene) -> bool:
     return isinstance(scene, SceneModel) and BLOCK_KEY in scene.info
 
 
-def compose_block(scenes: dict[str, SceneModel]) -> SceneModel:
-    """The composite scene of the block ``scenes`` (name -> rigorous scene, at least one). Scene
-    names must be non-empty and free of '/'; a scene object may appear once; the scenes must agree
-    on the aberration and refraction corrections. InputError naming what is wrong."""
+def check_scene_names(scenes: dict) -> None:
+    """InputError unless the block ``scenes`` (name -> scene) has at least one scene, every name is
+    non-empty and free of '/', and no scene object is listed twice."""
     if not scenes:
         raise InputError("a block needs at least one scene", parameter="scenes")
     seen: dict[int, str] = {}
@@ -51,6 +50,14 @@ def compose_block(scenes: dict[str, SceneModel]) -> SceneModel:
             raise InputError(f"scene {name!r} is the same scene as {seen[id(scene)]!r}: a scene is listed twice in "
                              "the block", parameter="scenes")
         seen[id(scene)] = name
+
+
+def compose_block(scenes: dict[str, SceneModel]) -> SceneModel:
+    """The composite scene of the block ``scenes`` (name -> rigorous scene, at least one). Scene
+    names must be non-empty and free of '/'; a scene object may appear once; the scenes must agree
+    on the aberration and refraction corrections. InputError naming what is wrong."""
+    check_scene_names(scenes)
+    for name, scene in scenes.items():
         if is_block(scene) or scene.platform.camera_platforms:
             raise InputError(f"scene {name!r} is itself a block: give its scenes instead", parameter="scenes")
     first = next(iter(scenes.values()))

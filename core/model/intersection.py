@@ -102,6 +102,12 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
         if np.all(np.linalg.norm(step[good], axis=1) < TOLERANCE):
             converged = True
             break
+    # A point some model no longer images (an RPC far outside its ground domain, reached from
+    # near-parallel rays) is not intersected.
+    lost = ok & ~np.all(np.isfinite(normal), axis=(1, 2))
+    ground[lost] = np.nan
+    ok &= ~lost
+    use = ok[point]
     residuals = np.full((col.size, 2), np.nan)
     if use.any():
         residuals[use] = _project(scene, camera[use], ground[point[use]]) - measured[use]

@@ -27,6 +27,7 @@ from pushbroom_adjust.core.observations.gcps import GcpTable
 from pushbroom_adjust.core.observations.tiepoints import TieTable
 from pushbroom_adjust.simulation.presets import PRESETS, ErrorSettings, cut_preset
 from pushbroom_adjust.simulation.simulator import simulate
+from tests.support.block_observations import measure_block
 from tests.support.rpcdata import pleiades_rpc
 
 PRESET = cut_preset(PRESETS["th1_tlc"], 500, 500)
@@ -75,18 +76,7 @@ class Block:
     def measure(self, ground: np.ndarray) -> dict:
         """Observations of ECEF points (p, 3) in every camera of every true scene that sees them
         (5 px inside the image), with NOISE px: point (index), scene, camera, col, row arrays."""
-        out = {k: [] for k in ("point", "scene", "camera", "col", "row")}
-        for name, scene in self.true.items():
-            for c, cam in enumerate(scene.cameras):
-                col, row = scene.ground_to_image(ground, c)
-                ok = np.isfinite(col) & (col > 5) & (col < cam.cols - 5) & (row > 5) & (row < cam.rows - 5)
-                n = int(ok.sum())
-                out["point"].append(np.nonzero(ok)[0])
-                out["scene"] += [name] * n
-                out["camera"] += [cam.name] * n
-                out["col"].append(col[ok] + self.rng.normal(0.0, NOISE, n))
-                out["row"].append(row[ok] + self.rng.normal(0.0, NOISE, n))
-        return {k: np.concatenate(v) if k in ("point", "col", "row") else np.array(v) for k, v in out.items()}
+        return measure_block(self.true, ground, self.rng, NOISE)
 
     def check_px(self, name: str, adjusted) -> float:
         """RMS (px) over the scene's cameras of the check ground through ``adjusted`` against the truth."""
@@ -226,7 +216,7 @@ def test_bad_block_input_is_named(block, shared_data):
     assert ray_convergence(compose_block(block.onboard), replace(nadir, camera=np.char.add(
         np.char.add(nadir.scene, "/"), nadir.camera)))[1].max() < 0.1  # measured 0.027 (the scenes' attitude errors)
     rpc = RpcScene(pleiades_rpc(shared_data), RpcCamera("PAN", 1000, 1000))
-    with pytest.raises(InputError, match="'P'.*RPC"):
+    with pytest.raises(InputError, match="'P'.*no control point or tie point"):
         adjust_block({**block.onboard, "P": rpc}, None, ties, SETTINGS)
     with pytest.raises(InputError, match="'a/b'"):
         adjust_block({"a/b": block.onboard["S1"], "S2": block.onboard["S2"]}, None, ties, SETTINGS)
