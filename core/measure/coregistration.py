@@ -17,7 +17,11 @@ when either image has too little texture there (standard deviation < ``min_textu
 saturated or flat ground, which gives no shift), or when the correlation peak is weak (height <
 ``min_peak``: the images do not show the same thing there, e.g. changed land cover, clouds,
 relief the surface of the orthoimages misses, or noise; a peak of pure noise in a 64 px window
-is about 0.07, a clean pair's is near 1).
+is about 0.07, a clean pair's is near 1). A window whose shift lies FAR_PX or more (or
+FAR_SIGMAS robust sigmas, if that is more) from the median shift of all windows is left out
+too, its shift kept: what moves one window alone is not the images' registration but the
+ground (relief the orthoimages' surface misses: a building, a pyramid; a moving object), and
+it is counted, not averaged in.
 
 Shifts (dx, dy) are in output pixels, x along columns (east on a north-up grid), y along rows
 (south): the second image shows at (x + dx, y + dy) what the first shows at (x, y).
@@ -37,7 +41,10 @@ gdal.UseExceptions()
 NODATA = "nodata"
 LOW_TEXTURE = "low texture"
 WEAK_PEAK = "weak peak"
-REASONS = (NODATA, LOW_TEXTURE, WEAK_PEAK)
+FAR = "far from the others"
+REASONS = (NODATA, LOW_TEXTURE, WEAK_PEAK, FAR)
+FAR_PX = 1.0      # px: a window this far (at least) from the median shift of all windows is left out ...
+FAR_SIGMAS = 5.0  # ... or this many robust sigmas (1.4826 MAD) of the distances, if that is more
 MARGIN = 16  # px of patch around a window moved back by a Fourier shift (its wrap-around is cut off)
 REFINEMENTS = 2  # passes on the resampled second image (each shrinks the taper's bias)
 UPSAMPLING = 100  # steps per pixel of the sub-pixel search: 0.01 px, refined further by a parabola
@@ -66,8 +73,8 @@ class CoregSettings:
 @dataclass
 class Coregistration:
     """Per window (n,): centre (x, y) in array positions of the grid (pixel centres at integers),
-    shift (dx, dy) px (NaN where left out), phase correlation peak height (NaN where not
-    correlated) and reason index into REASONS (-1: used)."""
+    shift (dx, dy) px (NaN where none was read: nodata, low texture, weak peak), phase
+    correlation peak height (NaN where not correlated) and reason index into REASONS (-1: used)."""
     x: np.ndarray
     y: np.ndarray
     dx: np.ndarray
@@ -223,7 +230,20 @@ def coregister(first: np.ndarray, second: np.ndarray, settings: CoregSettings = 
     parts = [_measure(first, second, padded, r0[s:s + BATCH], c0[s:s + BATCH], settings, nodata)
              for s in range(0, r0.size, BATCH)]
     dx, dy, peak, reason = (np.concatenate([p[k] for p in parts]) if parts else np.zeros(0) for k in range(4))
-    return Coregistration(c0 + (w - 1) / 2, r0 + (w - 1) / 2, dx, dy, peak, reason.astype(np.intp))
+    reason = reason.astype(np.intp)
+    reason[far_from_the_others(dx, dy, reason < 0)] = REASONS.index(FAR)
+    return Coregistration(c0 + (w - 1) / 2, r0 + (w - 1) / 2, dx, dy, peak, reason)
+
+
+def far_from_the_others(dx: np.ndarray, dy: np.ndarray, used: np.ndarray) -> np.ndarray:
+    """(n,) the ``used`` windows whose shift lies FAR_PX or more from the median shift of the
+    used windows, or FAR_SIGMAS robust sigmas of their distances from it if that is more."""
+    far = np.zeros(dx.size, bool)
+    if not used.any():
+        return far
+    dist = np.hypot(dx[used] - np.median(dx[used]), dy[used] - np.median(dy[used]))
+    far[used] = dist >= max(FAR_PX, FAR_SIGMAS * 1.4826 * float(np.median(dist)))
+    return far
 
 
 def _measure(first: np.ndarray, second: np.ndarray, padded: np.ndarray, r0: np.ndarray, c0: np.ndarray,

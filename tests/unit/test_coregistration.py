@@ -11,7 +11,7 @@ from scipy.ndimage import gaussian_filter
 
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.measure.coregistration import (
-    LOW_TEXTURE, NODATA, REASONS, WEAK_PEAK, CoregSettings, coregister, coregister_files, window_origins)
+    FAR, LOW_TEXTURE, NODATA, REASONS, WEAK_PEAK, CoregSettings, coregister, coregister_files, window_origins)
 
 gdal.UseExceptions()
 
@@ -61,12 +61,32 @@ def test_a_window_of_noise_is_left_out_and_counted():
     r, c = rows[k], cols[k]
     second[r:r + 64, c:c + 64] = texture(seed=99, size=64)
     result = coregister(first, second)
-    assert result.left_out() == {NODATA: 0, LOW_TEXTURE: 0, WEAK_PEAK: 1}
+    assert result.left_out() == {NODATA: 0, LOW_TEXTURE: 0, WEAK_PEAK: 1, FAR: 0}
     assert result.reason[k] == REASONS.index(WEAK_PEAK) and np.isnan(result.dx[k])
     assert result.peak[k] < CoregSettings().min_peak
     assert result.n_used == 35
     assert abs(result.mean[0] - 0.3) < 0.02 and abs(result.mean[1] + 0.7) < 0.02
     assert abs(result.rms - np.hypot(0.3, 0.7)) < 0.02
+
+
+def test_a_window_moved_alone_is_left_out_with_its_shift():
+    """Ground moved in one window only (relief the orthoimages' surface misses, a moving object):
+    its shift is read but kept out of the figures, which are the others'."""
+    first = texture()
+    second = fourier_shift(first, 0.3, -0.7)
+    rows, cols = window_origins(first.shape, 64, 64)
+    k = 21
+    r, c = rows[k], cols[k]
+    second[r:r + 64, c:c + 64] = fourier_shift(first, 2.8, 1.3)[r:r + 64, c:c + 64]
+    result = coregister(first, second)
+    assert result.left_out() == {NODATA: 0, LOW_TEXTURE: 0, WEAK_PEAK: 0, FAR: 1}
+    assert result.reason[k] == REASONS.index(FAR)
+    assert abs(result.dx[k] - 2.8) < 0.1 and abs(result.dy[k] - 1.3) < 0.1  # the window's own shift, kept
+    others = result.used
+    assert others.sum() == 35
+    np.testing.assert_array_less(np.abs(result.dx[others] - 0.3), 0.02)
+    np.testing.assert_array_less(np.abs(result.dy[others] + 0.7), 0.02)
+    assert abs(result.max - np.hypot(0.3, 0.7)) < 0.02
 
 
 def test_nodata_and_flat_windows_are_left_out_with_their_reason():
@@ -78,7 +98,7 @@ def test_nodata_and_flat_windows_are_left_out_with_their_reason():
     rows, cols = window_origins(first.shape, 64, 64)
     expected_nodata = int((rows < 80).sum())     # windows reaching into rows 0-79: two rows of windows
     assert expected_nodata == 12
-    assert result.left_out() == {NODATA: expected_nodata, LOW_TEXTURE: 1, WEAK_PEAK: 0}
+    assert result.left_out() == {NODATA: expected_nodata, LOW_TEXTURE: 1, WEAK_PEAK: 0, FAR: 0}
     assert result.n_used == 36 - 13
     np.testing.assert_array_less(np.abs(result.dx[result.used] + 0.4), 0.02)
     summary = result.summary()
