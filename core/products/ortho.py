@@ -78,6 +78,24 @@ def default_grid(scene: SceneModel, camera: int, surface, crs: CRS | None = None
     return OrthoGrid(crs, x0, y0, resolution, cols, rows)
 
 
+def common_grid(grids: list[OrthoGrid]) -> OrthoGrid:
+    """The part of ``grids`` (one CRS and resolution, e.g. :func:`default_grid` s of the images of
+    a block, whose origins are multiples of the resolution) that all of them cover, on their pixel
+    lattice: orthoimages of several images on it compare pixel by pixel. InputError when the
+    grids differ in CRS or resolution or do not overlap."""
+    first = grids[0]
+    res = first.resolution
+    if any(not g.crs.equals(first.crs) or g.resolution != res for g in grids):
+        raise InputError("grids of different CRS or resolution have no common grid: give every image the same "
+                         f"CRS and resolution (got {sorted({(g.crs.to_string(), g.resolution) for g in grids})})")
+    x0, y0 = max(g.x0 for g in grids), min(g.y0 for g in grids)
+    x1, y1 = min(g.x0 + g.cols * res for g in grids), max(g.y0 - g.rows * res for g in grids)
+    cols, rows = math.floor((x1 - x0) / res + 1e-9), math.floor((y0 - y1) / res + 1e-9)
+    if cols < 1 or rows < 1:
+        raise InputError("the images' footprints do not overlap: no common grid")
+    return OrthoGrid(first.crs, x0, y0, res, cols, rows)
+
+
 def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: int = 0, grid: OrthoGrid | None = None,
                  resampling: str = "bilinear", nodata: float | None = 0.0, tile: int = 512, step: int = 32,
                  max_error: float = 0.01, memory_budget: float = 2 ** 30,

@@ -9,7 +9,8 @@ from pyproj import CRS, Transformer
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import Cancelled, InputError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
-from pushbroom_adjust.core.products.ortho import default_grid, orthorectify
+from pushbroom_adjust.core.products.mapping import OrthoGrid
+from pushbroom_adjust.core.products.ortho import common_grid, default_grid, orthorectify
 from tests.support.ortho_compare import rendered_cut, shift_against_texture
 
 
@@ -183,3 +184,18 @@ def test_every_band_and_data_type_is_kept(rendered, tmp_path):
     f32 = cubic_float.GetRasterBand(1).ReadAsArray()[valid]
     assert u16.dtype == np.uint16 and f32.dtype == np.float32 and f32.max() > 70000  # overshoot happened
     assert np.array_equal(u16, np.clip(np.rint(f32), 0, 65535))  # rounded and clipped, never wrapped
+
+
+def test_the_common_grid_of_several_is_their_overlap_on_their_lattice():
+    utm = CRS.from_epsg(32636)
+    a = OrthoGrid(utm, 1000.0, 5000.0, 0.5, 400, 300)   # x 1000-1200, y 4850-5000
+    b = OrthoGrid(utm, 1050.5, 5020.0, 0.5, 500, 200)   # x 1050.5-1300.5, y 4920-5020
+    g = common_grid([a, b])
+    assert (g.x0, g.y0, g.resolution, g.cols, g.rows) == (1050.5, 5000.0, 0.5, 299, 160)
+    assert g.crs.equals(utm)
+    with pytest.raises(InputError, match="do not overlap"):
+        common_grid([a, OrthoGrid(utm, 1300.0, 5000.0, 0.5, 10, 10)])
+    with pytest.raises(InputError, match="CRS or resolution"):
+        common_grid([a, OrthoGrid(utm, 1000.0, 5000.0, 1.0, 200, 150)])
+    with pytest.raises(InputError, match="CRS or resolution"):
+        common_grid([a, OrthoGrid(CRS.from_epsg(32637), 1000.0, 5000.0, 0.5, 400, 300)])
