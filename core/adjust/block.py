@@ -68,6 +68,7 @@ GRID = 3  # image points per axis at which each camera's move from its onboard g
 # deg: tie points whose onboard rays are all closer than this meet at a weakly determined height
 # (seen from one direction only, e.g. by the nadir cameras of scenes from one orbit)
 MIN_CONVERGENCE_DEG = 1.0
+DRIFT_SIGMAS = 3.0  # a scene held by its onboard or vendor sigmas alone that moves farther is named
 
 
 @dataclass
@@ -292,6 +293,25 @@ def _move(composite, out: AdjustmentResult, cameras: list[int], settings: Adjust
     return {"model": "rigorous", **onboard_move(composite, out.scene, cameras, settings)}
 
 
+def beyond_stated(per_scene: dict, controlled: bool) -> list[str]:
+    """Warnings for the scenes of a block held by no control point that moved more than DRIFT_SIGMAS
+    times their stated (onboard or vendor) accuracy from where their input model put them: the tie
+    points pull them along what only those sigmas hold, the sign of an error the adjustment does
+    not model (lens terms left out of a tri-stereo: 450 m, 8 sigmas)."""
+    if controlled:
+        return []
+    out = []
+    for name, entry in per_scene.items():
+        sigma = entry.get("onboard_sigma_m", entry.get("vendor_sigma_m"))
+        if sigma and entry["moved_m"] > DRIFT_SIGMAS * sigma:
+            moved = entry["moved_m"]
+            out.append(f"scene {name} moved {moved:.0f} m from its input geolocation, {moved / sigma:.1f} times its "
+                       f"stated accuracy ({sigma:.0f} m), with no control point to hold it: the tie points pull it, a "
+                       "sign of an error the adjustment does not model (estimate the interior, INTERIOR=default, or "
+                       "add control)")
+    return out
+
+
 def datum_sentence(report: dict) -> str:
     """How the block's datum is held, in words (from the engine report's ``datum``)."""
     held = report.get("datum")
@@ -337,8 +357,11 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
              "tie_rmse_px": None if tie_res is None else _rms_px(*tie_res),
              "tie_rmse_before_px": None if before is None else _rms_px(before[:, 0], before[:, 1])}
     datum = datum_sentence(rep)
+    warnings = beyond_stated(per_scene, bool((gcps.role == "control").any()))
+    for warning in warnings:
+        log.warning("%s", warning)
     log.info("block of %d scenes: sigma0 %.3f, tie RMS %s px; %s", len(scenes), rep["sigma0"],
              "-" if block["tie_rmse_px"] is None else f"{block['tie_rmse_px']:.3f}", datum)
-    return {"block": block, "scenes": per_scene, "datum": datum, "written_vs_fitted": rep.get("written_vs_fitted"),
-            "adjustment": rep}
+    return {"block": block, "scenes": per_scene, "datum": datum, "warnings": warnings,
+            "written_vs_fitted": rep.get("written_vs_fitted"), "adjustment": rep}
 

@@ -1,8 +1,8 @@
 """Robust estimation that does not trust the a-priori sigmas.
 
 Variance components. The observations fall into groups: the image observations of each
-camera's control and line points ("image <camera>") and of its tie points ("tie points
-<camera>", apart: matched ties are often far more precise than control points measured by
+camera's control and line points ("image <camera>"), the tie points of all cameras ("tie
+points", apart: matched ties are often far more precise than control points measured by
 hand), the planimetric and the height coordinates of the weighted control points
 ("ground_xy", "ground_z") and the pseudo-observations (onboard position and attitude,
 weighted interior parameters). Each group k gets a factor s_k on its a-priori
@@ -84,7 +84,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from .problem import RPC_PRIOR_GROUP, TIE_GROUP_PREFIX, Problem
+from .problem import RPC_PRIOR_GROUP, TIE_GROUP, Problem
 from .statistics import Statistics, line_group_sums
 
 log = logging.getLogger(__name__)
@@ -102,7 +102,7 @@ def factor_floor(group: str) -> float:
     interior parameters absorb, measured 0.012 px estimated against 0.03 px true on a rendered TH-1
     scene, and with their factor below 1 that part bent the block's heights: 3.67 against 2.99 m
     with exact ties)."""
-    return 1.0 if group.startswith(TIE_GROUP_PREFIX) else MIN_FACTOR
+    return 1.0 if group == TIE_GROUP else MIN_FACTOR
 SEPARATE_SHARE = 0.2  # a separable group's effective redundancy is at least this share of its redundancy
 PROPORTIONAL = 0.95  # coupling of two groups' residuals beyond which a weak group shares the other's factor
 STATED_DOF = 50    # degrees of freedom of a stated sigma: known to about 10 % (see the module docstring)

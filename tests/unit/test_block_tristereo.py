@@ -95,9 +95,9 @@ def test_ties_only_tristereo_fits_its_matched_ties_and_names_its_datum(tri):
     the onboard models, 0.013 px after (measured); the datum is the onboard data's: each scene moves
     about its onboard sigma (46-58 m against 51-54 m) and ends closer to the truth than its onboard
     model (check points, not used: 6.8, 11.1, 12.6 px before, 5.2, 4.2, 5.3 px after). Without the
-    lens terms the ties are fitted to 0.16 px and their unmodelled error pulls the block along what
-    only the onboard sigmas hold (the backward scene 450 m, 8 sigmas; 12.6 -> 49.7 px): a block that
-    moves beyond its onboard sigmas is named in the log."""
+    lens terms the ties are fitted to 0.12 px and their unmodelled error pulls the block along what
+    only the onboard sigmas hold (the backward scene 466 m, 8.7 sigmas; 12.6 -> 52.5 px): a scene
+    that moves beyond 3 onboard sigmas is named in the log."""
     out = adjust_block(tri.onboard, tri.check, tri.ties, replace(SETTINGS, interior="default"))
     block = out.report["block"]
     assert block["tie_rmse_before_px"] > 5.0 and block["tie_rmse_px"] <= 0.05, block
@@ -108,15 +108,20 @@ def test_ties_only_tristereo_fits_its_matched_ties_and_names_its_datum(tri):
         before = np.sqrt(np.mean((onboard[0] - tri.check.col[mine]) ** 2 + (onboard[1] - tri.check.row[mine]) ** 2))
         assert entry["check_points"]["rmse_px"] < before, (name, entry["check_points"], before)
         assert entry["moved_m"] < 1.5 * entry["onboard_sigma_m"], (name, entry)
+    assert out.report["warnings"] == []
     conventional = adjust_block(tri.onboard, tri.check, tri.ties, SETTINGS).report
     assert 0.1 < conventional["block"]["tie_rmse_px"] <= 0.2
-    assert max(e["moved_m"] / e["onboard_sigma_m"] for e in conventional["scenes"].values()) > 3.0
+    drifted = [n for n, e in conventional["scenes"].items() if e["moved_m"] > 3.0 * e["onboard_sigma_m"]]
+    assert drifted and len(conventional["warnings"]) == len(drifted)
+    assert all(w.startswith(f"scene {n} moved") and "INTERIOR=default" in w
+               for n, w in zip(drifted, conventional["warnings"]))
 
 
 def test_four_gcps_reach_the_floor_of_the_true_interior(tri):
-    """4 GCPs and the ties, lens terms estimated (INTERIOR=default): 3D check RMSE 3.8 m (plan 1.3,
-    height 3.6; measured), against 4.1 m for the same block given the true interior (the floor: the
-    4 GCPs' 0.3 px noise sets where the block lies) and 4.5 m (plan 1.9 m) without the lens terms.
+    """4 GCPs and the ties, lens terms estimated (INTERIOR=default): 3D check RMSE 3.82 m (plan 1.35,
+    height 3.57; measured), against 3.88 m for the same block given the true interior (the floor: the
+    4 GCPs' 0.3 px noise sets where the block lies; the true scenes adjusted alike: 3.96 m) and 4.76 m
+    (height 4.43 m) without the lens terms.
     The GCPs keep their own variance components: with one factor per camera for GCPs and matched
     ties (0.01 px) all four were flagged and the block fell back on the onboard datum."""
     gcps = tri.table(tri.control, tri.check)
@@ -128,5 +133,5 @@ def test_four_gcps_reach_the_floor_of_the_true_interior(tri):
     assert _check_3d(conventional) > 1.1 * _check_3d(selfcal)
     assert "control points" in selfcal.report["datum"]
     vc = selfcal.report["adjustment"]["variance_components"]
-    assert vc["image nad/NAD"]["observations"] == 8 and vc["tie points nad/NAD"]["observations"] > 1000
+    assert vc["image nad/NAD"]["observations"] == 8 and vc["tie points"]["observations"] > 3000
     assert not selfcal.report["adjustment"]["check_points"]["model_error"]

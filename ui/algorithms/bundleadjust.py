@@ -170,7 +170,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterBoolean(self.VARIANCE_COMPONENTS, tr("Estimate variance components"),
                                                          defaultValue=True),
                   tr("Estimate a factor on the stated sigmas per observation group (per camera the image observations "
-                     "of control points and, apart, of tie points; ground xy, ground z, onboard pseudo-observations) "
+                     "of control points; apart from them the tie points' observations; ground xy, ground z, "
+                     "onboard pseudo-observations) "
                      "from the residuals and use it before the outlier test, so that flags and check figures do not "
                      "depend on how well the sigmas were guessed (Förstner 1979). Off: the stated sigmas are trusted "
                      "as they are."), advanced=True)
