@@ -65,8 +65,9 @@ def add_block_parameters(alg) -> None:
     """OUTPUT_FOLDER, WRITE_RPCS and the output ADJUSTED_SCENES of the block (SCENES is added with SCENE)."""
     alg.add_parameter(QgsProcessingParameterFolderDestination(OUTPUT_FOLDER, tr("Block output folder"), optional=True),
                       tr(FOLDER_HELP))
+    # optional, so that graphical models saved before it need no value for it
     alg.add_parameter(QgsProcessingParameterBoolean(WRITE_RPCS, tr("Refined RPC of each image (block)"),
-                                                    defaultValue=False), tr(RPCS_HELP), advanced=True)
+                                                    defaultValue=False, optional=True), tr(RPCS_HELP), advanced=True)
     alg.addOutput(QgsProcessingOutputMultipleLayers(ADJUSTED_SCENES, tr("Adjusted scenes of the block (scene JSON, "
                                                                         "SCENES order)")))
 
