@@ -253,14 +253,14 @@ def scene(optional: bool = False) -> QgsProcessingParameterFile:
 
 
 def scenes() -> QgsProcessingParameterMultipleLayers:
-    """SCENES: the scene files of a block (matchtiepoints, bundleadjust), the alternative to SCENE."""
+    """SCENES: the scene files of a block (matchtiepoints, importgcps, bundleadjust), the alternative to SCENE."""
     parameter = QgsProcessingParameterMultipleLayers(SCENES, tr("Scenes of the block (metadata, RPC or scene JSON "
                                                                 "files)"), QgsProcessing.TypeFile, optional=True)
-    parameter.setHelp(tr("Several scenes adjusted or matched as one block: any files the plugin reads as a scene "
-                         "(scene JSON, DIMAP, Maxar XML, RPC). A scene's name is its file's stem (without the _RPC of "
-                         "<name>_RPC.TXT), or for onboard_scene.json / true_scene.json / adjusted_scene.json its "
-                         "folder's name (the layout pushbroom:simulateblock writes); observations name their scene "
-                         "in a field 'scene'. Give SCENE or SCENES, not both."))
+    parameter.setHelp(tr("Several scenes matched, checked or adjusted as one block: any files the plugin reads as a "
+                         "scene (scene JSON, DIMAP, Maxar XML, RPC). A scene's name is its file's stem (without the "
+                         "_RPC of <name>_RPC.TXT), or for onboard_scene.json / true_scene.json / adjusted_scene.json "
+                         "its folder's name (the layout pushbroom:simulateblock writes); observations name their "
+                         "scene in a field 'scene'. Give SCENE or SCENES, not both."))
     return parameter
 
 
