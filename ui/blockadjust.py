@@ -3,7 +3,8 @@ named by :func:`ui.inputs.block_scene_names`, adjusted together by
 :func:`core.adjust.block.adjust_block` with the GCPs and tie points that name their scene, and
 written into OUTPUT_FOLDER: one adjusted scene JSON per input (``<name>_adjusted.json``), the
 block report (``block_report.html`` and ``.json``), the adjusted GCP and tie-point layers and,
-with WRITE_RPCS, a refined RPC per camera of each scene. Every file or none.
+with WRITE_RPCS, a refined RPC per camera of each scene. Every file or none. Rigorous scenes and
+RPC products may be mixed (:class:`core.model.mixedblock.MixedBlock`).
 
 A block's tie points come from pushbroom:matchtiepoints with SCENES (or any layer or table with
 the fields id, camera, col, row, scene): the checks against one scene that importtiepoints makes
@@ -25,9 +26,10 @@ from ..core.errors import InputError
 from ..core.files import Output, atomic_outputs, check_folder_destination
 from ..core.formats.rpcfiles import report_path, write_rpc
 from ..core.formats.scene_json import save_scene
+from ..core.model.mixedblock import MixedBlock
 from ..core.model.rpcscene import RpcScene
 from ..core.observations import tiepoints
-from ..core.observations.blockscenes import scene_groups, scene_of_rows
+from ..core.observations.blockscenes import rpc_product_cameras, scene_groups, scene_of_rows
 from ..core.products.rpcfit import fit_rpc
 from ..simulation.simulator import new_folder
 from .blockmatch import scene_files
@@ -56,9 +58,10 @@ FOLDER_HELP = (
     "adjusted_tie_points.gpkg (with TIE_POINTS: per observation its residuals and scene, per point its rays, "
     "scenes and ray convergence in degrees). Files of these names there are replaced. Empty: a temporary folder.")
 RPCS_HELP = (
-    "With SCENES: also write an RPC00B model fitted to each adjusted scene's camera over its height range into "
-    "OUTPUT_FOLDER, <name>_RPC.TXT (<name>_<CAMERA>_RPC.TXT for a scene of several cameras) with its fit check "
-    "beside it (.json); copy it beside the image as <image>_RPC.TXT for GDAL and QGIS to use it.")
+    "With SCENES: also write an RPC00B model fitted to each adjusted rigorous scene's camera over its height range "
+    "into OUTPUT_FOLDER, <name>_RPC.TXT (<name>_<CAMERA>_RPC.TXT for a scene of several cameras) with its fit check "
+    "beside it (.json), and for an RPC product its refined RPC, <name>_RPC.TXT (the correction folded in, or the "
+    "RPC refitted to it); copy it beside the image as <image>_RPC.TXT for GDAL and QGIS to use it.")
 
 
 def add_block_parameters(alg) -> None:
@@ -98,22 +101,14 @@ def read_tie_layer(layer) -> tiepoints.TieTable:
 
 
 def block_scenes(alg, parameters, context, feedback) -> tuple[dict[str, str], dict]:
-    """({name: file}, {name: rigorous scene}) of SCENES: two or more, each named once
-    (:func:`ui.inputs.block_scene_names`); a scene given by its RPC only is refused."""
+    """({name: file}, {name: scene}) of SCENES: two or more, each named once
+    (:func:`ui.inputs.block_scene_names`); rigorous scenes and RPC products alike."""
     paths = scene_files(alg, parameters, context)
     if len(paths) < 2:
         raise QgsProcessingException(f"{SCENES}: {len(paths)} scene given; a block needs two or more (one scene: "
                                      f"{SCENE})")
     files = dict(zip(block_scene_names(paths), paths))
-    scenes = {}
-    for name, path in files.items():
-        scene = load_scene_for(SCENES, path, feedback)
-        if isinstance(scene, RpcScene):
-            raise QgsProcessingException(f"{SCENES}: {path} (scene {name}) is given by its RPC only; a block adjusts "
-                                         f"rigorous (physical) scene models so far: adjust it alone with {SCENE} "
-                                         "(RPC_CORRECTION)")
-        scenes[name] = scene
-    return files, scenes
+    return files, {name: load_scene_for(SCENES, path, feedback) for name, path in files.items()}
 
 
 def user_destination(alg, parameters, context, name: str) -> str:
@@ -150,7 +145,7 @@ def gcp_scene_field(alg, parameters, context, gcp_name: str, scenes: dict) -> No
                                      f"in: import the GCPs with {SCENES} (pushbroom:importgcps, SCENE_FIELD)")
 
 
-def block_observations(alg, parameters, context, scenes: dict) -> tuple:
+def block_observations(alg, parameters, context, scenes: dict, feedback) -> tuple:
     """(GCP table, (its GeoPackage, layer name), tie table or None) of GCPS and TIE_POINTS, every
     row naming a scene of the block (errors name the parameter)."""
     tie_layer = alg.parameterAsVectorLayer(parameters, alg.TIE_POINTS, context)
@@ -164,23 +159,20 @@ def block_observations(alg, parameters, context, scenes: dict) -> tuple:
         if rows is not None and len(rows):
             with processing_errors(f"{name}: "):
                 scene_of_rows(rows.block_scene if name == alg.GCPS else rows.scene, rows.id, scenes)
+    if ties is not None:
+        ties, renamed = rpc_product_cameras(ties, ties.scene, scenes)
+        for name in renamed:
+            feedback.pushInfo(f"{alg.TIE_POINTS}: scene {name} is an RPC product of one image: its observations are "
+                              f"measurements in that image (camera {scenes[name].cameras[0].name})")
     return table, (gcp_path, gcp_layer), ties
 
 
-def check_joined(scenes: dict, gcps, ties, gcp_name: str, tie_name: str) -> None:
-    """Every scene holds an observation (a control GCP or a tie point), and tie points join all
-    scenes into one block. ``gcps``, ``ties``: the tables of core.adjust.block.block_inputs."""
-    control = gcps.role == "control"
-    tie_scene = ties.scene if ties is not None else np.zeros(0, str)
-    observed = set(gcps.block_scene[control]) | set(tie_scene)
-    empty = [name for name in scenes if name not in observed]
-    if empty:
-        raise QgsProcessingException(f"{SCENES}: no control GCP and no tie point is measured in scene(s) "
-                                     f"{', '.join(empty)}: nothing ties them to the block ({gcp_name}, "
-                                     f"{tie_name})")
+def check_joined(scenes: dict, ties, tie_name: str) -> None:
+    """Tie points join all scenes into one block (core.adjust.block.block_inputs has refused a
+    scene without any control or tie observation). ``ties``: the tie table of block_inputs."""
     if ties is None:
         return
-    groups = scene_groups(list(scenes), ties.id, tie_scene)
+    groups = scene_groups(list(scenes), ties.id, ties.scene)
     if len(groups) > 1:
         parts = "; ".join(", ".join(g) for g in groups)
         raise QgsProcessingException(f"{tie_name}: no tie point joins the scenes of these groups to each other: "
@@ -198,12 +190,15 @@ def output_folder(alg, parameters, context) -> Path:
 
 def planned_files(folder: Path, scenes: dict, write_rpcs: bool, with_gcps: bool, with_ties: bool) -> dict:
     """The files the block writes into ``folder``: scenes {name: path}, rpcs {(name, camera
-    index): path}, report (HTML; its JSON beside), gcps, ties ('' when not written)."""
+    index): path} (RPCs fitted to rigorous scenes, their fit check beside), refined {name: path}
+    (RPC products' refined RPCs), report (HTML; its JSON beside), gcps, ties ('' when not written)."""
     rpcs = {}
     for name, scene in scenes.items():
-        for k, cam in enumerate(scene.cameras if write_rpcs else []):
+        for k, cam in enumerate(scene.cameras if write_rpcs and not isinstance(scene, RpcScene) else []):
             rpcs[name, k] = folder / (f"{name}_RPC.TXT" if len(scene.cameras) == 1 else f"{name}_{cam.name}_RPC.TXT")
-    return {"scenes": {name: folder / f"{name}{SCENE_SUFFIX}" for name in scenes}, "rpcs": rpcs,
+    refined = {name: folder / f"{name}_RPC.TXT" for name, scene in scenes.items()
+               if write_rpcs and isinstance(scene, RpcScene)}
+    return {"scenes": {name: folder / f"{name}{SCENE_SUFFIX}" for name in scenes}, "rpcs": rpcs, "refined": refined,
             "report": folder / REPORT, "gcps": folder / GCP_LAYER if with_gcps else "",
             "ties": folder / TIE_LAYER if with_ties else ""}
 
@@ -213,6 +208,7 @@ def listed_outputs(planned: dict) -> list:
     out = [*planned["scenes"].values(), planned["report"],
            Output(planned["report"].with_suffix(".json"), "its JSON report")]
     out += [f for path in planned["rpcs"].values() for f in (path, Output(report_path(path), "its RPC fit report"))]
+    out += list(planned["refined"].values())
     return out + [f for f in (planned["gcps"], planned["ties"]) if f]
 
 
@@ -226,6 +222,10 @@ def write_block(result, planned: dict, table, gcp_source: tuple, ties, files, fe
         write_rpc(rpc, path, fit, files)
         feedback.pushInfo(f"refined RPC of scene {name}, camera {result.scenes[name].cameras[k].name}: {path} (fit "
                           f"check {fit['check']['rms_px']:.2g} px RMS, {fit['check']['max_px']:.2g} px at most)")
+    refined = result.refined_rpcs() if planned["refined"] else {}
+    for name, path in planned["refined"].items():
+        write_rpc(refined[name][0], path, files=files)
+        feedback.pushInfo(f"refined RPC of the RPC product {name} ({refined[name][1]}): {path}")
     write_report_json(result.report, planned["report"].with_suffix(".json"), files)
     write_report_html(adjustment.report, adjustment.points, planned["report"],
                       title=f"Bundle adjustment of a block of {len(result.scenes)} scenes", files=files,
@@ -251,11 +251,13 @@ def log_block(result, n_ties: int | None, alg, feedback) -> None:
     for name, s in result.report["scenes"].items():
         ties = s.get("ties")
         tie_text = f"; ties {px(ties['rmse_before_px'])} before, {px(ties['rmse_px'])} after" if ties else ""
-        sigma = "-" if s["onboard_sigma_m"] is None else f"{s['onboard_sigma_m']:.1f} m"
+        rpc = s.get("model") == "rpc"
+        sigma = s["vendor_sigma_m" if rpc else "onboard_sigma_m"]
+        source = "its vendor RPC (stated accuracy" if rpc else "its onboard geolocation (onboard sigma"
         feedback.pushInfo(f"scene {name}: control {px(s['control']['rmse_px'])} ({s['control']['observations']} obs.), "
                           f"check {px(s['check_points']['rmse_px'])} ({s['check_points']['observations']} obs.)"
-                          f"{tie_text}; moved {s['moved_m']:.1f} m from its onboard geolocation (onboard sigma "
-                          f"{sigma})")
+                          f"{tie_text}; moved {s['moved_m']:.1f} m from {source} "
+                          f"{'-' if sigma is None else f'{sigma:.1f} m'})")
     block = result.report["block"]
     feedback.pushInfo(f"block of {block['scenes']} scenes: sigma0 {block['sigma0']:.3f}, tie RMS "
                       f"{px(block['tie_rmse_before_px'])} before, {px(block['tie_rmse_px'])} after; "
@@ -271,12 +273,13 @@ def run_block(alg, parameters, context, feedback) -> dict:
     folder = output_folder(alg, parameters, context)
     with processing_errors(f"{OUTPUT_FOLDER}: "):
         check_folder_destination(folder)
-    table, (gcp_path, gcp_layer), ties = block_observations(alg, parameters, context, scenes)
+    table, (gcp_path, gcp_layer), ties = block_observations(alg, parameters, context, scenes, feedback)
     settings = alg.adjustment_settings(parameters, context)
     with alg.core_errors(alg.GCPS):
-        composite, gcps_in_block, ties_in_block = block_inputs(scenes, table, ties)
-    check_joined(scenes, gcps_in_block, ties_in_block, alg.GCPS, alg.TIE_POINTS)
-    alg.check_interior(composite, settings.interior)
+        composite, _, ties_in_block = block_inputs(scenes, table, ties)
+    check_joined(scenes, ties_in_block, alg.TIE_POINTS)
+    if not isinstance(composite, MixedBlock):  # a block with RPC products: the core names INTERIOR's errors
+        alg.check_interior(composite, settings.interior)
     for name, path in paths.items():
         feedback.pushInfo(f"scene {name}: {path}")
     with new_folder(folder):

@@ -15,6 +15,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError
+from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from .gcps import GcpTable, Residuals, apriori_residuals, assign_check_points
 from .tables import listed, resolve_cameras
@@ -44,6 +45,23 @@ def scene_of_rows(names, ids, scenes, source: str = "", parameter: str | None = 
     return names
 
 
+def rpc_product_cameras(table, scene_of, scenes: dict):
+    """``table`` (a GCP or tie table: ``camera`` (n,) str, a dataclass) with the rows measured in an
+    RPC product of one image (:class:`core.model.rpcscene.RpcScene`; ``scene_of`` (n,) names each
+    row's scene) given that image's camera, whatever their camera field says: an RPC product's
+    camera is named after its file, while the tables of the simulator (and of a vendor) name the
+    sensor's camera (NAD). Also the names of the scenes whose rows were renamed."""
+    cameras = table.camera.astype(object)
+    renamed = []
+    for name, scene in scenes.items():
+        if isinstance(scene, RpcScene) and len(scene.cameras) == 1:
+            rows = np.asarray(scene_of) == name
+            if (cameras[rows] != scene.cameras[0].name).any():
+                renamed.append(name)
+            cameras[rows] = scene.cameras[0].name
+    return replace(table, camera=cameras.astype(str)), renamed
+
+
 def check_against_block(table: GcpTable, scenes: dict[str, SceneModel], paths: dict[str, str],
                         camera: str | None = None, check_fraction: float = 0.0) -> GcpTable:
     """The table with every row checked against its own scene of ``scenes`` (name -> model; its
@@ -51,9 +69,14 @@ def check_against_block(table: GcpTable, scenes: dict[str, SceneModel], paths: d
     for every row, as in :func:`core.observations.tables.resolve_cameras`), a-priori residuals
     (:class:`core.observations.gcps.Residuals`, px and m) through that scene's model, check points
     assigned over the whole block (:func:`core.observations.gcps.assign_check_points`). InputError
-    naming the scene for a camera it lacks (parameter 'gcps.camera'), and the errors of
+    naming the scene for a camera it lacks (parameter 'gcps.camera'; rows of an RPC product take its
+    one image's camera, :func:`rpc_product_cameras`), and the errors of
     :func:`scene_of_rows` (parameter 'gcps.scene')."""
     scene_of = scene_of_rows(table.block_scene, table.id, scenes, parameter="gcps.scene")
+    table, renamed = rpc_product_cameras(table, scene_of, scenes)
+    for name in renamed:
+        log.info("scene %s is an RPC product of one image: its rows are measurements in that image (camera %s)",
+                 name, scenes[name].cameras[0].name)
     n = len(table)
     cameras = table.camera.astype(object)
     res = {k: np.full(n, np.nan) for k in ("col", "row", "px", "m")}

@@ -1,6 +1,7 @@
 """The block adjustment pushbroom:bundleadjust runs with SCENES (core.adjust.block.adjust_block on
 the GCPs importgcps checks per scene and the simulator's tie points), on a simulated TH-1 tri-stereo
 (pushbroom:simulateblock, LAYOUT tristereo) as tests/qgis/test_bundleadjust_block.py makes it.
+--layout tristereo_and_other_date adds a scene of another date delivered as an RPC product.
 Prints figures (no assertions): the wall time of the adjustment and of writing the outputs, and per
 scene the check RMSE (px) against the true scene of a 9 x 9 lattice over its image, through the
 onboard and through the adjusted scene.
@@ -29,7 +30,7 @@ from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from pushbroom_adjust.core.formats.scene_json import save_scene  # noqa: E402
 from pushbroom_adjust.core.files import atomic_outputs  # noqa: E402
 from pushbroom_adjust.core.observations import gcps, tiepoints  # noqa: E402
-from pushbroom_adjust.core.observations.blockscenes import check_against_block  # noqa: E402
+from pushbroom_adjust.core.observations.blockscenes import check_against_block, rpc_product_cameras  # noqa: E402
 from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
 from pushbroom_adjust.simulation.block import simulate_block  # noqa: E402
 from pushbroom_adjust.simulation.layouts import layout_members  # noqa: E402
@@ -62,12 +63,14 @@ def main() -> None:
                          folder / "sim", seed=args.seed, n_gcps=args.gcps, n_tie_points=args.ties,
                          check_fraction=0.25)
     print(f"simulated {len(sim.members)} scenes of {args.size} x {args.size} px in {time.perf_counter() - t:.2f} s")
-    paths = {name: str(files["onboard_scene"]) for name, files in sim.members.items()}
+    # each scene's product: its onboard scene JSON, or the RPC file of an RPC member (LAYOUT tristereo_and_other_date)
+    paths = {name: str(next(iter(files["rpc"].values()), files["onboard_scene"])) for name, files in sim.members.items()}
     onboard = {name: load_scene(path) for name, path in paths.items()}
     table = gcps.read_csv(sim.gcps, gcps.CsvMapping(z="h", sigma_px="sigma_px", sigma_xy="sigma_xy",
                                                     sigma_z="sigma_z"), "EPSG:4326", Heights("z", "ellipsoid"))
     table = check_against_block(table, onboard, paths)
-    ties = tiepoints.read_csv(sim.tie_points)
+    raw = tiepoints.read_csv(sim.tie_points)
+    ties = rpc_product_cameras(raw, raw.scene, onboard)[0]  # as bundleadjust reads them
     print(f"{len(table)} GCP observations ({int((table.role == 'control').sum())} control), {len(ties)} tie "
           f"observations of {np.unique(ties.id).size} points")
     t = time.perf_counter()

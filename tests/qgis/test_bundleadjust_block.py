@@ -20,9 +20,7 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingModel
 import processing
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.formats import load_scene
-from pushbroom_adjust.core.formats.rpcfiles import write_rpc
 from pushbroom_adjust.core.observations import gcps as gcp_io
-from pushbroom_adjust.core.products.rpcfit import fit_rpc
 from tests.support.hostile import LogFeedback
 from tests.support.qgis_process import run_json
 
@@ -105,12 +103,12 @@ def adjusted(block, gcp_layer, tmp_path_factory):
     return result, log, folder
 
 
-def check_px(block, scene_paths) -> dict:
+def check_px(block, scene_paths, names=NAMES) -> dict:
     """{scene: RMS (px)} of a 9 x 9 lattice over each scene's image, its true ground (on the DEM)
     projected through the given scene against the lattice."""
     dem = Dem(block["DEM"], "geoid")
     out = {}
-    for name, true_path, path in zip(NAMES, block["TRUE_SCENES"], scene_paths):
+    for name, true_path, path in zip(names, block["TRUE_SCENES"], scene_paths):
         true, scene = load_scene(true_path), load_scene(path)
         cam = true.cameras[0]
         col, row = (a.ravel() for a in np.meshgrid(np.linspace(10, cam.cols - 10, 9), np.linspace(10, cam.rows - 10, 9)))
@@ -122,7 +120,7 @@ def check_px(block, scene_paths) -> dict:
 def test_the_block_meets_the_truth(block, adjusted):
     """Measured (SEED 3; 24 ground points, 18 control and 6 check, each seen in 1-3 scenes, 48 control
     observations; 60 tie points, 170 observations; image noise 0.3 px): check RMSE through the onboard
-    scenes nad 10.65, fwd 10.17, bwd 9.64 px; adjusted 0.30, 0.28, 0.19 px. What is left is mostly
+    scenes nad 10.65, fwd 10.17, bwd 9.64 px; adjusted 0.25, 0.26, 0.20 px. What is left is mostly
     the simulated interior distortion (principal point, focal length, lens terms of 0.03-0.4 px
     each), which a trajectory-only adjustment (INTERIOR empty) does not model."""
     result, _, folder = adjusted
@@ -133,9 +131,9 @@ def test_the_block_meets_the_truth(block, adjusted):
 
 
 def test_the_block_report(adjusted):
-    """Measured: sigma0 0.71; tie RMS 8.09 px before, 0.30 px after (per scene 6.75 -> 0.33, 10.19 ->
-    0.27, 6.62 -> 0.29); check observations 0.52, 0.43, 0.54 px (residuals of the measurements, noise
-    0.3 px); each scene moved 52-56 m from its onboard geolocation, its onboard sigma 147-155 m."""
+    """Measured: sigma0 0.80; tie RMS 8.09 px before, 0.29 px after (per scene 6.75 -> 0.36, 10.19 ->
+    0.27, 6.62 -> 0.26); check observations 0.49, 0.42, 0.55 px (residuals of the measurements, noise
+    0.3 px); each scene moved 52-55 m from its onboard geolocation, its onboard sigma 147-155 m."""
     result, log, folder = adjusted
     report = json.loads(Path(result["OUTPUT_REPORT_JSON"]).read_text())
     assert Path(result["OUTPUT_REPORT_JSON"]) == folder / "block_report.json"
@@ -235,19 +233,46 @@ def test_a_block_inside_a_graphical_model(block, gcp_layer, tmp_path):
     assert all(v < 0.3 for v in after.values()), after
 
 
+# --- a block with an RPC product -------------------------------------------------------------
+def test_a_block_with_an_rpc_product(provider, tmp_path):
+    """The tri-stereo and a scene of another date delivered as an RPC product (LAYOUT
+    tristereo_and_other_date): the RPC image keeps its own image-space correction (RPC_CORRECTION,
+    Grodecki & Dial 2003), its refined RPC is written beside the rigorous scenes' fitted ones.
+    Measured: check RMSE onboard nad 10.65, fwd 10.17, bwd 9.64, date2 (the vendor RPC) 6.69 px;
+    adjusted 0.21, 0.23, 0.20, 0.18 px."""
+    names = (*NAMES, "date2")
+    block = processing.run("pushbroom:simulateblock", {
+        "PRESET": "th1_tlc", "LAYOUT": "tristereo_and_other_date", "IMAGE_SIZE": 600, "RENDER": False, "SEED": 3,
+        "N_GCPS": 24, "N_TIE_POINTS": 60, "CHECK_FRACTION": 0.25, "OUTPUT_FOLDER": str(tmp_path / "block")})
+    assert Path(block["SCENES"][3]).name == "date2_RPC.TXT"
+    gcps = processing.run("pushbroom:importgcps", {"SCENES": list(block["SCENES"]), "INPUT_FILE": block["GCPS"],
+                                                   **IMPORT, "OUTPUT": str(tmp_path / "gcps.gpkg")})["OUTPUT"]
+    log = LogFeedback()
+    out = processing.run("pushbroom:bundleadjust", params(block, gcps, tmp_path / "out", WRITE_RPCS=True),
+                         feedback=log)
+    before, after = check_px(block, block["SCENES"], names), check_px(block, out["ADJUSTED_SCENES"], names)
+    for name in names:
+        assert before[name] > 5.0 and after[name] < 0.4, (name, before[name], after[name])
+    report = json.loads(Path(out["OUTPUT_REPORT_JSON"]).read_text())
+    assert report["scenes"]["date2"]["model"] == "rpc" and report["scenes"]["nad"]["model"] == "rigorous"
+    # the refined RPC, read as GDAL reads it, meets the truth as the adjusted scene does
+    date2 = {"TRUE_SCENES": block["TRUE_SCENES"][3:], "DEM": block["DEM"]}
+    assert abs(check_px(date2, [tmp_path / "out" / "date2_RPC.TXT"], ("date2",))["date2"] - after["date2"]) < 0.01
+    assert any(line.startswith("refined RPC of the RPC product date2") for line in log.lines)
+    assert any(line.startswith("scene date2: control") and "from its vendor RPC" in line for line in log.lines)
+
+
 # --- bad blocks ------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def bad_inputs(block, gcp_layer, tmp_path_factory) -> dict:
     """Inputs that break a block: GCPs without a scene field, GCPs naming a scene not in the block,
-    tie points all measured in one scene, tie points that join nad and fwd only, an RPC product."""
+    tie points all measured in one scene, tie points that join nad and fwd only."""
     folder = tmp_path_factory.mktemp("bad")
     table = gcp_io.read_gpkg(gcp_layer)
     no_field, foreign = folder / "no_scene.gpkg", folder / "foreign.gpkg"
     gcp_io.write_gpkg(replace(table, block_scene=None), no_field)
     gcp_io.write_gpkg(replace(table, block_scene=np.where(table.block_scene == "bwd", "date9", table.block_scene)),
                       foreign)
-    rpc = folder / "date2_RPC.TXT"
-    write_rpc(fit_rpc(load_scene(block["SCENES"][2]), 0)[0], rpc)
     lines = Path(block["TIE_POINTS"]).read_text().splitlines()
     header, rows = lines[0], lines[1:]
     one = folder / "one_scene.csv"
@@ -257,7 +282,7 @@ def bad_inputs(block, gcp_layer, tmp_path_factory) -> dict:
     split = folder / "split.csv"  # the observations in nad and fwd of the points both see: none in bwd
     split.write_text("\n".join([header] + [r for r in rows if r.endswith((",nad", ",fwd"))
                                            and r.split(",")[0] in nad_fwd]) + "\n")
-    return {"no_field": str(no_field), "foreign": str(foreign), "one": str(one), "split": str(split), "rpc": str(rpc)}
+    return {"no_field": str(no_field), "foreign": str(foreign), "one": str(one), "split": str(split)}
 
 
 @pytest.mark.parametrize("change, message", [
@@ -273,9 +298,7 @@ def bad_inputs(block, gcp_layer, tmp_path_factory) -> dict:
     (lambda b, x: {"TIE_POINTS": x["split"]},
      r"^TIE_POINTS: no tie point joins the scenes of these groups to each other: nad, fwd; bwd"),
     (lambda b, x: {"TIE_POINTS": x["split"], "GCPS": None},
-     r"^SCENES: no control GCP and no tie point is measured in scene\(s\) bwd"),
-    (lambda b, x: {"SCENES": b["SCENES"] + [x["rpc"]]},
-     r"^SCENES: .*date2_RPC.TXT \(scene date2\) is given by its RPC only; a block adjusts rigorous"),
+     r"^SCENES: scene\(s\) 'bwd' have no control point or tie point measured in them"),
     (lambda b, x: {"OUTPUT_SCENE": str(Path(x["one"]).with_name("a.json"))},
      r"^OUTPUT_SCENE: with SCENES the block's outputs go to OUTPUT_FOLDER \(it writes <name>_adjusted.json there\)"),
     (lambda b, x: {"LINES": x["one"]}, r"^LINES: control lines are adjusted with one scene"),

@@ -71,9 +71,10 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             "against the installation angles when the control is sparse. A block of several products (stereo, "
             "tri-stereo, several dates, neighbouring orbits): SCENES instead of SCENE, GCPs and tie points "
             "naming the scene each observation was measured in (field 'scene'), adjusted together (one trajectory "
-            "correction per scene with its own onboard pseudo-observations, shared ground points; rigorous scenes "
-            "only so far); the outputs go to OUTPUT_FOLDER: <name>_adjusted.json per scene, block_report.html/.json, "
-            "adjusted_gcps.gpkg, adjusted_tie_points.gpkg and, with WRITE_RPCS, a refined RPC per image.")
+            "correction per scene with its own onboard pseudo-observations, an RPC product its own image-space "
+            "correction, shared ground points); the outputs go to OUTPUT_FOLDER: <name>_adjusted.json per scene, "
+            "block_report.html/.json, adjusted_gcps.gpkg, adjusted_tie_points.gpkg and, with WRITE_RPCS, a refined "
+            "RPC per image.")
     GCPS, TIE_POINTS, OUTPUT_TIE_POINTS = "GCPS", "TIE_POINTS", "OUTPUT_TIE_POINTS"
     POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
         POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
