@@ -253,20 +253,22 @@ def scene(optional: bool = False) -> QgsProcessingParameterFile:
 
 
 def scenes() -> QgsProcessingParameterMultipleLayers:
-    """SCENES: the scene files of a block (matchtiepoints, bundleadjust), the alternative to SCENE."""
+    """SCENES: the scene files of a block (matchtiepoints, importgcps, bundleadjust), the alternative to SCENE."""
     parameter = QgsProcessingParameterMultipleLayers(SCENES, tr("Scenes of the block (metadata, RPC or scene JSON "
                                                                 "files)"), QgsProcessing.TypeFile, optional=True)
-    parameter.setHelp(tr("Several scenes adjusted or matched as one block: any files the plugin reads as a scene "
-                         "(scene JSON, DIMAP, Maxar XML, RPC). A scene's name is its file's stem (without the _RPC of "
-                         "<name>_RPC.TXT), or for onboard_scene.json / true_scene.json / adjusted_scene.json its "
-                         "folder's name (the layout pushbroom:simulateblock writes); observations name their scene "
-                         "in a field 'scene'. Give SCENE or SCENES, not both."))
+    parameter.setHelp(tr("Several scenes matched, checked or adjusted as one block: any files the plugin reads as a "
+                         "scene (scene JSON, DIMAP, Maxar XML, RPC). A scene's name is its file's stem (without the "
+                         "_RPC of <name>_RPC.TXT), or for onboard_scene.json / true_scene.json / adjusted_scene.json "
+                         "its folder's name (the layout pushbroom:simulateblock writes); observations name their "
+                         "scene in a field 'scene'. Give SCENE or SCENES, not both."))
     return parameter
 
 
-def output_scene() -> QgsProcessingParameterFileDestination:
+def output_scene(optional: bool = False) -> QgsProcessingParameterFileDestination:
+    """OUTPUT_SCENE; optional in the algorithms that take a block's SCENES instead of SCENE (a block
+    writes its scenes elsewhere); a run of one scene then writes it to a temporary file."""
     parameter = QgsProcessingParameterFileDestination(OUTPUT_SCENE, tr("Output scene"),
-                                                      fileFilter="Scene JSON (*.json)")
+                                                      fileFilter="Scene JSON (*.json)", optional=optional)
     parameter.setHelp(tr("Scene JSON of the sensor model this algorithm makes (the adjusted scene, or the virtual "
                          "camera of a sensor-corrected image; the algorithm's help says which); every algorithm "
                          "accepts it as SCENE."))
@@ -352,7 +354,7 @@ def image_field(name: str) -> QgsProcessingParameterString:
     return parameter
 
 
-ID_FIELD, CAMERA_FIELD, SIGMA_PX = "ID_FIELD", "CAMERA_FIELD", "SIGMA_PX"
+ID_FIELD, CAMERA_FIELD, SCENE_FIELD, SIGMA_PX = "ID_FIELD", "CAMERA_FIELD", "SCENE_FIELD", "SIGMA_PX"
 SIGMA_FIELDS = {"sigma_px": "SIGMA_PX_FIELD", "sigma_xy": "SIGMA_XY_FIELD", "sigma_z": "SIGMA_Z_FIELD"}
 
 
@@ -371,6 +373,16 @@ def camera_field() -> QgsProcessingParameterString:
     parameter.setHelp(tr("Camera name (or 0-based index) of each row, for scenes with several cameras (e.g. "
                          "CAMERA_FIELD=camera). Empty: the column/field 'camera' when the input has one, else the "
                          "scene's only camera. A CAMERA parameter, where the algorithm has one, overrides it."))
+    return parameter
+
+
+def scene_field() -> QgsProcessingParameterString:
+    """SCENE_FIELD of the point imports: the product of a block each row was measured in."""
+    parameter = QgsProcessingParameterString(SCENE_FIELD, tr("Scene field"), optional=True, defaultValue="")
+    parameter.setHelp(tr("Name of the scene each row was measured in, for the scenes of a block (SCENES of "
+                         "pushbroom:bundleadjust: the scene file's stem, or its folder's name for the layout "
+                         "pushbroom:simulateblock writes), or of a strip (kept for reference). Empty: the "
+                         "column/field 'scene' when the input has one, else none."))
     return parameter
 
 

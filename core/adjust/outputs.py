@@ -96,15 +96,45 @@ def write_adjusted_tie_points(tie_points: dict, path, *, scene_path: str = "", f
     factor), flagged (1 = gross error); residuals NULL for the observations left out.
     tie_points: :attr:`AdjustmentResult.tie_points`. scene_path: the adjusted scene file, kept as
     layer metadata PUSHBROOM_SCENE. files: as for :func:`write_adjusted_gcps`."""
+    columns, ground = _tie_columns(tie_points)
+    write_layer(path, GPKG_LAYER, wgs84_3d(), ogr.wkbPoint25D, columns, ground,
+                {SCENE_METADATA_KEY: scene_path} if scene_path else None, files)
+
+
+def _tie_columns(tie_points: dict) -> tuple[dict, object]:
+    """The :data:`TIE_FIELDS` columns of per-observation tie results and their points' WKT."""
     missing = [k for k in (*TIE_FIELDS, "lon", "lat", "h") if k != "res_px" and k not in tie_points]
     if missing:
         raise InputError(f"adjustment results lack the tie-point arrays {', '.join(missing)}")
     columns = {k: np.hypot(np.asarray(tie_points["res_col"], float), np.asarray(tie_points["res_row"], float))
                if k == "res_px" else np.asarray(tie_points[k]) for k in TIE_FIELDS}
     columns["flagged"] = columns["flagged"].astype(int)
-    ground = point_wkt(*(tie_points[k] for k in ("lon", "lat", "h")))
-    write_layer(path, GPKG_LAYER, wgs84_3d(), ogr.wkbPoint25D, columns, ground,
-                {SCENE_METADATA_KEY: scene_path} if scene_path else None, files)
+    return columns, point_wkt(*(tie_points[k] for k in ("lon", "lat", "h")))
+
+
+BLOCK_TIE_FIELDS = ("scene", "rays", "scenes", "convergence_deg")
+
+
+def write_block_tie_points(tie_points: dict, points: dict, scene: np.ndarray, path, *,
+                           files: OutputSet | None = None) -> None:
+    """The tie observations of a block adjustment (:func:`core.adjust.block.adjust_block`), as
+    :func:`write_adjusted_tie_points` writes them (one feature per observation at its point's
+    adjusted ground; camera the name within its scene), with the fields of
+    :data:`BLOCK_TIE_FIELDS` after them: scene (the product the observation was measured in),
+    and of its point: rays (observations used), scenes (scenes it was seen in), convergence_deg
+    (the largest angle between its onboard rays, deg; NULL without). tie_points: the composite's
+    per-observation :attr:`AdjustmentResult.tie_points` (cameras ``<scene>/<camera>``); points:
+    :attr:`BlockResult.tie_points` (per point, ids sorted); scene: (n,) scene names of the
+    observations."""
+    ids = np.asarray(tie_points["id"], dtype=str)
+    at = np.searchsorted(np.asarray(points["id"], dtype=str), ids)
+    per_point = {k: np.asarray(points[k])[at] if k in points else np.full(ids.size, np.nan)
+                 for k in BLOCK_TIE_FIELDS[1:]}
+    columns, ground = _tie_columns(tie_points)
+    columns["camera"] = np.char.partition(np.asarray(columns["camera"], dtype=str), "/")[:, 2]
+    columns.update(scene=np.asarray(scene, dtype=str), rays=per_point["rays"].astype(int),
+                   scenes=per_point["scenes"].astype(int), convergence_deg=per_point["convergence_deg"].astype(float))
+    write_layer(path, GPKG_LAYER, wgs84_3d(), ogr.wkbPoint25D, columns, ground, None, files)
 
 
 def write_residual_vectors(scene: SceneModel | None, table: GcpTable, points: dict, path, scale: float, *,

@@ -32,12 +32,13 @@ _STYLE = ("body{font-family:sans-serif;max-width:1150px;margin:2em auto;color:#2
 
 
 def write_report_html(report: dict, points: dict, path, title: str = "Bundle adjustment report",
-                      files: OutputSet | None = None) -> None:
+                      files: OutputSet | None = None, preface: str = "") -> None:
     """Write one self-contained HTML page (plots as inline PNG) of an adjustment's ``report`` and
     per-GCP ``points`` (see :class:`core.adjust.engine.AdjustmentResult`) to ``path``,
-    completely or not at all (with ``files``, as part of that set)."""
+    completely or not at all (with ``files``, as part of that set). ``preface``: HTML put under
+    the title (e.g. :func:`block_section`)."""
     rep = plain(report)
-    body = [f"<h1>{html.escape(title)}</h1>", _reliability_section(rep), _headline_section(rep),
+    body = [f"<h1>{html.escape(title)}</h1>", preface, _reliability_section(rep), _headline_section(rep),
             _tie_point_section(rep), _lines_section(rep), _settings_section(rep), _decisions_section(rep),
             _parameters_section(rep),
             "<h2>Plots</h2>",
@@ -48,6 +49,34 @@ def write_report_html(report: dict, points: dict, path, title: str = "Bundle adj
             f"<style>{_STYLE}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
     write_text(path, page, files)
     log.info("wrote the adjustment report %s", path)
+
+
+def block_section(block_report: dict) -> str:
+    """HTML of a block adjustment's own figures (:func:`core.adjust.block.block_report`): how the
+    datum is held, then per scene and for the block the image residual RMS (px) of control, check
+    and tie observations (ties before: the onboard scenes with their onboard intersection) and how
+    far each scene's ground moved from its onboard geolocation (an RPC product's: its vendor RPC)
+    against its onboard sigma (the vendor's stated accuracy) (m)."""
+    rep = plain(block_report)
+    block = rep["block"]
+    rows = [[html.escape(name), ", ".join(map(html.escape, s["cameras"])),
+             f"{s['control']['observations']}", _fmt(s["control"]["rmse_px"]),
+             f"{s['check_points']['observations']}", _fmt(s["check_points"]["rmse_px"]),
+             f"{s.get('ties', {}).get('observations', 0)}", _fmt(s.get("ties", {}).get("rmse_before_px")),
+             _fmt(s.get("ties", {}).get("rmse_px")), _fmt(s["moved_m"], ".1f"),
+             _fmt(s.get("vendor_sigma_m") if s.get("model") == "rpc" else s.get("onboard_sigma_m"), ".1f")]
+            for name, s in rep["scenes"].items()]
+    rows.append(["<b>block</b>", f"{block['scenes']} scenes", "", _fmt(block["control_rmse_px"]), "",
+                 _fmt(block["check_rmse_px"]), "", _fmt(block["tie_rmse_before_px"]), _fmt(block["tie_rmse_px"]),
+                 "", ""])
+    header = ["scene", "cameras", "control obs.", "control RMS px", "check obs.", "check RMS px", "tie obs.",
+              "tie RMS before px", "tie RMS after px", "moved m", "onboard / vendor sigma m"]
+    return (f"<h2>Block of {block['scenes']} scenes</h2><p class='big'>{html.escape(rep['datum'])}; sigma0 "
+            f"{_fmt(block['sigma0'])}.</p>" + _table(header, rows, left=2)
+            + "<p>Each scene's move is the largest distance between the ground its onboard (or vendor RPC) and its "
+              "adjusted model see over its images; the onboard sigma is what POSITION_SIGMA and ATTITUDE_SIGMA "
+              "allow, an RPC product's the vendor's stated accuracy (settings.rpc_sigma) on the ground. The "
+              "sections below are the adjustment of the whole block (cameras named &lt;scene&gt;/&lt;camera&gt;).</p>")
 
 
 def _fmt(value, spec: str = ".3f") -> str:

@@ -135,7 +135,9 @@ class CsvMapping:
     line numbers (1-based); '' always the line numbers.
     x, y: ground coordinates in the CRS given to :func:`read_csv` (lon/lat order for degrees).
     z, role, camera: optional columns (role, camera None: the columns ``role``, ``camera`` when the
-    file has them, else all control points of the scene's only camera). sigma_px (px), sigma_xy,
+    file has them, else all control points of the scene's only camera). scene: the column naming the
+    product of a block each row was measured in (None: the column ``scene`` when the file has one,
+    else none; '': none). sigma_px (px), sigma_xy,
     sigma_z (m): optional columns of per-point sigmas (empty cells take the sigma given to :func:`read_csv`)."""
     col: str = "col"
     row: str = "row"
@@ -145,13 +147,14 @@ class CsvMapping:
     z: str | None = None
     role: str | None = None
     camera: str | None = None
+    scene: str | None = None
     sigma_px: str | None = None
     sigma_xy: str | None = None
     sigma_z: str | None = None
 
 
 # --- building a table -----------------------------------------------------------------------
-def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None, camera=None,
+def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None, camera=None, scene=None,
                 sigma_px: float = DEFAULT_SIGMA_PX, sigma_xy: float = DEFAULT_SIGMA_XY,
                 sigma_z: float = DEFAULT_SIGMA_Z, source: str = "GCP input") -> GcpTable:
     """A GCP table from raw columns (arrays of shape (n,)).
@@ -160,9 +163,11 @@ def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None
     WKT or PROJ string; x is easting/longitude). z: heights for ``heights.source == 'z'``.
     role: per-point role words (control/gcp/check/cp/checkpoint, case-insensitive; empty =
     control), default all control. camera: per-point camera names, default '' (unassigned).
-    source names the input in error messages. Raises InputError for NaN coordinates (naming
-    the ids), an unknown CRS (naming it), ground points the CRS cannot convert, heights the
-    DEM does not cover, unknown roles and repeated (id, camera) pairs.
+    scene: per-point names of the block's product each row was measured in (``block_scene``),
+    default none. source names the input in error messages. Raises InputError for NaN coordinates
+    (naming the ids), an unknown CRS (naming it), ground points the CRS cannot convert, heights the
+    DEM does not cover, unknown roles and repeated (id, camera) pairs ((id, scene, camera) with
+    ``scene``: one point measured by the cameras of one name of two products is two rows).
     """
     ids = np.char.strip(np.asarray(ids, dtype=str))
     n = ids.size
@@ -172,10 +177,12 @@ def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None
     camera = np.full(n, "") if camera is None else np.char.strip(np.asarray(camera, dtype=str))
     col, row, x, y = (np.asarray(v, dtype=float) for v in (col, row, x, y))
     require_finite(ids, source, col=col, row=row, x=x, y=y)
-    require_unique(ids, camera, source)
+    scene = None if scene is None else np.char.strip(np.asarray(scene, dtype=str))
+    require_unique(ids, camera, source, scene)
     lon, lat = to_lonlat(x, y, crs, ids, source)
     h = ellipsoidal_heights(lon, lat, heights, z, ids, source)
-    table = GcpTable(ids, _roles(role, ids, source), camera, col, row, lon, lat, h, sigma_px, sigma_xy, sigma_z)
+    table = GcpTable(ids, _roles(role, ids, source), camera, col, row, lon, lat, h, sigma_px, sigma_xy, sigma_z,
+                     block_scene=scene)
     _require_plausible(table, source)
     return table
 
@@ -240,6 +247,7 @@ def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpT
                        crs=crs, heights=heights, z=number(mapping.z),
                        role=text(mapping.role if mapping.role is not None else present(header, "role")),
                        camera=text(mapping.camera if mapping.camera is not None else present(header, "camera")),
+                       scene=text((mapping.scene if mapping.scene is not None else present(header, "scene")) or None),
                        source=source, **sigmas)
 
 

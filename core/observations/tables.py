@@ -45,13 +45,18 @@ def require_finite(ids, source: str, **columns) -> None:
             raise InputError(f"{source}: {name} is missing or not a number for point(s) {listed(ids[bad])}")
 
 
-def require_unique(ids, camera, source: str) -> None:
-    """InputError naming the point ids that occur more than once for one camera ((n,) strings each)."""
+def require_unique(ids, camera, source: str, scene=None) -> None:
+    """InputError naming the point ids that occur more than once for one camera ((n,) strings each);
+    with ``scene`` ((n,) strings: the product of a block each row was measured in) once per camera of
+    one scene, so that one point measured by camera ``P`` of two products is two rows."""
     keys = np.char.add(np.char.add(ids, "\x1f"), camera)  # numpy strings drop NUL characters
+    if scene is not None:
+        keys = np.char.add(np.char.add(keys, "\x1f"), np.asarray(scene, dtype=str))
     uniq, counts = np.unique(keys, return_counts=True)
     if (counts > 1).any():
         dup = list(dict.fromkeys(k.split("\x1f")[0] for k in uniq[counts > 1]))
-        raise InputError(f"{source}: point id(s) {listed(dup)} occur more than once for the same camera")
+        where = "the same camera of the same scene" if scene is not None else "the same camera"
+        raise InputError(f"{source}: point id(s) {listed(dup)} occur more than once for {where}")
 
 
 # --- ground coordinates and heights ---------------------------------------------------------

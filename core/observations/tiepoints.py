@@ -109,8 +109,9 @@ class TieTable:
 @dataclass
 class CsvMapping:
     """Which CSV columns hold what: id, camera, col, row; optional scene and sigma_px (px;
-    empty cells take the sigma given to :func:`read_csv`). camera None: the column ``camera``
-    when the file has one, else none (a single-camera scene)."""
+    empty cells take the sigma given to :func:`read_csv`). camera, scene None: the column
+    ``camera`` (``scene``) when the file has one, else none (a single-camera scene; no scene
+    named); scene '': none."""
     id: str = "id"
     camera: str | None = "camera"
     col: str = "col"
@@ -160,7 +161,8 @@ def read_csv(path, mapping: CsvMapping | None = None, sigma_px: float = DEFAULT_
     sigmas = sigma_px if mapping.sigma_px is None else \
         per_point_sigmas(text(mapping.sigma_px), sigma_px, mapping.sigma_px, ids, source, "sigma_px")
     camera = mapping.camera if mapping.camera is not None else present(header, "camera")
-    return build_table(ids, text(camera), col, row, scene=text(mapping.scene),
+    scene = mapping.scene if mapping.scene is not None else present(header, "scene")
+    return build_table(ids, text(camera), col, row, scene=text(scene or None),
                        sigma_px=sigmas, source=source)
 
 

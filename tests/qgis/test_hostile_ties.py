@@ -105,8 +105,8 @@ def test_a_layer_without_the_tie_fields_is_refused(block, tmp_path):
     table = tmp_path / "table.csv"
     table.write_text("id,camera,x,y\nT1,NAD,1,2\n")
     assert_refused(ALG, {"SCENE": block["scene"], "GCPS": block["gcps"], "TIE_POINTS": str(table),
-                         "OUTPUT_SCENE": str(tmp_path / "a.json")}, "TIE_POINTS", "lacks tie-point field(s) col, row",
-                   watch=[tmp_path])
+                         "OUTPUT_SCENE": str(tmp_path / "a.json")}, "TIE_POINTS",
+                   "table.csv: no column 'col' (columns: id, camera, x, y)", watch=[tmp_path])  # read as CSV
 
 
 def test_the_output_must_not_replace_the_tie_points(block, tmp_path):

@@ -57,10 +57,12 @@ def test_import_simulated_gcps_csv(simulated, core, tmp_path, fields):
                 "SIGMA_PX": 0.3, "OUTPUT": str(tmp_path / "gcps.gpkg")})["OUTPUT"]
     layer = QgsVectorLayer(out, "gcps", "ogr")
     assert layer.isValid() and layer.featureCount() == len(rows)
-    assert layer.fields().names()[1:] == FIELDS  # after the GeoPackage fid
+    # after the GeoPackage fid; 'scene': the simulator's column (the member of its strip) read under its name
+    assert layer.fields().names()[1:] == FIELDS + ["scene"]
     assert layer.crs().authid() == "EPSG:4979"
     table = core["gcps"].read_gpkg(out)
     by_id = {r["id"]: r for r in rows}
+    assert table.block_scene.tolist() == [by_id[i]["scene"] for i in table.id]
     assert [by_id[i]["role"] for i in table.id] == table.role.tolist() and "check" in table.role
     assert np.allclose(table.col, [float(by_id[i]["col"]) for i in table.id], atol=1e-9)
     assert np.allclose(table.h, [float(by_id[i]["h"]) for i in table.id], atol=1e-6)

@@ -18,8 +18,9 @@ from tests.support.paths import PLUGIN, REPO
 
 # QGIS's convention (native:buffer, gdal:warpreproject): the algorithm's main input and output,
 # whose type is the algorithm's own (a raster for orthorectify, a point layer for groundtoimage);
-# INPUT_FILE is the main input given as a file (GCPs: CSV or .points; tie points: CSV).
-GENERIC = {"INPUT", "INPUT_FILE", "OUTPUT"}
+# INPUT_FILE is the main input given as a file (GCPs: CSV or .points; tie points: CSV);
+# OUTPUT_FOLDER the folder of the algorithm's own files (a simulation, a block's adjusted scenes).
+GENERIC = {"INPUT", "INPUT_FILE", "OUTPUT", "OUTPUT_FOLDER"}
 VALUE_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 # What must agree between a model's input and the algorithm parameter of the same name; a
 # shipped model is a worked example with its own defaults and explanations (N_GCPS 2000).
@@ -63,8 +64,8 @@ def vocabulary_problems(algorithms) -> list[str]:
             if name in GENERIC:
                 continue
             signature = _signature(definition)
-            if name == "SCENE" and alg.parameterDefinition("SCENES") is not None:
-                # optional where a block's SCENES may replace it, and only there
+            if name in ("SCENE", "OUTPUT_SCENE") and alg.parameterDefinition("SCENES") is not None:
+                # optional where a block's SCENES may replace it (a block writes its scenes elsewhere), and only there
                 signature["flags"] = int(signature["flags"]) & ~int(QgsProcessingParameterDefinition.FlagOptional)
             if name not in first:
                 if not model:

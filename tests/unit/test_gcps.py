@@ -286,6 +286,21 @@ def test_gpkg_carries_the_block_scene_of_every_row(tmp_path):
     assert G.read_gpkg(tmp_path / "named.gpkg").block_scene.tolist() == ["PHR_A", "PHR_B", ""]
 
 
+def test_one_point_in_camera_p_of_two_products_is_two_rows(tmp_path):
+    """A block's GCP CSV with a column 'scene' (read under its name, as pushbroom:simulateblock writes
+    it): ids are unique per (id, scene, camera), so point A measured by camera P of two Pleiades
+    products is two rows; twice in one product's P it is refused."""
+    path = tmp_path / "block.csv"
+    path.write_text("id,camera,scene,col,row,lon,lat\nA,P,PHR_1,1,2,3,4\nA,P,PHR_2,5,6,3,4\nB,P,PHR_1,7,8,3.1,4\n")
+    table = G.read_csv(path, G.CsvMapping(), "EPSG:4326", _ellipsoid())
+    assert table.block_scene.tolist() == ["PHR_1", "PHR_2", "PHR_1"] and table.id.tolist() == ["A", "A", "B"]
+    with pytest.raises(InputError, match=r"point id\(s\) A occur more than once for the same camera$"):
+        G.read_csv(path, G.CsvMapping(scene=""), "EPSG:4326", _ellipsoid())  # '': no scene column
+    path.write_text(path.read_text() + "A,P,PHR_1,9,9,3,4\n")
+    with pytest.raises(InputError, match=r"point id\(s\) A occur more than once for the same camera of the same scene"):
+        G.read_csv(path, G.CsvMapping(), "EPSG:4326", _ellipsoid())
+
+
 def _written(table, path):
     G.write_gpkg(table, path)
     return path

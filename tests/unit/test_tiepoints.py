@@ -46,7 +46,8 @@ def test_the_simulators_csv_reads_as_it_is(th1):
     assert len(t) == len(rows) == 177
     assert t.id.tolist() == [r["id"] for r in rows] and t.camera.tolist() == [r["camera"] for r in rows]
     assert np.array_equal(t.col, [float(r["col"]) for r in rows])
-    assert (t.sigma_px == tp.DEFAULT_SIGMA_PX).all() and (t.scene == "").all()
+    # the column 'scene' (the member of the simulated strip, one scene here) is read under its name
+    assert (t.sigma_px == tp.DEFAULT_SIGMA_PX).all() and (t.scene == "1").all()
     assert t.points()[0].size == 60
 
 

@@ -11,7 +11,7 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutpu
                        QgsProcessingParameterBoolean,
                        QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
                        QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
-                       QgsProcessingParameterVectorLayer)
+                       QgsProcessingParameterVectorLayer, QgsProcessingUtils)
 
 from ...core.adjust import AdjustmentSettings, adjust
 from ...core.adjust.checks import check_inputs
@@ -22,7 +22,7 @@ from ...core.adjust.parameters import ParameterSet
 from ...core.adjust.report import log_lines, write_report_json
 from ...core.adjust.report_html import write_report_html
 from ...core.adjust.settings import ONBOARD_SIGMAS
-from ...core.errors import InputError, PushbroomError
+from ...core.errors import PushbroomError
 from ...core.files import Output, atomic_outputs
 from ...core.formats.rpcfiles import write_rpc
 from ...core.formats.scene_json import save_scene
@@ -32,12 +32,14 @@ from ...core.observations import gcps, tiepoints
 from ...core.observations.lines import read_ground_lines, read_image_lines
 from ...core.products.rpcfit import refined_rpc
 from ...core.rotations import ARCSEC
+from ..blockadjust import (ADJUSTED_SCENES, OUTPUT_FOLDER, WRITE_RPCS, add_block_parameters, read_tie_layer,
+                          run_block, user_destination)
+from ..blockmatch import block_given, one_scene_file
 from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
-from ..inputs import (add_scene_parameters, attribute_floats, attribute_texts, load_scene_for, ogr_source,
-                      split_ogr_source)
+from ..inputs import add_scene_parameters, load_scene_for, ogr_source, split_ogr_source
 from ..outputs import STYLES, check_outputs, style_output_on_load
 from ..parameters import (ATTITUDE_MODEL, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR, POSITION_MODEL,
-                          ROBUST, RPC_CORRECTION, SCENE, camera_trajectory, enum_value, ground_mode,
+                          ROBUST, RPC_CORRECTION, SCENE, SCENES, camera_trajectory, enum_value, ground_mode,
                           interior_selection, on_singular, output_scene, robust_method, rpc_correction, tr,
                           trajectory_model)
 from .base import PushbroomAlgorithm
@@ -66,7 +68,13 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             "against the reference (nadir) camera, are CAMERA_TRAJECTORY=shared, INTERIOR='FWD.roll, FWD.pitch, "
             "FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw' (the scene's camera names) and ATTITUDE_ORDER=0, 1 or 2. "
             "The onboard attitude sigma (ATTITUDE_SIGMA) keeps Plan D's quadratic term from trading off "
-            "against the installation angles when the control is sparse.")
+            "against the installation angles when the control is sparse. A block of several products (stereo, "
+            "tri-stereo, several dates, neighbouring orbits): SCENES instead of SCENE, GCPs and tie points "
+            "naming the scene each observation was measured in (field 'scene'), adjusted together (one trajectory "
+            "correction per scene with its own onboard pseudo-observations, an RPC product its own image-space "
+            "correction, shared ground points); the outputs go to OUTPUT_FOLDER: <name>_adjusted.json per scene, "
+            "block_report.html/.json, adjusted_gcps.gpkg, adjusted_tie_points.gpkg and, with WRITE_RPCS, a refined "
+            "RPC per image.")
     GCPS, TIE_POINTS, OUTPUT_TIE_POINTS = "GCPS", "TIE_POINTS", "OUTPUT_TIE_POINTS"
     POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
         POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
@@ -92,16 +100,20 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         "settings.interior_selection": INTERIOR_SELECTION, "settings.ground": GROUND, "settings.robust": ROBUST,
         "settings.alpha": ALPHA, "settings.variance_components": VARIANCE_COMPONENTS,
         "settings.max_robust_iterations": MAX_ROBUST_PASSES, "settings.on_singular": ON_SINGULAR,
-        "settings.rpc_correction": RPC_CORRECTION}
+        "settings.rpc_correction": RPC_CORRECTION, "scenes": SCENES}
+    OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES = OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        add_scene_parameters(self, with_camera=False)
+        add_scene_parameters(self, with_camera=False, or_scenes=True)
         self.add_parameter(QgsProcessingParameterVectorLayer(self.GCPS, tr("Ground control points (GeoPackage)"),
                                                     [QgsProcessing.TypeVectorPoint], optional=True),
                   tr("The GCP layer written by 'Import ground control points' (GeoPackage): image col/row, "
                      "ground position, role control/check, camera and sigmas of every point. A point seen in "
                      "several cameras is one id in several rows: every camera it is seen in is used. May be left "
-                     "out when TIE_POINTS are given and the onboard pseudo-observations hold the datum."))
+                     "out when TIE_POINTS are given and the onboard pseudo-observations hold the datum. With "
+                     "SCENES (a block of several scenes) the layer has a field 'scene' naming the scene each row "
+                     "was measured in (importgcps with SCENES writes it); one id may be measured in several "
+                     "scenes."))
         self.add_parameter(QgsProcessingParameterVectorLayer(self.TIE_POINTS, tr("Tie points"),
                                                              [QgsProcessing.TypeVector], optional=True),
                            tr("Optional. The tie-point layer written by 'Import tie points' (GeoPackage), or any "
@@ -110,7 +122,10 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                               "(Zhang et al. 2015, Zhang et al. 2024). With them the control may be sparse or "
                               "absent (0, 1 or 2 GCPs) when the onboard pseudo-observations (POSITION_SIGMA, "
                               "ATTITUDE_SIGMA) hold what the GCPs leave of the datum; a datum nothing holds is "
-                              "named and refused. Points seen in one camera only are left out, named."))
+                              "named and refused. Points seen in one camera only are left out, named. With SCENES: "
+                              "the field scene names each observation's scene (pushbroom:matchtiepoints with SCENES "
+                              "writes it), every tie point is seen in two scenes or more, and the tie points join "
+                              "all the scenes into one block."))
         for block, what, default_order, default_sigma, unit, sigma_help in (
                 ("POSITION", tr("position"), 1, 100.0, "m", tr(
                     "Accuracy of the onboard orbit (GPS), metres per axis: the position corrections at the knots "
@@ -185,7 +200,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                                                QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0,
                                                maxValue=1e6),
                   tr("Factor by which the ground residual vectors are drawn longer than they are."), advanced=True)
-        self.addParameter(output_scene())  # the adjusted scene: corrections, parameters with sigmas, settings
+        # the adjusted scene: corrections, parameters with sigmas, settings; optional (SCENES writes OUTPUT_FOLDER)
+        self.addParameter(output_scene(optional=True))
         self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, tr("Report (HTML)"),
                                                         fileFilter="HTML (*.html)", optional=True),
                   tr("Optional. A report to read: accuracy before/after, decisions, parameters, plots. The same "
@@ -212,33 +228,44 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                               "1e-5 px)."))
         self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, tr("Report (JSON)")))
         self._add_line_parameters()
+        add_block_parameters(self)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        if block_given(self, parameters, context):
+            return run_block(self, parameters, context, feedback)
+        scene_path = one_scene_file(self, parameters, context)
+        for name in (self.OUTPUT_FOLDER, self.WRITE_RPCS):
+            if (user_destination(self, parameters, context, name) if name == self.OUTPUT_FOLDER else
+                    self.parameterAsBoolean(parameters, name, context)):
+                raise QgsProcessingException(f"{name}: for a block of scenes ({SCENES}) only; the outputs of one "
+                                             f"{SCENE} are OUTPUT_SCENE, OUTPUT_REPORT..., its refined RPC OUTPUT_RPC "
+                                             "(RPC scenes) or pushbroom:exportrpc")
         outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
             (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
             (self.OUTPUT_RESIDUALS, ".gpkg"), (self.OUTPUT_TIE_POINTS, ".gpkg"), (self.OUTPUT_RPC, ".txt"),
             (self.OUTPUT_LINE_RESIDUALS, ".gpkg"))}  # '' for the optional ones not asked for
+        outputs[self.OUTPUT_SCENE] = outputs[self.OUTPUT_SCENE] or QgsProcessingUtils.generateTempFilename(
+            "output_scene.json")  # optional only for a block: one scene's adjusted model is always written
         report_html = outputs[self.OUTPUT_REPORT]
         report_json = str(Path(report_html).with_suffix(".json")) if report_html else ""
         check_outputs(self, parameters, context, {**{name: [path] for name, path in outputs.items()},
                                                   self.OUTPUT_REPORT: [report_html, Output(report_json,
                                                                                            "its JSON report")]})
-        scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         if outputs[self.OUTPUT_RPC] and not isinstance(scene, RpcScene):
             raise QgsProcessingException(f"{self.OUTPUT_RPC}: only for a SCENE given by its RPC; the RPC of an "
                                          "adjusted rigorous scene is written by 'Export RPC' (pushbroom:exportrpc)")
         ties = self._ties(parameters, context, scene, scene_path, feedback)
-        table, gcp_path, gcp_layer = self._gcps(parameters, context, ties is not None)
+        table, gcp_path, gcp_layer = self.gcp_table(parameters, context, ties is not None)
         self._check_tie_outputs(outputs, ties, gcp_path)
-        settings = self._settings(parameters, context)
+        settings = self.adjustment_settings(parameters, context)
         scale = self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context)
         lines = self._lines(parameters, context)
         # The core's checks (settings, GCPs, tie points, lines, datum) before the (long) solution starts;
         # what the core does not place is about the GCPs.
         with self.core_errors(self.GCPS):
             check_inputs(scene, table, settings, ties, lines)
-        self._check_interior(scene, settings.interior)
+        self.check_interior(scene, settings.interior)
         if gcp_path:
             feedback.pushInfo(f"{len(table)} points from {gcp_path}: {int((table.role == 'control').sum())} "
                               f"control, {int((table.role == 'check').sum())} check")
@@ -316,7 +343,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             write_line_residuals(path, lines, result.lines, result.report["lines"], files)
 
     # --- parameters -------------------------------------------------------------------------
-    def _gcps(self, parameters, context, with_ties: bool = False) -> tuple[gcps.GcpTable, str, str | None]:
+    def gcp_table(self, parameters, context, with_ties: bool = False) -> tuple[gcps.GcpTable, str, str | None]:
         """The GCP table, the GeoPackage's path and its layer name (None: the first layer); with
         tie points and no GCP layer, an empty table and path ''."""
         layer = self.parameterAsVectorLayer(parameters, self.GCPS, context)
@@ -359,8 +386,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             raise QgsProcessingException(f"{self.TIE_POINTS}: tie points need a rigorous (physical) scene model with "
                                          "several cameras; this SCENE is given by its RPC (one image)")
         with processing_errors(f"{self.TIE_POINTS}: "):
-            table = tiepoints.read_gpkg(*split_ogr_source(layer.source())) if layer.providerType() == "ogr" else \
-                self._ties_from_features(layer)
+            table = read_tie_layer(layer)
         made_for = table.scene_path
         if made_for and Path(made_for).resolve() != Path(scene_path).resolve():
             feedback.pushWarning(f"{self.TIE_POINTS}: the layer was checked against the scene {made_for}, not "
@@ -370,22 +396,6 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         with core_log_to(feedback, tiepoints.__name__), processing_errors(f"{self.TIE_POINTS}: "):
             return tiepoints.check_against_scene(table, scene, scene_path, source=layer.source())
 
-    def _ties_from_features(self, layer) -> tiepoints.TieTable:
-        """A tie table from a layer's fields id, camera, col, row (optional sigma_px, scene)."""
-        names = layer.fields().names()
-        missing = [f for f in ("id", "camera", "col", "row") if f not in names]
-        if missing:
-            raise InputError(f"{layer.source()} lacks tie-point field(s) {', '.join(missing)} (fields: "
-                             f"{', '.join(names)})")
-        features = list(layer.getFeatures())
-        column = {f: [feature[f] for feature in features] if f in names else None
-                  for f in ("id", "camera", "col", "row", "sigma_px", "scene")}
-        sigma = attribute_floats(column["sigma_px"] or [None] * len(features))
-        return tiepoints.build_table(attribute_texts(column["id"]), attribute_texts(column["camera"]),
-                                     attribute_floats(column["col"]), attribute_floats(column["row"]),
-                                     scene=attribute_texts(column["scene"]), source=layer.source(),
-                                     sigma_px=np.where(np.isfinite(sigma), sigma, tiepoints.DEFAULT_SIGMA_PX))
-
     def _check_tie_outputs(self, outputs: dict, ties, gcp_path: str) -> None:
         """Outputs that need an input that was not given."""
         if outputs[self.OUTPUT_TIE_POINTS] and ties is None:
@@ -394,7 +404,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             if outputs[name] and not gcp_path:
                 raise QgsProcessingException(f"{name}: there are no GCPs to write (no {self.GCPS} given)")
 
-    def _check_interior(self, scene, interior: str) -> None:
+    def check_interior(self, scene, interior: str) -> None:
         """INTERIOR's names and sigmas against a rigorous scene's parameters; the error lists the
         scene's cameras and CCD chips, whose names the patterns use. (The core refuses INTERIOR for
         an RPC scene.)"""
@@ -410,7 +420,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                               for c in scene.cameras)
             raise QgsProcessingException(f"{self.INTERIOR}: {exc}. This scene has {names}.") from None
 
-    def _settings(self, parameters, context) -> AdjustmentSettings:
+    def adjustment_settings(self, parameters, context) -> AdjustmentSettings:
         number = lambda name: self.parameterAsDouble(parameters, name, context)  # noqa: E731
         position_sigma, attitude_sigma = number(self.POSITION_SIGMA), number(self.ATTITUDE_SIGMA)
         return AdjustmentSettings(

@@ -7,14 +7,16 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessin
                        QgsProcessingParameterVectorDestination, QgsWkbTypes)
 
 from ...core.observations import gcps
+from ...core.observations.blockscenes import check_against_block
 from ...core.observations.tables import per_point_sigmas
+from ..blockmatch import block_given, one_scene_file, scene_files
 from ..feedback import check_cancelled, core_call, core_log_to, processing_errors
-from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts, field_values,
-                      heights_from_parameters, load_scene_for, require_points)
+from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts, block_scene_names,
+                      field_values, heights_from_parameters, load_scene_for, require_points)
 from ..outputs import STYLES, geopackage_output, style_output_on_load
 from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD, SCENE,
-                          SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction, height_source,
-                          id_field, image_field, sigma_field, sigma_px, tr, z_datum)
+                          SCENE_FIELD, SCENES, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction,
+                          height_source, id_field, image_field, scene_field, sigma_field, sigma_px, tr, z_datum)
 from .base import PushbroomAlgorithm
 
 
@@ -33,17 +35,21 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
             "GeoPackage point layer in EPSG:4979 (lon, lat, ellipsoidal height) with fields id, role, "
             "camera, col, row, h, sigma_px, sigma_xy, sigma_z, res_col, res_row, res_px, res_m, inside. "
             "CHECK_FRACTION's check points are chosen deterministically, spread along the image; points already "
-            "'check' count.")
+            "'check' count. A block of scenes (SCENES instead of SCENE, e.g. the gcps.csv of "
+            "pushbroom:simulateblock): every row names the scene it was measured in (SCENE_FIELD, by default the "
+            "column 'scene') and is checked against that scene alone; one id may then be measured by cameras of one "
+            "name in several scenes (camera P of two Pleiades products), and the layer keeps the field 'scene' "
+            "that pushbroom:bundleadjust reads with SCENES.")
     CAMERA = CAMERA
     INPUT_FILE, INPUT = "INPUT_FILE", "INPUT"
     ID_FIELD, COL_FIELD, ROW_FIELD, X_FIELD, Y_FIELD = ID_FIELD, COL_FIELD, ROW_FIELD, "X_FIELD", "Y_FIELD"
-    Z_FIELD, ROLE_FIELD, CAMERA_FIELD = "Z_FIELD", "ROLE_FIELD", CAMERA_FIELD
+    Z_FIELD, ROLE_FIELD, CAMERA_FIELD, SCENE_FIELD = "Z_FIELD", "ROLE_FIELD", CAMERA_FIELD, SCENE_FIELD
     GROUND_CRS, HEIGHT_SOURCE, CHECK_FRACTION, Z_DATUM = "GROUND_CRS", HEIGHT_SOURCE, CHECK_FRACTION, Z_DATUM
     SIGMA_PX, SIGMA_XY, SIGMA_Z, OUTPUT = SIGMA_PX, "SIGMA_XY", "SIGMA_Z", "OUTPUT"
     SIGMA_FIELDS = SIGMA_FIELDS
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        add_scene_parameters(self, with_camera=False)
+        add_scene_parameters(self, with_camera=False, or_scenes=True)
         self.addParameter(camera())
         self.add_parameter(QgsProcessingParameterFile(self.INPUT_FILE, tr("GCP file (CSV or QGIS .points)"),
                                                       optional=True,
@@ -72,6 +78,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
             self.add_parameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default),
                                help_text)
         self.addParameter(camera_field())
+        self.addParameter(scene_field())
         self.add_parameter(QgsProcessingParameterCrs(self.GROUND_CRS, tr("Ground CRS (CSV and .points)"), optional=True,
                                             defaultValue="EPSG:4326"),
                   tr("CRS of the ground coordinates in a CSV, or of a .points file without a '#CRS:' line (the "
@@ -98,15 +105,26 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         dest = geopackage_output(self, parameters, context, self.OUTPUT, "gcps.gpkg", "GCP layers")
-        scene_path = self.parameterAsFile(parameters, SCENE, context)
-        scene = load_scene_for(SCENE, scene_path, feedback)
-        with core_log_to(feedback, gcps.__name__):
-            table = self._read(parameters, context)
-            check_cancelled(feedback)
-            feedback.setProgressText(f"checking {len(table)} points against {scene_path}")
-            table = core_call(gcps.check_against_scene, table, scene, scene_path,
-                              self.parameterAsString(parameters, self.CAMERA, context).strip() or None,
-                              self.parameterAsDouble(parameters, self.CHECK_FRACTION, context))
+        camera_name = self.parameterAsString(parameters, self.CAMERA, context).strip() or None
+        fraction = self.parameterAsDouble(parameters, self.CHECK_FRACTION, context)
+        if block_given(self, parameters, context):
+            paths = dict(zip(block_scene_names(scene_files(self, parameters, context)),
+                             scene_files(self, parameters, context)))
+            scenes = {name: load_scene_for(SCENES, path, feedback) for name, path in paths.items()}
+            with core_log_to(feedback, gcps.__name__):
+                table = self._read(parameters, context)
+                check_cancelled(feedback)
+                feedback.setProgressText(f"checking {len(table)} rows against the scene each names")
+                with processing_errors("", {"gcps.scene": self.SCENE_FIELD, "gcps.camera": self.CAMERA_FIELD}):
+                    table = check_against_block(table, scenes, paths, camera_name, fraction)
+        else:
+            scene_path = one_scene_file(self, parameters, context)
+            scene = load_scene_for(SCENE, scene_path, feedback)
+            with core_log_to(feedback, gcps.__name__):
+                table = self._one_scene(self._read(parameters, context), feedback)
+                check_cancelled(feedback)
+                feedback.setProgressText(f"checking {len(table)} points against {scene_path}")
+                table = core_call(gcps.check_against_scene, table, scene, scene_path, camera_name, fraction)
         with processing_errors(f"{self.OUTPUT}: "):
             gcps.write_gpkg(table, dest)
         self._report(table, feedback)
@@ -115,6 +133,16 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         return {self.OUTPUT: dest}
 
     # --- reading --------------------------------------------------------------------------
+    def _one_scene(self, table: gcps.GcpTable, feedback) -> gcps.GcpTable:
+        """The table of a single SCENE; rows naming several scenes (the members of a strip, or the
+        products of a block) are all checked against SCENE, which the log says."""
+        named = sorted(set(table.block_scene) - {""})
+        if len(named) > 1:
+            feedback.pushWarning(f"{self.SCENE_FIELD}: the rows name {len(named)} scenes ({', '.join(named)}): all "
+                                 f"are checked against {SCENE}, as the members of one strip; the products of a "
+                                 f"block are checked each against its own scene with {SCENES}")
+        return table
+
     def _read(self, parameters, context) -> gcps.GcpTable:
         path = self.parameterAsFile(parameters, self.INPUT_FILE, context)
         source = self.parameterAsSource(parameters, self.INPUT, context)
@@ -130,10 +158,11 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         if source is not None:
             return self._from_layer(parameters, context, source, heights, sigmas)
         if path.lower().endswith(".points"):
-            given = [name for name in self.SIGMA_FIELDS.values() if self.parameterAsString(parameters, name, context)]
+            given = [name for name in (*self.SIGMA_FIELDS.values(), self.SCENE_FIELD)
+                     if self.parameterAsString(parameters, name, context)]
             if given:
-                raise QgsProcessingException(f"{given[0]}: QGIS .points files have no per-point sigma fields; "
-                                             "leave it empty or import a CSV")
+                raise QgsProcessingException(f"{given[0]}: QGIS .points files have no such field (no per-point "
+                                             "sigma, no scene); leave it empty or import a CSV")
             return core_call(gcps.read_points_file, path, heights, crs, **sigmas)
         text = {name: self.parameterAsString(parameters, name, context).strip() or None
                 for name in (self.ID_FIELD, self.COL_FIELD, self.ROW_FIELD, self.X_FIELD, self.Y_FIELD,
@@ -142,7 +171,9 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                   for k, name in self.SIGMA_FIELDS.items()}
         mapping = gcps.CsvMapping(col=text[self.COL_FIELD], row=text[self.ROW_FIELD], x=text[self.X_FIELD],
                                   y=text[self.Y_FIELD], id=text[self.ID_FIELD], z=text[self.Z_FIELD],
-                                  role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD], **fields)
+                                  role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD],
+                                  scene=self.parameterAsString(parameters, self.SCENE_FIELD, context).strip() or None,
+                                  **fields)
         return core_call(gcps.read_csv, path, mapping, crs, heights, **sigmas)
 
     def _from_layer(self, parameters, context, source, heights, sigmas) -> gcps.GcpTable:
@@ -169,6 +200,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                          z=None if z is None else attribute_floats(z),
                          role=attribute_texts(column(self.ROLE_FIELD, False, "role")),
                          camera=attribute_texts(column(self.CAMERA_FIELD, False, "camera")),
+                         scene=attribute_texts(column(self.SCENE_FIELD, False, "scene")),
                          source=f"{self.INPUT} layer", **sigmas)
 
     # --- report ---------------------------------------------------------------------------

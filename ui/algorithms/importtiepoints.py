@@ -2,16 +2,15 @@
 or a layer, checked against a scene, intersected with its onboard model and written as the
 GeoPackage tie-point layer."""
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterFeatureSource,
-                       QgsProcessingParameterFile, QgsProcessingParameterString,
-                       QgsProcessingParameterVectorDestination)
+                       QgsProcessingParameterFile, QgsProcessingParameterVectorDestination)
 
 from ...core.observations import tiepoints
 from ...core.observations.tables import per_point_sigmas
 from ..feedback import check_cancelled, core_call, core_log_to
 from ..inputs import add_scene_parameters, attribute_floats, attribute_texts, field_values, load_scene_for
 from ..outputs import geopackage_output, write_tie_layer
-from ..parameters import (CAMERA_FIELD, COL_FIELD, ID_FIELD, ROW_FIELD, SCENE, SIGMA_FIELDS, SIGMA_PX, camera_field,
-                          id_field, image_field, sigma_field, sigma_px, tr)
+from ..parameters import (CAMERA_FIELD, COL_FIELD, ID_FIELD, ROW_FIELD, SCENE, SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX,
+                          camera_field, id_field, image_field, scene_field, sigma_field, sigma_px, tr)
 from .base import PushbroomAlgorithm
 
 
@@ -32,7 +31,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
             "sigma_px, scene, rays, res_col, res_row, res_px (a-priori intersection residuals, px).")
     INPUT_FILE, INPUT, OUTPUT = "INPUT_FILE", "INPUT", "OUTPUT"
     ID_FIELD, CAMERA_FIELD, COL_FIELD, ROW_FIELD = ID_FIELD, CAMERA_FIELD, COL_FIELD, ROW_FIELD
-    SCENE_FIELD, SIGMA_PX, SIGMA_PX_FIELD = "SCENE_FIELD", SIGMA_PX, SIGMA_FIELDS["sigma_px"]
+    SCENE_FIELD, SIGMA_PX, SIGMA_PX_FIELD = SCENE_FIELD, SIGMA_PX, SIGMA_FIELDS["sigma_px"]
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
@@ -51,10 +50,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         self.addParameter(camera_field())
         self.addParameter(image_field(self.COL_FIELD))
         self.addParameter(image_field(self.ROW_FIELD))
-        self.add_parameter(QgsProcessingParameterString(self.SCENE_FIELD, tr("Scene field"), optional=True,
-                                                        defaultValue=""),
-                           tr("Field naming the scene of a strip each observation was measured in (kept in the "
-                              "output for reference). Empty: none."))
+        self.addParameter(scene_field())
         self.addParameter(sigma_px())
         self.addParameter(sigma_field("sigma_px"))
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Tie points"), QgsProcessing.TypeVectorPoint)
@@ -110,4 +106,4 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
                               "sigma_px")
         return core_call(tiepoints.build_table, ids, attribute_texts(column(self.CAMERA_FIELD, False, "camera")),
                          attribute_floats(column(self.COL_FIELD, True)), attribute_floats(column(self.ROW_FIELD, True)),
-                         scene=attribute_texts(column(self.SCENE_FIELD, False)), sigma_px=sigma, source=what)
+                         scene=attribute_texts(column(self.SCENE_FIELD, False, "scene")), sigma_px=sigma, source=what)
