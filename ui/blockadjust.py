@@ -262,6 +262,8 @@ def log_block(result, n_ties: int | None, alg, feedback) -> None:
     feedback.pushInfo(f"block of {block['scenes']} scenes: sigma0 {block['sigma0']:.3f}, tie RMS "
                       f"{px(block['tie_rmse_before_px'])} before, {px(block['tie_rmse_px'])} after; "
                       f"{result.report['datum']}")
+    for warning in result.report["warnings"]:
+        feedback.pushWarning(warning)
 
 
 # --- the run -----------------------------------------------------------------------------------

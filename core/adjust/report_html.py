@@ -71,8 +71,9 @@ def block_section(block_report: dict) -> str:
                  "", ""])
     header = ["scene", "cameras", "control obs.", "control RMS px", "check obs.", "check RMS px", "tie obs.",
               "tie RMS before px", "tie RMS after px", "moved m", "onboard / vendor sigma m"]
+    warnings = "".join(f"<p class='bad'>{html.escape(w)}</p>" for w in rep.get("warnings", []))
     return (f"<h2>Block of {block['scenes']} scenes</h2><p class='big'>{html.escape(rep['datum'])}; sigma0 "
-            f"{_fmt(block['sigma0'])}.</p>" + _table(header, rows, left=2)
+            f"{_fmt(block['sigma0'])}.</p>" + warnings + _table(header, rows, left=2)
             + "<p>Each scene's move is the largest distance between the ground its onboard (or vendor RPC) and its "
               "adjusted model see over its images; the onboard sigma is what POSITION_SIGMA and ATTITUDE_SIGMA "
               "allow, an RPC product's the vendor's stated accuracy (settings.rpc_sigma) on the ground. The "

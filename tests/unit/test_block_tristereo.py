@@ -10,6 +10,7 @@ terms scaled to the cut: up to 0.7 px at the array end). GCPs and check points: 
 points (DEM heights) projected through each TRUE scene plus 0.3 px noise; 4 GCPs near the corners,
 49 check points on a 7 x 7 lattice, all seen in the three scenes.
 """
+import html
 from dataclasses import replace
 
 import numpy as np
@@ -17,6 +18,7 @@ import pytest
 
 from pushbroom_adjust.core.adjust import AdjustmentSettings
 from pushbroom_adjust.core.adjust.block import adjust_block
+from pushbroom_adjust.core.adjust.report_html import block_section
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
@@ -115,6 +117,7 @@ def test_ties_only_tristereo_fits_its_matched_ties_and_names_its_datum(tri):
     assert drifted and len(conventional["warnings"]) == len(drifted)
     assert all(w.startswith(f"scene {n} moved") and "INTERIOR=default" in w
                for n, w in zip(drifted, conventional["warnings"]))
+    assert conventional["warnings"][0] in html.unescape(block_section(conventional))
 
 
 def test_four_gcps_reach_the_floor_of_the_true_interior(tri):
