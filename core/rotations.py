@@ -85,11 +85,9 @@ def rotation_from_angles(roll, pitch, yaw) -> np.ndarray:
     return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
 
 
-def rotation_and_derivatives(angles) -> tuple[np.ndarray, np.ndarray]:
-    """rotation_from_angles of (..., 3) angles (roll, pitch, yaw) and its derivatives:
-    (R (..., 3, 3), dR (..., 3, 3, 3)) with dR[..., k, :, :] = dR/d angle_k. Element by
-    element (R = Rz(yaw) Ry(pitch) Rx(roll) written out): fast for millions of angles."""
-    angles = np.asarray(angles, dtype=float)
+def _rotation_elements(angles: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """R = Rz(yaw) Ry(pitch) Rx(roll) (..., 3, 3) of (..., 3) angles written out element by
+    element, and the angles' (cos, sin) of roll, pitch, yaw."""
     cr, sr = np.cos(angles[..., 0]), np.sin(angles[..., 0])
     cp, sp = np.cos(angles[..., 1]), np.sin(angles[..., 1])
     cy, sy = np.cos(angles[..., 2]), np.sin(angles[..., 2])
@@ -97,6 +95,21 @@ def rotation_and_derivatives(angles) -> tuple[np.ndarray, np.ndarray]:
     r[..., 0, 0], r[..., 0, 1], r[..., 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
     r[..., 1, 0], r[..., 1, 1], r[..., 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
     r[..., 2, 0], r[..., 2, 1], r[..., 2, 2] = -sp, cp * sr, cp * cr
+    return r, (cr, sr, cp, sp, cy, sy)
+
+
+def rotation_matrices(angles) -> np.ndarray:
+    """rotation_from_angles of (..., 3) angles (roll, pitch, yaw), element by element: the R of
+    :func:`rotation_and_derivatives` (the same numbers) without its derivatives."""
+    return _rotation_elements(np.asarray(angles, dtype=float))[0]
+
+
+def rotation_and_derivatives(angles) -> tuple[np.ndarray, np.ndarray]:
+    """rotation_from_angles of (..., 3) angles (roll, pitch, yaw) and its derivatives:
+    (R (..., 3, 3), dR (..., 3, 3, 3)) with dR[..., k, :, :] = dR/d angle_k. Element by
+    element (R = Rz(yaw) Ry(pitch) Rx(roll) written out): fast for millions of angles."""
+    angles = np.asarray(angles, dtype=float)
+    r, (cr, sr, cp, sp, cy, sy) = _rotation_elements(angles)
     d = np.zeros(angles.shape[:-1] + (3, 3, 3))
     # d/d roll
     d[..., 0, 0, 1], d[..., 0, 0, 2] = cy * sp * cr + sy * sr, -cy * sp * sr + sy * cr

@@ -49,7 +49,6 @@ import numpy as np
 
 from ..errors import InputError
 from ..model.block import block_camera, compose_block, scene_cameras, split_block
-from ..model.intersection import intersect
 from ..model.mixedblock import MixedBlock, compose_mixed
 from ..model.rpc import RpcModel
 from ..model.rpcscene import RpcScene
@@ -332,11 +331,8 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
     control, check = pts["role"] == "control", pts["role"] == "check"
     tie_res = (out.tie_points["res_col"], out.tie_points["res_row"]) if ties is not None and len(ties) else None
     before = None
-    if tie_res is not None:
-        ids, point = np.unique(ties.id, return_inverse=True)
-        names = [c.name for c in composite.cameras]
-        camera = np.array([names.index(c) for c in ties.camera.tolist()], dtype=np.int64)
-        before = intersect(composite, camera, ties.col, ties.row, point, ids.size).residuals
+    if tie_res is not None:  # the engine's start: the onboard intersection
+        before = np.stack([out.tie_points["res_col_before"], out.tie_points["res_row_before"]], axis=1)
     per_scene = {}
     for name in scenes:
         g, t = gcps.block_scene == name, (ties.scene == name) if tie_res is not None else None

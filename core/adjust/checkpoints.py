@@ -195,14 +195,14 @@ def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float,
         m = sub.camera == cam.name
         if not m.any():
             continue
-        col, row = scene.ground_to_image(ground[m], c)
+        col, row = scene.ground_to_image_near(ground[m], c, sub.col[m], sub.row[m])
         res[m] = np.stack([col - sub.col[m], row - sub.row[m]], axis=1)
         seen = scene.image_to_ground(sub.col[m], sub.row[m], sub.h[m], c)
         en[m] = np.einsum("nij,nj->ni", enu_rotations(sub.lon[m], sub.lat[m]), seen - ground[m])[:, :2]
         # a height error moves the image point by its relief displacement only
         sigma_z = sub.sigma_z[m] * scale.get("ground_z", 1.0) * ground_sigmas
         up = ground[m] + sigma_z[:, None] * up_vector(sub.lon[m], sub.lat[m])
-        relief = np.hypot(*(a - b for a, b in zip(scene.ground_to_image(up, c), (col, row))))
+        relief = np.hypot(*(a - b for a, b in zip(scene.ground_to_image_near(up, c, col, row), (col, row))))
         sigma_px = sub.sigma_px[m] * scale.get(image_group(cam.name), 1.0)
         sigma_xy = sub.sigma_xy[m] * scale.get("ground_xy", 1.0) * ground_sigmas
         allowed[m] = crit * np.sqrt(sigma_px ** 2 + (sigma_xy / _gsd(scene, c)) ** 2 + relief ** 2)

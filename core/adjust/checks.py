@@ -113,7 +113,7 @@ def _check_seen_by_scene(scene: SceneModel, control: GcpTable) -> None:
     for c, cam in enumerate(scene.cameras):
         m = control.camera == cam.name
         if m.any():
-            col, row = scene.ground_to_image(control.select(m).ecef(), c)
+            col, row = scene.ground_to_image_near(control.select(m).ecef(), c, control.col[m], control.row[m])
             seen[m] = (col > -0.5 * cam.cols) & (col < 1.5 * cam.cols) & (row > -0.5 * cam.rows) & \
                 (row < 1.5 * cam.rows)
     if seen.mean() < 0.5:

@@ -31,9 +31,9 @@ import numpy as np
 from ..geodesy import C_LIGHT, ecef_to_geodetic, up_vector
 from ..model import corrections as corr
 from ..model.camera import CAMERA_TERMS, corrected_image_plane
-from ..model.sensor import SceneModel
+from ..model.sensor import SceneModel, in_chunks
 from ..model.trajectory import Platform
-from ..rotations import rotation_and_derivatives
+from ..rotations import rotation_and_derivatives, rotation_matrices
 from .parameters import ANGLES, ParameterSet, trajectory_groups
 
 PROJECTION_TOLERANCE = 1e-8  # px: the last Newton step of an exact projection (rounding: ~5e-10 px)
@@ -72,6 +72,8 @@ class ImageObservations:
     def select(self, m) -> "ImageObservations":
         return ImageObservations(**{f.name: getattr(self, f.name)[m] for f in fields(self)})
 
+    __getitem__ = select  # chunks of the observations (core.model.sensor.in_chunks)
+
 
 class Imaging:
     """Moves observations along their detector line and in time: the measured trajectory of a
@@ -82,12 +84,7 @@ class Imaging:
         self.scene, self.params = scene, params
         # The measured trajectories alone, tabulated (1 ms steps) rather than Lagrange per point.
         self.groups = [np.array(cams, dtype=np.int64) for cams in trajectory_groups(scene)]
-        self.platforms = []
-        for cams in self.groups:
-            measured = scene.platform.trajectory_of(scene.cameras[cams[0]].name)
-            platform = Platform(measured.ephemeris, measured.attitude, cache_step=scene.platform.cache_step)
-            platform.prepare(*scene.time_span(cams))
-            self.platforms.append(platform)
+        self.platforms = [_measured_table(scene, cams) for cams in self.groups]
         self.group_of = np.empty(len(scene.cameras), dtype=np.int64)
         for g, cams in enumerate(self.groups):
             self.group_of[cams] = g
@@ -97,23 +94,42 @@ class Imaging:
         """The observations ``obs`` imaged at (col, row) (n,) px on their own chips (the chip's
         detector line extended beyond the columns it delivers)."""
         d, t = np.empty(col.size), np.empty(col.size)
-        for c, cam in enumerate(self.scene.cameras):
-            m = obs.camera == c
-            d[m] = col[m] - self.offsets[c][obs.chip[m]] - 0.5
+        for cam, offsets, m in zip(self.scene.cameras, self.offsets, rows_by(obs.camera, len(self.scene.cameras))):
+            d[m] = col[m] - offsets[obs.chip[m]] - 0.5
             t[m] = cam.timing.time(row[m]) + cam.time_offset(obs.chip[m])
         if len(self.platforms) == 1:
             pos, vel, rot = self.platforms[0].state(t)
         else:
             pos, vel, rot = np.empty((t.size, 3)), np.empty((t.size, 3)), np.empty((t.size, 3, 3))
-            group = self.group_of[obs.camera]
-            for g, platform in enumerate(self.platforms):
-                m = group == g
+            for platform, m in zip(self.platforms, rows_by(self.group_of[obs.camera], len(self.platforms))):
                 pos[m], vel[m], rot[m] = platform.state(t[m])
         pos_first, pos_weights = self.params.window("position", t, obs.camera)
         att_first, att_weights = self.params.window("attitude", t, obs.camera)
         pos_rates = self.params.window_weights("position", t, pos_first, rates=True)
         return ImageObservations(obs.camera, obs.chip, obs.point, d, t, pos, vel, rot, pos_first, pos_weights,
                                  pos_rates, att_first, att_weights, obs.sigma, col, row)
+
+
+def rows_by(key: np.ndarray, n_keys: int) -> list[np.ndarray]:
+    """The rows (ascending indices) of each key 0..n_keys-1 of ``key`` (n,) int: one stable sort
+    rather than a comparison of every row per key (a block's composite has dozens of cameras)."""
+    order = np.argsort(key, kind="stable")
+    return np.split(order, np.cumsum(np.bincount(key, minlength=n_keys))[:-1])
+
+
+def _measured_table(scene: SceneModel, cams: np.ndarray) -> Platform:
+    """The measured trajectory the cameras ``cams`` (indices, one trajectory group) see,
+    tabulated over their lines: the scene's own platform when they see it uncorrected (an
+    onboard scene; its table is the same one, made once for both), else a platform of its own."""
+    seen = scene.platform_of(int(cams[0]))
+    if seen.correction is None and seen.cache_step == scene.platform.cache_step and \
+            all(scene.platform_of(int(c)) is seen for c in cams):
+        scene.prepare(int(cams[0]))
+        return seen
+    measured = scene.platform.trajectory_of(scene.cameras[cams[0]].name)
+    platform = Platform(measured.ephemeris, measured.attitude, cache_step=scene.platform.cache_step)
+    platform.prepare(*scene.time_span(cams))
+    return platform
 
 
 def build_observations(imaging: Imaging, camera, col, row, point, sigma) -> ImageObservations:
@@ -195,6 +211,15 @@ class Jacobian:
     camera: np.ndarray
 
 
+def _scaled_blocks(jac: Jacobian, T: np.ndarray) -> tuple[np.ndarray, ...]:
+    """T @ each block (n,2,k) of ``jac`` (radians per unit) with the pixel maps T (n,2,2): the
+    blocks in px per unit, in field order."""
+    # written out: 2x2 products are memory-bound
+    return tuple(np.stack([T[:, 0, 0, None] * a[:, 0] + T[:, 0, 1, None] * a[:, 1],
+                           T[:, 1, 0, None] * a[:, 0] + T[:, 1, 1, None] * a[:, 1]], axis=1)
+                 for a in (getattr(jac, f.name) for f in fields(Jacobian)))
+
+
 class Model:
     """The collinearity model of a scene under a parameter set's current values."""
 
@@ -220,16 +245,17 @@ class Model:
                 self.chip_terms[c, k] = values[idx]
 
     # --- the pieces --------------------------------------------------------------------------
-    def platform(self, obs: ImageObservations):
+    def platform(self, obs: ImageObservations, derivatives: bool = True):
         """(S (n,3) corrected position, V (n,3) corrected velocity (as the written correction
         has it: aberration follows a drift of the position), E (n,3,3) attitude correction and
-        dE (n,3,3,3) its derivatives by (roll, pitch, yaw)) at the observations."""
+        dE (n,3,3,3) its derivatives by (roll, pitch, yaw), None without ``derivatives``) at the
+        observations."""
         cp = self.cp[obs.pos_first[:, None] + np.arange(obs.pos_weights.shape[1])]
         S = obs.pos + np.einsum("nw,nwa->na", obs.pos_weights, cp)
         V = obs.vel + np.einsum("nw,nwa->na", obs.pos_rates, cp)
         angles = np.einsum("nw,nwa->na", obs.att_weights,
                            self.ca[obs.att_first[:, None] + np.arange(obs.att_weights.shape[1])])
-        E, dE = rotation_and_derivatives(angles)
+        E, dE = rotation_and_derivatives(angles) if derivatives else (rotation_matrices(angles), None)
         return S, V, E, dE
 
     def detector(self, obs: ImageObservations, with_jacobian: bool = False):
@@ -239,9 +265,11 @@ class Model:
         u = np.empty((n, 2))
         j_chip = np.zeros((n, 2, 4)) if with_jacobian else None
         j_cam = np.zeros((n, 2, len(CAMERA_TERMS))) if with_jacobian else None
+        most = max(len(cam.chips) for cam in self.scene.cameras)
+        rows = rows_by(obs.camera * most + obs.chip, len(self.scene.cameras) * most)
         for c, cam in enumerate(self.scene.cameras):
             for k, chip in enumerate(cam.chips):
-                m = np.nonzero((obs.camera == c) & (obs.chip == k))[0]
+                m = rows[c * most + k]
                 if m.size == 0:
                     continue
                 terms = self.chip_terms[c, k]
@@ -270,22 +298,21 @@ class Model:
 
     def residuals_u(self, obs: ImageObservations, x: np.ndarray) -> np.ndarray:
         """r_u (n,2) radians: projected minus detector normalised coordinates."""
-        return self._evaluate(obs, x, False)[0]
+        up, h = self._local(x)
+        return in_chunks(lambda *chunk: self._evaluate(*chunk, False)[0], x, up, h, obs)
 
     def linearize(self, obs: ImageObservations, x: np.ndarray, T: np.ndarray) -> Jacobian:
         """The Jacobian in px per parameter unit of observations imaged at ``obs`` (where the
         model images x (n,3), see :func:`project`) with the pixel map T (n,2,2) there."""
-        jac = self._evaluate(obs, x, True)[1]
-
-        def scale(a):  # T @ a for (n,2,k) blocks, written out: 2x2 products are memory-bound
-            return np.stack([T[:, 0, 0, None] * a[:, 0] + T[:, 0, 1, None] * a[:, 1],
-                             T[:, 1, 0, None] * a[:, 0] + T[:, 1, 1, None] * a[:, 1]], axis=1)
-
-        return Jacobian(*(scale(getattr(jac, f.name)) for f in fields(Jacobian)))
-
-    def _evaluate(self, obs: ImageObservations, x: np.ndarray, with_jacobian: bool):
-        S, V, E, dE = self.platform(obs)
         up, h = self._local(x)
+        return Jacobian(*in_chunks(lambda x, up, h, T, obs: _scaled_blocks(self._evaluate(x, up, h, obs, True)[1], T),
+                                   x, up, h, T, obs))
+
+    def _evaluate(self, x: np.ndarray, up: np.ndarray, h: np.ndarray, obs: ImageObservations, with_jacobian: bool):
+        """(r_u (n,2), the Jacobian or None) of observations ``obs`` of ground points x (n,3) with
+        local up vectors up (n,3) and ellipsoidal heights h (n,) m: one chunk of the observations
+        (:meth:`residuals_u`, :meth:`linearize` run chunks on a thread per core)."""
+        S, V, E, dE = self.platform(obs, with_jacobian)
         g = corr.apparent_direction(x, S, V, up, h, self.scene.aberration,
                                     self.scene.refraction) * np.linalg.norm(x - S, axis=1, keepdims=True)
         q = np.einsum("nji,nj->ni", obs.rot, g)          # measured body frame
@@ -295,8 +322,7 @@ class Model:
         dw_angles = np.empty((n, 3, 3)) if with_jacobian else None   # [n, angle, w component]
         dw_inst = np.empty((n, 3, 3)) if with_jacobian else None
         dw_ground = np.empty((n, 3, 3)) if with_jacobian else None   # [n, X component, w component]
-        for c, cam in enumerate(self.scene.cameras):
-            m = np.nonzero(obs.camera == c)[0]
+        for c, (cam, m) in enumerate(zip(self.scene.cameras, rows_by(obs.camera, len(self.scene.cameras)))):
             if m.size == 0:
                 continue
             inst, d_inst = rotation_and_derivatives(self.inst[c])

@@ -412,6 +412,13 @@ class ParameterSet:
         pos, att = (self.block_values(b)[self.owner_rows(b, o)] for b in ("position", "attitude"))
         return TrajectoryCorrection(self.bases["position"][o], pos, self.bases["attitude"][o], att)
 
+    def imaged_by(self, camera: int) -> np.ndarray:
+        """(len(params),) bool: the parameters that change what camera ``camera`` (index) images:
+        its trajectory correction's and its own installation, camera and chip terms."""
+        first = int(self.owners[self.owner_of[camera]][0])
+        return np.array([p.camera == camera if p.block not in ("position", "attitude") else p.camera in (-1, first)
+                         for p in self.params])
+
     def camera_indices(self, camera: int, block: str, terms) -> np.ndarray:
         """Parameter indices (len(terms),) of a camera's installation or camera terms (-1: none)."""
         return np.array([self.index.get(f"{self.scene.cameras[camera].name}.{t}", -1) for t in terms]
@@ -446,9 +453,13 @@ class ParameterSet:
         if len({id(p) for _, p in platforms}) > 1:
             platform = Platform(s.platform.ephemeris, s.platform.attitude, None, s.platform.cache_step,
                                 camera_platforms={s.cameras[c].name: p for c, p in platforms})
+        own: list[dict] = [{} for _ in s.cameras]  # each camera's installation and camera terms
+        for p in self.params:
+            if p.block in ("installation", "camera"):
+                own[p.camera][p.term] = p.value
         cameras = []
         for c, cam in enumerate(s.cameras):
-            v = {p.term: p.value for p in self.params if p.camera == c and p.block in ("installation", "camera")}
+            v = own[c]
             chips = []
             for k, ch in enumerate(cam.chips):
                 terms, idx = self.chip_indices(c, k)

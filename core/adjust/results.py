@@ -38,7 +38,9 @@ class AdjustmentResult:
     tie_points: per input tie observation (input order)
     arrays: id, camera, col, row, res_col, res_row (px), w_col, w_row, weight, flagged, and the
     adjusted ground position of its point lon, lat (deg), h (ellipsoidal m); NaN for the
-    observations of points left out (empty without tie points). lines: per line point (one per
+    observations of points left out (empty without tie points); res_col_before, res_row_before
+    (px: through the input scene at the forward intersection of the point's rays there, the
+    adjustment's start; NaN where it has none). lines: per line point (one per
     image-line vertex) arrays: line_id, camera, col, row, res_col, res_row (px), w_col, w_row,
     weight, across_m / height_m (m: where the point's ray through the adjusted scene meets its
     line's height, across the line and in height), across_before_m (the same through the input
@@ -159,7 +161,8 @@ def _tie_points(problem: Problem, st: Statistics, flagged: np.ndarray, good: np.
     table = problem.ties.table
     n = len(table)
     rows = problem.rows[tie]
-    out = {"id": table.id, "camera": table.camera, "col": table.col, "row": table.row}
+    out = {"id": table.id, "camera": table.camera, "col": table.col, "row": table.row,
+           "res_col_before": problem.ties.before[:, 0], "res_row_before": problem.ties.before[:, 1]}
     for name, values in (("res_col", st.v[tie, 0]), ("res_row", st.v[tie, 1]), ("w_col", st.w[tie, 0]),
                          ("w_row", st.w[tie, 1]), ("weight", problem.factor[tie, 0])):
         out[name] = np.full(n, np.nan)
@@ -236,7 +239,7 @@ def _at_stated_ground(scene, table: GcpTable) -> np.ndarray:
     for c, cam in enumerate(scene.cameras):
         m = (table.camera == cam.name) | ((table.camera == "") & (len(scene.cameras) == 1))
         if m.any():
-            col, row = scene.ground_to_image(ground[m], c)
+            col, row = scene.ground_to_image_near(ground[m], c, table.col[m], table.row[m])
             out[m] = np.stack([col - table.col[m], row - table.row[m]], axis=1)
     return out
 

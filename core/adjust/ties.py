@@ -45,7 +45,9 @@ class TieSetUp:
     rows (k,) indices into it of the observations used; camera (k,) camera indices; point
     (k,) index into ids / ground; ids (p,) the points used; ground (p,3) ECEF m start values
     (forward intersection on the input scene); left_out: reason -> ids of the points left out
-    (``single_ray``: seen by one camera; ``not_intersected``: a-priori intersection failed)."""
+    (``single_ray``: seen by one camera; ``not_intersected``: a-priori intersection failed);
+    before (n, 2) px: every input observation's residual (col, row) at that intersection,
+    through the input scene (NaN for points left out)."""
     table: TieTable
     rows: np.ndarray
     camera: np.ndarray
@@ -53,12 +55,13 @@ class TieSetUp:
     ids: np.ndarray
     ground: np.ndarray
     left_out: dict
+    before: np.ndarray
 
     @classmethod
     def empty(cls) -> "TieSetUp":
         none = np.zeros(0, np.int64)
         table = TieTable(np.zeros(0, str), np.zeros(0, str), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, str))
-        return cls(table, none, none, none, np.zeros(0, str), np.zeros((0, 3)), {})
+        return cls(table, none, none, none, np.zeros(0, str), np.zeros((0, 3)), {}, np.zeros((0, 2)))
 
     def __len__(self) -> int:
         return int(self.rows.size)
@@ -136,7 +139,8 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
     keep = ~(single | failed)
     new_index = np.cumsum(keep) - 1
     rows = np.nonzero(keep[point])[0]
-    out = TieSetUp(ties, rows, camera[rows], new_index[point[rows]], ids[keep], start.ground[keep], left_out)
+    out = TieSetUp(ties, rows, camera[rows], new_index[point[rows]], ids[keep], start.ground[keep], left_out,
+                   start.residuals)
     span = out.span(scene)
     if span is not None and max(span) < BUNCHED:
         log.warning("the tie points cover only %.0f%% x %.0f%% of the %s image (one corner): they tie the block "
@@ -280,7 +284,8 @@ def yaw_hold(params: ParameterSet, covariance: np.ndarray, grid: int = 3) -> dic
         en = (g0 - g0.mean(axis=0)) @ to_en.T                                 # (p,2) m
         weights = np.stack([-en[:, 1], en[:, 0]], axis=1) / np.sum(en ** 2)   # d theta / d(east, north)
         gradient = np.zeros(free.size)
-        for j in np.nonzero(step > 0)[0]:
+        # the others (another scene's trajectory in a block, other cameras' terms) move nothing here
+        for j in np.nonzero((step > 0) & params.imaged_by(0)[free])[0]:
             up, down = base.copy(), base.copy()
             up[free[j]] += step[j]
             down[free[j]] -= step[j]

@@ -56,12 +56,14 @@ def _rays(scene: SceneModel, camera, col, row) -> tuple[np.ndarray, np.ndarray]:
     return origin, direction
 
 
-def _project(scene: SceneModel, camera, x) -> np.ndarray:
-    """Image positions (n,2) of ECEF points x (n,3) in cameras ``camera`` (n,)."""
+def _project(scene: SceneModel, camera, x, near) -> np.ndarray:
+    """Image positions (n,2) of ECEF points x (n,3) in cameras ``camera`` (n,), from image
+    positions ``near`` (n,2) px close to them (the measurement, the last projection;
+    :meth:`SceneModel.ground_to_image_near`)."""
     out = np.empty((x.shape[0], 2))
     for c in np.unique(camera):
         m = camera == c
-        out[m] = np.stack(scene.ground_to_image(x[m], int(c)), axis=1)
+        out[m] = np.stack(scene.ground_to_image_near(x[m], int(c), near[m, 0], near[m, 1]), axis=1)
     return out
 
 
@@ -85,12 +87,14 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     measured = np.stack([col, row], axis=1)
     use = ok[point]
     iterations, converged = 0, not use.any()
+    near = measured[use]  # where each projection starts: the measurement, then the last projection
     normal = np.zeros((m, 3, 3))
     for iterations in range(1, ITERATIONS + 1 if use.any() else 1):  # none to iterate without a 2-ray point
         x = ground[point[use]]
         cam = camera[use]
-        base = _project(scene, cam, x)
-        J = np.stack([(_project(scene, cam, x + STEP * e) - base) / STEP for e in np.eye(3)], axis=2)  # (k,2,3)
+        base = _project(scene, cam, x, near)
+        J = np.stack([(_project(scene, cam, x + STEP * e, base) - base) / STEP for e in np.eye(3)], axis=2)  # (k,2,3)
+        near = np.where(np.isfinite(base), base, near)
         r = base - measured[use]
         normal = np.zeros((m, 3, 3))
         normal[ok] = _sum_by_point(point[use], J.transpose(0, 2, 1) @ J, m)[ok]
@@ -110,7 +114,7 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     use = ok[point]
     residuals = np.full((col.size, 2), np.nan)
     if use.any():
-        residuals[use] = _project(scene, camera[use], ground[point[use]]) - measured[use]
+        residuals[use] = _project(scene, camera[use], ground[point[use]], near) - measured[use]
     condition = np.full(m, np.inf)
     if ok.any():
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -99,8 +99,13 @@ class RpcScene:
         """The RPC's height validity range (m, ellipsoidal): offset +- scale."""
         return (self.rpc.height_off - abs(self.rpc.height_scale), self.rpc.height_off + abs(self.rpc.height_scale))
 
-    def prepare(self) -> None:
+    def prepare(self, camera: int | None = None) -> None:
         """Nothing to tabulate (kept for the SceneModel interface)."""
+
+    def ground_to_image_near(self, xyz, camera: int, col, row) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`ground_to_image` (the SceneModel interface's first guesses (col, row) are not
+        needed: an RPC images ground points directly)."""
+        return self.ground_to_image(xyz, camera)
 
     def ground_to_image(self, xyz, camera: int = 0, **_) -> tuple[np.ndarray, np.ndarray]:
         """GDAL (col (n,), row (n,)) of ECEF points (n, 3): the RPC and the correction. NaN far

@@ -7,7 +7,9 @@ ends of a product's tables are legitimate.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import hashlib
+import weakref
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -16,20 +18,27 @@ from ..rotations import quat_to_matrix, rotation_from_angles
 from .timebasis import TimeBasis
 
 
-def _lagrange_weights(nodes: np.ndarray, order: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Window start indices (n,) and Lagrange weights (n, order) for sample times ``nodes``."""
+def _lagrange_weights(nodes: np.ndarray, order: int, t: np.ndarray,
+                      denominators: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Window start indices (n,) and Lagrange weights (n, order) for sample times ``nodes``
+    (:func:`lagrange_denominators` of them given)."""
     n_nodes = nodes.size
     start = np.clip(np.searchsorted(nodes, t) - order // 2, 0, n_nodes - order)
     idx = start[:, None] + np.arange(order)
-    tw = nodes[idx]
-    diff = t[:, None] - tw
+    diff = t[:, None] - nodes[idx]
     # Products over k != j without dividing by diff_j (which may be exactly zero).
     ones = np.ones((t.size, 1))
     left = np.cumprod(np.hstack([ones, diff[:, :-1]]), axis=1)
     right = np.cumprod(np.hstack([ones, diff[:, :0:-1]]), axis=1)[:, ::-1]
-    num = left * right
-    den = np.prod(np.where(np.eye(order, dtype=bool), 1.0, tw[:, :, None] - tw[:, None, :]), axis=2)
-    return start, num / den
+    return start, left * right / denominators[start]
+
+
+def lagrange_denominators(nodes: np.ndarray, order: int) -> np.ndarray:
+    """(n_nodes - order + 1, order): prod over k != j of (node_j - node_k) in each window of
+    ``order`` nodes, by its first node (they depend on the window alone: computed once per
+    window, not once per time)."""
+    tw = nodes[np.arange(nodes.size - order + 1)[:, None] + np.arange(order)]
+    return np.prod(np.where(np.eye(order, dtype=bool), 1.0, tw[:, :, None] - tw[:, None, :]), axis=2)
 
 
 @dataclass
@@ -43,6 +52,7 @@ class Ephemeris:
     positions: np.ndarray
     velocities: np.ndarray | None = None
     order: int = 8
+    _denominators: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         self.times = np.asarray(self.times, dtype=float)
@@ -57,24 +67,34 @@ class Ephemeris:
         if np.any(np.diff(self.times) <= 0):
             raise MetadataError("ephemeris times are not strictly increasing")
         self.order = int(min(self.order, self.times.size))
+        self._denominators = lagrange_denominators(self.times, self.order)
 
     def position(self, t) -> np.ndarray:
         """ECEF position (n, 3) m at times t (n,) s."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        start, w = _lagrange_weights(self.times, self.order, t)
-        idx = start[:, None] + np.arange(self.order)
-        return np.einsum("nk,nki->ni", w, self.positions[idx])
+        return self._interpolate(self.positions, *_lagrange_weights(self.times, self.order, t, self._denominators))
 
     def velocity(self, t) -> np.ndarray:
         """ECEF velocity (n, 3) m/s at times t (n,) s."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if self.velocities is not None:
-            start, w = _lagrange_weights(self.times, self.order, t)
-            idx = start[:, None] + np.arange(self.order)
-            return np.einsum("nk,nki->ni", w, self.velocities[idx])
+            return self._interpolate(self.velocities, *_lagrange_weights(self.times, self.order, t, self._denominators))
         # Central difference: 0.05 s balances truncation (~h^2 r omega^3 / 6) and round-off.
         h = 0.05
         return (self.position(t + h) - self.position(t - h)) / (2 * h)
+
+    def position_velocity(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """(:meth:`position`, :meth:`velocity`) at times t (n,) s; sampled velocities share the
+        positions' Lagrange weights."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.velocities is None:
+            return self.position(t), self.velocity(t)
+        window = _lagrange_weights(self.times, self.order, t, self._denominators)
+        return self._interpolate(self.positions, *window), self._interpolate(self.velocities, *window)
+
+    def _interpolate(self, samples: np.ndarray, start: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """(n, 3): the Lagrange windows (start (n,), weights (n, order)) of ``samples`` (N, 3)."""
+        return np.einsum("nk,nki->ni", w, samples[start[:, None] + np.arange(self.order)])
 
     def to_dict(self) -> dict:
         d = {"times": self.times.tolist(), "positions": self.positions.tolist(), "order": self.order}
@@ -106,6 +126,7 @@ class QuaternionSamples:
     times: np.ndarray
     quaternions: np.ndarray
     order: int = 4
+    _denominators: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         self.times = np.asarray(self.times, dtype=float)
@@ -119,11 +140,12 @@ class QuaternionSamples:
             raise MetadataError("attitude times are not strictly increasing")
         self.quaternions = _continuous_quaternions(q)
         self.order = int(min(self.order, self.times.size))
+        self._denominators = lagrange_denominators(self.times, self.order)
 
     def rotation(self, t) -> np.ndarray:
         """Body -> ECEF rotation matrices (n, 3, 3) at times t (n,) s."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        start, w = _lagrange_weights(self.times, self.order, t)
+        start, w = _lagrange_weights(self.times, self.order, t, self._denominators)
         idx = start[:, None] + np.arange(self.order)
         return quat_to_matrix(np.einsum("nk,nki->ni", w, self.quaternions[idx]))
 
@@ -216,6 +238,37 @@ class TrajectoryCorrection:
                    TimeBasis.from_dict(d["attitude"]["basis"]), np.array(d["attitude"]["coefficients"]))
 
 
+# Measured-trajectory tables (n, 15) by content and grid, while a platform's cache holds them: an
+# adjustment tabulates one trajectory for its input scene, the adjusted scene and that scene read
+# back from its file (a block's composite: one per scene each), the same numbers each time.
+_MEASURED_TABLES: "weakref.WeakValueDictionary[tuple, np.ndarray]" = weakref.WeakValueDictionary()
+
+
+def _content_key(model) -> bytes:
+    """A digest of what defines an ephemeris or attitude model (a dataclass: its public fields)."""
+    digest = hashlib.blake2b(type(model).__name__.encode(), digest_size=20)
+    for f in fields(model):
+        if not f.name.startswith("_"):
+            value = getattr(model, f.name)
+            digest.update(np.ascontiguousarray(value).tobytes() if isinstance(value, np.ndarray) else
+                          repr(value).encode())
+    return digest.digest()
+
+
+def measured_table(ephemeris: Ephemeris, attitude, t0: float, n: int, step: float) -> np.ndarray:
+    """(n, 15) position (m), velocity (m/s), rotation body -> ECEF (9, row-major) of the measured
+    trajectory at times t0 + step * arange(n) s; made once while a table of the same trajectory
+    and times is held (:data:`_MEASURED_TABLES`)."""
+    key = (_content_key(ephemeris), _content_key(attitude), t0, n, step)
+    table = _MEASURED_TABLES.get(key)
+    if table is None:
+        grid = t0 + step * np.arange(n)
+        pos, vel = ephemeris.position_velocity(grid)
+        table = np.concatenate([pos, vel, attitude.rotation(grid).reshape(n, 9)], axis=1)
+        _MEASURED_TABLES[key] = table
+    return table
+
+
 @dataclass
 class Platform:
     """Ephemeris plus attitude (plus an adjustment's correction, if any), with a dense sampled
@@ -263,15 +316,17 @@ class Platform:
         return self.camera_platforms.get(name, self)
 
     def prepare(self, t_min: float, t_max: float) -> None:
-        """Tabulate the trajectory over [t_min, t_max] s (with a small margin)."""
+        """Tabulate the trajectory over [t_min, t_max] s (with a small margin): the measured
+        trajectory's table (:func:`measured_table`) under this platform's correction."""
         margin = 0.05 * (t_max - t_min) + 10 * self.cache_step
         t0, t1 = t_min - margin, t_max + margin
         n = int(np.ceil((t1 - t0) / self.cache_step)) + 1
-        grid = t0 + self.cache_step * np.arange(n)
-        pos, vel, rot = self._exact_state(grid)
-        table = np.concatenate([pos, vel, rot.reshape(n, 9)], axis=1)
-        # Each row holds a sample and the step to the next, so interpolation is one gather.
-        self._cache = (t0, n, np.hstack([table[:-1], np.diff(table, axis=0)]))
+        table = measured_table(self.ephemeris, self.attitude, t0, n, self.cache_step)
+        if self.correction is not None:
+            grid = t0 + self.cache_step * np.arange(n)
+            pos, vel, rot = self.correction.apply(grid, table[:, 0:3], table[:, 3:6], table[:, 6:15].reshape(n, 3, 3))
+            table = np.concatenate([pos, vel, rot.reshape(n, 9)], axis=1)
+        self._cache = (t0, n, table)
 
     def state(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position (n,3) m, velocity (n,3) m/s, rotation body->ECEF (n,3,3)) at times t (n,) s."""
@@ -283,8 +338,10 @@ class Platform:
         inside = (f >= 0) & (f <= n - 1)
         f = np.where(inside, f, 0.0)
         i = np.minimum(f.astype(np.int64), n - 2)
-        pair = table[i]
-        row = pair[:, :15] + (f - i)[:, None] * pair[:, 15:]
+        # the samples either side in one gather (n, 2, 15); their difference is not stored (the
+        # table would be twice the size: a block's composite tabulates a trajectory per scene)
+        pair = table[i[:, None] + np.arange(2)]
+        row = pair[:, 0] + (f - i)[:, None] * (pair[:, 1] - pair[:, 0])
         if not inside.all():
             out = ~inside
             pos, vel, rot = self._exact_state(t[out])
@@ -294,7 +351,7 @@ class Platform:
     def measured_state(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position, velocity, rotation) of the measured trajectory alone (no correction)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        return self.ephemeris.position(t), self.ephemeris.velocity(t), self.attitude.rotation(t)
+        return (*self.ephemeris.position_velocity(t), self.attitude.rotation(t))
 
     def _exact_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         state = self.measured_state(t)

@@ -10,7 +10,7 @@ it is there: simulating is not what is timed). Then, in this process: reading th
 and tie points (the set-up), and the adjustment alone (forward intersection of the tie points'
 onboard rays, observations, robust selection-weight passes with variance components). For
 each: wall time (and CPU time of the adjustment, which other work on the machine changes
-less), and peak resident memory (ru_maxrss; the peak is reset between the two
+less), and peak resident memory (VmHWM, tests/bench/peak.py; the peak is reset between the two
 through /proc/self/clear_refs, so the adjustment's figure is its own). The machine's load
 average is printed with the figures: other work on the machine slows the wall times.
 
@@ -24,7 +24,6 @@ import argparse
 import csv
 import logging
 import os
-import resource
 import sys
 import time
 from dataclasses import fields
@@ -35,6 +34,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 import tests.support.plugin_package  # noqa: E402,F401 (registers the package pushbroom_adjust)
+from tests.bench.peak import peak_mb, reset_peak  # noqa: E402
 
 from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
 from pushbroom_adjust.core.observations.tables import Heights  # noqa: E402
@@ -53,20 +53,6 @@ GROUND = 0.5  # m: GCP ground noise, east, north and up
 NO_CHIP_ERRORS = {f.name: 0.0 for f in fields(ErrorSettings)
                   if not f.name.startswith(("position", "attitude", "installation"))}
 log = logging.getLogger("bench_tie_strip")
-
-
-def peak_mb() -> float:
-    """Peak resident memory of this process (MB) since the last :func:`reset_peak`."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-def reset_peak() -> bool:
-    """Reset the peak resident memory (Linux >= 4.0); False where that is not possible."""
-    try:
-        Path("/proc/self/clear_refs").write_text("5")
-        return True
-    except OSError:
-        return False
 
 
 def read_ties(path: Path) -> tuple[TieTable, np.ndarray]:
