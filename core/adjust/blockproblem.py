@@ -54,6 +54,18 @@ class BlockParameters(ParameterSet):
     def owner_rows(self, block: str, owner: int) -> slice:
         return self.rigorous.owner_rows(block, owner)
 
+    def imaged_by(self, camera: int) -> np.ndarray:
+        """(len(params),) bool: the parameters that change what camera ``camera`` (index in the
+        block) images: a rigorous camera's (:meth:`ParameterSet.imaged_by`), an RPC image's
+        correction terms."""
+        out = np.zeros(len(self.params), bool)
+        if camera < self.scene.n_rigorous:
+            out[:len(self.rigorous.params)] = self.rigorous.imaged_by(camera)
+            return out
+        j = camera - self.scene.n_rigorous
+        out[self.image_offsets[j]:self.image_offsets[j] + len(self.images[j].params.params)] = True
+        return out
+
     def adjusted_scene(self) -> MixedBlock:
         """The block with the current corrections: the rigorous composite's and each RPC image's."""
         return self.scene.with_parts(self.rigorous.adjusted_scene() if self.rigorous is not None else None,
@@ -181,7 +193,7 @@ def _rigorous_part(scene: MixedBlock, table: GcpTable, control: np.ndarray, ids:
     mine = control[np.isin(table.camera[control], names)]
     tie_mine = ties.camera < scene.n_rigorous
     own_ties = TieSetUp(ties.table, ties.rows[tie_mine], ties.camera[tie_mine], ties.point[tie_mine], ties.ids,
-                        ties.ground, {})
+                        ties.ground, {}, ties.before)
     problem = Problem(scene.rigorous, table.select(mine), settings, own_ties)
     own_ids = np.unique(table.id[mine])
     to_block = np.r_[np.searchsorted(ids, own_ids), ids.size + np.arange(ties.ids.size)].astype(np.int64)

@@ -111,6 +111,7 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     lost = ok & ~np.all(np.isfinite(normal), axis=(1, 2))
     ground[lost] = np.nan
     ok &= ~lost
+    near = near[ok[point[use]]]  # the last projections of the observations still intersected
     use = ok[point]
     residuals = np.full((col.size, 2), np.nan)
     if use.any():

@@ -82,6 +82,12 @@ class MixedBlock:
         scene, c = self.part(self.camera_index(camera))
         return scene.image_to_ground(col, row, height, c)
 
+    def ground_to_image_near(self, xyz, camera: int, col, row) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`SceneModel.ground_to_image_near` of the camera's own scene (an RPC image needs
+        no first guesses: :meth:`RpcScene.ground_to_image_near`)."""
+        scene, c = self.part(self.camera_index(camera))
+        return scene.ground_to_image_near(xyz, c, col, row)
+
     def ground_to_image_on_chip(self, xyz, camera: int, chip, col, row) -> tuple[np.ndarray, np.ndarray]:
         """A rigorous camera's :meth:`SceneModel.ground_to_image_on_chip`; an RPC image (one chip)
         its ground_to_image."""
