@@ -16,6 +16,7 @@ from .problem import Problem
 
 log = logging.getLogger(__name__)
 
+PIVOT_SHARE = 0.1  # a pivot row adds a null direction when the pivots' smallest singular value stays above this share
 SINGULAR = 1e-11           # trajectory: smallest / largest eigenvalue of the correlation-scaled matrix
 
 
@@ -29,9 +30,11 @@ INTERIOR_SINGULAR = 1e-4
 DATUM_BLOCKS = ("position", "attitude", "rpc_correction")
 
 
-def non_determinable(N: np.ndarray, names: list[str], trajectory: np.ndarray) -> list[list[str]]:
+def non_determinable(N: np.ndarray, names: list[str], trajectory: np.ndarray,
+                     prefer: np.ndarray | None = None) -> list[list[str]]:
     """Sets of parameters the observations cannot separate, each listed with the most
-    involved first.
+    involved first. Several null directions are recombined (:func:`separated`) around pivots
+    taken from ``prefer`` (n,) bool first (the parameters one would fix: a reference chip's).
 
     Trajectory: (near-)null directions of the correlation-scaled normal matrix (ratio below
     SINGULAR). Interior (the rest): directions that keep less than INTERIOR_SINGULAR of their
@@ -48,10 +51,11 @@ def non_determinable(N: np.ndarray, names: list[str], trajectory: np.ndarray) ->
     try:
         if t.size == 0:  # an RPC scene's correction: no trajectory to absorb anything
             vals, vecs = np.linalg.eigh(C)
-            return [_members(vecs[:, k], np.arange(len(names)), names)
-                    for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
+            null = separated(vecs[:, vals < SINGULAR * vals[-1]], prefer)
+            return [_members(v, np.arange(len(names)), names) for v in null.T]
         vals, vecs = np.linalg.eigh(C[np.ix_(t, t)])
-        sets = [_members(vecs[:, k], t, names) for k in np.nonzero(vals < SINGULAR * vals[-1])[0]]
+        sets = [_members(v, t, names)
+                for v in separated(vecs[:, vals < SINGULAR * vals[-1]], None if prefer is None else prefer[t]).T]
         if sets or trajectory.all():
             return sets
         i = np.nonzero(~trajectory)[0]
@@ -62,11 +66,31 @@ def non_determinable(N: np.ndarray, names: list[str], trajectory: np.ndarray) ->
                          "are not determined by the observations; give onboard GPS/attitude sigmas "
                          "(POSITION_SIGMA, ATTITUDE_SIGMA), more or better spread GCPs, or fewer unknowns",
                          parameter="") from None
-    for k in np.nonzero(vals < INTERIOR_SINGULAR)[0]:
-        inner = _members(vecs[:, k], i, names)
-        outer = _members(-absorb @ vecs[:, k], t, names)[:2]
+    for v in separated(vecs[:, vals < INTERIOR_SINGULAR], None if prefer is None else prefer[i]).T:
+        inner = _members(v, i, names)
+        outer = _members(-absorb @ v, t, names)[:2]
         sets.append(inner + outer)
     return sets
+
+
+def separated(null: np.ndarray, prefer: np.ndarray | None = None) -> np.ndarray:
+    """The null directions ``null`` (n, k) recombined so that each moves one pivot parameter the
+    others leave still: a space of several directions has no basis of its own, and the one eigh
+    returns is decided by rounding (which chip terms joined the attitude pitch bias in a CBERS-02B
+    block changed from run to run). Pivots: the parameters of ``prefer`` (n,) bool first, then the
+    most involved, each taken when it adds a direction the pivots before it do not span."""
+    k = null.shape[1]
+    if k < 2:
+        return null
+    norms = np.linalg.norm(null, axis=1)
+    order = np.lexsort((-norms, np.zeros(norms.size, bool) if prefer is None else ~np.asarray(prefer, bool)))
+    pivots: list[int] = []
+    for row in order:
+        if np.linalg.svd(null[pivots + [row]], compute_uv=False)[-1] > PIVOT_SHARE * norms.max():
+            pivots.append(int(row))
+            if len(pivots) == k:
+                break
+    return null @ np.linalg.inv(null[pivots]) if len(pivots) == k else null
 
 
 def _check_finite(N: np.ndarray, names: list[str]) -> None:
@@ -90,14 +114,19 @@ def _members(v: np.ndarray, index: np.ndarray, names: list[str]) -> list[str]:
     return [names[index[j]] for j in big[np.argsort(-np.abs(v[big]))]]
 
 
+def _reference_chip(problem: Problem, index: int) -> bool:
+    """Whether parameter ``index`` is a term of its camera's reference (middle) chip."""
+    p = problem.params.params[index]
+    return p.block == "chip" and p.chip == len(problem.scene.cameras[p.camera].chips) // 2
+
+
 def _choose_to_fix(problem: Problem, members: list[str]) -> str | None:
     """The parameter to fix in a non-determinable set: an interior one, preferably of the
     reference (middle) chip, else the one taking the largest part."""
     params = problem.params
     interior = [n for n in members if params.params[params.index[n]].block not in DATUM_BLOCKS]
     for n in interior:
-        p = params.params[params.index[n]]
-        if p.block == "chip" and p.chip == len(problem.scene.cameras[p.camera].chips) // 2:
+        if _reference_chip(problem, params.index[n]):
             return n
     return interior[0] if interior else None
 
@@ -115,7 +144,7 @@ def check_determinability(problem: Problem, system: System) -> list[dict]:
         # share test would call it non-determinable and fix it at 0, discarding the prior.
         trajectory = np.array([problem.params.params[i].block in DATUM_BLOCKS
                                or problem.params.params[i].mode == "weighted" for i in free])
-        sets = non_determinable(system.N, names, trajectory)
+        sets = non_determinable(system.N, names, trajectory, np.array([_reference_chip(problem, i) for i in free]))
         if not sets:
             return found
         # Null directions of one eigenvalue (~rounding) come in any order: take the set whose
