@@ -86,7 +86,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     OUTPUT_SCENE, OUTPUT_REPORT, OUTPUT_GCPS, OUTPUT_RESIDUALS = \
         "OUTPUT_SCENE", "OUTPUT_REPORT", "OUTPUT_GCPS", "OUTPUT_RESIDUALS"
     OUTPUT_REPORT_JSON = "OUTPUT_REPORT_JSON"
-    RPC_CORRECTION, OUTPUT_RPC = RPC_CORRECTION, "OUTPUT_RPC"
+    RPC_CORRECTION, RPC_SIGMA, OUTPUT_RPC = RPC_CORRECTION, "RPC_SIGMA", "OUTPUT_RPC"
     CAMERA_TRAJECTORY = CAMERA_TRAJECTORY
     LINES, OUTPUT_LINE_RESIDUALS = "LINES", "OUTPUT_LINE_RESIDUALS"
     # The inputs core errors name (core.errors.InputError.parameter) -> this algorithm's parameters.
@@ -100,7 +100,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         "settings.interior_selection": INTERIOR_SELECTION, "settings.ground": GROUND, "settings.robust": ROBUST,
         "settings.alpha": ALPHA, "settings.variance_components": VARIANCE_COMPONENTS,
         "settings.max_robust_iterations": MAX_ROBUST_PASSES, "settings.on_singular": ON_SINGULAR,
-        "settings.rpc_correction": RPC_CORRECTION, "scenes": SCENES}
+        "settings.rpc_correction": RPC_CORRECTION, "settings.rpc_sigma": RPC_SIGMA, "scenes": SCENES}
     OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES = OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
@@ -177,6 +177,13 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.add_parameter(interior_selection())
         self.addParameter(camera_trajectory())
         self.addParameter(rpc_correction())
+        self.add_parameter(QgsProcessingParameterNumber(self.RPC_SIGMA, tr("RPC scenes: stated accuracy (px)"),
+                                                        QgsProcessingParameterNumber.Double, 0.0, optional=True,
+                                                        minValue=0.0, maxValue=1e5),
+                           tr("The vendor's stated accuracy of RPC images in pixels (e.g. 10 px for Pleiades' ~8 m "
+                              "CE90 at 0.7 m), a pseudo-observation of 0 on each term of RPC_CORRECTION, as the "
+                              "onboard sigmas are for rigorous scenes. Needed by a block of RPC images tied without "
+                              "GCPs: it holds where the block lies (the report names it). 0: none."))
         self.addParameter(ground_mode())
         self.addParameter(robust_method())
         self.add_parameter(QgsProcessingParameterNumber(self.ALPHA, tr("Significance of the outlier test"),
@@ -440,7 +447,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             variance_components=self.parameterAsBoolean(parameters, self.VARIANCE_COMPONENTS, context),
             max_robust_iterations=self.parameterAsInt(parameters, self.MAX_ROBUST_PASSES, context),
             on_singular=enum_value(self, parameters, self.ON_SINGULAR, context),
-            rpc_correction=enum_value(self, parameters, self.RPC_CORRECTION, context))
+            rpc_correction=enum_value(self, parameters, self.RPC_CORRECTION, context),
+            rpc_sigma=number(self.RPC_SIGMA) or None)
 
     def _destination(self, parameters, context, name: str, suffix: str) -> str:
         path = self.output_path(parameters, context, name, name.lower() + suffix)
