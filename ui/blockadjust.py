@@ -30,7 +30,7 @@ from ..core.model.mixedblock import MixedBlock
 from ..core.model.rpcscene import RpcScene
 from ..core.observations import tiepoints
 from ..core.observations.blockscenes import rpc_product_cameras, scene_groups, scene_of_rows
-from ..core.products.rpcfit import fit_rpc
+from ..core.products.rpcfit import fit_rpc, refined_rpcs
 from ..simulation.simulator import new_folder
 from .blockmatch import scene_files
 from .feedback import check_cancelled, feedback_callbacks, processing_errors
@@ -222,7 +222,7 @@ def write_block(result, planned: dict, table, gcp_source: tuple, ties, files, fe
         write_rpc(rpc, path, fit, files)
         feedback.pushInfo(f"refined RPC of scene {name}, camera {result.scenes[name].cameras[k].name}: {path} (fit "
                           f"check {fit['check']['rms_px']:.2g} px RMS, {fit['check']['max_px']:.2g} px at most)")
-    refined = result.refined_rpcs() if planned["refined"] else {}
+    refined = refined_rpcs(result.scenes) if planned["refined"] else {}
     for name, path in planned["refined"].items():
         write_rpc(refined[name][0], path, files=files)
         feedback.pushInfo(f"refined RPC of the RPC product {name} ({refined[name][1]}): {path}")

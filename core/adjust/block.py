@@ -25,7 +25,7 @@ the RPC images, cameras named ``<scene>/<camera>`` alike) adjusted by the same e
 ...), the rigorous scenes their trajectory and interior blocks, and the ground points are shared as
 above, so tie points join RPC images with each other and with rigorous scenes. Each adjusted RPC
 scene is written as a single RPC scene's adjustment is (scene JSON; a refined RPC by
-:func:`core.products.rpcfit.refined_rpc`, :meth:`BlockResult.refined_rpcs`).
+:func:`core.products.rpcfit.refined_rpcs` of :attr:`BlockResult.scenes`).
 
 Observations name their scene: ``GcpTable.block_scene`` and ``TieTable.scene`` (a block of one
 scene may leave them empty). Cameras are resolved within the scene (a single-camera scene's and an
@@ -50,13 +50,11 @@ import numpy as np
 from ..errors import InputError
 from ..model.block import block_camera, compose_block, scene_cameras, split_block
 from ..model.mixedblock import MixedBlock, compose_mixed
-from ..model.rpc import RpcModel
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..observations.tables import listed, resolve_cameras
 from ..observations.tiepoints import TieTable
-from ..products.rpcfit import refined_rpc
 from .engine import adjust
 from .results import AdjustmentResult
 from .settings import AdjustmentSettings
@@ -83,12 +81,6 @@ class BlockResult:
     report: dict
     tie_points: dict
     adjustment: AdjustmentResult
-
-    def refined_rpcs(self) -> dict[str, tuple[RpcModel, str]]:
-        """Per adjusted RPC scene its refined RPC and how it was made
-        (:func:`core.products.rpcfit.refined_rpc`: folded, or refitted for a correction that mixes
-        rows and columns), as a single RPC scene's adjustment writes it."""
-        return {name: refined_rpc(scene) for name, scene in self.scenes.items() if isinstance(scene, RpcScene)}
 
 
 def _scene_column(names: np.ndarray, ids: np.ndarray, scenes: dict, what: str) -> np.ndarray:

@@ -344,3 +344,10 @@ def refined_rpc(scene: RpcScene) -> tuple[RpcModel, str]:
                        line_num=fold(r.line_num, r.line_den, r.line_off, r.line_scale, 1.0 + b2, b0)), "folded"
     rpc, _ = fit_rpc(scene, 0, scene.height_range)
     return rpc, "refitted"
+
+
+def refined_rpcs(scenes: dict) -> dict[str, tuple[RpcModel, str]]:
+    """Per RPC scene of ``scenes`` (name -> adjusted scene, e.g. a block adjustment's
+    :attr:`core.adjust.block.BlockResult.scenes`) its refined RPC and how it was made
+    (:func:`refined_rpc`), as a single RPC scene's adjustment writes it; other scenes left out."""
+    return {name: refined_rpc(scene) for name, scene in scenes.items() if isinstance(scene, RpcScene)}

@@ -22,6 +22,7 @@ from pushbroom_adjust.core.formats.rpcfiles import rpc_metadata
 from pushbroom_adjust.core.formats.scene_json import save_scene
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
 from pushbroom_adjust.core.model.rpcscene import RpcScene
+from pushbroom_adjust.core.products.rpcfit import refined_rpcs
 from tests.support.mixed_block import PRODUCTS, TRUE_CORRECTION, MixedBlock, floor_px
 
 gdal.UseExceptions()
@@ -121,7 +122,7 @@ def test_adjusted_rpc_scene_is_written_as_a_single_rpc_adjustment(mixed, tmp_pat
     save_scene(scene, tmp_path / "R.json")
     back = load_scene(tmp_path / "R.json")
     assert np.array_equal(back.correction, scene.correction)
-    rpcs = out.refined_rpcs()
+    rpcs = refined_rpcs(out.scenes)
     assert set(rpcs) == {"R"} and rpcs["R"][1] == "refitted"
     rng = np.random.default_rng(9)
     col, row = rng.uniform(0, scene.camera.cols, 500), rng.uniform(0, scene.camera.rows, 500)
