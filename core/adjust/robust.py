@@ -16,8 +16,8 @@ floor (:func:`factor_floor`), nor is the first pass's robust scale: MIN_FACTOR, 
 observations fitting far better than their stated sigmas (exact, e.g. simulated, ones) would
 otherwise drive it towards 0 pass after pass, their weights towards infinity, and the normal
 matrix towards singularity (the passes stopped without converging); measured groups stay well
-above it (matched GCPs of a rendered simulation: 0.07). Tie-point groups' floor is 1: their
-stated sigma is the most they are trusted, because their residuals leave out the part of their
+above it (matched GCPs of a rendered simulation: 0.07). The tie-point group's floor is 1:
+its stated sigma is the most the ties are trusted, because their residuals leave out the part of their
 errors the self-calibration absorbs (matched tie points of a rendered TH-1 scene: 0.012 px
 estimated, about 0.03 px against the truth; weighted by the estimate, their systematic part bent
 the heights of the block by 0.9 m RMS). The report says when the floor holds a factor. kappa = E[w^2 | |w| <= c] of a
@@ -97,7 +97,7 @@ MIN_FACTOR = 0.01  # lowest factor on stated sigmas: no measured group is 100 ti
 
 
 def factor_floor(group: str) -> float:
-    """The lowest factor on a group's stated sigmas: MIN_FACTOR, and 1 for tie-point groups (matched
+    """The lowest factor on a group's stated sigmas: MIN_FACTOR, and 1 for the tie-point group (matched
     tie points fit better than they are: their residuals leave out the part of their errors the
     interior parameters absorb, measured 0.012 px estimated against 0.03 px true on a rendered TH-1
     scene, and with their factor below 1 that part bent the block's heights: 3.67 against 2.99 m
@@ -126,7 +126,8 @@ def robust_scale(problem: Problem, st: Statistics) -> np.ndarray:
     live = st.redundancy > 1e-6
     scale = np.ones(len(labels))
     for k in range(len(labels)):
-        w = np.abs(st.w[index == k][live[index == k]])
+        mine = index == k
+        w = np.abs(st.w[mine][live[mine]])
         scale[k] = max(MAD_TO_SIGMA * float(np.median(w)), factor_floor(labels[k])) if w.size else 1.0
     return scale[index]
 
