@@ -6,8 +6,12 @@ intersected in two steps:
 1. the least-squares meeting point of its apparent lines of sight (closed form per point:
    sum (I - u u') X = sum (I - u u') S), good to a few metres;
 2. Gauss-Newton on the image residuals through the full model (``ground_to_image``, with
-   aberration and refraction), derivatives by 1 m differences along ECEF axes, so the result
-   is the point whose projections best fit the measurements (px, unit weights).
+   aberration and refraction), so the result is the point whose projections best fit the
+   measurements (px, unit weights). The derivatives (1 m differences along ECEF axes) are taken
+   once, at the start: over the few metres the points move they change by a part in 1e5 (the
+   satellite is hundreds of km away), so each later pass still gains about 1e5 and costs one
+   projection instead of four (the chord method). The last residuals are the last projection
+   moved by the last step through those derivatives (a step below TOLERANCE: exact to 1e-9 px).
 
 Used for tie-point start values (onboard model) and for the 3D check figures (adjusted model).
 Arrays: n observations (camera index, col, row, point index), m points.
@@ -89,15 +93,18 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     iterations, converged = 0, not use.any()
     near = measured[use]  # where each projection starts: the measurement, then the last projection
     normal = np.zeros((m, 3, 3))
+    r = np.zeros((0, 2))
+    J = np.zeros((0, 2, 3))
+    step = np.zeros((m, 3))
     for iterations in range(1, ITERATIONS + 1 if use.any() else 1):  # none to iterate without a 2-ray point
         x = ground[point[use]]
         cam = camera[use]
         base = _project(scene, cam, x, near)
-        J = np.stack([(_project(scene, cam, x + STEP * e, base) - base) / STEP for e in np.eye(3)], axis=2)  # (k,2,3)
+        if iterations == 1:
+            J = np.stack([(_project(scene, cam, x + STEP * e, base) - base) / STEP for e in np.eye(3)], axis=2)  # (k,2,3)
+            normal[ok] = _sum_by_point(point[use], J.transpose(0, 2, 1) @ J, m)[ok]
         near = np.where(np.isfinite(base), base, near)
         r = base - measured[use]
-        normal = np.zeros((m, 3, 3))
-        normal[ok] = _sum_by_point(point[use], J.transpose(0, 2, 1) @ J, m)[ok]
         rhs = _sum_by_point(point[use], np.einsum("kji,kj->ki", J, r), m)
         good = ok & np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(rhs), axis=1)
         step = np.zeros((m, 3))
@@ -111,11 +118,11 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     lost = ok & ~np.all(np.isfinite(normal), axis=(1, 2))
     ground[lost] = np.nan
     ok &= ~lost
-    near = near[ok[point[use]]]  # the last projections of the observations still intersected
-    use = ok[point]
     residuals = np.full((col.size, 2), np.nan)
-    if use.any():
-        residuals[use] = _project(scene, camera[use], ground[point[use]], near) - measured[use]
+    if r.size:
+        moved = r + np.einsum("kij,kj->ki", J, step[point[use]])
+        residuals[use] = moved
+        residuals[~ok[point]] = np.nan
     condition = np.full(m, np.inf)
     if ok.any():
         with np.errstate(divide="ignore", invalid="ignore"):
