@@ -128,7 +128,7 @@ def _measured_table(scene: SceneModel, cams: np.ndarray) -> Platform:
         return seen
     measured = scene.platform.trajectory_of(scene.cameras[cams[0]].name)
     platform = Platform(measured.ephemeris, measured.attitude, cache_step=scene.platform.cache_step)
-    platform.prepare(*scene.time_span(cams))
+    platform.prepare(scene.time_spans(cams))
     return platform
 
 

@@ -217,6 +217,11 @@ class Camera:
     def time_offset(self, chip_idx) -> np.ndarray:
         return self._time_offsets[chip_idx]
 
+    @property
+    def chip_time_offsets(self) -> np.ndarray:
+        """(chips,) s: each chip's time offset (:meth:`time_offset`)."""
+        return self._time_offsets
+
     # --- lines of sight ----------------------------------------------------------------
     def image_plane(self, col, chip_idx=None) -> tuple[np.ndarray, np.ndarray]:
         """Normalised image-plane coordinates (ux, uy) of column(s) col, on the given chip(s)."""

@@ -101,7 +101,8 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
         cam = camera[use]
         base = _project(scene, cam, x, near)
         if iterations == 1:
-            J = np.stack([(_project(scene, cam, x + STEP * e, base) - base) / STEP for e in np.eye(3)], axis=2)  # (k,2,3)
+            J = np.stack([(_project(scene, cam, x + STEP * e, base) - base) / STEP for e in np.eye(3)],
+                         axis=2)  # (k,2,3)
             normal[ok] = _sum_by_point(point[use], J.transpose(0, 2, 1) @ J, m)[ok]
         near = np.where(np.isfinite(base), base, near)
         r = base - measured[use]

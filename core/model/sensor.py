@@ -61,14 +61,22 @@ class SceneModel:
         """(first, last) acquisition time (s) over all cameras (or the camera indices ``cameras``)
         and their chips. In a block's composite every camera's times count from its own scene's
         epoch: span only the cameras of one scene."""
-        ts = []
+        spans = self.time_spans(cameras)
+        return min(a for a, _ in spans), max(b for _, b in spans)
+
+    def time_spans(self, cameras=None) -> list[tuple[float, float]]:
+        """[(first, last) acquisition time (s)] of each camera (or of the camera indices
+        ``cameras``) over its lines and chips: a three-line camera's forward and backward views
+        see the platform tens of seconds before and after the nadir view, and the gaps between
+        need no table."""
+        out = []
         for cam in (self.cameras if cameras is None else [self.cameras[c] for c in cameras]):
             t = cam.timing.time(np.array([0.0, cam.rows]))
-            ts += [t.min() + min(cam._time_offsets), t.max() + max(cam._time_offsets)]
-        return min(ts), max(ts)
+            out.append((float(t.min() + min(cam.chip_time_offsets)), float(t.max() + max(cam.chip_time_offsets))))
+        return out
 
     def prepare(self, camera: int | None = None) -> None:
-        """Tabulate the trajectory over the scene's time span (done once, lazily): the platform
+        """Tabulate the trajectory over the cameras' time spans (done once, lazily): the platform
         camera ``camera`` (index) sees, or (None) each platform the cameras see (:meth:`platform_of`:
         the scene's, a camera's own correction, a block scene's), over the lines of all the cameras
         that see it. One camera's alone: a block's composite has a platform per scene, and work on
@@ -77,7 +85,7 @@ class SceneModel:
         wanted = platforms if camera is None else [platforms[camera]]
         for platform in {id(p): p for p in wanted}.values():
             if platform._cache is None:
-                platform.prepare(*self.time_span([c for c, p in enumerate(platforms) if p is platform]))
+                platform.prepare(self.time_spans([c for c, p in enumerate(platforms) if p is platform]))
 
     def platform_of(self, camera: int) -> Platform:
         """The trajectory camera ``camera`` (index) sees: the platform's, or its own correction's

@@ -283,10 +283,10 @@ class Platform:
     ephemeris, attitude and corrections, times from its own scene's epoch) instead of this one.
     Such a composite is never written: its scenes are (:func:`core.model.block.split_block`).
 
-    The cache tabulates position, velocity and rotation every ``cache_step`` seconds over
-    [t_min, t_max] and interpolates linearly: at 1 ms steps the error is below 1e-6 m and
-    1e-12 rad for orbital motion, far under any image measurement. Outside the cached
-    span the exact models are evaluated.
+    The cache tabulates position, velocity and rotation every ``cache_step`` seconds over the
+    time spans its cameras see (a segment each) and interpolates linearly: at 1 ms steps the
+    error is below 1e-6 m and 1e-12 rad for orbital motion, far under any image measurement.
+    Outside the cached spans the exact models are evaluated.
     """
     ephemeris: Ephemeris
     attitude: object
@@ -315,32 +315,50 @@ class Platform:
         this one, or in a block's composite its own scene's."""
         return self.camera_platforms.get(name, self)
 
-    def prepare(self, t_min: float, t_max: float) -> None:
-        """Tabulate the trajectory over [t_min, t_max] s (with a small margin): the measured
-        trajectory's table (:func:`measured_table`) under this platform's correction."""
-        margin = 0.05 * (t_max - t_min) + 10 * self.cache_step
-        t0, t1 = t_min - margin, t_max + margin
-        n = int(np.ceil((t1 - t0) / self.cache_step)) + 1
-        table = measured_table(self.ephemeris, self.attitude, t0, n, self.cache_step)
-        if self.correction is not None:
-            grid = t0 + self.cache_step * np.arange(n)
-            pos, vel, rot = self.correction.apply(grid, table[:, 0:3], table[:, 3:6], table[:, 6:15].reshape(n, 3, 3))
-            table = np.concatenate([pos, vel, rot.reshape(n, 9)], axis=1)
-        self._cache = (t0, n, table)
+    def prepare(self, spans) -> None:
+        """Tabulate the trajectory over the time spans ``spans`` [(t_min, t_max)] s (each with a
+        small margin; overlapping ones merged): the measured trajectory's table
+        (:func:`measured_table`) under this platform's correction, one segment per span."""
+        widened = sorted((a - (0.05 * (b - a) + 10 * self.cache_step), b + 0.05 * (b - a) + 10 * self.cache_step)
+                         for a, b in spans)
+        merged = [list(widened[0])]
+        for a, b in widened[1:]:
+            if a <= merged[-1][1]:
+                merged[-1][1] = max(merged[-1][1], b)
+            else:
+                merged.append([a, b])
+        starts, counts, tables = [], [], []
+        for t0, t1 in merged:
+            n = int(np.ceil((t1 - t0) / self.cache_step)) + 1
+            table = measured_table(self.ephemeris, self.attitude, t0, n, self.cache_step)
+            if self.correction is not None:
+                grid = t0 + self.cache_step * np.arange(n)
+                pos, vel, rot = self.correction.apply(grid, table[:, 0:3], table[:, 3:6],
+                                                      table[:, 6:15].reshape(n, 3, 3))
+                table = np.concatenate([pos, vel, rot.reshape(n, 9)], axis=1)
+            starts.append(t0)
+            counts.append(n)
+            tables.append(table)
+        counts = np.array(counts, dtype=np.int64)
+        self._cache = (np.array(starts), counts, np.cumsum(counts) - counts,
+                       tables[0] if len(tables) == 1 else np.concatenate(tables))
 
     def state(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position (n,3) m, velocity (n,3) m/s, rotation body->ECEF (n,3,3)) at times t (n,) s."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if self._cache is None:
             return self._exact_state(t)
-        t0, n, table = self._cache
-        f = (t - t0) / self.cache_step
+        starts, counts, offsets, table = self._cache
+        k = np.maximum(np.searchsorted(starts, t, side="right") - 1, 0) if starts.size > 1 else \
+            np.zeros(t.size, dtype=np.int64)
+        n = counts[k]
+        f = (t - starts[k]) / self.cache_step
         inside = (f >= 0) & (f <= n - 1)
         f = np.where(inside, f, 0.0)
         i = np.minimum(f.astype(np.int64), n - 2)
         # the samples either side in one gather (n, 2, 15); their difference is not stored (the
         # table would be twice the size: a block's composite tabulates a trajectory per scene)
-        pair = table[i[:, None] + np.arange(2)]
+        pair = table[(offsets[k] + i)[:, None] + np.arange(2)]
         row = pair[:, 0] + (f - i)[:, None] * (pair[:, 1] - pair[:, 0])
         if not inside.all():
             out = ~inside
