@@ -14,7 +14,8 @@ once this folds into the observation itself:
 rays alone fix them, two or more per point. Observations touching the same parameter
 columns (same camera, chip and trajectory knots) are stacked and multiplied with BLAS, so
 assembly costs one dense product per group. Points seen in several cameras (three-line
-scenes, tie points) are eliminated with dense products over ranges of points.
+scenes, tie points) are eliminated with one dense product per two runs of observations that
+share columns (:class:`PointBlocks`).
 """
 from __future__ import annotations
 
@@ -23,7 +24,6 @@ from dataclasses import dataclass
 import numpy as np
 
 RIDGE = 1e-9  # share of a point's normal-matrix trace added to its diagonal (see assemble)
-POINT_BLOCK = 5_000_000  # numbers in one dense block of point couplings (40 MB)
 
 
 @dataclass
@@ -174,37 +174,86 @@ def _chol2(p: np.ndarray) -> np.ndarray:
     return out
 
 
-def point_couplings(lin: Linearization, mask: np.ndarray, n_unknowns: int, n_points: int):
-    """The coupling of the ground unknowns with the parameters, M_p = sum of J_g' P J_p over
-    the observations ``mask`` (n,) of point p (3 x n_unknowns, dense), for consecutive ranges
-    of points (at most POINT_BLOCK numbers at a time). Yields (first, last, obs, M): points
-    first..last-1, the indices (k,) of their observations in ``mask``, M (last-first, 3, u)."""
-    idx = np.nonzero(mask)[0]
-    idx = idx[np.argsort(lin.point[idx], kind="stable")]
-    pts = lin.point[idx]
-    step = max(1, POINT_BLOCK // (3 * max(n_unknowns, 1)))
-    for first in range(0, n_points, step):
-        last = min(first + step, n_points)
-        a, b = np.searchsorted(pts, [first, last])
-        obs = idx[a:b]
-        pj = lin.p[obs][:, :, None] * lin.jg[obs]                                     # P J_g (k,2,3)
-        block = np.matmul(pj.transpose(0, 2, 1), lin.values[obs])                    # J_g' P J_p (k,3,q)
-        cols = lin.columns[obs][:, None, :]
-        flat = ((pts[a:b] - first)[:, None, None] * 3 + np.arange(3)[None, :, None]) * n_unknowns + cols
-        keep = np.broadcast_to(cols >= 0, flat.shape)
-        M = np.bincount(flat[keep], weights=block[keep], minlength=(last - first) * 3 * n_unknowns)
-        yield first, last, obs, M.reshape(last - first, 3, n_unknowns)
+def run_ids(columns: np.ndarray) -> np.ndarray:
+    """(n,) the index of each observation's run of identical column rows (:func:`groups`)."""
+    if columns.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    return np.concatenate([[0], np.cumsum(np.any(columns[1:] != columns[:-1], axis=1))])
+
+
+@dataclass
+class PointBlocks:
+    """The coupling of ground unknowns with the parameters, M_p = sum of J_g' P J_p over a
+    point's observations (3 x n_unknowns), kept compact: a point's observations in one run of
+    identical columns (one camera or scene) touch the same q columns, so M_p is the sum of one
+    block per (point, run) pair, B_i (3, q) in that run's columns, scattered.
+
+    point (k,) and columns (k, q) (unknown indices, -1 unused: B is zero there) of the k pairs,
+    grouped by point; obs (o,) the observations summed and pair (o,) the pair of each; crosses:
+    per two runs (a, b), the pairs (i, j) of the points seen in both (i in a, j in b; a = b
+    included), so that M_p' X M_p sums over them as B_i' X B_j, one dense product per two runs."""
+    point: np.ndarray
+    columns: np.ndarray
+    B: np.ndarray
+    obs: np.ndarray
+    pair: np.ndarray
+    crosses: list[tuple[np.ndarray, np.ndarray]]
+
+
+def point_blocks(lin: Linearization, mask: np.ndarray) -> PointBlocks:
+    """The :class:`PointBlocks` of the observations ``mask`` (n,) (all with a ground unknown)."""
+    obs = np.nonzero(mask)[0]
+    run = run_ids(lin.columns)[obs]
+    order = np.lexsort((run, lin.point[obs]))
+    obs, run = obs[order], run[order]
+    pts = lin.point[obs]
+    new = np.r_[True, (pts[1:] != pts[:-1]) | (run[1:] != run[:-1])]
+    starts = np.nonzero(new)[0]
+    pj = lin.p[obs][:, :, None] * lin.jg[obs]                                     # P J_g (o,2,3)
+    block = np.matmul(pj.transpose(0, 2, 1), lin.values[obs])                    # J_g' P J_p (o,3,q)
+    columns = lin.columns[obs[starts]]
+    B = np.where(columns[:, None, :] >= 0, np.add.reduceat(block, starts, axis=0), 0.0) if starts.size else \
+        np.zeros((0, 3, lin.columns.shape[1]))
+    point, pair_run = pts[starts], run[starts]
+    return PointBlocks(point, columns, B, obs, np.cumsum(new) - 1, _crosses(point, pair_run))
+
+
+def _crosses(point: np.ndarray, run: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Every two pairs (i, j) of one point (``point`` (k,) grouped), grouped by their runs."""
+    if point.size == 0:
+        return []
+    first = np.nonzero(np.r_[True, point[1:] != point[:-1]])[0]
+    count = np.diff(np.r_[first, point.size])
+    i_all, j_all = [], []
+    for k in np.unique(count):
+        idx = first[count == k][:, None] + np.arange(k)                           # (points, k)
+        i_all.append(np.repeat(idx, k, axis=1).ravel())
+        j_all.append(np.tile(idx, (1, k)).ravel())
+    i, j = np.concatenate(i_all), np.concatenate(j_all)
+    key = run[i] * (int(run.max()) + 1) + run[j]
+    order = np.argsort(key, kind="stable")
+    i, j, key = i[order], j[order], key[order]
+    bounds = np.r_[np.nonzero(np.r_[True, key[1:] != key[:-1]])[0], key.size]
+    return [(i[a:b], j[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 def _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns) -> None:
     """Schur complement of points observed several times: N -= sum of M_p' K_p M_p,
-    b -= sum of M_p' K_p b_g, with M_p their couplings (:func:`point_couplings`); one dense
-    product per range of points."""
-    for first, last, _, M in point_couplings(lin, multi, n_unknowns, K.shape[0]):
-        KM = K[first:last] @ M                                                   # (c,3,u)
-        product = M.reshape(-1, n_unknowns).T @ KM.reshape(-1, n_unknowns)
-        N -= 0.5 * (product + product.T)
-        b -= np.einsum("cau,ca->u", KM, bg[first:last])
+    b -= sum of M_p' K_p b_g, with M_p their couplings (:func:`point_blocks`); one dense
+    product per two runs of observations."""
+    pb = point_blocks(lin, multi)
+    KB = K[pb.point] @ pb.B                                                       # (k,3,q)
+    S = np.zeros((n_unknowns, n_unknowns))
+    for i, j in pb.crosses:
+        ci, cj = pb.columns[i[0]], pb.columns[j[0]]
+        ki, kj = ci >= 0, cj >= 0
+        product = pb.B[i].reshape(-1, ci.size).T @ KB[j].reshape(-1, cj.size)       # sum of B_i' K B_j (q,q)
+        S[np.ix_(ci[ki], cj[kj])] += product[np.ix_(ki, kj)]
+    N -= 0.5 * (S + S.T)
+    kbg = np.einsum("kij,kj->ki", K[pb.point], bg[pb.point])                      # K_p b_g per pair
+    contrib = np.einsum("kaq,ka->kq", pb.B, kbg)
+    ok = pb.columns >= 0
+    b -= np.bincount(pb.columns[ok], weights=contrib[ok], minlength=n_unknowns)
 
 
 def back_substitute(lin: Linearization, system: System, dx: np.ndarray) -> np.ndarray:

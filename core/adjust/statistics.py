@@ -10,7 +10,7 @@ from scipy import linalg
 
 from ..errors import InputError
 from .linepoints import ACROSS_GROUP, HEIGHT_GROUP
-from .normal import Linearization, System, point_couplings
+from .normal import Linearization, System, point_blocks
 from .problem import Problem
 
 GROUND_GROUPS = ("ground_xy", "ground_z", ACROSS_GROUP, HEIGHT_GROUP)  # the groups of the ground points' priors
@@ -112,15 +112,17 @@ def _ground_leverage(lin: Linearization, system: System, Q: np.ndarray, G: np.nd
     J_g K J_g' + (A - J_g K M_p) Q (A - J_g K M_p)'. Every observation of a point enters M_p
     (a tie point's rays share its ground unknowns)."""
     n_points = system.K.shape[0]
-    u = Q.shape[0]
+    pb = point_blocks(lin, weighted)
     s = np.zeros((n_points, 3, 3))                                                # M Q M'
+    T = np.zeros(pb.B.shape[:1] + pb.B.shape[2:] + (3,))                          # (M Q)[:, columns]' per pair
+    for i, j in pb.crosses:  # in one group each pair i (and each point) appears once
+        ci, cj = pb.columns[i[0]], pb.columns[j[0]]
+        qbt = np.matmul(Q[np.ix_(np.maximum(ci, 0), np.maximum(cj, 0))], pb.B[j].transpose(0, 2, 1))  # (c,q,3)
+        T[i] += qbt
+        s[pb.point[i]] += np.matmul(pb.B[i], qbt)
+    T[pb.columns < 0] = 0.0
     aqm = np.zeros((lin.r.shape[0], 2, 3))                                        # A Q M' per observation
-    for first, last, obs, M in point_couplings(lin, weighted, u, n_points):
-        mq = (M.reshape(-1, u) @ Q).reshape(M.shape)
-        s[first:last] = np.einsum("cau,cbu->cab", mq, M)
-        cols = lin.columns[obs]
-        mine = mq[(lin.point[obs] - first)[:, None, None], np.arange(3)[None, :, None], np.maximum(cols, 0)[:, None, :]]
-        aqm[obs] = np.matmul(lin.values[obs], np.where(cols[:, None, :] >= 0, mine, 0.0).transpose(0, 2, 1))
+    aqm[pb.obs] = np.matmul(lin.values[pb.obs], T[pb.pair])
     point = lin.point[weighted]
     aqm = aqm[weighted]
     jk = lin.jg[weighted] @ system.K[point]                                       # J_g K (k,2,3)
