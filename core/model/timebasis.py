@@ -114,14 +114,28 @@ class TimeBasis:
         """Basis matrix (n, m) at times t (n,) s."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if self.kind == "polynomial":
-            tau = (t - self.t0) / self.scale
-            return tau[:, None] ** np.arange(self.size)
+            return self._powers((t - self.t0) / self.scale, self.size)
         if self.kind == "lagrange":
             return self._lagrange(t)
         return self._spline(t)
 
+    @staticmethod
+    def _powers(tau: np.ndarray, size: int) -> np.ndarray:
+        """(n, size): tau ** 0 .. tau ** (size - 1), by products (a power per element is slower)."""
+        out = np.empty((tau.size, size))
+        out[:, 0] = 1.0
+        for k in range(1, size):
+            out[:, k] = out[:, k - 1] * tau
+        return out
+
     def derivative(self, t) -> np.ndarray:
-        """d(basis)/dt (n, m) in 1/s (central difference: the bases are piecewise cubic at most)."""
+        """d(basis)/dt (n, m) in 1/s: of a polynomial exact, else by central differences (the
+        bases are piecewise cubic at most)."""
+        if self.kind == "polynomial":
+            powers = self._powers((np.atleast_1d(np.asarray(t, dtype=float)) - self.t0) / self.scale, self.size)
+            out = np.zeros_like(powers)
+            out[:, 1:] = powers[:, :-1] * (np.arange(1, self.size) / self.scale)
+            return out
         h = 1e-3
         return (self.matrix(np.asarray(t, dtype=float) + h) - self.matrix(np.asarray(t, dtype=float) - h)) / (2 * h)
 
