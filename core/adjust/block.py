@@ -51,13 +51,14 @@ from ..errors import InputError
 from ..model.block import block_camera, compose_block, scene_cameras, split_block
 from ..model.mixedblock import MixedBlock, compose_mixed
 from ..model.rpcscene import RpcScene
-from ..model.sensor import SceneModel
+from ..model.sensor import SceneModel, rows_by
 from ..observations.gcps import GcpTable
 from ..observations.tables import listed, resolve_cameras
 from ..observations.tiepoints import TieTable
 from .engine import adjust
 from .results import AdjustmentResult
 from .settings import AdjustmentSettings
+from .ties import camera_indices
 
 log = logging.getLogger(__name__)
 
@@ -147,7 +148,8 @@ def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
         tie_scene = _scene_column(ties.scene, ties.id, scenes, "ties")
         _check_ties_span_scenes(ties, tie_scene)
         ties = replace(_block_cameras(ties, tie_scene, scenes), scene=tie_scene)
-    alone = [name for name in scenes if name not in set(gcp_scene[gcps.role == "control"]) | set(tie_scene)]
+    measured = set(np.unique(gcp_scene[gcps.role == "control"]).tolist()) | set(np.unique(tie_scene).tolist())
+    alone = [name for name in scenes if name not in measured]
     if alone:
         raise InputError(f"scene(s) {', '.join(map(repr, alone))} have no control point or tie point measured in "
                          "them: nothing ties them to the block; measure tie points or GCPs there, or leave them out",
@@ -189,13 +191,12 @@ def ray_convergence(scene: SceneModel, ties: TieTable) -> tuple[np.ndarray, np.n
     """(ids (m,), angle (m,) deg): per tie point the largest angle between one of its onboard lines
     of sight in ``scene`` (camera names of the scene) and its first one; near 0 when all rays are
     parallel and the point's height is undetermined."""
-    names = [c.name for c in scene.cameras]
-    camera = np.array([names.index(c) for c in ties.camera.tolist()], dtype=np.int64)
+    camera = camera_indices(scene, ties.camera)
     ids, point = np.unique(ties.id, return_inverse=True)
     u = np.empty((len(ties), 3))
-    for c in np.unique(camera):
-        m = camera == c
-        u[m] = scene.line_of_sight(ties.col[m], ties.row[m], int(c))[3]
+    for c, m in enumerate(rows_by(camera, len(scene.cameras))):
+        if m.size:
+            u[m] = scene.line_of_sight(ties.col[m], ties.row[m], c)[3]
     first = np.unique(point, return_index=True)[1]
     angle = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", u, u[first][point]), -1.0, 1.0)))
     out = np.zeros(ids.size)

@@ -31,7 +31,7 @@ import numpy as np
 from ..geodesy import C_LIGHT, ecef_to_geodetic, up_vector
 from ..model import corrections as corr
 from ..model.camera import CAMERA_TERMS, corrected_image_plane
-from ..model.sensor import SceneModel, in_chunks
+from ..model.sensor import SceneModel, in_chunks, rows_by
 from ..model.trajectory import Platform
 from ..rotations import rotation_and_derivatives, rotation_matrices
 from .parameters import ANGLES, ParameterSet, trajectory_groups
@@ -108,13 +108,6 @@ class Imaging:
         pos_rates = self.params.window_weights("position", t, pos_first, rates=True)
         return ImageObservations(obs.camera, obs.chip, obs.point, d, t, pos, vel, rot, pos_first, pos_weights,
                                  pos_rates, att_first, att_weights, obs.sigma, col, row)
-
-
-def rows_by(key: np.ndarray, n_keys: int) -> list[np.ndarray]:
-    """The rows (ascending indices) of each key 0..n_keys-1 of ``key`` (n,) int: one stable sort
-    rather than a comparison of every row per key (a block's composite has dozens of cameras)."""
-    order = np.argsort(key, kind="stable")
-    return np.split(order, np.cumsum(np.bincount(key, minlength=n_keys))[:-1])
 
 
 def _measured_table(scene: SceneModel, cams: np.ndarray) -> Platform:

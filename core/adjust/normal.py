@@ -212,10 +212,21 @@ def point_blocks(lin: Linearization, mask: np.ndarray) -> PointBlocks:
     pj = lin.p[obs][:, :, None] * lin.jg[obs]                                     # P J_g (o,2,3)
     block = np.matmul(pj.transpose(0, 2, 1), lin.values[obs])                    # J_g' P J_p (o,3,q)
     columns = lin.columns[obs[starts]]
-    B = np.where(columns[:, None, :] >= 0, np.add.reduceat(block, starts, axis=0), 0.0) if starts.size else \
-        np.zeros((0, 3, lin.columns.shape[1]))
+    B = np.where(columns[:, None, :] >= 0, _segment_sums(block, starts), 0.0)
     point, pair_run = pts[starts], run[starts]
     return PointBlocks(point, columns, B, obs, np.cumsum(new) - 1, _crosses(point, pair_run))
+
+
+def _segment_sums(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Sums of values (o, ...) over the segments starting at ``starts`` (k,) (ascending, the
+    first 0), in order: a loop over the segments' lengths (a point's observations in one run: a
+    few cameras), which is 3x faster than np.add.reduceat over the first axis of 3D arrays."""
+    length = np.diff(np.r_[starts, values.shape[0]])
+    out = values[starts].copy()
+    for m in range(1, int(length.max(initial=1))):
+        longer = length > m
+        out[longer] += values[starts[longer] + m]
+    return out
 
 
 def _crosses(point: np.ndarray, run: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:

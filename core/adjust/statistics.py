@@ -226,7 +226,7 @@ def component_coupling(problem: Problem, lin: Linearization, system: System, red
             p = np.concatenate([lin.p[obs].reshape(m, 2 * k), weight[chunk]], axis=1)        # (m, n)
             rows = np.where(inlier[obs], group[obs], -1)
             lab = np.concatenate([np.repeat(rows, 2, axis=1), label[chunk]], axis=1)         # (m, n)
-            R = np.eye(n) - np.einsum("mia,mab,mjb->mij", A, system.K[chunk], A) * p[:, None, :]
+            R = np.eye(n) - (A @ system.K[chunk]) @ A.transpose(0, 2, 1) * p[:, None, :]
             both = (lab[:, :, None] >= 0) & (lab[:, None, :] >= 0)
             index = np.broadcast_to(lab[:, :, None] * g, both.shape) + np.broadcast_to(lab[:, None, :], both.shape)
             flat += np.bincount(index[both], weights=(R * R.transpose(0, 2, 1))[both], minlength=g * g)

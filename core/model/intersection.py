@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .sensor import SceneModel
+from .sensor import SceneModel, rows_by
 
 STEP = 1.0               # m: finite-difference step of the image Jacobian
 ITERATIONS = 5           # Gauss-Newton passes; the start is metres off, each pass gains ~1e4
@@ -54,9 +54,9 @@ def _rays(scene: SceneModel, camera, col, row) -> tuple[np.ndarray, np.ndarray]:
     """Origins (n,3) and unit directions (n,3) ECEF of the observations' lines of sight."""
     origin = np.empty((col.size, 3))
     direction = np.empty((col.size, 3))
-    for c in np.unique(camera):
-        m = camera == c
-        _, origin[m], _, direction[m] = scene.line_of_sight(col[m], row[m], int(c))
+    for c, m in enumerate(rows_by(camera, len(scene.cameras))):
+        if m.size:
+            _, origin[m], _, direction[m] = scene.line_of_sight(col[m], row[m], c)
     return origin, direction
 
 
@@ -65,9 +65,9 @@ def _project(scene: SceneModel, camera, x, near) -> np.ndarray:
     positions ``near`` (n,2) px close to them (the measurement, the last projection;
     :meth:`SceneModel.ground_to_image_near`)."""
     out = np.empty((x.shape[0], 2))
-    for c in np.unique(camera):
-        m = camera == c
-        out[m] = np.stack(scene.ground_to_image_near(x[m], int(c), near[m, 0], near[m, 1]), axis=1)
+    for c, m in enumerate(rows_by(camera, len(scene.cameras))):
+        if m.size:
+            out[m] = np.stack(scene.ground_to_image_near(x[m], c, near[m, 0], near[m, 1]), axis=1)
     return out
 
 

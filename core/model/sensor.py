@@ -454,6 +454,13 @@ class SceneModel:
 CHUNK = 32768
 
 
+def rows_by(key: np.ndarray, n_keys: int) -> list[np.ndarray]:
+    """The rows (ascending indices) of each key 0..n_keys-1 of ``key`` (n,) int: one stable sort
+    rather than a comparison of every row per key (a block's composite has dozens of cameras)."""
+    order = np.argsort(key, kind="stable")
+    return np.split(order, np.cumsum(np.bincount(key, minlength=n_keys))[:-1])
+
+
 def in_chunks(func, *arrays):
     """Apply func to consecutive chunks of the arrays (split along axis 0; after the first, any
     object sliced by ``[a:b]``) on a thread per core, and concatenate its results (one array, or
