@@ -5,6 +5,7 @@ the DEM); one click 2 px off snapped to the other scene; predictions drawn; save
 new dock (points and scenes identical) and adjusted with core.adjust.block.adjust_block: the check
 points' error against the truth falls from the onboard models' 7.5 px to 0.28 px."""
 import numpy as np
+import pytest
 from qgis.core import QgsCoordinateReferenceSystem, QgsProject, QgsRasterLayer
 from qgis.PyQt.QtCore import Qt
 from qgis.PyQt.QtTest import QTest
@@ -84,7 +85,8 @@ def test_dock_measures_snaps_saves_reopens_and_the_block_adjusts(plugin, gcp_blo
 
     # Snap the click 2.5 px off in fwd to the nad image: back on the truth; Undo restores the click
     QTest.mouseClick(dock.snap_button, Qt.LeftButton)
-    assert dock.message_label.text().startswith("Snapped by"), dock.message_label.text()
+    assert dock.message_label.text().startswith("Snapped by") and " px to nad/NAD (" in dock.message_label.text(), \
+        dock.message_label.text()
     seen = dock.editor.current().observation("fwd", "NAD")
     snap_error = np.hypot(seen.col - true_pixel(gcp_block, SNAPPED, "fwd")[0],
                           seen.row - true_pixel(gcp_block, SNAPPED, "fwd")[1])
@@ -159,6 +161,15 @@ def test_ground_from_a_reference_point_layer_and_sigmas_edited(plugin, gcp_block
     pick_ground(qgis_canvas, lon + 3e-6, lat - 2e-6)             # 0.3 m beside the reference point
     ground = dock.editor.current().ground
     assert (ground.lon, ground.lat, ground.h, ground.source) == (lon, lat, h, "reference"), dock.message_label.text()
+    # the ground is marked on the main canvas (EPSG:4326 here)
+    marker = dock.ground_marker.center()
+    assert dock.ground_marker.isVisible() and (marker.x(), marker.y()) == pytest.approx((lon, lat), abs=1e-12)
+    # a click far from every reference point (tens of screen px) takes none of them
+    QTest.mouseClick(dock.ground_button, Qt.LeftButton)
+    pick_ground(qgis_canvas, lon + 2e-4, lat)                    # 20 m east, the canvas +-0.5 m wide
+    assert dock.message_label.text().startswith("No point of the reference layer reference within 20 screen px"), \
+        dock.message_label.text()
+    assert dock.editor.current().ground == ground
     for spin, value in ((dock.sigma_px_spin, 0.25), (dock.sigma_xy_spin, 0.4), (dock.sigma_z_spin, 0.8)):
         spin.setValue(value)
         spin.editingFinished.emit()

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform, QgsGeometry, QgsMapLayerProxyModel,
-                       QgsProcessingException, QgsProject, QgsWkbTypes)
-from qgis.gui import QgsMapLayerComboBox, QgsRubberBand
+                       QgsPointXY, QgsProcessingException, QgsProject, QgsWkbTypes)
+from qgis.gui import QgsMapLayerComboBox, QgsRubberBand, QgsVertexMarker
 from qgis.PyQt.QtCore import Qt
 from qgis.PyQt.QtGui import QColor
 from qgis.PyQt.QtWidgets import (QComboBox, QDoubleSpinBox, QFileDialog, QHBoxLayout, QLineEdit, QListWidget)
@@ -35,6 +35,12 @@ from .base import PixelCanvasDock, point_of
 
 MEASURED_COLOUR, OTHER_COLOUR, PREDICTED_COLOUR = QColor(255, 60, 60), QColor(0, 200, 255), QColor(255, 0, 255)
 SNAP_TARGETS = ("other scene", "reference orthoimage")
+REFERENCE_TOLERANCE_PX = 20  # screen px: a click farther from every reference point takes none of them
+
+
+def wgs84() -> QgsCoordinateReferenceSystem:
+    """EPSG:4326, made when needed (not at import, before QGIS has its CRS database)."""
+    return QgsCoordinateReferenceSystem("EPSG:4326")
 
 
 class GcpDock(PixelCanvasDock):
@@ -47,6 +53,12 @@ class GcpDock(PixelCanvasDock):
         self.sources: list[tuple[str, str]] = []  # (scene file, display copy) of each
         self.current: int | None = None   # index of the image shown
         self.predictions = []
+        self.ground_marker = QgsVertexMarker(iface.mapCanvas())
+        self.ground_marker.setColor(MEASURED_COLOUR)
+        self.ground_marker.setIconType(QgsVertexMarker.ICON_X)
+        self.ground_marker.setIconSize(14)
+        self.ground_marker.setPenWidth(2)
+        self.ground_marker.hide()
         self._build()
 
     # --- widgets -------------------------------------------------------------------------------
@@ -186,18 +198,25 @@ class GcpDock(PixelCanvasDock):
 
     def main_clicked(self, point) -> None:
         """The selected point's ground at ``point`` (main canvas CRS), or at the nearest point of the
-        reference layer."""
-        wgs84 = QgsCoordinateReferenceSystem("EPSG:4326")
-        crs = self.iface.mapCanvas().mapSettings().destinationCrs()
-        at = QgsCoordinateTransform(crs, wgs84, QgsProject.instance()).transform(point)
+        reference layer (within REFERENCE_TOLERANCE_PX of the click)."""
+        canvas = self.iface.mapCanvas()
+        crs = canvas.mapSettings().destinationCrs()
+        at = QgsCoordinateTransform(crs, wgs84(), QgsProject.instance()).transform(point)
         lon, lat, z, source = at.x(), at.y(), None, "canvas"
         layer = self.reference_combo.currentLayer()
         if layer is not None:
-            found = self._nearest_reference(layer, lon, lat)
+            found = self._nearest_reference(layer, point, crs)
             if found is None:
                 self.tell(tr("The reference layer {name} holds no point").format(name=layer.name()))
                 return
-            lon, lat, z, source = *found, "reference"
+            lon, lat, z, distance = found
+            pixels = distance / max(canvas.mapUnitsPerPixel(), 1e-12)
+            if pixels > REFERENCE_TOLERANCE_PX:
+                self.tell(tr("No point of the reference layer {name} within {tol} screen px of the click (the "
+                             "nearest is {px:.0f} px away): click nearer, or choose no reference layer to take the "
+                             "click itself").format(name=layer.name(), tol=REFERENCE_TOLERANCE_PX, px=pixels))
+                return
+            source = "reference"
         try:
             ground = self.editor.set_ground_at(lon, lat, self.heights(), z, source)
         except PushbroomError as exc:
@@ -209,23 +228,26 @@ class GcpDock(PixelCanvasDock):
         self.redraw()
 
     @staticmethod
-    def _nearest_reference(layer, lon: float, lat: float):
-        """(lon, lat, z or None) of the point of ``layer`` nearest to (lon, lat) deg; None without points."""
-        transform = QgsCoordinateTransform(layer.crs(), QgsCoordinateReferenceSystem("EPSG:4326"),
-                                           QgsProject.instance())
+    def _nearest_reference(layer, click, crs):
+        """(lon, lat deg, z or None, distance in ``crs`` units) of the point of ``layer`` nearest to
+        ``click`` (in ``crs``, the main canvas's); None without points."""
+        to_canvas = QgsCoordinateTransform(layer.crs(), crs, QgsProject.instance())
+        to_wgs84 = QgsCoordinateTransform(layer.crs(), wgs84(), QgsProject.instance())
         points = []
         for feature in layer.getFeatures():
             geometry = QgsGeometry(feature.geometry())
             if not geometry.isEmpty():
-                geometry.transform(transform)
                 vertex = geometry.vertexAt(0)
-                points.append((vertex.x(), vertex.y(), vertex.z()))
+                there = to_canvas.transform(QgsPointXY(vertex.x(), vertex.y()))
+                points.append((there.x(), there.y(), vertex.x(), vertex.y(), vertex.z()))
         if not points:
             return None
-        xyz = np.array(points)
-        k = int(np.argmin(np.hypot((xyz[:, 0] - lon) * np.cos(np.radians(lat)), xyz[:, 1] - lat)))
-        has_z = QgsWkbTypes.hasZ(layer.wkbType()) and np.isfinite(xyz[k, 2])
-        return float(xyz[k, 0]), float(xyz[k, 1]), float(xyz[k, 2]) if has_z else None
+        xy = np.array(points)
+        distance = np.hypot(xy[:, 0] - click.x(), xy[:, 1] - click.y())
+        k = int(np.argmin(distance))
+        lonlat = to_wgs84.transform(QgsPointXY(xy[k, 2], xy[k, 3]))
+        has_z = QgsWkbTypes.hasZ(layer.wkbType()) and np.isfinite(xy[k, 4])
+        return lonlat.x(), lonlat.y(), float(xy[k, 4]) if has_z else None, float(distance[k])
 
     def snap(self) -> None:
         """Snap the selected point's observation in the current scene (undoable)."""
@@ -237,20 +259,37 @@ class GcpDock(PixelCanvasDock):
                 if ortho is None:
                     raise PushbroomError(tr("choose the reference orthoimage layer to snap to"))
                 result = snap_to_reference(point, view, ortho.source().split("|")[0], surface)
+                target = ortho.name()
             else:
                 others = [v for v in self.views if v.scene_name != view.scene_name
                           and point.observation(v.scene_name, v.camera_name) is not None]
                 if not others:
                     raise PushbroomError(tr("point {id} is measured in no other scene: measure it there first, or "
                                             "snap to a reference orthoimage").format(id=point.id))
-                result = snap_to_scene(point, view, others[0], surface)
+                target, result = self._best_match(point, view, others, surface)
             self.editor.snapped(view.scene_name, view.camera_name, result)
         except PushbroomError as exc:
             self.tell(str(exc))
             return
-        self.tell(tr("Snapped by {dc:+.2f}, {dr:+.2f} px (sigma {s:.2f} px, correlation {c:.2f}); Undo restores the "
-                     "click").format(dc=result.shift[0], dr=result.shift[1], s=result.sigma_px, c=result.correlation))
+        self.tell(tr("Snapped by {dc:+.2f}, {dr:+.2f} px to {target} (sigma {s:.2f} px, correlation {c:.2f}); Undo "
+                     "restores the click").format(dc=result.shift[0], dr=result.shift[1], target=target,
+                                                  s=result.sigma_px, c=result.correlation))
         self.redraw()
+
+    @staticmethod
+    def _best_match(point, view: View, others: list[View], surface):
+        """(label, snap result) of the other scene whose image matches the point's best (the highest
+        correlation: another date, a cloud or a shadow can spoil one of them); PushbroomError with
+        each scene's reason when none matches."""
+        results, reasons = [], []
+        for other in others:
+            try:
+                results.append((other.label, snap_to_scene(point, view, other, surface)))
+            except PushbroomError as exc:
+                reasons.append(f"{other.label}: {exc}")
+        if not results:
+            raise PushbroomError("; ".join(reasons))
+        return max(results, key=lambda item: item[1].correlation)
 
     def undo(self) -> None:
         what = self.editor.undo()
@@ -348,6 +387,7 @@ class GcpDock(PixelCanvasDock):
         self.clear_bands()
         self.predictions = []
         view = self.views[self.current] if self.current is not None else None
+        self._mark_ground()
         if view is not None:
             for i, point in enumerate(self.editor.points):
                 seen = point.observation(view.scene_name, view.camera_name)
@@ -357,6 +397,22 @@ class GcpDock(PixelCanvasDock):
             if self.editor.selected is not None:
                 self._draw_predictions(view)
         self._fill_list()
+
+    def _mark_ground(self) -> None:
+        """The selected point's ground position marked on the main map canvas (hidden without one)."""
+        ground = self.editor.current().ground if self.editor.selected is not None else None
+        if ground is None:
+            self.ground_marker.hide()
+            return
+        crs = self.iface.mapCanvas().mapSettings().destinationCrs()
+        at = QgsCoordinateTransform(wgs84(), crs, QgsProject.instance()).transform(QgsPointXY(ground.lon, ground.lat))
+        self.ground_marker.setCenter(at)
+        self.ground_marker.show()
+
+    def dispose(self) -> None:
+        """Also take the ground marker off the main map canvas."""
+        self.iface.mapCanvas().scene().removeItem(self.ground_marker)
+        super().dispose()
 
     def _draw_predictions(self, view: View) -> None:
         try:
