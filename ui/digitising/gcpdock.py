@@ -409,6 +409,10 @@ class GcpDock(PixelCanvasDock):
         self.ground_marker.setCenter(at)
         self.ground_marker.show()
 
+    def closeEvent(self, event):  # noqa: N802 (Qt API name)
+        self.ground_marker.hide()
+        super().closeEvent(event)
+
     def dispose(self) -> None:
         """Also take the ground marker off the main map canvas."""
         self.iface.mapCanvas().scene().removeItem(self.ground_marker)
