@@ -83,6 +83,8 @@ def test_a_block_with_control_lines_meets_the_truth(block, lines, tmp_path):
         assert before[name] > 5.0 and after[name] < 0.5, (name, before[name], after[name])
     report = json.loads((tmp_path / "out" / "block_report.json").read_text())
     assert "control lines" in report["datum"]
+    page = (tmp_path / "out" / "block_report.html").read_text()
+    assert "across-line RMS before m" in page and "line points used" in page
     for name in NAMES:
         entry = report["scenes"][name]["lines"]
         assert entry["lines"] == 8 and entry["across_rmse_before_m"] > 25.0 and entry["across_rmse_m"] < 2.5, entry
