@@ -5,7 +5,8 @@ simulator's tie points and no GCP, and 8 straight ground lines whose image lines
 through each TRUE scene with 0.3 px noise (tests/support/control_lines.py block_lines), name their
 scene in the field ``scene``. Each adjusted scene is checked against the simulation's true scene;
 the line residuals carry their scene; a line layer without a scene field, a line naming a scene
-not in the block and the one-scene line output are refused naming the parameter."""
+not in the block, lines in a block with an RPC product and the one-scene line output are refused
+naming the parameter."""
 import json
 from dataclasses import replace
 
@@ -108,4 +109,14 @@ def test_a_block_with_control_lines_meets_the_truth(block, lines, tmp_path):
 def test_bad_block_lines_are_refused_naming_the_parameter(block, lines, tmp_path, change, message):
     with pytest.raises(QgsProcessingException, match=message):
         processing.run("pushbroom:bundleadjust", params(block, tmp_path / "out", **change(lines)))
+    assert not (tmp_path / "out").exists()
+
+
+def test_lines_in_a_block_with_an_rpc_product_are_refused(block, lines, shared_data, tmp_path):
+    """Control lines need rigorous scene models: the block with an RPC product (the real Pleiades
+    image over Giza, tests/data/pleiades_gizeh) and lines is refused naming the product."""
+    scenes = [*block["SCENES"], str(shared_data / "pleiades_gizeh" / "img1_RPC.TXT")]
+    with pytest.raises(QgsProcessingException, match=r"^LINES: lines: the block holds the RPC product\(s\) img1; "
+                                                     "control lines need rigorous"):
+        processing.run("pushbroom:bundleadjust", params(block, tmp_path / "out", SCENES=scenes, LINES=lines["good"]))
     assert not (tmp_path / "out").exists()
