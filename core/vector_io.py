@@ -37,6 +37,13 @@ def open_layer(path, layer: str | None = None):
     return ds, lyr
 
 
+def layer_fields(path, layer: str | None = None) -> list[str]:
+    """The field names of a vector file's named (or first) layer (InputError as :func:`open_layer`)."""
+    ds, lyr = open_layer(path, layer)  # ds held while the layer is read
+    defn = lyr.GetLayerDefn()
+    return [defn.GetFieldDefn(i).GetName() for i in range(defn.GetFieldCount())]
+
+
 def wgs84_3d() -> osr.SpatialReference:
     """EPSG:4979 (WGS84 longitude, latitude in degrees, ellipsoidal height in metres), in
     longitude/latitude axis order: the frame of every ground layer the core writes."""

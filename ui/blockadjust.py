@@ -2,9 +2,14 @@
 named by :func:`ui.inputs.block_scene_names`, adjusted together by
 :func:`core.adjust.block.adjust_block` with the GCPs and tie points that name their scene, and
 written into OUTPUT_FOLDER: one adjusted scene JSON per input (``<name>_adjusted.json``), the
-block report (``block_report.html`` and ``.json``), the adjusted GCP and tie-point layers and,
-with WRITE_RPCS, a refined RPC per camera of each scene. Every file or none. Rigorous scenes and
-RPC products may be mixed (:class:`core.model.mixedblock.MixedBlock`).
+block report (``block_report.html`` and ``.json``), the adjusted GCP and tie-point layers, with
+LINES the line residuals and, with WRITE_RPCS, a refined RPC per camera of each scene. Every file
+or none. Rigorous scenes and RPC products may be mixed (:class:`core.model.mixedblock.MixedBlock`;
+control lines need rigorous scenes, which the core says naming the RPC products).
+
+Control lines (LINES, Tommaselli & Marcato Junior 2012): the ground lines are shared by the block's
+scenes and each image line names the scene it was measured in (the field ``scene`` of the layer
+image_lines, required with several scenes).
 
 A block's tie points come from pushbroom:matchtiepoints with SCENES (or any layer or table with
 the fields id, camera, col, row, scene): the checks against one scene that importtiepoints makes
@@ -19,7 +24,8 @@ from qgis.core import (QgsProcessingException, QgsProcessingOutputMultipleLayers
                        QgsProcessingParameterFolderDestination, QgsProcessingUtils)
 
 from ..core.adjust.block import adjust_block, block_inputs
-from ..core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_block_tie_points
+from ..core.adjust.linepoints import ControlLines
+from ..core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_block_tie_points, write_line_residuals
 from ..core.adjust.report import log_lines, write_report_json
 from ..core.adjust.report_html import block_section, write_report_html
 from ..core.errors import InputError
@@ -30,22 +36,24 @@ from ..core.model.mixedblock import MixedBlock
 from ..core.model.rpcscene import RpcScene
 from ..core.observations import tiepoints
 from ..core.observations.blockscenes import rpc_product_cameras, scene_groups, scene_of_rows
+from ..core.observations.lines import IMAGE_LAYER, read_ground_lines, read_image_lines
 from ..core.products.rpcfit import fit_rpc, refined_rpcs
+from ..core.vector_io import layer_fields
 from ..simulation.simulator import new_folder
 from .blockmatch import scene_files
 from .feedback import check_cancelled, feedback_callbacks, processing_errors
-from .inputs import attribute_floats, attribute_texts, block_scene_names, load_scene_for, split_ogr_source
+from .inputs import attribute_floats, attribute_texts, block_scene_names, load_scene_for, ogr_source, split_ogr_source
 from .outputs import check_outputs
 from .parameters import SCENE, SCENES, tr
 
 OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES = "OUTPUT_FOLDER", "WRITE_RPCS", "ADJUSTED_SCENES"
 SCENE_SUFFIX = "_adjusted.json"  # <name>_adjusted.json: a scene's adjusted model in OUTPUT_FOLDER
 REPORT, GCP_LAYER, TIE_LAYER = "block_report.html", "adjusted_gcps.gpkg", "adjusted_tie_points.gpkg"
+LINE_LAYER = "line_residuals.gpkg"
 # The algorithm's outputs of one scene, which a block writes into OUTPUT_FOLDER instead (or not at all)
 ONE_SCENE_OUTPUTS = {"OUTPUT_SCENE": f"<name>{SCENE_SUFFIX}", "OUTPUT_REPORT": REPORT, "OUTPUT_GCPS": GCP_LAYER,
                      "OUTPUT_TIE_POINTS": TIE_LAYER, "OUTPUT_RPC": "<name>_RPC.TXT with WRITE_RPCS",
-                     "OUTPUT_RESIDUALS": "", "OUTPUT_LINE_RESIDUALS": ""}
-ONE_SCENE_INPUTS = ("LINES",)
+                     "OUTPUT_RESIDUALS": "", "OUTPUT_LINE_RESIDUALS": f"{LINE_LAYER} with LINES"}
 
 
 # --- parameters ------------------------------------------------------------------------------
@@ -56,7 +64,9 @@ FOLDER_HELP = (
     "before and after, the move from the onboard geolocation against the onboard sigma, how the datum is held), "
     "adjusted_gcps.gpkg (with GCPS: the GCP layer with adjusted residuals, flags and the field scene) and "
     "adjusted_tie_points.gpkg (with TIE_POINTS: per observation its residuals and scene, per point its rays, "
-    "scenes and ray convergence in degrees). Files of these names there are replaced. Empty: a temporary folder.")
+    "scenes and ray convergence in degrees) and line_residuals.gpkg (with LINES: per line point its scene, camera, "
+    "residuals and across-line offset, per ground line its RMS and flag). Files of these names there are replaced. "
+    "Empty: a temporary folder.")
 RPCS_HELP = (
     "With SCENES: also write an RPC00B model fitted to each adjusted rigorous scene's camera over its height range "
     "into OUTPUT_FOLDER, <name>_RPC.TXT (<name>_<CAMERA>_RPC.TXT for a scene of several cameras) with its fit check "
@@ -123,17 +133,12 @@ def user_destination(alg, parameters, context, name: str) -> str:
 
 
 def refuse_one_scene_parameters(alg, parameters, context) -> None:
-    """The outputs and inputs of one scene, given with SCENES, are refused naming what a block
-    writes instead."""
+    """The outputs of one scene, given with SCENES, are refused naming what a block writes instead."""
     for name, instead in ONE_SCENE_OUTPUTS.items():
         if user_destination(alg, parameters, context, name):
             where = f" (it writes {instead} there)" if instead else " (a block does not write it)"
             raise QgsProcessingException(f"{name}: with {SCENES} the block's outputs go to {OUTPUT_FOLDER}{where}; "
                                          f"leave {name} empty")
-    for name in ONE_SCENE_INPUTS:
-        if parameters.get(name) not in (None, ""):
-            raise QgsProcessingException(f"{name}: control lines are adjusted with one scene ({SCENE}) so far, not "
-                                         f"with {SCENES}")
 
 
 def gcp_scene_field(alg, parameters, context, gcp_name: str, scenes: dict) -> None:
@@ -145,16 +150,37 @@ def gcp_scene_field(alg, parameters, context, gcp_name: str, scenes: dict) -> No
                                      f"in: import the GCPs with {SCENES} (pushbroom:importgcps, SCENE_FIELD)")
 
 
-def block_observations(alg, parameters, context, scenes: dict, feedback) -> tuple:
+def block_lines_input(alg, parameters, context, scenes: dict) -> ControlLines | None:
+    """The control lines of LINES (None without): the ground lines and the image lines with the
+    scene each names (field ``scene`` of the layer image_lines; a layer without it is refused in a
+    block of several scenes, as a GCP layer is by :func:`gcp_scene_field`)."""
+    layer = alg.parameterAsVectorLayer(parameters, alg.LINES, context)
+    if layer is None:
+        return None
+    path, _ = ogr_source(alg.LINES, layer, "control lines")
+    with processing_errors(f"{alg.LINES}: "):
+        fields = layer_fields(path, IMAGE_LAYER)
+    if len(scenes) > 1 and "scene" not in fields:
+        raise QgsProcessingException(f"{alg.LINES}: the layer {IMAGE_LAYER} of {path} has no field 'scene'; in a "
+                                     f"block of {len(scenes)} scenes ({', '.join(scenes)}) every image line names the "
+                                     "scene it was measured in: add a text field scene holding that name (as SCENES "
+                                     "names the scene: its file's stem), or digitise the lines with the scene file "
+                                     "given (Digitise control lines writes it)")
+    with processing_errors(f"{alg.LINES}: "):
+        return ControlLines(read_ground_lines(path), read_image_lines(path))
+
+
+def block_observations(alg, parameters, context, scenes: dict, feedback, with_lines: bool = False) -> tuple:
     """(GCP table, (its GeoPackage, layer name), tie table or None) of GCPS and TIE_POINTS, every
-    row naming a scene of the block (errors name the parameter)."""
+    row naming a scene of the block (errors name the parameter); GCPS may be left out with tie
+    points or control lines (``with_lines``)."""
     tie_layer = alg.parameterAsVectorLayer(parameters, alg.TIE_POINTS, context)
     if parameters.get(alg.TIE_POINTS) not in (None, "") and tie_layer is None:
         raise QgsProcessingException(f"{alg.TIE_POINTS}: {parameters[alg.TIE_POINTS]} is not a vector layer or table")
     with processing_errors(f"{alg.TIE_POINTS}: "):
         ties = None if tie_layer is None else read_tie_layer(tie_layer)
     gcp_scene_field(alg, parameters, context, alg.GCPS, scenes)
-    table, gcp_path, gcp_layer = alg.gcp_table(parameters, context, ties is not None)
+    table, gcp_path, gcp_layer = alg.gcp_table(parameters, context, ties is not None or with_lines)
     for name, rows in ((alg.GCPS, table), (alg.TIE_POINTS, ties)):
         if rows is not None and len(rows):
             with processing_errors(f"{name}: "):
@@ -188,10 +214,12 @@ def output_folder(alg, parameters, context) -> Path:
     return Path(folder or QgsProcessingUtils.generateTempFilename("block_adjustment"))
 
 
-def planned_files(folder: Path, scenes: dict, write_rpcs: bool, with_gcps: bool, with_ties: bool) -> dict:
+def planned_files(folder: Path, scenes: dict, write_rpcs: bool, with_gcps: bool, with_ties: bool,
+                  with_lines: bool = False) -> dict:
     """The files the block writes into ``folder``: scenes {name: path}, rpcs {(name, camera
     index): path} (RPCs fitted to rigorous scenes, their fit check beside), refined {name: path}
-    (RPC products' refined RPCs), report (HTML; its JSON beside), gcps, ties ('' when not written)."""
+    (RPC products' refined RPCs), report (HTML; its JSON beside), gcps, ties, lines (the line
+    residuals) ('' when not written)."""
     rpcs = {}
     for name, scene in scenes.items():
         for k, cam in enumerate(scene.cameras if write_rpcs and not isinstance(scene, RpcScene) else []):
@@ -200,7 +228,7 @@ def planned_files(folder: Path, scenes: dict, write_rpcs: bool, with_gcps: bool,
                if write_rpcs and isinstance(scene, RpcScene)}
     return {"scenes": {name: folder / f"{name}{SCENE_SUFFIX}" for name in scenes}, "rpcs": rpcs, "refined": refined,
             "report": folder / REPORT, "gcps": folder / GCP_LAYER if with_gcps else "",
-            "ties": folder / TIE_LAYER if with_ties else ""}
+            "ties": folder / TIE_LAYER if with_ties else "", "lines": folder / LINE_LAYER if with_lines else ""}
 
 
 def listed_outputs(planned: dict) -> list:
@@ -209,11 +237,13 @@ def listed_outputs(planned: dict) -> list:
            Output(planned["report"].with_suffix(".json"), "its JSON report")]
     out += [f for path in planned["rpcs"].values() for f in (path, Output(report_path(path), "its RPC fit report"))]
     out += list(planned["refined"].values())
-    return out + [f for f in (planned["gcps"], planned["ties"]) if f]
+    return out + [f for f in (planned["gcps"], planned["ties"], planned["lines"]) if f]
 
 
-def write_block(result, planned: dict, table, gcp_source: tuple, ties, files, feedback) -> None:
-    """Every output of :func:`planned_files` as part of the OutputSet ``files``."""
+def write_block(result, planned: dict, table, gcp_source: tuple, ties, files, feedback,
+                lines: ControlLines | None = None) -> None:
+    """Every output of :func:`planned_files` as part of the OutputSet ``files`` (``lines``: the
+    control lines given, for the line residuals)."""
     adjustment = result.adjustment
     for name, scene in result.scenes.items():
         save_scene(scene, planned["scenes"][name], files)
@@ -238,6 +268,8 @@ def write_block(result, planned: dict, table, gcp_source: tuple, ties, files, fe
                             files=files)
     if planned["ties"]:
         write_block_tie_points(adjustment.tie_points, result.tie_points, ties.scene, planned["ties"], files=files)
+    if planned["lines"]:
+        write_line_residuals(planned["lines"], lines, result.line_points, adjustment.report["lines"], files)
 
 
 def log_block(result, n_ties: int | None, alg, feedback) -> None:
@@ -248,15 +280,21 @@ def log_block(result, n_ties: int | None, alg, feedback) -> None:
     def px(value) -> str:
         return "-" if value is None else f"{value:.3f} px"
 
+    def metres(value) -> str:
+        return "-" if value is None else f"{value:.1f} m RMS"
+
     for name, s in result.report["scenes"].items():
         ties = s.get("ties")
         tie_text = f"; ties {px(ties['rmse_before_px'])} before, {px(ties['rmse_px'])} after" if ties else ""
         rpc = s.get("model") == "rpc"
         sigma = s["vendor_sigma_m" if rpc else "onboard_sigma_m"]
         source = "its vendor RPC (stated accuracy" if rpc else "its onboard geolocation (onboard sigma"
+        lines = s.get("lines")
+        line_text = f"; {lines['lines']} control lines ({lines['points']} points), across-line " \
+            f"{metres(lines['across_rmse_before_m'])} before, {metres(lines['across_rmse_m'])} after" if lines else ""
         feedback.pushInfo(f"scene {name}: control {px(s['control']['rmse_px'])} ({s['control']['observations']} obs.), "
                           f"check {px(s['check_points']['rmse_px'])} ({s['check_points']['observations']} obs.)"
-                          f"{tie_text}; moved {s['moved_m']:.1f} m from {source} "
+                          f"{tie_text}{line_text}; moved {s['moved_m']:.1f} m from {source} "
                           f"{'-' if sigma is None else f'{sigma:.1f} m'})")
     block = result.report["block"]
     feedback.pushInfo(f"block of {block['scenes']} scenes: sigma0 {block['sigma0']:.3f}, tie RMS "
@@ -275,10 +313,12 @@ def run_block(alg, parameters, context, feedback) -> dict:
     folder = output_folder(alg, parameters, context)
     with processing_errors(f"{OUTPUT_FOLDER}: "):
         check_folder_destination(folder)
-    table, (gcp_path, gcp_layer), ties = block_observations(alg, parameters, context, scenes, feedback)
+    lines = block_lines_input(alg, parameters, context, scenes)
+    table, (gcp_path, gcp_layer), ties = block_observations(alg, parameters, context, scenes, feedback,
+                                                            lines is not None)
     settings = alg.adjustment_settings(parameters, context)
     with alg.core_errors(alg.GCPS):
-        composite, _, ties_in_block = block_inputs(scenes, table, ties)
+        composite, _, ties_in_block, _ = block_inputs(scenes, table, ties, lines)
     check_joined(scenes, ties_in_block, alg.TIE_POINTS)
     if not isinstance(composite, MixedBlock):  # a block with RPC products: the core names INTERIOR's errors
         alg.check_interior(composite, settings.interior)
@@ -286,15 +326,15 @@ def run_block(alg, parameters, context, feedback) -> dict:
         feedback.pushInfo(f"scene {name}: {path}")
     with new_folder(folder):
         planned = planned_files(folder, scenes, alg.parameterAsBoolean(parameters, WRITE_RPCS, context),
-                                bool(gcp_path), ties is not None)
+                                bool(gcp_path), ties is not None, lines is not None)
         check_outputs(alg, parameters, context, {OUTPUT_FOLDER: listed_outputs(planned)})
         progress, is_cancelled = feedback_callbacks(feedback)
         with alg.core_errors():
-            result = adjust_block(scenes, table, ties, settings, progress, is_cancelled)
+            result = adjust_block(scenes, table, ties, settings, progress, is_cancelled, lines=lines)
         check_cancelled(feedback)
         feedback.setProgressText("writing the outputs")
         with processing_errors(f"{OUTPUT_FOLDER}: "), atomic_outputs() as files:  # every output or none
-            write_block(result, planned, table, (gcp_path, gcp_layer), ties_in_block, files, feedback)
+            write_block(result, planned, table, (gcp_path, gcp_layer), ties_in_block, files, feedback, lines)
     log_block(result, None if ties is None else len(ties), alg, feedback)
     feedback.setProgress(100)
     return {OUTPUT_FOLDER: str(folder), ADJUSTED_SCENES: [str(p) for p in planned["scenes"].values()],

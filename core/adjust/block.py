@@ -27,9 +27,15 @@ above, so tie points join RPC images with each other and with rigorous scenes. E
 scene is written as a single RPC scene's adjustment is (scene JSON; a refined RPC by
 :func:`core.products.rpcfit.refined_rpcs` of :attr:`BlockResult.scenes`).
 
-Observations name their scene: ``GcpTable.block_scene`` and ``TieTable.scene`` (a block of one
-scene may leave them empty). Cameras are resolved within the scene (a single-camera scene's and an
-RPC scene's empty camera is its camera).
+Observations name their scene: ``GcpTable.block_scene``, ``TieTable.scene`` and
+``ImageLines.scene`` (a block of one scene may leave them empty). Cameras are resolved within the
+scene (a single-camera scene's and an RPC scene's empty camera is its camera).
+
+Control lines (Tommaselli & Marcato Junior 2012, :mod:`core.adjust.linepoints`): each image line
+names the scene it was measured in; its camera becomes the composite's ``<scene>/<camera>`` and
+the ground lines are shared by all scenes (one road seen in two products holds both, as a ground
+point does), so the engine adjusts them as in one scene. Lines need rigorous scene models: a block
+with RPC products and lines is refused, naming the products.
 
 Datum: with tie points and no GCPs nothing but the priors holds where the block is: the onboard
 pseudo-observations of the rigorous scenes (POSITION_SIGMA, ATTITUDE_SIGMA) and the RPC images'
@@ -42,13 +48,13 @@ image together move the whole block): refused, naming settings.rpc_sigma.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
 
 from ..errors import InputError
-from ..model.block import block_camera, compose_block, scene_cameras, split_block
+from ..model.block import SEPARATOR, block_camera, compose_block, scene_cameras, split_block
 from ..model.mixedblock import MixedBlock, compose_mixed
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel, rows_by
@@ -56,6 +62,7 @@ from ..observations.gcps import GcpTable
 from ..observations.tables import listed, resolve_cameras
 from ..observations.tiepoints import TieTable
 from .engine import adjust
+from .linepoints import ControlLines
 from .results import AdjustmentResult
 from .settings import AdjustmentSettings
 from .ties import camera_indices
@@ -77,27 +84,30 @@ class BlockResult:
     ground (NaN for points left out), rays (observations used), scenes (scenes it was seen in),
     convergence_deg (the largest angle between its onboard rays, :func:`ray_convergence`);
     adjustment: the composite's :class:`AdjustmentResult` (per-observation arrays, camera names
-    ``<scene>/<camera>``, the full engine report)."""
+    ``<scene>/<camera>``, the full engine report); line_points: the engine's per line point arrays
+    (:attr:`AdjustmentResult.lines`) with ``camera`` the scene's own camera name and ``scene`` (n,)
+    the scene each point was measured in (empty without control lines)."""
     scenes: dict[str, SceneModel | RpcScene]
     report: dict
     tie_points: dict
     adjustment: AdjustmentResult
+    line_points: dict = field(default_factory=dict)
 
 
-def _scene_column(names: np.ndarray, ids: np.ndarray, scenes: dict, what: str) -> np.ndarray:
+def _scene_column(names: np.ndarray, ids: np.ndarray, scenes: dict, what: str, kind: str = "point") -> np.ndarray:
     """The scene name of every row (n,) str: '' allowed for a block of one scene; InputError
-    naming the unknown scenes (and their points) or the points without one."""
+    naming the unknown scenes (and their ``kind``: points or lines) or the rows without one."""
     names = np.char.strip(np.asarray(names, dtype=str))
     if len(scenes) == 1:
         names = np.where(names == "", next(iter(scenes)), names)
     missing = names == ""
     if missing.any():
-        raise InputError(f"{what}: point(s) {listed(np.unique(ids[missing]))} have no scene; in a block of "
+        raise InputError(f"{what}: {kind}(s) {listed(np.unique(ids[missing]))} have no scene; in a block of "
                          f"{len(scenes)} scenes ({', '.join(scenes)}) every observation names its scene",
                          parameter=what)
     unknown = ~np.isin(names, list(scenes))
     if unknown.any():
-        raise InputError(f"{what}: scene(s) {listed(np.unique(names[unknown]))} of point(s) "
+        raise InputError(f"{what}: scene(s) {listed(np.unique(names[unknown]))} of {kind}(s) "
                          f"{listed(np.unique(ids[unknown]))} not in the block (scenes: {', '.join(scenes)})",
                          parameter=what)
     return names
@@ -128,12 +138,50 @@ def _check_ties_span_scenes(ties: TieTable, scene_of: np.ndarray) -> None:
                          "together: measure them in another scene or leave them out", parameter="ties")
 
 
-def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None,
-                 ties: TieTable | None) -> tuple[SceneModel | MixedBlock, GcpTable, TieTable | None]:
+def block_lines(scenes: dict[str, SceneModel | RpcScene], lines: ControlLines) -> ControlLines:
+    """``lines`` with every image line's scene resolved (:func:`_scene_column`: '' only in a block
+    of one scene) and its camera resolved in that scene and renamed to the composite's
+    ``<scene>/<camera>``; the ground lines unchanged (shared by all scenes). InputError
+    (parameter 'lines') naming the lines and scenes for: a line without a scene in a block of
+    several, a scene not in the block, a camera the scene lacks, a block with RPC products (lines
+    need rigorous scene models)."""
+    image = lines.image
+    scene_of = _scene_column(image.scene, image.line_id, scenes, "lines", kind="line")
+    rpc = [name for name, scene in scenes.items() if isinstance(scene, RpcScene)]
+    if rpc:
+        on_rpc = np.isin(scene_of, rpc)
+        where = (f"line(s) {listed(np.unique(image.line_id[on_rpc]))} are measured in the RPC product(s) "
+                 f"{listed(np.unique(scene_of[on_rpc]))}" if on_rpc.any() else
+                 f"the block holds the RPC product(s) {', '.join(rpc)}")
+        raise InputError(f"lines: {where}; control lines need rigorous (physical) scene models in every scene of the "
+                         "block (an RPC product is adjusted by its image-space correction from GCPs and tie points): "
+                         "leave the lines out, or adjust the rigorous scenes with their lines without the RPC "
+                         "products", parameter="lines")
+    cameras = image.camera.astype(object)
+    for name, scene in scenes.items():
+        rows = scene_of == name
+        if not rows.any():
+            continue
+        names = [c.name for c in scene.cameras]
+        cams = np.where(image.camera[rows] == "", names[0], image.camera[rows]) if len(names) == 1 \
+            else image.camera[rows]
+        unknown = ~np.isin(cams, names)
+        if unknown.any():
+            raise InputError(f"lines: camera(s) {listed(np.unique(cams[unknown]))} of line(s) "
+                             f"{listed(np.unique(image.line_id[rows][unknown]))} are not cameras of scene {name} "
+                             f"(cameras: {', '.join(names)})", parameter="lines")
+        cameras[rows] = [block_camera(name, c) for c in cams]
+    return ControlLines(lines.ground, replace(image, camera=cameras.astype(str), scene=scene_of))
+
+
+def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None, ties: TieTable | None,
+                 lines: ControlLines | None = None
+                 ) -> tuple[SceneModel | MixedBlock, GcpTable, TieTable | None, ControlLines | None]:
     """(the composite scene: a :class:`MixedBlock` when the block holds RPC scenes, the GCP table,
-    the tie table) with cameras named as in the composite; InputError for a scene listed twice,
-    observations naming a scene not in the block, tie points seen in one scene only, a scene
-    without control or tie observations."""
+    the tie table, the control lines (:func:`block_lines`; None without image lines)) with cameras
+    named as in the composite; InputError for a scene listed twice, observations naming a scene
+    not in the block, tie points seen in one scene only, lines in a block with RPC products, a
+    scene without control, tie or line observations."""
     if not isinstance(scenes, dict) or not scenes:
         raise InputError("a block needs a dict of one or more named scenes", parameter="scenes")
     with_rpc = any(isinstance(scene, RpcScene) for scene in scenes.values())
@@ -148,25 +196,28 @@ def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
         tie_scene = _scene_column(ties.scene, ties.id, scenes, "ties")
         _check_ties_span_scenes(ties, tie_scene)
         ties = replace(_block_cameras(ties, tie_scene, scenes), scene=tie_scene)
-    measured = set(np.unique(gcp_scene[gcps.role == "control"]).tolist()) | set(np.unique(tie_scene).tolist())
+    lines = block_lines(scenes, lines) if lines is not None and len(lines.image) else None
+    measured = set(np.unique(gcp_scene[gcps.role == "control"]).tolist()) | set(np.unique(tie_scene).tolist()) | \
+        set(np.unique(lines.image.scene).tolist() if lines is not None else [])
     alone = [name for name in scenes if name not in measured]
     if alone:
         raise InputError(f"scene(s) {', '.join(map(repr, alone))} have no control point or tie point measured in "
-                         "them: nothing ties them to the block; measure tie points or GCPs there, or leave them out",
-                         parameter="scenes")
-    return composite, gcps, ties
+                         "them (nor a control line): nothing ties them to the block; measure tie points, GCPs or "
+                         "lines there, or leave them out", parameter="scenes")
+    return composite, gcps, ties, lines
 
 
 def adjust_block(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None, ties: TieTable | None,
                  settings: AdjustmentSettings | None = None,
                  progress: Callable[[float, str | None], None] | None = None,
-                 is_cancelled: Callable[[], bool] | None = None) -> BlockResult:
-    """Adjust the block ``scenes`` (name -> rigorous or RPC scene) to the GCPs and tie points (each
-    row naming its scene, see the module docstring) with ``settings`` (the same for every scene)."""
+                 is_cancelled: Callable[[], bool] | None = None, lines: ControlLines | None = None) -> BlockResult:
+    """Adjust the block ``scenes`` (name -> rigorous or RPC scene) to the GCPs, tie points and
+    control lines (each row or image line naming its scene, see the module docstring) with
+    ``settings`` (the same for every scene)."""
     settings = settings or AdjustmentSettings()
-    composite, gcps, ties = block_inputs(scenes, gcps, ties)
-    log.info("adjusting a block of %d scenes (%s): %d GCP and %d tie observations", len(scenes),
-             ", ".join(scenes), len(gcps), 0 if ties is None else len(ties))
+    composite, gcps, ties, lines = block_inputs(scenes, gcps, ties, lines)
+    log.info("adjusting a block of %d scenes (%s): %d GCP, %d tie observations and %d image lines", len(scenes),
+             ", ".join(scenes), len(gcps), 0 if ties is None else len(ties), 0 if lines is None else len(lines.image))
     convergence = None
     if ties is not None and len(ties):
         convergence = ray_convergence(composite, ties)
@@ -175,16 +226,26 @@ def adjust_block(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
             log.warning("%d tie point(s) are seen from one direction only (their rays less than %g degree apart): "
                         "their heights are weakly determined: %s", int(weak.sum()), MIN_CONVERGENCE_DEG,
                         listed(convergence[0][weak]))
-    out = adjust(composite, gcps, settings, progress, is_cancelled, ties=ties)
+    out = adjust(composite, gcps, settings, progress, is_cancelled, ties=ties, lines=lines)
     adjusted = out.scene.split() if isinstance(out.scene, MixedBlock) else split_block(out.scene)
     for name, scene in adjusted.items():
         if "adjustment" in scene.info:
             scene.info["adjustment"] = {**scene.info["adjustment"], "block": {"scene": name, "scenes": list(scenes)}}
-    report = block_report(scenes, composite, out, gcps, ties, settings)
+    line_points = scene_line_points(out.lines)
+    report = block_report(scenes, composite, out, gcps, ties, settings, line_points)
     tie_points = tie_point_ground(out, ties)
     if convergence is not None:
         tie_points["convergence_deg"] = convergence[1]
-    return BlockResult(adjusted, report, tie_points, out)
+    return BlockResult(adjusted, report, tie_points, out, line_points)
+
+
+def scene_line_points(points: dict) -> dict:
+    """The engine's per line point arrays (:attr:`AdjustmentResult.lines`, cameras named
+    ``<scene>/<camera>``) with ``camera`` the scene's own camera name and ``scene`` (n,) str."""
+    if not points:
+        return {}
+    scene, _, camera = (np.char.partition(np.asarray(points["camera"], dtype=str), SEPARATOR)[:, k] for k in range(3))
+    return {**points, "camera": camera, "scene": scene}
 
 
 def ray_convergence(scene: SceneModel, ties: TieTable) -> tuple[np.ndarray, np.ndarray]:
@@ -307,19 +368,36 @@ def beyond_stated(per_scene: dict, controlled: bool) -> list[str]:
 def datum_sentence(report: dict) -> str:
     """How the block's datum is held, in words (from the engine report's ``datum``)."""
     held = report.get("datum")
-    if held is None:
-        return "datum held by the control points (no tie points)"
+    if held is None:  # no tie points: each scene held by its own control, points or lines
+        if "lines" not in report:
+            return "datum held by the control points (no tie points)"
+        points = report["observations"]["control_points"]
+        return f"datum held by the control lines{' and points' if points else ''} (no tie points)"
     sentence = f"datum held by the {held['held_by']}"
     return f"{sentence}: {held['note']}" if held.get("note") else sentence
 
 
+def _line_entry(points: dict, rows: np.ndarray) -> dict:
+    """Line figures of the line points ``rows`` (n,) bool of :func:`scene_line_points`: lines and
+    points used (not flagged), points flagged, RMS (m) of their across-line misfit after and
+    before (rays through the adjusted and the input scene meeting the line's height)."""
+    used = rows & ~points["flagged"]
+    rms = lambda a: float(np.sqrt(np.mean(a * a))) if a.size else None  # noqa: E731
+    return {"lines": int(np.unique(points["line_id"][used]).size), "points": int(used.sum()),
+            "points_flagged": int((rows & points["flagged"]).sum()),
+            "across_rmse_m": rms(points["across_m"][used]),
+            "across_rmse_before_m": rms(points["across_before_m"][used])}
+
+
 def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: AdjustmentResult,
-                 gcps: GcpTable, ties: TieTable | None, settings: AdjustmentSettings) -> dict:
+                 gcps: GcpTable, ties: TieTable | None, settings: AdjustmentSettings,
+                 line_points: dict | None = None) -> dict:
     """Per scene and block figures: image residual RMS (px) of control observations, tie
     observations (after; before: through the onboard scenes with the onboard intersection) and
     check points (the adjusted scene's ground -> image of their stated ground), the move from the
-    onboard geolocation (:func:`onboard_move`); sigma0, the datum sentence, the written-vs-fitted
-    figures and the engine's whole report (``adjustment``)."""
+    onboard geolocation (:func:`onboard_move`), with control lines their lines and points used and
+    across-line RMS (m, :func:`_line_entry`; per line in the engine's report["lines"]); sigma0, the
+    datum sentence, the written-vs-fitted figures and the engine's whole report (``adjustment``)."""
     rep, pts = out.report, out.points
     control, check = pts["role"] == "control", pts["role"] == "check"
     tie_res = (out.tie_points["res_col"], out.tie_points["res_row"]) if ties is not None and len(ties) else None
@@ -338,13 +416,16 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
         if tie_res is not None:
             entry["ties"] = {"observations": int(t.sum()), "rmse_px": _rms_px(tie_res[0][t], tie_res[1][t]),
                              "rmse_before_px": _rms_px(before[t, 0], before[t, 1])}
+        if line_points:
+            entry["lines"] = _line_entry(line_points, line_points["scene"] == name)
         per_scene[name] = entry
     block = {"scenes": len(scenes), "sigma0": rep["sigma0"],
              "control_rmse_px": _rms_px(pts["res_col"][control], pts["res_row"][control]),
              "check_rmse_px": _rms_px(pts["res_col"][check], pts["res_row"][check]),
              "tie_points": rep["observations"]["tie_points"],
              "tie_rmse_px": None if tie_res is None else _rms_px(*tie_res),
-             "tie_rmse_before_px": None if before is None else _rms_px(before[:, 0], before[:, 1])}
+             "tie_rmse_before_px": None if before is None else _rms_px(before[:, 0], before[:, 1]),
+             "lines": _line_entry(line_points, np.ones(line_points["scene"].size, bool)) if line_points else None}
     datum = datum_sentence(rep)
     warnings = beyond_stated(per_scene, bool((gcps.role == "control").any()))
     for warning in warnings:

@@ -217,12 +217,14 @@ def write_line_residuals(path, lines: ControlLines, points: dict, report: dict, 
     """One GeoPackage: layer ``line_points`` (points at their adjusted ground, EPSG:4979: per
     line point line_id, camera, col, row, res_col, res_row (px), across_m, height_m (m, the
     ray's distance from the line through the adjusted scene), across_before_m, flagged,
-    line_flagged) and layer ``ground_lines`` (the paired lines with points, rms_across_m,
-    max_across_m, points_flagged, flagged = named wrong as a whole)."""
+    line_flagged; scene, the product of a block each point was measured in, when ``points`` has it:
+    :attr:`core.adjust.block.BlockResult.line_points`) and layer ``ground_lines`` (the paired
+    lines with points, rms_across_m, max_across_m, points_flagged, flagged = named wrong as a
+    whole)."""
     geoms = [f"POINT Z ({a!r} {b!r} {c!r})" for a, b, c in zip(points["lon"].tolist(), points["lat"].tolist(),
                                                                   points["h"].tolist())]
-    columns = {k: points[k] for k in ("line_id", "camera", "col", "row", "res_col", "res_row", "across_m", "height_m",
-                                      "across_before_m")}
+    columns = {k: points[k] for k in ("line_id", "scene", "camera", "col", "row", "res_col", "res_row", "across_m",
+                                      "height_m", "across_before_m") if k in points}
     columns.update(flagged=points["flagged"].astype(int), line_flagged=points["line_flagged"].astype(int))
     per = report["per_line"]
     used = np.isin(lines.ground.id, per["line_id"])

@@ -73,11 +73,24 @@ def block_section(block_report: dict) -> str:
               "tie RMS before px", "tie RMS after px", "moved m", "onboard / vendor sigma m"]
     warnings = "".join(f"<p class='bad'>{html.escape(w)}</p>" for w in rep.get("warnings", []))
     return (f"<h2>Block of {block['scenes']} scenes</h2><p class='big'>{html.escape(rep['datum'])}; sigma0 "
-            f"{_fmt(block['sigma0'])}.</p>" + warnings + _table(header, rows, left=2)
+            f"{_fmt(block['sigma0'])}.</p>" + warnings + _table(header, rows, left=2) + _block_lines(rep)
             + "<p>Each scene's move is the largest distance between the ground its onboard (or vendor RPC) and its "
               "adjusted model see over its images; the onboard sigma is what POSITION_SIGMA and ATTITUDE_SIGMA "
               "allow, an RPC product's the vendor's stated accuracy (settings.rpc_sigma) on the ground. The "
               "sections below are the adjustment of the whole block (cameras named &lt;scene&gt;/&lt;camera&gt;).</p>")
+
+
+def _block_lines(rep: dict) -> str:
+    """HTML table of a block's control lines per scene and for the block (lines and points used,
+    points flagged, across-line RMS before and after, m); '' without lines."""
+    if not rep["block"].get("lines"):
+        return ""
+    entries = [(html.escape(name), s["lines"]) for name, s in rep["scenes"].items()]
+    entries.append(("<b>block</b>", rep["block"]["lines"]))
+    rows = [[name, f"{e['lines']}", f"{e['points']}", f"{e['points_flagged']}", _fmt(e["across_rmse_before_m"], ".2f"),
+             _fmt(e["across_rmse_m"], ".2f")] for name, e in entries]
+    return _table(["scene", "control lines", "line points used", "points flagged", "across-line RMS before m",
+                   "across-line RMS after m"], rows)
 
 
 def _fmt(value, spec: str = ".3f") -> str:

@@ -119,8 +119,9 @@ class LineEditor:
             raise InputError("the picked ground line has no id; choose the layer's id field")
         self.lines[self.selected].line_id = line_id
 
-    def image_lines(self, camera: str, sigma_px: float = DEFAULT_SIGMA_PX) -> ImageLines:
-        """The finished lines as :class:`core.observations.lines.ImageLines` of ``camera``. InputError naming
+    def image_lines(self, camera: str, sigma_px: float = DEFAULT_SIGMA_PX, scene: str = "") -> ImageLines:
+        """The finished lines as :class:`core.observations.lines.ImageLines` of ``camera`` (measured in
+        the block scene named ``scene``; '' for none: one scene). InputError naming
         the lines (1-based, as listed) that are not paired, and when a line is still being
         drawn or there is none."""
         if self.current:
@@ -135,7 +136,7 @@ class LineEditor:
                   for line in self.lines]
         return build_image_lines([line.line_id for line in self.lines],
                                  [np.array(line.vertices) for line in self.lines], camera, sigmas,
-                                 source="digitised lines")
+                                 source="digitised lines", scene=scene)
 
     def load(self, image: ImageLines) -> None:
         """Continue editing saved lines (replaces the lines held)."""

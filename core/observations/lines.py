@@ -89,17 +89,22 @@ class GroundLines:
 @dataclass
 class ImageLines:
     """Image polylines, one row per part. line_id (k,) str (the ground line it pairs to),
-    camera (k,) str, start (k+1,) vertex offsets, col, row (V,) GDAL px, sigma_px (V,) px."""
+    camera (k,) str, start (k+1,) vertex offsets, col, row (V,) GDAL px, sigma_px (V,) px;
+    scene (k,) str: in a block of scenes (:mod:`core.adjust.block`) the name of the product each
+    line was measured in ('' when not named: one scene)."""
     line_id: np.ndarray
     camera: np.ndarray
     start: np.ndarray
     col: np.ndarray
     row: np.ndarray
     sigma_px: np.ndarray
+    scene: np.ndarray | None = None
 
     def __post_init__(self):
         self.line_id = np.asarray(self.line_id, dtype=str)
         self.camera = np.broadcast_to(np.asarray(self.camera, dtype=str), self.line_id.shape).copy()
+        self.scene = np.char.strip(np.broadcast_to(np.asarray("" if self.scene is None else self.scene, dtype=str),
+                                                   self.line_id.shape).copy())
         self.start = np.asarray(self.start, dtype=np.int64)
         self.col, self.row = np.asarray(self.col, dtype=float), np.asarray(self.row, dtype=float)
         self.sigma_px = np.broadcast_to(np.asarray(self.sigma_px, dtype=float), self.col.shape).copy()
@@ -168,10 +173,11 @@ def build_ground_lines(ids, parts, *, crs, heights: Heights, sigma_across=DEFAUL
 
 
 def build_image_lines(line_ids, parts, camera, sigma_px=DEFAULT_SIGMA_PX,
-                      source: str = "image lines") -> ImageLines:
+                      source: str = "image lines", scene=None) -> ImageLines:
     """Image lines from raw parts: line_ids (k,) (the ground line each pairs to), parts a list
     of k arrays (n_i, 2) of (col, row) GDAL px, camera (k,) or one name, sigma_px: a scalar,
-    (k,) per line, or a list of k arrays (n_i,) per vertex (px).
+    (k,) per line, or a list of k arrays (n_i,) per vertex (px); scene (k,) or one name: the
+    product of a block each line was measured in (None: '', one scene).
 
     InputError, naming ``source`` and the line ids, for: a part with one vertex, empty or
     non-numeric coordinates, coordinates no image reaches, a zero-length or self-intersecting
@@ -204,7 +210,7 @@ def build_image_lines(line_ids, parts, camera, sigma_px=DEFAULT_SIGMA_PX,
     _require_sigmas(vid, source, MAX_SIGMA_PX, sigma_px=sigma)
     keep, start = _drop_repeats(ids, start, cr[:, 0], cr[:, 1], source)
     _require_simple(ids, start, cr[keep, 0], cr[keep, 1], source)
-    return ImageLines(ids, camera, start, cr[keep, 0], cr[keep, 1], sigma[keep])
+    return ImageLines(ids, camera, start, cr[keep, 0], cr[keep, 1], sigma[keep], scene)
 
 
 def _require_vertices(ids, start, source: str) -> None:
@@ -279,7 +285,9 @@ def ground_layer(ground: GroundLines, extra: dict | None = None) -> LayerData:
 
 def image_layer(image: ImageLines, extra: dict | None = None) -> LayerData:
     """The ``image_lines`` layer of ``image``: LineString M (x = col, y = -row, M = sigma px);
-    the field sigma_px holds each line's median vertex sigma."""
+    the field sigma_px holds each line's median vertex sigma; the field ``scene`` (the product of a
+    block each line was measured in) only when a line names one, so that a single scene's layer
+    keeps the fields it always had."""
     geoms = []
     sigma = np.zeros(len(image))
     for i in range(len(image)):
@@ -288,7 +296,8 @@ def image_layer(image: ImageLines, extra: dict | None = None) -> LayerData:
         coords = ", ".join(f"{c!r} {-r!r} {s!r}" for c, r, s in zip(image.col[sl].tolist(), image.row[sl].tolist(),
                                                                        image.sigma_px[sl].tolist()))
         geoms.append(f"LINESTRING M ({coords})")
-    columns = {"line_id": image.line_id, "camera": image.camera, "sigma_px": sigma, **(extra or {})}
+    scene = {"scene": image.scene} if (image.scene != "").any() else {}
+    columns = {"line_id": image.line_id, "camera": image.camera, "sigma_px": sigma, **scene, **(extra or {})}
     return LayerData(IMAGE_LAYER, pixel_frame(), ogr.wkbLineStringM, columns, geoms)
 
 
@@ -366,16 +375,19 @@ def read_ground_lines(path, layer: str | None = GROUND_LAYER, id_field: str | No
 
 def read_image_lines(path, layer: str | None = IMAGE_LAYER, id_field: str = "line_id",
                      camera_field: str | None = "camera", camera: str = "",
-                     sigma_px: float = DEFAULT_SIGMA_PX) -> ImageLines:
+                     sigma_px: float = DEFAULT_SIGMA_PX, scene_field: str | None = "scene") -> ImageLines:
     """Image lines from a line layer in the pixel frame (x = col, y = -row): the ground line
-    id from ``id_field``, the camera from ``camera_field`` (or ``camera`` for all), each
-    vertex's sigma from its M value when > 0, else the line's sigma_px field, else
-    ``sigma_px``. A vertex with y > 0 is refused: the layer is not in the pixel frame."""
+    id from ``id_field``, the camera from ``camera_field`` (or ``camera`` for all), the product
+    of a block each line was measured in from ``scene_field`` when the layer has it (else, and
+    where NULL, ''), each vertex's sigma from its M value when > 0, else the line's sigma_px
+    field, else ``sigma_px``. A vertex with y > 0 is refused: the layer is not in the pixel
+    frame."""
     ds, lyr = open_layer(path, layer)
     present = [lyr.GetLayerDefn().GetFieldDefn(i).GetName() for i in range(lyr.GetLayerDefn().GetFieldCount())]
     ds = lyr = None
     fields = {"id": id_field, "camera": camera_field if camera_field in present else None,
-              "sigma": "sigma_px" if "sigma_px" in present else None}
+              "sigma": "sigma_px" if "sigma_px" in present else None,
+              "scene": scene_field if scene_field in present else None}
     values, parts, _, ds = _features(path, layer, fields)
     ids = np.array(["" if v is None else str(v) for v in values["id"]])
     positive = [i for i, (p, _) in enumerate(parts) if (p[:, 1] > 1e-9).any()]
@@ -388,4 +400,6 @@ def read_image_lines(path, layer: str | None = IMAGE_LAYER, id_field: str = "lin
         line_sigma = sigma_px if s is None or not s > 0 else float(s)
         m = np.zeros(len(p)) if m is None else m
         sigmas.append(np.where(np.isfinite(m) & (m > 0), m, line_sigma))
-    return build_image_lines(ids, [np.stack([p[:, 0], -p[:, 1]], axis=1) for p, _ in parts], cams, sigmas, str(path))
+    scenes = np.array(["" if v is None else str(v) for v in values["scene"]], dtype=str)
+    return build_image_lines(ids, [np.stack([p[:, 0], -p[:, 1]], axis=1) for p, _ in parts], cams, sigmas, str(path),
+                             scene=scenes)

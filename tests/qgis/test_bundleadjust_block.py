@@ -301,7 +301,9 @@ def bad_inputs(block, gcp_layer, tmp_path_factory) -> dict:
      r"^SCENES: scene\(s\) 'bwd' have no control point or tie point measured in them"),
     (lambda b, x: {"OUTPUT_SCENE": str(Path(x["one"]).with_name("a.json"))},
      r"^OUTPUT_SCENE: with SCENES the block's outputs go to OUTPUT_FOLDER \(it writes <name>_adjusted.json there\)"),
-    (lambda b, x: {"LINES": x["one"]}, r"^LINES: control lines are adjusted with one scene"),
+    (lambda b, x: {"OUTPUT_LINE_RESIDUALS": str(Path(x["one"]).with_name("r.gpkg"))},
+     r"^OUTPUT_LINE_RESIDUALS: with SCENES the block's outputs go to OUTPUT_FOLDER \(it writes line_residuals.gpkg "
+     r"with LINES there\)"),
 ])
 def test_bad_blocks_are_refused_naming_the_parameter(block, gcp_layer, bad_inputs, tmp_path, change, message):
     given = {**params(block, gcp_layer, tmp_path / "out"), **change(block, bad_inputs)}

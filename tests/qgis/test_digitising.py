@@ -2,6 +2,8 @@
 copy (pushbroom:preparedigitising), digitise two image lines on the dock's canvas, undo a vertex,
 pair each with its ground line on the main canvas, predict the ground lines, save; the saved
 layer reads back through core.observations.lines with the clicked pixels and the ids."""
+from pathlib import Path
+
 import numpy as np
 from osgeo import gdal, ogr
 from qgis.core import QgsApplication
@@ -79,6 +81,8 @@ def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground
 
     back = read_image_lines(tmp_path / "lines.gpkg")
     assert back.line_id.tolist() == ["R1", "R2"] and back.camera.tolist() == ["HRC", "HRC"]
+    # the scene as bundleadjust with SCENES names the scene file (true_scene.json: its folder)
+    assert back.scene.tolist() == [Path(roads["result"].true_scene).parent.name] * 2
     for i, line_id in enumerate(("R1", "R2")):
         sl = slice(back.start[i], back.start[i + 1])
         got = np.c_[back.col[sl], back.row[sl]]

@@ -69,12 +69,12 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             "FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw' (the scene's camera names) and ATTITUDE_ORDER=0, 1 or 2. "
             "The onboard attitude sigma (ATTITUDE_SIGMA) keeps Plan D's quadratic term from trading off "
             "against the installation angles when the control is sparse. A block of several products (stereo, "
-            "tri-stereo, several dates, neighbouring orbits): SCENES instead of SCENE, GCPs and tie points "
-            "naming the scene each observation was measured in (field 'scene'), adjusted together (one trajectory "
-            "correction per scene with its own onboard pseudo-observations, an RPC product its own image-space "
-            "correction, shared ground points); the outputs go to OUTPUT_FOLDER: <name>_adjusted.json per scene, "
-            "block_report.html/.json, adjusted_gcps.gpkg, adjusted_tie_points.gpkg and, with WRITE_RPCS, a refined "
-            "RPC per image.")
+            "tri-stereo, several dates, neighbouring orbits): SCENES instead of SCENE, GCPs, tie points and "
+            "image lines (LINES) naming the scene each was measured in (field 'scene'), adjusted together (one "
+            "trajectory correction per scene with its own onboard pseudo-observations, an RPC product its own "
+            "image-space correction, shared ground points and ground lines); the outputs go to OUTPUT_FOLDER: "
+            "<name>_adjusted.json per scene, block_report.html/.json, adjusted_gcps.gpkg, adjusted_tie_points.gpkg, "
+            "line_residuals.gpkg (with LINES) and, with WRITE_RPCS, a refined RPC per image.")
     GCPS, TIE_POINTS, OUTPUT_TIE_POINTS = "GCPS", "TIE_POINTS", "OUTPUT_TIE_POINTS"
     POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
         POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
@@ -325,7 +325,11 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                            tr("The control lines written by 'Import control lines' (pushbroom:importlines): "
                               "ground lines and the image lines paired to them (Tommaselli & Marcato Junior 2012). "
                               "Each image-line point constrains its ground point to its line across it and in "
-                              "height; lines that do not fit as a whole are named and released."))
+                              "height; lines that do not fit as a whole are named and released. With SCENES (a block "
+                              "of several scenes) the layer image_lines has a text field 'scene' naming the scene "
+                              "each image line was measured in (as SCENES names it: its file's stem; the line "
+                              "digitising dock writes it when its Scene field is set); the ground lines are shared "
+                              "by all scenes. Control lines need rigorous scene models: not with RPC products."))
         out = QgsProcessingParameterVectorDestination(self.OUTPUT_LINE_RESIDUALS, tr("Line residuals"),
                                                       QgsProcessing.TypeVectorPoint, optional=True,
                                                       createByDefault=False)

@@ -3,7 +3,9 @@
 image lines, pairing with ground lines picked on the main map canvas, ground lines predicted into
 the image by the scene model, Snap (the selected line to the road's centre or an edge of the raw
 image the display copy shows, :mod:`core.snapping`, undoable) and Save to an ``image_lines``
-GeoPackage layer.
+GeoPackage layer. With a scene file given, each saved line names its scene (the field ``scene``: the
+name bundleadjust with SCENES gives that file, :func:`ui.inputs.block_scene_names`), so that the
+layer serves a block of scenes as it is.
 
 The logic lives in :mod:`core.measure.digitising` (vertices, undo, pairing, prediction); this module
 turns mouse events and buttons into its calls and draws its state. The canvas, its map tool, picking
@@ -27,6 +29,7 @@ from ...core.measure.display import read_display_source
 from ...core.measure.snapping import MODES as SNAP_MODES
 from ...core.measure.snapping import SnapSettings
 from ...core.observations.lines import write_gpkg
+from ..inputs import block_scene_names
 from ..parameters import tr
 from .base import PixelCanvasDock
 
@@ -238,9 +241,12 @@ class DigitisingDock(PixelCanvasDock):
 
     def save(self, path: str) -> bool:
         """Write the lines to layer ``image_lines`` of GeoPackage ``path`` (replaced whole, or not at
-        all); False (with the reason shown) when they cannot be saved."""
+        all), naming the scene file's block name when one is given; False (with the reason shown)
+        when they cannot be saved."""
+        scene_file = self.scene_edit.text().strip()
         try:
-            write_gpkg(path, image=self.editor.image_lines(self.camera_edit.text().strip()))
+            scene = block_scene_names([scene_file])[0] if scene_file else ""
+            write_gpkg(path, image=self.editor.image_lines(self.camera_edit.text().strip(), scene=scene))
         except PushbroomError as exc:
             self.tell(str(exc))
             return False
