@@ -14,7 +14,7 @@ once this folds into the observation itself:
 rays alone fix them, two or more per point. Observations touching the same parameter
 columns (same camera, chip and trajectory knots) are stacked and multiplied with BLAS, so
 assembly costs one dense product per group. Points seen in several cameras (three-line
-scenes, tie points) are eliminated with one dense product per two runs of observations that
+scenes, tie points) are eliminated with one dense product per two groups of observations that
 share columns (:class:`PointBlocks`).
 """
 from __future__ import annotations
@@ -22,6 +22,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
 
 RIDGE = 1e-9  # share of a point's normal-matrix trace added to its diagonal (see assemble)
 
@@ -181,90 +183,116 @@ def run_ids(columns: np.ndarray) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(np.any(columns[1:] != columns[:-1], axis=1))])
 
 
+def column_groups(columns: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
+    """Observations whose columns (n, q) overlap, directly or through others, form one group:
+    a scene of a block (its trajectory and interior), or a whole strip under one piecewise
+    trajectory, whose observations touch a different window of knots each. Returns the group of
+    each observation (n,), each group's layout (the sorted union of its columns), and each
+    observation's slots in its group's layout (n, q) (-1 where its column is -1)."""
+    run = run_ids(columns)
+    first = np.nonzero(np.r_[True, run[1:] != run[:-1]])[0] if run.size else np.zeros(0, dtype=np.int64)
+    run_cols = columns[first]                                                     # (R, q)
+    n_runs, n_cols = run_cols.shape[0], int(columns.max(initial=-1)) + 1
+    r, k = np.nonzero(run_cols >= 0)
+    graph = sparse.coo_matrix((np.ones(r.size), (r, n_runs + run_cols[r, k])), shape=(n_runs + n_cols,) * 2)
+    _, component = csgraph.connected_components(graph, directed=False)
+    _, run_group = np.unique(component[:n_runs], return_inverse=True)
+    layouts, slots = [], np.full(run_cols.shape, -1, dtype=np.int64)
+    for g in range(int(run_group.max(initial=-1)) + 1):
+        mine = run_group == g
+        cols = run_cols[mine]
+        layout = np.unique(cols[cols >= 0])
+        slots[mine] = np.where(cols >= 0, np.searchsorted(layout, cols), -1)
+        layouts.append(layout)
+    return run_group[run], layouts, slots[run]
+
+
+@dataclass
+class GroupBlocks:
+    """The points' couplings within one column group (:func:`column_groups`): point (k,) the
+    points seen in the group (ascending), B (k, 3, q) the sum of J_g' P J_p over each point's
+    observations in the group, in the group's layout ``columns`` (q,) of unknown indices; obs
+    (o,) the observations summed, pair (o,) the row of B each went to, slots (o, q_obs) where
+    each observation's own columns lie in the layout (-1: unused)."""
+    point: np.ndarray
+    B: np.ndarray
+    columns: np.ndarray
+    obs: np.ndarray
+    pair: np.ndarray
+    slots: np.ndarray
+
+
 @dataclass
 class PointBlocks:
     """The coupling of ground unknowns with the parameters, M_p = sum of J_g' P J_p over a
-    point's observations (3 x n_unknowns), kept compact: a point's observations in one run of
-    identical columns (one camera or scene) touch the same q columns, so M_p is the sum of one
-    block per (point, run) pair, B_i (3, q) in that run's columns, scattered.
-
-    point (k,) and columns (k, q) (unknown indices, -1 unused: B is zero there) of the k pairs,
-    grouped by point; obs (o,) the observations summed and pair (o,) the pair of each; crosses:
-    per two runs (a, b), the pairs (i, j) of the points seen in both (i in a, j in b; a = b
-    included), so that M_p' X M_p sums over them as B_i' X B_j, one dense product per two runs."""
-    point: np.ndarray
-    columns: np.ndarray
-    B: np.ndarray
-    obs: np.ndarray
-    pair: np.ndarray
-    crosses: list[tuple[np.ndarray, np.ndarray]]
+    point's observations (3 x n_unknowns), kept compact: one block per (point, column group),
+    B (3, q) in that group's columns (:class:`GroupBlocks`), so that M_p' X M_p sums over the
+    points seen in two groups (a, b) as B_a' X_ab B_b, one dense product per two groups.
+    crosses: per two groups (a, b) (a = b included), the rows (i of group a, j of group b)
+    that belong to the same points."""
+    groups: list[GroupBlocks]
+    crosses: list[tuple[int, int, np.ndarray, np.ndarray]]
 
 
 def point_blocks(lin: Linearization, mask: np.ndarray) -> PointBlocks:
     """The :class:`PointBlocks` of the observations ``mask`` (n,) (all with a ground unknown)."""
+    group, layouts, slots = column_groups(lin.columns)
     obs = np.nonzero(mask)[0]
-    run = run_ids(lin.columns)[obs]
-    order = np.lexsort((run, lin.point[obs]))
-    obs, run = obs[order], run[order]
-    pts = lin.point[obs]
-    new = np.r_[True, (pts[1:] != pts[:-1]) | (run[1:] != run[:-1])]
-    starts = np.nonzero(new)[0]
+    obs = obs[np.lexsort((lin.point[obs], group[obs]))]
     pj = lin.p[obs][:, :, None] * lin.jg[obs]                                     # P J_g (o,2,3)
-    block = np.matmul(pj.transpose(0, 2, 1), lin.values[obs])                    # J_g' P J_p (o,3,q)
-    columns = lin.columns[obs[starts]]
-    B = np.where(columns[:, None, :] >= 0, _segment_sums(block, starts), 0.0)
-    point, pair_run = pts[starts], run[starts]
-    return PointBlocks(point, columns, B, obs, np.cumsum(new) - 1, _crosses(point, pair_run))
+    block = np.matmul(pj.transpose(0, 2, 1), lin.values[obs])                    # J_g' P J_p (o,3,q_obs)
+    bounds = np.searchsorted(group[obs], np.arange(len(layouts) + 1))
+    out = []
+    for g, layout in enumerate(layouts):
+        a, b = bounds[g], bounds[g + 1]
+        if a == b or layout.size == 0:
+            continue
+        mine, where = obs[a:b], slots[obs[a:b]]
+        pts = lin.point[mine]
+        new = np.r_[True, pts[1:] != pts[:-1]]
+        pair = np.cumsum(new) - 1
+        # each observation's (3, q_obs) added into its point's row at its slots: one bincount
+        flat = (pair[:, None, None] * 3 + np.arange(3)[None, :, None]) * layout.size + where[:, None, :]
+        used = np.broadcast_to(where[:, None, :] >= 0, flat.shape)
+        B = np.bincount(flat[used], weights=block[a:b][used], minlength=(pair[-1] + 1) * 3 * layout.size)
+        out.append(GroupBlocks(pts[new], B.reshape(-1, 3, layout.size), layout, mine, pair, where))
+    return PointBlocks(out, _crosses(out))
 
 
-def _segment_sums(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Sums of values (o, ...) over the segments starting at ``starts`` (k,) (ascending, the
-    first 0), in order: a loop over the segments' lengths (a point's observations in one run: a
-    few cameras), which is 3x faster than np.add.reduceat over the first axis of 3D arrays."""
-    length = np.diff(np.r_[starts, values.shape[0]])
-    out = values[starts].copy()
-    for m in range(1, int(length.max(initial=1))):
-        longer = length > m
-        out[longer] += values[starts[longer] + m]
+def _crosses(groups: list[GroupBlocks]) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
+    """(a, b, i, j) for every two groups a, b that share points: rows i of group a and j of
+    group b of the same points."""
+    n_points = max((int(g.point.max()) + 1 for g in groups), default=0)
+    row_of = []
+    for g in groups:
+        rows = np.full(n_points, -1, dtype=np.int64)
+        rows[g.point] = np.arange(g.point.size)
+        row_of.append(rows)
+    out = []
+    for a, ga in enumerate(groups):
+        for b in range(len(groups)):
+            j = row_of[b][ga.point]
+            i = np.nonzero(j >= 0)[0]
+            if i.size:
+                out.append((a, b, i, j[i]))
     return out
-
-
-def _crosses(point: np.ndarray, run: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Every two pairs (i, j) of one point (``point`` (k,) grouped), grouped by their runs."""
-    if point.size == 0:
-        return []
-    first = np.nonzero(np.r_[True, point[1:] != point[:-1]])[0]
-    count = np.diff(np.r_[first, point.size])
-    i_all, j_all = [], []
-    for k in np.unique(count):
-        idx = first[count == k][:, None] + np.arange(k)                           # (points, k)
-        i_all.append(np.repeat(idx, k, axis=1).ravel())
-        j_all.append(np.tile(idx, (1, k)).ravel())
-    i, j = np.concatenate(i_all), np.concatenate(j_all)
-    key = run[i] * (int(run.max()) + 1) + run[j]
-    order = np.argsort(key, kind="stable")
-    i, j, key = i[order], j[order], key[order]
-    bounds = np.r_[np.nonzero(np.r_[True, key[1:] != key[:-1]])[0], key.size]
-    return [(i[a:b], j[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 def _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns) -> None:
     """Schur complement of points observed several times: N -= sum of M_p' K_p M_p,
     b -= sum of M_p' K_p b_g, with M_p their couplings (:func:`point_blocks`); one dense
-    product per two runs of observations."""
+    product per two column groups."""
     pb = point_blocks(lin, multi)
-    KB = K[pb.point] @ pb.B                                                       # (k,3,q)
+    KB = [K[g.point] @ g.B for g in pb.groups]                                   # (k,3,q) per group
     S = np.zeros((n_unknowns, n_unknowns))
-    for i, j in pb.crosses:
-        ci, cj = pb.columns[i[0]], pb.columns[j[0]]
-        ki, kj = ci >= 0, cj >= 0
-        product = pb.B[i].reshape(-1, ci.size).T @ KB[j].reshape(-1, cj.size)       # sum of B_i' K B_j (q,q)
-        S[np.ix_(ci[ki], cj[kj])] += product[np.ix_(ki, kj)]
+    for a, c, i, j in pb.crosses:
+        ga, gc = pb.groups[a], pb.groups[c]
+        S[np.ix_(ga.columns, gc.columns)] += ga.B[i].reshape(-1, ga.columns.size).T @ \
+            KB[c][j].reshape(-1, gc.columns.size)                                # sum of B_a' K B_c
     N -= 0.5 * (S + S.T)
-    kbg = np.einsum("kij,kj->ki", K[pb.point], bg[pb.point])                      # K_p b_g per pair
-    contrib = np.einsum("kaq,ka->kq", pb.B, kbg)
-    ok = pb.columns >= 0
-    b -= np.bincount(pb.columns[ok], weights=contrib[ok], minlength=n_unknowns)
+    for g in pb.groups:
+        kbg = np.einsum("kij,kj->ki", K[g.point], bg[g.point])                  # K_p b_g per point
+        b[g.columns] -= np.einsum("kaq,ka->q", g.B, kbg)
 
 
 def back_substitute(lin: Linearization, system: System, dx: np.ndarray) -> np.ndarray:

@@ -114,15 +114,16 @@ def _ground_leverage(lin: Linearization, system: System, Q: np.ndarray, G: np.nd
     n_points = system.K.shape[0]
     pb = point_blocks(lin, weighted)
     s = np.zeros((n_points, 3, 3))                                                # M Q M'
-    T = np.zeros(pb.B.shape[:1] + pb.B.shape[2:] + (3,))                          # (M Q)[:, columns]' per pair
-    for i, j in pb.crosses:  # in one group each pair i (and each point) appears once
-        ci, cj = pb.columns[i[0]], pb.columns[j[0]]
-        qbt = np.matmul(Q[np.ix_(np.maximum(ci, 0), np.maximum(cj, 0))], pb.B[j].transpose(0, 2, 1))  # (c,q,3)
-        T[i] += qbt
-        s[pb.point[i]] += np.matmul(pb.B[i], qbt)
-    T[pb.columns < 0] = 0.0
+    T = [np.zeros((g.point.size, g.columns.size, 3)) for g in pb.groups]         # (M Q)[:, layout]' per point
+    for a, c, i, j in pb.crosses:  # in one cross each point appears once
+        ga, gc = pb.groups[a], pb.groups[c]
+        qbt = np.matmul(Q[np.ix_(ga.columns, gc.columns)], gc.B[j].transpose(0, 2, 1))  # (k,q_a,3)
+        T[a][i] += qbt
+        s[ga.point[i]] += np.matmul(ga.B[i], qbt)
     aqm = np.zeros((lin.r.shape[0], 2, 3))                                        # A Q M' per observation
-    aqm[pb.obs] = np.matmul(lin.values[pb.obs], T[pb.pair])
+    for g, t in zip(pb.groups, T):
+        rows = np.where(g.slots[:, :, None] >= 0, t[g.pair[:, None], np.maximum(g.slots, 0)], 0.0)  # (o,q_obs,3)
+        aqm[g.obs] = np.matmul(lin.values[g.obs], rows)
     point = lin.point[weighted]
     aqm = aqm[weighted]
     jk = lin.jg[weighted] @ system.K[point]                                       # J_g K (k,2,3)
