@@ -18,25 +18,19 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingModel
                        QgsProcessingParameterVectorLayer)
 
 import processing
-from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.observations import gcps as gcp_io
 from tests.support.hostile import LogFeedback
+from tests.support.tristereo_block import ADJUST, NAMES, check_px, simulate_tristereo
 from tests.support.qgis_process import run_json
 
-NAMES = ("nad", "fwd", "bwd")  # the scenes of LAYOUT tristereo, by their folders
 IMPORT = {"Z_FIELD": "h", "Z_DATUM": "ellipsoid", "SIGMA_PX_FIELD": "sigma_px", "SIGMA_XY_FIELD": "sigma_xy",
           "SIGMA_Z_FIELD": "sigma_z"}
-# one trajectory correction per scene: bias and drift of position and attitude, the onboard sigmas as
-# the simulated errors of th1_tlc (position ~10 m, attitude ~40 arcsec)
-ADJUST = {"POSITION_ORDER": 1, "ATTITUDE_ORDER": 1, "POSITION_SIGMA": 20.0, "ATTITUDE_SIGMA": 60.0}
 
 
 @pytest.fixture(scope="module")
 def block(provider, tmp_path_factory) -> dict:
-    return processing.run("pushbroom:simulateblock", {
-        "PRESET": "th1_tlc", "LAYOUT": "tristereo", "IMAGE_SIZE": 600, "RENDER": False, "SEED": 3, "N_GCPS": 24,
-        "N_TIE_POINTS": 60, "CHECK_FRACTION": 0.25, "OUTPUT_FOLDER": str(tmp_path_factory.mktemp("block"))})
+    return simulate_tristereo(tmp_path_factory.mktemp("block"), n_gcps=24)
 
 
 @pytest.fixture(scope="module")
@@ -101,20 +95,6 @@ def adjusted(block, gcp_layer, tmp_path_factory):
     folder = tmp_path_factory.mktemp("adjusted") / "out"
     result = processing.run("pushbroom:bundleadjust", params(block, gcp_layer, folder, WRITE_RPCS=True), feedback=log)
     return result, log, folder
-
-
-def check_px(block, scene_paths, names=NAMES) -> dict:
-    """{scene: RMS (px)} of a 9 x 9 lattice over each scene's image, its true ground (on the DEM)
-    projected through the given scene against the lattice."""
-    dem = Dem(block["DEM"], "geoid")
-    out = {}
-    for name, true_path, path in zip(names, block["TRUE_SCENES"], scene_paths):
-        true, scene = load_scene(true_path), load_scene(path)
-        cam = true.cameras[0]
-        col, row = (a.ravel() for a in np.meshgrid(np.linspace(10, cam.cols - 10, 9), np.linspace(10, cam.rows - 10, 9)))
-        col2, row2 = scene.ground_to_image(true.image_to_ground_dem(col, row, dem, 0), 0)
-        out[name] = float(np.sqrt(np.mean((col2 - col) ** 2 + (row2 - row) ** 2)))
-    return out
 
 
 def test_the_block_meets_the_truth(block, adjusted):

@@ -16,22 +16,17 @@ from osgeo import ogr
 from qgis.core import QgsProcessingException
 
 import processing
-from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.observations.lines import write_gpkg
 from tests.support.control_lines import block_lines
 from tests.support.hostile import LogFeedback
+from tests.support.tristereo_block import ADJUST, NAMES, check_px, simulate_tristereo
 
-NAMES = ("nad", "fwd", "bwd")  # the scenes of LAYOUT tristereo, by their folders
-# one trajectory correction per scene, the onboard sigmas about the simulated errors of th1_tlc
-ADJUST = {"POSITION_ORDER": 1, "ATTITUDE_ORDER": 1, "POSITION_SIGMA": 20.0, "ATTITUDE_SIGMA": 60.0}
 
 
 @pytest.fixture(scope="module")
 def block(provider, tmp_path_factory) -> dict:
-    return processing.run("pushbroom:simulateblock", {
-        "PRESET": "th1_tlc", "LAYOUT": "tristereo", "IMAGE_SIZE": 600, "RENDER": False, "SEED": 3, "N_GCPS": 4,
-        "N_TIE_POINTS": 60, "CHECK_FRACTION": 0.25, "OUTPUT_FOLDER": str(tmp_path_factory.mktemp("block"))})
+    return simulate_tristereo(tmp_path_factory.mktemp("block"), n_gcps=4)
 
 
 @pytest.fixture(scope="module")
@@ -47,20 +42,6 @@ def lines(block, tmp_path_factory) -> dict:
         out[key] = str(folder / f"{key}.gpkg")
         write_gpkg(out[key], control.ground, replace(image, scene=scene))
     out["count"] = int(image.col.size)
-    return out
-
-
-def check_px(block, scene_paths) -> dict:
-    """{scene: RMS (px)} of a 9 x 9 lattice over each scene's image, its true ground (on the DEM)
-    projected through the given scene against the lattice."""
-    dem = Dem(block["DEM"], "geoid")
-    out = {}
-    for name, true_path, path in zip(NAMES, block["TRUE_SCENES"], scene_paths):
-        true, scene = load_scene(true_path), load_scene(path)
-        cam = true.cameras[0]
-        col, row = (a.ravel() for a in np.meshgrid(np.linspace(10, cam.cols - 10, 9), np.linspace(10, cam.rows - 10, 9)))
-        col2, row2 = scene.ground_to_image(true.image_to_ground_dem(col, row, dem, 0), 0)
-        out[name] = float(np.sqrt(np.mean((col2 - col) ** 2 + (row2 - row) ** 2)))
     return out
 
 

@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
+from pushbroom_adjust.core.adjust import adjust
 from pushbroom_adjust.core.adjust.block import adjust_block, ray_convergence
 from pushbroom_adjust.core.adjust.report import log_lines
 from pushbroom_adjust.core.errors import InputError
@@ -24,69 +24,19 @@ from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from pushbroom_adjust.core.model.block import compose_block
 from pushbroom_adjust.core.model.rpcscene import RpcCamera, RpcScene
 from pushbroom_adjust.core.observations.gcps import GcpTable
-from pushbroom_adjust.core.observations.tiepoints import TieTable
-from pushbroom_adjust.simulation.presets import PRESETS, ErrorSettings, cut_preset
-from pushbroom_adjust.simulation.simulator import simulate
-from tests.support.block_observations import measure_block
+from tests.support.simulated_block import NOISE, SETTINGS, SimulatedBlock
 from tests.support.rpcdata import pleiades_rpc
 
-PRESET = cut_preset(PRESETS["th1_tlc"], 500, 500)
-ERRORS = ErrorSettings(position_bias=10.0, position_drift=0.02, attitude_bias=2e-4, attitude_drift=5e-7)
-NOISE = 0.3  # px
-SEEDS = (1, 2, 3)
-# onboard sigmas as the simulated errors: 10 m (GNSS), 2e-4 rad (41 arcsec, star trackers)
-SETTINGS = AdjustmentSettings(position_order=1, attitude_order=1, position_sigma=10.0, attitude_sigma=2e-4)
+class Block(SimulatedBlock):
+    """The simulated block with GCPs: 4 points near the corners, 0.3 px, ground sigmas 0.1 / 0.2 m."""
 
-
-class Block:
-    """The simulated block: true and onboard scenes (name -> SceneModel), tie and GCP tables."""
-
-    def __init__(self, folder):
-        self.rng = np.random.default_rng(0)
-        self.true, self.onboard = {}, {}
-        for k, seed in enumerate(SEEDS):
-            sim = simulate(PRESET, folder / f"s{seed}", seed=seed, n_gcps=10, errors=ERRORS)
-            name = f"S{seed}"
-            self.true[name], self.onboard[name] = load_scene(sim.true_scene), load_scene(sim.onboard_scene)
-            for scene in (self.true[name], self.onboard[name]):
-                scene.epoch = f"2010-12-{15 + 7 * k}T03:00:00.000000Z"
-        ref = self.true["S1"]
-        lattice = np.linspace(40.0, 460.0, 8)
-        col, row = (a.ravel() for a in np.meshgrid(lattice, lattice))
-        ground = ref.image_to_ground(col, row, self.rng.uniform(300.0, 900.0, col.size), 0)
-        # points seen by the nadir cameras only meet in near-parallel rays (the three simulations share
-        # their orbit): their heights are undetermined, so only points seen in two directions are kept
-        m = self.measure(ground)
-        directions = np.unique(np.stack([m["point"].astype(str), m["camera"]], axis=1), axis=0)[:, 0]
-        ids, counts = np.unique(directions.astype(int), return_counts=True)
-        self.tie_ground = ground[ids[counts >= 2]]
-        m = self.measure(self.tie_ground)
-        self.ties = TieTable(np.char.add("T", m["point"].astype(str)), m["camera"], m["col"], m["row"], NOISE,
-                             m["scene"])
+    def add_control(self, ref) -> None:
         self.gcp_ground = ref.image_to_ground(np.array([100.0, 400, 100, 400]), np.array([100.0, 100, 400, 400]),
                                               np.array([400.0, 800, 600, 500]), 0)
         m = self.measure(self.gcp_ground)
         lon, lat, h = ecef_to_geodetic(self.gcp_ground[m["point"]])
         self.gcps = GcpTable(np.char.add("G", m["point"].astype(str)), "control", m["camera"], m["col"], m["row"],
                              lon, lat, h, NOISE, 0.1, 0.2, block_scene=m["scene"])
-        lattice = np.linspace(30.0, 470.0, 7)
-        col, row = (a.ravel() for a in np.meshgrid(lattice, lattice))
-        self.check_ground = ref.image_to_ground(col, row, self.rng.uniform(300.0, 900.0, col.size), 0)
-
-    def measure(self, ground: np.ndarray) -> dict:
-        """Observations of ECEF points (p, 3) in every camera of every true scene that sees them
-        (5 px inside the image), with NOISE px: point (index), scene, camera, col, row arrays."""
-        return measure_block(self.true, ground, self.rng, NOISE)
-
-    def check_px(self, name: str, adjusted) -> float:
-        """RMS (px) over the scene's cameras of the check ground through ``adjusted`` against the truth."""
-        true, d = self.true[name], []
-        for c, cam in enumerate(true.cameras):
-            t = np.stack(true.ground_to_image(self.check_ground, c), axis=1)
-            a = np.stack(adjusted.ground_to_image(self.check_ground, c), axis=1)
-            inside = (t[:, 0] > 0) & (t[:, 0] < cam.cols) & (t[:, 1] > 0) & (t[:, 1] < cam.rows)
-            d.append(np.hypot(*(a - t)[inside].T))
-        return float(np.sqrt(np.mean(np.concatenate(d) ** 2)))
 
 
 @pytest.fixture(scope="module")

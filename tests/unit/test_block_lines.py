@@ -17,65 +17,21 @@ import numpy as np
 import pytest
 from osgeo import ogr
 
-from pushbroom_adjust.core.adjust import AdjustmentSettings
 from pushbroom_adjust.core.adjust.block import adjust_block
 from pushbroom_adjust.core.adjust.linepoints import ControlLines
 from pushbroom_adjust.core.adjust.outputs import write_line_residuals
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.model.rpcscene import RpcCamera, RpcScene
 from pushbroom_adjust.core.observations.lines import read_image_lines, write_gpkg
-from pushbroom_adjust.core.observations.tiepoints import TieTable
-from pushbroom_adjust.simulation.presets import PRESETS, ErrorSettings, cut_preset
-from pushbroom_adjust.simulation.simulator import simulate
-from tests.support.block_observations import measure_block
+from tests.support.simulated_block import NOISE, SETTINGS, SimulatedBlock
 from tests.support.control_lines import block_lines
 from tests.support.rpcdata import pleiades_rpc
 
-PRESET = cut_preset(PRESETS["th1_tlc"], 500, 500)
-ERRORS = ErrorSettings(position_bias=10.0, position_drift=0.02, attitude_bias=2e-4, attitude_drift=5e-7)
-NOISE = 0.3  # px
-SEEDS = (1, 2, 3)
-SETTINGS = AdjustmentSettings(position_order=1, attitude_order=1, position_sigma=10.0, attitude_sigma=2e-4)
+class LineBlock(SimulatedBlock):
+    """The simulated block with control lines (tests/support/control_lines.py block_lines)."""
 
-
-class LineBlock:
-    """The simulated block: true and onboard scenes (name -> SceneModel), lines, ties, check ground."""
-
-    def __init__(self, folder):
-        rng = np.random.default_rng(0)
-        self.true, self.onboard = {}, {}
-        for k, seed in enumerate(SEEDS):
-            sim = simulate(PRESET, folder / f"s{seed}", seed=seed, n_gcps=10, errors=ERRORS)
-            name = f"S{seed}"
-            self.true[name], self.onboard[name] = load_scene(sim.true_scene), load_scene(sim.onboard_scene)
-            for scene in (self.true[name], self.onboard[name]):
-                scene.epoch = f"2010-12-{15 + 7 * k}T03:00:00.000000Z"
-        ref = self.true["S1"]
-        lattice = np.linspace(40.0, 460.0, 8)
-        col, row = (a.ravel() for a in np.meshgrid(lattice, lattice))
-        ground = ref.image_to_ground(col, row, rng.uniform(300.0, 900.0, col.size), 0)
-        m = measure_block(self.true, ground, rng, NOISE)
-        # points seen by the nadir cameras alone meet in near-parallel rays: only those seen in two directions
-        directions = np.unique(np.stack([m["point"].astype(str), m["camera"]], axis=1), axis=0)[:, 0]
-        ids, counts = np.unique(directions.astype(int), return_counts=True)
-        m = measure_block(self.true, ground[ids[counts >= 2]], rng, NOISE)
-        self.ties = TieTable(np.char.add("T", m["point"].astype(str)), m["camera"], m["col"], m["row"], NOISE,
-                             m["scene"])
+    def add_control(self, ref) -> None:
         self.lines, _ = block_lines(self.true, noise=NOISE)
-        lattice = np.linspace(30.0, 470.0, 7)
-        col, row = (a.ravel() for a in np.meshgrid(lattice, lattice))
-        self.check_ground = ref.image_to_ground(col, row, rng.uniform(300.0, 900.0, col.size), 0)
-
-    def check_px(self, name: str, adjusted) -> float:
-        """RMS (px) over the scene's cameras of the check ground through ``adjusted`` against the truth."""
-        true, d = self.true[name], []
-        for c, cam in enumerate(true.cameras):
-            t = np.stack(true.ground_to_image(self.check_ground, c), axis=1)
-            a = np.stack(adjusted.ground_to_image(self.check_ground, c), axis=1)
-            inside = (t[:, 0] > 0) & (t[:, 0] < cam.cols) & (t[:, 1] > 0) & (t[:, 1] < cam.rows)
-            d.append(np.hypot(*(a - t)[inside].T))
-        return float(np.sqrt(np.mean(np.concatenate(d) ** 2)))
 
     def lines_with(self, **image) -> ControlLines:
         """The lines with the image lines' fields replaced."""
