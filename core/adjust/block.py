@@ -64,6 +64,7 @@ from ..observations.tiepoints import TieTable
 from .engine import adjust
 from .linepoints import ControlLines
 from .results import AdjustmentResult
+from .scenesigmas import check_scene_sigmas, stated_sigmas
 from .settings import AdjustmentSettings
 from .ties import camera_indices
 
@@ -213,8 +214,10 @@ def adjust_block(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
                  is_cancelled: Callable[[], bool] | None = None, lines: ControlLines | None = None) -> BlockResult:
     """Adjust the block ``scenes`` (name -> rigorous or RPC scene) to the GCPs, tie points and
     control lines (each row or image line naming its scene, see the module docstring) with
-    ``settings`` (the same for every scene)."""
+    ``settings`` (the same for every scene but the sigmas a scene states for itself,
+    settings.scene_sigmas: :mod:`core.adjust.scenesigmas`)."""
     settings = settings or AdjustmentSettings()
+    check_scene_sigmas(scenes, settings)
     composite, gcps, ties, lines = block_inputs(scenes, gcps, ties, lines)
     log.info("adjusting a block of %d scenes (%s): %d GCP, %d tie observations and %d image lines", len(scenes),
              ", ".join(scenes), len(gcps), 0 if ties is None else len(ties), 0 if lines is None else len(lines.image))
@@ -304,28 +307,30 @@ def ground_move(before, after, cameras: list[int]) -> float:
 
 
 def onboard_move(before: SceneModel, after: SceneModel, cameras: list[int],
-                 settings: AdjustmentSettings) -> dict:
+                 settings: AdjustmentSettings, scene: str = "") -> dict:
     """How far the adjustment moved a rigorous scene's ground from where its onboard model puts it
     (:func:`ground_move`); and the onboard sigma (m) of that ground, sqrt(position_sigma^2 +
     (attitude_sigma * range)^2) with range (m) the largest satellite-to-ground distance at the
-    lattice (None when a sigma is not stated)."""
+    lattice (None when a sigma is not stated), with block scene ``scene``'s own sigmas where it
+    states them (settings.scene_sigmas)."""
     height = float(np.mean(before.height_range))
     ranges = []
     for c in cameras:
         col, row = _lattice(before.cameras[c])
         ground = before.image_to_ground(col, row, height, c)
         ranges.append(float(np.linalg.norm(before.line_of_sight(col, row, c)[1] - ground, axis=1).max()))
-    ps, at = settings.position_sigma, settings.attitude_sigma
+    ps, at = settings.sigma("position_sigma", scene), settings.sigma("attitude_sigma", scene)
     sigma = None if ps is None or at is None else float(np.hypot(ps, at * max(ranges)))
     return {"moved_m": ground_move(before, after, cameras), "onboard_sigma_m": sigma}
 
 
 def vendor_move(before: MixedBlock, after: MixedBlock, camera: int, out: AdjustmentResult,
-                settings: AdjustmentSettings) -> dict:
+                settings: AdjustmentSettings, scene: str = "") -> dict:
     """How far the adjustment moved an RPC image's ground from where its vendor RPC (with its
     input correction) puts it (:func:`ground_move`); the vendor's stated accuracy in metres on the
-    ground (settings.rpc_sigma times the ground sample distance at the image centre; None without
-    it); and its adjusted correction terms (value and posterior sigma, px and px per px)."""
+    ground (the rpc_sigma of block scene ``scene``, its own or the global one, times the ground
+    sample distance at the image centre; None without it); and its adjusted correction terms (value
+    and posterior sigma, px and px per px)."""
     cam = before.cameras[camera]
     centre = before.image_to_ground([cam.cols / 2, cam.cols / 2 + 1], [cam.rows / 2] * 2,
                                     float(np.mean(before.height_range)), camera)
@@ -333,17 +338,22 @@ def vendor_move(before: MixedBlock, after: MixedBlock, camera: int, out: Adjustm
     prefix = f"{cam.name}."
     terms = {p["name"][len(prefix):]: {"value": p["value"], "sigma": p["sigma"], "unit": p["unit"]}
              for p in out.report["parameters"] if p["name"].startswith(prefix) and p["mode"] != "fixed"}
+    stated = settings.sigma("rpc_sigma", scene)
     return {"moved_m": ground_move(before, after, [camera]),
-            "vendor_sigma_m": None if settings.rpc_sigma is None else settings.rpc_sigma * gsd,
+            "vendor_sigma_m": None if stated is None else stated * gsd,
             "correction": terms}
 
 
-def _move(composite, out: AdjustmentResult, cameras: list[int], settings: AdjustmentSettings) -> dict:
-    """A scene's move from its input geolocation: :func:`vendor_move` for an RPC image,
-    :func:`onboard_move` for a rigorous scene; with its ``model`` ('rpc' or 'rigorous')."""
+def _move(composite, out: AdjustmentResult, name: str, settings: AdjustmentSettings) -> dict:
+    """Block scene ``name``'s move from its input geolocation: :func:`vendor_move` for an RPC image,
+    :func:`onboard_move` for a rigorous scene; with its ``model`` ('rpc' or 'rigorous') and the
+    sigmas it was adjusted with (``sigmas``, :func:`core.adjust.scenesigmas.stated_sigmas`)."""
+    cameras = scene_cameras(composite, name)
     if isinstance(composite, MixedBlock) and cameras[0] >= composite.n_rigorous:
-        return {"model": "rpc", **vendor_move(composite, out.scene, cameras[0], out, settings)}
-    return {"model": "rigorous", **onboard_move(composite, out.scene, cameras, settings)}
+        return {"model": "rpc", **vendor_move(composite, out.scene, cameras[0], out, settings, name),
+                "sigmas": stated_sigmas(settings, name, True)}
+    return {"model": "rigorous", **onboard_move(composite, out.scene, cameras, settings, name),
+            "sigmas": stated_sigmas(settings, name, False)}
 
 
 def beyond_stated(per_scene: dict, controlled: bool) -> list[str]:
@@ -395,9 +405,10 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
     """Per scene and block figures: image residual RMS (px) of control observations, tie
     observations (after; before: through the onboard scenes with the onboard intersection) and
     check points (the adjusted scene's ground -> image of their stated ground), the move from the
-    onboard geolocation (:func:`onboard_move`), with control lines their lines and points used and
-    across-line RMS (m, :func:`_line_entry`; per line in the engine's report["lines"]); sigma0, the
-    datum sentence, the written-vs-fitted figures and the engine's whole report (``adjustment``)."""
+    onboard geolocation (:func:`onboard_move`) and the sigmas the scene was adjusted with, with
+    control lines their lines and points used and across-line RMS (m, :func:`_line_entry`; per
+    line in the engine's report["lines"]); sigma0, the datum sentence, the written-vs-fitted figures
+    and the engine's whole report (``adjustment``)."""
     rep, pts = out.report, out.points
     control, check = pts["role"] == "control", pts["role"] == "check"
     tie_res = (out.tie_points["res_col"], out.tie_points["res_row"]) if ties is not None and len(ties) else None
@@ -412,7 +423,7 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
                              "rmse_px": _rms_px(pts["res_col"][g & control], pts["res_row"][g & control])},
                  "check_points": {"observations": int((g & check).sum()),
                                   "rmse_px": _rms_px(pts["res_col"][g & check], pts["res_row"][g & check])},
-                 **_move(composite, out, scene_cameras(composite, name), settings)}
+                 **_move(composite, out, name, settings)}
         if tie_res is not None:
             entry["ties"] = {"observations": int(t.sum()), "rmse_px": _rms_px(tie_res[0][t], tie_res[1][t]),
                              "rmse_before_px": _rms_px(before[t, 0], before[t, 1])}

@@ -44,6 +44,7 @@ class BlockParameters(ParameterSet):
         # each RPC image's first term in params: after the rigorous parameters and the images before it
         self.image_offsets = len(self.params) - sum(sizes) + np.cumsum([0] + sizes[:-1], dtype=np.int64)
         self.bases = rigorous.bases if rigorous is not None else {"position": [], "attitude": []}
+        self.owners = rigorous.owners if rigorous is not None else []
         self.position_basis = rigorous.position_basis if rigorous is not None else None
         self.attitude_basis = rigorous.attitude_basis if rigorous is not None else None
 
@@ -176,10 +177,11 @@ class BlockProblem(Problem):
 
     def pseudo(self) -> list[Pseudo]:
         """The rigorous scenes' pseudo-observations (:meth:`Problem.pseudo`) and the RPC images'
-        priors (settings.rpc_sigma)."""
+        priors (each image's rpc_sigma: its scene's own in settings.scene_sigmas, or the global one)."""
         factor = self.scale.get(RPC_PRIOR_GROUP, 1.0)
-        return super().pseudo() + [p for img, off in zip(self.images, self.params.image_offsets)
-                                   for p in img.prior(self.settings.rpc_sigma, factor, int(off))]
+        return super().pseudo() + [
+            p for name, img, off in zip(self.scene.images, self.images, self.params.image_offsets)
+            for p in img.prior(self.settings.sigma("rpc_sigma", name), factor, int(off))]
 
 
 def _rigorous_part(scene: MixedBlock, table: GcpTable, control: np.ndarray, ids: np.ndarray, ties: TieSetUp,

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..model.block import is_block
 from ..model.mixedblock import MixedBlock
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
@@ -49,6 +50,10 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
     lines in several directions hold the datum as points do (the report's lines/directions
     says when they do not)."""
     settings.validate()
+    if settings.scene_sigmas and not (is_block(scene) or isinstance(scene, MixedBlock)):
+        raise InputError("scene_sigmas: per-scene sigmas are for a block of scenes (core.adjust.block.adjust_block); "
+                         "one scene takes position_sigma, attitude_sigma and rpc_sigma",
+                         parameter="settings.scene_sigmas")
     table = resolve_cameras(table, scene)
     bad = ~np.all(np.isfinite(np.stack([table.col, table.row, table.lon, table.lat, table.h, table.sigma_px,
                                         table.sigma_xy, table.sigma_z])), axis=0)

@@ -23,6 +23,7 @@ from .linepoints import LineSetUp
 from .model import ImageObservations, Imaging, Jacobian, Model, build_observations, project
 from .normal import GroundPrior, Linearization, System, assemble, back_substitute, groups
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet, trajectory_groups
+from .scenesigmas import camera_scene
 from .settings import AdjustmentSettings
 from .ties import TieSetUp, camera_indices
 
@@ -342,16 +343,23 @@ class Problem:
             c += self.line_cost()
         return c + sum(float(np.sum(p.weight * p.misfit(self.params) ** 2)) for p in self.pseudo())
 
+    def owner_scene(self, owner: int) -> str:
+        """The block scene of trajectory correction ``owner`` (its cameras' composite names
+        ``<scene>/<camera>``; '' for one scene)."""
+        return camera_scene(self.scene.cameras[int(self.params.owners[owner][0])].name)
+
     def pseudo(self) -> list["Pseudo"]:
-        """Pseudo-observations: trajectory corrections at the knots, weighted parameters, the
+        """Pseudo-observations: trajectory corrections at the knots (each correction's with the sigma
+        of its block scene, settings.scene_sigmas, or the global one), weighted parameters, the
         minimal trajectory prior (:attr:`held`; its weights are not variance components')."""
         out = []
         s = self.settings
-        for block, sigma in (("position", s.position_sigma), ("attitude", s.attitude_sigma)):
-            if sigma is None:
+        for block in ("position", "attitude"):
+            if getattr(s, f"{block}_sigma") is None:  # none in any scene: the global value decides the datum
                 continue
             group = f"{block} pseudo-observations"
             for o, basis in enumerate(self.params.bases[block]):  # per trajectory correction
+                sigma = s.sigma(f"{block}_sigma", self.owner_scene(o))
                 times = basis.knot_times() if basis.kind != "polynomial" else \
                     basis.t0 + basis.scale * np.linspace(-1.0, 1.0, basis.size)
                 B = basis.matrix(times)  # (k, m)

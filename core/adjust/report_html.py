@@ -18,6 +18,7 @@ from ..rotations import ARCSEC_PER_RAD
 from .checkpoints import model_error_message, without_label
 from .report import datum_sentence, ground_taken_sentence, joint_sentence, joint_sets, plain, tie_point_lines
 from .report_plots import chip_figure, residual_vector_figure, trajectory_figure
+from .scenesigmas import sigmas_text
 
 log = logging.getLogger(__name__)
 
@@ -64,20 +65,23 @@ def block_section(block_report: dict) -> str:
              f"{s['check_points']['observations']}", _fmt(s["check_points"]["rmse_px"]),
              f"{s.get('ties', {}).get('observations', 0)}", _fmt(s.get("ties", {}).get("rmse_before_px")),
              _fmt(s.get("ties", {}).get("rmse_px")), _fmt(s["moved_m"], ".1f"),
-             _fmt(s.get("vendor_sigma_m") if s.get("model") == "rpc" else s.get("onboard_sigma_m"), ".1f")]
+             _fmt(s.get("vendor_sigma_m") if s.get("model") == "rpc" else s.get("onboard_sigma_m"), ".1f"),
+             html.escape(sigmas_text(s["sigmas"])) if "sigmas" in s else "–"]
             for name, s in rep["scenes"].items()]
     rows.append(["<b>block</b>", f"{block['scenes']} scenes", "", _fmt(block["control_rmse_px"]), "",
                  _fmt(block["check_rmse_px"]), "", _fmt(block["tie_rmse_before_px"]), _fmt(block["tie_rmse_px"]),
-                 "", ""])
+                 "", "", ""])
     header = ["scene", "cameras", "control obs.", "control RMS px", "check obs.", "check RMS px", "tie obs.",
-              "tie RMS before px", "tie RMS after px", "moved m", "onboard / vendor sigma m"]
+              "tie RMS before px", "tie RMS after px", "moved m", "onboard / vendor sigma m", "stated sigmas"]
     warnings = "".join(f"<p class='bad'>{html.escape(w)}</p>" for w in rep.get("warnings", []))
     return (f"<h2>Block of {block['scenes']} scenes</h2><p class='big'>{html.escape(rep['datum'])}; sigma0 "
             f"{_fmt(block['sigma0'])}.</p>" + warnings + _table(header, rows, left=2) + _block_lines(rep)
             + "<p>Each scene's move is the largest distance between the ground its onboard (or vendor RPC) and its "
               "adjusted model see over its images; the onboard sigma is what POSITION_SIGMA and ATTITUDE_SIGMA "
-              "allow, an RPC product's the vendor's stated accuracy (settings.rpc_sigma) on the ground. The "
-              "sections below are the adjustment of the whole block (cameras named &lt;scene&gt;/&lt;camera&gt;).</p>")
+              "allow, an RPC product's the vendor's stated accuracy (settings.rpc_sigma) on the ground; the stated "
+              "sigmas are those each scene's pseudo-observations carried, '(own)' where SCENE_SIGMAS gave the scene "
+              "its own. The sections below are the adjustment of the whole block (cameras named "
+              "&lt;scene&gt;/&lt;camera&gt;).</p>")
 
 
 def _block_lines(rep: dict) -> str:

@@ -1,7 +1,7 @@
 """How to adjust: the settings of one bundle adjustment and their checks."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..errors import InputError
 from ..rotations import ARCSEC
@@ -11,6 +11,10 @@ ROBUST = ("none", "selection", "snooping")
 # 1e-4 arcsec: the trajectory held fixed) to far worse than none (1000 km, 10 degrees); beyond them
 # 1/sigma^2 heads for overflow or weighs nothing.
 ONBOARD_SIGMAS = {"position_sigma": (1e-4, 1e6, "m"), "attitude_sigma": (1e-4 * ARCSEC, 3.6e4 * ARCSEC, "rad")}
+RPC_SIGMA_RANGE = (1e-3, 1e5)  # px: the RPC images' stated accuracy, from a thousandth of a pixel to the whole image
+# The sigmas a block scene may state for itself (AdjustmentSettings.scene_sigmas): its onboard ones
+# (rigorous scenes) and its vendor's (RPC products).
+SCENE_SIGMA_KEYS = ("position_sigma", "attitude_sigma", "rpc_sigma")
 CAMERA_TRAJECTORY = ("shared", "per_camera")
 SELECTION = ("keep", "significant")
 
@@ -43,6 +47,11 @@ class AdjustmentSettings:
     pseudo-observation of 0 on each correction term (its displacement at the image's far edge, see
     :meth:`core.adjust.rpcbias.RpcImage.prior`), as the onboard sigmas are of the trajectories; None:
     none. A block of RPC images tied without control needs it: it holds where the block lies.
+    scene_sigmas: per block scene name (:func:`core.adjust.block.adjust_block`), its own
+    position_sigma (m), attitude_sigma (rad) or rpc_sigma (px), overriding the global value for that
+    scene's pseudo-observations or prior (a block mixes products of different accuracy); a key left
+    out keeps the global value. Only where the global sigma is given (it decides how the datum is
+    held), see :func:`core.adjust.scenesigmas.check_scene_sigmas`.
     """
     position_model: str = "polynomial"
     position_order: int = 1
@@ -64,6 +73,12 @@ class AdjustmentSettings:
     rpc_correction: str = "drift"
     rpc_sigma: float | None = None
     interior_selection: str = "significant"
+    scene_sigmas: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def sigma(self, name: str, scene: str = "") -> float | None:
+        """The sigma ``name`` (one of SCENE_SIGMA_KEYS; m, rad or px) of block scene ``scene``: its
+        override in scene_sigmas, else the global value ('' or a scene without one)."""
+        return self.scene_sigmas.get(scene, {}).get(name, getattr(self, name))
 
     def validate(self) -> None:
         if self.ground not in ("weighted", "fixed"):
@@ -79,21 +94,51 @@ class AdjustmentSettings:
                              parameter="settings.on_singular")
         if not 0 < self.alpha < 0.5:
             raise InputError(f"alpha must be between 0 and 0.5 (got {self.alpha})", parameter="settings.alpha")
-        for name, (low, high, unit) in ONBOARD_SIGMAS.items():
-            v = getattr(self, name)
-            if v is not None and not low <= v <= high:
-                arcsec = f" ({low / ARCSEC:g} to {high / ARCSEC:g} arcsec)" if unit == "rad" else ""
-                got = f"{v:g} {unit}" + (f", {v / ARCSEC:g} arcsec" if unit == "rad" else "")
-                raise InputError(f"{name} must be empty (no pseudo-observations) or between {low:g} and {high:g} "
-                                 f"{unit}{arcsec} (got {got}): beyond this range it weighs nothing or holds the "
-                                 "trajectory fixed", parameter=f"settings.{name}")
+        for name in SCENE_SIGMA_KEYS:
+            check_sigma(name, getattr(self, name))
         if self.rpc_correction not in ("shift", "drift", "affine"):
             raise InputError(f"RPC correction must be shift, drift or affine (got {self.rpc_correction!r})",
                              parameter="settings.rpc_correction")
-        if self.rpc_sigma is not None and not 1e-3 <= self.rpc_sigma <= 1e5:
-            raise InputError(f"rpc_sigma must be empty (no prior on the RPC corrections) or between 0.001 and 1e5 px "
-                             f"(got {self.rpc_sigma:g})", parameter="settings.rpc_sigma")
+        self._validate_scene_sigmas()
         if self.interior_selection not in SELECTION:
             raise InputError(f"interior_selection must be one of {', '.join(SELECTION)} "
                              f"(got {self.interior_selection!r})", parameter="settings.interior_selection")
 
+
+    def _validate_scene_sigmas(self) -> None:
+        """scene_sigmas: a dict of scene name -> {key of SCENE_SIGMA_KEYS: number}, each within the
+        bounds of its global sigma; InputError (parameter settings.scene_sigmas) naming the scene
+        and the key."""
+        if not isinstance(self.scene_sigmas, dict):
+            raise InputError("scene_sigmas must map scene names to their sigmas (got "
+                             f"{type(self.scene_sigmas).__name__})", parameter="settings.scene_sigmas")
+        for scene, sigmas in self.scene_sigmas.items():
+            if not isinstance(scene, str) or not scene.strip() or not isinstance(sigmas, dict) or not sigmas:
+                raise InputError(f"scene_sigmas: scene {scene!r} needs a name and at least one of "
+                                 f"{', '.join(SCENE_SIGMA_KEYS)}", parameter="settings.scene_sigmas")
+            unknown = sorted(set(sigmas) - set(SCENE_SIGMA_KEYS))
+            if unknown:
+                raise InputError(f"scene_sigmas: scene {scene!r} has unknown key(s) {', '.join(map(repr, unknown))} "
+                                 f"(known: {', '.join(SCENE_SIGMA_KEYS)})", parameter="settings.scene_sigmas")
+            for name, value in sigmas.items():
+                check_sigma(name, value, scene)
+
+
+def check_sigma(name: str, value, scene: str | None = None) -> None:
+    """InputError unless the sigma ``name`` (one of SCENE_SIGMA_KEYS) is None (global only: no
+    pseudo-observations) or a number within its bounds (ONBOARD_SIGMAS, RPC_SIGMA_RANGE); a
+    ``scene``'s override (settings.scene_sigmas) must be a number."""
+    low, high, unit = ONBOARD_SIGMAS.get(name, (*RPC_SIGMA_RANGE, "px"))
+    if value is None and scene is None:
+        return
+    where = "" if scene is None else f"scene_sigmas: scene {scene!r}: "
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+        arcsec = f" ({low / ARCSEC:g} to {high / ARCSEC:g} arcsec)" if unit == "rad" else ""
+        got = f"{value:g} {unit}" + (f", {value / ARCSEC:g} arcsec" if unit == "rad" else "") \
+            if isinstance(value, (int, float)) and not isinstance(value, bool) else repr(value)
+        none = "no prior on the RPC corrections" if unit == "px" else "no pseudo-observations"
+        empty = f"empty ({none}) or " if scene is None else ""
+        why = "it weighs nothing or holds the trajectory fixed" if unit != "px" else "it is no stated accuracy"
+        raise InputError(f"{where}{name} must be {empty}between {low:g} and {high:g} {unit}{arcsec} (got {got}): "
+                         f"beyond this range {why}",
+                         parameter="settings.scene_sigmas" if scene is not None else f"settings.{name}")

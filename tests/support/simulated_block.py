@@ -27,14 +27,15 @@ SETTINGS = AdjustmentSettings(position_order=1, attitude_order=1, position_sigma
 class SimulatedBlock:
     """True and onboard scenes (name -> SceneModel), the tie table and the check ground (ECEF);
     a subclass adds its control in :meth:`add_control`, drawing from ``self.rng`` before the check
-    ground is (so each test's numbers stay those it was measured with)."""
+    ground is (so each test's numbers stay those it was measured with). ``errors``: a scene's own
+    onboard error magnitudes (name -> ErrorSettings), ERRORS for the others."""
 
-    def __init__(self, folder):
+    def __init__(self, folder, errors: dict[str, ErrorSettings] | None = None):
         self.rng = np.random.default_rng(0)
         self.true, self.onboard = {}, {}
         for k, seed in enumerate(SEEDS):
-            sim = simulate(PRESET, folder / f"s{seed}", seed=seed, n_gcps=10, errors=ERRORS)
             name = f"S{seed}"
+            sim = simulate(PRESET, folder / f"s{seed}", seed=seed, n_gcps=10, errors=(errors or {}).get(name, ERRORS))
             self.true[name], self.onboard[name] = load_scene(sim.true_scene), load_scene(sim.onboard_scene)
             for scene in (self.true[name], self.onboard[name]):
                 scene.epoch = f"2010-12-{15 + 7 * k}T03:00:00.000000Z"

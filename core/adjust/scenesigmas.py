@@ -1,0 +1,81 @@
+"""Per-scene onboard and vendor sigmas of a block (:attr:`core.adjust.settings.AdjustmentSettings.
+scene_sigmas`): a block mixes products of different accuracy (a scene with star trackers good to a
+few arcseconds beside an older one good to 30, an RPC product whose vendor states 5 px beside one
+stating 10 px), so each scene's pseudo-observations (rigorous scenes: POSITION_SIGMA m,
+ATTITUDE_SIGMA rad) or prior (RPC products: RPC_SIGMA px) may carry its own sigma.
+
+The global sigma still decides whether those pseudo-observations exist at all, and so how the datum
+is held (:func:`core.adjust.ties.datum`, unchanged): an override is refused where the global value
+is not given. The variance component of each pseudo-observation group (position, attitude, RPC
+prior) stays one factor on the stated sigmas of all scenes, as without overrides.
+"""
+from __future__ import annotations
+
+from ..errors import InputError
+from ..model.block import SEPARATOR
+from ..model.rpcscene import RpcScene
+from ..rotations import ARCSEC
+from .settings import AdjustmentSettings
+
+# The global sigma each override stands in for, by its Processing parameter (what a user gives).
+GLOBAL_PARAMETERS = {"position_sigma": "POSITION_SIGMA", "attitude_sigma": "ATTITUDE_SIGMA",
+                     "rpc_sigma": "RPC_SIGMA"}
+RIGOROUS_SIGMAS = ("position_sigma", "attitude_sigma")  # an RPC product has no onboard trajectory
+
+
+def check_scene_sigmas(scenes: dict, settings: AdjustmentSettings) -> None:
+    """InputError (parameter settings.scene_sigmas) for an override of settings.scene_sigmas that
+    the block ``scenes`` (name -> SceneModel or RpcScene) cannot take: a scene not in the block
+    (naming the block's scenes), a sigma whose global value is not given (it decides the datum),
+    rpc_sigma for a rigorous scene or an onboard sigma for an RPC product. The settings are
+    validated first (bounds, keys)."""
+    settings.validate()
+    for scene, sigmas in settings.scene_sigmas.items():
+        if scene not in scenes:
+            raise InputError(f"scene_sigmas: scene {scene!r} is not in the block (scenes: {', '.join(scenes)})",
+                             parameter="settings.scene_sigmas")
+        rpc = isinstance(scenes[scene], RpcScene)
+        wrong = [k for k in sigmas if (k in RIGOROUS_SIGMAS) == rpc]
+        if wrong:
+            what = "an RPC product: it has no onboard trajectory (its prior is rpc_sigma)" if rpc else \
+                "a rigorous scene: rpc_sigma is the prior of RPC products (its own are position_sigma, attitude_sigma)"
+            raise InputError(f"scene_sigmas: scene {scene!r} is {what}; remove its {', '.join(wrong)}",
+                             parameter="settings.scene_sigmas")
+        unset = [k for k in sigmas if getattr(settings, k) is None]
+        if unset:
+            given = " and ".join(GLOBAL_PARAMETERS[k] for k in unset)
+            raise InputError(f"scene_sigmas: scene {scene!r} overrides {', '.join(unset)}, whose global value is not "
+                             f"given (no such pseudo-observations in the block): give {given} too; per-scene values "
+                             "override it", parameter="settings.scene_sigmas")
+
+
+def camera_scene(camera: str) -> str:
+    """The block scene of a composite camera name ``<scene>/<camera>`` ('' for a camera of one scene)."""
+    scene, separator, _ = camera.partition(SEPARATOR)
+    return scene if separator else ""
+
+
+def stated_sigmas(settings: AdjustmentSettings, scene: str, rpc: bool) -> dict:
+    """The sigmas the block used for ``scene`` (JSON-ready): an RPC product's rpc_sigma_px, a
+    rigorous scene's position_sigma_m and attitude_sigma_arcsec (None where not given), and
+    ``own``: the keys it set itself in settings.scene_sigmas (the others are the global values)."""
+    if rpc:
+        out = {"rpc_sigma_px": settings.sigma("rpc_sigma", scene)}
+    else:
+        attitude = settings.sigma("attitude_sigma", scene)
+        out = {"position_sigma_m": settings.sigma("position_sigma", scene),
+               "attitude_sigma_arcsec": None if attitude is None else attitude / ARCSEC}
+    return {**out, "own": sorted(settings.scene_sigmas.get(scene, {}))}
+
+
+def sigmas_text(stated: dict) -> str:
+    """``stated`` (:func:`stated_sigmas`) in words: '10 m, 41.3 arcsec' or '5 px', '(own)' after a
+    scene's own values, '-' for a sigma not given."""
+    def value(key: str, unit: str) -> str:
+        v = stated[key]
+        own = " (own)" if key.rsplit("_", 1)[0] in stated["own"] else ""
+        return f"- {unit}" if v is None else f"{v:.4g} {unit}{own}"
+
+    if "rpc_sigma_px" in stated:
+        return value("rpc_sigma_px", "px")
+    return f"{value('position_sigma_m', 'm')}, {value('attitude_sigma_arcsec', 'arcsec')}"
