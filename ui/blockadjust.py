@@ -17,6 +17,7 @@ do not apply; the core checks each observation's scene and camera.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,7 @@ from ..core.adjust.linepoints import ControlLines
 from ..core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_block_tie_points, write_line_residuals
 from ..core.adjust.report import log_lines, write_report_json
 from ..core.adjust.report_html import block_section, write_report_html
+from ..core.adjust.scenesigmas import check_scene_sigmas, sigmas_text
 from ..core.errors import InputError
 from ..core.files import Output, atomic_outputs, check_folder_destination
 from ..core.formats.rpcfiles import report_path, write_rpc
@@ -45,6 +47,7 @@ from .feedback import check_cancelled, feedback_callbacks, processing_errors
 from .inputs import attribute_floats, attribute_texts, block_scene_names, load_scene_for, ogr_source, split_ogr_source
 from .outputs import check_outputs
 from .parameters import SCENE, SCENES, tr
+from .scenesigmas import scene_sigmas
 
 OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES = "OUTPUT_FOLDER", "WRITE_RPCS", "ADJUSTED_SCENES"
 SCENE_SUFFIX = "_adjusted.json"  # <name>_adjusted.json: a scene's adjusted model in OUTPUT_FOLDER
@@ -295,7 +298,7 @@ def log_block(result, n_ties: int | None, alg, feedback) -> None:
         feedback.pushInfo(f"scene {name}: control {px(s['control']['rmse_px'])} ({s['control']['observations']} obs.), "
                           f"check {px(s['check_points']['rmse_px'])} ({s['check_points']['observations']} obs.)"
                           f"{tie_text}{line_text}; moved {s['moved_m']:.1f} m from {source} "
-                          f"{'-' if sigma is None else f'{sigma:.1f} m'})")
+                          f"{'-' if sigma is None else f'{sigma:.1f} m'}; stated {sigmas_text(s['sigmas'])})")
     block = result.report["block"]
     feedback.pushInfo(f"block of {block['scenes']} scenes: sigma0 {block['sigma0']:.3f}, tie RMS "
                       f"{px(block['tie_rmse_before_px'])} before, {px(block['tie_rmse_px'])} after; "
@@ -316,7 +319,10 @@ def run_block(alg, parameters, context, feedback) -> dict:
     lines = block_lines_input(alg, parameters, context, scenes)
     table, (gcp_path, gcp_layer), ties = block_observations(alg, parameters, context, scenes, feedback,
                                                             lines is not None)
-    settings = alg.adjustment_settings(parameters, context)
+    settings = replace(alg.adjustment_settings(parameters, context),
+                       scene_sigmas=scene_sigmas(alg, parameters, context, list(paths)))
+    with alg.core_errors():  # before the (long) solution: an override the block cannot take
+        check_scene_sigmas(scenes, settings)
     with alg.core_errors(alg.GCPS):
         composite, _, ties_in_block, _ = block_inputs(scenes, table, ties, lines)
     check_joined(scenes, ties_in_block, alg.TIE_POINTS)

@@ -12,16 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from osgeo import ogr
-from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingModelAlgorithm,
-                       QgsProcessingModelChildAlgorithm, QgsProcessingModelChildParameterSource,
-                       QgsProcessingModelOutput, QgsProcessingModelParameter, QgsProcessingParameterMultipleLayers,
-                       QgsProcessingParameterVectorLayer)
+from qgis.core import QgsProcessingException
 
 import processing
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.observations import gcps as gcp_io
 from tests.support.hostile import LogFeedback
-from tests.support.tristereo_block import ADJUST, NAMES, check_px, simulate_tristereo
+from tests.support.tristereo_block import ADJUST, NAMES, block_model, check_px, simulate_tristereo
 from tests.support.qgis_process import run_json
 
 IMPORT = {"Z_FIELD": "h", "Z_DATUM": "ellipsoid", "SIGMA_PX_FIELD": "sigma_px", "SIGMA_XY_FIELD": "sigma_xy",
@@ -175,31 +172,6 @@ def test_an_output_that_would_replace_an_input_is_refused(block, gcp_layer, tmp_
     with pytest.raises(QgsProcessingException, match=r"^OUTPUT_FOLDER: .*adjusted_gcps.gpkg is the file of GCPS"):
         processing.run("pushbroom:bundleadjust", params(block, str(mine), tmp_path))
     assert sorted(tmp_path.iterdir()) == before
-
-
-def block_model() -> QgsProcessingModelAlgorithm:
-    """A graphical model of one step: bundleadjust of the model's input 'scenes' (SCENES) with the
-    inputs 'gcps' and 'ties', its folder the model's output 'adjusted'."""
-    model = QgsProcessingModelAlgorithm("block adjustment", "tests")
-    for parameter in (QgsProcessingParameterMultipleLayers("scenes", "scenes", QgsProcessing.TypeFile),
-                      QgsProcessingParameterVectorLayer("gcps", "gcps", [QgsProcessing.TypeVectorPoint]),
-                      QgsProcessingParameterVectorLayer("ties", "ties", [QgsProcessing.TypeVector])):
-        model.addModelParameter(parameter, QgsProcessingModelParameter(parameter.name()))
-    child = QgsProcessingModelChildAlgorithm("pushbroom:bundleadjust")
-    child.setChildId("adjust")
-    child.addParameterSources("SCENES", [QgsProcessingModelChildParameterSource.fromModelParameter("scenes")])
-    child.addParameterSources("GCPS", [QgsProcessingModelChildParameterSource.fromModelParameter("gcps")])
-    child.addParameterSources("TIE_POINTS", [QgsProcessingModelChildParameterSource.fromModelParameter("ties")])
-    for definition in child.algorithm().parameterDefinitions():  # the rest at their defaults, as the modeler sets them
-        value = ADJUST.get(definition.name(), definition.defaultValue())
-        if definition.name() not in child.parameterSources() and not definition.isDestination() and value is not None:
-            child.addParameterSources(definition.name(), [QgsProcessingModelChildParameterSource.fromStaticValue(value)])
-    output = QgsProcessingModelOutput("adjusted")
-    output.setChildOutputName("OUTPUT_FOLDER")
-    child.setModelOutputs({"adjusted": output})
-    model.addChildAlgorithm(child)
-    model.updateDestinationParameters()
-    return model
 
 
 def test_a_block_inside_a_graphical_model(block, gcp_layer, tmp_path):

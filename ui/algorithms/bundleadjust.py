@@ -38,6 +38,7 @@ from ..blockmatch import block_given, one_scene_file
 from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
 from ..inputs import add_scene_parameters, load_scene_for, ogr_source, split_ogr_source
 from ..outputs import STYLES, check_outputs, style_output_on_load
+from ..scenesigmas import SCENE_SIGMAS, refuse_for_one_scene, scene_sigmas_parameter
 from ..parameters import (ATTITUDE_MODEL, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR, POSITION_MODEL,
                           ROBUST, RPC_CORRECTION, SCENE, SCENES, camera_trajectory, enum_value, ground_mode,
                           interior_selection, on_singular, output_scene, robust_method, rpc_correction, tr,
@@ -72,7 +73,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             "tri-stereo, several dates, neighbouring orbits): SCENES instead of SCENE, GCPs, tie points and "
             "image lines (LINES) naming the scene each was measured in (field 'scene'), adjusted together (one "
             "trajectory correction per scene with its own onboard pseudo-observations, an RPC product its own "
-            "image-space correction, shared ground points and ground lines); the outputs go to OUTPUT_FOLDER: "
+            "image-space correction, shared ground points and ground lines; SCENE_SIGMAS gives a scene its own "
+            "onboard or vendor sigmas); the outputs go to OUTPUT_FOLDER: "
             "<name>_adjusted.json per scene, block_report.html/.json, adjusted_gcps.gpkg, adjusted_tie_points.gpkg, "
             "line_residuals.gpkg (with LINES) and, with WRITE_RPCS, a refined RPC per image.")
     GCPS, TIE_POINTS, OUTPUT_TIE_POINTS = "GCPS", "TIE_POINTS", "OUTPUT_TIE_POINTS"
@@ -87,6 +89,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         "OUTPUT_SCENE", "OUTPUT_REPORT", "OUTPUT_GCPS", "OUTPUT_RESIDUALS"
     OUTPUT_REPORT_JSON = "OUTPUT_REPORT_JSON"
     RPC_CORRECTION, RPC_SIGMA, OUTPUT_RPC = RPC_CORRECTION, "RPC_SIGMA", "OUTPUT_RPC"
+    SCENE_SIGMAS = SCENE_SIGMAS
     CAMERA_TRAJECTORY = CAMERA_TRAJECTORY
     LINES, OUTPUT_LINE_RESIDUALS = "LINES", "OUTPUT_LINE_RESIDUALS"
     # The inputs core errors name (core.errors.InputError.parameter) -> this algorithm's parameters.
@@ -100,7 +103,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         "settings.interior_selection": INTERIOR_SELECTION, "settings.ground": GROUND, "settings.robust": ROBUST,
         "settings.alpha": ALPHA, "settings.variance_components": VARIANCE_COMPONENTS,
         "settings.max_robust_iterations": MAX_ROBUST_PASSES, "settings.on_singular": ON_SINGULAR,
-        "settings.rpc_correction": RPC_CORRECTION, "settings.rpc_sigma": RPC_SIGMA, "scenes": SCENES}
+        "settings.rpc_correction": RPC_CORRECTION, "settings.rpc_sigma": RPC_SIGMA, "scenes": SCENES,
+        "settings.scene_sigmas": SCENE_SIGMAS}
     OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES = OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
@@ -184,6 +188,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
                               "CE90 at 0.7 m), a pseudo-observation of 0 on each term of RPC_CORRECTION, as the "
                               "onboard sigmas are for rigorous scenes. Needed by a block of RPC images tied without "
                               "GCPs: it holds where the block lies (the report names it). 0: none."))
+        self.addParameter(scene_sigmas_parameter())
         self.addParameter(ground_mode())
         self.addParameter(robust_method())
         self.add_parameter(QgsProcessingParameterNumber(self.ALPHA, tr("Significance of the outlier test"),
@@ -241,6 +246,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         if block_given(self, parameters, context):
             return run_block(self, parameters, context, feedback)
         scene_path = one_scene_file(self, parameters, context)
+        refuse_for_one_scene(self, parameters, context)
         for name in (self.OUTPUT_FOLDER, self.WRITE_RPCS):
             if (user_destination(self, parameters, context, name) if name == self.OUTPUT_FOLDER else
                     self.parameterAsBoolean(parameters, name, context)):
