@@ -175,6 +175,13 @@ class BlockProblem(Problem):
         return Linearization(r, self.weights(), self.columns, values, jg,
                              self.ground_point[self.obs.point]), self.ground_prior()
 
+    def stated_sigma(self, group: str) -> tuple[float | None, str]:
+        """:meth:`Problem.stated_sigma`; of the RPC images' priors, the median of their scenes' own
+        rpc_sigma (settings.scene_sigmas) or the global one."""
+        if group == RPC_PRIOR_GROUP and self.settings.rpc_sigma is not None:
+            return float(np.median([self.settings.sigma("rpc_sigma", name) for name in self.scene.images])), "px"
+        return super().stated_sigma(group)
+
     def pseudo(self) -> list[Pseudo]:
         """The rigorous scenes' pseudo-observations (:meth:`Problem.pseudo`) and the RPC images'
         priors (each image's rpc_sigma: its scene's own in settings.scene_sigmas, or the global one)."""

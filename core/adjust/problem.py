@@ -160,7 +160,8 @@ class Problem:
 
     def stated_sigma(self, group: str) -> tuple[float | None, str]:
         """The median stated sigma of a group and its unit (None for interior pseudo-observations,
-        whose sigmas have several units)."""
+        whose sigmas have several units); of the trajectory pseudo-observations, the median over the
+        corrections of their scenes' sigmas (settings.scene_sigmas or the global one)."""
         labels, index = self.image_groups
         if group in labels:
             return float(np.median(self.obs.sigma[index == labels.index(group)])), "px"
@@ -170,9 +171,14 @@ class Problem:
             seg = self.lines.seg
             return float(np.median(seg.sigma_across if group == linepoints.ACROSS_GROUP else seg.sigma_h)), "m"
         s = self.settings
-        return {"position pseudo-observations": (s.position_sigma, "m"),
-                "attitude pseudo-observations": (s.attitude_sigma, "rad"),
-                RPC_PRIOR_GROUP: (s.rpc_sigma, "px")}.get(group, (None, ""))
+        for block, unit in (("position", "m"), ("attitude", "rad")):
+            if group == f"{block} pseudo-observations":
+                if getattr(s, f"{block}_sigma") is None:
+                    return None, unit
+                # per trajectory correction: its block scene's own sigma (settings.scene_sigmas) or the global one
+                return float(np.median([s.sigma(f"{block}_sigma", self.owner_scene(o))
+                                        for o in range(len(self.params.bases[block]))])), unit
+        return {RPC_PRIOR_GROUP: (s.rpc_sigma, "px")}.get(group, (None, ""))
 
     # --- unknowns and their columns -------------------------------------------------------
     def _set_up_ground(self, table: GcpTable, sel: np.ndarray, tie_ground: np.ndarray | None = None,

@@ -80,6 +80,15 @@ def test_the_report_says_each_scenes_sigmas(runs):
     # one factor per pseudo-observation group, as without overrides: here they hold the datum
     components = runs["own"].adjustment.report["variance_components"]
     assert components["position pseudo-observations"]["holds_datum"]
+    # their stated sigma: the median over the scenes' corrections (S1 1 m, S2 and S3 30 m)
+    assert components["position pseudo-observations"]["apriori_sigma"] == 30.0
+
+
+def test_the_pseudo_observation_groups_state_the_median_of_the_scenes_sigmas(block):
+    """S1 1 m, S2 2 m, S3 the global 30 m: the position group's stated sigma is 2 m (not 30)."""
+    settings = replace(COMMON, scene_sigmas={"S1": {"position_sigma": 1.0}, "S2": {"position_sigma": 2.0}})
+    out = adjust_block(block.onboard, None, block.ties, settings)
+    assert out.adjustment.report["variance_components"]["position pseudo-observations"]["apriori_sigma"] == 2.0
 
 
 def test_an_rpc_products_own_stated_accuracy(tmp_path):
