@@ -67,8 +67,7 @@ def groups(columns: np.ndarray) -> list[slice]:
     sorted so that those sharing columns are adjacent)."""
     if columns.shape[0] == 0:
         return []
-    change = np.nonzero(np.any(columns[1:] != columns[:-1], axis=1))[0] + 1
-    bounds = np.r_[0, change, columns.shape[0]]
+    bounds = np.r_[0, np.nonzero(np.diff(run_ids(columns)))[0] + 1, columns.shape[0]]
     return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 

@@ -175,8 +175,7 @@ class Problem:
             if group == f"{block} pseudo-observations":
                 if getattr(s, f"{block}_sigma") is None:
                     return None, unit
-                # per trajectory correction: its block scene's own sigma (settings.scene_sigmas) or the global one
-                return float(np.median([s.sigma(f"{block}_sigma", self.owner_scene(o))
+                return float(np.median([self.correction_sigma(block, o)
                                         for o in range(len(self.params.bases[block]))])), unit
         return {RPC_PRIOR_GROUP: (s.rpc_sigma, "px")}.get(group, (None, ""))
 
@@ -349,10 +348,12 @@ class Problem:
             c += self.line_cost()
         return c + sum(float(np.sum(p.weight * p.misfit(self.params) ** 2)) for p in self.pseudo())
 
-    def owner_scene(self, owner: int) -> str:
-        """The block scene of trajectory correction ``owner`` (its cameras' composite names
-        ``<scene>/<camera>``; '' for one scene)."""
-        return camera_scene(self.scene.cameras[int(self.params.owners[owner][0])].name)
+    def correction_sigma(self, block: str, owner: int) -> float:
+        """The stated sigma (m for 'position', rad for 'attitude') of trajectory correction
+        ``owner``'s pseudo-observations: its block scene's own (settings.scene_sigmas, the scene
+        from its cameras' composite names ``<scene>/<camera>``) or the global one."""
+        scene = camera_scene(self.scene.cameras[int(self.params.owners[owner][0])].name)
+        return self.settings.sigma(f"{block}_sigma", scene)
 
     def pseudo(self) -> list["Pseudo"]:
         """Pseudo-observations: trajectory corrections at the knots (each correction's with the sigma
@@ -365,7 +366,7 @@ class Problem:
                 continue
             group = f"{block} pseudo-observations"
             for o, basis in enumerate(self.params.bases[block]):  # per trajectory correction
-                sigma = s.sigma(f"{block}_sigma", self.owner_scene(o))
+                sigma = self.correction_sigma(block, o)
                 times = basis.knot_times() if basis.kind != "polynomial" else \
                     basis.t0 + basis.scale * np.linspace(-1.0, 1.0, basis.size)
                 B = basis.matrix(times)  # (k, m)

@@ -121,8 +121,7 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     ok &= ~lost
     residuals = np.full((col.size, 2), np.nan)
     if r.size:
-        moved = r + np.einsum("kij,kj->ki", J, step[point[use]])
-        residuals[use] = moved
+        residuals[use] = r + np.einsum("kij,kj->ki", J, step[point[use]])
         residuals[~ok[point]] = np.nan
     condition = np.full(m, np.inf)
     if ok.any():
