@@ -36,7 +36,7 @@ from ..model.sensor import SceneModel
 from ..validation import check_nodata
 from .mapping import Mapper, OrthoGrid, utm_crs
 from .orthojobs import OrthoJob, connect_scheduler, surface_description, tiles_on_scheduler
-from .rawimage import RawImage, image_on_surface, open_raw
+from .rawimage import RawImage, check_image_belongs, image_on_surface, open_raw
 from .resampling import check_resampling, write_resampled
 
 log = logging.getLogger(__name__)
@@ -193,10 +193,12 @@ def strip_products(scene: SceneModel, cameras: list[int]) -> list[OrthoProduct]:
 
 
 def check_images(scene: SceneModel, images: dict[int, str]) -> None:
-    """Refuse, before any work, a raw image that cannot be read or whose size is not its camera's
+    """Refuse, before any work, a raw image that cannot be read, whose size is not its camera's, or whose own
+    RPC puts it on ground the scene does not see there (:func:`core.products.rawimage.check_image_belongs`)
     (``images``: {camera index: path})."""
     for camera, path in images.items():
         open_raw(path, scene.cameras[camera])
+        check_image_belongs(scene, camera, path)
 
 
 def orthorectify_products(scene: SceneModel, images: dict[int, str], surface, folder, products: list[OrthoProduct],

@@ -107,6 +107,8 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         image = layer.source().split("|")[0]
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
+        with processing_errors(f"{self.INPUT}: "):
+            check_images(scene, {camera: image})
         surface = dem_from_parameters(self, parameters, context, scene, feedback)
         crs = self._crs(parameters, context)
         extent = None
