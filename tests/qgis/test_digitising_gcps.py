@@ -76,12 +76,12 @@ def test_dock_measures_snaps_saves_reopens_and_the_block_adjusts(plugin, gcp_blo
 
     # predictions of the selected point in fwd: from its ground and from its nad observation,
     # through the onboard models (a marker each), several px from the truth
-    dock.point_list.setCurrentRow(0)
+    dock.select_point(0)
     dock.scene_list.setCurrentRow(1)
     assert {p.source for p in dock.predictions} == {"ground", "nad"}
     off = [np.hypot(p.col - true_pixel(gcp_block, SNAPPED, "fwd")[0], p.row - true_pixel(gcp_block, SNAPPED, "fwd")[1])
            for p in dock.predictions]
-    assert len(dock.bands) >= 2 + len(control) and 2.0 < min(off) < 20.0
+    assert len(dock.drawing.items) >= 2 + len(control) and 2.0 < min(off) < 20.0
 
     # Snap the click 2.5 px off in fwd to the nad image: back on the truth; Undo restores the click
     QTest.mouseClick(dock.snap_button, Qt.LeftButton)
@@ -161,9 +161,9 @@ def test_ground_from_a_reference_point_layer_and_sigmas_edited(plugin, gcp_block
     pick_ground(qgis_canvas, lon + 3e-6, lat - 2e-6)             # 0.3 m beside the reference point
     ground = dock.editor.current().ground
     assert (ground.lon, ground.lat, ground.h, ground.source) == (lon, lat, h, "reference"), dock.message_label.text()
-    # the ground is marked on the main canvas (EPSG:4326 here)
-    marker = dock.ground_marker.center()
-    assert dock.ground_marker.isVisible() and (marker.x(), marker.y()) == pytest.approx((lon, lat), abs=1e-12)
+    # the ground is marked on the main canvas (EPSG:4326 here), the selected point highlighted
+    marker = dock.main_markers.selected.point
+    assert dock.main_markers.selected.isVisible() and (marker.x(), marker.y()) == pytest.approx((lon, lat), abs=1e-12)
     # a click far from every reference point (tens of screen px) takes none of them
     QTest.mouseClick(dock.ground_button, Qt.LeftButton)
     pick_ground(qgis_canvas, lon + 2e-4, lat)                    # 20 m east, the canvas +-0.5 m wide

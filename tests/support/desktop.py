@@ -1,0 +1,72 @@
+"""The real QGIS desktop, driven from a test or a script: the ``qgis`` binary under a virtual X
+server (xvfb-run; QGIS refuses to start without a display, and crashes on Qt's offscreen platform)
+with a fresh profile in which the plugin is enabled, running a driver script inside QGIS
+(``qgis --code``). The driver reads its arguments with :func:`driver_arguments`, writes what it saw
+with :func:`write_result` and quits QGIS; :func:`run_desktop` returns that and QGIS's stderr.
+
+The profile disables the GRASS and SAGA providers, which are not installed here: their start-up
+CRITICAL lines ('GRASS was not found') are no part of this plugin. QGIS's own Python start-up
+prints one DeprecationWarning ('setapi() is deprecated') before any plugin loads; that one message,
+and only it, is filtered out of stderr by a Python warnings filter.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import tempfile
+from pathlib import Path
+
+from tests.support.paths import PLUGIN, REPO
+
+QGIS = "/usr/bin/qgis"
+SCREEN = "1600x1000x24"
+ARGS_ENV = "PUSHBROOM_DESKTOP_ARGS"
+QGIS_OWN_WARNING = "ignore:setapi() is deprecated:DeprecationWarning"
+
+
+def make_profile(folder: Path) -> Path:
+    """A profiles folder for ``qgis --profiles-path``: profile 'default' with the plugin (a link
+    to the repository) enabled, GRASS and SAGA disabled."""
+    profile = folder / "profiles" / "default"
+    (profile / "python" / "plugins").mkdir(parents=True, exist_ok=True)
+    link = profile / "python" / "plugins" / PLUGIN
+    if not link.exists():
+        link.symlink_to(REPO, target_is_directory=True)
+    (profile / "QGIS").mkdir(exist_ok=True)
+    (profile / "QGIS" / "QGIS3.ini").write_text(f"[PythonPlugins]\n{PLUGIN}=true\ngrassprovider=false\n"
+                                                "sagaprovider=false\n")
+    return folder
+
+
+def run_desktop(driver: Path, arguments: dict, folder: Path, timeout: float = 600) -> tuple[dict, str]:
+    """Start QGIS with a fresh profile in ``folder``, run ``driver`` (a Python file) inside it with
+    ``arguments`` (JSON; the key 'result' is added: where the driver writes what it saw), wait
+    until QGIS exits; (the driver's result, QGIS's stderr). AssertionError with stderr when QGIS
+    fails or writes no result."""
+    folder.mkdir(parents=True, exist_ok=True)
+    make_profile(folder)
+    result = folder / "result.json"
+    result.unlink(missing_ok=True)
+    args = folder / "arguments.json"
+    args.write_text(json.dumps({**arguments, "result": str(result)}))
+    runtime = Path(tempfile.mkdtemp(prefix="xdg-", dir=folder))
+    runtime.chmod(0o700)
+    env = dict(os.environ, **{ARGS_ENV: str(args)}, XDG_RUNTIME_DIR=str(runtime), PYTHONWARNINGS=QGIS_OWN_WARNING,
+               PYTHONPATH=os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")]))
+    for name in ("QT_QPA_PLATFORM", "QGIS_CUSTOM_CONFIG_PATH", "DISPLAY"):
+        env.pop(name, None)  # the virtual display, and the profile given here
+    done = subprocess.run(["xvfb-run", "-a", "-s", f"-screen 0 {SCREEN}", QGIS, "--nologo", "--noversioncheck",
+                           "--profiles-path", str(folder), "--code", str(driver)],
+                          env=env, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+    assert result.is_file(), f"QGIS exited {done.returncode} without a result; stderr:\n{done.stderr}"
+    return json.loads(result.read_text()), done.stderr
+
+
+def driver_arguments() -> dict:
+    """Inside QGIS: the arguments :func:`run_desktop` gave the driver."""
+    return json.loads(Path(os.environ[ARGS_ENV]).read_text())
+
+
+def write_result(arguments: dict, result: dict) -> None:
+    Path(arguments["result"]).write_text(json.dumps(result, indent=1, default=str))
