@@ -254,12 +254,13 @@ class PointEditor:
                         column["col"], column["row"], ground["lon"], ground["lat"], ground["h"], column["sigma_px"],
                         ground["sigma_xy"], ground["sigma_z"], block_scene=column["scene"])
 
-    def load(self, table: GcpTable, scenes: list[str], source: str = "the GCP layer") -> None:
+    def load(self, table: GcpTable, scenes: list[str], source: str = "the GCP layer", height_from: str = "") -> None:
         """Continue from a saved table (replacing the points held; undo history cleared), with
         the residuals of an adjusted GCP layer (bundleadjust's OUTPUT_GCPS) where it has them. Every
         row's scene must be one of ``scenes`` (the block's names; '' stands for the only one of a
-        block of one scene); rows of one id must share their ground. InputError naming the scenes
-        or ids otherwise (nothing changed)."""
+        block of one scene); rows of one id must share their ground; ``height_from`` says where their
+        heights came from (default: ``source``, the name errors give the layer). InputError naming the
+        scenes or ids otherwise (nothing changed)."""
         block_scene = table.block_scene.copy()
         if len(scenes) == 1:
             block_scene[block_scene == ""] = scenes[0]
@@ -276,7 +277,8 @@ class PointEditor:
                              "different ground positions; one point has one ground")
         points = [MeasuredPoint(str(table.id[k]), str(table.role[k]),
                                 Ground(float(table.lon[k]), float(table.lat[k]), float(table.h[k]),
-                                       float(table.sigma_xy[k]), float(table.sigma_z[k]), "layer", source))
+                                       float(table.sigma_xy[k]), float(table.sigma_z[k]), "layer",
+                                       height_from or source))
                   for k in np.sort(first)]
         residual = table.residuals
         known = np.zeros(len(table), bool) if residual is None else residual.inside & np.isfinite(residual.col)

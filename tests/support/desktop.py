@@ -14,7 +14,9 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import sys
 import tempfile
+import traceback
 from pathlib import Path
 
 from tests.support.paths import PLUGIN, REPO
@@ -59,6 +61,7 @@ def run_desktop(driver: Path, arguments: dict, folder: Path, timeout: float = 60
     done = subprocess.run(["xvfb-run", "-a", "-s", f"-screen 0 {SCREEN}", QGIS, "--nologo", "--noversioncheck",
                            "--profiles-path", str(folder), "--code", str(driver)],
                           env=env, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+    (folder / "qgis_stdout.txt").write_text(done.stdout)  # QGIS's own trace of a crash goes there
     assert result.is_file(), f"QGIS exited {done.returncode} without a result; stderr:\n{done.stderr}"
     return json.loads(result.read_text()), done.stderr
 
@@ -66,6 +69,26 @@ def run_desktop(driver: Path, arguments: dict, folder: Path, timeout: float = 60
 def driver_arguments() -> dict:
     """Inside QGIS: the arguments :func:`run_desktop` gave the driver."""
     return json.loads(Path(os.environ[ARGS_ENV]).read_text())
+
+
+def record_exceptions(exceptions: list) -> None:
+    """Inside QGIS: Python exceptions (also those raised in Qt slots) appended to ``exceptions`` as
+    text, instead of QGIS's modal dialog, which would leave the run waiting for a click."""
+    import qgis.utils
+
+    def keep(kind, value, tb):
+        exceptions.append("".join(traceback.format_exception(kind, value, tb)))
+
+    sys.excepthook = qgis.utils.qgis_excepthook = keep
+
+
+def quit_qgis() -> None:
+    """Inside QGIS: leave. The project is cleared first: QGIS 3.22 left with layers in its project
+    crashes in its own teardown (the layer styling panel, gone, told of the current layer's removal)."""
+    from qgis.core import QgsApplication, QgsProject
+    QgsProject.instance().clear()
+    QgsApplication.processEvents()
+    QgsApplication.exit(0)
 
 
 def write_result(arguments: dict, result: dict) -> None:

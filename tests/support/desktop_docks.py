@@ -3,7 +3,6 @@ tests/support/desktop.py): from start-up to closing both docks, as a new user wo
 orthoimage loaded (no DEM). It records what QGIS logged (the Log Messages panel since start-up, the
 message log and the message bar during the run, Python exceptions) and what the docks did, writes
 that as JSON and quits QGIS. The test asserts on it."""
-import sys
 import traceback
 from pathlib import Path
 
@@ -15,20 +14,14 @@ from qgis.PyQt.QtXml import QDomDocument
 from qgis.PyQt.QtWidgets import QApplication, QMenu, QPlainTextEdit, QToolButton
 from qgis.utils import iface, plugins, unloadPlugin
 
-import qgis.utils
-from tests.support.desktop import driver_arguments, write_result
+from tests.support.desktop import driver_arguments, quit_qgis, record_exceptions, write_result
 from tests.support.digitising import click, click_pixel
 
 ARGS = driver_arguments()
 SEEN = {"exceptions": [], "log": []}
 
 
-def keep_exception(kind, value, tb):
-    """Exceptions recorded (QGIS would open a modal dialog for each, and the run would hang)."""
-    SEEN["exceptions"].append("".join(traceback.format_exception(kind, value, tb)))
-
-
-sys.excepthook = qgis.utils.qgis_excepthook = keep_exception
+record_exceptions(SEEN["exceptions"])
 QgsApplication.messageLog().messageReceived.connect(lambda text, tag, level: SEEN["log"].append((int(level), tag,
                                                                                                  text)))
 
@@ -173,8 +166,7 @@ def run() -> None:
     except Exception:  # every failure is recorded for the test
         SEEN["exceptions"].append(traceback.format_exc())
     write_result(ARGS, SEEN)
-    QgsProject.instance().setDirty(False)
-    QgsApplication.exit(0)
+    quit_qgis()
 
 
 QTimer.singleShot(500, run)

@@ -81,7 +81,7 @@ class PixelCanvasDock(QDockWidget):
             splitter.addWidget(widget)
             splitter.setStretchFactor(k, stretch)
         splitter.setCollapsible(1, False)
-        splitter.setSizes([220, 560, 150])
+        splitter.setSizes([250, 520, 140])
         self.splitter = splitter
         body = QWidget()
         layout = QVBoxLayout(body)

@@ -64,7 +64,7 @@ class PixelCanvas(QgsMapCanvas):
         self.hint = QLabel(hint, self)
         self.hint.setAlignment(Qt.AlignCenter)
         self.hint.setWordWrap(True)
-        self.hint.setStyleSheet("color: #666; font-size: 14px; background: transparent")
+        self.hint.setStyleSheet("color: #444; font-size: 15px; background: transparent")
         QgsProject.instance().readProject.connect(self._restore)
 
     def show_raster(self, path: str, name: str) -> bool:

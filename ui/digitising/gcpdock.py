@@ -13,6 +13,8 @@ draws its state. The canvas and its tools, main-canvas picking and the heights f
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from qgis.core import QgsMapLayerProxyModel, QgsProcessingException
 from qgis.gui import QgsMapLayerComboBox
@@ -342,7 +344,8 @@ class GcpDock(PixelCanvasDock):
         residuals shown in the table); its scenes must be in the dock (those that are not are
         named); False (with the reason shown) when it cannot be read."""
         try:
-            self.editor.load(read_gpkg(path), list(dict.fromkeys(v.scene_name for v in self.views)), path)
+            self.editor.load(read_gpkg(path), list(dict.fromkeys(v.scene_name for v in self.views)), path,
+                             tr("the layer {name}").format(name=Path(path).name))
         except PushbroomError as exc:
             self.tell(str(exc))
             return False
@@ -377,10 +380,13 @@ class GcpDock(PixelCanvasDock):
         except PushbroomError as exc:
             self.tell(str(exc))
             return
-        for p in self.predictions:
-            if np.isfinite(p.col) and np.isfinite(p.row):
-                self.drawing.marker(point_of(p.col, p.row), "ground" if p.source == "ground" else "scene",
-                                    point.id if p.source == "ground" else f"{point.id} ({p.source})")
+        shown = [p for p in self.predictions if np.isfinite(p.col) and np.isfinite(p.row)]
+        for k, p in enumerate(shown):
+            # estimates within a pixel of an earlier one share its label, which names them all
+            near = [q.source for q in shown if abs(q.col - p.col) < 1.0 and abs(q.row - p.row) < 1.0]
+            first = next(i for i, q in enumerate(shown) if q.source == near[0])
+            self.drawing.marker(point_of(p.col, p.row), "ground" if p.source == "ground" else "scene",
+                                f"{point.id} ({', '.join(near)})" if first == k else "")
 
     def _fill_form(self, view: View | None) -> None:
         self.table.fill(self.editor.points, self.editor.selected, view.scene_name if view else None,
@@ -396,6 +402,14 @@ class GcpDock(PixelCanvasDock):
         seen = point.observation(view.scene_name, view.camera_name) if view is not None else None
         if seen is not None:
             self.sigma_px_spin.setValue(seen.sigma_px)
+
+    def closeEvent(self, event):  # noqa: N802 (Qt API name)
+        self.main_markers.hide()  # back when the dock is shown again
+        super().closeEvent(event)
+
+    def showEvent(self, event):  # noqa: N802 (Qt API name)
+        super().showEvent(event)
+        self.main_markers.show(self.editor.points, self.editor.selected)
 
     def dispose(self) -> None:
         """Also take the markers off the main map canvas."""

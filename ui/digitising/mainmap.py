@@ -50,6 +50,11 @@ class MainMapMarkers:
         if self.shown:
             self._draw()
 
+    def hide(self) -> None:
+        """Take the markers off the map until the next :meth:`show` (the dock closed)."""
+        self.drawing.clear()
+        self.selected = None
+
     def dispose(self) -> None:
         self.shown, self.selected = [], None
         self.drawing.clear()

@@ -1,7 +1,7 @@
 """The GCP dock's table of points, as the Georeferencer's GCP table: id, role, the images a point is
-measured in, its height and where the height came from, and its residual in the scene shown
-after an adjustment (bundleadjust's adjusted GCP layer opened back); sortable by any column; a
-click selects the point (the dock then zooms to it)."""
+measured in, its residual in the scene shown (after an adjustment: bundleadjust's adjusted GCP
+layer opened back), its height and where the height came from; sortable by any column; a click
+selects the point (the dock then zooms to it)."""
 from __future__ import annotations
 
 import math
@@ -12,7 +12,7 @@ from qgis.PyQt.QtWidgets import QAbstractItemView, QHeaderView, QTableWidget, QT
 
 from ..parameters import tr
 
-COLUMNS = ("Id", "Role", "Images", "h (m)", "Height from", "Residual (px)")
+COLUMNS = ("Id", "Role", "Images", "Residual (px)", "h (m)", "Height from")
 
 
 SORT_KEY = Qt.UserRole + 1
@@ -44,6 +44,7 @@ class PointTable(QTableWidget):
         self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
         self.horizontalHeader().setStretchLastSection(True)
         self.setSortingEnabled(True)
+        self.sortByColumn(0, Qt.AscendingOrder)
         self.on_select = on_select
         self.itemSelectionChanged.connect(self._selected)
 
@@ -60,10 +61,10 @@ class PointTable(QTableWidget):
             natural_id = re.sub(r"\d+", lambda m: m.group().zfill(12), point.id)  # G2 before G10
             cells = (Cell(point.id, natural_id), Cell(point.role),
                      Cell(len(point.observations), len(point.observations)),
-                     Cell(f"{ground.h:.1f}" if ground else "", ground.h if ground else -math.inf),
-                     Cell(ground.height_from if ground else tr("no ground yet")),
                      Cell(f"{residual:.2f}" if residual is not None else "",
-                          residual if residual is not None else -1.0))
+                          residual if residual is not None else -1.0),
+                     Cell(f"{ground.h:.1f}" if ground else "", ground.h if ground else -math.inf),
+                     Cell(ground.height_from if ground else tr("no ground yet")))
             cells[0].setData(Qt.UserRole, row)
             cells[0].setToolTip("\n".join(
                 f"{o.scene}/{o.camera}: col {o.col:.2f}, row {o.row:.2f} px"
