@@ -178,3 +178,58 @@ def test_ground_from_a_reference_point_layer_and_sigmas_edited(plugin, gcp_block
     QTest.mouseClick(dock.undo_button, Qt.LeftButton)
     assert dock.message_label.text() == "Undone: edit"
     dock.dispose()
+
+
+def test_the_table_map_markers_and_adjusted_residuals(plugin, gcp_block, qgis_iface, qgis_canvas,  # noqa: F811
+                                                      qgis_new_project, tmp_path):
+    """Three points measured: all marked on the main map (the selected one highlighted); the table
+    sorts by height as numbers and a click selects the point and zooms to it; an adjusted layer opened
+    back shows each measurement's residual in the scene shown, gone when the point is moved there
+    (Ctrl+Z brings it back)."""
+    from pushbroom_adjust.core.observations.gcps import Residuals, read_gpkg, write_gpkg
+    from pushbroom_adjust.ui.digitising.canvas import ZOOM_TO_POINT_PX
+    qgis_canvas.resize(800, 800)
+    qgis_canvas.setDestinationCrs(QgsCoordinateReferenceSystem("EPSG:4326"))
+    dock = dock_for(gcp_block, qgis_iface)
+    ids = gcp_block["inside"][1:4]
+    for point_id in ids:
+        measure_point(dock, gcp_block, qgis_canvas, point_id)
+    markers = dock.main_markers.drawing.items
+    assert sorted(m.label for m in markers) == sorted(ids) and dock.main_markers.selected.label == ids[-1]
+    assert [m.style.legend for m in markers].count("selected point") == 1
+
+    table = dock.table
+    table.sortByColumn(4, Qt.DescendingOrder)                       # h (m), highest first
+    heights = [float(table.item(r, 4).text()) for r in range(table.rowCount())]
+    assert heights == sorted(heights, reverse=True) and len(heights) == 3
+    top = table.item(0, 0).text()
+    dock.scene_list.setCurrentRow(0)                                # the whole image shown
+    QTest.mouseClick(table.viewport(), Qt.LeftButton, Qt.NoModifier, table.visualItemRect(table.item(0, 0)).center())
+    assert dock.editor.current().id == top
+    seen = dock.editor.current().observation("nad", "NAD")
+    centre = dock.canvas.extent().center()
+    assert (centre.x(), -centre.y()) == pytest.approx((seen.col, seen.row), abs=1e-6)
+    shown = dock.canvas.extent()                                    # +-40 px along the canvas's shorter side
+    assert min(shown.width(), shown.height()) == pytest.approx(2 * ZOOM_TO_POINT_PX)
+
+    saved = tmp_path / "gcps.gpkg"
+    assert dock.save(str(saved)), dock.message_label.text()
+    adjusted = read_gpkg(saved)
+    n = len(adjusted)
+    adjusted.residuals = Residuals(np.full(n, 0.3), np.full(n, -0.4), np.full(n, 0.5), np.full(n, 1.0), np.ones(n, bool))
+    write_gpkg(adjusted, tmp_path / "adjusted_gcps.gpkg")
+    assert dock.open_layer(str(tmp_path / "adjusted_gcps.gpkg"))
+    assert dock.message_label.text().endswith(f", {n} observations with their residuals")
+    assert [table.item(r, 3).text() for r in range(3)] == ["0.50"] * 3
+    assert {table.item(r, 5).text() for r in range(3)} == {"the layer adjusted_gcps.gpkg"}
+    dock.select_point(0)
+    moved = dock.editor.current().observation("nad", "NAD")
+    dock.image_clicked(moved.col + 1.0, moved.row, Qt.LeftButton)
+    row = next(r for r in range(3) if table.item(r, 0).text() == dock.editor.current().id)
+    assert table.item(row, 3).text() == ""
+    dock.undo_action.trigger()
+    assert table.item(row, 3).text() == "0.50" and dock.message_label.text() == "Undone: move"
+    dock.tools.zoom_image.trigger()
+    assert dock.canvas.extent().contains(dock.canvas.layer.extent())
+    dock.dispose()
+    assert dock.main_markers.drawing.items == []

@@ -46,7 +46,8 @@ class PointTable(QTableWidget):
         self.setSortingEnabled(True)
         self.sortByColumn(0, Qt.AscendingOrder)
         self.on_select = on_select
-        self.itemSelectionChanged.connect(self._selected)
+        self.itemSelectionChanged.connect(self._selected)  # keys move the selection too
+        self.clicked.connect(self._selected)  # a click on the selected row zooms to it again
 
     def fill(self, points, selected: int | None, scene: str | None, camera: str | None) -> None:
         """One row per point (its index in ``points`` kept with the row); the residual is the one
@@ -80,7 +81,7 @@ class PointTable(QTableWidget):
                     self.selectRow(row)
         self.blockSignals(False)
 
-    def _selected(self) -> None:
+    def _selected(self, *args) -> None:
         rows = self.selectionModel().selectedRows()
         if rows:
             self.on_select(self.item(rows[0].row(), 0).data(Qt.UserRole))
