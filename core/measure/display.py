@@ -16,9 +16,9 @@ their copies in a cache folder of their own (:func:`cached_display_copy`), never
 """
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
-import hashlib
 import re
 from dataclasses import dataclass
 from pathlib import Path

@@ -139,3 +139,16 @@ def test_adjusted_residuals_are_read_back_and_dropped_when_the_point_moves(gcp_b
     assert [o.residual for o in again.current().observations] == [None, (-0.5, 0.2)]
     assert again.undo() == "move" and again.current().observations[0].residual == (0.25, 0.1)
     assert isinstance(again.current().ground, Ground)
+
+
+def test_a_real_rpc_product_opens_by_its_rpc_file_or_its_image(shared_data, tmp_path):
+    """The Pleiades Giza pair (tests/data/pleiades_gizeh): img1_RPC.TXT names its image; the image
+    with its RPC sidecar is its own scene. Nothing is written beside them."""
+    folder = shared_data / "pleiades_gizeh"
+    before = sorted(os.listdir(folder))
+    by_text = open_image_source(folder / "img1_RPC.TXT", tmp_path)
+    by_image = open_image_source(folder / "img1.tif", tmp_path)
+    for opened in (by_text, by_image):
+        assert opened.image.resolve() == (folder / "img1.tif").resolve() and opened.display.parent == tmp_path
+        assert gdal.Open(str(opened.display)).RasterXSize == opened.scene.cameras[0].cols
+    assert sorted(os.listdir(folder)) == before

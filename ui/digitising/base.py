@@ -15,7 +15,7 @@ from qgis.PyQt.QtWidgets import (QAction, QDockWidget, QFormLayout, QFrame, QHBo
                                  QScrollArea, QSplitter, QVBoxLayout, QWidget)
 
 from ..parameters import tr
-from .canvas import CanvasTools, PixelCanvas, PixelTool, theme_icon
+from .canvas import CanvasTools, PixelCanvas, PixelTool, pixel_of, theme_icon
 from .form import HeightsRows
 from .markers import CanvasDrawing
 
@@ -34,7 +34,8 @@ class PixelCanvasDock(QDockWidget):
         self.iface = iface
         self.canvas = PixelCanvas(hint)
         self.drawing = CanvasDrawing(self.canvas)
-        self.tool = PixelTool(self.canvas, self.image_clicked, self.show_pixel)
+        self.tool = PixelTool(self.canvas, self.image_clicked)
+        self.canvas.xyCoordinates.connect(lambda at: self.show_pixel(*pixel_of(at)))  # whatever the tool
         self.pixel_label, self.message_label = QLabel(" "), QLabel()
         self.message_label.setWordWrap(True)
         self.message_label.setTextInteractionFlags(Qt.TextSelectableByMouse)

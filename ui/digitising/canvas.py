@@ -37,15 +37,12 @@ def theme_icon(name: str):
 
 class PixelTool(QgsMapTool):
     """The measuring tool: a release of the left or right button calls ``on_click(col, row,
-    button)``; moving calls ``on_move(col, row)``."""
+    button)``."""
 
-    def __init__(self, canvas: QgsMapCanvas, on_click, on_move):
+    def __init__(self, canvas: QgsMapCanvas, on_click):
         super().__init__(canvas)
-        self.on_click, self.on_move = on_click, on_move
+        self.on_click = on_click
         self.setCursor(Qt.CrossCursor)
-
-    def canvasMoveEvent(self, event):  # noqa: N802 (QGIS API name)
-        self.on_move(*pixel_of(event.mapPoint()))
 
     def canvasReleaseEvent(self, event):  # noqa: N802
         if event.button() in (Qt.LeftButton, Qt.RightButton):
