@@ -127,3 +127,20 @@ def test_a_scene_with_another_image_or_none_is_refused_and_nothing_is_written_be
     assert dock.add_scene(str(folder / "scene.json"), str(nad["images"]["NAD"]))  # named 'scene': a third view
     assert dock.scene_list.count() == 3
     assert_unchanged(before, [folder, nad["images"]["NAD"].parent])
+
+
+def test_disposing_twice_warns_of_nothing(plugin, gcp_block, qgis_iface, qgis_new_project, capfd):  # noqa: F811
+    """Markers on both canvases, the dock disposed twice (QGIS unloading the plugin after its own
+    teardown began): no 'QGraphicsScene::removeItem: item's scene (0x0) is different' on stderr."""
+    from pushbroom_adjust.ui.digitising.gcpdock import GcpDock
+    dock = GcpDock(qgis_iface)
+    dock.show()
+    assert dock.add_scene(gcp_block["displays"]["nad"])
+    measured(dock, gcp_block)
+    dock.redraw()
+    assert dock.drawing.items and dock.main_markers.drawing.items
+    capfd.readouterr()
+    dock.dispose()
+    dock.dispose()
+    assert "QGraphicsScene" not in capfd.readouterr().err
+    assert dock.drawing.items == [] and dock.main_markers.drawing.items == []
