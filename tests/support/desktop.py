@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -46,6 +47,7 @@ def run_desktop(driver: Path, arguments: dict, folder: Path, timeout: float = 60
     ``arguments`` (JSON; the key 'result' is added: where the driver writes what it saw), wait
     until QGIS exits; (the driver's result, QGIS's stderr). AssertionError with stderr when QGIS
     fails or writes no result."""
+    assert shutil.which("xvfb-run"), "xvfb-run not found: bash scripts/setup.sh installs it (Debian's xvfb, xauth)"
     folder.mkdir(parents=True, exist_ok=True)
     make_profile(folder)
     result = folder / "result.json"
