@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -60,12 +61,19 @@ def run_desktop(driver: Path, arguments: dict, folder: Path, timeout: float = 60
                PYTHONPATH=os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")]))
     for name in ("QT_QPA_PLATFORM", "QGIS_CUSTOM_CONFIG_PATH", "DISPLAY"):
         env.pop(name, None)  # the virtual display, and the profile given here
-    done = subprocess.run(["xvfb-run", "-a", "-s", f"-screen 0 {SCREEN}", QGIS, "--nologo", "--noversioncheck",
-                           "--profiles-path", str(folder), "--code", str(driver)],
-                          env=env, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
-    (folder / "qgis_stdout.txt").write_text(done.stdout)  # QGIS's own trace of a crash goes there
-    assert result.is_file(), f"QGIS exited {done.returncode} without a result; stderr:\n{done.stderr}"
-    return json.loads(result.read_text()), done.stderr
+    # a session of its own: on a timeout QGIS and the X server go with xvfb-run, not only xvfb-run
+    run = subprocess.Popen(["xvfb-run", "-a", "-s", f"-screen 0 {SCREEN}", QGIS, "--nologo", "--noversioncheck",
+                            "--profiles-path", str(folder), "--code", str(driver)], env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL, start_new_session=True)
+    try:
+        stdout, stderr = run.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(run.pid, signal.SIGKILL)
+        stdout, stderr = run.communicate()
+        raise AssertionError(f"QGIS did not quit within {timeout} s; stderr:\n{stderr}") from None
+    (folder / "qgis_stdout.txt").write_text(stdout)  # QGIS's own trace of a crash goes there
+    assert result.is_file(), f"QGIS exited {run.returncode} without a result; stderr:\n{stderr}"
+    return json.loads(result.read_text()), stderr
 
 
 def driver_arguments() -> dict:
