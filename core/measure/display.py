@@ -8,14 +8,22 @@ copied or resampled) without its RPC and GCP metadata, with the pixel geotransfo
 the upper-left pixel — and the engineering CRS of :func:`core.observations.lines.pixel_frame`, the frame of
 the ``image_lines`` layers. The VRT's PUSHBROOM metadata domain names the scene file and the
 camera, so that the digitising dock finds them again.
+
+Each band of the copy carries statistics (of a decimated read): a viewer that finds none computes
+them, and GDAL's VRT hands that work to the raw image's band, which stores the result in a side
+file beside the raw image (``<image>.aux.xml``): a file written beside an input. The docks keep
+their copies in a cache folder of their own (:func:`cached_display_copy`), never beside the image.
 """
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from osgeo import gdal
 
 from ..errors import InputError
@@ -28,6 +36,7 @@ log = logging.getLogger(__name__)
 PIXEL_GEOTRANSFORM = (0.0, 1.0, 0.0, 0.0, 0.0, -1.0)  # x = col, y = -row
 METADATA_DOMAIN = "PUSHBROOM"
 DROPPED_DOMAINS = ("RPC", "GEOLOCATION")
+STATISTICS_SAMPLE_PX = 1024  # the longer side of the decimated read a display copy's statistics come from
 
 
 @dataclass(frozen=True)
@@ -82,9 +91,45 @@ def write_display_vrt(image, output, scene: str = "", camera: str = "", files: O
         ds.SetSpatialRef(pixel_frame())
         ds.SetMetadata({"SCENE": os.path.abspath(scene) if scene else "", "CAMERA": camera,
                         "IMAGE": source}, METADATA_DOMAIN)
+        set_display_statistics(ds)
         ds.FlushCache()
         ds = None
         log.info("display copy of %s written to %s", source, output)
+
+
+def set_display_statistics(ds: gdal.Dataset) -> None:
+    """Minimum, maximum, mean and standard deviation of each band of ``ds`` (a display copy being
+    written) from a read decimated to at most STATISTICS_SAMPLE_PX px a side, nodata left out
+    (a band all nodata gets none). They are stored as exact statistics: GDAL recomputes
+    approximate ones when asked for exact ones (QGIS asks), and that is the work that writes
+    beside the raw image; they serve a display stretch, nothing else."""
+    step = max(ds.RasterXSize, ds.RasterYSize) / STATISTICS_SAMPLE_PX
+    size = [max(1, round(n / max(step, 1.0))) for n in (ds.RasterXSize, ds.RasterYSize)]
+    for k in range(1, ds.RasterCount + 1):
+        band = ds.GetRasterBand(k)
+        values = band.ReadAsArray(buf_xsize=size[0], buf_ysize=size[1]).astype(float).ravel()
+        nodata = band.GetNoDataValue()
+        values = values[np.isfinite(values) & ((values != nodata) if nodata is not None else True)]
+        if values.size:
+            band.SetStatistics(float(values.min()), float(values.max()), float(values.mean()), float(values.std()))
+
+
+def cached_display_copy(image, scene: str, camera: str, cache) -> Path:
+    """The display copy of raw ``image`` for ``scene``'s ``camera`` in folder ``cache`` (created),
+    written when missing. Its name is the image's stem, the camera and a hash of the image's
+    absolute path, size and modification time, the scene file and the camera: one image shown
+    for several scenes or cameras gets a copy each, and a replaced image a new one."""
+    source = Path(os.path.abspath(str(image)))
+    raster_size(source)
+    stat = source.stat()
+    key = "|".join([str(source), str(stat.st_size), str(stat.st_mtime_ns), os.path.abspath(scene) if scene else "",
+                    camera])
+    digest = hashlib.sha256(key.encode()).hexdigest()[:12]
+    path = Path(cache) / f"{source.stem}_{re.sub(r'[^A-Za-z0-9_.-]', '_', camera) or 'image'}_{digest}.vrt"
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_display_vrt(source, path, scene, camera)
+    return path
 
 
 def read_display_source(path) -> DisplaySource:

@@ -41,6 +41,7 @@ from .resampling import check_resampling, write_resampled
 
 log = logging.getLogger(__name__)
 
+PRODUCT_MARK = "PUSHBROOM_PRODUCT"  # metadata item naming the product an image is (not a DEM: core.measure.sources)
 MAX_OUTPUT_PIXELS = 2e9  # per band: ~2 GB at 8 bits, more than any scene needs at its own GSD
 
 
@@ -139,6 +140,7 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
         def georeference(out) -> None:
             out.SetGeoTransform(grid.geotransform())
             out.SetProjection(grid.crs.to_wkt())
+            out.SetMetadataItem(PRODUCT_MARK, "orthoimage")
 
         run_tiles = None
         if scheduler:
