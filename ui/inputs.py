@@ -40,7 +40,9 @@ def load_scene_for(parameter_name: str, path: str, feedback=None):
     """Load any supported scene file (core.formats.load_scene) given by a parameter.
 
     The error message names the parameter, e.g. "SCENE: /x/y.xml: no such file". The reader's
-    warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``.
+    warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``, and so
+    does the check of a vendor product read from its metadata against the vendor's RPC
+    (``scene.info["rpc_check"]``, :mod:`core.formats.vendorcheck`).
     """
     if not path:
         raise QgsProcessingException(f"{parameter_name}: no scene file given")
@@ -49,6 +51,8 @@ def load_scene_for(parameter_name: str, path: str, feedback=None):
     if feedback is not None:
         for warning in scene.info.get("warnings", []):
             feedback.pushWarning(f"{parameter_name}: {warning}")
+        if "rpc_check" in scene.info and scene.info.get("source") == str(path):
+            feedback.pushInfo(f"{parameter_name}: {scene.info['rpc_check']['summary']}")
     return scene
 
 

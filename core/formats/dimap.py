@@ -145,7 +145,7 @@ def _layout(root, src: str) -> DimapLayout:
     for layout in LAYOUTS:
         if root.find(layout.model) is not None:
             return layout
-    names = " or ".join(f"<{layout.model}> (DIMAP {layout.version})" for layout in LAYOUTS)
+    names = " nor ".join(f"<{layout.model}> (DIMAP {layout.version})" for layout in LAYOUTS)
     raise MetadataError(f"{src}: neither {names} is present (the rigorous sensor model); the file is not a complete "
                         "Pleiades DIMAP sensor-geometry product")
 
@@ -247,7 +247,7 @@ def _read_look_angles(model, layout: DimapLayout, src: str, cols: int) -> Chip:
     shift = np.polynomial.Polynomial([first - 1.0, 1.0])  # retina index of image index c - 1
     psi = {}
     for name, element in (("PsiX", layout.look_x), ("PsiY", layout.look_y)):
-        full = f"{layout.model}/{element}"
+        full = f"{layout.model}/{element}{'*' if layout.look_terms else ''}"  # XLOS_* of 2.15
         poly = np.polynomial.Polynomial(_look_terms(model, element, src, layout.model) if layout.look_terms else
                                         _polynomial(model, element, src, layout.model, "a look-angle polynomial"))
         psi[name] = poly(shift).coef if first > 1 else poly.coef

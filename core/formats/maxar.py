@@ -1,22 +1,25 @@
 """Maxar/DigitalGlobe image support data (the ``isd`` XML of WorldView, QuickBird, GeoEye).
 
-Sections used: IMD (image size, line timing table, view angles), EPH (ECEF positions and
-velocities at a fixed interval), ATT (attitude quaternions at the same instants), GEO
-(principal distance, detector array, camera attitude, perspective centre) and RPB (the
-vendor RPC00B model).
+Sections used: IMD (image size, line timing table and scan direction, view angles), EPH (ECEF
+positions and velocities at a fixed interval), ATT (attitude quaternions at the same instants), GEO
+(principal distance, detector array, camera attitude, perspective centre) and RPB (the vendor
+RPC00B model; or the ``<name>.RPB`` beside the XML), which the model is checked against on load
+(:mod:`core.formats.vendorcheck`).
 
 Vendor conventions and how they are converted here:
   - Image: DigitalGlobe's detector index and TLC line numbers are 0-based pixel centres,
     so GDAL col = detector + 0.5 and row = line + 0.5 (the RPB likewise, as RPC00B).
   - Focal plane (GEO, millimetres): detector d sits at x = DETORIGINX + d*pitch*sin(r),
-    y = DETORIGINY - d*pitch*cos(r) (r = DETROTANGLE, degrees) in the camera frame whose
+    y = DETORIGINY - d*pitch*cos(r) (r = DETROTANGLE, in degrees or in radians, told from its
+    value: :func:`detector_rotation`) in the camera frame whose
     x is along track and z toward the scene; the line of sight is (x, y, PD) - no
     inversion (the detector coordinates are those of the positive image plane).
     In :class:`core.model.camera.Chip` terms: x0, y0, theta = pi - r, metres.
   - Quaternions (ATT, CAMERA_ATTITUDE): scalar last (q1, q2, q3, q4 = w). ATT rotates the
     body frame to ECEF; CAMERA_ATTITUDE rotates the camera frame to the body frame.
   - Time: UTC strings; the scene epoch is the first line time, every time is seconds from it.
-    EPH and ATT sample k (1-based index) is at STARTTIME + (k - 1) * TIMEINTERVAL.
+    EPH and ATT sample k (1-based index) is at STARTTIME + (k - 1) * TIMEINTERVAL. The TLC
+    line times decrease with the line in a reverse scan (SCANDIRECTION Reverse; GeoEye-1).
 These conventions were checked on two WorldView-2 scenes: the model meets the vendor RPB to
 0.18/0.38 px and the IMD corner coordinates to 0.07 px (tests/unit/test_worldview.py); a
 reversed detector, a scalar-first reading or an inverted attitude would be pixels to

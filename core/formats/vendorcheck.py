@@ -12,11 +12,12 @@ The bound is on the RMS: MAX_RMS_PX (1 px) for the vendor's own RPC. The largest
 reported, not bounded: a cubic RPC cannot follow attitude motion, which leaves up to 1.8 px at
 1.0 px RMS in a sound WorldView-3 product, while every reader error seen is hundreds to tens of
 thousands of pixels (a GeoEye-1 product's detector rotation read in degrees instead of radians:
-10,577 px RMS; the WorldView-1 product's one degree off: 366 px). An RPC refitted by another tool to a model without velocity aberration and refraction
-(the Ames Stereo Pipeline's dg_mosaic, :mod:`core.formats.maxar`) is compared with the model it
-was fitted to (both corrections off) and held to REFIT_MAX_RMS_PX (3 px): its cubic leaves 1.0 px
-RMS of attitude motion. Beyond the bound the product is refused (MetadataError naming both models
-and the figure); below, the figure is logged and kept in ``scene.info["rpc_check"]``.
+10,577 px RMS; the WorldView-1 product's one degree off: 366 px). An RPC refitted by another tool
+to a model without velocity aberration and refraction (the Ames Stereo Pipeline's dg_mosaic,
+:mod:`core.formats.maxar`) is compared with the model it was fitted to (both corrections off) and
+held to REFIT_MAX_RMS_PX (3 px): its cubic leaves 1.0 px RMS of attitude motion. Beyond the bound
+the product is refused (MetadataError naming both models and the figure); below, the figure is
+logged and kept in ``scene.info["rpc_check"]``.
 
 Cost: 3 GRID^2 = 363 points through image_to_ground and the RPC, 0.01-0.03 s per scene.
 """

@@ -16,6 +16,7 @@ import pytest
 from pushbroom_adjust.core.errors import MetadataError
 from pushbroom_adjust.core.formats import load_scene, maxar
 from pushbroom_adjust.core.formats.scene_json import save_scene
+from pushbroom_adjust.core.products.sensorcorrect import virtual_camera
 from tests.support.vendor_variants import DETROTANGLE, edited, geoeye_like, reverse_scan, set_text
 
 WV1 = "worldview1/WV01_20210201005130_10200100A1865800_21FEB01005130-P1BS-016263048010_01_P001.xml"
@@ -142,3 +143,13 @@ def test_a_timing_table_not_monotonic_is_refused(products, tmp_path):
     with pytest.raises(MetadataError, match=r"zigzag\.xml: IMD/IMAGE/TLCLISTList: line timing table needs .* "
                                             r"strictly decreasing: a reverse scan"):
         load_scene(path)
+
+
+def test_the_virtual_camera_of_a_reverse_scan_keeps_its_times(products):
+    """pushbroom:sensorcorrect's straight virtual array of a reverse-scan camera: the same first and last
+    row times, decreasing."""
+    camera = load_scene(products["reverse"]).cameras[0]
+    virtual = virtual_camera(camera)
+    rows = np.array([0.5, ROWS / 2.0, ROWS - 0.5])
+    assert virtual.timing.reverse
+    np.testing.assert_allclose(virtual.timing.time(rows), camera.timing.time(rows), atol=1e-9)
