@@ -145,8 +145,8 @@ def _layout(root, src: str) -> DimapLayout:
     for layout in LAYOUTS:
         if root.find(layout.model) is not None:
             return layout
-    names = " nor ".join(f"<{layout.model}> (DIMAP {layout.version})" for layout in LAYOUTS)
-    raise MetadataError(f"{src}: neither {names} is present (the rigorous sensor model); the file is not a complete "
+    names = " and ".join(f"<{layout.model}> (DIMAP {layout.version})" for layout in LAYOUTS)
+    raise MetadataError(f"{src}: {names} are both missing (the rigorous sensor model); the file is not a complete "
                         "Pleiades DIMAP sensor-geometry product")
 
 
@@ -181,8 +181,9 @@ def _read_timing(model, layout: DimapLayout, src: str, start: np.datetime64, epo
     if end_text:
         span = _seconds(_utc(end_text, src, f"{layout.model}/{layout.end}"), start)
         if abs(rows * period - span) > 0.05 * span:
-            raise MetadataError(f"{src}: {where} ({period / scale} {unit}) times {rows} rows does not match the model "
-                                f"time range ({span:.3f} s)")
+            raise MetadataError(f"{src}: {where} ({period / scale:g} {unit}, read in "
+                                f"{'milliseconds' if scale == 1e-3 else 'microseconds'}) times {rows} rows does not "
+                                f"match the model time range ({span:.3f} s)")
     return LineTiming(t0=_seconds(start, epoch_dt), period=period)
 
 

@@ -132,7 +132,7 @@ def read_maxar(path: str | Path, root: ElementTree.Element) -> tuple[SceneModel,
         info["height_range"] = [rpc.height_off - rpc.height_scale, rpc.height_off + rpc.height_scale]
         info["rpb_origin"] = _rpb_origin(rpc, camera.cols, camera.rows, root.find("TIL") is not None)
         vendor.refit_without_corrections = info["rpb_origin"] != "Maxar"
-        vendor.assumed = (rotation["read_as"],)
+        vendor.assumed = (rotation["read_as"], f"IMD/IMAGE/TLCLISTList read as a {scan.lower()} scan")
         if vendor.refit_without_corrections:
             warnings.append(f"the RPB was refitted by {info['rpb_origin']}, not made by Maxar; ASP 3.1.0-3.3.0 "
                             "fitted it to a model without velocity aberration and refraction, so it can lie ~15 m "

@@ -101,8 +101,8 @@ def test_the_rpc_component_the_document_names_is_used(product, tmp_path):
 
 @pytest.mark.parametrize("edit, message", [
     (lambda t: re.sub(r"<Refined_Model>.*</Refined_Model>", "", t, flags=re.S),
-     r"neither <Geometric_Data/Sensor_Model_Characteristics> \(DIMAP 2.0\) nor <Geometric_Data/Refined_Model> "
-     r"\(DIMAP 2.15\) is present"),
+     r"<Geometric_Data/Sensor_Model_Characteristics> \(DIMAP 2.0\) and <Geometric_Data/Refined_Model> "
+     r"\(DIMAP 2.15\) are both missing"),
     (lambda t: re.sub(r"<XLOS_0>[^<]*</XLOS_0>", "", t),
      rf"<{MODEL}/Geometric_Calibration/Instrument_Calibration/Polynomial_Look_Angles/XLOS_0> is missing"),
     (lambda t: re.sub(r"<Swath_Range>.*</Swath_Range>", "", t, flags=re.S),
