@@ -15,6 +15,7 @@ from osgeo import gdal
 from qgis.core import QgsProcessingException
 
 from ..core.measure.tiematching import View, match_block_tiepoints
+from ..core.model.rpcscene import size_note
 from ..core.observations import tiepoints
 from ..core.products.ortho import check_images
 from .feedback import check_cancelled, feedback_callbacks, processing_errors
@@ -67,7 +68,7 @@ def image_camera(name: str, scene, path: str, size: tuple[int, int]) -> int:
     (INPUTS) when none is, or when several are (a multi-camera product: which camera the image
     is cannot be told)."""
     fits = [k for k, c in enumerate(scene.cameras) if (int(c.cols), int(c.rows)) == size]
-    cameras = ", ".join(f"{c.name} {int(c.cols)} x {int(c.rows)}" for c in scene.cameras)
+    cameras = ", ".join(f"{c.name} {int(c.cols)} x {int(c.rows)}{size_note(c)}" for c in scene.cameras)
     if not fits:
         raise QgsProcessingException(f"{INPUTS}: {path} is {size[0]} x {size[1]} px, but no camera of scene {name} "
                                      f"has that size ({cameras}): give one raw image per scene, in the order of "

@@ -16,6 +16,7 @@ from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProce
 
 from ..core.dem import ConstantHeight, Dem
 from ..core.formats import load_scene
+from ..core.formats.rpcfiles import image_name
 from ..core.measure.matching import MatchSettings
 from ..core.observations.tables import Heights, present
 from ..core.validation import check_terrain_height
@@ -39,7 +40,9 @@ def load_scene_for(parameter_name: str, path: str, feedback=None):
     """Load any supported scene file (core.formats.load_scene) given by a parameter.
 
     The error message names the parameter, e.g. "SCENE: /x/y.xml: no such file". The reader's
-    warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``.
+    warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``, and so
+    does the check of a vendor product read from its metadata against the vendor's RPC
+    (``scene.info["rpc_check"]``, :mod:`core.formats.vendorcheck`).
     """
     if not path:
         raise QgsProcessingException(f"{parameter_name}: no scene file given")
@@ -48,6 +51,8 @@ def load_scene_for(parameter_name: str, path: str, feedback=None):
     if feedback is not None:
         for warning in scene.info.get("warnings", []):
             feedback.pushWarning(f"{parameter_name}: {warning}")
+        if "rpc_check" in scene.info and scene.info.get("source") == str(path):
+            feedback.pushInfo(f"{parameter_name}: {scene.info['rpc_check']['summary']}")
     return scene
 
 
@@ -75,19 +80,16 @@ def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT
 FOLDER_NAMED_SCENES = ("onboard_scene.json", "true_scene.json", "adjusted_scene.json")
 
 
-RPC_SUFFIX = "_RPC"  # GDAL's RPC sidecar of <name>.tif: <name>_RPC.TXT
-
-
 def block_scene_names(paths) -> list[str]:
     """The name of each scene file of a block (SCENES): its file's stem (less the suffix of an RPC
-    sidecar, <name>_RPC.TXT: the image's name), or its folder's name for the scene JSON files of
-    FOLDER_NAMED_SCENES (the layout pushbroom:simulateblock writes).
+    sidecar, <name>_RPC.TXT: the image's name; a file named _RPC.TXT alone takes its folder's
+    name: :func:`core.formats.rpcfiles.image_name`), or its folder's name for the scene JSON files
+    of FOLDER_NAMED_SCENES (the layout pushbroom:simulateblock writes).
     QgsProcessingException naming both files when two scenes get one name (or one file is
     listed twice)."""
     names, first = [], {}
     for path in map(Path, paths):
-        stem = path.stem[:-len(RPC_SUFFIX)] if path.stem.upper().endswith(RPC_SUFFIX) else path.stem
-        name = path.parent.name if path.name.lower() in FOLDER_NAMED_SCENES else stem
+        name = path.parent.name if path.name.lower() in FOLDER_NAMED_SCENES else image_name(path)
         if name in first:
             other = first[name]
             if other.resolve() == path.resolve():

@@ -56,11 +56,14 @@ class RpcChip:
 
 @dataclass
 class RpcCamera:
-    """The image an RPC describes: name and size (px)."""
+    """The image an RPC describes: name and size (px). ``size_source``: '' when the size is the
+    image's, else how it was assumed (no image found with the RPC: where it was looked for and
+    what the size was taken from), for the refusal of an image of another size (:func:`size_note`)."""
     name: str
     cols: int
     rows: int
     chips: list = field(default_factory=lambda: [RpcChip()])
+    size_source: str = ""
 
     def chip_index(self, col) -> np.ndarray:
         return np.zeros(np.shape(col), dtype=np.int64)
@@ -277,6 +280,14 @@ def check_image_domain(rpc: RpcModel, cols: int, rows: int, source: str) -> None
     raise MetadataError(f"{source}: the image ({cols} x {rows} px) cannot be the one its RPC describes: {where} "
                         f"{what}; the RPC is valid over {box} (accepted up to {1.0 + DOMAIN_MARGIN:g} times its "
                         "scales). Is it the image this RPC belongs to?")
+
+
+def size_note(camera) -> str:
+    """For the refusal of an image whose size is not the camera's: '' when the camera's size is its
+    image's (every rigorous camera, an RPC camera read with its image), else a clause saying that
+    the size was assumed, from what, and where the image was looked for."""
+    source = getattr(camera, "size_source", "")
+    return f" (the scene's size {camera.cols} x {camera.rows} px was assumed: {source})" if source else ""
 
 
 def size_from_rpc(rpc: RpcModel) -> tuple[int, int]:

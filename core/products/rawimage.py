@@ -19,6 +19,7 @@ from ..dem import ConstantHeight
 from ..errors import InputError, MetadataError
 from ..formats.rpcfiles import read_rpc_image
 from ..geodesy import ecef_to_geodetic
+from ..model.rpcscene import size_note
 from ..model.sensor import SceneModel
 
 gdal.UseExceptions()
@@ -40,7 +41,7 @@ def open_raw(image_path, cam):
         raise InputError(f"{image_path}: cannot be opened as a raster ({exc})") from None
     if (src.RasterXSize, src.RasterYSize) != (cam.cols, cam.rows):
         raise InputError(f"{image_path}: the raster is {src.RasterXSize} x {src.RasterYSize} px but camera {cam.name} "
-                         f"of the scene images {cam.cols} x {cam.rows} px: is it the scene's image?")
+                         f"of the scene images {cam.cols} x {cam.rows} px{size_note(cam)}: is it the scene's image?")
     return src
 
 

@@ -53,7 +53,8 @@ def virtual_camera(cam: Camera) -> Camera:
     installation; across track its detectors follow the straight line (uy linear in column)
     fitted by least squares through the real detectors' uy, along track they look at the mean
     ux of the chips with the smallest time offset (the chips whose rows are the image rows);
-    constant line period from the first to the last row's time, with no chip time offset."""
+    constant line period from the first to the last row's time (a reverse scan: the two rows' times in a
+    table), with no chip time offset."""
     cols = np.linspace(0.5, cam.cols - 0.5, min(LINE_SAMPLES, cam.cols))
     ux, uy = cam.image_plane(cols)
     slope, intercept = np.polyfit(cols, uy, 1)
@@ -66,7 +67,10 @@ def virtual_camera(cam: Camera) -> Camera:
                 theta=0.0 if slope > 0 else np.pi, name=f"{cam.name}-virtual")
     t_first, t_last = (float(t) for t in cam.timing.time(np.array([0.5, cam.rows - 0.5])))
     period = (t_last - t_first) / (cam.rows - 1) if cam.rows > 1 else cam.timing.mean_period()
-    return Camera(name=cam.name, cols=cam.cols, rows=cam.rows, timing=LineTiming(t0=t_first, period=period),
+    # a reverse scan's times decrease with the row: a table of the first and last lines' times
+    timing = LineTiming(t0=t_first, period=period) if period > 0 else \
+        LineTiming(lines=np.array([0.0, cam.rows - 1.0]), times=np.array([t_first, t_last]))
+    return Camera(name=cam.name, cols=cam.cols, rows=cam.rows, timing=timing,
                   chips=[chip], focal_length=f, principal_point=(0.0, 0.0), distortion={},
                   installation=cam.installation.copy())
 
@@ -210,7 +214,7 @@ def sensor_correct(scene: SceneModel, camera: int, image_path, surface, output_p
                "densification_error_px": worst, "rpc_check_rms_px": fit["check"]["rms_px"],
                "rpc_check_max_px": fit["check"]["max_px"], "height_range": list(heights),
                "virtual_line": {"focal_length_m": vcam.focal_length, "pitch_m": vcam.chips[0].pitch,
-                                "line_period_s": vcam.timing.period},
+                                "line_period_s": vcam.timing.mean_period()},
                "seconds": time.perf_counter() - t_start}
     log.info("sensor-corrected image %d x %d in %.1f s; densification error <= %.2e px; RPC check RMS %.4f px, "
              "max %.4f px", cam.cols, cam.rows, figures["seconds"], worst, figures["rpc_check_rms_px"],
