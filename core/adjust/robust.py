@@ -94,6 +94,7 @@ COMPONENT_TOLERANCE = 0.01
 MAD_TO_SIGMA = 1.4826
 WRONG_SHARE = 0.5       # a line with more than this share of its points failing the point test is wrong
 MIN_FACTOR = 0.01  # lowest factor on stated sigmas: no measured group is 100 times more precise than stated
+REFLAGGED = 2      # an observation flagged anew this often (flagged, released, flagged again) stays flagged
 
 
 def factor_floor(group: str) -> float:
@@ -320,20 +321,22 @@ def _say_floor(members: tuple[str, ...], ratio: float, floor: float) -> None:
                 "more precise than stated, e.g. exact ones: state their sigmas)", names, ratio, floor)
 
 
-def robust_weights(problem: Problem, st: Statistics, scale: np.ndarray) -> float:
+def robust_weights(problem: Problem, st: Statistics, scale: np.ndarray, held: np.ndarray | None = None) -> float:
     """One step of the robust method against the normalised residuals divided by ``scale`` ((n,)
-    per observation); returns the largest change of a weight factor."""
+    per observation); returns the largest change of a weight factor. ``held`` (n,) bool: the
+    observations held flagged (see the module docstring, Convergence): down-weighted as a residual at
+    the critical value at least, whatever theirs is now."""
     crit = critical(problem.settings.alpha)
     old = problem.factor.copy()
     if problem.settings.robust == "selection":
         # Li Deren's selection weights: rows whose normalised residual exceeds the critical
-        # value get the weight of their posterior variance.
+        # value get the weight of their posterior variance, s^2 r sigma^2 / v^2 = 1 / t^2.
         with np.errstate(divide="ignore", invalid="ignore"):
-            s = scale[:, None]
-            t = np.abs(st.w) / s
-            sigma = problem.image_sigma()[:, None]
-            ratio = np.where(t > crit, s ** 2 * st.redundancy * sigma ** 2 / np.maximum(st.v * st.v, 1e-300), 1.0)
-        problem.set_weight_factors(np.repeat(np.clip(ratio.min(axis=1), 1e-8, 1.0)[:, None], 2, axis=1))
+            t = np.abs(st.w).max(axis=1) / scale
+        if held is not None:
+            t = np.where(held, np.maximum(t, crit), t)
+        ratio = np.where((t > crit) | (held if held is not None else False), 1.0 / np.maximum(t, 1e-150) ** 2, 1.0)
+        problem.set_weight_factors(np.repeat(np.clip(ratio, 1e-8, 1.0)[:, None], 2, axis=1))
     elif problem.settings.robust == "snooping":
         live = problem.factor[:, 0] > 0
         score = np.where(live, np.abs(st.w).max(axis=1) / scale, 0.0)
