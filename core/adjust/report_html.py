@@ -137,6 +137,11 @@ def _reliability_section(rep: dict) -> str:
     return head + "<ul class='bad'>" + "".join(items) + "</ul>"
 
 
+def _sentence_case(text: str) -> str:
+    """``text`` with its first letter upper case (the rest as it is)."""
+    return text[:1].upper() + text[1:]
+
+
 def _sigma0_sentence(rep: dict) -> str:
     """sigma0 (unitless: 1 when the residuals match the stated sigmas) and its test."""
     test = rep["sigma0_test"]
@@ -224,10 +229,10 @@ def _headline_section(rep: dict) -> str:
            f"<p class='big'>RMSE col {_fmt(ctl.get('rmse_col'))} px, row {_fmt(ctl.get('rmse_row'))} px; "
            f"largest {_fmt(ctl.get('max'), '.2f')} px ({ctl.get('count', 0)} observations{left_out}).</p>"
            if ctl.get("count") else
-           f"<p class='big'>{html.escape(control_residual_sentence(rep).capitalize())}.</p>"]
+           f"<p class='big'>{html.escape(_sentence_case(control_residual_sentence(rep)))}.</p>"]
     if rep.get("control_ground"):
         text = ground_taken_sentence(rep["control_ground"])
-        out.append(f"<p>{html.escape(text[:1].upper() + text[1:])}. The image residuals above are what the ground "
+        out.append(f"<p>{html.escape(_sentence_case(text))}. The image residuals above are what the ground "
                    "unknowns left; the residuals at the stated ground coordinates are what the adjusted model "
                    "misses by, comparable with the check points'.</p>")
     before, after = rep["check_points_before"], rep["check_points"]

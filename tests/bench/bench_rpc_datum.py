@@ -42,44 +42,18 @@ from pushbroom_adjust.core.adjust import AdjustmentSettings
 from pushbroom_adjust.core.adjust.block import adjust_block
 from pushbroom_adjust.core.dem import ConstantHeight
 from pushbroom_adjust.core.formats import load_scene
-from pushbroom_adjust.core.geodesy import ecef_to_geodetic, enu_rotation, geodetic_to_ecef
 from pushbroom_adjust.core.measure.matching import MatchSettings
 from pushbroom_adjust.core.measure.tiematching import View, match_block_tiepoints
-from pushbroom_adjust.core.model.intersection import intersect
-from pushbroom_adjust.core.model.mixedblock import compose_mixed
 from pushbroom_adjust.core.observations import tiepoints
 from pushbroom_adjust.simulation.block import simulate_block
 from pushbroom_adjust.simulation.blockmembers import BlockMember
 from pushbroom_adjust.simulation.layouts import STEREO_PITCH, TRI_STEREO_PITCH
 from pushbroom_adjust.simulation.presets import PRESETS, ErrorSettings, cut_preset
 from tests.support.paths import TEST_DATA
+from tests.support.tie_heights import height_change, tie_heights
 
 CORRECTIONS = ("shift", "drift", "affine")
 GIZA = ("img1", "img2")
-
-
-def tie_heights(scenes: dict, ties) -> tuple[np.ndarray, np.ndarray]:
-    """(ids (m,), ground (m, 3) lon, lat, h) of the tie points of ``ties`` (scene column naming
-    ``scenes``) triangulated through ``scenes`` (name -> RPC scene)."""
-    block = compose_mixed(scenes)
-    names = [c.name for c in block.cameras]
-    camera = np.array([names.index(f"{s}/{scenes[s].cameras[0].name}") for s in ties.scene])
-    ids, point = np.unique(ties.id, return_inverse=True)
-    out = intersect(block, camera, ties.col, ties.row, point, ids.size)
-    return ids, np.stack(ecef_to_geodetic(out.ground), axis=1)
-
-
-def plane(ground: np.ndarray, dh: np.ndarray) -> tuple[float, float]:
-    """(median of dh (m,), the height difference (m) of dh's least-squares plane over the points
-    ``ground`` (m, 3 lon, lat, h) across their extent along its steepest direction)."""
-    ok = np.isfinite(dh)
-    centre = geodetic_to_ecef(*np.median(ground[ok], axis=0))
-    rot = enu_rotation(*np.median(ground[ok, :2], axis=0))
-    en = ((geodetic_to_ecef(ground[ok, 0], ground[ok, 1], ground[ok, 2]).reshape(-1, 3) - centre) @ rot.T)[:, :2]
-    a = np.c_[np.ones(en.shape[0]), en]
-    gradient = np.linalg.lstsq(a, dh[ok], rcond=None)[0][1:]
-    steepest = gradient / max(np.linalg.norm(gradient), 1e-12)
-    return float(np.median(dh[ok])), float(np.linalg.norm(gradient) * np.ptp(en @ steepest))
 
 
 def directions_text(report: dict) -> str:
@@ -92,18 +66,20 @@ def run(label: str, vendor: dict, ties, rpc_sigma: float, truth: np.ndarray | No
     figures; ``truth`` (m, 3 lon, lat, h) of the tie points in id order, when known."""
     ids, before = tie_heights(vendor, ties)
     if truth is not None:
-        print(f"{label}: before, heights - truth: median {plane(truth, before[:, 2] - truth[:, 2])[0]:+.2f} m, "
-              f"tilt {plane(truth, before[:, 2] - truth[:, 2])[1]:.2f} m over {ids.size} tie points")
+        error = height_change(truth, before[:, 2] - truth[:, 2])
+        print(f"{label}: before, heights - truth: median {error['median_m']:+.2f} m, tilt {error['tilt_m']:.2f} m "
+              f"over {ids.size} tie points")
     for correction in CORRECTIONS:
         out = adjust_block(vendor, None, ties, AdjustmentSettings(rpc_correction=correction, rpc_sigma=rpc_sigma))
         _, after = tie_heights(out.scenes, ties)
-        median, tilt = plane(before, after[:, 2] - before[:, 2])
+        moved = height_change(before, after[:, 2] - before[:, 2])
         rep = out.report
         line = (f"{label} {correction:6s}: tie RMS {rep['block']['tie_rmse_px']:.3f} px, robust passes "
-                f"{len(rep['adjustment']['robust']['passes'])}; heights moved median {median:+.2f} m, tilt {tilt:.2f} m")
+                f"{len(rep['adjustment']['robust']['passes'])}; heights moved median {moved['median_m']:+.2f} m, "
+                f"tilt {moved['tilt_m']:.2f} m")
         if truth is not None:
-            m_err, t_err = plane(truth, after[:, 2] - truth[:, 2])
-            line += f"; heights - truth: median {m_err:+.2f} m, tilt {t_err:.2f} m"
+            error = height_change(truth, after[:, 2] - truth[:, 2])
+            line += f"; heights - truth: median {error['median_m']:+.2f} m, tilt {error['tilt_m']:.2f} m"
         print(line)
         print(f"    directions: {directions_text(rep)}")
 
