@@ -295,8 +295,11 @@ def log_block(result, n_ties: int | None, alg, feedback) -> None:
         lines = s.get("lines")
         line_text = f"; {lines['lines']} control lines ({lines['points']} points), across-line " \
             f"{metres(lines['across_rmse_before_m'])} before, {metres(lines['across_rmse_m'])} after" if lines else ""
-        feedback.pushInfo(f"scene {name}: control {px(s['control']['rmse_px'])} ({s['control']['observations']} obs.), "
-                          f"check {px(s['check_points']['rmse_px'])} ({s['check_points']['observations']} obs.)"
+        control = f"control {px(s['control']['rmse_px'])} ({s['control']['observations']} obs.)" \
+            if s["control"]["observations"] else "no control points"
+        check = f"check {px(s['check_points']['rmse_px'])} ({s['check_points']['observations']} obs.)" \
+            if s["check_points"]["observations"] else "no check points"
+        feedback.pushInfo(f"scene {name}: {control}, {check}"
                           f"{tie_text}{line_text}; moved {s['moved_m']:.1f} m from {source} "
                           f"{'-' if sigma is None else f'{sigma:.1f} m'}; stated {sigmas_text(s['sigmas'])})")
     block = result.report["block"]

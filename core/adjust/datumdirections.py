@@ -32,6 +32,15 @@ displacement it causes), and how far the adjustment moved the tie points along i
 of all MOVES fitted together to the tie points' displacement from their start, the forward
 intersection through the input models, to their adjusted ground). A move beyond its prior sigma is
 named as a warning: the priors, not the observations, decide it.
+
+Blocks of RPC products only: their input models agree to a fraction of a pixel (the vendors' relative
+bias), so the tie points' start is the vendors' geometry and their move from it is the adjustment's
+(on the Giza pair it meets the change of the heights triangulated through the two sets of RPCs to
+0.01 m). A block with rigorous scenes starts from onboard models tens of pixels apart: the move of its
+tie points from their first intersection mixes the relative corrections in (a simulated tri-stereo's
+tilt 'moved' 3.7 m where its onboard attitude holds it to 1.2 m), and its trajectories follow a
+rotation about the vertical only to 10 %: such blocks keep their per-scene moves against the onboard
+sigmas and the yaw sentence (:func:`core.adjust.ties.yaw_hold`), and are not analysed here.
 """
 from __future__ import annotations
 
@@ -40,12 +49,17 @@ import logging
 import numpy as np
 
 from ..geodesy import ecef_to_geodetic, enu_rotation
+from ..model.mixedblock import MixedBlock
 from .normal import Linearization, System, assemble
 from .problem import Problem
 
 log = logging.getLogger(__name__)
 
-FOLLOWED = 0.1  # share (RMS) of a ground move's image displacement the corrections may miss and still follow it
+# share (RMS) of a ground move's image displacement the corrections may miss and still follow it: the
+# Giza pair's drift misses its tilt along the flight by 2.3 %, affine its moves by 0.4-1.7 %; a rigorous
+# tri-stereo's trajectories miss the rotation about the vertical by 9.8 % (its tie points' move along
+# it then mixes with the relative corrections and means little)
+FOLLOWED = 0.05
 LEFT = 1.0      # observations' information along a direction below this times the priors': left to the priors
 MOVES = ("height shift", "height tilt along the flight direction", "height tilt across the flight direction",
          "shift east", "shift north", "rotation about the vertical", "horizontal scale")
@@ -89,9 +103,10 @@ def ground_moves(ground: np.ndarray, ties: np.ndarray, along: np.ndarray) -> tup
 
 
 def _image_steps(lin: Linearization, dp: np.ndarray) -> np.ndarray:
-    """(K, n, 2) px: the image displacement J_p dp of each observation for parameter changes dp (K, u)."""
-    cols = np.maximum(lin.columns, 0)
-    return np.einsum("nkq,cnq->cnk", lin.values, np.where(lin.columns >= 0, dp[:, cols], 0.0))
+    """(K, n, 2) px: the image displacement J_p dp of each observation for parameter changes dp (K, u);
+    one change at a time (an (n, q) temporary each, not K of them)."""
+    cols, used = np.maximum(lin.columns, 0), lin.columns >= 0
+    return np.stack([np.einsum("nkq,nq->nk", lin.values, np.where(used, d[cols], 0.0)) for d in dp])
 
 
 def prior_matrix(problem: Problem, size: int) -> np.ndarray:
@@ -169,8 +184,8 @@ def _following(lin: Linearization, target: np.ndarray, n: int, obs_groups: list)
 
 def _moved(problem: Problem, moves: np.ndarray, ties: np.ndarray) -> np.ndarray:
     """(K,) m: the amplitudes of the MOVES ``moves`` (K, m, 3) fitted together (least squares) to the
-    tie points' (``ties`` (m,) bool) displacement from their start (problem.ground0) to their
-    adjusted ground."""
+    tie points' (``ties`` (m,) bool) displacement from their start (problem.ground0: the forward
+    intersection through the input models) to their adjusted ground."""
     a = moves[:, ties].reshape(moves.shape[0], -1).T
     return np.linalg.lstsq(a, (problem.ground - problem.ground0)[ties].ravel(), rcond=None)[0]
 
@@ -178,8 +193,16 @@ def _moved(problem: Problem, moves: np.ndarray, ties: np.ndarray) -> np.ndarray:
 def with_directions(held: dict, problem: Problem, result: dict) -> dict:
     """The datum entry ``held`` (:func:`core.adjust.ties.datum`) with the directions its corrections
     follow (:func:`datum_directions` at the solution ``result``'s linearisation and normal equations)
-    under ``directions``, in words in its note; each moved beyond its prior sigma logged as a warning."""
+    under ``directions``, in words in its note; each moved beyond its prior sigma logged as a warning.
+    None for a block with rigorous scenes (see the module docstring), with control lines or with 3
+    control points or more (the control holds the datum); with 1 or 2 control points only those held
+    by the priors (what the observations determine, the control may)."""
+    rpc_only = isinstance(problem.scene, MixedBlock) and problem.scene.rigorous is None
+    if not rpc_only or held.get("control_lines") or held.get("control_points", 0) >= 3:
+        return {**held, "directions": []}  # rigorous scenes in it, or the control holds the datum
     directions = datum_directions(problem, result["linearization"], result["system"])
+    if held.get("control_points"):  # what the observations determine, the control may: only the priors' are named
+        directions = [d for d in directions if d["held_by"] == "priors"]
     for warning in beyond_prior(directions):
         log.warning("%s", warning)
     return {**held, "directions": directions,
@@ -212,5 +235,5 @@ def beyond_prior(directions: list[dict]) -> list[str]:
     return [f"the tie points moved {d['moved_m']:+.1f} m along the {d['direction']}"
             f"{' (' + d['measure'] + ')' if d['measure'] else ''}, more than the priors' sigma there "
             f"({d['prior_sigma_m']:.1f} m), which the tie points {'do not' if d['held_by'] == 'priors' else 'hardly'} "
-            "determine: choose a correction the ties determine (RPC_CORRECTION=shift) or add control points"
+            "determine: add control points (RPC products: or a correction the ties determine, RPC_CORRECTION=shift)"
             for d in directions if abs(d["moved_m"]) > d["prior_sigma_m"]]
