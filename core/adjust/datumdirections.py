@@ -49,7 +49,6 @@ import logging
 import numpy as np
 
 from ..geodesy import ecef_to_geodetic, enu_rotation
-from ..model.mixedblock import MixedBlock
 from .normal import Linearization, System, assemble
 from .problem import Problem
 
@@ -197,7 +196,7 @@ def with_directions(held: dict, problem: Problem, result: dict) -> dict:
     None for a block with rigorous scenes (see the module docstring), with control lines or with 3
     control points or more (the control holds the datum); with 1 or 2 control points only those held
     by the priors (what the observations determine, the control may)."""
-    rpc_only = isinstance(problem.scene, MixedBlock) and problem.scene.rigorous is None
+    rpc_only = problem.params.position_basis is None  # no trajectory: RPC corrections only
     if not rpc_only or held.get("control_lines") or held.get("control_points", 0) >= 3:
         return {**held, "directions": []}  # rigorous scenes in it, or the control holds the datum
     directions = datum_directions(problem, result["linearization"], result["system"])

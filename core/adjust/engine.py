@@ -17,8 +17,6 @@ from __future__ import annotations
 import logging
 from typing import Callable
 
-import numpy as np
-
 from ..errors import InputError, NoDescentError
 from ..model.mixedblock import MixedBlock
 from ..model.rpcscene import RpcScene
@@ -36,7 +34,7 @@ from .minimalprior import hold_weak_trajectory
 from .problem import Problem
 from .report import report_warnings
 from .results import AdjustmentResult, record_in_scene, result_of, with_yaw
-from .rpcbias import RpcProblem, chosen_correction
+from .rpcbias import RpcProblem
 from .selection import conventional_instead, interior_free, select_interior
 from .settings import AdjustmentSettings
 from .ties import TieSetUp, set_up_ties
@@ -74,15 +72,12 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     progress = progress or (lambda fraction, message=None: None)
     is_cancelled = is_cancelled or (lambda: False)
     table = check_inputs(scene, table, settings, ties, lines)
-    correction = None
-    if isinstance(scene, RpcScene) or (isinstance(scene, MixedBlock) and scene.images):
-        settings, correction = chosen_correction(settings, int(np.unique(table.id[table.role == "control"]).size))
-        if correction is not None:
-            log.info("%s", correction["sentence"])
     held = block_datum(table, settings, ties, lines, scene)
     progress(0.02, "setting up the observations")
     tie_set = set_up_ties(scene, ties) if ties is not None and len(ties) else TieSetUp.empty()
     problem = _problem_for(scene, table, settings, tie_set, set_up_lines(scene, lines))
+    if problem.rpc_choice is not None:
+        log.info("%s", problem.rpc_choice["sentence"])
     check_redundancy(problem)
     _, system = problem.system()
     determinability = check_determinability(problem, system)
@@ -108,13 +103,13 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     out = result_of(problem, table, adjusted, est, determinability)
     rep = out.report
     rep["interior_selection"] = selection
-    rep["rpc_correction"] = correction
+    rep["rpc_correction"] = problem.rpc_choice
     rep["trajectory_prior"] = trajectory_prior
     rep["written_vs_fitted"] = written_vs_fitted
     if held is not None:
         held = rep["datum"] = with_directions(with_yaw(held, problem, est.st), problem, est.result)
         log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")
     rep["warnings"] = report_warnings(rep)
-    record_in_scene(adjusted, settings, out, determinability, selection, held, int(problem.ties.ids.size))
+    record_in_scene(adjusted, problem.settings, out, determinability, selection, held, int(problem.ties.ids.size))
     return out
 

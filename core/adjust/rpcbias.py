@@ -162,10 +162,11 @@ class RpcProblem(Problem):
         if settings.interior:
             raise InputError("INTERIOR: an RPC scene has no interior parameters; its correction is chosen with "
                              "RPC_CORRECTION")
-        self.scene, self.settings = scene, settings
-        self.image = RpcImage(scene, settings.rpc_correction)
-        self.params = self.image.params
         control = np.nonzero(table.role == "control")[0]
+        self.settings, self.rpc_choice = chosen_correction(settings, int(np.unique(table.id[control]).size))
+        self.scene = scene
+        self.image = RpcImage(scene, self.settings.rpc_correction)
+        self.params = self.image.params
         _, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
         self._set_up_ground(table, control[first])
         n = control.size
