@@ -179,11 +179,16 @@ def robust_method() -> QgsProcessingParameterEnum:
 def rpc_correction() -> QgsProcessingParameterEnum:
     return enum_parameter(
         RPC_CORRECTION, tr("RPC scenes: image-space correction"),
-        {"shift": tr("a shift of columns and rows (2 parameters per image)"),
+        {"auto": tr("shift for a block with fewer than 3 control points (tie points alone), drift otherwise; "
+                    "the log says which"),
+         "shift": tr("a shift of columns and rows (2 parameters per image)"),
          "drift": tr("a shift and a drift along the rows, i.e. with time (4 parameters)"),
-         "affine": tr("an affine correction of columns and rows (6 parameters)")}, "drift",
-        tr("For a SCENE given by its RPC only: the bias compensation adjusted to the GCPs (Grodecki & Dial "
-           "2003); ignored for rigorous scenes."))
+         "affine": tr("an affine correction of columns and rows (6 parameters)")}, "auto",
+        tr("For a SCENE given by its RPC only, or the RPC products of a block (SCENES): the bias compensation "
+           "adjusted to the GCPs and tie points (Grodecki & Dial 2003); ignored for rigorous scenes. Tie points "
+           "alone do not determine the height tilt that drift and affine terms let in: measured on simulated RPC "
+           "tri-stereos tied without GCPs, the heights tilted by 78 to 190 m across 5 km with drift (8 to 269 m "
+           "with affine) and by at most 0.02 m with shift, at the same tie residuals; hence the default."))
 
 
 def camera_trajectory() -> QgsProcessingParameterEnum:
