@@ -40,7 +40,7 @@ def made(provider, tmp_path_factory) -> Path:
     """The inputs of every case, each kind in a folder of its own: a rendered three-line scene (MINI_TLC of
     tests/support/matchscene.py: roads, GCPs, tie points) and a rendered block (tri-stereo and an RPC product of another date), the
     GCP, tie-point and line layers imported from them, and three VRTs (a raw image cut short, an RGB raster
-    of the three cameras' images, a DEM of ~0.5 million pixels square)."""
+    of the three cameras' images, the DEM at 1/300 of its pixel size: 165 000 x 157 500 pixels)."""
     tmp = tmp_path_factory.mktemp("made")
     sim = simulate(MINI_TLC, tmp / "sim", seed=7, render=True, gcp_settings=GcpSettings(n_gcps=20, n_tie_points=30),
                    n_lines=4)
