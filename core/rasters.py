@@ -80,22 +80,36 @@ def check_input_raster(path) -> tuple[int, int]:
 def copy_statistics(source: gdal.Dataset, target: gdal.Dataset) -> None:
     """Set on each band of ``target`` (a VRT showing ``source``, band for band) the statistics of the
     same band of ``source``, computed here from its pixels (nodata and non-finite values left out):
-    exact for rasters of up to EXACT_STATISTICS_PIXELS pixels, from an evenly decimated read beyond
-    (flagged approximate, as GDAL's own). A viewer asking the VRT for statistics finds them instead of
-    GDAL computing them on the source and writing them beside it. Nothing is set on ``source``."""
-    cols, rows = source.RasterXSize, source.RasterYSize
-    step = max(1, math.ceil(math.sqrt(cols * rows / EXACT_STATISTICS_PIXELS)))
+    exact for rasters of up to EXACT_STATISTICS_PIXELS pixels, from whole blocks spread evenly over
+    the raster beyond (about that many pixels, flagged approximate as GDAL's own approximate
+    statistics are). A viewer asking the VRT for statistics finds them instead of GDAL computing
+    them on the source and writing them beside it. Nothing is set on ``source``."""
     for k in range(1, min(source.RasterCount, target.RasterCount) + 1):
         band = source.GetRasterBand(k)
-        values = band.ReadAsArray(buf_xsize=max(1, cols // step), buf_ysize=max(1, rows // step)).astype(np.float64)
+        values, approximate = sample_band(band)
         valid = np.isfinite(values)
-        nodata = band.GetNoDataValue()
-        if nodata is not None:
-            valid &= values != nodata
+        if band.GetNoDataValue() is not None:
+            valid &= values != band.GetNoDataValue()
         if not valid.any():  # no valid pixel: nothing to say; a viewer shows the band as it can
             continue
         values = values[valid]
         out = target.GetRasterBand(k)
         out.SetStatistics(float(values.min()), float(values.max()), float(values.mean()), float(values.std()))
-        if step > 1:
+        if approximate:
             out.SetMetadataItem("STATISTICS_APPROXIMATE", "YES")
+
+
+def sample_band(band: gdal.Band) -> tuple[np.ndarray, bool]:
+    """(pixel values (n,) float64, whether they are a sample): every pixel of a band of up to
+    EXACT_STATISTICS_PIXELS pixels; beyond, the whole blocks of every k-th block row and column
+    (k chosen for about that many pixels; every block when k is 1), so that a tiled or striped
+    raster is read only where sampled."""
+    cols, rows = band.XSize, band.YSize
+    if cols * rows <= EXACT_STATISTICS_PIXELS:
+        return band.ReadAsArray().astype(np.float64).ravel(), False
+    width, height = band.GetBlockSize()
+    across, down = math.ceil(cols / width), math.ceil(rows / height)
+    step = max(1, math.floor(math.sqrt(across * down * width * height / EXACT_STATISTICS_PIXELS)))
+    blocks = [band.ReadAsArray(i * width, j * height, min(width, cols - i * width), min(height, rows - j * height))
+              for j in range(0, down, step) for i in range(0, across, step)]
+    return np.concatenate([b.astype(np.float64).ravel() for b in blocks]), step > 1
