@@ -30,6 +30,7 @@ from pyproj.exceptions import CRSError
 
 from .errors import InputError
 from .files import check_closed, closing_errors
+from .rasters import open_input_raster
 from .validation import check_surface_heights
 
 gdal.UseExceptions()
@@ -367,7 +368,7 @@ class Dem:
 
     def _open(self):
         try:
-            ds = gdal.Open(self.path)
+            ds = open_input_raster(self.path)
         except RuntimeError as exc:
             raise InputError(f"DEM {self.path}: cannot be opened as a raster ({exc})") from None
         if ds is None or ds.RasterCount < 1:

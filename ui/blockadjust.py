@@ -37,8 +37,9 @@ from ..core.formats.scene_json import save_scene
 from ..core.model.mixedblock import MixedBlock
 from ..core.model.rpcscene import RpcScene
 from ..core.observations import tiepoints
-from ..core.observations.blockscenes import rpc_product_cameras, scene_groups, scene_of_rows
+from ..core.observations.blockscenes import rpc_product_cameras, scene_groups
 from ..core.observations.lines import IMAGE_LAYER, read_ground_lines, read_image_lines
+from ..core.observations.tables import scene_of_rows
 from ..core.products.rpcfit import fit_rpc, refined_rpcs
 from ..core.vector_io import layer_fields
 from ..simulation.simulator import new_folder

@@ -76,6 +76,10 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
                              "adjusted from GCPs", parameter="lines")
         check_lines(scene, lines)
     sparse_control = with_ties or with_lines
+    if len(table) and not control.any() and not sparse_control:
+        raise InputError(f"all {np.unique(table.id).size} points are check points (role 'check'): check points never "
+                         "enter the adjustment, so none controls it; give control points (role 'control'), or tie "
+                         "points or control lines", parameter="gcps")
     inside = np.zeros(len(table), bool)
     for c, cam in enumerate(scene.cameras):
         m = table.camera == cam.name

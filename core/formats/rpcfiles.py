@@ -21,6 +21,7 @@ from osgeo import gdal
 
 from ..errors import InputError, MetadataError
 from ..files import OutputSet, check_closed, closing_errors, output_set, write_text
+from ..rasters import copy_statistics, open_input_raster
 from ..model.rpc import RpcModel
 from ..validation import rpc_value_problem
 from ..model.rpcscene import RpcCamera, RpcScene, check_image_domain, size_from_rpc
@@ -167,7 +168,7 @@ def read_rpc_text(path: Path) -> RpcScene:
 
 def _raster_size(path: Path) -> tuple[int, int]:
     try:
-        ds = gdal.Open(str(path))
+        ds = open_input_raster(path)
     except RuntimeError as exc:
         raise MetadataError(f"{path}: cannot be opened as a raster ({exc})") from None
     return ds.RasterXSize, ds.RasterYSize
@@ -177,7 +178,7 @@ def read_rpc_image(path: Path) -> RpcScene | None:
     """The RPC scene of a raster GDAL reads with RPC metadata (tags, ``_RPC.TXT`` or ``.RPB``
     beside it); None when GDAL cannot open it or it has no RPC."""
     try:
-        ds = gdal.Open(str(path))
+        ds = open_input_raster(path)
     except RuntimeError:
         return None
     md = ds.GetMetadata("RPC") or {}
@@ -320,13 +321,14 @@ def image_vrt_with_rpc(rpc: RpcModel, image, vrt_path, cols: int | None = None, 
     image still being written under a temporary one)."""
     vrt_path = Path(vrt_path)
     try:
-        src = gdal.Open(str(image))
+        src = open_input_raster(image)
     except RuntimeError as exc:
         raise InputError(f"image {image}: cannot be opened as a raster ({exc})") from None
     if cols is not None and (src.RasterXSize, src.RasterYSize) != (int(cols), int(rows)):
         raise InputError(f"image {image} is {src.RasterXSize} x {src.RasterYSize} pixels but the camera's image is "
                          f"{cols} x {rows}: it is not this camera's image")
     vrt = gdal.Translate("", src, format="VRT")  # in memory: its XML is written below
+    copy_statistics(src, vrt)
     vrt.SetMetadata(rpc_metadata(rpc), "RPC")
     xml = ElementTree.fromstring(vrt.GetMetadata("xml:VRT")[0])
     vrt = None

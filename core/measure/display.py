@@ -9,10 +9,11 @@ the upper-left pixel — and the engineering CRS of :func:`core.observations.lin
 the ``image_lines`` layers. The VRT's PUSHBROOM metadata domain names the scene file and the
 camera, so that the digitising dock finds them again.
 
-Each band of the copy carries statistics (of a decimated read): a viewer that finds none computes
-them, and GDAL's VRT hands that work to the raw image's band, which stores the result in a side
-file beside the raw image (``<image>.aux.xml``): a file written beside an input. The docks keep
-their copies in a cache folder of their own (:func:`cached_display_copy`), never beside the image.
+Each band of the copy carries the image's statistics (:func:`core.rasters.copy_statistics`): a
+viewer that finds none computes them, and GDAL's VRT hands that work to the raw image's band,
+which stores the result in a side file beside the raw image (``<image>.aux.xml``): a file written
+beside an input. The docks keep their copies in a cache folder of their own
+(:func:`cached_display_copy`), never beside the image.
 """
 from __future__ import annotations
 
@@ -23,12 +24,12 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from osgeo import gdal
 
 from ..errors import InputError
 from ..files import OutputSet, atomic_output
 from ..observations.lines import ImageLines, pixel_frame, write_gpkg
+from ..rasters import check_input_raster, copy_statistics, open_input_raster
 
 gdal.UseExceptions()
 log = logging.getLogger(__name__)
@@ -36,7 +37,6 @@ log = logging.getLogger(__name__)
 PIXEL_GEOTRANSFORM = (0.0, 1.0, 0.0, 0.0, 0.0, -1.0)  # x = col, y = -row
 METADATA_DOMAIN = "PUSHBROOM"
 DROPPED_DOMAINS = ("RPC", "GEOLOCATION")
-STATISTICS_SAMPLE_PX = 1024  # the longer side of the decimated read a display copy's statistics come from
 
 
 @dataclass(frozen=True)
@@ -50,21 +50,10 @@ class DisplaySource:
     camera: str
 
 
-def raster_size(path) -> tuple[int, int]:
-    """(cols, rows) of a raster file; InputError naming the file when GDAL cannot read it."""
-    try:
-        ds = gdal.Open(str(path))
-    except RuntimeError as exc:
-        raise InputError(f"{path}: cannot be read as a raster ({exc})") from None
-    if ds is None or ds.RasterCount == 0:
-        raise InputError(f"{path}: holds no raster band")
-    return ds.RasterXSize, ds.RasterYSize
-
-
 def check_image_size(path, cols: int, rows: int, camera: str) -> None:
     """InputError unless the raster at ``path`` has the camera's (cols, rows): another image's
     pixels would put every digitised vertex at the wrong place."""
-    got = raster_size(path)
+    got = check_input_raster(path)
     if got != (cols, rows):
         raise InputError(f"{path}: the image is {got[0]} x {got[1]} pixels but camera {camera} of the scene "
                          f"delivers {cols} x {rows}; give the raw image of that camera (not an orthoimage or "
@@ -75,15 +64,19 @@ def write_display_vrt(image, output, scene: str = "", camera: str = "", files: O
     """Write the display copy of raster ``image`` to ``output`` (.vrt), completely or not at all.
 
     The VRT references ``image`` by absolute path (it stays valid when moved) and keeps its bands,
-    nodata and overviews; RPC, GEOLOCATION and GCPs are dropped. ``scene`` and ``camera`` go to
+    nodata and overviews; RPC, GEOLOCATION and GCPs are dropped. It carries the image's statistics
+    (core.rasters.copy_statistics), so that QGIS, which computes those of a raster it loads, never
+    computes them on the image and writes them beside it. ``scene`` and ``camera`` go to
     the PUSHBROOM metadata domain. The input is only read."""
     output = Path(output)
     if output.suffix.lower() != ".vrt":
         raise InputError(f"{output}: the display copy is a virtual raster; use a .vrt file name")
     source = os.path.abspath(str(image))
-    raster_size(source)
+    check_input_raster(source)
+    src = open_input_raster(source)
     with atomic_output(output, files) as tmp:
-        ds = gdal.Translate(str(tmp), source, format="VRT")
+        ds = gdal.Translate(str(tmp), src, format="VRT")
+        copy_statistics(src, ds)  # a viewer loading the copy finds them: none computed on the image, none beside it
         ds.SetGCPs([], "")
         for domain in DROPPED_DOMAINS:
             ds.SetMetadata({}, domain)
@@ -91,27 +84,9 @@ def write_display_vrt(image, output, scene: str = "", camera: str = "", files: O
         ds.SetSpatialRef(pixel_frame())
         ds.SetMetadata({"SCENE": os.path.abspath(scene) if scene else "", "CAMERA": camera,
                         "IMAGE": source}, METADATA_DOMAIN)
-        set_display_statistics(ds)
         ds.FlushCache()
         ds = None
         log.info("display copy of %s written to %s", source, output)
-
-
-def set_display_statistics(ds: gdal.Dataset) -> None:
-    """Minimum, maximum, mean and standard deviation of each band of ``ds`` (a display copy being
-    written) from a read decimated to at most STATISTICS_SAMPLE_PX px a side, nodata left out
-    (a band all nodata gets none). They are stored as exact statistics: GDAL recomputes
-    approximate ones when asked for exact ones (QGIS asks), and that is the work that writes
-    beside the raw image; they serve a display stretch, nothing else."""
-    step = max(ds.RasterXSize, ds.RasterYSize) / STATISTICS_SAMPLE_PX
-    size = [max(1, round(n / max(step, 1.0))) for n in (ds.RasterXSize, ds.RasterYSize)]
-    for k in range(1, ds.RasterCount + 1):
-        band = ds.GetRasterBand(k)
-        values = band.ReadAsArray(buf_xsize=size[0], buf_ysize=size[1]).astype(float).ravel()
-        nodata = band.GetNoDataValue()
-        values = values[np.isfinite(values) & ((values != nodata) if nodata is not None else True)]
-        if values.size:
-            band.SetStatistics(float(values.min()), float(values.max()), float(values.mean()), float(values.std()))
 
 
 def cached_display_copy(image, scene: str, camera: str, cache) -> Path:
@@ -120,7 +95,7 @@ def cached_display_copy(image, scene: str, camera: str, cache) -> Path:
     absolute path, size and modification time, the scene file and the camera: one image shown
     for several scenes or cameras gets a copy each, and a replaced image a new one."""
     source = Path(os.path.abspath(str(image)))
-    raster_size(source)
+    check_input_raster(source)
     stat = source.stat()
     key = "|".join([str(source), str(stat.st_size), str(stat.st_mtime_ns), os.path.abspath(scene) if scene else "",
                     camera])
@@ -135,8 +110,8 @@ def cached_display_copy(image, scene: str, camera: str, cache) -> Path:
 def read_display_source(path) -> DisplaySource:
     """The raw image, scene and camera a display copy (or any raster) shows; for a raster
     that is not a display copy, the raster itself with no scene."""
-    cols, rows = raster_size(path)
-    ds = gdal.Open(str(path))
+    cols, rows = check_input_raster(path)
+    ds = open_input_raster(path)
     meta = ds.GetMetadata(METADATA_DOMAIN) or {}
     return DisplaySource(meta.get("IMAGE", str(path)), cols, rows, meta.get("SCENE", ""), meta.get("CAMERA", ""))
 

@@ -18,7 +18,8 @@ from osgeo import gdal
 from ..errors import InputError, MetadataError
 from ..formats import load_scene
 from ..products.ortho import PRODUCT_MARK
-from .display import METADATA_DOMAIN, cached_display_copy, check_image_size, raster_size, read_display_source
+from ..rasters import check_input_raster
+from .display import METADATA_DOMAIN, cached_display_copy, check_image_size, read_display_source
 
 gdal.UseExceptions()
 
@@ -109,7 +110,7 @@ def raw_image_candidates(scene_path, cols: int, rows: int, camera: str, image_hi
     for path in hinted + [scene_path] + beside[:MAX_CANDIDATES_READ]:
         try:
             image = Path(read_display_source(path).image)
-            fits = raster_size(image) == (cols, rows)
+            fits = check_input_raster(image) == (cols, rows)
         except (InputError, OSError):
             continue
         if fits and image not in found:

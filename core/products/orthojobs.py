@@ -20,6 +20,7 @@ from ..dem import ConstantHeight, Dem
 from ..errors import Cancelled, InputError
 from ..files import check_closed, closing_errors
 from ..formats.scene_json import scene_from_dict
+from ..rasters import open_input_raster
 from .mapping import Mapper, Nodes, OrthoGrid
 from .rawimage import RawImage
 from .resampling import RESAMPLING, create_geotiff, tile_blocks, write_tile
@@ -79,7 +80,7 @@ def run_job(job: OrthoJob) -> float:
     """Compute one tile (:class:`OrthoJob`) and write it to ``job.output``; returns its
     densification error (px)."""
     mapper = _job_mapper(job.scene, job.camera, job.grid, json.dumps(job.surface, sort_keys=True), job.rows)
-    src = gdal.Open(job.image)
+    src = open_input_raster(job.image)
     raw = RawImage(job.image, src, budget=0)  # read by window: a worker holds only its tiles' pixels
     levels = list(job.levels)
     fill = job.nodata if job.nodata is not None else 0.0

@@ -21,6 +21,7 @@ from ..formats.rpcfiles import read_rpc_image
 from ..geodesy import ecef_to_geodetic
 from ..model.rpcscene import size_note
 from ..model.sensor import SceneModel
+from ..rasters import open_input_raster
 
 gdal.UseExceptions()
 log = logging.getLogger(__name__)
@@ -36,7 +37,7 @@ DISAGREEMENT_NOTE_PX = 100.0
 def open_raw(image_path, cam):
     """The raw image as a GDAL dataset (decoded on all cores), checked against the camera's size."""
     try:
-        src = gdal.OpenEx(str(image_path), gdal.OF_RASTER, open_options=["NUM_THREADS=ALL_CPUS"])
+        src = open_input_raster(image_path, open_options=["NUM_THREADS=ALL_CPUS"])
     except RuntimeError as exc:
         raise InputError(f"{image_path}: cannot be opened as a raster ({exc})") from None
     if (src.RasterXSize, src.RasterYSize) != (cam.cols, cam.rows):
@@ -102,7 +103,7 @@ class RawImage:
             return self.data[:, i0:i1, j0:j1]
         ds = getattr(self._local, "ds", None)
         if ds is None:
-            ds = self._local.ds = gdal.Open(self.path)
+            ds = self._local.ds = open_input_raster(self.path)
         return ds.ReadAsArray(j0, i0, j1 - j0, i1 - i0).reshape(self.count, i1 - i0, j1 - j0)
 
     def close(self) -> None:

@@ -12,7 +12,7 @@ import pytest
 from osgeo import gdal, osr
 
 import processing
-from tests.support.hostile import assert_refused, assert_unchanged, snapshot
+from tests.support.hostile import assert_refused, assert_unchanged, huge_vrt, snapshot
 
 gdal.UseExceptions()
 ALGORITHMS = ("footprint", "imagetoground", "orthorectify")
@@ -143,32 +143,10 @@ def test_dem_with_nan_nodata_gives_the_same_footprint(simulated, sim_dem, tmp_pa
     assert _area(simulated, path) == pytest.approx(true_area, rel=1e-9)
 
 
-def _huge_vrt(simulated, folder, factor: int = 1000):
-    """A VRT of the simulator's DEM at 1/factor of its pixel size: ~2 million pixels square."""
-    src = gdal.Open(simulated["DEM"])
-    gt = src.GetGeoTransform()
-    nx, ny = src.RasterXSize * factor, src.RasterYSize * factor
-    vrt = folder / "huge.vrt"
-    vrt.write_text(f"""<VRTDataset rasterXSize="{nx}" rasterYSize="{ny}">
-  <SRS>{_wgs84().replace('"', '&quot;')}</SRS>
-  <GeoTransform>{gt[0]}, {gt[1] / factor}, 0, {gt[3]}, 0, {gt[5] / factor}</GeoTransform>
-  <VRTRasterBand dataType="Float32" band="1">
-    <NoDataValue>-32768</NoDataValue>
-    <SimpleSource>
-      <SourceFilename relativeToVRT="0">{simulated["DEM"]}</SourceFilename>
-      <SourceBand>1</SourceBand>
-      <SrcRect xOff="0" yOff="0" xSize="{src.RasterXSize}" ySize="{src.RasterYSize}"/>
-      <DstRect xOff="0" yOff="0" xSize="{nx}" ySize="{ny}"/>
-    </SimpleSource>
-  </VRTRasterBand>
-</VRTDataset>""")
-    return str(vrt)
-
-
 def test_huge_vrt_dem_footprint_reads_it_coarsely(simulated, tmp_path, true_area):
     """A DEM of ~2 million pixels square (~16 TB of heights) traces the footprint from a coarse
     read: same area as on the simulator's DEM (the VRT is that DEM, resampled)."""
-    assert _area(simulated, _huge_vrt(simulated, tmp_path)) == pytest.approx(true_area, rel=1e-3)
+    assert _area(simulated, huge_vrt(simulated["DEM"], tmp_path / "huge.vrt")) == pytest.approx(true_area, rel=1e-3)
 
 
 @pytest.mark.parametrize("alg", ("imagetoground", "orthorectify"))
@@ -178,7 +156,7 @@ def test_huge_vrt_dem_at_full_resolution_is_refused(simulated, raw_image, tmp_pa
     out = tmp_path / "out"
     out.mkdir()
     _points(out)
-    vrt = _huge_vrt(simulated, tmp_path)
+    vrt = huge_vrt(simulated["DEM"], tmp_path / "huge.vrt")
     assert_refused(f"pushbroom:{alg}", _params(alg, simulated, vrt, raw_image, out), "huge.vrt", "coarser DEM",
                    watch=[vrt, out])
 

@@ -47,8 +47,6 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         check_outputs(self, parameters, context)
         scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT, feedback)
-        if not features:
-            raise QgsProcessingException(f"{self.INPUT}: the table has no features")
         col, row = self._image_points(parameters, context, source, features)
         surface = dem_from_parameters(self, parameters, context, scene, feedback)
         check_cancelled(feedback)

@@ -13,8 +13,7 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY,
                        QgsProcessingParameterCrs, QgsProcessingParameterExtent,
                        QgsProcessingParameterFolderDestination,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
-                       QgsProcessingParameterRasterLayer, QgsProcessingParameterString, QgsProcessingUtils,
-                       QgsRectangle)
+                       QgsProcessingParameterString, QgsProcessingUtils, QgsRectangle)
 
 from ...core.dem import ConstantHeight
 from ...core.products.ortho import (check_images, default_grid, orthorectify, orthorectify_products, scene_utm_crs,
@@ -22,9 +21,9 @@ from ...core.products.ortho import (check_images, default_grid, orthorectify, or
 from ...core.products.footprint import footprints
 from ..feedback import core_call, feedback_callbacks, processing_errors
 from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, camera_images_for, dem_from_parameters,
-                      load_scene_for)
+                      load_scene_for, raster_file)
 from ..outputs import check_outputs
-from ..parameters import CAMERA, DEM, INPUTS, RESAMPLING, SCENE, camera_images, enum_value, resampling, tr
+from ..parameters import CAMERA, DEM, INPUTS, RESAMPLING, SCENE, RasterInput, camera_images, enum_value, resampling, tr
 from .base import PushbroomAlgorithm
 
 
@@ -53,7 +52,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         "ALL_CAMERAS", INPUTS, "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image"), optional=True),
+        self.add_parameter(RasterInput(self.INPUT, tr("Raw image"), optional=True),
                   tr("The scene's raw image (any GDAL format, any number of bands and data type), of the size the "
                   "scene's camera images, without georeferencing. Required unless ALL_CAMERAS."))
         self.add_parameter(QgsProcessingParameterBoolean(self.ALL_CAMERAS, tr("Every camera of the scene"), False,
@@ -100,11 +99,10 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             raise QgsProcessingException(f"{self.OUTPUT}: the orthoimage is written as GeoTIFF; use a .tif file "
                                          f"(got {output})")
         check_outputs(self, parameters, context, {self.OUTPUT: [output]})
-        layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)
-        if layer is None:
+        image = raster_file(self, parameters, self.INPUT, context)
+        if not image:
             raise QgsProcessingException(f"{self.INPUT}: no raw image given (or set {self.ALL_CAMERAS} with "
                                          f"{self.INPUTS} for every camera)")
-        image = layer.source().split("|")[0]
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         with processing_errors(f"{self.INPUT}: "):

@@ -6,17 +6,16 @@ from __future__ import annotations
 from pathlib import Path
 
 from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProcessingOutputNumber,
-                       QgsProcessingOutputRasterLayer, QgsProcessingParameterRasterDestination,
-                       QgsProcessingParameterRasterLayer)
+                       QgsProcessingOutputRasterLayer, QgsProcessingParameterRasterDestination)
 
 from ...core.files import Output
 from ...core.model.sensor import SceneModel
 from ...core.products.sensorcorrect import output_files, sensor_correct
 from ..feedback import core_call, feedback_callbacks
-from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, layer_file,
-                      load_scene_for)
+from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, load_scene_for,
+                      raster_file)
 from ..outputs import check_outputs
-from ..parameters import CAMERA, OUTPUT_SCENE, RESAMPLING, SCENE, enum_value, output_scene, resampling, tr
+from ..parameters import CAMERA, OUTPUT_SCENE, RESAMPLING, SCENE, RasterInput, enum_value, output_scene, resampling, tr
 from .base import PushbroomAlgorithm
 
 
@@ -45,7 +44,7 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
     RPC, REPORT, IMAGE_WITH_RPC, RMS_PX, MAX_PX = "RPC", "REPORT", "IMAGE_WITH_RPC", "RMS_PX", "MAX_PX"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image (one camera)")),
+        self.add_parameter(RasterInput(self.INPUT, tr("Raw image (one camera)")),
                            tr("The raw image of the camera CAMERA of SCENE (any GDAL format, any bands and data "
                               "type), of the size that camera images."))
         add_scene_parameters(self)
@@ -73,10 +72,9 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
             self.OUTPUT: [output, Output(derived["rpc"], "its RPC"), Output(derived["report"], "its RPC report"),
                           Output(derived["vrt"], "its VRT with the RPC")],
             OUTPUT_SCENE: [scene_out]})
-        layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)
-        if layer is None:
+        image = raster_file(self, parameters, self.INPUT, context)
+        if not image:
             raise QgsProcessingException(f"{self.INPUT}: no raw image given")
-        image = layer_file(layer) or layer.source().split("|")[0]
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         if not isinstance(scene, SceneModel):
