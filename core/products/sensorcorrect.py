@@ -27,9 +27,10 @@ import numpy as np
 from osgeo import gdal_array
 
 from ..model.camera import Camera, Chip, LineTiming
-from ..dem import ConstantHeight
+from ..dem import ConstantHeight, no_height_words, surface_name
 from ..errors import InputError
 from ..files import atomic_outputs, check_destination
+from .footprint import rays_without_height
 from .mapping import Mapper
 from .rawimage import RawImage, open_raw
 from .resampling import check_resampling, write_resampled
@@ -90,7 +91,11 @@ def virtual_scene(scene: SceneModel, camera: int, info: dict | None = None) -> S
 
 class _VirtualMapper(Mapper):
     """Virtual image pixels -> raw image positions: the virtual line of sight on the surface,
-    then the real camera's ground -> image. Pixels whose ray misses the surface are NaN."""
+    then the real camera's ground -> image. Pixels whose ray misses the surface are NaN. The
+    virtual and real lines of sight nearly coincide, so the mapping hardly depends on the relief:
+    it is checked at the cells' centres, with no relief to correct."""
+
+    maps_ground = False
 
     def __init__(self, scene: SceneModel, camera: int, virtual: SceneModel, surface):
         self.scene, self.camera, self.virtual, self.surface = scene, camera, virtual, surface
@@ -178,7 +183,7 @@ def sensor_correct(scene: SceneModel, camera: int, image_path, surface, output_p
     for path in (output_path, *paths.values(), *([scene_path] if scene_path else [])):
         check_destination(path)
     heights = rpc_height_range(scene, camera, surface)  # also: the DEM covers the image
-    virtual = virtual_scene(scene, camera, {"resampling": resampling, "surface": _surface_name(surface),
+    virtual = virtual_scene(scene, camera, {"resampling": resampling, "surface": surface_name(surface),
                                             **(info or {})})
     report(0.0, "virtual camera: image positions on the node grid")
     mapper = _VirtualMapper(scene, camera, virtual, surface)
@@ -186,10 +191,10 @@ def sensor_correct(scene: SceneModel, camera: int, image_path, surface, output_p
     cancelled = is_cancelled or (lambda: False)
     try:
         planned = mapper.nodes(0, cam.rows, 0, cam.cols, step, is_cancelled=cancelled)
-        _check_coverage(planned, cam.rows, cam.cols, surface)
+        _check_coverage(planned, cam.rows, cam.cols, virtual, surface)
         report(0.1, "resampling the raw image")
         with atomic_outputs() as files:
-            worst = write_resampled(raw, mapper, planned, (cam.rows, cam.cols), output_path, resampling, nodata,
+            mapped = write_resampled(raw, mapper, planned, (cam.rows, cam.cols), output_path, resampling, nodata,
                                     tile, max_error, progress=lambda f: report(0.1 + 0.8 * f), is_cancelled=cancelled,
                                     files=files)
             raw.close()
@@ -207,30 +212,35 @@ def sensor_correct(scene: SceneModel, camera: int, image_path, surface, output_p
     vcam = virtual.cameras[0]
     figures = {"image": str(output_path), **{k: str(v) for k, v in paths.items()},
                "scene": str(scene_path) if scene_path else None, "cols": cam.cols, "rows": cam.rows,
-               "densification_error_px": worst, "rpc_check_rms_px": fit["check"]["rms_px"],
+               "densification_error_px": mapped.error_px, "mapping": mapped.sentence(max_error, relief=False),
+               "rpc_check_rms_px": fit["check"]["rms_px"],
                "rpc_check_max_px": fit["check"]["max_px"], "height_range": list(heights),
                "virtual_line": {"focal_length_m": vcam.focal_length, "pitch_m": vcam.chips[0].pitch,
                                 "line_period_s": vcam.timing.period},
                "seconds": time.perf_counter() - t_start}
-    log.info("sensor-corrected image %d x %d in %.1f s; densification error <= %.2e px; RPC check RMS %.4f px, "
-             "max %.4f px", cam.cols, cam.rows, figures["seconds"], worst, figures["rpc_check_rms_px"],
+    log.info("sensor-corrected image %d x %d in %.1f s; %s; RPC check RMS %.4f px, "
+             "max %.4f px", cam.cols, cam.rows, figures["seconds"], figures["mapping"], figures["rpc_check_rms_px"],
              figures["rpc_check_max_px"])
+    if mapped.no_height:
+        figures["holes"] = (f"{surface_name(surface)} "
+                            f"{no_height_words(0, mapped.no_height, mapped.pixels, 'pixels of the image')}: "
+                            "their lines of sight meet it only there; those pixels are nodata")
+        log.warning(figures["holes"])
     return figures
 
 
-def _surface_name(surface) -> str:
-    if isinstance(surface, ConstantHeight):
-        return f"constant ellipsoidal height {surface.value:g} m"
-    return f"DEM {getattr(surface, 'path', '')}"
-
-
-def _check_coverage(planned, rows: int, cols: int, surface) -> None:
-    """InputError naming the DEM when some of the virtual image's nodes have no ground point or
-    no raw image position (the DEM ends inside the footprint)."""
+def _check_coverage(planned, rows: int, cols: int, virtual: SceneModel, surface) -> None:
+    """InputError naming the DEM when some of the virtual image's nodes have no ground point other
+    than on the DEM's nodata holes (the DEM ends inside the footprint); pixels on holes stay nodata."""
     inside_rows = planned.r0 + np.arange(planned.ncol.shape[0]) * planned.step <= rows
     inside_cols = planned.c0 + np.arange(planned.ncol.shape[1]) * planned.step <= cols
     missing = ~np.isfinite(planned.ncol[np.ix_(inside_rows, inside_cols)])
-    if missing.any():
-        raise InputError(f"{_surface_name(surface)} does not cover the image: {int(missing.sum())} of "
-                         f"{missing.size} virtual pixels on the node grid do not meet it; use a DEM covering the "
-                         f"whole footprint, or a constant height")
+    if not missing.any():
+        return
+    i, j = np.nonzero(missing)
+    _, hole = rays_without_height(virtual, 0, planned.c0 + j * planned.step + 0.5,
+                                  planned.r0 + i * planned.step + 0.5, surface)
+    if not hole.all():
+        words = no_height_words(int((~hole).sum()), int(hole.sum()), missing.size, "virtual pixels on the node grid")
+        raise InputError(f"{surface_name(surface)} does not cover the image: it {words}; use a DEM covering the "
+                         "whole footprint, or a constant height")
