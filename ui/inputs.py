@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from osgeo import gdal
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProcessingException, QgsProviderRegistry,
@@ -215,6 +216,27 @@ def attribute_texts(values):
 
 
 # --- terrain and heights -----------------------------------------------------------------------
+def not_a_raster(value: str) -> str:
+    """Why a raster parameter's value (a file path, with or without a '|' suffix) is no raster
+    GDAL can read: a missing file, a folder, a vector file, or another file (GDAL's reason)."""
+    path = Path(value.split("|")[0])
+    if not path.exists():
+        return f"{path} does not exist"
+    if path.is_dir():
+        return f"{path} is a folder, not a raster file"
+    try:
+        vector = gdal.OpenEx(str(path), gdal.OF_VECTOR)
+    except RuntimeError:
+        vector = None
+    if vector is not None:
+        return f"{path} is a vector file ({vector.GetDriver().ShortName}: points, lines or polygons), not a raster"
+    try:
+        gdal.OpenEx(str(path), gdal.OF_RASTER)
+    except RuntimeError as exc:
+        return f"{path} is not a raster GDAL can read ({str(exc).strip()})"
+    return f"{path} is not a raster QGIS can load"
+
+
 def add_dem_parameters(alg) -> None:
     """Add the optional DEM raster, its height datum and the constant-height fallback."""
     for p in (vocabulary.dem(), vocabulary.dem_datum(), vocabulary.height()):

@@ -175,10 +175,11 @@ class Mapper:
         return (*self.at_heights(lon, lat, z + self.dem.datum_offset(lon, lat)), u, v, z)
 
     def at_heights(self, lon, lat, h) -> tuple[np.ndarray, np.ndarray]:
-        """Image (col, row) of ground points (lon, lat degrees, ellipsoidal h m); NaN where h is."""
+        """Image (col, row) of ground points (lon, lat degrees, ellipsoidal h m); NaN where h is,
+        or where the output CRS gives no (lon, lat) (a grid beyond its domain)."""
         col = np.full(np.shape(lon), np.nan)
         row = np.full(np.shape(lon), np.nan)
-        ok = np.isfinite(h)
+        ok = np.isfinite(h) & np.isfinite(lon) & np.isfinite(lat)
         if ok.any():
             col[ok], row[ok] = self.scene.ground_to_image(geodetic_to_ecef(lon[ok], lat[ok], h[ok]), self.camera)
         return col, row

@@ -65,18 +65,29 @@ def default_grid(scene: SceneModel, camera: int, surface, crs: CRS | None = None
     if resolution is None:
         resolution = float(np.hypot(x[-1] - x[-2], y[-1] - y[-2]))
     if not resolution > 0:
-        raise InputError(f"the output resolution must be positive (got {resolution})")
+        raise InputError(f"the output resolution must be positive (got {resolution})", parameter="resolution")
     xmin, ymin, xmax, ymax = extent or (np.min(x[:-2]), np.min(y[:-2]), np.max(x[:-2]), np.max(y[:-2]))
     if not (xmax > xmin and ymax > ymin):
         raise InputError(f"the extent {extent} is empty: it needs xmin < xmax and ymin < ymax")
-    width, height = float(xmax - xmin) / resolution, float(ymax - ymin) / resolution
-    if not width * height <= MAX_OUTPUT_PIXELS:  # also inf: never round sizes that no file can hold
-        raise InputError(f"resolution {resolution:g} m: the output would have {width:.4g} x {height:.4g} pixels "
-                         f"(more than {MAX_OUTPUT_PIXELS:.0e}); choose a coarser resolution or a smaller extent")
+    check_resolution(resolution, float(xmax - xmin), float(ymax - ymin))
     x0 = math.floor(xmin / resolution) * resolution
     y0 = math.ceil(ymax / resolution) * resolution
     cols, rows = int(math.ceil((xmax - x0) / resolution)), int(math.ceil((y0 - ymin) / resolution))
     return OrthoGrid(crs, x0, y0, resolution, cols, rows)
+
+
+def check_resolution(resolution: float, width: float, height: float) -> None:
+    """InputError (parameter 'resolution') for a pixel size (m) that gives a grid over ``width`` x
+    ``height`` m (the footprint or extent) of more than MAX_OUTPUT_PIXELS, or under 2 pixels
+    across its shorter side; the message gives the size the grid would have and the range."""
+    finest = math.sqrt(width * height / MAX_OUTPUT_PIXELS)
+    coarsest = min(width, height) / 2
+    cols, rows = width / resolution, height / resolution
+    if not finest <= resolution <= coarsest:  # also inf: never round sizes that no file can hold
+        raise InputError(f"{resolution:g} m: the orthoimage would have {cols:.4g} x {rows:.4g} pixels over the "
+                         f"{width / 1000:.4g} x {height / 1000:.4g} km it covers; give a pixel size from {finest:.3g} "
+                         f"m ({MAX_OUTPUT_PIXELS:.0e} pixels) to {coarsest:.4g} m (2 pixels across), or another "
+                         "extent", parameter="resolution")
 
 
 def common_grid(grids: list[OrthoGrid]) -> OrthoGrid:

@@ -5,12 +5,13 @@ QgsProcessingException naming the algorithm's parameter at fault)."""
 from __future__ import annotations
 
 from qgis.core import (QgsProcessingAlgorithm, QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
-                       QgsProcessingParameterFileDestination, QgsProcessingUtils)
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterRasterLayer, QgsProcessingUtils)
 from qgis.PyQt.QtGui import QIcon
 
 from .. import RESOURCES
 from ..feedback import processing_errors, push_lines
-from ..parameters import enum_refusal, tr
+from ..inputs import not_a_raster
+from ..parameters import DEM, enum_refusal, tr
 
 
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
@@ -91,7 +92,21 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
                     return False, refusal
                 if given.get(definition.name()) == "":
                     given[definition.name()] = None
-        return super().checkParameterValues(given, context)
+        ok, message = super().checkParameterValues(given, context)
+        return ok, message if ok else self._raster_refusal(given, context) or message
+
+    def _raster_refusal(self, parameters, context) -> str:
+        """'' or, for the first raster parameter whose value (a path) does not load as a raster, a
+        refusal naming the parameter, the file, what it is and what the parameter takes."""
+        for definition in self.parameterDefinitions():
+            value = parameters.get(definition.name())
+            if (not isinstance(definition, QgsProcessingParameterRasterLayer) or not isinstance(value, str) or not value
+                    or self.parameterAsRasterLayer(parameters, definition.name(), context) is not None):
+                continue
+            wanted = ("a DEM: heights in metres on a map grid with a CRS, in any raster format GDAL reads (GeoTIFF, "
+                      "VRT, ...)" if definition.name() == DEM else "a raster file GDAL reads (GeoTIFF, VRT, ...)")
+            return f"{definition.name()}: {not_a_raster(value)}; give {wanted}"
+        return ""
 
     # --- the adapter around core calls ---------------------------------------------------------
     def core_errors(self, default: str = ""):

@@ -54,6 +54,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         "INPUT", "CRS", "RESOLUTION", RESAMPLING, "NODATA", "EXTENT", "OUTPUT"
     ALL_CAMERAS, INPUTS, ORTHO_FOLDER, ORTHOIMAGES, SCHEDULER = \
         "ALL_CAMERAS", INPUTS, "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER"
+    CORE_PARAMETERS = {"resolution": RESOLUTION}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image"), optional=True),
@@ -121,7 +122,8 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             self._check_extent(scene, camera, surface, crs, extent, feedback)
         resolution = self.parameterAsDouble(parameters, self.RESOLUTION, context) or None
         feedback.setProgressText("planning the output grid")
-        grid = core_call(default_grid, scene, camera, surface, crs, resolution, extent)
+        with self.core_errors():
+            grid = default_grid(scene, camera, surface, crs, resolution, extent)
         feedback.pushInfo(f"orthoimage {grid.cols} x {grid.rows} px at {grid.resolution:.3f} m in "
                           f"{grid.crs.to_string()}")
         progress, is_cancelled = feedback_callbacks(feedback)
@@ -146,6 +148,9 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         folder = self.parameterAsString(parameters, self.ORTHO_FOLDER, context)
         if not folder or folder == "TEMPORARY_OUTPUT":
             folder = QgsProcessingUtils.tempFolder()
+        if Path(folder).is_file():
+            raise QgsProcessingException(f"{self.ORTHO_FOLDER}: {folder} is a file, not a folder; give a folder for "
+                                         "the orthoimages (created when its parent exists)")
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         images = camera_images_for(self, parameters, context, scene)
         products = strip_products(scene, list(images))
@@ -179,8 +184,8 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                                               QgsCoordinateReferenceSystem(crs.to_wkt()))
                 extent = (rect.xMinimum(), rect.yMinimum(), rect.xMaximum(), rect.yMaximum())
                 self._check_extent(scene, product.camera, surface, crs, extent, feedback)
-            grids.append(core_call(default_grid, scene, product.camera, surface, crs, resolution, extent,
-                                   product.rows))
+            with self.core_errors():
+                grids.append(default_grid(scene, product.camera, surface, crs, resolution, extent, product.rows))
             g = grids[-1]
             feedback.pushInfo(f"{product.name}: {g.cols} x {g.rows} px at {g.resolution:.3f} m in "
                               f"{g.crs.to_string()}")
