@@ -146,8 +146,9 @@ class Mapper:
     (first, end) image rows of one scene of a strip, outside which the tile is nodata."""
 
     rows: tuple[int, int] | None = None  # subclasses that map onto the whole raw image keep it
-    dem = None                           # the DEM whose relief is corrected (None: no relief to correct)
+    dem = None                           # the DEM whose relief is bounded (None: no relief)
     maps_ground = True                   # output pixels are ground positions (their footprint is counted)
+    corrects_relief = True               # relief corrected pixel by pixel (else: those cells mapped exactly)
 
     def __init__(self, scene: SceneModel, camera: int, surface, grid: OrthoGrid,
                  rows: tuple[int, int] | None = None):
@@ -217,10 +218,8 @@ class Mapper:
         interpolated between."""
         k = max(1, RATE_SPACING // step)
         ia, ja = (np.unique(np.r_[np.arange(0, n.size, k), n.size - 1]) for n in (ni, nj))
-        lon, lat = self.ground(*np.meshgrid(ni[ia], nj[ja], indexing="ij"))
-        h = self.surface.height(lon, lat)
-        h = np.where(np.isfinite(h), h, float(np.mean(self.surface.height_range)))
-        (c0, r0), (c1, r1), (c2, r2) = (self.at_heights(lon, lat, h + dh) for dh in (-HEIGHT_STEP, 0.0, HEIGHT_STEP))
+        (c0, r0), (c1, r1), (c2, r2) = self.at_height_steps(*np.meshgrid(ni[ia], nj[ja], indexing="ij"),
+                                                            (-HEIGHT_STEP, 0.0, HEIGHT_STEP))
         rates = [(c2 - c0) / (2 * HEIGHT_STEP), (r2 - r0) / (2 * HEIGHT_STEP),
                  np.hypot(c2 - 2 * c1 + c0, r2 - 2 * r1 + r0) / HEIGHT_STEP ** 2]
         wi, wj = interpolation_matrix(ni, ni[ia]), interpolation_matrix(nj, nj[ja])
@@ -230,6 +229,14 @@ class Mapper:
             filled = np.where(finite, rate, np.abs(rate[finite]).max() if finite.any() else 0.0)
             out.append(wi @ filled @ wj.T)
         return tuple(out)
+
+    def at_height_steps(self, i: np.ndarray, j: np.ndarray, steps) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Image (col, row) of output positions (i, j) with the ground moved by each of ``steps``
+        (m) in height from the surface's (its mean height where it has none)."""
+        lon, lat = self.ground(i, j)
+        h = self.surface.height(lon, lat)
+        h = np.where(np.isfinite(h), h, float(np.mean(self.surface.height_range)))
+        return [self.at_heights(lon, lat, h + dh) for dh in steps]
 
     def tile(self, r0: int, r1: int, c0: int, c1: int, step: int, max_error: float,
              planned: "Nodes | None" = None) -> tuple[np.ndarray, np.ndarray, MappingFigures]:
@@ -247,7 +254,7 @@ class Mapper:
             if not failing.any() or half < MIN_STEP or failing.sum() * step * step <= 3 * refinement:
                 break
             step, nodes, refined = half, None, True
-        exact = seam | failing
+        exact = seam | failing | (relief if not self.corrects_relief else False)
         col, row = self._densify(nodes.ncol, nodes.nrow, h, w, step)
         corrected = relief & ~exact
         if corrected.any():
@@ -287,7 +294,8 @@ class Mapper:
             finite = np.isfinite(r.u) & np.isfinite(r.v)
             grid = self.dem.grid_at(r.u[finite], r.v[finite]) if finite.any() else None
             enough = RELIEF_SHARE * max_error / max(float(rates.max()), 1e-12)
-            bound = departure_bound(grid, r, nodes.step, enough) if grid is not None else np.zeros(seam.shape)
+            bound = (departure_bound(grid, r, nodes.step, enough, fine=not self.corrects_relief) if grid is not None
+                     else np.zeros(seam.shape))
             if bound is None:
                 relief = ~away
             else:
@@ -334,11 +342,15 @@ class Mapper:
         and pixels with no position that fall in the image at the surface's mean height (no height
         there: on the DEM's holes, or off its extent)."""
         missing = ~np.isfinite(col)
-        if not missing.any():
-            node_in = self.in_image(nodes.ncol, nodes.nrow)
-            if node_in.all() or not node_in.any():  # a tile all in the image, or all out of it (a cell is small)
-                figures.footprint += col.size if node_in.all() else 0
-                return
+        if not missing.any():  # per cell: all corners in the image, none (a cell is small), or some
+            c = corners(self.in_image(nodes.ncol, nodes.nrow))
+            all_in, some = c.all(axis=0), c.any(axis=0) & ~c.all(axis=0)
+            pixels = _cell_pixels(*shape, nodes.step, all_in.shape)
+            figures.footprint += int(pixels[all_in].sum())
+            if some.any():
+                big = np.kron(some, np.ones((nodes.step, nodes.step), bool))[:shape[0], :shape[1]]
+                figures.footprint += int(self.in_image(col[big], row[big]).sum())
+            return
         inside = self.in_image(col, row)
         lost = np.zeros(shape, bool)
         if missing.any():

@@ -70,12 +70,14 @@ def cell_rates(relief: ReliefNodes) -> np.ndarray:
     return corners(np.hypot(relief.dcol, relief.drow)).max(axis=0)
 
 
-def departure_bound(grid: HeightGrid, relief: ReliefNodes, step: int, enough: float = 0.0) -> np.ndarray | None:
+def departure_bound(grid: HeightGrid, relief: ReliefNodes, step: int, enough: float = 0.0,
+                    fine: bool = False) -> np.ndarray | None:
     """A bound (m) of |DEM value - bilinear interpolation of the cell's corner values| over each
     cell (na-1, nb-1) of the node grid (spacing ``step`` output px), from the DEM's nodes in
     ``grid``; inf where the DEM has nodata near the cell. Where one bound for the whole tile is
     within ``enough`` m, that bound for every cell (what a smooth DEM gets, cheaply). None when
-    the DEM's nodes are closer than FINE_DEM_PX output px (every cell is then corrected)."""
+    the DEM's nodes are closer than FINE_DEM_PX output px (every cell is then corrected), unless
+    ``fine`` asks for the bound there too."""
     fu, fv = grid.node_indices(relief.u, relief.v)
     na, nb = fu.shape
     to_dem, origin = _affine(np.stack([fv, fu]), step)
@@ -83,7 +85,7 @@ def departure_bound(grid: HeightGrid, relief: ReliefNodes, step: int, enough: fl
     if not det > 0:  # also NaN: no two nodes on the DEM
         return np.full((na - 1, nb - 1), np.inf)
     spacing = 1.0 / np.sqrt(det)
-    if spacing < FINE_DEM_PX:
+    if spacing < FINE_DEM_PX and not fine:
         return None
     if spacing < step / 2:
         return _sampled_bound(grid, relief.z, to_dem, origin, fu, fv, step, enough)
@@ -162,31 +164,37 @@ def _kink_bound(grid: HeightGrid, to_dem: np.ndarray, fu: np.ndarray, fv: np.nda
     interpolation by at most a quarter of the cell times the slope jumps it crosses (second
     differences of the DEM across the lines it meets), plus the curvature the DEM's twist takes
     along the cell's rows and columns."""
-    z = grid.z.astype(float)
-    padded = np.pad(z, 1, constant_values=np.nan)
-    kink_u = np.abs(padded[1:-1, :-2] - 2 * z + padded[1:-1, 2:])   # across the DEM's lines u = const
-    kink_v = np.abs(padded[:-2, 1:-1] - 2 * z + padded[2:, 1:-1])   # across its lines v = const
-    twist = np.abs(z[:-1, :-1] - z[1:, :-1] - z[:-1, 1:] + z[1:, 1:])
-    kink_u, kink_v, twist = (np.where(np.isfinite(k), k, np.inf) for k in (kink_u, kink_v, twist))
     cu, cv = corners(fu), corners(fv)
     u_lo, u_hi = np.floor(np.min(cu, axis=0)), np.floor(np.max(cu, axis=0))
     v_lo, v_hi = np.floor(np.min(cv, axis=0)), np.floor(np.max(cv, axis=0))
     ok = np.isfinite(u_lo + u_hi + v_lo + v_hi)
-    u_lo, u_hi, v_lo, v_hi = (np.where(ok, x, 0).astype(int) for x in (u_lo, u_hi, v_lo, v_hi))
+    if not ok.any():
+        return np.full(ok.shape, np.inf)
+    u_lo, u_hi, v_lo, v_hi = (np.where(ok, x, x[ok].min()).astype(int) for x in (u_lo, u_hi, v_lo, v_hi))
+    # the DEM's window of the tile, a node more each way (NaN beyond the DEM: no bound there)
+    p0, q0 = int(v_lo.min()) - 1, int(u_lo.min()) - 1
+    ny, nx = int(v_hi.max()) + 3 - p0, int(u_hi.max()) + 3 - q0
+    z = np.full((ny, nx), np.nan)
+    a0, b0 = max(p0, 0), max(q0, 0)
+    a1, b1 = min(p0 + ny, grid.z.shape[0]), min(q0 + nx, grid.z.shape[1])
+    if a1 > a0 and b1 > b0:
+        z[a0 - p0:a1 - p0, b0 - q0:b1 - q0] = grid.z[a0:a1, b0:b1]
+    kink_u = np.full(z.shape, np.inf)  # across the DEM's lines u = const (inf where unknown)
+    kink_v = np.full(z.shape, np.inf)
+    kink_u[:, 1:-1] = np.abs(z[:, :-2] - 2 * z[:, 1:-1] + z[:, 2:])
+    kink_v[1:-1] = np.abs(z[:-2] - 2 * z[1:-1] + z[2:])
+    twist = np.abs(z[:-1, :-1] - z[1:, :-1] - z[:-1, 1:] + z[1:, 1:])
+    kink_u, kink_v, twist = (np.where(np.isfinite(k), k, np.inf) for k in (kink_u, kink_v, twist))
     # the DEM nodes of the DEM cells the cell meets: rows v_lo .. v_hi + 1, columns u_lo .. u_hi + 1
     span_v, span_u = int((v_hi - v_lo).max()) + 2, int((u_hi - u_lo).max()) + 2
     dv, du = np.meshgrid(np.arange(span_v), np.arange(span_u), indexing="ij")
-    p = v_lo[None] + dv.ravel()[:, None, None]
-    q = u_lo[None] + du.ravel()[:, None, None]
-    inside = (p >= 0) & (q >= 0) & (p < z.shape[0]) & (q < z.shape[1])
-    pc, qc = np.clip(p, 0, z.shape[0] - 1), np.clip(q, 0, z.shape[1] - 1)
-    node = (p <= v_hi[None] + 1) & (q <= u_hi[None] + 1)
-    cell = (p <= v_hi[None]) & (q <= u_hi[None])
-    worst_u = np.where(node, np.where(inside, kink_u[pc, qc], np.inf), 0.0).max(axis=0)
-    worst_v = np.where(node, np.where(inside, kink_v[pc, qc], np.inf), 0.0).max(axis=0)
-    tc, tq = np.clip(pc, 0, twist.shape[0] - 1), np.clip(qc, 0, twist.shape[1] - 1)
-    worst_t = np.where(cell, np.where(inside & (p < twist.shape[0]) & (q < twist.shape[1]), twist[tc, tq], np.inf),
-                       0.0).max(axis=0)
+    p = v_lo[None] - p0 + dv.ravel()[:, None, None]
+    q = u_lo[None] - q0 + du.ravel()[:, None, None]
+    node = (p <= v_hi[None] - p0 + 1) & (q <= u_hi[None] - q0 + 1)
+    cell = (p <= v_hi[None] - p0) & (q <= u_hi[None] - q0)
+    worst_u = np.where(node, kink_u[p, q], 0.0).max(axis=0)
+    worst_v = np.where(node, kink_v[p, q], 0.0).max(axis=0)
+    worst_t = np.where(cell, twist[np.minimum(p, ny - 2), np.minimum(q, nx - 2)], 0.0).max(axis=0)
     lines_u, lines_v = u_hi - u_lo, v_hi - v_lo  # DEM lines crossing the cell
     across_u = abs(to_dem[1, 0]) + abs(to_dem[1, 1])  # DEM columns a cell's row and column pass, per px
     across_v = abs(to_dem[0, 0]) + abs(to_dem[0, 1])

@@ -29,6 +29,7 @@ from osgeo import gdal_array
 from ..model.camera import Camera, Chip, LineTiming
 from ..dem import ConstantHeight, no_height_words, surface_name
 from ..errors import InputError
+from ..geodesy import ecef_to_geodetic
 from ..files import atomic_outputs, check_destination
 from .footprint import rays_without_height
 from .mapping import Mapper
@@ -89,23 +90,47 @@ def virtual_scene(scene: SceneModel, camera: int, info: dict | None = None) -> S
                       info={**inherited, "sensor_corrected": how})
 
 
-class _VirtualMapper(Mapper):
+class VirtualMapper(Mapper):
     """Virtual image pixels -> raw image positions: the virtual line of sight on the surface,
     then the real camera's ground -> image. Pixels whose ray misses the surface are NaN. The
     virtual and real lines of sight nearly coincide, so the mapping hardly depends on the relief:
-    it is checked at the cells' centres, with no relief to correct."""
+    it is checked at the cells' centres, the relief between the nodes bounded as for an
+    orthoimage (the DEM's departure times the rate along the virtual line of sight), and cells
+    where that could pass half the tolerance (tall buildings) mapped exactly."""
 
     maps_ground = False
+    corrects_relief = False
 
     def __init__(self, scene: SceneModel, camera: int, virtual: SceneModel, surface):
         self.scene, self.camera, self.virtual, self.surface = scene, camera, virtual, surface
         self.cam = scene.cameras[camera]
+        self.dem = surface if hasattr(surface, "values_at") else None
 
-    def exact(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Raw (col, row) of virtual positions (i = row, j = col, float, pixel-centre units)."""
+    def at_height_steps(self, i: np.ndarray, j: np.ndarray, steps) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Raw (col, row) of virtual positions (i, j) with their ground moved along the virtual line
+        of sight by each of ``steps`` (m) in height from the surface's mean height."""
+        h = float(np.mean(self.surface.height_range))
+        col, row = np.ravel(j) + 0.5, np.ravel(i) + 0.5
+        return [tuple(a.reshape(np.shape(i)) for a in self._raw_positions(self.virtual.image_to_ground(col, row,
+                                                                                                      h + dh, 0)))
+                for dh in steps]
+
+    def _exact(self, i, j) -> tuple[np.ndarray, ...]:
+        """:meth:`exact` (raw (col, row) of virtual positions: i = row, j = col, float, pixel-centre
+        units), and with a DEM the DEM pixel coordinates (u, v) and values z of the ground points."""
         i, j = np.broadcast_arrays(np.asarray(i, dtype=float), np.asarray(j, dtype=float))
         ground = self.virtual.image_to_ground_dem(j.ravel() + 0.5, i.ravel() + 0.5, self.surface, 0)
-        col, row = np.full(i.size, np.nan), np.full(i.size, np.nan)
+        col, row = (a.reshape(i.shape) for a in self._raw_positions(ground))
+        if self.dem is None:
+            return col, row
+        lon, lat, _ = ecef_to_geodetic(ground)
+        u, v = self.dem.pixel_coordinates(lon, lat)
+        return col, row, u.reshape(i.shape), v.reshape(i.shape), self.dem.values_at(u, v).reshape(i.shape)
+
+    def _raw_positions(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw (col, row) (n,) of ground points (n, 3); NaN where a point is; near a seam as
+        :meth:`_across_seam` puts them."""
+        col, row = np.full(len(ground), np.nan), np.full(len(ground), np.nan)
         ok = np.all(np.isfinite(ground), axis=1)
         if ok.any():
             col[ok], row[ok] = self.scene.ground_to_image(ground[ok], self.camera)
@@ -113,7 +138,7 @@ class _VirtualMapper(Mapper):
             near = ok & (np.abs(np.nan_to_num(col, nan=np.inf)[:, None] - bounds).min(axis=1) < SEAM_ZONE)
             if near.any():
                 col[near], row[near] = self._across_seam(ground[near], col[near], row[near])
-        return col.reshape(i.shape), row.reshape(i.shape)
+        return col, row
 
     def _across_seam(self, ground: np.ndarray, col: np.ndarray, row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Raw (col, row) of ground points (n, 3) near a seam, found at (col, row) on one chip, so that
@@ -186,7 +211,7 @@ def sensor_correct(scene: SceneModel, camera: int, image_path, surface, output_p
     virtual = virtual_scene(scene, camera, {"resampling": resampling, "surface": surface_name(surface),
                                             **(info or {})})
     report(0.0, "virtual camera: image positions on the node grid")
-    mapper = _VirtualMapper(scene, camera, virtual, surface)
+    mapper = VirtualMapper(scene, camera, virtual, surface)
     raw = RawImage(image_path, src, memory_budget)
     cancelled = is_cancelled or (lambda: False)
     try:
