@@ -99,6 +99,29 @@ def test_a_dem_covering_part_of_the_scene(rendered, tmp_path, caplog):
            "output pixels of the image's footprint (" in caplog.text and "off its extent)" in caplog.text
 
 
+def test_a_dem_cut_to_the_orthoimage_counts_only_the_pixels_it_leaves_empty(rendered, tmp_path):
+    """Issue 28's warning said the DEM gave no height for 9.8 % of the footprint while 0.1 % of the
+    orthoimage was empty: the share was counted on the node grid, whose last nodes lie past the
+    grid's edge, beyond a DEM cut to it. Measured on a 1024 x 1024 px window and the DEM cut to its
+    extent: the previous count said 2.0 %, the footprint's empty pixels are 0.23 %."""
+    scene, dem, frame, folder = rendered
+    g = default_grid(scene, 0, dem)
+    n = 1024
+    grid = OrthoGrid(g.crs, g.x0 + 5000 * g.resolution, g.y0 - 1200 * g.resolution, g.resolution, n, n)
+    x = grid.x0 + np.array([0, n, 0, n]) * grid.resolution
+    y = grid.y0 - np.array([0, 0, n, n]) * grid.resolution
+    lon, lat = Transformer.from_crs(grid.crs, CRS.from_epsg(4326), always_xy=True).transform(x, y)
+    gdal.Warp(str(tmp_path / "cut.tif"), dem.path, outputBounds=(lon.min(), lat.min(), lon.max(), lat.max()),
+              xRes=1 / 3600, yRes=1 / 3600, resampleAlg="bilinear")
+    full = orthorectify(scene, folder / "raw.tif", dem, tmp_path / "full.tif", grid=grid)
+    figures = orthorectify(scene, folder / "raw.tif", Dem(tmp_path / "cut.tif", "geoid"), tmp_path / "o.tif", grid=grid)
+    footprint = read_band(str(tmp_path / "full.tif")) > 0
+    empty = footprint & (read_band(str(tmp_path / "o.tif")) == 0)
+    assert full["dem_gap_pixels"] == 0 and 0 < empty.sum() < 0.01 * footprint.sum()
+    assert figures["dem_gap_pixels"] == pytest.approx(empty.sum(), rel=0.02)
+    assert figures["dem_gap_share"] == pytest.approx(empty.sum() / footprint.sum(), rel=0.02)
+
+
 @pytest.mark.parametrize("nodata", [None, -32768])
 def test_a_dem_with_holes(rendered, tmp_path, caplog, nodata):
     """A DEM with voids inside the footprint, as NaN or as a nodata value: no error, the pixels
