@@ -60,21 +60,37 @@ def open_input_raster(path, open_options: list[str] | None = None) -> gdal.Datas
 
 
 def check_input_raster(path) -> tuple[int, int]:
-    """(cols, rows) of the raster at ``path``; InputError naming it when it is missing, not a raster
-    GDAL reads, or has no band."""
+    """(cols, rows) of the raster at ``path``; InputError naming it and saying what it is when it is
+    not a raster GDAL reads: missing, a folder, a vector file, another file (GDAL's reason), or a
+    raster without a band."""
     text = str(path)
     if not text:
         raise InputError("no raster file given (a layer that is not a file: a memory or service layer; save it "
                          "as GeoTIFF first)")
-    if "://" not in text and not text.startswith("/vsi") and not Path(text).exists():
-        raise InputError(f"{text}: no such file")
+    local = "://" not in text and not text.startswith("/vsi")
+    if local and not Path(text).exists():
+        raise InputError(f"{text} does not exist")
+    if local and Path(text).is_dir():
+        raise InputError(f"{text} is a folder, not a raster file")
     try:
         ds = open_input_raster(text)
     except RuntimeError as exc:
-        raise InputError(f"{text}: cannot be opened as a raster ({exc})") from None
+        raise InputError(not_a_raster(text, exc)) from None
     if ds is None or ds.RasterCount == 0:
-        raise InputError(f"{text}: holds no raster band")
+        raise InputError(f"{text} holds no raster band")
     return ds.RasterXSize, ds.RasterYSize
+
+
+def not_a_raster(text: str, reason: Exception) -> str:
+    """What the file ``text``, which GDAL did not open as a raster (``reason``), is instead: a vector
+    file (named by its driver) or a file GDAL cannot read."""
+    try:
+        vector = gdal.OpenEx(text, gdal.OF_VECTOR)
+    except RuntimeError:
+        vector = None
+    if vector is not None:
+        return f"{text} is a vector file ({vector.GetDriver().ShortName}: points, lines or polygons), not a raster"
+    return f"{text} is not a raster GDAL can read ({str(reason).strip()})"
 
 
 def copy_statistics(source: gdal.Dataset, target: gdal.Dataset) -> None:

@@ -157,6 +157,12 @@ def raster_file(alg, parameters, name: str, context) -> str:
     return files[0] if files else ""
 
 
+# What a raster parameter takes, for its refusals (None: any other raster parameter).
+RASTER_KINDS = {DEM: "a DEM: heights in metres on a map grid with a CRS, in any raster format GDAL reads (GeoTIFF, "
+                     "VRT, ...)",
+                None: "a raster file GDAL reads (GeoTIFF, VRT, ...)"}
+
+
 def raster_refusal(alg, parameters, definition, context) -> str:
     """Why the value of raster parameter ``definition`` cannot be read ('' when it can): a required
     one not given, a layer that is not a file, a file GDAL does not open as a raster. Checked with
@@ -169,7 +175,7 @@ def raster_refusal(alg, parameters, definition, context) -> str:
         try:
             check_input_raster(path)
         except PushbroomError as exc:
-            return error_message(exc, f"{name}: ")
+            return error_message(exc, f"{name}: ") + f"; give {RASTER_KINDS.get(name, RASTER_KINDS[None])}"
     return ""
 
 

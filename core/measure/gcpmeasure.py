@@ -326,7 +326,11 @@ def predict(point: MeasuredPoint, target: View, views: dict[str, View], surface)
                                                      view.scene.camera_index(o.camera)))
     if not sources:
         return []
-    col, row = target.scene.ground_to_image(np.concatenate(ground), target.camera)
+    ground = np.concatenate(ground)
+    met = np.all(np.isfinite(ground), axis=1)  # a ray that leaves the DEM or meets it on a hole has no ground
+    col, row = np.full(len(ground), np.nan), np.full(len(ground), np.nan)
+    if met.any():
+        col[met], row[met] = target.scene.ground_to_image(ground[met], target.camera)
     return [Prediction(s, float(c), float(r)) for s, c, r in zip(sources, col, row)]
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 
-from ..dem import Dem, to_ellipsoidal
+from ..dem import Dem, no_height_words, surface_name, to_ellipsoidal
 from ..errors import InputError
 from ..validation import PLAUSIBLE_HEIGHTS, implausible_heights
 
@@ -148,8 +148,8 @@ def ellipsoidal_heights(lon, lat, heights: Heights, z, ids, source: str) -> np.n
         h = dem.height(lon, lat)
         bad = ~np.isfinite(h)
         if bad.any():
-            raise InputError(f"{source}: the DEM {getattr(dem, 'path', '')} does not cover point(s) "
-                             f"{listed(ids[bad])} (outside it or on nodata)")
+            raise InputError(f"{source}: {no_height(dem, lon, lat, bad)}: point(s) {listed(ids[bad])}; take their "
+                             "heights from Z or a constant, or give a DEM that covers them")
         return h
     raise InputError(f"height source must be one of {', '.join(HEIGHT_SOURCES)} (got {heights.source!r})")
 
@@ -176,13 +176,22 @@ def point_heights(lon: np.ndarray, lat: np.ndarray, z: np.ndarray, datum: str | 
                              f"({PLAUSIBLE_HEIGHTS[0]:g} to {PLAUSIBLE_HEIGHTS[1]:g} m ellipsoidal; feature ids "
                              f"{', '.join(str(i) for i in ids[implausible][:5])}); {remedy}")
     if (~use_z).any():
-        h[~use_z] = surface().height(lon[~use_z], lat[~use_z])
+        terrain = surface()
+        h[~use_z] = terrain.height(lon[~use_z], lat[~use_z])
         off = ~use_z & ~np.isfinite(h)
         if off.any():
             first = ", ".join(str(i) for i in ids[off][:5])
-            raise InputError(f"{source}: {int(off.sum())} features have missing or non-finite DEM heights (points "
-                             f"off the DEM or on its nodata) (feature ids {first}...)")
+            raise InputError(f"{source}: {no_height(terrain, lon, lat, off)} (feature ids {first}"
+                             f"{', ...' if off.sum() > 5 else ''}); give those points Z values, or a DEM that "
+                             "covers them")
     return h
+
+
+def no_height(surface, lon: np.ndarray, lat: np.ndarray, missing: np.ndarray) -> str:
+    """'<DEM> gives no height for <n> of <total> points (<k> off its extent, <m> on its nodata
+    holes)': the ``missing`` (bool (n,)) of the points at lon, lat (n,) deg."""
+    off, hole = surface.no_height(lon[missing], lat[missing])
+    return f"{surface_name(surface)} {no_height_words(int(off.sum()), int(hole.sum()), lon.size, 'points')}"
 
 
 # --- delimited text files and per-point columns ---------------------------------------------

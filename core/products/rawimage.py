@@ -22,6 +22,7 @@ from ..geodesy import ecef_to_geodetic
 from ..model.rpcscene import size_note
 from ..model.sensor import SceneModel
 from ..rasters import open_input_raster
+from .footprint import rays_without_height
 
 gdal.UseExceptions()
 log = logging.getLogger(__name__)
@@ -151,8 +152,9 @@ def image_on_surface(scene: SceneModel, camera: int, surface, footprint: bool,
                      rows: tuple[int, int] | None = None) -> np.ndarray:
     """ECEF points (n, 3) where the image (its ``rows`` = (first, end), default all) meets the
     surface: with ``footprint`` 33 points along each side of the border, then (always) the
-    centre pixel and its right neighbour (without ``footprint``, at the surface's mean height
-    where the surface misses them). InputError naming the DEM where they do not meet it."""
+    centre pixel and its right neighbour (at the surface's mean height where they meet a DEM only
+    on its nodata holes, and without ``footprint`` wherever the surface misses them). InputError
+    naming the DEM where they do not meet it."""
     cam = scene.cameras[camera]
     top, bottom = rows or (0, cam.rows)
     s = np.linspace(0.0, 1.0, 33)
@@ -164,9 +166,16 @@ def image_on_surface(scene: SceneModel, camera: int, surface, footprint: bool,
     else:
         col, row = centre_col, centre_row
     ground = scene.image_to_ground_dem(col, row, surface, camera)
-    if not footprint and not np.all(np.isfinite(ground)):
-        # the centre only sets the default CRS and pixel size: the DEM's mean height serves there
-        ground = scene.image_to_ground_dem(col, row, ConstantHeight(float(np.mean(surface.height_range))), camera)
+    missing = ~np.all(np.isfinite(ground), axis=1)
+    if missing.any():
+        # The centre only sets the default CRS and pixel size, and points on a DEM's nodata holes
+        # only widen the grid: the DEM's mean height serves there.
+        redo = missing.copy()
+        if footprint:
+            redo[missing] = rays_without_height(scene, camera, col[missing], row[missing], surface)[1]
+        if redo.any():
+            flat = ConstantHeight(float(np.mean(surface.height_range)))
+            ground[redo] = scene.image_to_ground_dem(col[redo], row[redo], flat, camera)
     if not np.all(np.isfinite(ground)):
         name = getattr(surface, "path", "the terrain surface")
         where = "the image's centre" if not np.all(np.isfinite(ground[-2:])) else "the image's border"

@@ -128,7 +128,7 @@ def test_heights_from_a_dem_and_uncovered_points(tmp_path):
     ds = None
     path = tmp_path / "p.csv"
     path.write_text("id,col,row,lon,lat\na,1,1,0,0\nb,2,2,0.5,0\n")
-    with pytest.raises(InputError, match=r"dem.tif does not cover point\(s\) b"):
+    with pytest.raises(InputError, match=r"dem.tif gives no height for 1 of 2 points \(1 off its extent\): point\(s\) b"):
         G.read_csv(path, G.CsvMapping(), "EPSG:4326", Heights("dem", "ellipsoid", dem=dem_path))
     path.write_text("id,col,row,lon,lat\na,1,1,0,0\n")
     t = G.read_csv(path, G.CsvMapping(), "EPSG:4326", Heights("dem", "geoid", dem=dem_path))

@@ -9,8 +9,9 @@ from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProce
 from ...core.dem import ConstantHeight
 from ...core.files import Output, atomic_outputs
 from ...core.formats.rpcfiles import image_vrt_with_rpc, report_path, write_rpc
+from ...core.products import rpcfit
 from ...core.products.rpcfit import dem_height_range, fit_rpc
-from ..feedback import check_cancelled, core_call, feedback_callbacks, processing_errors
+from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
 from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, load_scene_for,
                       raster_file)
 from ..outputs import check_outputs
@@ -110,7 +111,7 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
             heights = (surface.value - span, surface.value + span)
         else:
             feedback.setProgressText("height range of the DEM over the image")
-            with processing_errors(f"{DEM}: "):
+            with processing_errors(f"{DEM}: "), core_log_to(feedback, rpcfit.__name__):
                 heights = dem_height_range(scene, surface, camera)
         check_cancelled(feedback)
         grid = self.parameterAsInt(parameters, self.GRID, context)
