@@ -13,6 +13,7 @@ ALGORITHM_PAGES = DOCS / "algorithms"
 _LINK = re.compile(r"\[([^\]]+)\]\(([^)\s]+)\)")
 _BOLD = re.compile(r"\*\*(.+?)\*\*")
 _CODE = re.compile(r"`([^`]+)`")
+_ITALIC = re.compile(r"(?<![*\w])\*([^*\s][^*]*?)\*(?![*\w])")
 
 
 def help_page(algorithm_id: str) -> Path:
@@ -29,11 +30,12 @@ def summary_markdown(page: Path) -> str:
 
 
 def inline_html(text: str, folder: Path) -> str:
-    """One paragraph's Markdown (bold, code, links) as HTML; a relative link becomes a file URL
+    """One paragraph's Markdown (bold, italic, code, links) as HTML; a relative link becomes a file URL
     under ``folder`` (the page's folder)."""
     out = html.escape(text, quote=False)
     out = _BOLD.sub(r"<b>\1</b>", out)
     out = _CODE.sub(r"<code>\1</code>", out)
+    out = _ITALIC.sub(r"<i>\1</i>", out)
 
     def link(match: re.Match) -> str:
         target = match.group(2)
