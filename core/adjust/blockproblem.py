@@ -77,18 +77,24 @@ class BlockParameters(ParameterSet):
 class BlockProblem(Problem):
     """The engine's problem of a block with RPC images (see the module docstring)."""
 
-    def __init__(self, scene: MixedBlock, table: GcpTable, settings: AdjustmentSettings, ties: TieSetUp):
-        if settings.interior and scene.rigorous is None:
+    def chosen_settings(self, settings: AdjustmentSettings, n_control: int) -> tuple[AdjustmentSettings, dict | None]:
+        """RPC_CORRECTION=auto resolved for the RPC images (:func:`chosen_correction`); INTERIOR
+        refused for a block without rigorous scenes."""
+        if settings.interior and self.scene.rigorous is None:
             raise InputError("INTERIOR: a block of RPC images has no interior parameters; their correction is "
                              "chosen with RPC_CORRECTION", parameter="settings.interior")
-        control = np.nonzero(table.role == "control")[0]
-        ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
-        settings, self.rpc_choice = chosen_correction(settings, ids.size)
-        self.scene, self.settings = scene, settings
-        self._set_up_ground(table, control[first], ties.ground)
+        return chosen_correction(settings, n_control)
+
+    def set_up(self, table: GcpTable, control: np.ndarray, point: np.ndarray, n_points: int, ties: TieSetUp,
+               lines):
+        """The rigorous composite's problem over its own observations (first, in its order), then
+        each RPC image's correction terms and observations (``image_slices``: each image's
+        observations); the unknowns as one :class:`BlockParameters`. A block takes no lines."""
+        scene, settings = self.scene, self.settings
+        ids = np.unique(table.id[control])
         camera = np.r_[camera_indices(scene, table.camera[control]), ties.camera].astype(np.int64)
         obs = RpcObservations(camera, np.zeros(camera.size, np.int64),
-                              np.r_[point, ids.size + ties.point].astype(np.int64),
+                              np.r_[point, n_points + ties.point].astype(np.int64),
                               np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows]].astype(float),
                               np.r_[table.col[control], ties.table.col[ties.rows]],
                               np.r_[table.row[control], ties.table.row[ties.rows]])
@@ -107,19 +113,11 @@ class BlockProblem(Problem):
             parts.append((obs.select(mine), is_tie[mine], rows[mine]))
             self.image_slices.append(slice(start, start + int(mine.sum())))
             start += int(mine.sum())
-        self.obs = RpcObservations(*(np.concatenate([getattr(p[0], f) for p in parts])
-                                     for f in ("camera", "chip", "point", "sigma", "col", "row")))
-        self.is_tie = np.concatenate([p[1] for p in parts])
-        self.rows = np.concatenate([p[2] for p in parts])
-        self.is_line = np.zeros(len(self.obs), bool)
-        self.line_obs = np.zeros(0, np.int64)
-        self.ties = ties
-        self.params = BlockParameters(scene, self.rigorous.params if self.rigorous else None, self.images)
-        self.factor = np.ones((len(self.obs), 2))
-        self.scale: dict[str, float] = {}
-        self.held: list[Pseudo] = []
-        self.rescaled()
-        self.structure()
+        all_obs = RpcObservations(*(np.concatenate([getattr(p[0], f) for p in parts])
+                                    for f in ("camera", "chip", "point", "sigma", "col", "row")))
+        params = BlockParameters(scene, self.rigorous.params if self.rigorous else None, self.images)
+        return (params, all_obs, np.concatenate([p[1] for p in parts]), np.zeros(len(all_obs), bool),
+                np.concatenate([p[2] for p in parts]))
 
     @property
     def n_rigorous_obs(self) -> int:

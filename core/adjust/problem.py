@@ -56,56 +56,75 @@ TIE_GROUP = "tie points"
 class Problem:
     """The data and unknowns of one adjustment, and one linearisation of it (see the module docstring).
     ``rpc_choice``: what RPC_CORRECTION=auto chose for RPC images and why
-    (:func:`core.adjust.rpcbias.chosen_correction`; None: given, or no RPC image)."""
+    (:func:`core.adjust.rpcbias.chosen_correction`; None: given, or no RPC image).
+
+    Built in one way for every kind of scene: the settings the scene takes
+    (:meth:`chosen_settings`), the ground points, then the unknowns and observations its kind
+    defines (:meth:`set_up`, which the RPC scene's and the block's problems override), then the
+    weights as stated."""
 
     rpc_choice: dict | None = None
 
-    def __init__(self, scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
+    def __init__(self, scene, table: GcpTable, settings: AdjustmentSettings,
                  ties: TieSetUp | None = None, lines: LineSetUp | None = None):
-        self.scene, self.settings = scene, settings
         ties = ties or TieSetUp.empty()
         lines = lines or LineSetUp.empty()
+        control = np.nonzero(table.role == "control")[0]
+        ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
+        self.scene = scene
+        self.settings, self.rpc_choice = self.chosen_settings(settings, int(ids.size))
+        self._set_up_ground(table, control[first], ties.ground, lines)
+        self.ties = ties
+        self.params, self.obs, self.is_tie, self.is_line, self.rows = \
+            self.set_up(table, control, point, ids.size, ties, lines)
+        # where the current model images the observations (the last projection: the next one's
+        # start) and the pixel map there; see :meth:`project`
+        self.imaged, self.map = self.obs, None
+        self.line_obs = np.empty(len(lines), np.int64)  # each line point's observation
+        self.line_obs[self.rows[self.is_line]] = np.nonzero(self.is_line)[0]
+        self.factor = np.ones((len(self.obs), 2))  # robust weight factors per residual row
+        self.scale: dict[str, float] = {}  # variance component factor on the stated sigmas, per group
+        self.held: list[Pseudo] = []  # the minimal trajectory prior, if any (core.adjust.minimalprior)
+        self.rescaled()
+        self.structure()
+
+    def chosen_settings(self, settings: AdjustmentSettings, n_control: int) -> tuple[AdjustmentSettings, dict | None]:
+        """The settings this problem adjusts with, for ``n_control`` control points, and what was
+        chosen for the user (None: the settings as given): a rigorous scene takes them as given."""
+        return settings, None
+
+    def set_up(self, table: GcpTable, control: np.ndarray, point: np.ndarray, n_points: int, ties: TieSetUp,
+               lines: LineSetUp):
+        """(parameters, observations, is_tie (n,) bool, is_line (n,) bool, rows (n,)) of the rigorous
+        scene: its trajectory and interior unknowns, and the image observations of the control rows
+        ``control`` of ``table`` (of control points ``point`` (c,), indices among the ``n_points``
+        control points), of the tie observations and of the line points, sorted by their parameter
+        columns. ``rows``: each observation's row in the GCP table, the tie table or the line points."""
+        scene, settings = self.scene, self.settings
         # trajectory bases over each measured trajectory's time span (the scene's; a block scene's)
         spans = [scene.time_span(cams) for cams in trajectory_groups(scene)]
-        self.params = ParameterSet(
+        params = ParameterSet(
             scene,
             [TimeBasis.covering(settings.position_model, *span, settings.position_order, settings.position_interval)
              for span in spans],
             [TimeBasis.covering(settings.attitude_model, *span, settings.attitude_order, settings.attitude_interval)
              for span in spans],
             settings.interior, per_camera=settings.camera_trajectory == "per_camera")
-        _start_from_existing_correction(scene, self.params)
-        control = np.nonzero(table.role == "control")[0]
-        ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
-        sel = control[first]
-        self._set_up_ground(table, sel, ties.ground, lines)
+        _start_from_existing_correction(scene, params)
         # GCP observations, then tie observations (their points after the GCPs'), then line points
         kind = np.repeat([0, 1, 2], [control.size, len(ties), len(lines)])
-        self.imaging = Imaging(scene, self.params)
+        self.imaging = Imaging(scene, params)
         obs = build_observations(self.imaging,
                                  np.r_[camera_indices(scene, table.camera[control]), ties.camera, lines.camera],
                                  np.r_[table.col[control], ties.table.col[ties.rows], lines.obs.col],
                                  np.r_[table.row[control], ties.table.row[ties.rows], lines.obs.row],
-                                 np.r_[point, sel.size + ties.point, self.line_first + np.arange(len(lines))],
+                                 np.r_[point, n_points + ties.point, self.line_first + np.arange(len(lines))],
                                  np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows], lines.obs.sigma_px])
         # Observations sorted by what decides their parameter columns, so that observations
         # sharing columns are contiguous whatever the free parameters: groups are slices.
         order = np.lexsort((obs.att_first, obs.pos_first, obs.chip, obs.camera))
-        self.obs = obs.select(order)
-        # where the current model images the observations (the last projection: the next one's
-        # start) and the pixel map there; see :meth:`project`
-        self.imaged, self.map = self.obs, None
-        self.is_tie, self.is_line = kind[order] == 1, kind[order] == 2
-        # rows of the GCP table, of the tie table for ties, of the line points for lines
-        self.rows = np.r_[control, ties.rows, np.arange(len(lines))][order]
-        self.line_obs = np.empty(len(lines), np.int64)  # each line point's observation
-        self.line_obs[self.rows[self.is_line]] = np.nonzero(self.is_line)[0]
-        self.ties = ties
-        self.factor = np.ones((len(self.obs), 2))  # robust weight factors per residual row
-        self.scale: dict[str, float] = {}  # variance component factor on the stated sigmas, per group
-        self.held: list[Pseudo] = []  # the minimal trajectory prior, if any (core.adjust.minimalprior)
-        self.rescaled()
-        self.structure()
+        rows = np.r_[control, ties.rows, np.arange(len(lines))][order]
+        return params, obs.select(order), kind[order] == 1, kind[order] == 2, rows
 
     # --- sigmas: stated, times the variance component factor of their group ----------------
     def rescaled(self) -> None:

@@ -25,7 +25,6 @@ from .normal import GroundPrior, Linearization, groups
 from .parameters import Parameter, ParameterSet
 from .problem import RPC_PRIOR_GROUP, Problem, Pseudo
 from .settings import AdjustmentSettings
-from .ties import TieSetUp
 
 TERMS = ("a0", "a1", "a2", "b0", "b1", "b2")
 # RPC_CORRECTION=auto: control points that hold the block's height tilt, and so its drift terms; with
@@ -158,29 +157,22 @@ class RpcImage:
 class RpcProblem(Problem):
     """The engine's problem for an RPC scene (see the module docstring)."""
 
-    def __init__(self, scene: RpcScene, table, settings: AdjustmentSettings):
+    def chosen_settings(self, settings: AdjustmentSettings, n_control: int) -> tuple[AdjustmentSettings, dict | None]:
+        """RPC_CORRECTION=auto resolved (:func:`chosen_correction`); INTERIOR refused."""
         if settings.interior:
             raise InputError("INTERIOR: an RPC scene has no interior parameters; its correction is chosen with "
                              "RPC_CORRECTION")
-        control = np.nonzero(table.role == "control")[0]
-        self.settings, self.rpc_choice = chosen_correction(settings, int(np.unique(table.id[control]).size))
-        self.scene = scene
-        self.image = RpcImage(scene, self.settings.rpc_correction)
-        self.params = self.image.params
-        _, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
-        self._set_up_ground(table, control[first])
+        return chosen_correction(settings, n_control)
+
+    def set_up(self, table, control, point, n_points, ties, lines):
+        """The RPC scene's correction terms and its control observations, in the table's order (an
+        RPC scene alone takes neither tie points nor lines)."""
+        self.image = RpcImage(self.scene, self.settings.rpc_correction)
         n = control.size
-        self.obs = RpcObservations(np.zeros(n, np.int64), np.zeros(n, np.int64), point.astype(np.int64),
-                                   np.asarray(table.sigma_px[control], dtype=float), table.col[control],
-                                   table.row[control])
-        self.rows = control
-        self.is_tie = self.is_line = np.zeros(n, bool)
-        self.ties = TieSetUp.empty()
-        self.factor = np.ones((n, 2))
-        self.scale = {}
-        self.held = []
-        self.rescaled()
-        self.structure()
+        obs = RpcObservations(np.zeros(n, np.int64), np.zeros(n, np.int64), point.astype(np.int64),
+                              np.asarray(table.sigma_px[control], dtype=float), table.col[control],
+                              table.row[control])
+        return self.image.params, obs, np.zeros(n, bool), np.zeros(n, bool), control
 
     def structure(self) -> None:
         free = self.params.free

@@ -28,6 +28,7 @@ from osgeo import gdal
 
 from ..errors import InputError
 from ..files import OutputSet, atomic_output
+from ..model.rpcscene import size_note
 from ..observations.lines import ImageLines, pixel_frame, write_gpkg
 from ..rasters import check_input_raster, copy_statistics, open_input_raster
 
@@ -50,14 +51,15 @@ class DisplaySource:
     camera: str
 
 
-def check_image_size(path, cols: int, rows: int, camera: str) -> None:
-    """InputError unless the raster at ``path`` has the camera's (cols, rows): another image's
-    pixels would put every digitised vertex at the wrong place."""
+def check_image_size(path, camera) -> None:
+    """InputError unless the raster at ``path`` has the size (cols, rows) of ``camera`` (a scene
+    camera): another image's pixels would put every digitised vertex at the wrong place. The
+    refusal says when the camera's size was assumed (an RPC product read without its image)."""
     got = check_input_raster(path)
-    if got != (cols, rows):
-        raise InputError(f"{path}: the image is {got[0]} x {got[1]} pixels but camera {camera} of the scene "
-                         f"delivers {cols} x {rows}; give the raw image of that camera (not an orthoimage or "
-                         "another scene's image)")
+    if got != (camera.cols, camera.rows):
+        raise InputError(f"{path}: the image is {got[0]} x {got[1]} pixels but camera {camera.name} of the scene "
+                         f"delivers {camera.cols} x {camera.rows}{size_note(camera)}; give the raw image of that "
+                         "camera (not an orthoimage or another scene's image)")
 
 
 def write_display_vrt(image, output, scene: str = "", camera: str = "", files: OutputSet | None = None) -> None:

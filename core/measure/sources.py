@@ -84,7 +84,7 @@ def open_image_source(path, cache, image=None, camera: str | int | None = None,
             raise InputError(f"{scene_path}: no raster of camera {cam.name}'s size ({cam.cols} x {cam.rows} px) "
                              "beside the scene file; give its raw image")
         image = found[0]
-    check_image_size(image, cam.cols, cam.rows, cam.name)
+    check_image_size(image, cam)
     return ImageSource(str(scene_path), scene, index, cam.name, Path(image),
                        cached_display_copy(image, str(scene_path), cam.name, cache))
 

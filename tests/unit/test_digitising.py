@@ -1,6 +1,7 @@
 """Digitising control lines without a user interface: the display copy (core.measure.display), the line
 editor, the nearest ground line and ground lines predicted into the image (core.measure.digitising)."""
 import csv
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -67,12 +68,17 @@ def test_display_copy_refuses_other_names_and_sizes(tmp_path):
     with pytest.raises(InputError, match="use a .vrt file name"):
         write_display_vrt(raw, tmp_path / "display.tif")
     with pytest.raises(InputError, match="300 x 200 pixels but camera HRC .* 12246 x 9000"):
-        check_image_size(raw, 12246, 9000, "HRC")
+        check_image_size(raw, SimpleNamespace(cols=12246, rows=9000, name="HRC"))
+    assumed = SimpleNamespace(cols=12246, rows=9000, name="img", size_source="from the RPC's sample and line range; no "
+                                                                         "image img.tif beside img_RPC.TXT")
+    with pytest.raises(InputError, match=r"delivers 12246 x 9000 \(the scene's size 12246 x 9000 px was assumed: from "
+                                         r"the RPC's sample and line range; no image img.tif beside img_RPC.TXT\)"):
+        check_image_size(raw, assumed)
     with pytest.raises(InputError, match="missing.tif does not exist"):
-        check_image_size(tmp_path / "missing.tif", 1, 1, "HRC")
+        check_image_size(tmp_path / "missing.tif", SimpleNamespace(cols=1, rows=1, name="HRC"))
     (tmp_path / "text.tif").write_text("not a raster")
     with pytest.raises(InputError, match="text.tif is not a raster GDAL can read"):
-        check_image_size(tmp_path / "text.tif", 1, 1, "HRC")
+        check_image_size(tmp_path / "text.tif", SimpleNamespace(cols=1, rows=1, name="HRC"))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["raw.tif", "text.tif"]
 
 

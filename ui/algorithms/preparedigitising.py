@@ -40,7 +40,7 @@ class PrepareDigitisingAlgorithm(PushbroomAlgorithm):
         output = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
         lines = self.parameterAsFileOutput(parameters, self.OUTPUT_LINES, context)
         with processing_errors(f"{self.INPUT}: "):
-            check_image_size(image, camera.cols, camera.rows, camera.name)
+            check_image_size(image, camera)
         with processing_errors(), atomic_outputs() as files:
             write_display_vrt(image, output, self.parameterAsFile(parameters, SCENE, context), camera.name, files)
             if lines:
