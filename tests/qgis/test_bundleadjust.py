@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from osgeo import ogr
 from qgis.core import (QgsExpression, QgsExpressionContext, QgsExpressionContextUtils, QgsProcessingException,
-                       QgsProcessingFeedback, QgsProject, QgsVectorLayer)
+                       QgsProject, QgsVectorLayer)
 
 import processing
 from pushbroom_adjust.core.observations.gcps import read_gpkg
@@ -19,23 +19,10 @@ from pushbroom_adjust.core.formats import load_scene
 
 from tests.support.csvrows import read_rows, write_rows
 from tests.support.qgis_process import run_json
+from tests.support.processing import RecordingFeedback
 
 INTERIOR = "HRC-1.*, HRC-3.*"
 NEW_FIELDS = ("res_col", "res_row", "res_px", "res_m", "w_col", "w_row", "redundancy", "weight", "flagged")
-
-
-class _Log(QgsProcessingFeedback):
-    """Feedback that keeps the algorithm's log lines."""
-
-    def __init__(self):
-        super().__init__()
-        self.info, self.warnings = [], []
-
-    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.info.append(info)
-
-    def pushWarning(self, warning):  # noqa: N802
-        self.warnings.append(warning)
 
 
 def _outputs(folder: Path, prefix: str = "") -> dict:
@@ -59,7 +46,7 @@ def chain(provider, tmp_path_factory):
                                                    "Z_FIELD": "h", "Z_DATUM": "ellipsoid", "ROLE_FIELD": "role",
                                                    "CAMERA_FIELD": "camera", "SIGMA_PX": 0.5,
                                                    "OUTPUT": str(out / "gcps.gpkg")})["OUTPUT"]
-    log = _Log()
+    log = RecordingFeedback()
     result = processing.run("pushbroom:bundleadjust", {"SCENE": sim["ONBOARD_SCENE"], "GCPS": gcps,
                                                        "INTERIOR": INTERIOR, **_outputs(out)}, feedback=log)
     return sim, gcps, result, log
@@ -98,7 +85,7 @@ def test_check_points_before_and_after(chain):
           f"{report['check_points']['without_blunders']['image']['rmse']:.3f} px after without blunders")
     assert abs(report["sigma0"] - 1.0) < 0.15 and report["robust"]["flagged"] > 0  # measured 0.94
     # the headline figures went to the log
-    text = "\n".join(log.info)
+    text = "\n".join(log.infos)
     assert "sigma0" in text and "check points monoplotted, per observation, before: RMSE" in text
     assert f"check points monoplotted, per observation, after: RMSE {report['check_points']['image']['rmse']:.3f} px" \
         in text

@@ -17,9 +17,9 @@ from qgis.core import QgsProcessingException
 import processing
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.observations import gcps as gcp_io
-from tests.support.hostile import LogFeedback
 from tests.support.tristereo_block import ADJUST, NAMES, block_model, check_px, simulate_tristereo
 from tests.support.qgis_process import run_json
+from tests.support.processing import RecordingFeedback
 
 IMPORT = {"Z_FIELD": "h", "Z_DATUM": "ellipsoid", "SIGMA_PX_FIELD": "sigma_px", "SIGMA_XY_FIELD": "sigma_xy",
           "SIGMA_Z_FIELD": "sigma_z"}
@@ -56,7 +56,7 @@ def test_the_simulators_block_gcps_import_as_they_are(block, gcp_layer):
 
 
 def test_a_blocks_gcps_against_one_scene_say_so(block, tmp_path):
-    log = LogFeedback()
+    log = RecordingFeedback()
     processing.run("pushbroom:importgcps", {"SCENE": block["SCENES"][0], "INPUT_FILE": block["GCPS"], **IMPORT,
                                             "OUTPUT": str(tmp_path / "one.gpkg")}, feedback=log)
     assert any(line.startswith("SCENE_FIELD: the rows name 3 scenes (bwd, fwd, nad): all are checked against SCENE")
@@ -89,7 +89,7 @@ def params(block, gcp_layer, folder, **kw) -> dict:
 
 @pytest.fixture(scope="module")
 def adjusted(block, gcp_layer, tmp_path_factory):
-    log = LogFeedback()
+    log = RecordingFeedback()
     folder = tmp_path_factory.mktemp("adjusted") / "out"
     result = processing.run("pushbroom:bundleadjust", params(block, gcp_layer, folder, WRITE_RPCS=True), feedback=log)
     return result, log, folder
@@ -200,7 +200,7 @@ def test_a_block_with_an_rpc_product(provider, tmp_path):
     assert Path(block["SCENES"][3]).name == "date2_RPC.TXT"
     gcps = processing.run("pushbroom:importgcps", {"SCENES": list(block["SCENES"]), "INPUT_FILE": block["GCPS"],
                                                    **IMPORT, "OUTPUT": str(tmp_path / "gcps.gpkg")})["OUTPUT"]
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run("pushbroom:bundleadjust", params(block, gcps, tmp_path / "out", WRITE_RPCS=True),
                          feedback=log)
     before, after = check_px(block, block["SCENES"], names), check_px(block, out["ADJUSTED_SCENES"], names)

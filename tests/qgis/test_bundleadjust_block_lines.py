@@ -19,8 +19,8 @@ import processing
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.observations.lines import write_gpkg
 from tests.support.control_lines import block_lines
-from tests.support.hostile import LogFeedback
 from tests.support.tristereo_block import ADJUST, NAMES, check_px, simulate_tristereo
+from tests.support.processing import RecordingFeedback
 
 
 
@@ -58,7 +58,7 @@ def test_a_block_with_control_lines_meets_the_truth(block, lines, tmp_path):
     across-line misfit 38, 39, 37 m before, 1.5, 1.7, 1.4 m after (273 of 274 line points used);
     sigma0 0.75. The line residuals name each point's scene; the log and the report give each
     scene's lines."""
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run("pushbroom:bundleadjust", params(block, tmp_path / "out", LINES=lines["good"]), feedback=log)
     before, after = check_px(block, block["SCENES"]), check_px(block, out["ADJUSTED_SCENES"])
     for name in NAMES:

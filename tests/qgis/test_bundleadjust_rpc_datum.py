@@ -13,8 +13,8 @@ import pytest
 from qgis.core import QgsProcessingException
 
 import processing
+from tests.support.processing import RecordingFeedback
 from pushbroom_adjust.core.observations import tiepoints
-from tests.support.hostile import LogFeedback
 
 NAMES = ("img1", "img2")
 LIMIT = "robust estimation stopped at its limit of 1 passes; the flags may be incomplete"
@@ -42,7 +42,7 @@ def strict_json(path) -> dict:
 
 
 def test_a_ties_only_block_says_which_correction_and_what_the_priors_hold(giza, tmp_path):
-    log = LogFeedback()
+    log = RecordingFeedback()
     processing.run("pushbroom:bundleadjust", {"SCENES": giza["SCENES"], "TIE_POINTS": giza["matched"],
                                               "RPC_SIGMA": 10.0, "OUTPUT_FOLDER": str(tmp_path)}, feedback=log)
     assert "RPC_CORRECTION: shift, the default for a block with fewer than 3 control points: its tie points do not " \
@@ -70,12 +70,12 @@ def test_without_rpc_sigma_the_refusal_names_the_parameter(giza, tmp_path):
 
 def test_the_swinging_tie_set_converges_and_a_loop_at_its_limit_says_so_everywhere(giza, tmp_path):
     run = {"SCENES": giza["SCENES"], "TIE_POINTS": giza["swinging"], "RPC_SIGMA": 10.0, "RPC_CORRECTION": "drift"}
-    log = LogFeedback()
+    log = RecordingFeedback()
     processing.run("pushbroom:bundleadjust", {**run, "OUTPUT_FOLDER": str(tmp_path / "all")}, feedback=log)
     robust = strict_json(tmp_path / "all" / "block_report.json")["adjustment"]["robust"]
     assert not robust["stopped_at_limit"] and robust["held_flagged"] > 0
     assert not [w for w in log.warnings if "stopped at its limit" in w]
-    log = LogFeedback()
+    log = RecordingFeedback()
     processing.run("pushbroom:bundleadjust", {**run, "MAX_ROBUST_PASSES": 1, "OUTPUT_FOLDER": str(tmp_path / "one")},
                    feedback=log)
     assert log.warnings.count(LIMIT) == 1

@@ -14,9 +14,9 @@ from osgeo import gdal, ogr
 from qgis.core import QgsRenderContext, QgsVectorLayer
 
 import processing
+from tests.support.processing import RecordingFeedback
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef
 
-from tests.support.hostile import LogFeedback
 
 STYLE = Path(__file__).resolve().parents[2] / "resources" / "styles" / "adjusted_tie_points.qml"
 # 24 ground points, 4 of them control (the simulator's draw), each seen in all three cameras.
@@ -55,7 +55,7 @@ def chain(provider, tmp_path_factory):
     ties = processing.run("pushbroom:importtiepoints", {
         "SCENE": sim["ONBOARD_SCENE"], "INPUT_FILE": sim["TIE_POINTS"], "CAMERA_FIELD": "camera", "SIGMA_PX": 0.3,
         "OUTPUT": str(out / "tie_points.gpkg")})["OUTPUT"]
-    log = LogFeedback()
+    log = RecordingFeedback()
     result = processing.run("pushbroom:bundleadjust", {
         "SCENE": sim["ONBOARD_SCENE"], "GCPS": gcps4, "TIE_POINTS": ties, **ADJUST,
         "OUTPUT_SCENE": str(out / "adjusted.json"), "OUTPUT_REPORT": str(out / "report.html"),
@@ -149,7 +149,7 @@ def test_no_control_points_the_onboard_data_hold_the_datum(chain, tmp_path):
     """0 GCPs (every ground point a check point) with onboard positions and attitude: the block
     adjusts, the report says the datum is the onboard data's, and the tie residuals are those of
     the image noise; the absolute figures stay at the onboard level (no control)."""
-    log = LogFeedback()
+    log = RecordingFeedback()
     result = processing.run("pushbroom:bundleadjust", {
         "SCENE": chain["sim"]["ONBOARD_SCENE"], "GCPS": chain["gcps0"], "TIE_POINTS": chain["ties"],
         "CAMERA_TRAJECTORY": "shared", "ATTITUDE_SIGMA": 10.0, "OUTPUT_SCENE": str(tmp_path / "a.json"),

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from osgeo import gdal
-from qgis.core import QgsProcessingException, QgsProcessingFeedback
+from qgis.core import QgsProcessingException
 
 import processing
 from pushbroom_adjust.core.dem import Dem
@@ -16,24 +16,9 @@ from pushbroom_adjust.core.formats import load_scene
 
 from tests.support.paths import PLUGIN
 from tests.support.qgis_process import run_json
+from tests.support.processing import RecordingFeedback
 
 gdal.UseExceptions()
-
-
-class RecordingFeedback(QgsProcessingFeedback):
-    """Keeps the warnings and info an algorithm pushes."""
-
-    def __init__(self):
-        super().__init__()
-        self.warnings, self.infos = [], []
-
-    def pushWarning(self, warning):  # noqa: N802 (QGIS API name)
-        self.warnings.append(warning)
-        super().pushWarning(warning)
-
-    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.infos.append(info)
-        super().pushInfo(info)
 
 
 def _image(path, cols, rows) -> Path:

@@ -18,14 +18,6 @@ from tests.support.processing import RecordingFeedback
 INTERIOR = "HRC-1.*, HRC-3.*"
 
 
-class _Log(RecordingFeedback):
-    """Keeps the info lines too."""
-    info: list
-
-    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.__dict__.setdefault("info", []).append(info)
-
-
 @pytest.fixture(scope="module")
 def sims(provider, tmp_path_factory) -> dict:
     """Two simulated CBERS-02B scenes of 500 points (a third check points, 0.5 px and 1 m noise):
@@ -76,8 +68,8 @@ def _gcps(sim, folder: Path, rows: list[dict] | None = None, **extra) -> str:
                                                                  SIGMA_PX=0.5, **extra))["OUTPUT"]
 
 
-def _adjust(sim, gcps: str, folder: Path, **extra) -> tuple[dict, _Log]:
-    log = _Log()
+def _adjust(sim, gcps: str, folder: Path, **extra) -> tuple[dict, RecordingFeedback]:
+    log = RecordingFeedback()
     result = processing.run("pushbroom:bundleadjust", {
         "SCENE": sim["ONBOARD_SCENE"], "GCPS": gcps, "INTERIOR": INTERIOR,
         "OUTPUT_SCENE": str(folder / "adjusted.json"), "OUTPUT_REPORT": str(folder / "report.html"),
@@ -144,7 +136,7 @@ def test_surveyed_and_digitised_points_mixed_by_per_point_sigmas(sims, tmp_path)
     assert rep["reliability"]["reliable"] and not rep["robust"]["stopped_at_limit"]
     assert rep["robust"]["flagged"] <= 0.01 * rep["observations"]["image_observations"]
     assert rep["variance_components"]["image HRC"]["estimated_sigma"] == pytest.approx(0.5, rel=0.15)
-    assert any(w.startswith("variance component image HRC: stated sigma 0.5 px, estimated") for w in log.info)
+    assert any(w.startswith("variance component image HRC: stated sigma 0.5 px, estimated") for w in log.infos)
 
 
 def test_a_prior_that_holds_a_parameter_fixed_is_refused_naming_interior(sims, tmp_path):

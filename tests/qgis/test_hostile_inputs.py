@@ -14,8 +14,9 @@ from osgeo import ogr, osr
 
 import processing
 from pushbroom_adjust.core.observations import gcps as gcp_io
-from tests.support.hostile import LogFeedback, assert_refused
+from tests.support.hostile import assert_refused
 from tests.support.tristereo_block import simulate_tristereo
+from tests.support.processing import RecordingFeedback
 
 IMPORT = {"Z_FIELD": "h", "Z_DATUM": "ellipsoid"}
 
@@ -31,7 +32,7 @@ def rpc_product(simulated, tmp_path_factory) -> Path:
 def test_a_single_camera_scene_takes_every_row_of_another_camera_and_says_so(simulated, rpc_product, tmp_path):
     """The simulator's gcps.csv names camera HRC; the RPC product's one camera is 'base': every row is
     its, the log says so, and each a-priori residual is the rigorous scene's (the RPC reproduces it)."""
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run("pushbroom:importgcps", {"SCENE": str(rpc_product), "INPUT_FILE": simulated["GCPS"], **IMPORT,
                                                   "OUTPUT": str(tmp_path / "rpc.gpkg")}, feedback=log)
     rows = len(Path(simulated["GCPS"]).read_text().splitlines()) - 1

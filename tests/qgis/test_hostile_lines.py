@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from osgeo import ogr, osr
 
-from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.processing import RecordingFeedback
 
 
 @pytest.fixture(scope="module")
@@ -208,7 +209,7 @@ def test_lines_only_parallel_to_each_other_adjust_with_the_free_direction_named(
     path = tmp_path / "parallel.gpkg"
     core_lines.write_gpkg(path, parallel.ground, parallel.image)
     (tmp_path / "out").mkdir()
-    feedback = LogFeedback()
+    feedback = RecordingFeedback()
     done = processing.run("pushbroom:bundleadjust", _adjust(lines_sim, tmp_path, LINES=str(path), POSITION_SIGMA=100.0,
                                                             ATTITUDE_SIGMA=5e-4,
                                                             OUTPUT_REPORT=str(tmp_path / "out" / "r.html")),

@@ -10,7 +10,8 @@ from osgeo import gdal, ogr, osr
 
 from pushbroom_adjust.core.observations.lines import ImageLines, write_gpkg
 
-from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.processing import RecordingFeedback
 
 ROAD_COL = 100.5   # the bright band's centre (px) in the test image
 
@@ -92,7 +93,7 @@ def test_a_line_beyond_the_feature_is_snapped_where_it_can_with_a_warning(provid
     import processing
     lines = ImageLines(["R1"], "HRC", [0, 3], [102.0, 99.0, 160.0], [30.0, 80.0, 80.0], 2.0)  # the last: off road
     write_gpkg(tmp_path / "bent.gpkg", image=lines)
-    feedback = LogFeedback()
+    feedback = RecordingFeedback()
     processing.run("pushbroom:snaplines", _params(files, IMAGE_LINES=str(tmp_path / "bent.gpkg")),
                    feedback=feedback)
     ds = ogr.Open(str(files["out"] / "snapped.gpkg"))

@@ -6,7 +6,8 @@ import shutil
 
 import pytest
 
-from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.processing import RecordingFeedback
 
 
 def _rows(three_line):
@@ -131,7 +132,7 @@ def test_a_point_seen_in_one_camera_is_kept_with_a_warning(three_line, tmp_path)
     rows = [r for r in _rows(three_line) if not (r["id"] == "T2" and r["camera"] != "NAD")]
     source = _csv(tmp_path / "ties.csv", rows)
     import processing
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run("pushbroom:importtiepoints", {"SCENE": three_line["ONBOARD_SCENE"],
                                                        "INPUT_FILE": str(source), "CAMERA_FIELD": "camera",
                                                        "OUTPUT": str(tmp_path / "o.gpkg")}, feedback=log)["OUTPUT"]

@@ -11,7 +11,8 @@ from osgeo import gdal
 import processing
 from pushbroom_adjust.core.observations import tiepoints
 
-from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.processing import RecordingFeedback
 
 ALG = "pushbroom:bundleadjust"
 
@@ -137,7 +138,7 @@ def test_one_camera_points_only_are_left_out_with_a_warning(block, tmp_path):
     block; the warning names the points left out."""
     t = block["table"]
     ties = _layer(block, tmp_path, t.select(t.camera == "NAD"))
-    log = LogFeedback()
+    log = RecordingFeedback()
     result = processing.run(ALG, {"SCENE": block["scene"], "GCPS": block["gcps"], "TIE_POINTS": ties,
                                   "OUTPUT_SCENE": str(tmp_path / "a.json")}, feedback=log)
     assert result["OUTPUT_SCENE"]
@@ -149,7 +150,7 @@ def test_tie_points_checked_against_another_scene_file_warn(block, tmp_path):
     """Legitimate (e.g. re-adjusting an adjusted scene): the layer's scene metadata names another
     file; the run goes on and says so."""
     ties = _layer(block, tmp_path, replace(block["table"], scene_path="/elsewhere/other_scene.json"))
-    log = LogFeedback()
+    log = RecordingFeedback()
     processing.run(ALG, {"SCENE": block["scene"], "GCPS": block["gcps"], "TIE_POINTS": ties,
                          "OUTPUT_SCENE": str(tmp_path / "a.json")}, feedback=log)
     assert any("checked against the scene /elsewhere/other_scene.json" in w for w in log.warnings), log.warnings

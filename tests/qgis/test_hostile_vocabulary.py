@@ -4,8 +4,7 @@ are refused with the parameter's value names, before anything is written; Z valu
 datum the layer's CRS states are read in that datum."""
 import numpy as np
 import pytest
-from qgis.core import (QgsFeature, QgsGeometry, QgsPoint, QgsProcessingException, QgsProcessingFeedback,
-                       QgsProcessingModelAlgorithm, QgsProcessingModelChildAlgorithm,
+from qgis.core import (QgsFeature, QgsGeometry, QgsPoint, QgsProcessingException, QgsProcessingModelAlgorithm, QgsProcessingModelChildAlgorithm,
                        QgsProcessingModelChildParameterSource, QgsProcessingModelOutput, QgsProperty, QgsVectorLayer)
 
 import processing
@@ -14,20 +13,9 @@ from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from pushbroom_adjust.core.formats import load_scene
 
 from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.processing import RecordingFeedback
 
 DATUMS = "geoid, ellipsoid"
-
-
-class RecordingFeedback(QgsProcessingFeedback):
-    """Keeps the errors reported to the log."""
-
-    def __init__(self):
-        super().__init__()
-        self.errors = []
-
-    def reportError(self, error, fatalError=False):  # noqa: N802 (QGIS API names)
-        self.errors.append(error)
-        super().reportError(error, fatalError)
 
 
 def _points_z(crs: str, lon, lat, h) -> QgsVectorLayer:

@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 from pyproj import Transformer
 from qgis.core import (QgsExpressionContextUtils, QgsFeature, QgsField, QgsGeometry, QgsPointXY,
-                       QgsProcessingException, QgsProcessingFeedback, QgsRenderContext, QgsVectorLayer)
+                       QgsProcessingException, QgsRenderContext, QgsVectorLayer)
 from qgis.PyQt.QtCore import QVariant
 
 from tests.support.csvrows import read_rows, write_rows
 from tests.support.paths import PLUGIN
+from tests.support.processing import RecordingFeedback
 
 FIELDS = ["id", "role", "camera", "col", "row", "h", "sigma_px", "sigma_xy", "sigma_z", "res_col", "res_row",
           "res_px", "res_m", "inside"]
@@ -23,20 +24,6 @@ def core(plugin):
     return {name: importlib.import_module(f"{PLUGIN}.core.{path}") for name, path in
             (("gcps", "observations.gcps"), ("formats", "formats"), ("scene_json", "formats.scene_json"),
              ("geodesy", "geodesy"))}
-
-
-class _Log(QgsProcessingFeedback):
-    """Feedback that keeps the algorithm's log lines."""
-
-    def __init__(self):
-        super().__init__()
-        self.lines = []
-
-    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.lines.append(info)
-
-    def pushWarning(self, warning):  # noqa: N802
-        self.lines.append(warning)
 
 
 def _run(params, feedback=None):
@@ -104,7 +91,7 @@ def test_points_file_with_disabled_and_outside_points(core, provider, tmp_path):
     lines = ["#CRS: EPSG:4326", "mapX,mapY,sourceX,sourceY,enable,dX,dY,residual"]
     lines += [f"{x!r},{y!r},{c!r},{-r!r},{int(i != 3)},0,0,0" for i, (x, y, c, r) in enumerate(zip(lon, lat, col, row))]
     (tmp_path / "img.points").write_text("\n".join(lines) + "\n")
-    log = _Log()
+    log = RecordingFeedback()
     out = _run({"SCENE": str(tmp_path / "scene.json"), "INPUT_FILE": str(tmp_path / "img.points"),
                 "HEIGHT_SOURCE": "constant", "HEIGHT": 0.0, "OUTPUT": str(tmp_path / "pts.gpkg")}, log)["OUTPUT"]
     text = "\n".join(log.lines)

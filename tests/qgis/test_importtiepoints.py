@@ -9,7 +9,7 @@ from qgis.core import (QgsFeature, QgsField, QgsRenderContext, QgsVectorLayer)
 from qgis.PyQt.QtCore import QVariant
 
 from tests.support.paths import PLUGIN
-from tests.support.hostile import LogFeedback
+from tests.support.processing import RecordingFeedback
 
 FIELDS = ["id", "camera", "col", "row", "sigma_px", "scene", "rays", "res_col", "res_row", "res_px"]
 
@@ -27,7 +27,7 @@ def _run(params, feedback=None):
 def test_the_simulators_tie_points_import_as_they_are(three_line, tiepoints, tmp_path):
     """No field parameter: the columns id and camera are read under their own names."""
     rows = list(csv.DictReader(open(three_line["TIE_POINTS"])))
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = _run({"SCENE": three_line["ONBOARD_SCENE"], "INPUT_FILE": three_line["TIE_POINTS"], "SIGMA_PX": 0.3,
                 "OUTPUT": str(tmp_path / "ties.gpkg")}, log)["OUTPUT"]
     layer = QgsVectorLayer(out, "ties", "ogr")

@@ -10,7 +10,7 @@ from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.measure.matching import SIGMA_FLOOR
 from tests.support.matchscene import mini_tlc_scene
-from tests.support.hostile import LogFeedback
+from tests.support.processing import RecordingFeedback
 
 FIELDS = ["id", "camera", "col", "row", "sigma_px", "scene", "rays", "res_col", "res_row", "res_px"]
 
@@ -44,7 +44,7 @@ def truth_errors(sim, table) -> dict:
 
 @pytest.fixture(scope="module")
 def matched(tlc, tmp_path_factory):
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run("pushbroom:matchtiepoints", params(tlc, tmp_path_factory.mktemp("m") / "ties.gpkg"),
                          feedback=log)
     return out["OUTPUT"], log

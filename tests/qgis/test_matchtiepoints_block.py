@@ -16,8 +16,8 @@ from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.observations import tiepoints
 from pushbroom_adjust.simulation.presets import PRESETS, cut_preset
 from pushbroom_adjust.simulation.simulator import simulate
-from tests.support.hostile import LogFeedback
 from tests.support.qgis_process import run_json
+from tests.support.processing import RecordingFeedback
 
 NAMES = ("nad", "fwd", "bwd", "date2")  # the scenes of LAYOUT tristereo_and_other_date by their files, in order
 
@@ -36,7 +36,7 @@ def params(block, output, **kw) -> dict:
 
 @pytest.fixture(scope="module")
 def matched(block, tmp_path_factory):
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run("pushbroom:matchtiepoints", params(block, tmp_path_factory.mktemp("m") / "ties.gpkg"),
                          feedback=log)
     return tiepoints.read_gpkg(out["OUTPUT"]), log

@@ -104,21 +104,6 @@ def assert_refused_cli(qgis_process, alg_id: str, params: dict, *contains: str, 
     return text
 
 
-class LogFeedback(QgsProcessingFeedback):
-    """Feedback that keeps the algorithm's log: ``lines`` (info and warnings, in order), ``warnings``."""
-
-    def __init__(self):
-        super().__init__()
-        self.lines, self.warnings = [], []
-
-    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.lines.append(info)
-
-    def pushWarning(self, warning):  # noqa: N802
-        self.lines.append(warning)
-        self.warnings.append(warning)
-
-
 def huge_vrt(dem, vrt: Path, factor: int = 1000) -> str:
     """A VRT at ``vrt`` of the DEM file ``dem`` at 1/factor of its pixel size (the simulator's: ~2
     million pixels square, ~16 TB of heights, for factor 1000), naming the DEM relative to its folder."""

@@ -6,19 +6,26 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsGeometry, Qg
 
 
 class RecordingFeedback(QgsProcessingFeedback):
-    """Keeps the warnings and the information an algorithm pushes."""
+    """Keeps what an algorithm pushes: ``lines`` (information and warnings, in order), ``infos``,
+    ``warnings`` and ``errors`` (reportError)."""
 
     def __init__(self):
         super().__init__()
-        self.warnings, self.infos = [], []
+        self.lines, self.infos, self.warnings, self.errors = [], [], [], []
+
+    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
+        self.lines.append(info)
+        self.infos.append(info)
+        super().pushInfo(info)
 
     def pushWarning(self, warning):  # noqa: N802 (QGIS API name)
+        self.lines.append(warning)
         self.warnings.append(warning)
         super().pushWarning(warning)
 
-    def pushInfo(self, info):  # noqa: N802 (QGIS API name)
-        self.infos.append(info)
-        super().pushInfo(info)
+    def reportError(self, error, fatalError=False):  # noqa: N802 (QGIS API names)
+        self.errors.append(error)
+        super().reportError(error, fatalError)
 
 
 def image_table(col, row, extra_null=False) -> QgsVectorLayer:
