@@ -63,19 +63,13 @@ ONE_SCENE_OUTPUTS = {"OUTPUT_SCENE": f"<name>{SCENE_SUFFIX}", "OUTPUT_REPORT": R
 # --- parameters ------------------------------------------------------------------------------
 FOLDER_HELP = (
     "With SCENES: the folder (created if missing) the block's outputs go to, every file or none: "
-    f"<name>{SCENE_SUFFIX} per scene (its adjusted model, which every algorithm reads as SCENE), "
-    "block_report.html and block_report.json (per scene and for the block: control, check and tie RMS, tie RMS "
-    "before and after, the move from the onboard geolocation against the onboard sigma, how the datum is held), "
-    "adjusted_gcps.gpkg (with GCPS: the GCP layer with adjusted residuals, flags and the field scene) and "
-    "adjusted_tie_points.gpkg (with TIE_POINTS: per observation its residuals and scene, per point its rays, "
-    "scenes and ray convergence in degrees) and line_residuals.gpkg (with LINES: per line point its scene, camera, "
-    "residuals and across-line offset, per ground line its RMS and flag). Files of these names there are replaced. "
-    "Empty: a temporary folder.")
+    f"<name>{SCENE_SUFFIX} per scene, block_report.html/.json, adjusted_gcps.gpkg, adjusted_tie_points.gpkg, "
+    "line_residuals.gpkg (docs page, A block of scenes). Files of these names are replaced. Empty: a temporary "
+    "folder.")
 RPCS_HELP = (
-    "With SCENES: also write an RPC00B model fitted to each adjusted rigorous scene's camera over its height range "
-    "into OUTPUT_FOLDER, <name>_RPC.TXT (<name>_<CAMERA>_RPC.TXT for a scene of several cameras) with its fit check "
-    "beside it (.json), and for an RPC product its refined RPC, <name>_RPC.TXT (the correction folded in, or the "
-    "RPC refitted to it); copy it beside the image as <image>_RPC.TXT for GDAL and QGIS to use it.")
+    "With SCENES: also write into OUTPUT_FOLDER an RPC00B fitted to each adjusted rigorous scene, <name>_RPC.TXT "
+    "(<name>_<CAMERA>_RPC.TXT for several cameras) with its fit check (.json), and an RPC product's refined RPC; "
+    "copy it beside the image as <image>_RPC.TXT.")
 
 
 def add_block_parameters(alg) -> None:

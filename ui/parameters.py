@@ -127,10 +127,9 @@ def z_datum() -> QgsProcessingParameterEnum:
     return enum_parameter(
         Z_DATUM, tr("Datum of the Z values"),
         datum_meanings(tr("levelled surveys, heights read from maps")), None,
-        tr("What the points' Z values (point Z or Z_FIELD) are measured from; the two differ by up to 106 m. "
-           "Empty: what the points' CRS says (EPSG:4979: ellipsoid; a compound CRS with EGM96 heights: geoid); "
-           "when it says nothing and Z values are used, the run stops and asks for Z_DATUM. Geoid heights "
-           "are converted with PROJ's EGM96 grid."), optional=True)
+        tr("What the points' Z values (point Z or Z_FIELD) are measured from (they differ by up to 106 m). "
+           "Empty: what the points' CRS says (EPSG:4979: ellipsoid; EGM96 heights: geoid), else the run asks "
+           "for it. Geoid heights are converted with PROJ's EGM96 grid."), optional=True)
 
 
 def height_source() -> QgsProcessingParameterEnum:
@@ -185,11 +184,9 @@ def rpc_correction() -> QgsProcessingParameterEnum:
          "shift": tr("a shift of columns and rows (2 parameters per image)"),
          "drift": tr("a shift and a drift along the rows, i.e. with time (4 parameters)"),
          "affine": tr("an affine correction of columns and rows (6 parameters)")}, "auto",
-        tr("For a SCENE given by its RPC only, or the RPC products of a block (SCENES): the bias compensation "
-           "adjusted to the GCPs and tie points (Grodecki & Dial 2003); ignored for rigorous scenes. Tie points "
-           "alone do not determine the height tilt that drift and affine terms let in: measured on simulated RPC "
-           "tri-stereos tied without GCPs, the heights tilted by 78 to 190 m across 5 km with drift (8 to 269 m "
-           "with affine) and by at most 0.02 m with shift, at the same tie residuals; hence the default."))
+        tr("For RPC scenes (SCENE or the RPC products of SCENES): the bias compensation adjusted to the control "
+           "(Grodecki & Dial 2003); ignored for rigorous scenes. Tie points alone do not determine the height "
+           "tilt drift and affine let in (78 to 190 m over 5 km on simulated tri-stereos): hence auto."))
 
 
 def camera_trajectory() -> QgsProcessingParameterEnum:
@@ -217,16 +214,10 @@ def on_singular() -> QgsProcessingParameterEnum:
 def interior_selection() -> QgsProcessingParameterEnum:
     return enum_parameter(
         INTERIOR_SELECTION, tr("Interior parameter selection"),
-        {"significant": tr("after the solution, interior parameters that are not significant (|value| < 1.96 "
-                           "sigma), correlated with another unknown (|r| > 0.98) unless clearly determined all "
-                           "the same (|value| >= 5 sigma), or left with under 0.01 % of their "
-                           "information once the trajectory and the stronger interior parameters are free (of "
-                           "parameters the control cannot separate one is kept) are fixed at 0, a few at a time, "
-                           "and the block re-solved if they are free; weighted ones (name=sigma, INTERIOR=default) "
-                           "are kept, held by their priors, and named; then self-calibration is kept only if an "
-                           "F-test shows it fits "
-                           "significantly better than no interior parameters, else the run falls back to the "
-                           "conventional adjustment and says so"),
+        {"significant": tr("interior parameters the control cannot support (not significant, correlated, or "
+                           "without information) are fixed at 0 and the block re-solved; weighted ones are kept, "
+                           "held by their priors; self-calibration is kept only if an F-test favours it (docs "
+                           "page)"),
          "keep": tr("estimate every INTERIOR parameter as given (with few GCPs a free set can overfit)")},
         "significant",
         tr("What to do with interior parameters the control at hand cannot support; the report lists the removed "
@@ -247,26 +238,27 @@ def preset() -> QgsProcessingParameterEnum:
 
 # --- shared plain parameters --------------------------------------------------------------
 def scene(optional: bool = False) -> QgsProcessingParameterFile:
-    """SCENE; optional in the algorithms that take a block's SCENES instead."""
-    parameter = QgsProcessingParameterFile(SCENE, tr("Scene (metadata, RPC or scene JSON)"), extension="",
+    """SCENE; optional in the algorithms that take a block's SCENES instead, its label then saying that
+    one of the two is needed (QGIS marks both '[optional]')."""
+    label = tr("Scene (or give Scenes of the block)") if optional else tr("Scene (metadata, RPC or scene JSON)")
+    parameter = QgsProcessingParameterFile(SCENE, label, extension="",
                                            fileFilter="Scene files (*.json *.xml *.XML *.txt *.TXT *.rpb *.RPB *.tif "
                                                       "*.ntf *.jp2);;All files (*)", optional=optional)
-    parameter.setHelp(tr("The sensor model of the scene: a Pushbroom Adjust scene JSON (written by the simulator "
-                         "or an adjustment) or vendor metadata (Pleiades/SPOT DIMAP v2 DIM_*.XML, "
-                         "Maxar/DigitalGlobe *.XML), or an RPC alone: an image with RPC metadata GDAL reads, "
-                         "<name>_RPC.TXT, <name>.RPB or DIMAP RPC_*.XML (see docs/rpc-scenes.md)."))
+    parameter.setHelp(tr("The sensor model of the scene: a scene JSON (of the simulator or an adjustment), vendor "
+                         "metadata (DIMAP v2 DIM_*.XML, Maxar *.XML), or an RPC alone: an image with RPC metadata, "
+                         "<name>_RPC.TXT, <name>.RPB or DIMAP RPC_*.XML (docs/rpc-scenes.md).")
+                      + (" " + tr("Give SCENE or SCENES: one of them.") if optional else ""))
     return parameter
 
 
 def scenes() -> QgsProcessingParameterMultipleLayers:
     """SCENES: the scene files of a block (matchtiepoints, importgcps, bundleadjust), the alternative to SCENE."""
-    parameter = QgsProcessingParameterMultipleLayers(SCENES, tr("Scenes of the block (metadata, RPC or scene JSON "
-                                                                "files)"), QgsProcessing.TypeFile, optional=True)
-    parameter.setHelp(tr("Several scenes matched, checked or adjusted as one block: any files the plugin reads as a "
-                         "scene (scene JSON, DIMAP, Maxar XML, RPC). A scene's name is its file's stem (without the "
-                         "_RPC of <name>_RPC.TXT), or for onboard_scene.json / true_scene.json / adjusted_scene.json "
-                         "its folder's name (the layout pushbroom:simulateblock writes); observations name their "
-                         "scene in a field 'scene'. Give SCENE or SCENES, not both."))
+    parameter = QgsProcessingParameterMultipleLayers(SCENES, tr("Scenes of the block (or give one Scene)"),
+                                                     QgsProcessing.TypeFile, optional=True)
+    parameter.setHelp(tr("Several scenes as one block, any files the plugin reads as a scene. A scene's name is its "
+                         "file's stem (without _RPC), or its folder's for onboard_scene.json, true_scene.json, "
+                         "adjusted_scene.json; observations name their scene in a field 'scene'. Give SCENE or "
+                         "SCENES: one of them."))
     return parameter
 
 

@@ -22,17 +22,9 @@ HEADERS = ["scene", "position_sigma_m", "attitude_sigma_arcsec", "rpc_sigma_px"]
 # per value column: the core's sigma and the factor from the column's unit to the core's (m, rad, px)
 COLUMNS = (("position_sigma", 1.0), ("attitude_sigma", ARCSEC), ("rpc_sigma", 1.0))
 HELP = (
-    "Optional, with SCENES: each scene's own onboard or vendor accuracy, for a block that mixes products of different "
-    "accuracy (a scene whose star trackers hold a few arcseconds beside an older one of 30, an RPC product stated to "
-    "5 px beside one stated to 10 px). One row per scene: scene (its name as SCENES gives it: the file's stem, or the "
-    "folder's for onboard_scene.json), position_sigma_m (m, as POSITION_SIGMA), attitude_sigma_arcsec (arcsec, as "
-    "ATTITUDE_SIGMA) and rpc_sigma_px (px, as RPC_SIGMA; for RPC products, the others for rigorous scenes); an empty "
-    "cell keeps the global value. Each overrides its global parameter for that scene's pseudo-observations (its "
-    "trajectory correction's, or its RPC correction's prior), so a well-measured scene holds the block and the tie "
-    "points carry the others to it; the global parameter must still be given (it decides how the datum is held). "
-    "One variance component per group is still estimated for all scenes (Förstner 1979). The report states each "
-    "scene's sigmas. From the command line: SCENE_SIGMAS=old,,60, (values row by row, separated by commas) or the "
-    "parameter repeated once per value.")
+    "Optional, with SCENES: each scene's own onboard or vendor accuracy. One row per scene: scene (as SCENES names "
+    "it), position_sigma_m, attitude_sigma_arcsec, rpc_sigma_px; an empty cell keeps the global value, which must "
+    "still be given. qgis_process: SCENE_SIGMAS=old,,60, (docs page).")
 
 
 def scene_sigmas_parameter() -> QgsProcessingParameterMatrix:

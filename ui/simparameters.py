@@ -44,12 +44,10 @@ def image_noise() -> QgsProcessingParameterNumber:
 
 def render() -> QgsProcessingParameterBoolean:
     parameter = QgsProcessingParameterBoolean(RENDER, tr("Render the images"), defaultValue=False)
-    parameter.setHelp(tr("Also write each camera's raw image (8-bit GeoTIFF without georeferencing, "
-                         "image_<CAMERA>.tif; <scene>.tif beside the RPC of a simulated RPC product) rendered from a "
-                         "known texture over the DEM, for orthorectification and matching. A 12246 × 12246 "
-                         "CBERS-02B scene takes about 20 s and 80 MB. With the images comes reference.tif, a "
-                         "reference orthoimage of the same ground (UTM, 5 m or twice the GSD, blurred, another "
-                         "radiometry, noise, patches of changed land cover and cloud) for pushbroom:matchgcps."))
+    parameter.setHelp(tr("Also write each camera's raw image (8-bit GeoTIFF, image_<CAMERA>.tif; <scene>.tif for "
+                         "an RPC product) rendered from a known texture over the DEM, and reference.tif, a reference "
+                         "orthoimage of the same ground for pushbroom:matchgcps. A 12246 × 12246 CBERS-02B scene "
+                         "takes about 20 s and 80 MB."))
     return parameter
 
 

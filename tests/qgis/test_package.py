@@ -206,6 +206,11 @@ def test_installed_zip_enables_and_runs_in_a_fresh_profile(installed, tmp_path):
     assert listed.returncode == 0, listed.stderr
     for alg in ALGORITHMS + MODELS:  # the models come from the zip's resources/models/
         assert f"\t{alg}\t" in listed.stdout, alg
+    # the help is the summary of the algorithm's page, which the zip carries, with a link to it
+    page = installed / "profiles" / "default" / "python" / "plugins" / PLUGIN / "docs" / "algorithms" / "bundleadjust.md"
+    helped = run("help", "pushbroom:bundleadjust")
+    assert helped.returncode == 0 and page.is_file(), helped.stderr
+    assert f'<a href="{page.as_uri()}">' in helped.stdout and "Self-calibrating bundle adjustment" in helped.stdout
     sim = run_json(run, "pushbroom:simulatescene", SEED=3, N_GCPS=12, OUTPUT_FOLDER=tmp_path / "sim")
     out = tmp_path / "footprint.gpkg"
     run_json(run, "pushbroom:footprint", SCENE=sim["TRUE_SCENE"], DEM=sim["DEM"], DEM_DATUM="geoid", SAMPLES=16,

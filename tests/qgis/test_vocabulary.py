@@ -36,6 +36,16 @@ def _signature(definition) -> dict:
     return signature
 
 
+def _one_scene_words(signature: dict, definition) -> dict:
+    """The description and help SCENE has where there is no SCENES, when ``definition`` has exactly the
+    words of the shared definition with SCENES (ui.parameters.scene(optional=True)); else unchanged."""
+    vocabulary = importlib.import_module(f"{PLUGIN}.ui.parameters")
+    with_scenes, alone = vocabulary.scene(optional=True), vocabulary.scene()
+    if (definition.description(), definition.help()) != (with_scenes.description(), with_scenes.help()):
+        return {}
+    return {"description": alone.description(), "help": alone.help()}
+
+
 def _enumeration_problems(where: str, definition, seen: dict) -> list[str]:
     problems = []
     options = list(definition.options())
@@ -67,6 +77,8 @@ def vocabulary_problems(algorithms) -> list[str]:
             if name in ("SCENE", "OUTPUT_SCENE") and alg.parameterDefinition("SCENES") is not None:
                 # optional where a block's SCENES may replace it (a block writes its scenes elsewhere), and only there
                 signature["flags"] = int(signature["flags"]) & ~int(QgsProcessingParameterDefinition.FlagOptional)
+                if name == "SCENE":  # there its label and help say that SCENE or SCENES is needed (issue 30)
+                    signature.update(_one_scene_words(signature, definition))
             if name not in first:
                 if not model:
                     first[name] = (alg.id(), signature)

@@ -10,16 +10,17 @@ from qgis.PyQt.QtGui import QIcon
 
 from .. import RESOURCES
 from ..feedback import processing_errors, push_lines
+from ..help import help_page, short_help
 from ..inputs import is_raster_input, raster_refusal
 from ..parameters import enum_refusal, tr
 
 
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
-    """Base of the plugin's algorithms: id, name, group and help from class attributes.
+    """Base of the plugin's algorithms: id, name and group from class attributes, help from the docs.
 
-    shortHelpString() is HELP followed by every parameter's name and help text (setHelp), so
-    the toolbox, qgis_process help and docs/ say the same. NAME, GROUP and HELP are
-    English and shown through tr(); GROUP_ID never changes with the language.
+    shortHelpString() is the summary of docs/algorithms/<ID>.md with a link to it (helpUrl); each
+    parameter's help is its setHelp text (the dialog's tooltip, qgis_process help's argument list).
+    NAME and GROUP are English and shown through tr(); GROUP_ID never changes with the language.
     Enumeration values are checked before a run (checkParameterValues): an unknown name or an
     option number is refused with the parameter's value names.
 
@@ -31,7 +32,6 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     ID = ""
     NAME = ""
     GROUP, GROUP_ID = "Sensor model", "sensormodel"
-    HELP = ""
     CORE_PARAMETERS: dict[str, str] = {}
     SCENE_OR_SCENES = ("work on one scene", "work on a block of scenes")
     """What the algorithm does with SCENE and with SCENES, for the refusal of both (ui.blockmatch.block_given)."""
@@ -63,6 +63,13 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
             parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
         self.addParameter(parameter)
 
+    def show_only(self, *names: str) -> None:
+        """Flag every input parameter but ``names`` advanced: the dialog shows ``names`` and the outputs,
+        the rest under QGIS's 'Advanced parameters' (at most 8 inputs shown, tests/qgis/test_provider.py)."""
+        for definition in self.parameterDefinitions():
+            if not definition.isDestination() and definition.name() not in names:
+                definition.setFlags(definition.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+
     def output_path(self, parameters, context, name: str, temporary_name: str) -> str:
         """Where output parameter ``name`` goes: '' for an optional output nobody asked for, a new
         temporary file ``temporary_name`` for an empty required one (a graphical model passes
@@ -77,11 +84,10 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return path or QgsProcessingUtils.generateTempFilename(temporary_name)
 
     def shortHelpString(self):  # noqa: N802
-        rows = "".join(f"<li><b>{p.name()}</b>: {p.help() or p.description()}</li>"
-                       for p in self.parameterDefinitions())
-        outs = "".join(f"<li><b>{o.name()}</b>: {o.description()}</li>" for o in self.outputDefinitions())
-        return (f"<p>{tr(self.HELP)}</p><p>{tr('Parameters')}:</p><ul>{rows}</ul>"
-                f"<p>{tr('Outputs')}:</p><ul>{outs}</ul>")
+        return short_help(self.ID, tr)
+
+    def helpUrl(self):  # noqa: N802
+        return help_page(self.ID).as_uri()
 
     def checkParameterValues(self, parameters, context):  # noqa: N802
         """Enumerations take value names only (see ui.parameters.enum_refusal); an empty text is

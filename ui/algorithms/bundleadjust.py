@@ -50,33 +50,6 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     ID = "bundleadjust"
     NAME = "Bundle adjustment"
     GROUP, GROUP_ID = "Adjustment", "adjustment"
-    HELP = ("Self-calibrating bundle adjustment of a pushbroom scene (or strip) to its ground control points. "
-            "Corrections to the measured orbit and attitude are estimated as polynomials, orientation images "
-            "or piecewise polynomials in time; the onboard GPS and star trackers enter as weighted "
-            "pseudo-observations. Interior parameters (CCD shifts and rotations, focal length, lens "
-            "distortion, installation angles) can be estimated too. Parameter sets the GCPs cannot separate "
-            "are detected and named, and one of each is fixed (or the run stops). Gross errors are found by "
-            "selection weights or data snooping and flagged, never deleted. Check points are never used in "
-            "the solution and give the accuracy before and after. Outputs: the adjusted scene JSON that every "
-            "other algorithm reads as SCENE and, each when asked for, a JSON and an HTML report with plots, the "
-            "GCP layer with the adjusted residuals and flags, and ground residual vectors. A SCENE given by its RPC "
-            "only (an image with RPC metadata, _RPC.TXT, .RPB, DIMAP RPC_*.XML) is adjusted by an image-space "
-            "correction instead (RPC_CORRECTION, Grodecki & Dial 2003), with the same statistics and outputs, "
-            "and can be written as a refined RPC (OUTPUT_RPC). "
-            "Three-line cameras (Zhang et al. 2024): Plan A, a trajectory correction per camera, is "
-            "CAMERA_TRAJECTORY=per_camera with ATTITUDE_ORDER=1 and no installation angles in INTERIOR; Plans B, C "
-            "and D, one attitude correction shared by all cameras plus the installation angles of the others "
-            "against the reference (nadir) camera, are CAMERA_TRAJECTORY=shared, INTERIOR='FWD.roll, FWD.pitch, "
-            "FWD.yaw, BWD.roll, BWD.pitch, BWD.yaw' (the scene's camera names) and ATTITUDE_ORDER=0, 1 or 2. "
-            "The onboard attitude sigma (ATTITUDE_SIGMA) keeps Plan D's quadratic term from trading off "
-            "against the installation angles when the control is sparse. A block of several products (stereo, "
-            "tri-stereo, several dates, neighbouring orbits): SCENES instead of SCENE, GCPs, tie points and "
-            "image lines (LINES) naming the scene each was measured in (field 'scene'), adjusted together (one "
-            "trajectory correction per scene with its own onboard pseudo-observations, an RPC product its own "
-            "image-space correction, shared ground points and ground lines; SCENE_SIGMAS gives a scene its own "
-            "onboard or vendor sigmas); the outputs go to OUTPUT_FOLDER: "
-            "<name>_adjusted.json per scene, block_report.html/.json, adjusted_gcps.gpkg, adjusted_tie_points.gpkg, "
-            "line_residuals.gpkg (with LINES) and, with WRITE_RPCS, a refined RPC per image.")
     GCPS, TIE_POINTS, OUTPUT_TIE_POINTS = "GCPS", "TIE_POINTS", "OUTPUT_TIE_POINTS"
     POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
         POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
@@ -110,35 +83,36 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES = OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
+        # The order of work: the observations, the model, the control, the robust settings, the outputs.
         add_scene_parameters(self, with_camera=False, or_scenes=True)
         self.add_parameter(QgsProcessingParameterVectorLayer(self.GCPS, tr("Ground control points (GeoPackage)"),
                                                     [QgsProcessing.TypeVectorPoint], optional=True),
-                  tr("The GCP layer written by 'Import ground control points' (GeoPackage): image col/row, "
-                     "ground position, role control/check, camera and sigmas of every point. A point seen in "
-                     "several cameras is one id in several rows: every camera it is seen in is used. May be left "
-                     "out when TIE_POINTS are given and the onboard pseudo-observations hold the datum. With "
-                     "SCENES (a block of several scenes) the layer has a field 'scene' naming the scene each row "
-                     "was measured in (importgcps with SCENES writes it); one id may be measured in several "
-                     "scenes."))
+                  tr("The GCP layer of 'Import ground control points' or 'Match GCPs' (GeoPackage); a point "
+                     "seen in several cameras (or scenes) is one id in several rows. With SCENES its field "
+                     "'scene' names each row's scene. May be left out when TIE_POINTS are given."))
         self.add_parameter(QgsProcessingParameterVectorLayer(self.TIE_POINTS, tr("Tie points"),
                                                              [QgsProcessing.TypeVector], optional=True),
-                           tr("Optional. The tie-point layer written by 'Import tie points' (GeoPackage), or any "
-                              "layer or table with the fields id, camera, col, row (optional sigma_px, scene): "
-                              "image positions of ground points of unknown position seen in two or more cameras "
-                              "(Zhang et al. 2015, Zhang et al. 2024). With them the control may be sparse or "
-                              "absent (0, 1 or 2 GCPs) when the onboard pseudo-observations (POSITION_SIGMA, "
-                              "ATTITUDE_SIGMA) hold what the GCPs leave of the datum; a datum nothing holds is "
-                              "named and refused. Points seen in one camera only are left out, named. With SCENES: "
-                              "the field scene names each observation's scene (pushbroom:matchtiepoints with SCENES "
-                              "writes it), every tie point is seen in two scenes or more, and the tie points join "
-                              "all the scenes into one block."))
+                           tr("Optional. The layer of 'Import tie points' or 'Match tie points', or any table with "
+                              "the fields id, camera, col, row (optional sigma_px, scene). With them 0, 1 or 2 "
+                              "GCPs suffice when the onboard sigmas hold the rest of the datum (docs page)."))
+        self.add_parameter(QgsProcessingParameterVectorLayer(self.LINES, tr("Control lines (GeoPackage)"),
+                                                             [QgsProcessing.TypeVectorLine], optional=True),
+                           tr("Optional. The control lines of 'Import control lines': ground lines and the image "
+                              "lines paired to them (Tommaselli & Marcato Junior 2012); with SCENES the image "
+                              "lines' field 'scene' names their scene. Rigorous scenes only, not RPC products."))
+        self.add_parameter(QgsProcessingParameterString(self.INTERIOR, tr("Interior parameters to estimate"),
+                                                        optional=True, defaultValue=""),
+                           tr("Comma-separated names, 'name=sigma' for a weighted one (px, arcsec or SI units), "
+                              "wildcards * and ?; 'default': the usual set with priors. E.g. 'HRC-1.*, HRC-3.*, "
+                              "HRC.f=1px' (CBERS-02B). Empty: trajectory only. The names: docs page, section "
+                              "Interior parameters."))
         for block, what, default_order, default_sigma, unit, sigma_help in (
                 ("POSITION", tr("position"), 1, 100.0, "m", tr(
-                    "Accuracy of the onboard orbit (GPS), metres per axis: the position corrections at the knots "
-                    "enter as pseudo-observations of 0 with this sigma. 0: none (only the GCPs fix the position).")),
-                ("ATTITUDE", tr("attitude"), 2, 0.0, "arcsec", tr(
+                    "Accuracy of the onboard orbit (GPS), metres per axis, as pseudo-observations of the position "
+                    "corrections at the knots. Empty (or 0): none, only the control fixes the position.")),
+                ("ATTITUDE", tr("attitude"), 2, None, "arcsec", tr(
                     "Accuracy of the onboard attitude (star trackers), arcseconds per axis, as pseudo-observations "
-                    "of the attitude corrections. 0: none."))):
+                    "of the attitude corrections. Empty (or 0): none."))):
             self.addParameter(trajectory_model(f"{block}_MODEL", what))
             title = what.capitalize()
             self.add_parameter(QgsProcessingParameterNumber(
@@ -154,66 +128,35 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             low, high = (low / ARCSEC, high / ARCSEC) if unit == "arcsec" else (low, high)
             self.add_parameter(QgsProcessingParameterNumber(
                 f"{block}_SIGMA", tr("Onboard {what} sigma ({unit})").format(what=what, unit=unit),
-                QgsProcessingParameterNumber.Double, default_sigma, minValue=0.0, maxValue=high),
+                QgsProcessingParameterNumber.Double, default_sigma, optional=True, minValue=0.0, maxValue=high),
                 sigma_help + " " + tr("Otherwise from {low:g} to {high:g} {unit}.").format(low=low, high=high,
                                                                                          unit=unit))
-        self.add_parameter(QgsProcessingParameterString(self.INTERIOR, tr("Interior parameters to estimate"),
-                                                        optional=True, defaultValue=""),
-                  tr("Interior and installation parameters to estimate, comma-separated; every other one stays "
-                  "at the scene's value. 'default' estimates the usual set with priors: every focal-plane camera's "
-                  "10 terms with 3 px, the installation angles of every camera but the first with 30 arcsec, the "
-                  "shifts and rotation of every CCD chip but the middle one with 2 px (later items override it, e.g. "
-                  "'default, NAD.k2=0.5px'). A name alone makes the parameter free; 'name=sigma' makes it weighted "
-                  "(a pseudo-observation of 0 correction with that sigma), the sigma in image terms: 'px' is the "
-                  "largest displacement the parameter causes at the ends of the detector array, in detector "
-                  "pitches (e.g. NAD.k1=2px, HRC.f=1px), 'arcsec' for angles (FWD.roll=30arcsec); a bare number is "
-                  "in the parameter's SI unit. Shell "
-                  "wildcards match several names: * any text, ? one character. Names use the scene's chip and "
-                  "camera names (CBERS-02B: camera HRC, chips HRC-1, HRC-2, HRC-3): {chip}.dx, .dy (CCD shift on "
-                  "the focal plane, m) and .theta (CCD rotation, rad), after Zheng et al. 2015; {chip}.ux0, .ux1, "
-                  ".uy0, .uy1 (rad) for detectors given by look angles; {camera}.f (focal length correction, m), .dxp, "
-                  ".dyp (principal point, m), .k1, .k2 (radial distortion, 1/m2, 1/m4), .p1, .p2 (decentring, 1/m), "
-                  ".b1, .b2, .b3 (affinity), after Zhang et al. 2015; {camera}.roll, .pitch, .yaw (installation "
-                  "angles, rad; with several cameras free them for all but the reference camera). Example for "
-                  "CBERS-02B: 'HRC-1.*, HRC-3.*' (shifts and rotations of the left and right CCDs against the middle "
-                  "one); 'HRC-1.*, HRC-3.*, HRC.f=1px' also estimates the focal length, weighted with 1 px at the "
-                  "array end. Sets the GCPs cannot separate from the trajectory are reported (see ON_SINGULAR); "
-                  "parameters the control cannot support are removed (see INTERIOR_SELECTION). Empty: none "
-                  "(trajectory only)."))
         self.add_parameter(interior_selection())
         self.addParameter(camera_trajectory())
         self.addParameter(rpc_correction())
         self.add_parameter(QgsProcessingParameterNumber(self.RPC_SIGMA, tr("RPC scenes: stated accuracy (px)"),
-                                                        QgsProcessingParameterNumber.Double, 0.0, optional=True,
+                                                        QgsProcessingParameterNumber.Double, None, optional=True,
                                                         minValue=0.0, maxValue=1e5),
-                           tr("The vendor's stated accuracy of RPC images in pixels (e.g. 10 px for Pleiades' ~8 m "
-                              "CE90 at 0.7 m), a pseudo-observation of 0 on each term of RPC_CORRECTION, as the "
-                              "onboard sigmas are for rigorous scenes. Needed by a block of RPC images tied without "
-                              "GCPs: it holds where the block lies (the report names it). 0: none."))
+                           tr("The vendor's stated accuracy of RPC images in pixels (e.g. 10 px for Pleiades), "
+                              "pseudo-observations of 0 on each term of RPC_CORRECTION. Needed by a block of RPC "
+                              "images tied without GCPs. Empty (or 0): none."))
         self.addParameter(scene_sigmas_parameter())
         self.addParameter(ground_mode())
         self.addParameter(robust_method())
         self.add_parameter(QgsProcessingParameterNumber(self.ALPHA, tr("Significance of the outlier test"),
                                                QgsProcessingParameterNumber.Double, 0.001, minValue=1e-9, maxValue=0.2),
-                  tr("Probability of flagging a good observation (0.001: |w| > 3.29)."), advanced=True)
+                  tr("Probability of flagging a good observation (0.001: |w| > 3.29)."))
         self.add_parameter(QgsProcessingParameterBoolean(self.VARIANCE_COMPONENTS, tr("Estimate variance components"),
                                                          defaultValue=True),
-                  tr("Estimate a factor on the stated sigmas per observation group (per camera the image observations "
-                     "of control points; apart from them the tie points' observations; ground xy, ground z, "
-                     "onboard pseudo-observations) "
-                     "from the residuals and use it before the outlier test, so that flags and check figures do not "
-                     "depend on how well the sigmas were guessed (Förstner 1979). Off: the stated sigmas are trusted "
-                     "as they are."), advanced=True)
+                  tr("Estimate a factor on the stated sigmas per observation group from the residuals and use it "
+                     "before the outlier test (Förstner 1979), so that flags and check figures do not depend on "
+                     "guessed sigmas. Off: the stated sigmas are trusted."))
         self.add_parameter(QgsProcessingParameterNumber(self.MAX_ROBUST_PASSES, tr("Robust passes at most"),
                                                         QgsProcessingParameterNumber.Integer, 12, minValue=1,
                                                         maxValue=100),
                   tr("Passes of gross error detection and variance component estimation; a run that needs more "
-                     "says so (the flags may then be incomplete)."), advanced=True)
-        self.add_parameter(on_singular(), advanced=True)
-        self.add_parameter(QgsProcessingParameterNumber(self.RESIDUAL_SCALE, tr("Residual vector exaggeration"),
-                                               QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0,
-                                               maxValue=1e6),
-                  tr("Factor by which the ground residual vectors are drawn longer than they are."), advanced=True)
+                     "says so (the flags may then be incomplete)."))
+        self.addParameter(on_singular())
         # the adjusted scene: corrections, parameters with sigmas, settings; optional (SCENES writes OUTPUT_FOLDER)
         self.addParameter(output_scene(optional=True))
         self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, tr("Report (HTML)"),
@@ -235,14 +178,16 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_RPC, tr("Refined RPC (RPC scenes)"),
                                                                  fileFilter="RPC text (*_RPC.TXT)", optional=True),
                            tr("Optional, for a SCENE given by its RPC: the RPC with the adjusted correction in it, "
-                              "as <image>_RPC.TXT, which GDAL and QGIS read for <image>.tif beside it. A correction "
-                              "of each coordinate by itself (a shift, or an affine one without cross terms a2, b1) is "
-                              "folded exactly into the RPC's numerators; one mixing rows and columns (drift, affine) "
-                              "is refitted to the adjusted scene (about "
-                              "1e-5 px)."))
+                              "as <image>_RPC.TXT, which GDAL and QGIS read for <image>.tif beside it (a correction "
+                              "mixing rows and columns refitted, about 1e-5 px)."))
         self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, tr("Report (JSON)")))
-        self._add_line_parameters()
+        self._add_line_output()
+        self.add_parameter(QgsProcessingParameterNumber(self.RESIDUAL_SCALE, tr("Residual vector exaggeration"),
+                                               QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0,
+                                               maxValue=1e6),
+                  tr("Factor by which the ground residual vectors are drawn longer than they are."))
         add_block_parameters(self)
+        self.show_only(SCENE, SCENES, self.GCPS, self.TIE_POINTS, self.LINES, self.INTERIOR)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         if block_given(self, parameters, context):
@@ -327,17 +272,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         return {**{name: path or None for name, path in outputs.items()}, self.OUTPUT_REPORT_JSON: report_json or None}
 
     # --- control lines ---------------------------------------------------------------------
-    def _add_line_parameters(self) -> None:
-        self.add_parameter(QgsProcessingParameterVectorLayer(self.LINES, tr("Control lines (GeoPackage)"),
-                                                             [QgsProcessing.TypeVectorLine], optional=True),
-                           tr("The control lines written by 'Import control lines' (pushbroom:importlines): "
-                              "ground lines and the image lines paired to them (Tommaselli & Marcato Junior 2012). "
-                              "Each image-line point constrains its ground point to its line across it and in "
-                              "height; lines that do not fit as a whole are named and released. With SCENES (a block "
-                              "of several scenes) the layer image_lines has a text field 'scene' naming the scene "
-                              "each image line was measured in (as SCENES names it: its file's stem; the line "
-                              "digitising dock writes it when its Scene field is set); the ground lines are shared "
-                              "by all scenes. Control lines need rigorous scene models: not with RPC products."))
+    def _add_line_output(self) -> None:
         out = QgsProcessingParameterVectorDestination(self.OUTPUT_LINE_RESIDUALS, tr("Line residuals"),
                                                       QgsProcessing.TypeVectorPoint, optional=True,
                                                       createByDefault=False)
@@ -385,11 +320,9 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         out = QgsProcessingParameterVectorDestination(self.OUTPUT_TIE_POINTS, tr("Adjusted tie points"),
                                                       QgsProcessing.TypeVectorPoint, optional=True)
         out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(out, tr("Optional, with TIE_POINTS. GeoPackage point layer (EPSG:4979), one feature per "
-                                   "tie observation at its point's adjusted ground position (empty geometry for "
-                                   "points left out): id, camera, col, row, res_col, res_row, res_px (px, predicted "
-                                   "- measured), w_col, w_row (normalised residuals), weight (final robust weight "
-                                   "factor), flagged (1 = gross error, drawn red)."))
+        self.add_parameter(out, tr("Optional, with TIE_POINTS. Point layer (EPSG:4979), one feature per tie "
+                                   "observation at its point's adjusted ground position: id, camera, col, row, "
+                                   "res_col, res_row, res_px (px), w_col, w_row, weight, flagged (1 = gross error)."))
 
     def _ties(self, parameters, context, scene, scene_path: str, feedback) -> tiepoints.TieTable | None:
         """The observations of TIE_POINTS (None when not given): a file layer read by

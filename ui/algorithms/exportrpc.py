@@ -23,22 +23,6 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
     ID = "exportrpc"
     NAME = "Export RPC"
     GROUP, GROUP_ID = "Products", "products"
-    HELP = ("Fits an RPC00B model (third-order rational polynomials, the form GDAL, QGIS and most "
-            "photogrammetric software read) to one camera of the scene's rigorous sensor model, over the whole "
-            "image and the terrain's height range, and checks it on an independent grid (other image positions, "
-            "other heights, both ends of the height range). The fit error is logged and written as JSON, overall, "
-            "per CCD chip and at the height-range ends. On single-chip cameras it is a few hundred-thousandths "
-            "of a pixel. A camera of several separately aligned (staggered) CCDs steps at the chip seams, which "
-            "one smooth RPC cannot follow: the per-CCD and seam figures show how large that is. "
-            "GDAL finds the RPC of an image <name>.<ext> in the file <name>_RPC.TXT or <name>.RPB in the same "
-            "folder (so name OUTPUT after the image, in the image's folder, if you want that), or in a GeoTIFF's "
-            "RPC tag or a VRT's RPC metadata. With IMAGE, a small VRT beside OUTPUT shows the image with the RPC; "
-            "the image itself is never modified. In QGIS, use it with Raster > Projections > Warp (Reproject) "
-            "with the transformer option RPC (optionally RPC_DEM=<dem>), or gdalwarp -rpc; RPC heights are "
-            "ellipsoidal, so a sea-level DEM must declare its vertical CRS (e.g. EPSG:4326+5773) for GDAL to "
-            "convert it. "
-            "Image coordinates follow GDAL: (0, 0) is the upper-left corner of the first pixel; in the RPC "
-            "file, sample = col - 0.5 and line = row - 0.5 as GDAL's RPC transformer expects.")
     HEIGHT_SPAN, GRID, HEIGHT_LEVELS, REGULARISATION = "HEIGHT_SPAN", "GRID", "HEIGHT_LEVELS", "REGULARISATION"
     IMAGE, OUTPUT = "IMAGE", "OUTPUT"
     REPORT, IMAGE_WITH_RPC, RMS_PX, MAX_PX = "REPORT", "IMAGE_WITH_RPC", "RMS_PX", "MAX_PX"
@@ -72,10 +56,9 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
             advanced=True)
         self.add_parameter(
             RasterInput(self.IMAGE, tr("Image of this camera (optional)"), optional=True),
-            tr("The raw image the scene's camera took (same size as the camera's image). When given, a VRT "
-               "named after OUTPUT (e.g. scene_RPC.TXT -> scene.vrt) is written beside OUTPUT: it shows the "
-               "image unchanged, with the RPC in its metadata, so GDAL and QGIS can orthorectify it. The image "
-               "file itself is never modified."))
+            tr("The raw image of the scene's camera (same size). When given, a VRT named after OUTPUT (e.g. "
+               "scene_RPC.TXT -> scene.vrt) is written beside OUTPUT: the image unchanged with the RPC in its "
+               "metadata, for GDAL and QGIS. The image file is never modified."))
         self.add_parameter(
             QgsProcessingParameterFileDestination(self.OUTPUT, tr("RPC file"), "RPC text (*_RPC.TXT);;RPB (*.RPB)",
                                                   defaultValue=None),
@@ -174,7 +157,7 @@ def sensor_corrected_hint(report: dict) -> str | None:
     if len(report["check"]["chips"]) < 2 or not seams or seams["max_px"] <= SUB_PIXEL:
         return None
     return (f"camera {report['camera']}: this RPC misses the rigorous model by up to {seams['max_px']:.2f} px at the "
-            f"CCD seams (RMS {seams['rms_px']:.2f} px), which no RPC of the raw image can avoid. For an image with "
-            "a sub-pixel RPC, make the sensor-corrected product with pushbroom:sensorcorrect: the chips resampled "
-            "through the adjusted model onto one straight virtual detector line, which one RPC describes to "
-            "hundredths of a pixel; export the RPC of that product (its own SCENE) instead")
+            f"CCD seams (RMS {seams['rms_px']:.2f} px), which no RPC of the raw image can avoid. For a sub-pixel "
+            "RPC, make the sensor-corrected product with pushbroom:sensorcorrect (the chips resampled onto one "
+            "straight virtual detector line, which one RPC fits to hundredths of a pixel) "
+            "and export the RPC of that product (its own SCENE) instead")

@@ -16,10 +16,6 @@ class FootprintAlgorithm(PushbroomAlgorithm):
     ID = "footprint"
     NAME = "Scene footprint"
     GROUP, GROUP_ID = "Products", "products"
-    HELP = ("Traces the border of each camera's image on the terrain (a DEM, or a constant height) with the "
-            "scene's rigorous sensor model: one polygon per camera in WGS84 (EPSG:4326), densely sampled "
-            "along every edge and on both sides of each CCD boundary, so that the outline stays correct "
-            "for long strips, curved edges and staggered CCDs.")
     SAMPLES, OUTPUT = "SAMPLES", "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)

@@ -18,11 +18,6 @@ from .base import PushbroomAlgorithm
 class GroundToImageAlgorithm(PushbroomAlgorithm):
     ID = "groundtoimage"
     NAME = "Ground to image"
-    HELP = ("Projects ground points into a scene with its rigorous sensor model and adds their image "
-            "coordinates: fields <b>col</b>, <b>row</b> (GDAL convention: (0, 0) is the upper-left corner "
-            "of the upper-left pixel, pixel centres at half-integers) and <b>in_image</b> (1 when the point "
-            "falls inside the image). Points outside the image are kept, flagged and counted in a warning. "
-            "When the input already has fields named col/row, the new ones are named col_2/row_2.")
     INPUT, USE_Z, Z_DATUM, OUTPUT = "INPUT", "USE_Z", Z_DATUM, "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)

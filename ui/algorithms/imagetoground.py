@@ -23,11 +23,6 @@ OUTPUT_CRS = "EPSG:4979"  # WGS84 longitude, latitude (deg) and ellipsoidal heig
 class ImageToGroundAlgorithm(PushbroomAlgorithm):
     ID = "imagetoground"
     NAME = "Image to ground"
-    HELP = ("Intersects the lines of sight of image points with the terrain (a DEM, or a constant height) "
-            "using the scene's rigorous sensor model. Image coordinates follow GDAL: (0, 0) is the upper-left "
-            "corner of the upper-left pixel, pixel centres at half-integers. The output points are in "
-            "EPSG:4979 (WGS84 longitude/latitude with ellipsoidal Z) and carry the input attributes plus "
-            "lon, lat, h_ellipsoid.")
     INPUT, COL_FIELD, ROW_FIELD, OUTPUT = "INPUT", COL_FIELD, ROW_FIELD, "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)

@@ -25,22 +25,6 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
     ID = "importgcps"
     NAME = "Import ground control points"
     GROUP, GROUP_ID = "Control", "control"
-    HELP = ("Reads ground control points (image col/row + ground coordinates) from a CSV file, a QGIS "
-            "Georeferencer <i>.points</i> file or a point layer, converts the ground coordinates to WGS84 and "
-            "the heights to ellipsoidal, and checks every point against the scene's sensor model: the "
-            "a-priori residual is the model's projection of the ground point minus the measured image "
-            "position (px, and metres on the ground). Points outside the image are kept and flagged "
-            "(inside = 0), never dropped. Image coordinates follow GDAL: (0, 0) is the upper-left corner "
-            "of the upper-left pixel. In .points files the pixel y is negative downwards (QGIS shows raw "
-            "images so) and is converted; disabled .points entries become check points. The output is a "
-            "GeoPackage point layer in EPSG:4979 (lon, lat, ellipsoidal height) with fields id, role, "
-            "camera, col, row, h, sigma_px, sigma_xy, sigma_z, res_col, res_row, res_px, res_m, inside. "
-            "CHECK_FRACTION's check points are chosen deterministically, spread along the image; points already "
-            "'check' count. A block of scenes (SCENES instead of SCENE, e.g. the gcps.csv of "
-            "pushbroom:simulateblock): every row names the scene it was measured in (SCENE_FIELD, by default the "
-            "column 'scene') and is checked against that scene alone; one id may then be measured by cameras of one "
-            "name in several scenes (camera P of two Pleiades products), and the layer keeps the field 'scene' "
-            "that pushbroom:bundleadjust reads with SCENES.")
     CAMERA = CAMERA
     INPUT_FILE, INPUT = "INPUT_FILE", "INPUT"
     ID_FIELD, COL_FIELD, ROW_FIELD, X_FIELD, Y_FIELD = ID_FIELD, COL_FIELD, ROW_FIELD, "X_FIELD", "Y_FIELD"
@@ -59,10 +43,9 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterFile(self.INPUT_FILE, tr("GCP file (CSV or QGIS .points)"),
                                                       optional=True,
                                                       fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"),
-                  tr("Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas accepted "
-                     "with ; TAB |), or a QGIS Georeferencer .points file. The columns id, role and camera are read "
-                     "under these names unless ID_FIELD, ROLE_FIELD or CAMERA_FIELD name others, so the simulator's "
-                     "gcps.csv needs no field parameter for them. Give this or INPUT, not both."))
+                  tr("Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas with ; "
+                     "TAB |), or a QGIS Georeferencer .points file. The columns id, role and camera are read by "
+                     "these names unless ID_FIELD, ROLE_FIELD or CAMERA_FIELD name others. Give this or INPUT."))
         self.add_parameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("GCP point layer"),
                                                                [QgsProcessing.TypeVectorPoint], optional=True),
                   tr("Point layer whose geometry is the ground position (its own CRS) and whose fields hold the "
@@ -107,6 +90,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         out.setSupportsNonFileBasedOutput(False)
         self.add_parameter(out, tr("GeoPackage (.gpkg) point layer of the checked GCPs, styled so points with a "
                   "large a-priori residual (relative to the median) and points outside the image stand out."))
+        self.show_only("SCENE", "SCENES", "INPUT_FILE", "INPUT", "GROUND_CRS", "HEIGHT_SOURCE", "DEM", "HEIGHT")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         dest = geopackage_output(self, parameters, context, self.OUTPUT, "gcps.gpkg", "GCP layers")

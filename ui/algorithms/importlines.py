@@ -21,16 +21,6 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
     ID = "importlines"
     NAME = "Import control lines"
     GROUP, GROUP_ID = "Control", "control"
-    HELP = ("Control lines (Tommaselli & Marcato Junior 2012): ground lines (roads, canals, field boundaries) from "
-            "any line layer, paired by id with the image lines digitised on the raw image (the image_lines layer "
-            "of 'Prepare digitising' and the digitising dock: x = column, y = -row). Both are checked against "
-            "the scene: refused with their ids are a layer without CRS, lines with fewer than two vertices, "
-            "zero-length or self-intersecting lines, image lines whose id pairs no ground line, image lines "
-            "outside the image and paired ground lines outside the scene; ground lines no image line shows are "
-            "kept (a road map covers more). The output GeoPackage holds the layers ground_lines (EPSG:4979, with "
-            "heights, sigmas, outside = 1 for lines outside the scene, a-priori across-line RMS and max in m) "
-            "and image_lines (with the a-priori across-line offsets through the scene's onboard model, m), "
-            "which 'Bundle adjustment' reads as LINES.")
     INPUT, IMAGE_LINES, OUTPUT = "INPUT", "IMAGE_LINES", "OUTPUT"
     ID_FIELD, IMAGE_ID_FIELD = "LINE_ID_FIELD", "IMAGE_ID_FIELD"
     SIGMA_ACROSS, SIGMA_H = "SIGMA_ACROSS", "SIGMA_H"
@@ -60,6 +50,7 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Control lines"), QgsProcessing.TypeVectorLine)
         out.setSupportsNonFileBasedOutput(False)
         self.add_parameter(out, tr("GeoPackage (.gpkg) with the layers ground_lines and image_lines."))
+        self.show_only("SCENE", "INPUT", "IMAGE_LINES", "HEIGHT_SOURCE", "DEM", "HEIGHT", "SIGMA_ACROSS", "SIGMA_H")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         dest = geopackage_output(self, parameters, context, self.OUTPUT, "control_lines.gpkg", "control lines")

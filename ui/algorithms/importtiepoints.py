@@ -19,17 +19,6 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
     ID = "importtiepoints"
     NAME = "Import tie points"
     GROUP, GROUP_ID = "Control", "control"
-    HELP = ("Reads tie points — image positions (col, row) of ground points whose coordinates are unknown, one row "
-            "per point and camera — from a CSV file or a layer, checks them against the scene and intersects "
-            "every point seen in two or more cameras with the scene's (onboard) model. Refused: a camera the "
-            "scene lacks, the same point twice in one camera, observations outside their camera's image, all "
-            "points in one image corner or on a line. Kept with a warning: points seen in one camera only (not "
-            "intersected; the adjustment leaves them out) and points whose a-priori intersection residual is "
-            "implausible (more than 3 x the median point's and 5 px: likely mismatched). Image coordinates "
-            "follow GDAL: (0, 0) is the upper-left corner of the upper-left pixel. The output is a GeoPackage "
-            "point layer 'tie_points' in EPSG:4979, one feature per observation, located at its point's "
-            "onboard intersection (empty geometry where there is none), with fields id, camera, col, row, "
-            "sigma_px, scene, rays, res_col, res_row, res_px (a-priori intersection residuals, px).")
     INPUT_FILE, INPUT, OUTPUT = "INPUT_FILE", "INPUT", "OUTPUT"
     ID_FIELD, CAMERA_FIELD, COL_FIELD, ROW_FIELD = ID_FIELD, CAMERA_FIELD, COL_FIELD, ROW_FIELD
     SCENE_FIELD, SIGMA_PX, SIGMA_PX_FIELD = SCENE_FIELD, SIGMA_PX, SIGMA_FIELDS["sigma_px"]
@@ -39,10 +28,8 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         self.add_parameter(QgsProcessingParameterFile(self.INPUT_FILE, tr("Tie-point file (CSV)"), optional=True,
                                                       fileFilter="Tie-point files (*.csv *.txt);;All files (*)"),
                            tr("Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas "
-                              "accepted with ; TAB |), one row per point and camera; other columns are ignored. The "
-                              "columns id, camera, col and row are read under these names unless ID_FIELD, "
-                              "CAMERA_FIELD, COL_FIELD or ROW_FIELD name others, so the simulator's tie_points.csv "
-                              "needs no field parameter. Give this or INPUT, not both."))
+                              "with ; TAB |), one row per point and camera. The columns id, camera, col and row are "
+                              "read by these names unless the *_FIELD parameters name others. Give this or INPUT."))
         self.add_parameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("Tie-point layer or table"),
                                                                [QgsProcessing.TypeVector], optional=True),
                            tr("A layer or table whose fields hold the observations (its geometry, if any, is "
@@ -58,6 +45,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         out.setSupportsNonFileBasedOutput(False)
         self.add_parameter(out, tr("GeoPackage (.gpkg) point layer of the checked observations, styled by the number "
                                    "of cameras seeing each point, with likely mismatches standing out."))
+        self.show_only("SCENE", "INPUT_FILE", "INPUT", "SIGMA_PX")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         dest = geopackage_output(self, parameters, context, self.OUTPUT, "tie_points.gpkg", "tie-point layers")

@@ -17,22 +17,6 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
     ID = "matchgcps"
     NAME = "Match ground control points"
     GROUP, GROUP_ID = "Control", "control"
-    HELP = ("Finds ground control points without a click, as Zheng et al. 2015 did for CBERS-02B: a grid of points "
-            "over the raw image is matched against a reference orthoimage (a national orthophoto, a Sentinel-2 "
-            "scene, an earlier adjusted product; any projected or geographic CRS and GSD) through the scene's model "
-            "and the DEM. "
-            "For each point the reference is resampled into the raw image's geometry (the onboard model maps each "
-            "pixel of the window to the DEM), correlated with the raw image (normalised cross-correlation by FFT) "
-            "and refined to sub-pixel. A coarse pass at low resolution first finds onboard errors of hundreds of "
-            "metres, up to SEARCH_RANGE. Weak matches are rejected and counted by reason (low texture, low "
-            "correlation: clouds, water, changed land cover; ambiguous peaks; windows leaving the image or the "
-            "reference or straddling a CCD seam; offsets that disagree with the neighbours'); what passes may "
-            "still hold a few gross errors, which the adjustment's robust estimation removes. Each GCP is the "
-            "ground point the onboard model sees at a grid point (lon, lat and the "
-            "DEM's ellipsoidal height) at the matched image position, with fields quality (the correlation "
-            "peak), peak_ratio (second peak / first) and sigma_px (from the correlation and the image "
-            "gradients, at least 0.08 px). The output is the GeoPackage layer pushbroom:importgcps writes, "
-            "read directly by pushbroom:bundleadjust (use robust estimation).")
     INPUT, REFERENCE, OUTPUT = "INPUT", "REFERENCE", "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
@@ -51,6 +35,7 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
         out.setSupportsNonFileBasedOutput(False)
         self.add_parameter(out, tr("GeoPackage (.gpkg) point layer of the matched GCPs in EPSG:4979 with the fields "
                                    "of pushbroom:importgcps plus quality and peak_ratio."))
+        self.show_only("INPUT", "SCENE", "CAMERA", "REFERENCE", "DEM", "HEIGHT", "SEARCH_RANGE", "CHECK_FRACTION")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         dest = geopackage_output(self, parameters, context, self.OUTPUT, "matched_gcps.gpkg", "GCP layers")

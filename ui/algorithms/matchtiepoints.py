@@ -19,27 +19,6 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
     ID = "matchtiepoints"
     NAME = "Match tie points"
     GROUP, GROUP_ID = "Control", "control"
-    HELP = ("Finds tie points between the cameras of a scene without a click, as the three-line blocks of "
-            "Zhang et al. 2015 (TH-1) and Zhang et al. 2024 (ZY-3) rest on: a grid of points over the first "
-            "camera's raw image (the nadir line of a three-line camera) is matched in every other camera's raw "
-            "image. The images are compared in a common ground geometry, so the cameras' different view angles "
-            "(+-22 to 25 degrees) do not defeat the correlation: for each grid point, a window of the other "
-            "camera's image is resampled into the first camera's geometry through the scene's (onboard) model on "
-            "the DEM, correlated with the first image (normalised cross-correlation by FFT, a coarse pass first "
-            "for disagreements up to SEARCH_RANGE) and refined to sub-pixel; the match is mapped back into the "
-            "other camera's image. A grid point matched in k other cameras is one tie point observed k + 1 times, "
-            "so the points seen in all three cameras tie every camera pair. A strip of several scenes in one "
-            "image per camera (as the simulator writes) is matched the same way. Weak matches are rejected and "
-            "counted by camera and reason (low texture, low correlation, ambiguous peak, window leaving an "
-            "image); what passes may hold a few mismatches, which the adjustment's robust estimation removes. "
-            "The output is the tie-point layer pushbroom:importtiepoints writes (checked against the scene and "
-            "intersected with its model, likely mismatches flagged), with sigma_px from the correlation and "
-            "the image gradients (at least 0.08 px); pushbroom:bundleadjust reads it as TIE_POINTS. Between "
-            "scenes: SCENES (two or more, e.g. the SCENES output of pushbroom:simulateblock) instead of SCENE, and "
-            "INPUTS one raw image per scene in the same order (each taken as its scene's camera of that size; a "
-            "product with several cameras of one size is refused); the first image's grid is matched in every "
-            "other through each scene's own model, the field 'scene' names each observation's scene, and the "
-            "checks against one scene (and the a-priori intersection) are left out.")
     OUTPUT = "OUTPUT"
     SCENE_OR_SCENES = ("match tie points between the cameras of one scene",
                        "match tie points between the images of several scenes")
@@ -56,6 +35,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
         self.add_parameter(out, tr("GeoPackage (.gpkg) point layer 'tie_points' in EPSG:4979, one feature per "
                                    "observation, with the fields of pushbroom:importtiepoints, styled by the "
                                    "number of cameras seeing each point."))
+        self.show_only("SCENE", "SCENES", "INPUTS", "DEM", "HEIGHT", "SPACING", "SEARCH_RANGE")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         dest = geopackage_output(self, parameters, context, self.OUTPUT, "matched_tie_points.gpkg", "tie-point layers")

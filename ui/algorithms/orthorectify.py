@@ -31,24 +31,6 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
     ID = "orthorectify"
     NAME = "Orthorectify"
     GROUP, GROUP_ID = "Products", "products"
-    HELP = ("Resamples a raw pushbroom image onto a north-up map grid with the scene's rigorous model (onboard "
-            "or adjusted) and a DEM. Every output pixel's image position is computed exactly on a coarse grid "
-            "and densified within 0.01 px of the exact model, on any DEM: checked at every cell of the grid, "
-            "the relief of a DSM's steps between the nodes corrected pixel by pixel, cells along the seams of "
-            "staggered CCD arrays and cells failing the check mapped exactly; the log states the figure met. "
-            "Works in tiles on all cores with bounded memory "
-            "(raw images over 1 GiB are read window by window); "
-            "writes a tiled, DEFLATE-compressed GeoTIFF with overviews and nodata, completely or not at all. "
-            "With a DEM that covers only part of the scene, or with nodata holes, give an EXTENT inside it: "
-            "pixels without a height are nodata and a warning counts the output pixels of the image's footprint "
-            "with no height (off the DEM, on its holes). "
-            "With ALL_CAMERAS, every camera of the scene (e.g. the forward, nadir and backward lines of a "
-            "three-line camera) is orthorectified in one run from INPUTS (one raw image per camera, in the scene's "
-            "camera order) into ORTHO_FOLDER as ortho_<CAMERA>.tif; a strip of several scenes in one image per "
-            "camera (as the simulator writes, info.n_scenes) gives one orthoimage per camera and scene, "
-            "ortho_<CAMERA>_s<k>.tif (k = 1, 2, ... along the pass), each on its own grid. All of them are "
-            "written, or none. SCHEDULER (advanced) sends the tiles to a Dask distributed cluster instead of this "
-            "machine's threads: the same bytes.")
     INPUT, CRS_PARAM, RESOLUTION, RESAMPLING_PARAM, NODATA, EXTENT, OUTPUT = \
         "INPUT", "CRS", "RESOLUTION", RESAMPLING, "NODATA", "EXTENT", "OUTPUT"
     ALL_CAMERAS, INPUTS, ORTHO_FOLDER, ORTHOIMAGES, SCHEDULER = \
@@ -88,11 +70,11 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                      "to, ortho_<CAMERA>.tif or, for a strip, ortho_<CAMERA>_s<k>.tif; files of those names there "
                      "are replaced."))
         self.add_parameter(QgsProcessingParameterString(self.SCHEDULER, tr("Dask scheduler address"), optional=True),
-                  tr("Empty (default): the tiles run on this machine's cores (threads). An address such as "
-                     "tcp://host:8786: the tiles run as jobs on that Dask distributed cluster, whose workers must "
-                     "import this plugin and reach the input and output files at the same paths; each writes its "
-                     "tile beside the output and the tiles are assembled here into the same bytes."), advanced=True)
+                  tr("Empty (default): the tiles run on this machine's cores. An address such as tcp://host:8786: "
+                     "on that Dask distributed cluster, whose workers import this plugin and reach the files at "
+                     "the same paths; the output is the same bytes (docs page)."), advanced=True)
         self.addOutput(QgsProcessingOutputMultipleLayers(self.ORTHOIMAGES, tr("Orthoimages (ALL_CAMERAS)")))
+        self.show_only(self.INPUT, "ALL_CAMERAS", "INPUTS", "SCENE", "CAMERA", "DEM", "HEIGHT", self.CRS_PARAM)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         if self.parameterAsBool(parameters, self.ALL_CAMERAS, context):

@@ -15,12 +15,6 @@ class PrepareDigitisingAlgorithm(PushbroomAlgorithm):
     ID = "preparedigitising"
     NAME = "Prepare digitising control lines"
     GROUP, GROUP_ID = "Control", "control"
-    HELP = ("Makes a raw image ready for digitising control lines on it. QGIS warps a raw image that carries RPC "
-            "or GCP metadata to the ground on display, and draws one without any in an unnamed frame; the "
-            "display copy (a small VRT referencing the raw image, nothing copied) shows it in the pixel frame "
-            "'Pushbroom image pixels': x = column, y = -row. Digitise there with the dock 'Digitise control "
-            "lines on the raw image' (Plugins menu, Pushbroom Adjust), or with QGIS's own editing tools in the "
-            "empty image-line layer. The input image is only read.")
     INPUT, OUTPUT, OUTPUT_LINES = "INPUT", "OUTPUT", "OUTPUT_LINES"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)

@@ -17,17 +17,6 @@ class SimulateBlockAlgorithm(PushbroomAlgorithm):
     ID = "simulateblock"
     NAME = "Simulate a block of scenes"
     GROUP, GROUP_ID = "Simulation", "simulation"
-    HELP = ("Simulates a block of several independent scenes of one ground, as real projects hold them: a "
-            "tri-stereo or a stereo pair of one pass, scenes of two dates, strips of neighbouring orbits, or a "
-            "tri-stereo with a scene of another date delivered as an RPC product. Each scene is acquired by the "
-            "preset's first camera with its own view, its own onboard errors (drawn independently) and, for "
-            "another date, its own radiometry and changed land cover; every scene images the same terrain and, "
-            "rendered, the same ground texture, so tie points can be matched between the scenes. Written to the "
-            "output folder: one folder per scene (onboard_scene.json, true_scene.json, the raw image when "
-            "rendered, <name>_RPC.TXT for an RPC product), the shared DEM (EGM96 geoid heights), gcps.csv and "
-            "tie_points.csv with a scene column (one row per scene and camera an observation was measured in; "
-            "true ground columns for checks), reference.tif (a reference orthoimage of the first scene's ground, "
-            "when rendered) and block.json with every drawn error.")
     LAYOUT, SEED, N_GCPS, N_TIE_POINTS, IMAGE_NOISE, RENDER, IMAGE_SIZE = \
         "LAYOUT", SEED, N_GCPS, N_TIE_POINTS, IMAGE_NOISE, RENDER, IMAGE_SIZE
     OUTPUT_FOLDER = "OUTPUT_FOLDER"

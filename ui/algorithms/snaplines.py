@@ -18,14 +18,6 @@ class SnapLinesAlgorithm(PushbroomAlgorithm):
     ID = "snaplines"
     NAME = "Snap image lines to the image"
     GROUP, GROUP_ID = "Control", "control"
-    HELP = ("Refines image lines digitised on the raw image (clicks a few pixels off) to the image feature they "
-            "show: the centre of a road-like band or an edge. For every vertex, profiles across the line within "
-            "REACH px of it are sampled over ±SEARCH px; the feature's sub-pixel position on each and a straight "
-            "line through them give the vertex's refined position across the line and its own sigma (M value of "
-            "the output; never below 0.1 px). A vertex where too few profiles find the feature, or where they "
-            "disagree by more than MAX_SIGMA px (a junction, a CCD seam, texture), keeps its position and sigma; "
-            "the log counts both and why. Vertices only move across the line: the along-line position of a line "
-            "point is free in the adjustment anyway. The inputs are only read.")
     INPUT, IMAGE_LINES, OUTPUT, MODE, POLARITY = "INPUT", "IMAGE_LINES", "OUTPUT", "MODE", "POLARITY"
     WIDTH, SEARCH, REACH, MAX_SIGMA = "WIDTH", "SEARCH", "REACH", "MAX_SIGMA"
 
