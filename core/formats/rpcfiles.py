@@ -23,7 +23,7 @@ from ..errors import InputError, MetadataError
 from ..files import OutputSet, check_closed, closing_errors, output_set, write_text
 from ..model.rpc import RpcModel
 from ..validation import rpc_value_problem
-from ..model.rpcscene import RpcCamera, RpcScene, check_image_size, size_from_rpc
+from ..model.rpcscene import RpcCamera, RpcScene, check_image_domain, size_from_rpc
 from .dimap import read_dimap_rfm
 
 gdal.UseExceptions()
@@ -140,7 +140,7 @@ def read_rpc_text(path: Path) -> RpcScene:
         cols, rows = size_from_rpc(rpc)
         warnings.append(f"no image beside {path.name}: its size {cols} x {rows} px is taken from the RPC's "
                         "sample/line range")
-    check_image_size(rpc, cols, rows, str(image or path))
+    check_image_domain(rpc, cols, rows, str(image or path))
     info = {"source": str(path), "image": str(image) if image else None, "warnings": warnings}
     return RpcScene(rpc, RpcCamera(stem or "image", cols, rows), info=info)
 
@@ -164,7 +164,7 @@ def read_rpc_image(path: Path) -> RpcScene | None:
     if not md:
         return None
     rpc = rpc_from_metadata(md, f"{path} (RPC metadata)")
-    check_image_size(rpc, ds.RasterXSize, ds.RasterYSize, str(path))
+    check_image_domain(rpc, ds.RasterXSize, ds.RasterYSize, str(path))
     info = {"source": str(path), "image": str(path), "warnings": []}
     return RpcScene(rpc, RpcCamera(path.stem, ds.RasterXSize, ds.RasterYSize), info=info)
 
@@ -178,7 +178,7 @@ def read_dimap_rpc(path: Path, root) -> RpcScene:
         cols, rows = int(domain.findtext("LAST_COL")), int(domain.findtext("LAST_ROW"))
     except (AttributeError, TypeError, ValueError):
         cols, rows = size_from_rpc(rpc)
-    check_image_size(rpc, cols, rows, str(path))
+    check_image_domain(rpc, cols, rows, str(path))
     return RpcScene(rpc, RpcCamera(path.stem, cols, rows), info={"source": str(path), "warnings": []})
 
 

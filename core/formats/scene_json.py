@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import MetadataError, PushbroomError
 from ..files import OutputSet, write_text
 from ..model.camera import Camera
-from ..model.rpcscene import MODEL, RpcCamera, RpcScene, check_image_size
+from ..model.rpcscene import MODEL, RpcCamera, RpcScene, check_image_domain
 from ..model.sensor import SceneModel
 from ..model.trajectory import Platform
 from .rpcfiles import RPC_COEFFS, RPC_KEYS, rpc_from_metadata, rpc_metadata
@@ -91,7 +91,7 @@ def rpc_scene_from_dict(d: dict, source: str) -> RpcScene:
     correction = np.array([d.get("correction", {}).get("col", [0, 0, 0]),
                            d.get("correction", {}).get("row", [0, 0, 0])], dtype=float)
     scene = RpcScene(rpc, camera, correction, dict(d.get("info", {})))
-    check_image_size(rpc, camera.cols, camera.rows, source)
+    check_image_domain(rpc, camera.cols, camera.rows, source)
     return scene
 
 

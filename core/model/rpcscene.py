@@ -34,9 +34,14 @@ from .sensor import as_points
 log = logging.getLogger(__name__)
 
 MODEL = "rpc"
-# The image may extend past the RPC's line/sample range by this share of the range's half-width
-# (vendors round the scales): beyond it, the image is not the one the RPC describes.
-SIZE_MARGIN = 0.1
+# An image is its RPC's image when its border, at the bottom, middle and top of the RPC's height range, maps
+# onto the ground within the RPC's validity (latitude and longitude offset +- scale) widened by this share of
+# the scales. Real products' corners at their height range reach 1.00 to 1.08 of the scales (WorldView-3
+# the widest); an image twice the size of the one its RPC describes reaches 3 and more.
+DOMAIN_MARGIN = 0.25
+# ...and the RPC maps that ground back onto the image points to this (px): an RPC that cannot be inverted
+# over the image (a vanishing denominator, a fold) is no camera of it.
+ROUND_TRIP_PX = 0.01
 # Normalised ground coordinates beyond which the cubic ratios are extrapolated too far to mean
 # anything (|x| <= 1 is the fitted domain): no image position there.
 MAX_NORMALISED = 2.0
@@ -221,18 +226,57 @@ class RpcScene:
 
 
 # --- the image an RPC describes --------------------------------------------------------------
-def check_image_size(rpc: RpcModel, cols: int, rows: int, source: str) -> None:
-    """MetadataError when an image of cols x rows px reaches past the RPC's sample/line range
-    (by more than SIZE_MARGIN of its half-width): the RPC describes another image (a crop of an
-    image, with its offsets moved, lies inside the range and is accepted)."""
-    for what, n, off, scale in (("columns", cols, rpc.samp_off, rpc.samp_scale),
-                                ("rows", rows, rpc.line_off, rpc.line_scale)):
-        centre, half = off - rpc.origin + 0.5, abs(scale)
-        slack = SIZE_MARGIN * half + 1.0
-        if n <= 0 or n > centre + half + 0.5 + slack or centre - half - 0.5 > slack:
-            raise MetadataError(f"{source}: the image has {n} {what} but its RPC covers {what} "
-                                f"{round(centre - half - 0.5)} to {round(centre + half + 0.5)}: is it the image this "
-                                "RPC belongs to?")
+def image_border(cols: int, rows: int) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """The names and GDAL (col (9,), row (9,)) of an image's four corners, the middles of its four edges
+    and its centre."""
+    names = ["upper-left corner", "upper-right corner", "lower-left corner", "lower-right corner",
+             "top edge's middle", "bottom edge's middle", "left edge's middle", "right edge's middle", "centre"]
+    col = np.array([0, cols, 0, cols, cols / 2, cols / 2, 0, cols, cols / 2], dtype=float)
+    row = np.array([0, 0, rows, rows, 0, rows, rows / 2, rows / 2, rows / 2], dtype=float)
+    return names, col, row
+
+
+def check_image_domain(rpc: RpcModel, cols: int, rows: int, source: str) -> None:
+    """MetadataError naming ``source`` when an image of cols x rows px cannot be the one the RPC describes.
+
+    Checked is the RPC's domain, not its offsets (a crop may keep the full product's LINE_OFF/SAMP_OFF with
+    its origin folded into the numerators, or have them moved; both are accepted): the image's corners, edge
+    middles and centre, at the bottom, middle and top of the RPC's height range, must map onto the ground
+    within the RPC's latitude/longitude validity (offset +- scale, widened by DOMAIN_MARGIN of the scale),
+    and that ground back onto the same image points (within ROUND_TRIP_PX). The message names the first
+    point that fails, where it landed and the validity box."""
+    if cols <= 0 or rows <= 0:
+        raise MetadataError(f"{source}: the image has {cols} x {rows} px; an image has at least one pixel")
+    names, col, row = image_border(cols, rows)
+    lo, hi = rpc.height_off - abs(rpc.height_scale), rpc.height_off + abs(rpc.height_scale)
+    h = np.repeat([lo, rpc.height_off, hi], col.size)
+    col, row = np.tile(col, 3), np.tile(row, 3)
+    with np.errstate(all="ignore"):
+        lon, lat = rpc.image_to_ground(col, row, h, converged_only=True)
+        back_col, back_row = rpc.ground_to_image(lon, lat, h)
+        reach = np.maximum(np.abs((lon - rpc.lon_off) / rpc.lon_scale), np.abs((lat - rpc.lat_off) / rpc.lat_scale))
+        miss = np.hypot(back_col - col, back_row - row)
+    lost = ~np.isfinite(reach) | ~np.isfinite(miss)
+    outside = ~lost & (reach > 1.0 + DOMAIN_MARGIN)
+    unclosed = ~lost & ~outside & (miss > ROUND_TRIP_PX)
+    bad = np.nonzero(lost | outside | unclosed)[0]
+    if bad.size == 0:
+        return
+    k = bad[0]
+    where = f"its {names[k % len(names)]} ({col[k]:g}, {row[k]:g}) at {h[k]:.0f} m"
+    if lost[k]:
+        what = "does not map onto the ground through the RPC (its inversion does not converge there)"
+    elif outside[k]:
+        what = (f"lands at latitude {lat[k]:.5f}, longitude {lon[k]:.5f}, {reach[k]:.2f} times the RPC's ground "
+                "scale from its centre")
+    else:
+        what = f"maps onto ground that the RPC maps back {miss[k]:.3g} px away (more than {ROUND_TRIP_PX} px)"
+    box = (f"latitude {rpc.lat_off - abs(rpc.lat_scale):.5f} to {rpc.lat_off + abs(rpc.lat_scale):.5f}, longitude "
+           f"{rpc.lon_off - abs(rpc.lon_scale):.5f} to {rpc.lon_off + abs(rpc.lon_scale):.5f}, heights {lo:.0f} to "
+           f"{hi:.0f} m")
+    raise MetadataError(f"{source}: the image ({cols} x {rows} px) cannot be the one its RPC describes: {where} "
+                        f"{what}; the RPC is valid over {box} (accepted up to {1.0 + DOMAIN_MARGIN:g} times its "
+                        "scales). Is it the image this RPC belongs to?")
 
 
 def size_from_rpc(rpc: RpcModel) -> tuple[int, int]:

@@ -1,7 +1,8 @@
 """Hostile RPC scenes (harness: hostile.py): broken RPC files, an image that is not the one its RPC
 describes, a DEM or height outside the RPC's height range. Each is refused with a message naming
 the file (and key) or parameter and what is wrong, inputs and output folder unchanged; a legitimate
-crop of an RPC image (offsets moved, as gdal_translate -srcwin writes them) is accepted."""
+crop of an RPC image (offsets moved, as gdal_translate -srcwin writes them) is accepted; so is a crop whose RPC
+keeps the full product's offsets (tests/unit/test_rpc_domain.py)."""
 from __future__ import annotations
 
 import json
@@ -77,8 +78,10 @@ def test_rpc_scene_json_with_a_zero_scale(good, tmp_path):
 def test_an_image_larger_than_its_rpc_range_is_refused(good, tmp_path):
     image = write_image(tmp_path / "big.tif", 2 * good["cols"], good["rows"], good["rpc"])
     assert_refused("pushbroom:footprint", {"SCENE": str(image), "HEIGHT": 575.0, "OUTPUT": str(tmp_path / "f.gpkg")},
-                   "big.tif", f"the image has {2 * good['cols']} columns but its RPC covers columns 0 to 2500",
-                   watch=[tmp_path])
+                   "big.tif", f"the image ({2 * good['cols']} x {good['rows']} px) cannot be the one its RPC describes",
+                   f"its upper-right corner ({2 * good['cols']}, 0) at 490 m lands at latitude 31.09642, longitude "
+                   "2.56768, 3.02 times", "valid over latitude 30.92313 to 31.11423, longitude 2.11840 to 2.34201",
+                   "Is it the image this RPC belongs to?", watch=[tmp_path])
 
 
 def test_an_image_of_another_size_given_to_orthorectify(good, tmp_path):

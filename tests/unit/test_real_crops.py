@@ -38,7 +38,6 @@ The module runs in about 20 s.
 from __future__ import annotations
 
 import logging
-import re
 import time
 
 import numpy as np
@@ -56,6 +55,7 @@ from pushbroom_adjust.core.measure.coregistration import coregister_files
 from pushbroom_adjust.core.measure.matching import MatchSettings
 from pushbroom_adjust.core.measure.tiematching import OUTSIDE_OTHER, View, match_block_tiepoints
 from pushbroom_adjust.core.products.ortho import common_grid, default_grid, orthorectify
+from tests.support.ossim_geom import read_geom
 
 gdal.UseExceptions()
 log = logging.getLogger(__name__)
@@ -90,19 +90,13 @@ def matched(gizeh, scenes):
     return table, rejected["img2/img2"], time.perf_counter() - start
 
 
-def _geom(path) -> dict:
-    """The OSSIM keyword list of a .geom file: {key: value text}."""
-    return dict(re.match(r"\s*([^:]+):\s*(.*)", line).groups() for line in path.read_text().splitlines()
-                if ":" in line)
-
-
 @pytest.mark.parametrize("name", NAMES)
 def test_the_rpc_files_are_the_vendor_geom_moved_to_the_crop(gizeh, name):
     """img*_RPC.TXT hold the numbers of the unchanged img*.geom (the full product's RPC, OSSIM's
     pixel-centre convention, the same as GDAL's RPC metadata), with LINE_OFF/SAMP_OFF moved by the crop's
     origin in the full product (the crop's geotransform). Read the same from the image (GDAL pairs the
     _RPC.TXT with it) and from the _RPC.TXT."""
-    geom = _geom(gizeh / f"{name}.geom")
+    geom = read_geom(gizeh / f"{name}.geom")
     ds = gdal.Open(str(gizeh / f"{name}.tif"))
     x0, _, _, y0, _, _ = ds.GetGeoTransform()
     assert (x0, y0) == {"img1": (20500, 5000), "img2": (20501, 5476)}[name]
