@@ -67,15 +67,23 @@ def fine_batch(px, py, col, row, shift_c, shift_r, ref, raw: RawImage, nodata, s
     centre = search[:, r:r + w, r:r + w]
     texture = np.minimum(centre.std(axis=(1, 2)), templates.std(axis=(1, 2)))
     p = nearest_peaks(ncc(templates, search, workers), r)
-    # the refinement from the peak: array positions of the template's centre in the raw block
-    fit = refine(templates, block, bx0, by0, scc + p.dx + (w - 1) / 2, src + p.dy + (w - 1) / 2)
-    mc, mr = fit.x + 0.5, fit.y + 0.5
-    backward = backward_disagrees(around, block, bx0, by0, col, row, mc, mr, w)
-    sigma = np.sqrt(0.5 * (fit.sigma ** 2).sum(axis=1))
-    failed = ~fit.converged & ~outside
+    peak_fails = reasons(outside, no_ref, texture, p, np.zeros_like(outside), np.zeros_like(outside), settings)
+    # the refinement from the peak (the chips whose peak passes its tests): array positions of the
+    # template's centre in the raw block; the others keep the peak's position
+    mc, mr = scc + p.dx + (w - 1) / 2 + 0.5, src + p.dy + (w - 1) / 2 + 0.5
+    sigma, gain = np.full(col.size, SIGMA_FLOOR), np.full(col.size, np.nan)
+    failed, backward = np.zeros_like(outside), np.zeros_like(outside)
+    go = np.nonzero(peak_fails < 0)[0]
+    if go.size:
+        fit = refine(templates[go], block, bx0, by0, mc[go] - 0.5, mr[go] - 0.5)
+        mc[go], mr[go], gain[go] = fit.x + 0.5, fit.y + 0.5, fit.gain
+        failed[go] = ~fit.converged
+        sigma[go] = np.sqrt(0.5 * (fit.sigma ** 2).sum(axis=1))
+        backward[go] = backward_disagrees(around[go], block, bx0, by0, col[go], row[go], mc[go], mr[go], w)
     return {"col": mc, "row": mr, "value": p.value, "ratio": p.ratio,
             "sigma": np.maximum(np.where(np.isfinite(sigma), sigma, SIGMA_FLOOR), SIGMA_FLOOR),
-            "gain": fit.gain, "reasons": reasons(outside, no_ref, texture, p, failed, backward, settings)}
+            "gain": gain, "reasons": np.where(peak_fails < 0, reasons(outside, no_ref, texture, p, failed, backward,
+                                                                      settings), peak_fails)}
 
 
 def nearest_peaks(c: np.ndarray, r: int) -> Peaks:

@@ -12,11 +12,12 @@ solved by Gauss-Newton from the correlation peak, vectorised over a batch of chi
 its gradients by central differences of the chip read one pixel wider, turned from template axes
 into image axes through (I + a). Gain and offset absorb what normalised cross-correlation is blind
 to but a plain least-squares fit is not (another date, sensor or exposure); the affine terms absorb
-what the rectification through the models leaves (a slope the DEM lacks tilts a window's parallax).
-A chip converges when its centre moves less than CONVERGED_PX; it fails (``converged`` False) when
-it moves farther than MAX_MOVE_PX from where it started (another place than the peak the
-correlation found), its affine terms reach MAX_AFFINE, its gain is not positive, or it has not
-converged after MAX_ITERATIONS.
+what the rectification through the models leaves (a slope the DEM lacks tilts a window's parallax),
+held by a prior (0 +- AFFINE_SIGMA) where the texture hardly fixes them.
+A chip converges when its centre moves less than CONVERGED_PX (or less than SETTLED_PX at the
+MAX_ITERATIONS-th step); it fails (``converged`` False) when it moves farther than MAX_MOVE_PX from
+where it started (another place than the peak the correlation found), its affine terms reach
+MAX_AFFINE, its gain is not positive, or it still moves after MAX_ITERATIONS.
 
 The precision of the centre is the fit's: sigma0^2 (N^-1)_xx with sigma0^2 = v'v / (w^2 - 8), the
 residuals' variance (both images' noise, and what the model leaves), in the image's pixels.
@@ -32,9 +33,12 @@ from .correlation import sample
 
 UNKNOWNS = 8            # x, y, a11, a12, a21, a22, r0, r1
 CONVERGED_PX = 0.01     # px: a step of the centre this small ends the iterations
-MAX_ITERATIONS = 20
+MAX_ITERATIONS = 8      # ... or this many, the centre then still moving by less than SETTLED_PX: converged too
+SETTLED_PX = 0.05       # (real images' fits, trees and relief in the window, wander by a few hundredths)
 MAX_MOVE_PX = 1.5       # px from the correlation peak: farther is another match than the peak's
 MAX_AFFINE = 0.3        # |a_ij|: a window sheared or scaled by 30 % is no rectified window
+AFFINE_SIGMA = 0.05     # the affine terms' prior sigma: what the rectification may leave (a steep slope's parallax)
+AFFINE = [2, 3, 4, 5]   # the affine terms' indices among the unknowns
 
 
 @dataclass
@@ -70,7 +74,7 @@ def refine(templates: np.ndarray, image: np.ndarray, x0: int, y0: int, x: np.nda
     normal = np.zeros((b, UNKNOWNS, UNKNOWNS))
     residual = np.zeros((b, w * w))
     first = True
-    for _ in range(MAX_ITERATIONS):
+    for it in range(MAX_ITERATIONS):
         idx = np.nonzero(active)[0]
         if idx.size == 0:
             break
@@ -101,16 +105,23 @@ def refine(templates: np.ndarray, image: np.ndarray, x0: int, y0: int, x: np.nda
         bad = ~np.isfinite(res).all(axis=1)
         jac[bad], res[bad] = 0.0, 0.0
         n = (jac @ jac.transpose(0, 2, 1)).astype(np.float64)
+        rhs = (jac @ res[..., None]).astype(np.float64)[..., 0]
+        # the affine terms' prior (0 +- AFFINE_SIGMA), weighed against the residuals' variance: it holds
+        # the terms smooth or flat texture hardly fixes, which would otherwise drift for many iterations
+        prior = (res.astype(np.float64) ** 2).mean(axis=1) / AFFINE_SIGMA ** 2
+        n[:, AFFINE, AFFINE] += prior[:, None]
+        rhs[:, AFFINE] -= prior[:, None] * q[:, AFFINE]
         # keeps flat chips (and those without data, all zero) solvable
         n += (1e-9 * np.trace(n, axis1=1, axis2=2) + 1e-9)[:, None, None] * np.eye(UNKNOWNS)
-        step = np.linalg.solve(n, (jac @ res[..., None]).astype(np.float64))[..., 0]
+        step = np.linalg.solve(n, rhs[..., None])[..., 0]
         q += step
         p[idx] = q
         normal[idx], residual[idx] = n, res
         moved = np.hypot(*(q[:, :2] - start[idx]).T)
         failed = (bad | ~np.isfinite(q).all(axis=1) | (moved > MAX_MOVE_PX)
                   | (np.abs(q[:, 2:6]) > MAX_AFFINE).any(axis=1) | (q[:, 7] <= 0))
-        done = ~failed & (np.hypot(step[:, 0], step[:, 1]) < CONVERGED_PX)
+        moving = np.hypot(step[:, 0], step[:, 1])
+        done = ~failed & ((moving < CONVERGED_PX) | ((it == MAX_ITERATIONS - 1) & (moving < SETTLED_PX)))
         converged[idx[done]] = True
         active[idx[done | failed]] = False
     dof = max(w * w - UNKNOWNS, 1)

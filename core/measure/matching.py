@@ -40,7 +40,7 @@ import math
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -53,7 +53,7 @@ from ..products.rawimage import RawImage
 from .finepass import BACKWARD_RADIUS, fine_batch
 from .matchchecks import inconsistent, within_one_chip
 from .prediction import predicted_positions
-from .pyramid import coarse_offsets, raw_levels
+from .pyramid import NEIGHBOURS, CoarseOffsets, coarse_offsets, raw_levels
 from .reference import MEMORY_BUDGET, Reference, check_overlap, open_checked
 from .surface import FilledSurface, filled_surface
 
@@ -61,9 +61,12 @@ log = logging.getLogger(__name__)
 
 INCONSISTENT = "inconsistent with its neighbours"
 NO_DEM_HEIGHT = "no DEM height"
+FIT_FAILED, BACKWARD = "least-squares fit failed", "backward match disagrees"
 REASONS = ("near a CCD seam", "outside the image", "off the DEM", "outside the reference", "low texture",
            "low correlation", "ambiguous peak", "peak on the search border", INCONSISTENT, NO_DEM_HEIGHT,
-           "least-squares fit failed", "backward match disagrees")
+           FIT_FAILED, BACKWARD)
+# the reasons a better predicted offset may overcome: matched once more around the matched neighbours'
+RETRIED = ("ambiguous peak", "peak on the search border", INCONSISTENT, FIT_FAILED, BACKWARD)
 
 
 @dataclass(frozen=True)
@@ -168,7 +171,10 @@ class GridMatch:
 def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, surface: FilledSurface, gsd: float,
                settings: MatchSettings, report, cancelled) -> GridMatch:
     """Match the grid of camera ``camera``'s raw image against ``ref`` (coarse to fine, then the
-    fine pass; see the module docstring)."""
+    fine pass; see the module docstring). The grid points the fine pass rejects for their peak or
+    its checks (RETRIED) are matched once more around the offsets their matched neighbours found
+    (the plane of the nearest: on a pyramid's face or a hillside these predict a point's parallax
+    to a fraction of a pixel where the coarse levels' chips, tens of metres wide, could not)."""
     cam = scene.cameras[camera]
     src, nodata = open_checked(scene, camera, image_path)
     report(0.01, "reading the images")
@@ -187,30 +193,19 @@ def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, surfa
     if col.size == 0:
         raise InputError(f"no grid point fits in the image ({cam.cols} x {cam.rows} px) with window "
                          f"{settings.window} px and spacing {settings.spacing:g} px")
-    shift_c, shift_r = (np.rint(v).astype(int) for v in coarse.predict(col, row))
-    # The raw search area sits where the coarse pass predicts the match (tens of pixels from the
-    # grid point): it too must lie in one chip, or the matched chip mixes two chips' views.
-    s = w + 2 * settings.fine_radius
-    first = np.floor(col) + shift_c - (s - 1) // 2
-    straddles = ~within_one_chip(cam, first, first + s - 1)
-    reasons = np.full(col.size, 2)
-    reasons[straddles] = 0
-    order = np.argsort(np.floor(row / (settings.spacing * 8)) * cam.cols + col, kind="stable")
-    order = order[~straddles[order]]
-    batches = [order[i:i + settings.batch] for i in range(0, order.size, settings.batch)]
     workers = settings.workers or os.cpu_count() or 1
     out = {k: np.full(col.size, np.nan) for k in ("col", "row", "value", "ratio", "sigma", "gain", "ref_col",
                                                   "ref_row")}
     ground = np.full((col.size, 3), np.nan)
+    reasons = np.full(col.size, 2)
 
-    def run(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
-        """Predict and match one batch of grid points (indices idx); also the indices whose
-        reference window straddles a seam of the other camera (tie points)."""
+    def run(idx: np.ndarray, field: CoarseOffsets) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
+        """Predict (rectified at ``field``) and match one batch of grid points (indices idx); also
+        the indices whose reference window straddles a seam of the other camera (tie points)."""
         if cancelled():
             raise Cancelled("matching cancelled by the user")
-        size = 2 * h + 1
-        px, py, g = predicted_positions(scene, camera, surface, ref, col[idx], row[idx], half, size, 1.0,
-                                        coarse.predict if coarse.field is not None else None)
+        px, py, g = predicted_positions(scene, camera, surface, ref, col[idx], row[idx], half, 2 * h + 1, 1.0,
+                                        field.predict if field.field is not None else None)
         ok = np.isfinite(g).all(axis=1) & np.isfinite(px).all(axis=(1, 2)) & np.isfinite(py).all(axis=(1, 2))
         seam = np.zeros_like(ok)
         seam[ok] = ref.straddles_seam(px[ok])
@@ -219,7 +214,8 @@ def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, surfa
             return idx[:0], g[:0], {}, idx[seam]
         seam_idx = idx[seam]
         px, py, idx = px[ok], py[ok], idx[ok]
-        res = fine_batch(px, py, col[idx], row[idx], shift_c[idx], shift_r[idx], ref, raw, nodata, settings, 1)
+        shift_c, shift_r = (np.rint(v).astype(int) for v in field.predict(col[idx], row[idx]))
+        res = fine_batch(px, py, col[idx], row[idx], shift_c, shift_r, ref, raw, nodata, settings, 1)
         # the reference position of the grid point's own match: centre minus the local map of the offset
         dc, dr = res["col"] - col[idx], res["row"] - row[idx]
         jx = ((px[:, h, h + 1] - px[:, h, h - 1]) / 2, (px[:, h + 1, h] - px[:, h - 1, h]) / 2)
@@ -228,15 +224,39 @@ def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, surfa
         res["ref_row"] = py[:, h, h] + 0.5 - jy[0] * dc - jy[1] * dr
         return idx, g[ok], res, seam_idx
 
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        for n, (idx, g, res, seam_idx) in enumerate(pool.map(run, batches)):
-            reasons[seam_idx] = 0
-            if idx.size:
-                for k in out:
-                    out[k][idx] = res[k]
-                reasons[idx], ground[idx] = res["reasons"], g
-            report(0.1 + 0.85 * (n + 1) / len(batches), None)
-    reasons[inconsistent(cam, col, row, out["col"], out["row"], reasons < 0)] = REASONS.index(INCONSISTENT)
+    def match(todo: np.ndarray, field: CoarseOffsets, progress: tuple[float, float]) -> None:
+        """Match the grid points ``todo`` (indices) in batches on the workers, the results into out,
+        reasons and ground; their raw search areas (where ``field`` puts the match, tens of pixels
+        from the grid point) must lie in one CCD chip too, or the matched chip mixes two views."""
+        s = w + 2 * settings.fine_radius
+        first = np.floor(col[todo]) + np.rint(field.predict(col[todo], row[todo])[0]) - (s - 1) // 2
+        straddles = ~within_one_chip(cam, first, first + s - 1)
+        reasons[todo[straddles]] = 0
+        todo = todo[~straddles]
+        order = todo[np.argsort(np.floor(row[todo] / (grid_spacing(cam, settings) * 8)) * cam.cols + col[todo],
+                                kind="stable")]
+        batches = [order[i:i + settings.batch] for i in range(0, order.size, settings.batch)]
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            for n, (idx, g, res, seam_idx) in enumerate(pool.map(lambda b: run(b, field), batches)):
+                reasons[seam_idx] = 0
+                if idx.size:
+                    for k in out:
+                        out[k][idx] = res[k]
+                    reasons[idx], ground[idx] = res["reasons"], g
+                report(progress[0] + (progress[1] - progress[0]) * (n + 1) / len(batches), None)
+        reasons[inconsistent(cam, col, row, out["col"], out["row"], reasons < 0)] = REASONS.index(INCONSISTENT)
+
+    match(np.arange(col.size), coarse, (0.1, 0.85))
+    retry = np.nonzero(np.isin(reasons, [REASONS.index(r) for r in RETRIED]))[0]
+    ok = reasons < 0
+    if retry.size and ok.sum() > NEIGHBOURS:
+        dense = replace(coarse)
+        dense.set_field(np.stack([col[ok], row[ok]], axis=1),
+                        np.stack([out["col"][ok] - col[ok], out["row"][ok] - row[ok]], axis=1), cam.cols, cam.rows,
+                        grid_spacing(cam, settings) / 2)
+        match(retry, dense, (0.85, 0.95))
+        log.info("the fine pass again around the matched neighbours' offsets: %d of %d grid points rejected for "
+                 "their peak or its checks matched now", int((reasons[retry] < 0).sum()), retry.size)
     return GridMatch(col, row, out, ground, reasons, near_seam, surface.in_hole(ground), coarse.summary(),
                      time.perf_counter() - start)
 

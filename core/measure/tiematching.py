@@ -90,7 +90,8 @@ def match_block_tiepoints(views: list[View], dem, settings: MatchSettings = Matc
         raise InputError("tie points between scenes need images of at least two scenes", parameter="scenes")
     if not 0 <= base < len(views):
         raise InputError(f"the base image {base} is not one of the {len(views)} given", parameter="base")
-    apart = [v.label for k, v in enumerate(views) if k != base and not overlapping(views[base], v, dem)]
+    filled = filled_surface(views[base].scene, views[base].camera, dem)    # a DSM's holes must not part the scenes
+    apart = [v.label for k, v in enumerate(views) if k != base and not overlapping(views[base], v, filled)]
     if apart:
         raise InputError(f"{', '.join(apart)} do{'es' * (len(apart) == 1)} not overlap {views[base].label}: no "
                          f"point of its image, on the DEM through its onboard model, falls in "
@@ -162,7 +163,8 @@ def log_match(pair: str, m, surface) -> None:
     holes = int(m.in_hole.sum())
     if holes:
         log.info("%s: DEM %s has no height under %d of the %d grid points: those were matched at the estimated "
-                 "height %.1f m (%d matched)", pair, surface.path, holes, m.col.size, surface.estimate,
+                 "height %.1f m (%d matched; where the terrain is steep their windows, rectified at that height, "
+                 "match less accurately)", pair, surface.path, holes, m.col.size, surface.estimate,
                  int(((m.reasons < 0) & m.in_hole).sum()))
 
 

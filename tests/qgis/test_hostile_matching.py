@@ -12,7 +12,7 @@ from osgeo import gdal, osr
 import processing
 from pushbroom_adjust.core.observations import gcps
 from tests.support.matchscene import SEARCH, mini_scene, true_errors
-from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
 
 gdal.UseExceptions()
 ALG = "pushbroom:matchgcps"
@@ -112,8 +112,7 @@ CASES = {
                          ("1000 x 1000", "is it the scene's image")),
     "onboard_error_beyond_search_range": (lambda m, t: {"SEARCH_RANGE": 60},
                                           ("within the search range", "increase the search range")),
-    "search_range_larger_than_the_image": (lambda m, t: {"SEARCH_RANGE": 5000},
-                                           ("search range", "more than the image")),
+    "fine_radius_above_its_range": (lambda m, t: {"FINE_RADIUS": 65}, ("FINE_RADIUS",)),
     "window_even": (lambda m, t: {"WINDOW": 30}, ("window",)),
     "spacing_larger_than_the_image": (lambda m, t: {"SPACING": 50_000}, ("no grid point fits",)),
     "output_not_geopackage": (lambda m, t: {"OUTPUT": str(t / "gcps.csv")}, ("OUTPUT", "GeoPackage")),
@@ -146,3 +145,41 @@ def test_reference_in_geographic_coordinates_matches(mini, tmp_path):
     e = true_errors(mini.folder, gcps.read_gpkg(out["OUTPUT"]))
     assert len(e) >= 400 and np.median(e) <= 0.2 and np.mean(e > 1) <= 0.03
     assert path.read_bytes() == before
+
+
+def test_a_search_range_beyond_the_image_is_clipped_to_it(mini, tmp_path):
+    """SEARCH_RANGE 5 km over an image of 4.8 km (2027 px of 2.358 m): clipped to the image, said in the
+    log, and matched (before: refused, 'search range 5000 m needs ... px chips, more than the image')."""
+    log = LogFeedback()
+    out = processing.run(ALG, _params(mini, tmp_path, SEARCH_RANGE=5000), feedback=log)
+    assert any(line.startswith("search range 5000 m clipped to 4779 m: 2027 px") for line in log.lines), log.lines
+    e = true_errors(mini.folder, gcps.read_gpkg(out["OUTPUT"]))
+    assert len(e) >= 250 and np.median(e) <= 0.1 and np.mean(e > 1) <= 0.03
+
+
+def _holed_dem(mini, path) -> str:
+    """The mini scene's DEM with NaN (its nodata) over a band of its columns: a DSM's hole."""
+    ds = gdal.GetDriverByName("GTiff").CreateCopy(str(path), gdal.Open(str(mini.dem)))
+    band = ds.GetRasterBand(1)
+    heights = band.ReadAsArray().astype(float)
+    heights[:, heights.shape[1] // 3:heights.shape[1] // 2] = -9999.0
+    band.WriteArray(heights)
+    band.SetNoDataValue(-9999.0)
+    ds = None
+    return str(path)
+
+
+def test_a_dem_with_holes_rejects_the_gcps_it_has_no_height_for(mini, tmp_path):
+    """A DEM with nodata over a band of the scene: no traceback (before: 'ValueError: cannot convert
+    float NaN to integer' in the coarse pass); the grid points whose ground lies in the hole are matched
+    at the estimated height and rejected as 'no DEM height' (a GCP's height would be a guess), counted
+    in the log; the others are GCPs as accurate as on the whole DEM."""
+    dem = _holed_dem(mini, tmp_path / "holed_dem.tif")
+    log = LogFeedback()
+    out = processing.run(ALG, _params(mini, tmp_path, DEM=dem), feedback=log)
+    rejected = next(line for line in log.lines if line.startswith("rejected: "))
+    holes = int(rejected.split(" no DEM height")[0].rsplit(" ", 1)[-1])
+    assert holes >= 20, rejected
+    table = gcps.read_gpkg(out["OUTPUT"])
+    e = true_errors(mini.folder, table)
+    assert len(e) >= 150 and np.median(e) <= 0.1 and np.mean(e > 1) <= 0.03

@@ -8,7 +8,7 @@ import processing
 from pushbroom_adjust.core.observations import tiepoints
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.formats import load_scene
-from pushbroom_adjust.core.measure.matching import SIGMA_FLOOR
+from pushbroom_adjust.core.measure.finepass import SIGMA_FLOOR
 from tests.support.matchscene import mini_tlc_scene
 from tests.support.hostile import LogFeedback
 
