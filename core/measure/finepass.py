@@ -22,7 +22,7 @@ from ..products.rawimage import RawImage
 from .correlation import Peaks, find_peaks, ncc, sample
 from .lsm import refine
 
-BACKWARD_RADIUS = 3       # px searched around the grid point by the backward check
+BACKWARD_RADIUS = 2       # px searched around the grid point by the backward check
 BACKWARD_PX = 0.5         # px: the backward match this far from the forward one disagrees
 PEAK_EXCLUSION = 2        # px around the peak not searched for a second one
 INNER_RADIUS = 3          # px around the predicted offset searched first

@@ -32,7 +32,7 @@ import numpy as np
 from .correlation import sample
 
 UNKNOWNS = 8            # x, y, a11, a12, a21, a22, r0, r1
-CONVERGED_PX = 0.01     # px: a step of the centre this small ends the iterations
+CONVERGED_PX = 0.02     # px: a step of the centre this small ends the iterations
 MAX_ITERATIONS = 8      # ... or this many, the centre then still moving by less than SETTLED_PX: converged too
 SETTLED_PX = 0.05       # (real images' fits, trees and relief in the window, wander by a few hundredths)
 MAX_MOVE_PX = 1.5       # px from the correlation peak: farther is another match than the peak's
