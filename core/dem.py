@@ -13,7 +13,8 @@ SRTM and most national DEMs) is converted at the queried points only: the undula
 PROJ (grid ``egm96_15.gtx``) on a fixed lattice of 1/16 degree nodes (it divides the grid's 15'
 cells, so the bilinear lattice reproduces PROJ's own bilinear interpolation) and interpolated.
 Sampling is bilinear between pixel centres in the DEM's own CRS; queries outside the DEM, or
-on nodata, return NaN so callers can say what is uncovered.
+on nodata, return NaN so callers can say what is uncovered: :meth:`Dem.no_height` tells the two
+apart (points off the DEM, points on its nodata holes), and :func:`missing_heights` words them.
 """
 from __future__ import annotations
 
@@ -30,6 +31,7 @@ from pyproj.exceptions import CRSError
 
 from .errors import InputError
 from .files import check_closed, closing_errors
+from .rasters import open_input_raster
 from .validation import check_surface_heights
 
 gdal.UseExceptions()
@@ -120,9 +122,38 @@ class ConstantHeight:
     def height_range(self) -> tuple[float, float]:
         return float(self.value), float(self.value)
 
+    def no_height(self, lon, lat) -> tuple[np.ndarray, np.ndarray]:
+        """(off, hole) as :meth:`Dem.no_height`: a constant height covers everything."""
+        return np.zeros(np.shape(lon), bool), np.zeros(np.shape(lon), bool)
+
+
+def surface_name(surface) -> str:
+    """How a message names the terrain: 'DEM <path>' or 'constant ellipsoidal height <h> m'."""
+    if hasattr(surface, "path"):
+        return f"DEM {surface.path}"
+    return f"constant ellipsoidal height {surface.value:g} m" if hasattr(surface, "value") else "the terrain surface"
+
+
+def missing_heights(surface, lon, lat, what: str = "points") -> str:
+    """'' when ``surface`` gives a height at every (lon, lat) degrees, else a sentence saying
+    for how many of the ``what`` it gives none, and why: off the DEM's extent, on its nodata
+    holes (voids)."""
+    off, hole = surface.no_height(lon, lat)
+    words = no_height_words(int(np.sum(off)), int(np.sum(hole)), int(np.size(off)), what)
+    return f"{surface_name(surface)} {words}" if words else ""
+
+
+def no_height_words(n_off: int, n_hole: int, total: int, what: str) -> str:
+    """'' when nothing is missing, else 'gives no height for <n> of <total> <what> (<n_off> off its
+    extent, <n_hole> on its nodata holes)', to follow the surface's name."""
+    if n_off + n_hole == 0:
+        return ""
+    why = [f"{n_off} off its extent" if n_off else "", f"{n_hole} on its nodata holes" if n_hole else ""]
+    return f"gives no height for {n_off + n_hole} of {total} {what} ({', '.join(filter(None, why))})"
+
 
 @dataclass
-class _Grid:
+class HeightGrid:
     """Heights in the DEM's datum (NaN = nodata) on a window of the DEM at decimation ``step``:
     node (i, j) is the centre of the step x step block of DEM pixels whose upper-left pixel is
     (row0 + i * step, col0 + j * step). z: (rows, cols) float32 or float64."""
@@ -193,8 +224,8 @@ class Dem:
         self._to_dem = None if self.crs.equals(CRS.from_epsg(4326), ignore_axis_order=True) else \
             Transformer.from_crs(CRS.from_epsg(4326), self.crs, always_xy=True)
         self._step = 1
-        self._grid: _Grid | None = None
-        self._overview_grid: _Grid | None = None
+        self._grid: HeightGrid | None = None
+        self._overview_grid: HeightGrid | None = None
         self._range: tuple[float, float] | None = None
         self._lock = threading.Lock()
 
@@ -235,14 +266,44 @@ class Dem:
         """Bilinear ellipsoidal height (m) at (lon, lat) degrees; NaN outside or on nodata."""
         lon = np.asarray(lon, dtype=float)
         lat = np.asarray(lat, dtype=float)
-        x, y = (lon, lat) if self._to_dem is None else self._to_dem.transform(lon, lat)
-        px = (np.asarray(x, dtype=float) - self.gt[0]) / self.gt[1]
-        py = (np.asarray(y, dtype=float) - self.gt[3]) / self.gt[5]
-        grid = self._grid_for(px, py)
-        z = np.full(px.shape, np.nan) if grid is None else grid.sample(px, py)
+        return self.values_at(*self.pixel_coordinates(lon, lat)) + self.datum_offset(lon, lat)
+
+    def datum_offset(self, lon, lat) -> np.ndarray:
+        """Ellipsoidal height minus DEM value (m) at (lon, lat) degrees: the geoid undulation of a
+        geoid DEM, 0 for an ellipsoidal one (smooth either way)."""
         if self.datum == "geoid":
-            z = z + geoid_undulation_lattice(lon, lat)
-        return z
+            return geoid_undulation_lattice(lon, lat)
+        return np.zeros(np.shape(lon))
+
+    def pixel_coordinates(self, lon, lat) -> tuple[np.ndarray, np.ndarray]:
+        """DEM pixel coordinates (px = column, py = row; GDAL's, 0 at the raster's edge, pixel
+        centres at +0.5) of (lon, lat) degrees."""
+        lon = np.asarray(lon, dtype=float)
+        lat = np.asarray(lat, dtype=float)
+        x, y = (lon, lat) if self._to_dem is None else self._to_dem.transform(lon, lat)
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        return (x - self.gt[0]) / self.gt[1], (y - self.gt[3]) / self.gt[5]
+
+    def values_at(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        """Bilinear DEM values (m, in the DEM's own datum) at DEM pixel coordinates (any equal
+        shapes); NaN off the DEM or on nodata. Ellipsoidal heights differ from them by a smooth
+        offset (the geoid undulation of a geoid DEM, else 0)."""
+        grid = self.grid_at(px, py)
+        return np.full(np.shape(px), np.nan) if grid is None else grid.sample(px, py)
+
+    def grid_at(self, px: np.ndarray, py: np.ndarray) -> HeightGrid | None:
+        """The window of DEM values (read when needed) that covers every one of the DEM pixel
+        coordinates (px, py) lying on the DEM; None when none ever did."""
+        return self._grid_for(np.asarray(px, dtype=float), np.asarray(py, dtype=float))
+
+    def no_height(self, lon, lat) -> tuple[np.ndarray, np.ndarray]:
+        """Where (lon, lat) degrees get no height: (off, hole) boolean masks, ``off`` outside
+        the DEM (beyond its outer pixel centres), ``hole`` on it but on nodata (a void)."""
+        px, py = self.pixel_coordinates(lon, lat)
+        rows, cols = self.shape
+        with np.errstate(invalid="ignore"):
+            on_dem = (px >= 0.5) & (py >= 0.5) & (px <= cols - 0.5) & (py <= rows - 0.5)
+        return ~on_dem, on_dem & ~np.isfinite(self.values_at(px, py))
 
     def write_ellipsoidal(self, path: str | Path) -> Path:
         """Write the DEM's ellipsoidal heights (float32, same grid and CRS, nodata NaN) to a
@@ -256,7 +317,7 @@ class Dem:
         band = ds.GetRasterBand(1)
         band.SetNoDataValue(float("nan"))
         for r0 in range(0, rows, _STRIP_NODES):
-            grid = _Grid(self._read(src, r0, 0, min(_STRIP_NODES, rows - r0), cols, 1), r0, 0, 1)
+            grid = HeightGrid(self._read(src, r0, 0, min(_STRIP_NODES, rows - r0), cols, 1), r0, 0, 1)
             pj, pi = np.meshgrid(np.arange(cols) + 0.5, np.arange(grid.z.shape[0]) + r0 + 0.5)
             band.WriteArray(self._ellipsoidal(grid.z, pj, pi).astype(np.float32), 0, r0)
         with closing_errors() as closing:
@@ -265,7 +326,7 @@ class Dem:
         return Path(path)
 
     # --- windows ---------------------------------------------------------------------------------
-    def _grid_for(self, px: np.ndarray, py: np.ndarray) -> _Grid | None:
+    def _grid_for(self, px: np.ndarray, py: np.ndarray) -> HeightGrid | None:
         """A loaded grid covering every queried point that lies on the DEM (px, py: DEM pixel
         coordinates); reads a new window around them when the current one does not. None when
         no point has ever been on the DEM."""
@@ -281,7 +342,7 @@ class Dem:
                 grid = self._grid = self._load_around(px[need], py[need], grid)
         return grid
 
-    def _load_around(self, px: np.ndarray, py: np.ndarray, current: _Grid | None) -> _Grid:
+    def _load_around(self, px: np.ndarray, py: np.ndarray, current: HeightGrid | None) -> HeightGrid:
         """Read the window (aligned to the decimation step) covering the points with a margin,
         united with the current window."""
         step, (rows, cols) = self._step, self.shape
@@ -297,15 +358,16 @@ class Dem:
         row0 = max(0, int(r0 // step) * step)
         ncols = (min(cols, int(math.ceil(c1))) - col0) // step
         nrows = (min(rows, int(math.ceil(r1))) - row0) // step
-        return _Grid(self._read(self._open(), row0, col0, max(nrows, 1), max(ncols, 1), step), row0, col0, step)
+        return HeightGrid(self._read(self._open(), row0, col0, max(nrows, 1), max(ncols, 1), step), row0, col0, step)
 
-    def _overview(self) -> _Grid:
+    def _overview(self) -> HeightGrid:
         """The whole DEM at the decimation that keeps it within OVERVIEW_CELLS nodes (the DEM
         itself when it is that small), read once."""
         if self._overview_grid is None:
             rows, cols = self.shape
             step = max(1, math.ceil(math.sqrt(rows * cols / OVERVIEW_CELLS)))
-            grid = _Grid(self._read(self._open(), 0, 0, max(rows // step, 1), max(cols // step, 1), step), 0, 0, step)
+            z = self._read(self._open(), 0, 0, max(rows // step, 1), max(cols // step, 1), step)
+            grid = HeightGrid(z, 0, 0, step)
             self._overview_grid = grid
             self._check_plausible(grid)
         return self._overview_grid
@@ -367,7 +429,7 @@ class Dem:
 
     def _open(self):
         try:
-            ds = gdal.Open(self.path)
+            ds = open_input_raster(self.path)
         except RuntimeError as exc:
             raise InputError(f"DEM {self.path}: cannot be opened as a raster ({exc})") from None
         if ds is None or ds.RasterCount < 1:
@@ -375,7 +437,7 @@ class Dem:
         return ds
 
     # --- heights of a whole grid ------------------------------------------------------------------
-    def _grid_range(self, grid: _Grid) -> tuple[float, float]:
+    def _grid_range(self, grid: HeightGrid) -> tuple[float, float]:
         """(min, max) ellipsoidal height (m) of a grid's nodes."""
         lo, hi = np.inf, -np.inf
         ny, nx = grid.z.shape
@@ -398,7 +460,7 @@ class Dem:
             x, y = Transformer.from_crs(self.crs, CRS.from_epsg(4326), always_xy=True).transform(x, y)
         return z + geoid_undulation_lattice(x, y)
 
-    def _check_plausible(self, grid: _Grid) -> None:
+    def _check_plausible(self, grid: HeightGrid) -> None:
         """Refuse heights no terrain has (a nodata value without its nodata tag, or not metres)."""
         finite = grid.z[np.isfinite(grid.z)]
         if finite.size == 0:

@@ -112,3 +112,48 @@ def check_nodata(value: float, dtype) -> None:
     if math.isinf(v) or abs(v) > largest:
         raise InputError(f"nodata value {value:g} cannot be stored in the output's data type {dtype.name} "
                          f"(the raw image's): NaN or numbers up to ±{largest:g}")
+
+
+# --- the arrays of the core's functions ----------------------------------------------------------
+# numpy broadcasts a (2,) array against a (1,) or a (3, 1) one without a word: a table built from
+# lists of different lengths, or ground points of the wrong shape, would silently be something else.
+MIN_GROUND_RADIUS = 5.0e6
+"""m from the Earth's centre: ECEF ground points nearer than this (1400 km inside the Earth) are not
+ECEF metres (a longitude/latitude/height, or kilometres)."""
+
+
+def per_point(**arrays) -> list[np.ndarray]:
+    """The arguments (name: a single value, or a sequence of one value per point) as 1-D arrays of one
+    length n, in their order: single values repeated n times (n = 1 when all are single). InputError
+    naming the arguments when their lengths differ, or one has more than one dimension."""
+    values = {name: np.asarray(v) for name, v in arrays.items()}
+    deep = {name: v.shape for name, v in values.items() if v.ndim > 1}
+    if deep:
+        raise InputError("; ".join(f"{name}: one value per point is expected, shape (n,), got {shape}"
+                                   for name, shape in deep.items()))
+    lengths = {name: v.size for name, v in values.items() if v.ndim == 1}
+    if len(set(lengths.values())) > 1:
+        raise InputError("arguments of different lengths: " + ", ".join(f"{name} {n}" for name, n in lengths.items())
+                         + " (one value per point each, or a single value for all)")
+    n = next(iter(lengths.values()), 1)
+    return [np.full(n, v, dtype=v.dtype) if v.ndim == 0 else v for v in values.values()]
+
+
+def ground_points(xyz, name: str = "xyz") -> np.ndarray:
+    """ECEF ground points (m) as a float array (n, 3) from an array of that shape, or one point of
+    shape (3,) (taken as (1, 3)). InputError naming the argument ``name`` for any other shape, NaN or
+    infinite values, and points within MIN_GROUND_RADIUS of the Earth's centre."""
+    p = np.asarray(xyz, dtype=float)
+    if p.shape == (3,):
+        p = p[None]
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise InputError(f"{name}: ground points are ECEF coordinates of shape (n, 3), or one point (3,); got shape "
+                         f"{p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise InputError(f"{name}: ground coordinates contain NaN or infinite values")
+    near = np.nonzero(np.linalg.norm(p, axis=1) < MIN_GROUND_RADIUS)[0]
+    if near.size:
+        raise InputError(f"{name}: {near.size} point(s) (index {', '.join(map(str, near[:5]))}) lie within "
+                         f"{MIN_GROUND_RADIUS / 1e3:.0f} km of the Earth's centre: ground points are ECEF metres "
+                         "(EPSG:4978), not longitude, latitude and height, nor kilometres")
+    return p

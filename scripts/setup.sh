@@ -3,7 +3,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-PACKAGES=(qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-pyproj python3-scipy python3-matplotlib python3-pytest proj-data python3-distributed)
+PACKAGES=(qgis python3-qgis qgis-providers python3-gdal gdal-bin python3-pyproj python3-scipy python3-matplotlib python3-pytest proj-data python3-distributed xvfb xauth)
 missing=()
 for p in "${PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -28,7 +28,7 @@ from ..core.adjust.block import adjust_block, block_inputs
 from ..core.adjust.linepoints import ControlLines
 from ..core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_block_tie_points, write_line_residuals
 from ..core.adjust.report import log_lines, write_report_json
-from ..core.adjust.report_html import block_section, write_report_html
+from ..core.adjust.report_html import block_section, block_warnings, write_report_html
 from ..core.adjust.scenesigmas import check_scene_sigmas, sigmas_text
 from ..core.errors import InputError
 from ..core.files import Output, atomic_outputs, check_folder_destination
@@ -37,8 +37,9 @@ from ..core.formats.scene_json import save_scene
 from ..core.model.mixedblock import MixedBlock
 from ..core.model.rpcscene import RpcScene
 from ..core.observations import tiepoints
-from ..core.observations.blockscenes import rpc_product_cameras, scene_groups, scene_of_rows
+from ..core.observations.blockscenes import rpc_product_cameras, scene_groups
 from ..core.observations.lines import IMAGE_LAYER, read_ground_lines, read_image_lines
+from ..core.observations.tables import scene_of_rows
 from ..core.products.rpcfit import fit_rpc, refined_rpcs
 from ..core.vector_io import layer_fields
 from ..simulation.simulator import new_folder
@@ -295,15 +296,18 @@ def log_block(result, n_ties: int | None, alg, feedback) -> None:
         lines = s.get("lines")
         line_text = f"; {lines['lines']} control lines ({lines['points']} points), across-line " \
             f"{metres(lines['across_rmse_before_m'])} before, {metres(lines['across_rmse_m'])} after" if lines else ""
-        feedback.pushInfo(f"scene {name}: control {px(s['control']['rmse_px'])} ({s['control']['observations']} obs.), "
-                          f"check {px(s['check_points']['rmse_px'])} ({s['check_points']['observations']} obs.)"
+        control = f"control {px(s['control']['rmse_px'])} ({s['control']['observations']} obs.)" \
+            if s["control"]["observations"] else "no control points"
+        check = f"check {px(s['check_points']['rmse_px'])} ({s['check_points']['observations']} obs.)" \
+            if s["check_points"]["observations"] else "no check points"
+        feedback.pushInfo(f"scene {name}: {control}, {check}"
                           f"{tie_text}{line_text}; moved {s['moved_m']:.1f} m from {source} "
                           f"{'-' if sigma is None else f'{sigma:.1f} m'}; stated {sigmas_text(s['sigmas'])})")
     block = result.report["block"]
     feedback.pushInfo(f"block of {block['scenes']} scenes: sigma0 {block['sigma0']:.3f}, tie RMS "
                       f"{px(block['tie_rmse_before_px'])} before, {px(block['tie_rmse_px'])} after; "
                       f"{result.report['datum']}")
-    for warning in result.report["warnings"]:
+    for warning in block_warnings(result.report):  # the adjustment's own are among its log lines above
         feedback.pushWarning(warning)
 
 

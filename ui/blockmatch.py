@@ -11,15 +11,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from osgeo import gdal
 from qgis.core import QgsProcessingException
 
 from ..core import measure
 from ..core.measure.tiematching import View, match_block_tiepoints
+from ..core.model.rpcscene import size_note
 from ..core.observations import tiepoints
 from ..core.products.ortho import check_images
+from ..core.rasters import check_input_raster
 from .feedback import check_cancelled, core_log_to, feedback_callbacks, processing_errors
-from .inputs import block_scene_names, dem_from_parameters, layer_file, load_scene_for, matching_settings
+from .inputs import block_scene_names, dem_from_parameters, load_scene_for, matching_settings, raster_files
 from .parameters import INPUTS, SCENE, SCENES
 
 # The core's names of the block's inputs (InputError.parameter) -> the algorithm's parameters
@@ -40,27 +41,15 @@ def scene_files(alg, parameters, context) -> list[str]:
 
 
 def block_given(alg, parameters, context) -> bool:
-    """Whether SCENES is given (tie points between scenes); QgsProcessingException naming both
-    parameters when SCENE is given too."""
+    """Whether SCENES is given (a block of scenes); QgsProcessingException naming both parameters,
+    and what the algorithm does with each (its SCENE_OR_SCENES), when SCENE is given too."""
     if not scene_files(alg, parameters, context):
         return False
     if alg.parameterAsFile(parameters, SCENE, context):
-        raise QgsProcessingException(f"{SCENE} and {SCENES} are both given: give {SCENE} (tie points between the "
-                                     f"cameras of one scene) or {SCENES} (tie points between the images of several "
-                                     "scenes), not both")
+        one, block = alg.SCENE_OR_SCENES
+        raise QgsProcessingException(f"{SCENE} and {SCENES} are both given: give {SCENE} to {one}, or {SCENES} to "
+                                     f"{block}, not both")
     return True
-
-
-def raster_size(path: str) -> tuple[int, int]:
-    """(cols, rows) of a raw image file as GDAL opens it (a QGIS layer of an image with RPC metadata
-    is a warped view of another size); QgsProcessingException (INPUTS) when it cannot be opened."""
-    try:
-        ds = gdal.OpenEx(path, gdal.OF_RASTER)
-    except RuntimeError as exc:
-        raise QgsProcessingException(f"{INPUTS}: {path} cannot be opened as a raster ({exc})") from None
-    if ds is None:
-        raise QgsProcessingException(f"{INPUTS}: {path} cannot be opened as a raster")
-    return ds.RasterXSize, ds.RasterYSize
 
 
 def image_camera(name: str, scene, path: str, size: tuple[int, int]) -> int:
@@ -68,7 +57,7 @@ def image_camera(name: str, scene, path: str, size: tuple[int, int]) -> int:
     (INPUTS) when none is, or when several are (a multi-camera product: which camera the image
     is cannot be told)."""
     fits = [k for k, c in enumerate(scene.cameras) if (int(c.cols), int(c.rows)) == size]
-    cameras = ", ".join(f"{c.name} {int(c.cols)} x {int(c.rows)}" for c in scene.cameras)
+    cameras = ", ".join(f"{c.name} {int(c.cols)} x {int(c.rows)}{size_note(c)}" for c in scene.cameras)
     if not fits:
         raise QgsProcessingException(f"{INPUTS}: {path} is {size[0]} x {size[1]} px, but no camera of scene {name} "
                                      f"has that size ({cameras}): give one raw image per scene, in the order of "
@@ -90,18 +79,17 @@ def block_views(alg, parameters, context, feedback) -> list[View]:
                                      f"more (the cameras of one scene: {SCENE})")
     names = block_scene_names(paths)
     scenes = [load_scene_for(SCENES, path, feedback) for path in paths]
-    layers = alg.parameterAsLayerList(parameters, INPUTS, context)
-    if len(layers) != len(paths):
-        raise QgsProcessingException(f"{INPUTS}: {len(layers)} raw image(s) given for the {len(paths)} scenes of "
+    images = raster_files(alg, parameters, INPUTS, context)
+    if len(images) != len(paths):
+        raise QgsProcessingException(f"{INPUTS}: {len(images)} raw image(s) given for the {len(paths)} scenes of "
                                      f"{SCENES} ({', '.join(names)}): give one image per scene, in that order")
     views = []
-    for name, scene, path, layer in zip(names, scenes, paths, layers):
-        image = layer_file(layer)
+    for name, scene, path, image in zip(names, scenes, paths, images):
         if not image:
             raise QgsProcessingException(f"{INPUTS}: the image of scene {name} is not a file (a memory or service "
                                          "layer); save it as GeoTIFF first")
-        camera = image_camera(name, scene, image, raster_size(image))
         with processing_errors(f"{INPUTS}: "):
+            camera = image_camera(name, scene, image, check_input_raster(image))
             check_images(scene, {camera: image})
         feedback.pushInfo(f"scene {name} ({path}): camera {scene.cameras[camera].name}, image {image}")
         views.append(View(name, scene, camera, Path(image)))

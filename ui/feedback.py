@@ -16,14 +16,16 @@ from ..core.errors import PushbroomError
 def error_message(error: PushbroomError, prefix: str = "", parameters: Mapping[str, str] | None = None) -> str:
     """The message of a core error for the user. When the error names the input it concerns
     (:attr:`core.errors.InputError.parameter`, in the core's terms) and ``parameters`` maps that
-    input to an algorithm parameter, the message starts with that parameter's name; when it
-    concerns several inputs (parameter ''), the message names them itself and gets no prefix;
-    otherwise it starts with ``prefix``."""
+    input to an algorithm parameter, the message starts with that parameter's name (once: the core's
+    message may start with it already, e.g. 'ALPHA must be ...'); when it concerns several inputs
+    (parameter ''), the message names them itself and gets no prefix; otherwise it starts with
+    ``prefix``."""
     concerns = getattr(error, "parameter", None)
     if concerns == "":
         return str(error)
     if parameters is not None and concerns in parameters:
-        return f"{parameters[concerns]}: {error}"
+        name = parameters[concerns]
+        return str(error) if str(error).split(":")[0].split(" ")[0] == name else f"{name}: {error}"
     return f"{prefix}{error}"
 
 

@@ -11,16 +11,21 @@ from typing import Callable
 import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
-from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProcessingException, QgsProviderRegistry,
+from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProcessing, QgsProcessingException,
+                       QgsProcessingParameterDefinition, QgsProcessingParameterMultipleLayers,
+                       QgsProcessingParameterRasterLayer, QgsProcessingUtils, QgsProperty, QgsProviderRegistry,
                        QgsWkbTypes)
 
 from ..core.dem import ConstantHeight, Dem
+from ..core.errors import PushbroomError
 from ..core.formats import load_scene
+from ..core.formats.rpcfiles import image_name
 from ..core.measure.matching import MatchSettings
 from ..core.observations.tables import Heights, present
+from ..core.rasters import check_input_raster
 from ..core.validation import check_terrain_height
 from . import parameters as vocabulary
-from .feedback import core_call, processing_errors
+from .feedback import core_call, error_message, processing_errors
 from .parameters import CAMERA, DEM, DEM_DATUM, HEIGHT, HEIGHT_SOURCE, SCENE, Z_DATUM, enum_value
 
 
@@ -39,7 +44,9 @@ def load_scene_for(parameter_name: str, path: str, feedback=None):
     """Load any supported scene file (core.formats.load_scene) given by a parameter.
 
     The error message names the parameter, e.g. "SCENE: /x/y.xml: no such file". The reader's
-    warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``.
+    warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``, and so
+    does the check of a vendor product read from its metadata against the vendor's RPC
+    (``scene.info["rpc_check"]``, :mod:`core.formats.vendorcheck`).
     """
     if not path:
         raise QgsProcessingException(f"{parameter_name}: no scene file given")
@@ -48,6 +55,8 @@ def load_scene_for(parameter_name: str, path: str, feedback=None):
     if feedback is not None:
         for warning in scene.info.get("warnings", []):
             feedback.pushWarning(f"{parameter_name}: {warning}")
+        if "rpc_check" in scene.info and scene.info.get("source") == str(path):
+            feedback.pushInfo(f"{parameter_name}: {scene.info['rpc_check']['summary']}")
     return scene
 
 
@@ -68,26 +77,23 @@ def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT
     source = alg.parameterAsSource(parameters, input_name, context)
     if source is None:
         raise QgsProcessingException(alg.invalidSourceError(parameters, input_name))
-    return scene, camera, source, list(source.getFeatures())
+    return scene, camera, source, source_features(input_name, source)
 
 
 # Scene JSON files a block's folder layout names by their folder (pushbroom:simulateblock, bundleadjust)
 FOLDER_NAMED_SCENES = ("onboard_scene.json", "true_scene.json", "adjusted_scene.json")
 
 
-RPC_SUFFIX = "_RPC"  # GDAL's RPC sidecar of <name>.tif: <name>_RPC.TXT
-
-
 def block_scene_names(paths) -> list[str]:
     """The name of each scene file of a block (SCENES): its file's stem (less the suffix of an RPC
-    sidecar, <name>_RPC.TXT: the image's name), or its folder's name for the scene JSON files of
-    FOLDER_NAMED_SCENES (the layout pushbroom:simulateblock writes).
+    sidecar, <name>_RPC.TXT: the image's name; a file named _RPC.TXT alone takes its folder's
+    name: :func:`core.formats.rpcfiles.image_name`), or its folder's name for the scene JSON files
+    of FOLDER_NAMED_SCENES (the layout pushbroom:simulateblock writes).
     QgsProcessingException naming both files when two scenes get one name (or one file is
     listed twice)."""
     names, first = [], {}
     for path in map(Path, paths):
-        stem = path.stem[:-len(RPC_SUFFIX)] if path.stem.upper().endswith(RPC_SUFFIX) else path.stem
-        name = path.parent.name if path.name.lower() in FOLDER_NAMED_SCENES else stem
+        name = path.parent.name if path.name.lower() in FOLDER_NAMED_SCENES else image_name(path)
         if name in first:
             other = first[name]
             if other.resolve() == path.resolve():
@@ -107,6 +113,70 @@ def layer_file(layer: QgsMapLayer | None) -> str:
     if layer is None:
         return ""
     return QgsProviderRegistry.instance().decodeUri(layer.providerType(), layer.source()).get("path") or ""
+
+
+# --- raster inputs: read by GDAL, never loaded as QGIS layers ----------------------------------
+# Processing's parameterAsRasterLayer (like its check of parameter values, see ui.parameters.RasterInput)
+# loads a raster given by path as a QGIS layer; QGIS computes the statistics of a raster layer it
+# loads, and GDAL writes them beside the file (<file>.aux.xml) or into it (a VRT) when the layer is
+# dropped. So the plugin's raster parameters are resolved to files here instead: a layer already in
+# the project is looked up (none is loaded), a path is the file itself, which the core reads by
+# core.rasters.open_input_raster.
+def is_raster_input(definition) -> bool:
+    """Whether a parameter definition takes rasters (a raster layer, or several)."""
+    return isinstance(definition, QgsProcessingParameterRasterLayer) or (
+        isinstance(definition, QgsProcessingParameterMultipleLayers)
+        and definition.layerType() == QgsProcessing.TypeRaster)
+
+
+def _given_values(value, context) -> list:
+    """The items of a parameter value (lists flattened, properties evaluated), None and '' left out."""
+    if isinstance(value, QgsProperty):
+        value = value.valueAsString(context.expressionContext(), "")
+    if isinstance(value, (list, tuple)):
+        return [item for v in value for item in _given_values(v, context)]
+    return [] if value is None or value == NULL or value == "" else [value]
+
+
+def raster_files(alg, parameters, name: str, context) -> list[str]:
+    """The files of raster parameter ``name`` (one or several layers; [] when not given), without
+    loading any as a QGIS layer: a layer of the project (given as such, or by id or name) gives its
+    file ('' for one that is not a file: a memory or service layer), a path is the file."""
+    value = parameters.get(name) if name in parameters else alg.parameterDefinition(name).defaultValue()
+    files = []
+    for item in _given_values(value, context):
+        layer = item if isinstance(item, QgsMapLayer) else \
+            QgsProcessingUtils.mapLayerFromString(str(item), context, False)  # False: never a new layer
+        files.append(str(item) if layer is None else layer_file(layer))
+    return files
+
+
+def raster_file(alg, parameters, name: str, context) -> str:
+    """The file of raster parameter ``name`` ('' when not given); see :func:`raster_files`."""
+    files = raster_files(alg, parameters, name, context)
+    return files[0] if files else ""
+
+
+# What a raster parameter takes, for its refusals (None: any other raster parameter).
+RASTER_KINDS = {DEM: "a DEM: heights in metres on a map grid with a CRS, in any raster format GDAL reads (GeoTIFF, "
+                     "VRT, ...)",
+                None: "a raster file GDAL reads (GeoTIFF, VRT, ...)"}
+
+
+def raster_refusal(alg, parameters, definition, context) -> str:
+    """Why the value of raster parameter ``definition`` cannot be read ('' when it can): a required
+    one not given, a layer that is not a file, a file GDAL does not open as a raster. Checked with
+    GDAL (core.rasters.check_input_raster), never by loading a QGIS layer."""
+    name = definition.name()
+    files = raster_files(alg, parameters, name, context)
+    if not files and not definition.flags() & QgsProcessingParameterDefinition.FlagOptional:
+        return f"{name}: no raster given"
+    for path in files:
+        try:
+            check_input_raster(path)
+        except PushbroomError as exc:
+            return error_message(exc, f"{name}: ") + f"; give {RASTER_KINDS.get(name, RASTER_KINDS[None])}"
+    return ""
 
 
 def split_ogr_source(source: str) -> tuple[str, str | None]:
@@ -146,13 +216,27 @@ def lonlat_of(parameter_name: str, crs, x, y) -> tuple[np.ndarray, np.ndarray]:
     return lon, lat
 
 
+def source_features(parameter_name: str, source) -> list:
+    """The features of a feature source a parameter gives; QgsProcessingException naming the
+    parameter and the layer when it has none."""
+    features = list(source.getFeatures())
+    if not features:
+        raise QgsProcessingException(f"{parameter_name}: the layer {source.sourceName()!r} is empty (it has no "
+                                     "features)")
+    return features
+
+
 def require_points(parameter_name: str, source) -> None:
     """Refuse a feature source whose geometries are not points (a line or polygon layer where
-    points are meant: taking one vertex of each would be silently wrong)."""
+    points are meant: taking one vertex of each would be silently wrong), naming the layer."""
     kind = QgsWkbTypes.geometryType(source.wkbType())
+    if kind == QgsWkbTypes.NullGeometry:
+        raise QgsProcessingException(f"{parameter_name}: the layer {source.sourceName()!r} has no geometries (a "
+                                     "table); a point layer is needed")
     if kind != QgsWkbTypes.PointGeometry:
-        raise QgsProcessingException(f"{parameter_name}: the layer holds {QgsWkbTypes.displayString(source.wkbType())} "
-                                     f"geometries; a point layer is needed")
+        raise QgsProcessingException(f"{parameter_name}: the layer {source.sourceName()!r} holds "
+                                     f"{QgsWkbTypes.displayString(source.wkbType())} geometries; a point layer is "
+                                     "needed")
 
 
 def z_datum_of_crs(crs) -> str | None:
@@ -226,14 +310,13 @@ def dem_from_parameters(alg, parameters, context, scene=None, feedback=None):
 
     With an RPC ``scene`` (core.model.rpcscene.RpcScene), heights that do not meet the RPC's
     height range are refused and heights partly outside it are a warning to ``feedback``."""
-    layer = alg.parameterAsRasterLayer(parameters, DEM, context)
-    if layer is None:
+    path = raster_file(alg, parameters, DEM, context)
+    if not path:
         with processing_errors():
             surface = ConstantHeight(check_terrain_height(alg.parameterAsDouble(parameters, HEIGHT, context), HEIGHT))
         what = f"{HEIGHT} {surface.value:g} m"
     else:
         datum = enum_value(alg, parameters, DEM_DATUM, context)
-        path = layer.source().split("|")[0]
         with processing_errors(f"{DEM}: "):
             surface = Dem(path, datum)
             surface.height_range  # reads the DEM's overview: implausible heights are refused before any output
@@ -271,13 +354,13 @@ def heights_from_parameters(alg, parameters, context, crs) -> Heights:
 def camera_images_for(alg, parameters, context, scene) -> dict[int, str]:
     """{camera index: file} of INPUTS, one raw image per camera of ``scene`` in its camera order;
     QgsProcessingException naming the cameras when the count differs or a layer is not a file."""
-    layers = alg.parameterAsLayerList(parameters, vocabulary.INPUTS, context)
+    files = raster_files(alg, parameters, vocabulary.INPUTS, context)
     names = [cam.name for cam in scene.cameras]
-    if len(layers) != len(names):
-        raise QgsProcessingException(f"{vocabulary.INPUTS}: {len(layers)} raw image(s) given, but the scene has "
+    if len(files) != len(names):
+        raise QgsProcessingException(f"{vocabulary.INPUTS}: {len(files)} raw image(s) given, but the scene has "
                                      f"{len(names)} camera(s) ({', '.join(names)}): give one image per camera, "
                                      "in that order")
-    images = {k: layer_file(layer) for k, layer in enumerate(layers)}
+    images = dict(enumerate(files))
     missing = [names[k] for k, path in images.items() if not path]
     if missing:
         raise QgsProcessingException(f"{vocabulary.INPUTS}: the image(s) of camera(s) {', '.join(missing)} are not "

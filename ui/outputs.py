@@ -20,7 +20,7 @@ from ..core.observations import tiepoints
 from ..core.vector_io import feature_count
 from . import RESOURCES
 from .feedback import processing_errors
-from .inputs import layer_file
+from .inputs import is_raster_input, layer_file, raster_files
 
 STYLES = RESOURCES / "styles"  # QML styles of the output layers
 
@@ -46,7 +46,9 @@ def input_files(alg, parameters, context) -> dict[str, list[str]]:
             continue
         if isinstance(definition, QgsProcessingParameterFile):
             files[name] = [alg.parameterAsFile(parameters, name, context)]
-        elif definition.type() in ("raster", "vector", "source", "layer", "mesh", "pointcloud"):
+        elif is_raster_input(definition):
+            files[name] = raster_files(alg, parameters, name, context)  # not loaded as layers: see ui.inputs
+        elif definition.type() in ("vector", "source", "layer", "mesh", "pointcloud"):
             files[name] = [layer_file(alg.parameterAsLayer(parameters, name, context))]
         elif definition.type() == "multilayer" and definition.layerType() == QgsProcessing.TypeFile:
             files[name] = [f for f in alg.parameterAsFileList(parameters, name, context) if f]  # files (SCENES)

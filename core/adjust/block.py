@@ -407,8 +407,12 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
     check points (the adjusted scene's ground -> image of their stated ground), the move from the
     onboard geolocation (:func:`onboard_move`) and the sigmas the scene was adjusted with, with
     control lines their lines and points used and across-line RMS (m, :func:`_line_entry`; per
-    line in the engine's report["lines"]); sigma0, the datum sentence, the written-vs-fitted figures
-    and the engine's whole report (``adjustment``)."""
+    line in the engine's report["lines"]); sigma0, the datum sentence and ``datum_directions`` (the
+    moves of the whole block the tie points leave to the priors or hardly determine, with their
+    size: :mod:`core.adjust.datumdirections`), ``warnings`` (the block's own, scenes moved beyond their
+    stated accuracy, then the engine's: the robust loop stopped at its limit, reliability, datum
+    moves beyond the priors), the written-vs-fitted figures and the engine's whole report
+    (``adjustment``)."""
     rep, pts = out.report, out.points
     control, check = pts["role"] == "control", pts["role"] == "check"
     tie_res = (out.tie_points["res_col"], out.tie_points["res_row"]) if ties is not None and len(ties) else None
@@ -441,8 +445,10 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
     warnings = beyond_stated(per_scene, bool((gcps.role == "control").any()))
     for warning in warnings:
         log.warning("%s", warning)
+    warnings += rep["warnings"]  # the adjustment's (robust loop at its limit, reliability, datum): logged by the engine
     log.info("block of %d scenes: sigma0 %.3f, tie RMS %s px; %s", len(scenes), rep["sigma0"],
              "-" if block["tie_rmse_px"] is None else f"{block['tie_rmse_px']:.3f}", datum)
-    return {"block": block, "scenes": per_scene, "datum": datum, "warnings": warnings,
+    return {"block": block, "scenes": per_scene, "datum": datum,
+            "datum_directions": (rep.get("datum") or {}).get("directions", []), "warnings": warnings,
             "written_vs_fitted": rep.get("written_vs_fitted"), "adjustment": rep}
 

@@ -26,7 +26,7 @@ from ..observations.gcps import GcpTable
 from .normal import GroundPrior, Linearization, groups
 from .parameters import ParameterSet
 from .problem import RPC_PRIOR_GROUP, Problem, Pseudo
-from .rpcbias import RpcImage, RpcObservations
+from .rpcbias import RpcImage, RpcObservations, chosen_correction
 from .settings import AdjustmentSettings
 from .ties import TieSetUp, camera_indices
 
@@ -81,9 +81,10 @@ class BlockProblem(Problem):
         if settings.interior and scene.rigorous is None:
             raise InputError("INTERIOR: a block of RPC images has no interior parameters; their correction is "
                              "chosen with RPC_CORRECTION", parameter="settings.interior")
-        self.scene, self.settings = scene, settings
         control = np.nonzero(table.role == "control")[0]
         ids, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
+        settings, self.rpc_choice = chosen_correction(settings, ids.size)
+        self.scene, self.settings = scene, settings
         self._set_up_ground(table, control[first], ties.ground)
         camera = np.r_[camera_indices(scene, table.camera[control]), ties.camera].astype(np.int64)
         obs = RpcObservations(camera, np.zeros(camera.size, np.int64),

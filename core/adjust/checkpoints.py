@@ -135,13 +135,16 @@ def summary_lines(before: dict, after: dict) -> list[str]:
     if not after.get("points"):
         return ["no check points: the accuracy of the result is not measured independently"]
     clean = after.get("blunders") and not after.get("model_error")
-    n_obs = after["observations"]
-    rows = [("before", before, n_obs), ("after", after, n_obs)]
+    rows = [("before", before, before["observations"] - before.get("not_imaged", 0)),
+            ("after", after, after["observations"] - after.get("not_imaged", 0))]
     if clean:
         rows.append((without_label(after["blunder_points"]), after["without_blunders"],
-                     n_obs - after["blunders"]))
+                     rows[1][2] - after["blunders"]))
     lines = [f"monoplotted, per observation, {label}: RMSE {c['image']['rmse']:.3f} px, {c['ground']['rmse']:.2f} m "
              f"(CE90 {c['ground']['ce90']:.2f} m) over {n} observations" for label, c, n in rows if c.get("ground")]
+    lines += [f"{c['not_imaged']} check observation(s) left out {label}: the model does not image their ground "
+              f"(far outside its domain: a wrong coordinate?): {', '.join(c['not_imaged_ids'][:10])}"
+              for label, c, _ in rows[:2] if c.get("not_imaged")]
     inter = after.get("intersection") or {}
     if inter.get("intersected"):
         rows = [("before", before["intersection"], inter["intersected"]), ("after", inter, inter["intersected"])]
@@ -206,12 +209,17 @@ def accuracy(scene: SceneModel, table: GcpTable, rows: np.ndarray, alpha: float,
         sigma_px = sub.sigma_px[m] * scale.get(image_group(cam.name), 1.0)
         sigma_xy = sub.sigma_xy[m] * scale.get("ground_xy", 1.0) * ground_sigmas
         allowed[m] = crit * np.sqrt(sigma_px ** 2 + (sigma_xy / _gsd(scene, c)) ** 2 + relief ** 2)
-    flagged = ~(np.abs(res) <= allowed[:, None]).all(axis=1)
-    test = blunder_test(int(flagged.sum()), rows.size, alpha)
-    return {"points": int(np.unique(sub.id).size), "observations": int(rows.size), **_figures(res, en),
+    # A check point the model does not image (an RPC far outside its ground domain: a wrong coordinate)
+    # has no figure: it is counted and left out, never a NaN in the figures.
+    imaged = np.isfinite(res).all(axis=1) & np.isfinite(en).all(axis=1)
+    flagged = imaged & ~(np.abs(res) <= allowed[:, None]).all(axis=1)
+    test = blunder_test(int(flagged.sum()), int(imaged.sum()), alpha)
+    return {"points": int(np.unique(sub.id).size), "observations": int(rows.size),
+            "not_imaged": int((~imaged).sum()), "not_imaged_ids": [str(i) for i in np.unique(sub.id[~imaged])[:1000]],
+            **_figures(res[imaged], en[imaged]),
             "blunders": int(flagged.sum()), "blunder_points": int(np.unique(sub.id[flagged]).size),
             "blunder_test": test, "model_error": test["model_error"],
-            "without_blunders": _figures(res[~flagged], en[~flagged]),
+            "without_blunders": _figures(res[imaged & ~flagged], en[imaged & ~flagged]),
             "residuals": res, "en": en, "is_flagged": flagged}
 
 

@@ -51,8 +51,8 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
     says when they do not)."""
     settings.validate()
     if settings.scene_sigmas and not (is_block(scene) or isinstance(scene, MixedBlock)):
-        raise InputError("scene_sigmas: per-scene sigmas are for a block of scenes (core.adjust.block.adjust_block); "
-                         "one scene takes position_sigma, attitude_sigma and rpc_sigma",
+        raise InputError("SCENE_SIGMAS: per-scene sigmas are for a block of scenes (SCENES); one scene takes "
+                         "POSITION_SIGMA, ATTITUDE_SIGMA and RPC_SIGMA",
                          parameter="settings.scene_sigmas")
     table = resolve_cameras(table, scene)
     bad = ~np.all(np.isfinite(np.stack([table.col, table.row, table.lon, table.lat, table.h, table.sigma_px,
@@ -76,6 +76,10 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
                              "adjusted from GCPs", parameter="lines")
         check_lines(scene, lines)
     sparse_control = with_ties or with_lines
+    if len(table) and not control.any() and not sparse_control:
+        raise InputError(f"all {np.unique(table.id).size} points are check points (role 'check'): check points never "
+                         "enter the adjustment, so none controls it; give control points (role 'control'), or tie "
+                         "points or control lines", parameter="gcps")
     inside = np.zeros(len(table), bool)
     for c, cam in enumerate(scene.cameras):
         m = table.camera == cam.name

@@ -3,6 +3,10 @@ each fixed (or the run stopped, as the settings say).
 
 The seeds' CBERS-02B experiments (Zhang et al. 2015, Table II) show that all ten interior
 parameters together cannot be determined; such sets are detected here before solving.
+
+Moves of a whole block that only the priors hold (tie points without control: a common shift, a
+height tilt an RPC image's drift follows, ...) are no defect here, the priors determine them; they
+are named with their size after the solution by :mod:`core.adjust.datumdirections`.
 """
 from __future__ import annotations
 

@@ -26,11 +26,13 @@ from ..observations.tiepoints import TieTable
 from .blockproblem import BlockProblem
 from .checks import block_datum, check_inputs, check_redundancy
 from .consistency import check_written_scene
+from .datumdirections import with_directions
 from .determinability import check_determinability
 from .estimation import estimate
 from .linepoints import ControlLines, LineSetUp, set_up_lines
 from .minimalprior import hold_weak_trajectory
 from .problem import Problem
+from .report import report_warnings
 from .results import AdjustmentResult, record_in_scene, result_of, with_yaw
 from .rpcbias import RpcProblem
 from .selection import conventional_instead, interior_free, select_interior
@@ -74,6 +76,8 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     progress(0.02, "setting up the observations")
     tie_set = set_up_ties(scene, ties) if ties is not None and len(ties) else TieSetUp.empty()
     problem = _problem_for(scene, table, settings, tie_set, set_up_lines(scene, lines))
+    if problem.rpc_choice is not None:
+        log.info("%s", problem.rpc_choice["sentence"])
     check_redundancy(problem)
     _, system = problem.system()
     determinability = check_determinability(problem, system)
@@ -99,11 +103,13 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     out = result_of(problem, table, adjusted, est, determinability)
     rep = out.report
     rep["interior_selection"] = selection
+    rep["rpc_correction"] = problem.rpc_choice
     rep["trajectory_prior"] = trajectory_prior
     rep["written_vs_fitted"] = written_vs_fitted
     if held is not None:
-        held = rep["datum"] = with_yaw(held, problem, est.st)
+        held = rep["datum"] = with_directions(with_yaw(held, problem, est.st), problem, est.result)
         log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")
-    record_in_scene(adjusted, settings, out, determinability, selection, held, int(problem.ties.ids.size))
+    rep["warnings"] = report_warnings(rep)
+    record_in_scene(adjusted, problem.settings, out, determinability, selection, held, int(problem.ties.ids.size))
     return out
 

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .problem import Problem
-from .robust import (COMPONENT_TOLERANCE, components, critical, flag_lines, inliers, joint_groups, rescale,
-                     robust_scale, robust_weights, truncation)
+from .robust import (COMPONENT_TOLERANCE, REFLAGGED, components, critical, flag_lines, inliers, joint_groups,
+                     rescale, robust_scale, robust_weights, truncation)
 from .solver import solve
 from .statistics import Statistics, component_coupling, normalised, statistics
 
@@ -21,7 +21,8 @@ class Estimate:
     at its pass limit, the variance components (group -> (sum of p v^2 with the stated sigmas,
     redundancy, count)) over the inliers (n,) of the last pass, the truncation factor, and the
     sets of groups whose factors could not be told apart (each estimated as one,
-    :func:`core.adjust.robust.joint_groups`)."""
+    :func:`core.adjust.robust.joint_groups`); held (n,) bool: the observations held flagged after
+    being flagged REFLAGGED times (:mod:`core.adjust.robust`, Convergence)."""
     result: dict
     st: Statistics
     passes: list
@@ -30,6 +31,7 @@ class Estimate:
     inlier: np.ndarray
     kappa: float
     joint: list = field(default_factory=list)
+    held: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
 
 def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
@@ -42,6 +44,8 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
     iterate = robust or s.variance_components
     passes = []
     joint: list[tuple[str, ...]] = []
+    entered = np.zeros(len(problem.obs), int)  # how often each observation has been flagged anew
+    held = np.zeros(len(problem.obs), bool)
     for k in range(s.max_robust_iterations if iterate else 1):
         label = f"robust pass {k + 1}: " if robust else f"variance component pass {k + 1}: " if iterate else ""
         result = solve(problem, progress, is_cancelled, label)
@@ -60,12 +64,14 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
             st.w, scale = normalised(problem, st.v, st.redundancy), unscaled
         before = problem.factor[:, 0] < 1.0
         lines_before = problem.line_flagged.copy()
-        change = robust_weights(problem, st, scale) if robust else 0.0
+        change = robust_weights(problem, st, scale, held) if robust else 0.0
         if robust:
             change = max(change, flag_lines(problem, st, scale, crit))
         after = problem.factor[:, 0] < 1.0
+        entered += after & ~before
+        held |= after & (entered >= REFLAGGED)
         passes.append({"pass": k + 1, "sigma0": st.sigma0, "down_weighted": int(after.sum()),
-                       "largest_change": change, "component_change": component_change,
+                       "held_flagged": int(held.sum()), "largest_change": change, "component_change": component_change,
                        "joint_groups": [list(j) for j in joint]})
         log.info("%ssigma0 %.3f, %d observations down-weighted, variance components changed by %.1f %%", label,
                  st.sigma0, int(after.sum()), 100 * component_change)
@@ -77,6 +83,6 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
         settled = (change < 1e-3 or (k > 0 and (np.array_equal(before, after) or not result["iterations"]))) and \
             np.array_equal(lines_before, problem.line_flagged)
         if not iterate or (settled and component_change < COMPONENT_TOLERANCE):
-            return Estimate(result, st, passes, False, comps, inlier, kappa, joint)
-    return Estimate(result, st, passes, True, comps, inlier, kappa, joint)
+            return Estimate(result, st, passes, False, comps, inlier, kappa, joint, held)
+    return Estimate(result, st, passes, True, comps, inlier, kappa, joint, held)
 

@@ -54,7 +54,11 @@ TIE_GROUP = "tie points"
 
 
 class Problem:
-    """The data and unknowns of one adjustment, and one linearisation of it (see the module docstring)."""
+    """The data and unknowns of one adjustment, and one linearisation of it (see the module docstring).
+    ``rpc_choice``: what RPC_CORRECTION=auto chose for RPC images and why
+    (:func:`core.adjust.rpcbias.chosen_correction`; None: given, or no RPC image)."""
+
+    rpc_choice: dict | None = None
 
     def __init__(self, scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
                  ties: TieSetUp | None = None, lines: LineSetUp | None = None):

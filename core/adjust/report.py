@@ -16,6 +16,7 @@ import numpy as np
 
 from ..files import OutputSet, write_text
 from .checkpoints import model_error_message, summary_lines
+from .datumdirections import beyond_prior
 
 log = logging.getLogger(__name__)
 
@@ -98,15 +99,31 @@ def joint_sentence(members: list[str]) -> str:
             "sigmas): one factor is estimated for them, their split kept as stated")
 
 
+def residual_text(summary: dict, none: str) -> str:
+    """'RMSE col x px, row y px' of a residual summary (``{"count", "rmse_col", "rmse_row", ...}``),
+    or ``none`` when it counts nothing: never a NaN."""
+    if not summary.get("count"):
+        return none
+    return f"RMSE col {summary['rmse_col']:.3f} px, row {summary['rmse_row']:.3f} px"
+
+
+def control_residual_sentence(rep: dict) -> str:
+    """The control residuals of ``report`` in words: their RMSE, or that there are no control points
+    (a block held by tie points and priors), or that none was left (all flagged)."""
+    n = rep["observations"]["control_points"]
+    none = "no control points" if not n else f"none left of the {n} control points (all flagged)"
+    text = residual_text(rep["control_residuals"], none)
+    return f"control residuals {text}" if rep["control_residuals"].get("count") else f"control residuals: {text}"
+
+
 def ground_taken_sentence(ground: dict) -> str:
     """What the control points' ground unknowns took of their misfit (``report["control_ground"]``)."""
-    at = ground["at_stated_ground"]
+    at = residual_text(ground["at_stated_ground"], "none (no control point is imaged at its stated ground)")
     share = ground.get("ground_share")
     took = f" took {100 * share:.1f} % of the misfit" if share is not None else ""
     return (f"control points: their ground unknowns{took} (shifts RMSE {ground['shift_rmse_horizontal_m']:.3f} m "
             f"horizontal, {ground['shift_rmse_vertical_m']:.3f} m vertical); residuals at the stated ground "
-            f"coordinates RMSE col {at.get('rmse_col', float('nan')):.3f} px, row "
-            f"{at.get('rmse_row', float('nan')):.3f} px")
+            f"coordinates {at}")
 
 
 ONBOARD_SIGMA_PARAMETERS = (("POSITION_SIGMA", "position_sigma", "GNSS position"),
@@ -123,6 +140,22 @@ def onboard_advice(settings: dict) -> str:
         return held
     return (f"{held}; give {' and '.join(name for name, _ in missing)} (the onboard "
             f"{' and '.join(what for _, what in missing)} accuracy) to hold it")
+
+
+def robust_limit_sentence(rep: dict) -> str:
+    """The warning of a robust estimation stopped at its pass limit (``report["robust"]``)."""
+    return (f"robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; the flags may be "
+            "incomplete")
+
+
+def report_warnings(rep: dict) -> list[str]:
+    """The warnings of an adjustment ``report``, for its JSON (``warnings``) and a block's: the robust
+    estimation stopped at its pass limit, the reliability problems, and the datum directions the tie
+    points moved along beyond the priors' sigma (:func:`core.adjust.datumdirections.beyond_prior`)."""
+    out = [robust_limit_sentence(rep)] if rep["robust"]["stopped_at_limit"] else []
+    out += [p["message"] + ("" if p["reliable"] else "; the result is not reliable")
+            for p in rep["reliability"]["problems"]]
+    return out + beyond_prior((rep.get("datum") or {}).get("directions", []))
 
 
 class LogLine(NamedTuple):
@@ -142,12 +175,14 @@ def log_lines(report: dict, tie_observations: int | None = None) -> list[LogLine
 
 
 def outcome_lines(rep: dict) -> list[LogLine]:
-    """Correlations the control hardly separates, parameters fixed as not determinable, variance
-    components, a robust estimation stopped at its limit, reliability problems, sigma0 and the
-    control residuals, and the check point figures before and after."""
-    out = [LogLine(f"{c['a']} and {c['b']} are correlated {c['r']:.4f}: the GCPs hardly separate them; "
-                   f"{onboard_advice(rep.get('settings', {}))}", True)
-           for c in rep["high_correlations"] if c["trajectory"]]
+    """The RPC correction chosen by default (RPC_CORRECTION=auto), correlations the control hardly
+    separates, parameters fixed as not determinable, variance components, observations held flagged
+    and a robust estimation stopped at its limit, reliability problems, sigma0 and the control
+    residuals, and the check point figures before and after."""
+    out = [LogLine(rep["rpc_correction"]["sentence"])] if rep.get("rpc_correction") else []
+    out += [LogLine(f"{c['a']} and {c['b']} are correlated {c['r']:.4f}: the GCPs hardly separate them; "
+                    f"{onboard_advice(rep.get('settings', {}))}", True)
+            for c in rep["high_correlations"] if c["trajectory"]]
     out += [LogLine(f"not determinable together from these GCPs: {', '.join(d['parameters'])}; {d['fixed']} was "
                     "fixed at its input value (ON_SINGULAR)", True) for d in rep["determinability"]]
     for group, c in rep["variance_components"].items():
@@ -159,16 +194,16 @@ def outcome_lines(rep: dict) -> list[LogLine]:
                                f"estimated {c['estimated_sigma']:.4g} {c['unit']} (redundancy "
                                f"{c['redundancy']:.1f}{how})"))
     out += [LogLine(joint_sentence(members)) for members in joint_sets(rep["variance_components"])]
+    if rep["robust"].get("held_flagged"):
+        out.append(LogLine(f"{rep['robust']['held_flagged']} observations near the critical value were flagged, "
+                           "released and flagged again by the robust passes: they were held flagged (the loop would "
+                           "otherwise swing between two sets of flags)"))
     if rep["robust"]["stopped_at_limit"]:
-        out.append(LogLine(f"robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; the "
-                           "flags may be incomplete", True))
+        out.append(LogLine(robust_limit_sentence(rep), True))
     out += [LogLine(p["message"] + ("" if p["reliable"] else "; the result is not reliable"), True)
             for p in rep["reliability"]["problems"]]
-    ctl = rep["control_residuals"]
-    out.append(LogLine(f"sigma0 {rep['sigma0']:.3f} ({'passes' if rep['sigma0_test']['passed'] else 'fails'} the "
-                       f"95 % test); control residuals RMSE col {ctl.get('rmse_col', float('nan')):.3f} px, row "
-                       f"{ctl.get('rmse_row', float('nan')):.3f} px; {rep['robust']['flagged']} observations "
-                       "flagged as gross errors"))
+    out.append(LogLine(f"{sigma0_sentence(rep)}; {control_residual_sentence(rep)}; {rep['robust']['flagged']} "
+                       "observations flagged as gross errors"))
     if rep.get("control_ground"):
         out.append(LogLine(ground_taken_sentence(rep["control_ground"])))
     before, after = rep["check_points_before"], rep["check_points"]
@@ -176,6 +211,14 @@ def outcome_lines(rep: dict) -> list[LogLine]:
         out.append(LogLine(model_error_message(after), True))
     out += [LogLine(f"check points {line}") for line in summary_lines(before, after)]
     return out
+
+
+def sigma0_sentence(rep: dict) -> str:
+    """'sigma0 0.912 (passes the 95 % test)'; without redundancy to estimate it, says so."""
+    sigma0 = rep.get("sigma0")
+    if sigma0 is None or not math.isfinite(sigma0):
+        return "sigma0 not estimated (no redundancy left among the observations kept)"
+    return f"sigma0 {sigma0:.3f} ({'passes' if rep['sigma0_test']['passed'] else 'fails'} the 95 % test)"
 
 
 def tie_lines(rep: dict, tie_observations: int | None) -> list[LogLine]:
@@ -189,6 +232,7 @@ def tie_lines(rep: dict, tie_observations: int | None) -> list[LogLine]:
         if rep.get("tie_points") else []
     if rep.get("datum"):
         out.append(LogLine(datum_sentence(rep["datum"])))
+        out += [LogLine(text, True) for text in beyond_prior(rep["datum"].get("directions", []))]
     return out
 
 
@@ -197,9 +241,10 @@ def control_line_lines(rep: dict | None) -> list[LogLine]:
     across-line RMSE before and after, lines released as a whole, undetermined directions."""
     if rep is None:
         return []
+    across = "no line point left (all flagged)" if rep["across_rmse_m"] is None else \
+        f"{rep['across_rmse_m']:.2f} m (before {rep['across_rmse_before_m']:.1f} m)"
     out = [LogLine(f"control lines: {rep['lines']} lines, {rep['points']} points (2 constraints each); across-line "
-                   f"RMSE {rep['across_rmse_m'] or float('nan'):.2f} m (before "
-                   f"{rep['across_rmse_before_m'] or float('nan'):.1f} m), {rep['flagged_points']} points flagged")]
+                   f"RMSE {across}, {rep['flagged_points']} points flagged")]
     if rep["flagged_lines"]:
         out.append(LogLine(f"{rep['flagged_lines']} control line(s) do not fit as a whole (a wrong road or a shifted "
                            "map line) and were released: " + ", ".join(rep["flagged_line_ids"][:50]), True))

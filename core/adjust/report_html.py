@@ -16,7 +16,9 @@ import logging
 from ..files import OutputSet, write_text
 from ..rotations import ARCSEC_PER_RAD
 from .checkpoints import model_error_message, without_label
-from .report import datum_sentence, ground_taken_sentence, joint_sentence, joint_sets, plain, tie_point_lines
+from .datumdirections import beyond_prior
+from .report import (control_residual_sentence, datum_sentence, ground_taken_sentence, joint_sentence, joint_sets,
+                     plain, robust_limit_sentence, tie_point_lines)
 from .report_plots import chip_figure, residual_vector_figure, trajectory_figure
 from .scenesigmas import sigmas_text
 
@@ -73,15 +75,22 @@ def block_section(block_report: dict) -> str:
                  "", "", ""])
     header = ["scene", "cameras", "control obs.", "control RMS px", "check obs.", "check RMS px", "tie obs.",
               "tie RMS before px", "tie RMS after px", "moved m", "onboard / vendor sigma m", "stated sigmas"]
-    warnings = "".join(f"<p class='bad'>{html.escape(w)}</p>" for w in rep.get("warnings", []))
+    warnings = "".join(f"<p class='bad'>{html.escape(w)}</p>" for w in block_warnings(rep))
     return (f"<h2>Block of {block['scenes']} scenes</h2><p class='big'>{html.escape(rep['datum'])}; sigma0 "
             f"{_fmt(block['sigma0'])}.</p>" + warnings + _table(header, rows, left=2) + _block_lines(rep)
             + "<p>Each scene's move is the largest distance between the ground its onboard (or vendor RPC) and its "
               "adjusted model see over its images; the onboard sigma is what POSITION_SIGMA and ATTITUDE_SIGMA "
-              "allow, an RPC product's the vendor's stated accuracy (settings.rpc_sigma) on the ground; the stated "
+              "allow, an RPC product's the vendor's stated accuracy (RPC_SIGMA) on the ground; the stated "
               "sigmas are those each scene's pseudo-observations carried, '(own)' where SCENE_SIGMAS gave the scene "
               "its own. The sections below are the adjustment of the whole block (cameras named "
               "&lt;scene&gt;/&lt;camera&gt;).</p>")
+
+
+def block_warnings(block_report: dict) -> list[str]:
+    """The warnings of a block report that are the block's own (a scene moved beyond its stated
+    accuracy): those of its adjustment (``adjustment.warnings``) the adjustment's report shows itself."""
+    shown = set(block_report.get("adjustment", {}).get("warnings", []))
+    return [w for w in block_report.get("warnings", []) if w not in shown]
 
 
 def _block_lines(rep: dict) -> str:
@@ -117,8 +126,8 @@ def _reliability_section(rep: dict) -> str:
     rel = rep.get("reliability") or {"reliable": True, "problems": []}
     items = [f"<li>{html.escape(p['message'])}</li>" for p in rel["problems"]]
     if rep["robust"].get("stopped_at_limit"):
-        items.append(f"<li>robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; the "
-                     "flags may be incomplete.</li>")
+        items.append(f"<li>{html.escape(robust_limit_sentence(rep))}.</li>")
+    items += [f"<li>{html.escape(text)}.</li>" for text in beyond_prior((rep.get("datum") or {}).get("directions", []))]
     if not items:
         return ""
     head = ("<p class='big bad'><b>The result is not reliable</b>: the robust estimation broke down (more "
@@ -126,6 +135,11 @@ def _reliability_section(rep: dict) -> str:
             "chip's residuals much larger than the other chips').</p>" if not rel["reliable"] else
             "<p class='big bad'><b>Warnings</b></p>")
     return head + "<ul class='bad'>" + "".join(items) + "</ul>"
+
+
+def _sentence_case(text: str) -> str:
+    """``text`` with its first letter upper case (the rest as it is)."""
+    return text[:1].upper() + text[1:]
 
 
 def _sigma0_sentence(rep: dict) -> str:
@@ -213,10 +227,12 @@ def _headline_section(rep: dict) -> str:
            f"{_fmt(obs['degrees_of_freedom'], '.0f')} degrees of freedom.</p>",
            "<h2>Control point residuals</h2>",
            f"<p class='big'>RMSE col {_fmt(ctl.get('rmse_col'))} px, row {_fmt(ctl.get('rmse_row'))} px; "
-           f"largest {_fmt(ctl.get('max'), '.2f')} px ({ctl.get('count', 0)} observations{left_out}).</p>"]
+           f"largest {_fmt(ctl.get('max'), '.2f')} px ({ctl.get('count', 0)} observations{left_out}).</p>"
+           if ctl.get("count") else
+           f"<p class='big'>{html.escape(_sentence_case(control_residual_sentence(rep)))}.</p>"]
     if rep.get("control_ground"):
         text = ground_taken_sentence(rep["control_ground"])
-        out.append(f"<p>{html.escape(text[:1].upper() + text[1:])}. The image residuals above are what the ground "
+        out.append(f"<p>{html.escape(_sentence_case(text))}. The image residuals above are what the ground "
                    "unknowns left; the residuals at the stated ground coordinates are what the adjusted model "
                    "misses by, comparable with the check points'.</p>")
     before, after = rep["check_points_before"], rep["check_points"]
@@ -226,8 +242,9 @@ def _headline_section(rep: dict) -> str:
         return "\n".join(out)
     out.append(_model_error_note(after))
     out.append(_intersection_section(before, after))
-    n_obs = after.get("observations", after["points"])
-    rows = [_check_point_row("before (input scene)", before, n_obs),
+    n_obs = after.get("observations", after["points"]) - after.get("not_imaged", 0)
+    rows = [_check_point_row("before (input scene)", before,
+                             before.get("observations", 0) - before.get("not_imaged", 0)),
             _check_point_row("after adjustment", after, n_obs)]
     if after.get("blunders") and not after.get("model_error"):
         rows.append(_check_point_row(without_label(after["blunder_points"]),
@@ -237,6 +254,9 @@ def _headline_section(rep: dict) -> str:
                        "RMSE north m", "RMSE m", "CE90 m", "max m"], rows))
     out.append("<p>Each observation on its own: image residual of the known ground point (px), and the image "
                "position projected to the ground at the known height (m, plan only).</p>")
+    out += [f"<p class='bad'>{c['not_imaged']} check observation(s) left out {label}: the model does not image their "
+            f"ground (far outside its domain: a wrong coordinate?): {html.escape(', '.join(c['not_imaged_ids'][:10]))}"
+            "</p>" for label, c in (("before", before), ("after", after)) if c.get("not_imaged")]
     out.append(_blunder_note(after))
     return "\n".join(x for x in out if x)
 

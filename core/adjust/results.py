@@ -74,7 +74,8 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
         if pair["trajectory"]:
             log.warning("%s and %s are correlated %.4f: the GCPs hardly separate them (their sigmas say by how "
                         "much); onboard sigmas (pseudo-observations) would", pair["a"], pair["b"], pair["r"])
-    flagged = np.abs(st.w).max(axis=1) > crit
+    # flagged: beyond the critical value now, or held flagged by the robust loop (core.adjust.robust, Convergence)
+    flagged = (np.abs(st.w).max(axis=1) > crit) | (est.held if est.held.size else False)
     gcp = ~(problem.is_tie | problem.is_line)
     rows = problem.rows[gcp]
     n = len(table)
@@ -120,7 +121,7 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
                          "degrees_of_freedom": st.dof},
         "iterations": result["iterations"],
         "robust": {"method": problem.settings.robust, "passes": est.passes, "critical_w": crit,
-                   "stopped_at_limit": est.at_limit, "flagged": int(flagged.sum()),
+                   "stopped_at_limit": est.at_limit, "flagged": int(flagged.sum()), "held_flagged": int(est.held.sum()),
                    "flagged_ids": [str(i) for i in table.id[rows][flagged[gcp]][:1000]],
                    "flagged_tie_ids": [str(i) for i in tie_ids[flagged[problem.is_tie]][:1000]]},
         "reliability": {"reliable": reliable, "problems": problems},
@@ -308,7 +309,8 @@ def record_in_scene(adjusted: SceneModel, settings: AdjustmentSettings, out: Adj
         "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
     if held is not None:
         adjusted.info["adjustment"]["datum"] = {k: held[k] for k in ("held_by", "control_points", "control_lines",
-                                                                "note", "yaw") if k in held}
+                                                                "note", "yaw", "directions")
+                                                  if k in held}
         adjusted.info["adjustment"]["tie_points"] = tie_points
     if "lines" in rep:
         adjusted.info["adjustment"]["lines"] = {k: rep["lines"][k] for k in ("lines", "points", "flagged_line_ids",

@@ -15,7 +15,7 @@ with respect to the ground point (central differences of 0.1 m: the RPC is a cub
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -28,6 +28,12 @@ from .settings import AdjustmentSettings
 from .ties import TieSetUp
 
 TERMS = ("a0", "a1", "a2", "b0", "b1", "b2")
+# RPC_CORRECTION=auto: control points that hold the block's height tilt, and so its drift terms; with
+# fewer, shift. Measured (tests/bench/bench_rpc_datum.py, docs/accuracy.md): ties alone determine the
+# tilt the drift terms let in only through the second-order part of its image displacement the
+# drift cannot follow, and it runs away: on simulated RPC tri-stereos tied without control the
+# heights tilted by 78 to 190 m across 5 km with drift (0.0 to 0.02 m with shift), at the same tie RMS.
+AUTO_CONTROL = 3
 MODES = {"shift": ("a0", "b0"), "drift": ("a0", "a2", "b0", "b2"), "affine": TERMS}
 GROUND_STEP = 0.1  # m: central differences of the RPC with respect to the ground point
 
@@ -49,6 +55,20 @@ class RpcObservations:
 
     def select(self, m) -> "RpcObservations":
         return RpcObservations(**{f.name: getattr(self, f.name)[m] for f in fields(self)})
+
+
+def chosen_correction(settings: AdjustmentSettings, n_control: int) -> tuple[AdjustmentSettings, dict | None]:
+    """``settings`` with RPC_CORRECTION=auto resolved for ``n_control`` control points (shift with
+    fewer than AUTO_CONTROL, drift with more), and what was chosen and why, for the report and the
+    log (None when RPC_CORRECTION was given)."""
+    if settings.rpc_correction != "auto":
+        return settings, None
+    mode = "shift" if n_control < AUTO_CONTROL else "drift"
+    why = (f"the default for a block with fewer than {AUTO_CONTROL} control points: its tie points do not "
+           "determine the height tilt drift terms would let in" if mode == "shift" else
+           f"the default with {AUTO_CONTROL} or more control points, which hold the drift terms")
+    return replace(settings, rpc_correction=mode), {"mode": mode, "default": True,
+                                                    "sentence": f"RPC_CORRECTION: {mode}, {why}"}
 
 
 class BiasParameters(ParameterSet):
@@ -142,10 +162,11 @@ class RpcProblem(Problem):
         if settings.interior:
             raise InputError("INTERIOR: an RPC scene has no interior parameters; its correction is chosen with "
                              "RPC_CORRECTION")
-        self.scene, self.settings = scene, settings
-        self.image = RpcImage(scene, settings.rpc_correction)
-        self.params = self.image.params
         control = np.nonzero(table.role == "control")[0]
+        self.settings, self.rpc_choice = chosen_correction(settings, int(np.unique(table.id[control]).size))
+        self.scene = scene
+        self.image = RpcImage(scene, self.settings.rpc_correction)
+        self.params = self.image.params
         _, first, point = np.unique(table.id[control], return_index=True, return_inverse=True)
         self._set_up_ground(table, control[first])
         n = control.size

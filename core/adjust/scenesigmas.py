@@ -15,11 +15,8 @@ from ..errors import InputError
 from ..model.block import SEPARATOR
 from ..model.rpcscene import RpcScene
 from ..rotations import ARCSEC
-from .settings import AdjustmentSettings
+from .settings import PARAMETERS, AdjustmentSettings
 
-# The global sigma each override stands in for, by its Processing parameter (what a user gives).
-GLOBAL_PARAMETERS = {"position_sigma": "POSITION_SIGMA", "attitude_sigma": "ATTITUDE_SIGMA",
-                     "rpc_sigma": "RPC_SIGMA"}
 RIGOROUS_SIGMAS = ("position_sigma", "attitude_sigma")  # an RPC product has no onboard trajectory
 
 
@@ -32,19 +29,20 @@ def check_scene_sigmas(scenes: dict, settings: AdjustmentSettings) -> None:
     settings.validate()
     for scene, sigmas in settings.scene_sigmas.items():
         if scene not in scenes:
-            raise InputError(f"scene_sigmas: scene {scene!r} is not in the block (scenes: {', '.join(scenes)})",
+            raise InputError(f"SCENE_SIGMAS: scene {scene!r} is not in the block (scenes: {', '.join(scenes)})",
                              parameter="settings.scene_sigmas")
         rpc = isinstance(scenes[scene], RpcScene)
         wrong = [k for k in sigmas if (k in RIGOROUS_SIGMAS) == rpc]
         if wrong:
-            what = "an RPC product: it has no onboard trajectory (its prior is rpc_sigma)" if rpc else \
-                "a rigorous scene: rpc_sigma is the prior of RPC products (its own are position_sigma, attitude_sigma)"
-            raise InputError(f"scene_sigmas: scene {scene!r} is {what}; remove its {', '.join(wrong)}",
+            what = "an RPC product: it has no onboard trajectory (its prior is RPC_SIGMA)" if rpc else \
+                "a rigorous scene: RPC_SIGMA is the prior of RPC products (its own are POSITION_SIGMA, ATTITUDE_SIGMA)"
+            raise InputError(f"SCENE_SIGMAS: scene {scene!r} is {what}; remove its "
+                             f"{', '.join(PARAMETERS[k] for k in wrong)}",
                              parameter="settings.scene_sigmas")
         unset = [k for k in sigmas if getattr(settings, k) is None]
         if unset:
-            given = " and ".join(GLOBAL_PARAMETERS[k] for k in unset)
-            raise InputError(f"scene_sigmas: scene {scene!r} overrides {', '.join(unset)}, whose global value is not "
+            given = " and ".join(PARAMETERS[k] for k in unset)
+            raise InputError(f"SCENE_SIGMAS: scene {scene!r} overrides {given}, whose global value is not "
                              f"given (no such pseudo-observations in the block): give {given} too; per-scene values "
                              "override it", parameter="settings.scene_sigmas")
 

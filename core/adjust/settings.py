@@ -17,6 +17,12 @@ RPC_SIGMA_RANGE = (1e-3, 1e5)  # px: the RPC images' stated accuracy, from a tho
 SCENE_SIGMA_KEYS = ("position_sigma", "attitude_sigma", "rpc_sigma")
 CAMERA_TRAJECTORY = ("shared", "per_camera")
 SELECTION = ("keep", "significant")
+RPC_CORRECTIONS = ("auto", "shift", "drift", "affine")  # auto: core.adjust.rpcbias.chosen_correction
+# The Processing parameter each setting is given by (ui/parameters.py): what a refusal names, never the field.
+PARAMETERS = {"position_sigma": "POSITION_SIGMA", "attitude_sigma": "ATTITUDE_SIGMA", "rpc_sigma": "RPC_SIGMA",
+              "scene_sigmas": "SCENE_SIGMAS", "ground": "GROUND", "robust": "ROBUST", "alpha": "ALPHA",
+              "camera_trajectory": "CAMERA_TRAJECTORY", "on_singular": "ON_SINGULAR",
+              "rpc_correction": "RPC_CORRECTION", "interior_selection": "INTERIOR_SELECTION"}
 
 
 @dataclass
@@ -43,7 +49,9 @@ class AdjustmentSettings:
     parameters the control cannot support and falls back to no self-calibration when it is
     not significantly better (:mod:`core.adjust.selection`); 'keep' keeps the set as given.
     rpc_correction: the image-space correction of RPC scenes, 'shift', 'drift' or 'affine'
-    (:mod:`core.adjust.rpcbias`). rpc_sigma (px): the vendor's stated accuracy of RPC images, a
+    (:mod:`core.adjust.rpcbias`), or 'auto': shift for a block with fewer than 3 control points
+    (its ties do not determine the height tilt the drift terms let in), drift otherwise
+    (:func:`core.adjust.rpcbias.chosen_correction`). rpc_sigma (px): the vendor's stated accuracy of RPC images, a
     pseudo-observation of 0 on each correction term (its displacement at the image's far edge, see
     :meth:`core.adjust.rpcbias.RpcImage.prior`), as the onboard sigmas are of the trajectories; None:
     none. A block of RPC images tied without control needs it: it holds where the block lies.
@@ -70,7 +78,7 @@ class AdjustmentSettings:
     max_iterations: int = 30
     max_robust_iterations: int = 12
     variance_components: bool = True
-    rpc_correction: str = "drift"
+    rpc_correction: str = "auto"
     rpc_sigma: float | None = None
     interior_selection: str = "significant"
     scene_sigmas: dict[str, dict[str, float]] = field(default_factory=dict)
@@ -82,26 +90,27 @@ class AdjustmentSettings:
 
     def validate(self) -> None:
         if self.ground not in ("weighted", "fixed"):
-            raise InputError(f"ground must be 'weighted' or 'fixed' (got {self.ground!r})", parameter="settings.ground")
+            raise InputError(f"GROUND must be 'weighted' or 'fixed' (got {self.ground!r})", parameter="settings.ground")
         if self.robust not in ROBUST:
-            raise InputError(f"robust method must be one of {', '.join(ROBUST)} (got {self.robust!r})",
+            raise InputError(f"ROBUST must be one of {', '.join(ROBUST)} (got {self.robust!r})",
                              parameter="settings.robust")
         if self.camera_trajectory not in CAMERA_TRAJECTORY:
-            raise InputError(f"camera trajectory must be one of {', '.join(CAMERA_TRAJECTORY)} "
+            raise InputError(f"CAMERA_TRAJECTORY must be one of {', '.join(CAMERA_TRAJECTORY)} "
                              f"(got {self.camera_trajectory!r})", parameter="settings.camera_trajectory")
         if self.on_singular not in ("fix", "stop"):
-            raise InputError(f"on_singular must be 'fix' or 'stop' (got {self.on_singular!r})",
+            raise InputError(f"ON_SINGULAR must be 'fix' or 'stop' (got {self.on_singular!r})",
                              parameter="settings.on_singular")
         if not 0 < self.alpha < 0.5:
-            raise InputError(f"alpha must be between 0 and 0.5 (got {self.alpha})", parameter="settings.alpha")
+            raise InputError(f"ALPHA must be between 0 and 0.5 (got {self.alpha})", parameter="settings.alpha")
         for name in SCENE_SIGMA_KEYS:
             check_sigma(name, getattr(self, name))
-        if self.rpc_correction not in ("shift", "drift", "affine"):
-            raise InputError(f"RPC correction must be shift, drift or affine (got {self.rpc_correction!r})",
+        if self.rpc_correction not in RPC_CORRECTIONS:
+            raise InputError(f"RPC_CORRECTION must be one of {', '.join(RPC_CORRECTIONS)} "
+                             f"(got {self.rpc_correction!r})",
                              parameter="settings.rpc_correction")
         self._validate_scene_sigmas()
         if self.interior_selection not in SELECTION:
-            raise InputError(f"interior_selection must be one of {', '.join(SELECTION)} "
+            raise InputError(f"INTERIOR_SELECTION must be one of {', '.join(SELECTION)} "
                              f"(got {self.interior_selection!r})", parameter="settings.interior_selection")
 
 
@@ -110,16 +119,19 @@ class AdjustmentSettings:
         bounds of its global sigma; InputError (parameter settings.scene_sigmas) naming the scene
         and the key."""
         if not isinstance(self.scene_sigmas, dict):
-            raise InputError("scene_sigmas must map scene names to their sigmas (got "
+            raise InputError("SCENE_SIGMAS must map scene names to their sigmas (got "
                              f"{type(self.scene_sigmas).__name__})", parameter="settings.scene_sigmas")
         for scene, sigmas in self.scene_sigmas.items():
             if not isinstance(scene, str) or not scene.strip() or not isinstance(sigmas, dict) or not sigmas:
-                raise InputError(f"scene_sigmas: scene {scene!r} needs a name and at least one of "
-                                 f"{', '.join(SCENE_SIGMA_KEYS)}", parameter="settings.scene_sigmas")
+                raise InputError(f"SCENE_SIGMAS: scene {scene!r} needs a name and at least one of "
+                                 f"{', '.join(PARAMETERS[k] for k in SCENE_SIGMA_KEYS)}",
+                                 parameter="settings.scene_sigmas")
             unknown = sorted(set(sigmas) - set(SCENE_SIGMA_KEYS))
             if unknown:
-                raise InputError(f"scene_sigmas: scene {scene!r} has unknown key(s) {', '.join(map(repr, unknown))} "
-                                 f"(known: {', '.join(SCENE_SIGMA_KEYS)})", parameter="settings.scene_sigmas")
+                raise InputError(f"SCENE_SIGMAS: scene {scene!r} has unknown key(s) {', '.join(map(repr, unknown))} "
+                                 f"(known: {', '.join(SCENE_SIGMA_KEYS)}: its own "
+                                 f"{', '.join(PARAMETERS[k] for k in SCENE_SIGMA_KEYS)})",
+                                 parameter="settings.scene_sigmas")
             for name, value in sigmas.items():
                 check_sigma(name, value, scene)
 
@@ -131,7 +143,7 @@ def check_sigma(name: str, value, scene: str | None = None) -> None:
     low, high, unit = ONBOARD_SIGMAS.get(name, (*RPC_SIGMA_RANGE, "px"))
     if value is None and scene is None:
         return
-    where = "" if scene is None else f"scene_sigmas: scene {scene!r}: "
+    where = "" if scene is None else f"SCENE_SIGMAS: scene {scene!r}: "
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
         arcsec = f" ({low / ARCSEC:g} to {high / ARCSEC:g} arcsec)" if unit == "rad" else ""
         got = f"{value:g} {unit}" + (f", {value / ARCSEC:g} arcsec" if unit == "rad" else "") \
@@ -139,6 +151,6 @@ def check_sigma(name: str, value, scene: str | None = None) -> None:
         none = "no prior on the RPC corrections" if unit == "px" else "no pseudo-observations"
         empty = f"empty ({none}) or " if scene is None else ""
         why = "it weighs nothing or holds the trajectory fixed" if unit != "px" else "it is no stated accuracy"
-        raise InputError(f"{where}{name} must be {empty}between {low:g} and {high:g} {unit}{arcsec} (got {got}): "
-                         f"beyond this range {why}",
+        raise InputError(f"{where}{PARAMETERS[name]} must be {empty}between {low:g} and {high:g} {unit}{arcsec} "
+                         f"(got {got}): beyond this range {why}",
                          parameter="settings.scene_sigmas" if scene is not None else f"settings.{name}")

@@ -233,7 +233,7 @@ def _refuse_datum(missing: list[str], n_control: int, position_sigma, attitude_s
     if trajectories and any(c not in SHIFTS + SCALE for c in missing):
         need.append("ATTITUDE_SIGMA (onboard attitude accuracy)")
     if rpc_images:
-        need.append("RPC_SIGMA (settings.rpc_sigma: the vendor's stated accuracy of the RPC images, px)")
+        need.append("RPC_SIGMA (the vendor's stated accuracy of the RPC images, px)")
     pseudo = [name for name, s in (("positions", position_sigma), ("attitude", attitude_sigma)) if s is not None]
     given = "onboard pseudo-observations of the " + " and ".join(pseudo) if pseudo else \
         "no onboard pseudo-observations"

@@ -2,7 +2,9 @@
 
 :func:`load_scene` is the door: it reads any of them into a model (:class:`core.model.sensor.SceneModel`
 or :class:`core.model.rpcscene.RpcScene`). Vendor conventions (1-based pixel centres, scalar-last
-quaternions, time systems) are converted by the readers of this package and nowhere else.
+quaternions, time systems) are converted by the readers of this package and nowhere else. A rigorous
+vendor product is checked against the RPC its vendor ships with it (:mod:`core.formats.vendorcheck`)
+once it has passed the checks of every scene (:mod:`core.formats.schema`).
 """
 from __future__ import annotations
 
@@ -17,13 +19,15 @@ from .maxar import read_maxar
 from .rpcfiles import is_rpc_text, read_dimap_rpc, read_rpc_image, read_rpc_text
 from .scene_json import scene_from_dict, validate_scene
 from .schema import check_scene_model
+from .vendorcheck import VendorRpc, check_vendor_rpc
 from .vendor_xml import parse_xml
 
 UTF8_BOM = b"\xef\xbb\xbf"  # written by some editors (Notepad); JSON and XML both allow it
 
 
-def read_xml_scene(path: str | Path) -> SceneModel:
-    """The scene of an XML metadata file, by the reader for its format (DIMAP v2 or Maxar)."""
+def read_xml_scene(path: str | Path) -> tuple[SceneModel, VendorRpc | None]:
+    """The scene of an XML metadata file, by the reader for its format (DIMAP v2 or Maxar), and
+    the RPC the product ships to check it against (None when it has none)."""
     root = parse_xml(path)
     if root.tag.endswith("Dimap_Document"):
         return read_dimap(path, root)
@@ -56,7 +60,10 @@ def load_scene(path: str | Path) -> SceneModel | RpcScene:
     elif head.startswith(b"<") and path.name.upper().startswith("RPC_"):
         scene = read_dimap_rpc(path, parse_xml(path))
     elif head.startswith(b"<"):
-        scene = validate_scene(read_xml_scene(path), str(path))
+        scene, vendor = read_xml_scene(path)
+        validate_scene(scene, str(path))
+        if vendor is not None:
+            check_vendor_rpc(scene, vendor, str(path))
     elif is_rpc_text(path, head):
         scene = read_rpc_text(path)
     else:

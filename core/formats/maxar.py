@@ -1,22 +1,25 @@
 """Maxar/DigitalGlobe image support data (the ``isd`` XML of WorldView, QuickBird, GeoEye).
 
-Sections used: IMD (image size, line timing table, view angles), EPH (ECEF positions and
-velocities at a fixed interval), ATT (attitude quaternions at the same instants), GEO
-(principal distance, detector array, camera attitude, perspective centre) and RPB (the
-vendor RPC00B model).
+Sections used: IMD (image size, line timing table and scan direction, view angles), EPH (ECEF
+positions and velocities at a fixed interval), ATT (attitude quaternions at the same instants), GEO
+(principal distance, detector array, camera attitude, perspective centre) and RPB (the vendor
+RPC00B model; or the ``<name>.RPB`` beside the XML), which the model is checked against on load
+(:mod:`core.formats.vendorcheck`).
 
 Vendor conventions and how they are converted here:
   - Image: DigitalGlobe's detector index and TLC line numbers are 0-based pixel centres,
     so GDAL col = detector + 0.5 and row = line + 0.5 (the RPB likewise, as RPC00B).
   - Focal plane (GEO, millimetres): detector d sits at x = DETORIGINX + d*pitch*sin(r),
-    y = DETORIGINY - d*pitch*cos(r) (r = DETROTANGLE, degrees) in the camera frame whose
+    y = DETORIGINY - d*pitch*cos(r) (r = DETROTANGLE, in degrees or in radians, told from its
+    value: :func:`detector_rotation`) in the camera frame whose
     x is along track and z toward the scene; the line of sight is (x, y, PD) - no
     inversion (the detector coordinates are those of the positive image plane).
     In :class:`core.model.camera.Chip` terms: x0, y0, theta = pi - r, metres.
   - Quaternions (ATT, CAMERA_ATTITUDE): scalar last (q1, q2, q3, q4 = w). ATT rotates the
     body frame to ECEF; CAMERA_ATTITUDE rotates the camera frame to the body frame.
   - Time: UTC strings; the scene epoch is the first line time, every time is seconds from it.
-    EPH and ATT sample k (1-based index) is at STARTTIME + (k - 1) * TIMEINTERVAL.
+    EPH and ATT sample k (1-based index) is at STARTTIME + (k - 1) * TIMEINTERVAL. The TLC
+    line times decrease with the line in a reverse scan (SCANDIRECTION Reverse; GeoEye-1).
 These conventions were checked on two WorldView-2 scenes: the model meets the vendor RPB to
 0.18/0.38 px and the IMD corner coordinates to 0.07 px (tests/unit/test_worldview.py); a
 reversed detector, a scalar-first reading or an inverted attitude would be pixels to
@@ -58,6 +61,8 @@ from ..model.rpc import RpcModel
 from ..model.sensor import SceneModel
 from ..model.trajectory import Ephemeris, Platform, QuaternionSamples
 from ..validation import rpc_value_problem
+from .rpcfiles import parse_rpb, rpc_from_metadata
+from .vendorcheck import VendorRpc
 from .vendor_xml import parse_floats as _floats, parse_xml
 
 log = logging.getLogger(__name__)
@@ -67,14 +72,18 @@ SATELLITES = {"QB02": "QuickBird", "WV01": "WorldView-1", "WV02": "WorldView-2",
               "WV04": "WorldView-4", "GE01": "GeoEye-1"}
 MAX_IMAGE_SIZE = 10_000_000  # pixels per side: far beyond any Maxar strip (WorldView-3: 43008 detectors)
 NEWEST_ISD_MAJOR = 28  # IMD/VERSION of the newest product checked (WorldView-3, 2022: 28.3)
+# The detector line lies across track: DETROTANGLE (GEO/DETECTOR_MOUNTING) at 0 or 180 degrees, within this
+ACROSS_TRACK_TOLERANCE_DEG = 1.0
 CORRECTIONS_REASON = ("velocity aberration and atmospheric refraction applied: the ATT quaternions are the "
                       "measured attitude, and Maxar's own models include both corrections for every satellite "
                       "and ISD version (as the NASA Ames Stereo Pipeline applies them to every WorldView product)")
 
 
-def read_maxar(path: str | Path, root: ElementTree.Element) -> SceneModel:
+def read_maxar(path: str | Path, root: ElementTree.Element) -> tuple[SceneModel, VendorRpc | None]:
     """SceneModel (one pushbroom camera, velocity aberration and refraction on) from a parsed
-    Maxar isd XML. Raises MetadataError naming the missing or malformed section/field."""
+    Maxar isd XML, and the product's RPB to check it against (:mod:`core.formats.vendorcheck`;
+    None, with a warning, when the product has none). Raises MetadataError naming the missing or
+    malformed section/field."""
     src = str(path)
     imd = _section(root, "IMD", src, "image metadata")
     _check_sensor_geometry_product(imd, src)
@@ -90,10 +99,12 @@ def read_maxar(path: str | Path, root: ElementTree.Element) -> SceneModel:
          for k in ("QCS1", "QCS2", "QCS3", "QCS4")]))
     ephemeris = _apply_perspective_centre(geo, ephemeris, attitude, src)
     cols = _image_size(imd, "NUMCOLUMNS", src)
+    timing, scan, scan_warning = _read_line_timing(image, src, epoch_dt)
+    chip, rotation = _read_chip(geo, cols, src)
     camera = Camera(name=_text(imd, "BANDID", src, "IMD"), cols=cols,
                     rows=_image_size(imd, "NUMROWS", src),
-                    timing=_read_line_timing(image, src, epoch_dt),
-                    chips=[_read_chip(geo, cols, src)],
+                    timing=timing,
+                    chips=[chip],
                     focal_length=_number(_child(geo, "PRINCIPAL_DISTANCE", src, "GEO"), "PD", src,
                                          "GEO/PRINCIPAL_DISTANCE") * MM,
                     installation=installation)
@@ -109,12 +120,20 @@ def read_maxar(path: str | Path, root: ElementTree.Element) -> SceneModel:
     }
     info["isd_version"] = imd.findtext("VERSION", "").strip() or None
     info["corrections"] = {"aberration": True, "refraction": True, "reason": CORRECTIONS_REASON}
-    warnings = [w for w in [_unplaced_generation(info["sensor"], info["isd_version"])] if w]
-    if root.find("RPB") is not None:
-        rpc = read_maxar_rpc(path, root)
+    info["scan_direction"] = scan
+    info["detector_rotation"] = rotation
+    warnings = [w for w in [_unplaced_generation(info["sensor"], info["isd_version"]), scan_warning] if w]
+    vendor = _vendor_rpc(Path(path), root)
+    if vendor is None:
+        warnings.append(f"no RPB (neither an RPB section nor {Path(path).stem}.RPB beside it): the rigorous model "
+                        "could not be checked against Maxar's RPC")
+    else:
+        rpc = vendor.rpc
         info["height_range"] = [rpc.height_off - rpc.height_scale, rpc.height_off + rpc.height_scale]
         info["rpb_origin"] = _rpb_origin(rpc, camera.cols, camera.rows, root.find("TIL") is not None)
-        if info["rpb_origin"] != "Maxar":
+        vendor.refit_without_corrections = info["rpb_origin"] != "Maxar"
+        vendor.assumed = (rotation["read_as"], f"IMD/IMAGE/TLCLISTList read as a {scan.lower()} scan")
+        if vendor.refit_without_corrections:
             warnings.append(f"the RPB was refitted by {info['rpb_origin']}, not made by Maxar; ASP 3.1.0-3.3.0 "
                             "fitted it to a model without velocity aberration and refraction, so it can lie ~15 m "
                             "(tens of pixels) from this rigorous model, which applies both as Maxar does")
@@ -123,7 +142,22 @@ def read_maxar(path: str | Path, root: ElementTree.Element) -> SceneModel:
         for w in info["warnings"]:
             log.warning(w)
     return SceneModel(epoch=epoch, platform=Platform(ephemeris, attitude), cameras=[camera],
-                      aberration=True, refraction=True, info=info)
+                      aberration=True, refraction=True, info=info), vendor
+
+
+def _vendor_rpc(path: Path, root: ElementTree.Element) -> VendorRpc | None:
+    """The product's RPB: the XML's RPB section, else an ``.RPB`` file of the XML's name beside it
+    (as Maxar delivers it: <name>.XML, <name>.RPB); None when neither exists."""
+    if root.find("RPB") is not None:
+        return VendorRpc(read_maxar_rpc(path, root), f"{path.name} (its RPB section)")
+    beside = [p for p in (path.with_suffix(".RPB"), path.with_suffix(".rpb")) if p.is_file()]
+    if not beside:
+        return None
+    try:
+        text = beside[0].read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise MetadataError(f"{beside[0]}: the RPB beside {path.name} cannot be read as text ({exc})") from None
+    return VendorRpc(rpc_from_metadata(parse_rpb(text), str(beside[0])), str(beside[0]))
 
 
 def read_maxar_rpc(path: str | Path, root: ElementTree.Element | None = None) -> RpcModel:
@@ -227,27 +261,39 @@ def _read_attitude(root, src: str, epoch_dt: np.datetime64) -> QuaternionSamples
         raise MetadataError(f"{src}: ATT: {exc}") from None
 
 
-def _read_line_timing(image, src: str, epoch_dt: np.datetime64) -> LineTiming:
-    """TLC table: (line, seconds after TLCTIME) pairs, line = 0-based pixel-centre row. A
-    single entry is completed with AVGLINERATE; LineTiming extrapolates past the table."""
+def _read_line_timing(image, src: str, epoch_dt: np.datetime64) -> tuple[LineTiming, str, str | None]:
+    """TLC table: (line, seconds after TLCTIME) pairs, line = 0-based pixel-centre row; the times
+    decrease with the line in a reverse scan. A single entry is completed with AVGLINERATE in the
+    direction of SCANDIRECTION ("Reverse": times decreasing); LineTiming extrapolates past the
+    table. Returns the timing, the scan direction it shows ("Forward" or "Reverse") and a warning
+    when SCANDIRECTION names the other one (the table, which is the geometry, is followed)."""
     where = "IMD/IMAGE"
     t_ref = _seconds(_utc(_text(image, "TLCTIME", src, where), src, f"{where}/TLCTIME"), epoch_dt)
     entries = [_floats(e.text or "", src, f"{where}/TLCLISTList/TLCLIST", 2)[:2]
                for e in _child(image, "TLCLISTList", src, where).findall("TLCLIST")]
     if not entries:
         raise MetadataError(f"{src}: {where}/TLCLISTList has no TLCLIST entries (line timing)")
+    stated = image.findtext("SCANDIRECTION", "").strip()
     table = np.array(entries)
     if table.shape[0] == 1:
         rate = _number(image, "AVGLINERATE", src, where)
-        table = np.vstack([table, table[0] + [rate, 1.0]])
+        table = np.vstack([table, table[0] + [rate, -1.0 if stated.lower() == "reverse" else 1.0]])
     try:
-        return LineTiming(lines=table[:, 0], times=table[:, 1] + t_ref)
+        timing = LineTiming(lines=table[:, 0], times=table[:, 1] + t_ref)
     except MetadataError as exc:
         raise MetadataError(f"{src}: {where}/TLCLISTList: {exc}") from None
+    shown = "Reverse" if timing.reverse else "Forward"
+    warning = None
+    if stated and stated.lower() != shown.lower():
+        warning = (f"{where}/SCANDIRECTION is {stated!r} but the line times of {where}/TLCLISTList "
+                   f"{'decrease' if timing.reverse else 'increase'} with the line: read as the table gives them "
+                   f"({shown} scan)")
+    return timing, shown, warning
 
 
-def _read_chip(geo, n_pixels: int, src: str) -> Chip:
-    """The detector array of GEO/DETECTOR_MOUNTING (the first band: a 1B product has one)."""
+def _read_chip(geo, n_pixels: int, src: str) -> tuple[Chip, dict]:
+    """The detector array of GEO/DETECTOR_MOUNTING (the first band: a 1B product has one), and
+    how its DETROTANGLE was read (:func:`detector_rotation`)."""
     mounting = _child(geo, "DETECTOR_MOUNTING", src, "GEO")
     bands = [b for b in mounting if b.tag.startswith("BAND_")]
     if not bands:
@@ -256,9 +302,31 @@ def _read_chip(geo, n_pixels: int, src: str) -> Chip:
     det = _child(bands[0], "DETECTOR_ARRAY", src, where)
     where += "/DETECTOR_ARRAY"
     v = {k: _number(det, k, src, where) for k in ("DETORIGINX", "DETORIGINY", "DETROTANGLE", "DETPITCH")}
+    rotation = detector_rotation(v["DETROTANGLE"], f"{where}/DETROTANGLE")
+    log.info("%s: %s", src, rotation["read_as"])
     return Chip(col_offset=0.0, n_pixels=n_pixels, kind="focal_plane", x0=v["DETORIGINX"] * MM,
                 y0=v["DETORIGINY"] * MM, pitch=v["DETPITCH"] * MM,
-                theta=np.pi - np.radians(v["DETROTANGLE"]), name=bands[0].tag[5:])
+                theta=np.pi - rotation["radians"], name=bands[0].tag[5:]), rotation
+
+
+def detector_rotation(value: float, where: str) -> dict:
+    """DETROTANGLE in radians, with the unit it was read in and a sentence saying so.
+
+    WorldView products write 0 (no unit to tell); a GeoEye-1 product of ISD 28.3 writes
+    3.141592653589793, i.e. 180 degrees in radians, and the Ames Stereo Pipeline's reader took the
+    field in degrees in older versions and in radians in later ones (LinescanDGModel.cc). The unit
+    is told from the value: the detector line lies across track, at 0 or 180 degrees (within
+    ACROSS_TRACK_TOLERANCE_DEG). A value beyond 2 pi is degrees; one that lies across track only
+    when read as radians is radians; any other (0 included) is degrees. The product's RPB then
+    confirms the reading, or refuses the product (:mod:`core.formats.vendorcheck`)."""
+    def across(deg: float) -> bool:
+        return abs((deg + 90.0) % 180.0 - 90.0) <= ACROSS_TRACK_TOLERANCE_DEG
+
+    radians = abs(value) <= 2.0 * np.pi and across(np.degrees(value)) and not across(value)
+    deg = float(np.degrees(value)) if radians else value
+    unit = "radians" if radians else "degrees"
+    return {"value": value, "unit": unit, "radians": float(value if radians else np.radians(value)),
+            "read_as": f"{where} {value!r} read as {unit} ({deg:g} deg)"}
 
 
 def _check_no_distortion(geo, src: str) -> None:

@@ -21,10 +21,12 @@ from osgeo import gdal
 
 from ..errors import InputError, MetadataError
 from ..files import OutputSet, check_closed, closing_errors, output_set, write_text
+from ..rasters import copy_statistics, open_input_raster
 from ..model.rpc import RpcModel
 from ..validation import rpc_value_problem
 from ..model.rpcscene import RpcCamera, RpcScene, check_image_domain, size_from_rpc
-from .dimap import read_dimap_rfm
+from .dimaprfm import read_dimap_rfm
+from .vendor_xml import parse_xml
 
 gdal.UseExceptions()
 
@@ -44,6 +46,7 @@ RPB_COEFFS = ("lineNumCoef", "lineDenCoef", "sampNumCoef", "sampDenCoef")
 RPB_NAMES = {**dict(zip(RPB_SCALARS, RPC_KEYS)), **dict(zip(RPB_COEFFS, (key for key, _ in RPC_COEFFS)))}
 # rasters GDAL pairs with an _RPC.TXT or .RPB beside them
 IMAGE_SUFFIXES = (".tif", ".tiff", ".ntf", ".jp2", ".img", ".vrt")
+RPC_TXT_SUFFIX = "_RPC.TXT"  # GDAL's RPC sidecar of <name>.tif: <name>_RPC.TXT
 
 
 # --- reading -----------------------------------------------------------------------------------
@@ -122,32 +125,50 @@ def is_rpc_text(path: Path, head: bytes) -> bool:
     return name.endswith(("_RPC.TXT", ".RPB")) or head.upper().startswith((b"LINE_OFF", b"SATID"))
 
 
+def image_stem(path) -> str:
+    """The stem of the image GDAL pairs an RPC file with: ``<name>`` of ``<name>_RPC.TXT`` (any case)
+    or of ``<name>.RPB``; '' for a file named ``_RPC.TXT`` alone."""
+    path = Path(path)
+    return path.name[:-len(RPC_TXT_SUFFIX)] if path.name.upper().endswith(RPC_TXT_SUFFIX) else path.stem
+
+
+def image_name(path) -> str:
+    """The name of the image an RPC file describes (a scene's name): :func:`image_stem`, or for a
+    file with nothing before the suffix (``_RPC.TXT``) the name of its folder."""
+    path = Path(path)
+    return image_stem(path) or path.resolve().parent.name or path.stem
+
+
 def read_rpc_text(path: Path) -> RpcScene:
     """The RPC scene of a ``_RPC.TXT`` or ``.RPB`` file; the image size from an image beside it
-    that GDAL would pair with it, else from the RPC's line/sample range (with a warning)."""
+    that GDAL would pair with it, else from the RPC's line/sample range (with a warning saying
+    the size assumed and where the image was looked for, also kept for the refusal of an image of
+    another size: :func:`core.model.rpcscene.size_note`)."""
     try:
         text = path.read_text(encoding="utf-8-sig", errors="strict")
     except UnicodeDecodeError:
         raise MetadataError(f"{path}: not a text RPC file (not UTF-8/ASCII text)") from None
     md = parse_rpb(text) if ("BEGIN_GROUP" in text.upper() or path.suffix.upper() == ".RPB") else parse_rpc_txt(text)
     rpc = rpc_from_metadata(md, str(path))
-    stem = path.name[:-8] if path.name.upper().endswith("_RPC.TXT") else path.stem
+    stem = image_stem(path)
     image = next((p for p in sorted(path.parent.glob(stem + ".*")) if p.suffix.lower() in IMAGE_SUFFIXES), None)
-    warnings = []
+    warnings, assumed = [], ""
     if image is not None:
         cols, rows = _raster_size(image)
     else:
         cols, rows = size_from_rpc(rpc)
-        warnings.append(f"no image beside {path.name}: its size {cols} x {rows} px is taken from the RPC's "
-                        "sample/line range")
+        assumed = (f"taken from the RPC's sample/line range, as no image was found beside {path.name} (looked for "
+                   f"{stem}{', '.join(IMAGE_SUFFIXES)} in {path.parent})")
+        warnings.append(f"its image's size {cols} x {rows} px is {assumed}; an image of another size given with "
+                        "this scene is refused: put the image beside its RPC file")
     check_image_domain(rpc, cols, rows, str(image or path))
     info = {"source": str(path), "image": str(image) if image else None, "warnings": warnings}
-    return RpcScene(rpc, RpcCamera(stem or "image", cols, rows), info=info)
+    return RpcScene(rpc, RpcCamera(image_name(path), cols, rows, size_source=assumed), info=info)
 
 
 def _raster_size(path: Path) -> tuple[int, int]:
     try:
-        ds = gdal.Open(str(path))
+        ds = open_input_raster(path)
     except RuntimeError as exc:
         raise MetadataError(f"{path}: cannot be opened as a raster ({exc})") from None
     return ds.RasterXSize, ds.RasterYSize
@@ -157,7 +178,7 @@ def read_rpc_image(path: Path) -> RpcScene | None:
     """The RPC scene of a raster GDAL reads with RPC metadata (tags, ``_RPC.TXT`` or ``.RPB``
     beside it); None when GDAL cannot open it or it has no RPC."""
     try:
-        ds = gdal.Open(str(path))
+        ds = open_input_raster(path)
     except RuntimeError:
         return None
     md = ds.GetMetadata("RPC") or {}
@@ -170,16 +191,47 @@ def read_rpc_image(path: Path) -> RpcScene | None:
 
 
 def read_dimap_rpc(path: Path, root) -> RpcScene:
-    """The RPC scene of a DIMAP ``RPC_*.XML`` (the vendor's Global_RFM inverse model); the image
-    size from the RFM's direct-model validity domain."""
+    """The RPC scene of a DIMAP ``RPC_<id>.XML`` (the vendor's Global_RFM inverse model, either
+    layout of :mod:`core.formats.dimaprfm`). The image size is the product's: Raster_Dimensions of
+    its ``DIM_<id>.XML`` beside it (DIMAP 2.x: under Raster_Data), else the size of its single
+    image tile ``IMG_<id>_R1C1.*`` beside it; else it is assumed from the RFM's direct-model
+    validity domain (LAST_COL, LAST_ROW) or its sample/line range, with a warning saying so and where
+    the product was looked for."""
     rpc, _ = read_dimap_rfm(path, root)
-    domain = root.find(".//Direct_Model_Validity_Domain")
-    try:
-        cols, rows = int(domain.findtext("LAST_COL")), int(domain.findtext("LAST_ROW"))
-    except (AttributeError, TypeError, ValueError):
-        cols, rows = size_from_rpc(rpc)
+    product_id = path.stem[4:]
+    dim, tiles = path.with_name(f"DIM_{product_id}.XML"), sorted(path.parent.glob(f"IMG_{product_id}_R*C*.*"))
+    warnings, assumed = [], ""
+    if dim.is_file():
+        cols, rows = _dimap_size(dim)
+    elif len(tiles) == 1 and tiles[0].suffix.lower() in IMAGE_SUFFIXES:
+        cols, rows = _raster_size(tiles[0])
+    else:
+        domain = root.find(".//Direct_Model_Validity_Domain")
+        try:
+            cols, rows = int(domain.findtext("LAST_COL")), int(domain.findtext("LAST_ROW"))
+            what = "the RFM's direct-model validity domain (LAST_COL, LAST_ROW)"
+        except (AttributeError, TypeError, ValueError):
+            cols, rows = size_from_rpc(rpc)
+            what = "the RFM's sample/line range"
+        assumed = (f"taken from {what}, as neither {dim.name} nor a single image tile IMG_{product_id}_R1C1.* was "
+                   f"found beside {path.name} in {path.parent}")
+        warnings.append(f"its image's size {cols} x {rows} px is {assumed}; an image of another size given with "
+                        "this scene is refused: keep the RPC file with its product")
     check_image_domain(rpc, cols, rows, str(path))
-    return RpcScene(rpc, RpcCamera(path.stem, cols, rows), info={"source": str(path), "warnings": []})
+    return RpcScene(rpc, RpcCamera(path.stem, cols, rows, size_source=assumed),
+                    info={"source": str(path), "warnings": warnings})
+
+
+def _dimap_size(path: Path) -> tuple[int, int]:
+    """(NCOLS, NROWS) of a DIMAP document's Raster_Dimensions (at its root, or under Raster_Data)."""
+    root = parse_xml(path)
+    dims = root.find("Raster_Data/Raster_Dimensions")
+    dims = root.find("Raster_Dimensions") if dims is None else dims
+    try:
+        return int(dims.findtext("NCOLS")), int(dims.findtext("NROWS"))
+    except (AttributeError, TypeError, ValueError):
+        raise MetadataError(f"{path}: Raster_Dimensions/NCOLS and NROWS (the image size) are missing or not whole "
+                            "numbers") from None
 
 
 # --- writing -----------------------------------------------------------------------------------
@@ -269,13 +321,14 @@ def image_vrt_with_rpc(rpc: RpcModel, image, vrt_path, cols: int | None = None, 
     image still being written under a temporary one)."""
     vrt_path = Path(vrt_path)
     try:
-        src = gdal.Open(str(image))
+        src = open_input_raster(image)
     except RuntimeError as exc:
         raise InputError(f"image {image}: cannot be opened as a raster ({exc})") from None
     if cols is not None and (src.RasterXSize, src.RasterYSize) != (int(cols), int(rows)):
         raise InputError(f"image {image} is {src.RasterXSize} x {src.RasterYSize} pixels but the camera's image is "
                          f"{cols} x {rows}: it is not this camera's image")
     vrt = gdal.Translate("", src, format="VRT")  # in memory: its XML is written below
+    copy_statistics(src, vrt)
     vrt.SetMetadata(rpc_metadata(rpc), "RPC")
     xml = ElementTree.fromstring(vrt.GetMetadata("xml:VRT")[0])
     vrt = None

@@ -137,6 +137,16 @@ class _Schema:
                                         f"got {a[i]:.9g} after {a[i - 1]:.9g})")
 
 
+    def monotonic(self, a: np.ndarray, path: str) -> None:
+        """Strictly increasing, or strictly decreasing (a reverse scan's line times)."""
+        steps = np.diff(a) * (1.0 if a[-1] >= a[0] else -1.0)
+        if (steps <= 0).any():
+            i = int(np.argmax(steps <= 0)) + 1
+            self.fail(_join(path, [i]), f"must keep the direction of the values before it (times strictly "
+                                        f"increasing, or strictly decreasing in a reverse scan; got {a[i]:.9g} "
+                                        f"after {a[i - 1]:.9g})")
+
+
 def _join(path: str, key) -> str:
     if isinstance(key, (list, tuple, np.ndarray)):
         return path + "".join(f"[{int(k)}]" for k in key)
@@ -303,8 +313,8 @@ def _check_timing(s: _Schema, timing: dict, path: str) -> None:
         if lines.size < 2:
             s.fail(f"{path}.lines", f"needs at least 2 (line, time) pairs (got {lines.size})")
         s.increasing(lines, f"{path}.lines")
-        s.increasing(times, f"{path}.times")
-        period = (times[-1] - times[0]) / (lines[-1] - lines[0])
+        s.monotonic(times, f"{path}.times")
+        period = abs(times[-1] - times[0]) / (lines[-1] - lines[0])  # a reverse scan's times decrease
         where = f"{path}.times"
     else:
         s.number(s.required(timing, "t0", path), f"{path}.t0")

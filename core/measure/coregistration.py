@@ -35,6 +35,7 @@ import scipy.fft
 from osgeo import gdal
 
 from ..errors import InputError
+from ..rasters import open_input_raster
 
 gdal.UseExceptions()
 
@@ -289,7 +290,7 @@ def coregister_files(first, second, settings: CoregSettings = CoregSettings(), b
     arrays = []
     grids = []
     for path in (first, second):
-        ds = gdal.Open(str(path))
+        ds = open_input_raster(path)
         b = ds.GetRasterBand(band)
         data = b.ReadAsArray().astype(np.float64)
         if b.GetNoDataValue() is not None:

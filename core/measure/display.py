@@ -8,11 +8,19 @@ copied or resampled) without its RPC and GCP metadata, with the pixel geotransfo
 the upper-left pixel — and the engineering CRS of :func:`core.observations.lines.pixel_frame`, the frame of
 the ``image_lines`` layers. The VRT's PUSHBROOM metadata domain names the scene file and the
 camera, so that the digitising dock finds them again.
+
+Each band of the copy carries the image's statistics (:func:`core.rasters.copy_statistics`): a
+viewer that finds none computes them, and GDAL's VRT hands that work to the raw image's band,
+which stores the result in a side file beside the raw image (``<image>.aux.xml``): a file written
+beside an input. The docks keep their copies in a cache folder of their own
+(:func:`cached_display_copy`), never beside the image.
 """
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +29,7 @@ from osgeo import gdal
 from ..errors import InputError
 from ..files import OutputSet, atomic_output
 from ..observations.lines import ImageLines, pixel_frame, write_gpkg
+from ..rasters import check_input_raster, copy_statistics, open_input_raster
 
 gdal.UseExceptions()
 log = logging.getLogger(__name__)
@@ -41,21 +50,10 @@ class DisplaySource:
     camera: str
 
 
-def raster_size(path) -> tuple[int, int]:
-    """(cols, rows) of a raster file; InputError naming the file when GDAL cannot read it."""
-    try:
-        ds = gdal.Open(str(path))
-    except RuntimeError as exc:
-        raise InputError(f"{path}: cannot be read as a raster ({exc})") from None
-    if ds is None or ds.RasterCount == 0:
-        raise InputError(f"{path}: holds no raster band")
-    return ds.RasterXSize, ds.RasterYSize
-
-
 def check_image_size(path, cols: int, rows: int, camera: str) -> None:
     """InputError unless the raster at ``path`` has the camera's (cols, rows): another image's
     pixels would put every digitised vertex at the wrong place."""
-    got = raster_size(path)
+    got = check_input_raster(path)
     if got != (cols, rows):
         raise InputError(f"{path}: the image is {got[0]} x {got[1]} pixels but camera {camera} of the scene "
                          f"delivers {cols} x {rows}; give the raw image of that camera (not an orthoimage or "
@@ -66,15 +64,19 @@ def write_display_vrt(image, output, scene: str = "", camera: str = "", files: O
     """Write the display copy of raster ``image`` to ``output`` (.vrt), completely or not at all.
 
     The VRT references ``image`` by absolute path (it stays valid when moved) and keeps its bands,
-    nodata and overviews; RPC, GEOLOCATION and GCPs are dropped. ``scene`` and ``camera`` go to
+    nodata and overviews; RPC, GEOLOCATION and GCPs are dropped. It carries the image's statistics
+    (core.rasters.copy_statistics), so that QGIS, which computes those of a raster it loads, never
+    computes them on the image and writes them beside it. ``scene`` and ``camera`` go to
     the PUSHBROOM metadata domain. The input is only read."""
     output = Path(output)
     if output.suffix.lower() != ".vrt":
         raise InputError(f"{output}: the display copy is a virtual raster; use a .vrt file name")
     source = os.path.abspath(str(image))
-    raster_size(source)
+    check_input_raster(source)
+    src = open_input_raster(source)
     with atomic_output(output, files) as tmp:
-        ds = gdal.Translate(str(tmp), source, format="VRT")
+        ds = gdal.Translate(str(tmp), src, format="VRT")
+        copy_statistics(src, ds)  # a viewer loading the copy finds them: none computed on the image, none beside it
         ds.SetGCPs([], "")
         for domain in DROPPED_DOMAINS:
             ds.SetMetadata({}, domain)
@@ -87,11 +89,29 @@ def write_display_vrt(image, output, scene: str = "", camera: str = "", files: O
         log.info("display copy of %s written to %s", source, output)
 
 
+def cached_display_copy(image, scene: str, camera: str, cache) -> Path:
+    """The display copy of raw ``image`` for ``scene``'s ``camera`` in folder ``cache`` (created),
+    written when missing. Its name is the image's stem, the camera and a hash of the image's
+    absolute path, size and modification time, the scene file and the camera: one image shown
+    for several scenes or cameras gets a copy each, and a replaced image a new one."""
+    source = Path(os.path.abspath(str(image)))
+    check_input_raster(source)
+    stat = source.stat()
+    key = "|".join([str(source), str(stat.st_size), str(stat.st_mtime_ns), os.path.abspath(scene) if scene else "",
+                    camera])
+    digest = hashlib.sha256(key.encode()).hexdigest()[:12]
+    path = Path(cache) / f"{source.stem}_{re.sub(r'[^A-Za-z0-9_.-]', '_', camera) or 'image'}_{digest}.vrt"
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_display_vrt(source, path, scene, camera)
+    return path
+
+
 def read_display_source(path) -> DisplaySource:
     """The raw image, scene and camera a display copy (or any raster) shows; for a raster
     that is not a display copy, the raster itself with no scene."""
-    cols, rows = raster_size(path)
-    ds = gdal.Open(str(path))
+    cols, rows = check_input_raster(path)
+    ds = open_input_raster(path)
     meta = ds.GetMetadata(METADATA_DOMAIN) or {}
     return DisplaySource(meta.get("IMAGE", str(path)), cols, rows, meta.get("SCENE", ""), meta.get("CAMERA", ""))
 

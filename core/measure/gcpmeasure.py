@@ -35,14 +35,16 @@ GROUND_SOURCES = ("canvas", "reference", "layer")  # a map click + height, a ref
 
 @dataclass
 class Ground:
-    """A point's ground: lon, lat (deg), h (ellipsoidal m), its sigmas (m) and where it came from
-    (one of GROUND_SOURCES)."""
+    """A point's ground: lon, lat (deg), h (ellipsoidal m), its sigmas (m), where it came from
+    (one of GROUND_SOURCES) and where its height came from, in words a list can show ('the DEM
+    dem.tif', 'the constant 0.0 m (no DEM chosen)'; '' when not stated)."""
     lon: float
     lat: float
     h: float
     sigma_xy: float = DEFAULT_SIGMA_XY
     sigma_z: float = DEFAULT_SIGMA_Z
     source: str = "canvas"
+    height_from: str = ""
 
     def ecef(self) -> np.ndarray:
         """(1, 3) ECEF m."""
@@ -51,12 +53,15 @@ class Ground:
 
 @dataclass
 class Observation:
-    """The point in one scene's camera: (col, row) px and its sigma (px)."""
+    """The point in one scene's camera: (col, row) px, its sigma (px) and, read from an adjusted
+    GCP layer, its residual (res_col, res_row) px, predicted minus measured (None: none, or the
+    observation moved since)."""
     scene: str
     camera: str
     col: float
     row: float
     sigma_px: float = DEFAULT_SIGMA_PX
+    residual: tuple[float, float] | None = None
 
 
 @dataclass
@@ -113,7 +118,7 @@ class PointEditor:
         seen = point.observation(scene, camera)
         self._record("move" if seen else "measure")
         if seen:
-            seen.col, seen.row = float(col), float(row)
+            seen.col, seen.row, seen.residual = float(col), float(row), None
             return "moved"
         point.observations.append(Observation(scene, camera, float(col), float(row)))
         return "measured"
@@ -122,7 +127,7 @@ class PointEditor:
         """Put the snap's position and sigma on the selected point's observation in ``scene``."""
         seen = self._seen(scene, camera)
         self._record("snap")
-        seen.col, seen.row, seen.sigma_px = snap.col, snap.row, snap.sigma_px
+        seen.col, seen.row, seen.sigma_px, seen.residual = snap.col, snap.row, snap.sigma_px, None
 
     def set_ground(self, ground: Ground) -> None:
         """Give the selected point its ground."""
@@ -133,15 +138,17 @@ class PointEditor:
         point.ground = ground
 
     def set_ground_at(self, lon: float, lat: float, heights: Heights, z: float | None = None,
-                      source: str = "canvas") -> Ground:
+                      source: str = "canvas", height_from: str = "") -> Ground:
         """The selected point's ground at (lon, lat) deg, its height as ``heights`` says (``z``: the
-        picked point's Z, in heights.datum); its sigmas kept from the ground it had."""
+        picked point's Z, in heights.datum; ``height_from`` says where it came from, in words);
+        its sigmas kept from the ground it had. InputError (nothing changed) when the height
+        cannot be had: a DEM that does not cover the point is named."""
         self.current()
         h = float(ellipsoidal_heights(np.array([lon]), np.array([lat]), heights,
                                       None if z is None else np.array([z]), np.array([self.current().id]),
                                       "the ground position")[0])
         old = self.current().ground or Ground(lon, lat, h)
-        self.set_ground(Ground(float(lon), float(lat), h, old.sigma_xy, old.sigma_z, source))
+        self.set_ground(Ground(float(lon), float(lat), h, old.sigma_xy, old.sigma_z, source, height_from))
         return self.current().ground
 
     def edit(self, point_id: str | None = None, role: str | None = None, sigma_xy: float | None = None,
@@ -247,11 +254,13 @@ class PointEditor:
                         column["col"], column["row"], ground["lon"], ground["lat"], ground["h"], column["sigma_px"],
                         ground["sigma_xy"], ground["sigma_z"], block_scene=column["scene"])
 
-    def load(self, table: GcpTable, scenes: list[str], source: str = "the GCP layer") -> None:
-        """Continue from a saved table (replacing the points held; undo history cleared). Every
+    def load(self, table: GcpTable, scenes: list[str], source: str = "the GCP layer", height_from: str = "") -> None:
+        """Continue from a saved table (replacing the points held; undo history cleared), with
+        the residuals of an adjusted GCP layer (bundleadjust's OUTPUT_GCPS) where it has them. Every
         row's scene must be one of ``scenes`` (the block's names; '' stands for the only one of a
-        block of one scene); rows of one id must share their ground. InputError naming the scenes
-        or ids otherwise (nothing changed)."""
+        block of one scene); rows of one id must share their ground; ``height_from`` says where their
+        heights came from (default: ``source``, the name errors give the layer). InputError naming the
+        scenes or ids otherwise (nothing changed)."""
         block_scene = table.block_scene.copy()
         if len(scenes) == 1:
             block_scene[block_scene == ""] = scenes[0]
@@ -268,16 +277,20 @@ class PointEditor:
                              "different ground positions; one point has one ground")
         points = [MeasuredPoint(str(table.id[k]), str(table.role[k]),
                                 Ground(float(table.lon[k]), float(table.lat[k]), float(table.h[k]),
-                                       float(table.sigma_xy[k]), float(table.sigma_z[k]), "layer"))
+                                       float(table.sigma_xy[k]), float(table.sigma_z[k]), "layer",
+                                       height_from or source))
                   for k in np.sort(first)]
+        residual = table.residuals
+        known = np.zeros(len(table), bool) if residual is None else residual.inside & np.isfinite(residual.col)
         by_id = {p.id: p for p in points}
         for k in range(len(table)):
             point = by_id[str(table.id[k])]
             if point.observation(block_scene[k], str(table.camera[k])) is not None:
                 raise InputError(f"{source}: point {table.id[k]} is measured twice in {block_scene[k]} "
                                  f"({table.camera[k]})")
-            point.observations.append(Observation(str(block_scene[k]), str(table.camera[k]), float(table.col[k]),
-                                                  float(table.row[k]), float(table.sigma_px[k])))
+            point.observations.append(Observation(
+                str(block_scene[k]), str(table.camera[k]), float(table.col[k]), float(table.row[k]),
+                float(table.sigma_px[k]), (float(residual.col[k]), float(residual.row[k])) if known[k] else None))
         self.points, self.selected, self.history = points, None, []
 
 
@@ -313,7 +326,11 @@ def predict(point: MeasuredPoint, target: View, views: dict[str, View], surface)
                                                      view.scene.camera_index(o.camera)))
     if not sources:
         return []
-    col, row = target.scene.ground_to_image(np.concatenate(ground), target.camera)
+    ground = np.concatenate(ground)
+    met = np.all(np.isfinite(ground), axis=1)  # a ray that leaves the DEM or meets it on a hole has no ground
+    col, row = np.full(len(ground), np.nan), np.full(len(ground), np.nan)
+    if met.any():
+        col[met], row[met] = target.scene.ground_to_image(ground[met], target.camera)
     return [Prediction(s, float(c), float(r)) for s, c, r in zip(sources, col, row)]
 
 

@@ -278,6 +278,11 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
     gsd = float(scene.info.get("gsd_m") or ground_sample_distance(scene, camera, surface))
     check_overlap(scene, camera, surface, ref, settings.search)
     m = match_grid(scene, camera, image_path, ref, surface, gsd, settings, report, cancelled)
+    if m.in_hole.any():
+        log.info("%s: the reference was rectified there at the estimated height %.1f m, and the %d matches among "
+                 "them rejected as '%s' (a GCP's height there would be a guess)",
+                 surface.missing(m.ground, "grid points"), surface.estimate,
+                 int(((m.reasons < 0) & m.in_hole).sum()), NO_DEM_HEIGHT)
     m.reasons[(m.reasons < 0) & m.in_hole] = REASONS.index(NO_DEM_HEIGHT)
     ok = m.reasons < 0
     rejected = m.rejected()

@@ -38,6 +38,7 @@ from scipy.spatial import cKDTree
 from ..errors import InputError
 from ..model.sensor import SceneModel
 from ..products.rawimage import RawImage
+from ..rasters import open_input_raster
 from .correlation import BlockMeans, find_peaks, masked_ncc, ncc, sample, strip_block_mean
 from .matchchecks import plane_at
 from .prediction import lattice_positions, predicted_positions, reference_scale
@@ -114,7 +115,7 @@ def raw_levels(raw: RawImage, nodata) -> BlockMeans:
         if raw.data is not None:
             return strip_block_mean(raw.data[0], factor, nodata)
         rows, cols = raw.rows // factor, raw.cols // factor
-        ds = gdal.Open(raw.path)  # held while its band is read: a band outliving its dataset crashes GDAL
+        ds = open_input_raster(raw.path)  # held while its band is read: a band outliving its dataset crashes GDAL
         a = ds.GetRasterBand(1).ReadAsArray(0, 0, cols * factor, rows * factor, buf_xsize=cols, buf_ysize=rows,
                                             resample_alg=gdal.GRIORA_Average).astype(np.float32)
         ds = None

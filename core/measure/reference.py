@@ -18,6 +18,7 @@ from ..errors import InputError
 from ..geodesy import ecef_to_geodetic
 from ..model.sensor import SceneModel
 from ..products.rawimage import image_on_surface, open_raw
+from ..rasters import open_input_raster
 from .correlation import BlockMeans, strip_block_mean
 
 gdal.UseExceptions()
@@ -34,7 +35,7 @@ class Reference:
     def __init__(self, path, budget: float = MEMORY_BUDGET):
         self.path = str(path)
         try:
-            ds = gdal.OpenEx(self.path, gdal.OF_RASTER)
+            ds = open_input_raster(self.path)
         except RuntimeError as exc:
             raise InputError(f"reference {self.path}: cannot be opened as a raster ({exc})") from None
         self.cols, self.rows = ds.RasterXSize, ds.RasterYSize
@@ -78,7 +79,7 @@ class Reference:
 
     def dataset(self):
         if not hasattr(self._local, "ds"):
-            self._local.ds = gdal.Open(self.path)
+            self._local.ds = open_input_raster(self.path)
         return self._local.ds
 
     def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -36,6 +36,7 @@ from scipy import ndimage
 
 from ..errors import InputError
 from ..observations.lines import ImageLines
+from ..rasters import open_input_raster
 
 gdal.UseExceptions()
 log = logging.getLogger(__name__)
@@ -85,7 +86,7 @@ def snap_lines(image, lines: ImageLines, settings: SnapSettings = SnapSettings()
     """Snap every image line of ``lines`` to the feature of ``image`` (a raster path, read a
     window per line, or a 2-D array of the whole image)."""
     settings.validate()
-    ds = gdal.Open(str(image)) if not isinstance(image, np.ndarray) else None
+    ds = open_input_raster(image) if not isinstance(image, np.ndarray) else None
     shape = (ds.RasterYSize, ds.RasterXSize) if ds is not None else image.shape
     _require_inside(lines, shape, str(image) if ds is not None else "the image")
     col, row, sigma = lines.col.copy(), lines.row.copy(), lines.sigma_px.copy()

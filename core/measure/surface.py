@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dem import missing_heights, surface_name
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic
 from ..model.sensor import SceneModel
@@ -22,8 +23,8 @@ SAMPLES = 33  # points per side of the image grid whose DEM heights give the est
 
 
 class FilledSurface:
-    """``dem`` (any surface with ``height(lon, lat)`` in ellipsoidal metres, NaN where it has none,
-    and ``height_range``) with its holes filled at ``estimate`` (m, ellipsoidal)."""
+    """``dem`` (core.dem.Dem or ConstantHeight: ``height(lon, lat)`` in ellipsoidal metres, NaN where
+    it has none, ``no_height`` and ``height_range``) with its holes filled at ``estimate`` (m, ellipsoidal)."""
 
     def __init__(self, dem, estimate: float):
         self.dem, self.estimate = dem, float(estimate)
@@ -39,13 +40,23 @@ class FilledSurface:
         return min(lo, self.estimate), max(hi, self.estimate)
 
     def in_hole(self, ground: np.ndarray) -> np.ndarray:
-        """(n,) whether the DEM has no height under the ECEF points ``ground`` (n, 3)."""
+        """(n,) whether the DEM gives no height under the ECEF points ``ground`` (n, 3): off its
+        extent or on its nodata holes (:meth:`core.dem.Dem.no_height`); False where ``ground`` is
+        not finite."""
         out = np.zeros(len(ground), bool)
         finite = np.isfinite(ground).all(axis=1)
         if finite.any():
             lon, lat, _ = ecef_to_geodetic(ground[finite])
-            out[finite] = ~np.isfinite(np.asarray(self.dem.height(lon, lat), dtype=float))
+            off, hole = self.dem.no_height(lon, lat)
+            out[finite] = off | hole
         return out
+
+    def missing(self, ground: np.ndarray, what: str) -> str:
+        """'' when the DEM gives a height under every finite ECEF point of ``ground`` (n, 3), else
+        :func:`core.dem.missing_heights`'s sentence: for how many of the ``what`` it gives none, off
+        its extent or on its holes."""
+        lon, lat, _ = ecef_to_geodetic(ground[np.isfinite(ground).all(axis=1)])
+        return missing_heights(self.dem, lon, lat, what)
 
 
 def filled_surface(scene: SceneModel, camera: int, dem) -> FilledSurface:
@@ -65,8 +76,7 @@ def filled_surface(scene: SceneModel, camera: int, dem) -> FilledSurface:
         heights[finite] = dem.height(lon, lat)
     heights = heights[np.isfinite(heights)]
     if heights.size == 0:
-        name = getattr(dem, "path", "the terrain surface")
-        raise InputError(f"DEM {name} gives no height under the image of camera {cam.name}: it does not cover "
+        raise InputError(f"{surface_name(dem)} gives no height under the image of camera {cam.name}: it does not cover "
                          "the scene (or holds only nodata there). Use a DEM covering the footprint, or a constant "
                          "height")
     return FilledSurface(dem, float(np.median(heights)))

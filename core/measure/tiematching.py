@@ -26,6 +26,7 @@ from osgeo import gdal
 from ..errors import InputError
 from ..model.sensor import SceneModel
 from ..observations.tiepoints import TieTable
+from ..rasters import open_input_raster
 from .matching import NO_DEM_HEIGHT, REASONS, MatchSettings, ground_sample_distance, match_grid, reason_text
 from .reference import ImageReference
 from .surface import filled_surface
@@ -129,7 +130,7 @@ def refuse_identical_images(base: View, others: list[View]) -> None:
 def _thumbnail(path, size: tuple[int, int]) -> np.ndarray:
     """Band 1 of the raster ``path`` (cols, rows = ``size``) block-averaged to about IDENTICAL_SIDE px."""
     step = max(1, max(size) // IDENTICAL_SIDE)
-    ds = gdal.Open(str(path))   # held while its band is read: a band outliving its dataset crashes GDAL
+    ds = open_input_raster(path)   # held while its band is read: a band outliving its dataset crashes GDAL
     a = ds.GetRasterBand(1).ReadAsArray(buf_xsize=max(size[0] // step, 1), buf_ysize=max(size[1] // step, 1),
                                         resample_alg=gdal.GRIORA_Average).astype(np.float64)
     ds = None
@@ -159,13 +160,11 @@ def overlapping(base: View, other: View, dem) -> bool:
 
 def log_match(pair: str, m, surface) -> None:
     """Log the grid points of ``m`` (:class:`core.measure.matching.GridMatch` of the images ``pair``)
-    that lie in the DEM's holes."""
-    holes = int(m.in_hole.sum())
-    if holes:
-        log.info("%s: DEM %s has no height under %d of the %d grid points: those were matched at the estimated "
-                 "height %.1f m (%d matched; where the terrain is steep their windows, rectified at that height, "
-                 "match less accurately)", pair, surface.path, holes, m.col.size, surface.estimate,
-                 int(((m.reasons < 0) & m.in_hole).sum()))
+    that the DEM gives no height under (off its extent or on its holes), and how many of them matched."""
+    if m.in_hole.any():
+        log.info("%s: %s: those were matched at the estimated height %.1f m (%d matched; where the terrain is "
+                 "steep their windows, rectified at that height, match less accurately)", pair,
+                 surface.missing(m.ground, "grid points"), surface.estimate, int(((m.reasons < 0) & m.in_hole).sum()))
 
 
 def match_views(views: list[View], dem, settings: MatchSettings, base: int,

@@ -39,6 +39,9 @@ class LineTiming:
     Either constant: ``t = t0 + (row - 0.5) * period`` (t0 is the time of the first
     row's centre), or a table of (line, time) pairs with line = row - 0.5 (line index
     of pixel centres), linearly interpolated and extrapolated with the end segments.
+    A table's lines increase; its times increase, or decrease in a reverse scan (the
+    sensor sweeps the image from its last row to its first: Maxar's "Reverse" scan
+    direction), strictly either way.
     """
     t0: float = 0.0
     period: float = 0.0
@@ -49,9 +52,11 @@ class LineTiming:
         if self.lines is not None:
             self.lines = np.asarray(self.lines, dtype=float)
             self.times = np.asarray(self.times, dtype=float)
+            steps = np.diff(self.times) * (1.0 if self.times[-1] >= self.times[0] else -1.0)
             if self.lines.size < 2 or self.lines.size != self.times.size or np.any(np.diff(self.lines) <= 0) \
-                    or np.any(np.diff(self.times) <= 0):
-                raise MetadataError("line timing table needs >= 2 increasing (line, time) pairs")
+                    or np.any(steps <= 0):
+                raise MetadataError("line timing table needs >= 2 (line, time) pairs, lines increasing and times "
+                                    "strictly increasing (or strictly decreasing: a reverse scan)")
         elif not (np.isfinite(self.period) and self.period > 0):
             raise MetadataError(f"line period must be positive (got {self.period})")
 
@@ -67,10 +72,17 @@ class LineTiming:
         t = np.asarray(t, dtype=float)
         if self.lines is None:
             return (t - self.t0) / self.period + 0.5
+        if self.reverse:
+            return _interp_extrapolate(t, self.times[::-1], self.lines[::-1]) + 0.5
         return _interp_extrapolate(t, self.times, self.lines) + 0.5
 
+    @property
+    def reverse(self) -> bool:
+        """Whether the times decrease with the row (a reverse scan)."""
+        return self.lines is not None and bool(self.times[-1] < self.times[0])
+
     def mean_period(self) -> float:
-        """Mean line period (s)."""
+        """Mean line period (s): negative in a reverse scan."""
         if self.lines is None:
             return self.period
         return float((self.times[-1] - self.times[0]) / (self.lines[-1] - self.lines[0]))

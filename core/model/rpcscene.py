@@ -27,6 +27,7 @@ import numpy as np
 
 from ..errors import InputError, MetadataError
 from ..geodesy import ecef_to_geodetic, geodetic_to_ecef
+from ..validation import ground_points, per_point
 from .camera import inside_image
 from .rpc import RpcModel
 from .sensor import as_points
@@ -56,11 +57,14 @@ class RpcChip:
 
 @dataclass
 class RpcCamera:
-    """The image an RPC describes: name and size (px)."""
+    """The image an RPC describes: name and size (px). ``size_source``: '' when the size is the
+    image's, else how it was assumed (no image found with the RPC: where it was looked for and
+    what the size was taken from), for the refusal of an image of another size (:func:`size_note`)."""
     name: str
     cols: int
     rows: int
     chips: list = field(default_factory=lambda: [RpcChip()])
+    size_source: str = ""
 
     def chip_index(self, col) -> np.ndarray:
         return np.zeros(np.shape(col), dtype=np.int64)
@@ -113,19 +117,18 @@ class RpcScene:
         return self.ground_to_image(xyz, camera)
 
     def ground_to_image(self, xyz, camera: int = 0, **_) -> tuple[np.ndarray, np.ndarray]:
-        """GDAL (col (n,), row (n,)) of ECEF points (n, 3): the RPC and the correction. NaN far
+        """GDAL (col (n,), row (n,)) of ECEF points (n, 3), or of one point (3,) (other shapes: InputError
+        naming ``xyz``, core.validation.ground_points): the RPC and the correction. NaN far
         outside the RPC's ground domain (normalised |lon| or |lat| > MAX_NORMALISED) and where its
         denominator vanishes."""
         self.camera_index(camera)
-        p = np.atleast_2d(np.asarray(xyz, dtype=float))
-        if not np.all(np.isfinite(p)):
-            raise InputError("ground coordinates contain NaN or infinite values")
-        lon, lat, h = ecef_to_geodetic(p)
+        lon, lat, h = ecef_to_geodetic(ground_points(xyz))
         return self.ground_to_image_geodetic(lon, lat, h)
 
     def ground_to_image_geodetic(self, lon, lat, h, camera: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """ground_to_image for (lon, lat) degrees and ellipsoidal heights (m)."""
-        lon, lat, h = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, dtype=float)) for a in (lon, lat, h)))
+        """ground_to_image for (lon, lat) degrees and ellipsoidal heights (m), each a single value or (n,)
+        (core.validation.per_point)."""
+        lon, lat, h = (np.asarray(a, dtype=float) for a in per_point(lon=lon, lat=lat, h=h))
         self.warn_heights(h)
         r = self.rpc
         lon = r.lon_off + (lon - r.lon_off + 180.0) % 360.0 - 180.0
@@ -139,12 +142,10 @@ class RpcScene:
 
     def image_to_ground(self, col, row, height, camera: int = 0) -> np.ndarray:
         """ECEF points (n, 3) seen at image points on the surface of ellipsoidal height
-        ``height`` (m, scalar or (n,)); NaN where the RPC's inversion does not converge."""
+        ``height`` (m): each a single value or (n,) (core.model.sensor.as_points); NaN where the RPC's
+        inversion does not converge."""
         self.camera_index(camera)
-        col, row = as_points(col, row)
-        height = np.broadcast_to(np.asarray(height, dtype=float), col.shape)
-        if not np.all(np.isfinite(height)):
-            raise InputError("heights contain NaN or infinite values")
+        col, row, height = as_points(col, row, height=height)
         self.warn_heights(height)
         lon, lat = self._lonlat(col, row, height)
         return geodetic_to_ecef(lon, lat, height)
@@ -277,6 +278,14 @@ def check_image_domain(rpc: RpcModel, cols: int, rows: int, source: str) -> None
     raise MetadataError(f"{source}: the image ({cols} x {rows} px) cannot be the one its RPC describes: {where} "
                         f"{what}; the RPC is valid over {box} (accepted up to {1.0 + DOMAIN_MARGIN:g} times its "
                         "scales). Is it the image this RPC belongs to?")
+
+
+def size_note(camera) -> str:
+    """For the refusal of an image whose size is not the camera's: '' when the camera's size is its
+    image's (every rigorous camera, an RPC camera read with its image), else a clause saying that
+    the size was assumed, from what, and where the image was looked for."""
+    source = getattr(camera, "size_source", "")
+    return f" (the scene's size {camera.cols} x {camera.rows} px was assumed: {source})" if source else ""
 
 
 def size_from_rpc(rpc: RpcModel) -> tuple[int, int]:

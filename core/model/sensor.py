@@ -24,6 +24,7 @@ from . import corrections as corr
 from .camera import Camera
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic, enu_rotation, geodetic_to_ecef, ray_height_intersection, up_vector
+from ..validation import ground_points, per_point
 from .trajectory import Platform
 
 log = logging.getLogger(__name__)
@@ -126,11 +127,9 @@ class SceneModel:
 
     def image_to_ground(self, col, row, height, camera: int = 0) -> np.ndarray:
         """ECEF points (n, 3) seen at image points (col, row) on the surface of ellipsoidal
-        height ``height`` (m, scalar or (n,)). NaN where the ray misses."""
-        col, row = as_points(col, row)
-        height = np.broadcast_to(np.asarray(height, dtype=float), col.shape)
-        if not np.all(np.isfinite(height)):
-            raise InputError("heights contain NaN or infinite values")
+        height ``height`` (m): each a single value or (n,) (:func:`as_points`). NaN where the ray
+        misses."""
+        col, row, height = as_points(col, row, height=height)
         return self._intersect(col, row, camera, lambda lon, lat, idx: height[idx], h_start=height)
 
     def image_to_ground_dem(self, col, row, dem, camera: int = 0, tol: float = 1e-4,
@@ -243,7 +242,8 @@ class SceneModel:
 
     # --- ground -> image -----------------------------------------------------------------
     def ground_to_image(self, xyz, camera: int = 0, tol: float = 1e-5, max_iter: int = 30):
-        """Image coordinates (col (n,), row (n,)) of ECEF points (n, 3) in one camera.
+        """Image coordinates (col (n,), row (n,)) of ECEF points (n, 3), or of one point (3,), in one
+        camera (InputError naming ``xyz`` for other shapes: core.validation.ground_points).
 
         Newton iteration on (col, row) from a first guess interpolated in rasters of the
         scene's own image->ground at two heights; staggered chips are tried in turn until the
@@ -254,9 +254,7 @@ class SceneModel:
         the error left after a step below tol is ~1e-5 * tol.
         """
         camera = self.camera_index(camera)
-        p = np.atleast_2d(np.asarray(xyz, dtype=float))
-        if not np.all(np.isfinite(p)):
-            raise InputError("ground coordinates contain NaN or infinite values")
+        p = ground_points(xyz)
         self.prepare(camera)
         if camera not in self._guess:
             self._guess[camera] = self._build_guess_rasters(camera)
@@ -447,8 +445,9 @@ class SceneModel:
 
     # --- convenience -------------------------------------------------------------------------
     def ground_to_image_geodetic(self, lon, lat, h, camera: int = 0):
-        """ground_to_image for (lon, lat) degrees and ellipsoidal heights (m)."""
-        return self.ground_to_image(geodetic_to_ecef(lon, lat, h), camera)
+        """ground_to_image for (lon, lat) degrees and ellipsoidal heights (m), each a single value or
+        (n,) (core.validation.per_point)."""
+        return self.ground_to_image(geodetic_to_ecef(*per_point(lon=lon, lat=lat, h=h)), camera)
 
 
 CHUNK = 32768
@@ -477,12 +476,14 @@ def in_chunks(func, *arrays):
     return np.concatenate(parts)
 
 
-def as_points(col, row) -> tuple[np.ndarray, np.ndarray]:
-    """Image points (GDAL px) as two float arrays of one shape (n,) (scalars broadcast);
-    InputError when any is NaN or infinite."""
-    col = np.atleast_1d(np.asarray(col, dtype=float))
-    row = np.atleast_1d(np.asarray(row, dtype=float))
-    col, row = np.broadcast_arrays(col, row)
-    if not (np.all(np.isfinite(col)) and np.all(np.isfinite(row))):
-        raise InputError("image coordinates contain NaN or infinite values")
-    return col.astype(float), row.astype(float)
+def as_points(col, row, **values) -> tuple[np.ndarray, ...]:
+    """Image points (GDAL px) and other per-point ``values`` given by name (height=...) as float
+    arrays of one shape (n,), each given as a single value or (n,) (core.validation.per_point):
+    (col, row, *values). InputError naming the argument for lengths that differ, other shapes, and
+    NaN or infinite values."""
+    arrays = {"col": col, "row": row, **values}
+    out = tuple(np.asarray(a, dtype=float) for a in per_point(**arrays))
+    for name, a in zip(arrays, out):
+        if not np.all(np.isfinite(a)):
+            raise InputError(f"{name}: contains NaN or infinite values")
+    return out

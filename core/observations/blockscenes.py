@@ -18,31 +18,9 @@ from ..errors import InputError
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from .gcps import GcpTable, Residuals, apriori_residuals, assign_check_points
-from .tables import listed, resolve_cameras
+from .tables import resolve_cameras, scene_of_rows
 
 log = logging.getLogger(__name__)
-
-
-def scene_of_rows(names, ids, scenes, source: str = "", parameter: str | None = None) -> np.ndarray:
-    """The scene name of every row ((n,) str) checked against the block's scene names ``scenes``
-    (a sequence): InputError (its message starting with ``source`` when given; concerning
-    ``parameter``) naming the rows' points when a name is not one of the block's, or when rows name
-    none in a block of several scenes (a block of one takes its name)."""
-    names, ids, scenes = np.char.strip(np.asarray(names, dtype=str)), np.asarray(ids, dtype=str), list(scenes)
-    source = f"{source}: " if source else ""
-    if len(scenes) == 1:
-        names = np.where(names == "", scenes[0], names)
-    missing = names == ""
-    if missing.any():
-        raise InputError(f"{source}point(s) {listed(np.unique(ids[missing]))} name no scene; in a block of "
-                         f"{len(scenes)} scenes ({', '.join(scenes)}) every row names the scene it was measured in "
-                         "(a field 'scene')", parameter=parameter)
-    unknown = ~np.isin(names, scenes)
-    if unknown.any():
-        raise InputError(f"{source}scene(s) {listed(np.unique(names[unknown]))} of point(s) "
-                         f"{listed(np.unique(ids[unknown]))} are not scenes of the block ({', '.join(scenes)})",
-                         parameter=parameter)
-    return names
 
 
 def rpc_product_cameras(table, scene_of, scenes: dict):
@@ -71,7 +49,7 @@ def check_against_block(table: GcpTable, scenes: dict[str, SceneModel], paths: d
     assigned over the whole block (:func:`core.observations.gcps.assign_check_points`). InputError
     naming the scene for a camera it lacks (parameter 'gcps.camera'; rows of an RPC product take its
     one image's camera, :func:`rpc_product_cameras`), and the errors of
-    :func:`scene_of_rows` (parameter 'gcps.scene')."""
+    :func:`core.observations.tables.scene_of_rows` (parameter 'gcps.scene')."""
     scene_of = scene_of_rows(table.block_scene, table.id, scenes, parameter="gcps.scene")
     table, renamed = rpc_product_cameras(table, scene_of, scenes)
     for name in renamed:

@@ -34,11 +34,11 @@ from ..errors import InputError
 from ..files import OutputSet
 from ..geodesy import geodetic_to_ecef
 from ..validation import (MAX_IMAGE_COORDINATE, PLAUSIBLE_HEIGHTS, implausible_heights,
-                         implausible_image_coordinates)
+                         implausible_image_coordinates, per_point)
 from ..vector_io import layer_to_wgs84_3d, open_layer, wgs84_3d, write_layer
 from .tables import (MAX_SIGMA, SCENE_METADATA_KEY, Heights, csv_column, ellipsoidal_heights, listed, present,
                      nullable_floats, parse_numbers, per_point_sigmas, read_delimited, require_finite,
-                     require_unique, resolve_cameras, to_lonlat)
+                     require_unique, resolve_cameras, scene_of_rows, to_lonlat)
 
 gdal.UseExceptions()
 ogr.UseExceptions()
@@ -155,7 +155,7 @@ class CsvMapping:
 
 # --- building a table -----------------------------------------------------------------------
 def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None, camera=None, scene=None,
-                sigma_px: float = DEFAULT_SIGMA_PX, sigma_xy: float = DEFAULT_SIGMA_XY,
+                block=None, sigma_px: float = DEFAULT_SIGMA_PX, sigma_xy: float = DEFAULT_SIGMA_XY,
                 sigma_z: float = DEFAULT_SIGMA_Z, source: str = "GCP input") -> GcpTable:
     """A GCP table from raw columns (arrays of shape (n,)).
 
@@ -164,11 +164,20 @@ def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None
     role: per-point role words (control/gcp/check/cp/checkpoint, case-insensitive; empty =
     control), default all control. camera: per-point camera names, default '' (unassigned).
     scene: per-point names of the block's product each row was measured in (``block_scene``),
-    default none. source names the input in error messages. Raises InputError for NaN coordinates
+    default none. block: the scene names of the block the rows belong to (a sequence), when they are
+    read for one: every row's scene is checked to be one of them first
+    (:func:`core.observations.tables.scene_of_rows`, parameter 'gcps.scene'), before the pairs are.
+    source names the input in error messages. Raises InputError for NaN coordinates
     (naming the ids), an unknown CRS (naming it), ground points the CRS cannot convert, heights the
     DEM does not cover, unknown roles and repeated (id, camera) pairs ((id, scene, camera) with
     ``scene``: one point measured by the cameras of one name of two products is two rows).
+    Every per-point argument is one value per point or a single value for all; InputError naming
+    them when their lengths differ (core.validation.per_point).
     """
+    optional = {k: v for k, v in dict(z=z, role=role, camera=camera, scene=scene).items() if v is not None}
+    ids, col, row, x, y, sigma_px, sigma_xy, sigma_z, *given = per_point(
+        ids=ids, col=col, row=row, x=x, y=y, sigma_px=sigma_px, sigma_xy=sigma_xy, sigma_z=sigma_z, **optional)
+    z, role, camera, scene = (dict(zip(optional, given)).get(k) for k in ("z", "role", "camera", "scene"))
     ids = np.char.strip(np.asarray(ids, dtype=str))
     n = ids.size
     if (ids == "").any():
@@ -178,6 +187,8 @@ def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None
     col, row, x, y = (np.asarray(v, dtype=float) for v in (col, row, x, y))
     require_finite(ids, source, col=col, row=row, x=x, y=y)
     scene = None if scene is None else np.char.strip(np.asarray(scene, dtype=str))
+    if block is not None:
+        scene = scene_of_rows(np.full(n, "") if scene is None else scene, ids, block, source, parameter="gcps.scene")
     require_unique(ids, camera, source, scene)
     lon, lat = to_lonlat(x, y, crs, ids, source)
     h = ellipsoidal_heights(lon, lat, heights, z, ids, source)
@@ -219,10 +230,11 @@ def _roles(role, ids, source: str) -> np.ndarray:
 
 
 # --- readers --------------------------------------------------------------------------------
-def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpTable:
+def read_csv(path, mapping: CsvMapping, crs, heights: Heights, block=None, **sigmas) -> GcpTable:
     """GCPs from a delimited text file with a header row (see :class:`CsvMapping`).
 
     crs: CRS of the x/y columns. heights: where heights come from (Z column = mapping.z).
+    block: the scene names of a block the rows are read for (see :func:`build_table`).
     sigmas: sigma_px, sigma_xy, sigma_z keywords for :func:`build_table`.
     """
     path = Path(path)
@@ -248,7 +260,7 @@ def read_csv(path, mapping: CsvMapping, crs, heights: Heights, **sigmas) -> GcpT
                        role=text(mapping.role if mapping.role is not None else present(header, "role")),
                        camera=text(mapping.camera if mapping.camera is not None else present(header, "camera")),
                        scene=text((mapping.scene if mapping.scene is not None else present(header, "scene")) or None),
-                       source=source, **sigmas)
+                       block=block, source=source, **sigmas)
 
 
 def read_points_file(path, heights: Heights, crs=None, **sigmas) -> GcpTable:

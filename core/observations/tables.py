@@ -9,6 +9,7 @@ lines) in messages; ``source`` names the input (a file, a layer, a parameter) in
 from __future__ import annotations
 
 import csv
+import logging
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
@@ -17,9 +18,11 @@ import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 
-from ..dem import Dem, to_ellipsoidal
+from ..dem import Dem, no_height_words, surface_name, to_ellipsoidal
 from ..errors import InputError
 from ..validation import PLAUSIBLE_HEIGHTS, implausible_heights
+
+log = logging.getLogger(__name__)
 
 MAX_LISTED = 10  # ids named in a message
 SCENE_METADATA_KEY = "PUSHBROOM_SCENE"  # layer metadata item: the scene file a layer was checked against
@@ -57,6 +60,28 @@ def require_unique(ids, camera, source: str, scene=None) -> None:
         dup = list(dict.fromkeys(k.split("\x1f")[0] for k in uniq[counts > 1]))
         where = "the same camera of the same scene" if scene is not None else "the same camera"
         raise InputError(f"{source}: point id(s) {listed(dup)} occur more than once for {where}")
+
+
+def scene_of_rows(names, ids, scenes, source: str = "", parameter: str | None = None) -> np.ndarray:
+    """The scene name of every row ((n,) str) checked against the block's scene names ``scenes``
+    (a sequence): InputError (its message starting with ``source`` when given; concerning
+    ``parameter``) naming the rows' points when a name is not one of the block's, or when rows name
+    none in a block of several scenes (a block of one takes its name)."""
+    names, ids, scenes = np.char.strip(np.asarray(names, dtype=str)), np.asarray(ids, dtype=str), list(scenes)
+    source = f"{source}: " if source else ""
+    if len(scenes) == 1:
+        names = np.where(names == "", scenes[0], names)
+    missing = names == ""
+    if missing.any():
+        raise InputError(f"{source}point(s) {listed(np.unique(ids[missing]))} name no scene; in a block of "
+                         f"{len(scenes)} scenes ({', '.join(scenes)}) every row names the scene it was measured in "
+                         "(a field 'scene')", parameter=parameter)
+    unknown = ~np.isin(names, scenes)
+    if unknown.any():
+        raise InputError(f"{source}scene(s) {listed(np.unique(names[unknown]))} of point(s) "
+                         f"{listed(np.unique(ids[unknown]))} are not scenes of the block ({', '.join(scenes)})",
+                         parameter=parameter)
+    return names
 
 
 # --- ground coordinates and heights ---------------------------------------------------------
@@ -123,8 +148,8 @@ def ellipsoidal_heights(lon, lat, heights: Heights, z, ids, source: str) -> np.n
         h = dem.height(lon, lat)
         bad = ~np.isfinite(h)
         if bad.any():
-            raise InputError(f"{source}: the DEM {getattr(dem, 'path', '')} does not cover point(s) "
-                             f"{listed(ids[bad])} (outside it or on nodata)")
+            raise InputError(f"{source}: {no_height(dem, lon, lat, bad)}: point(s) {listed(ids[bad])}; take their "
+                             "heights from Z or a constant, or give a DEM that covers them")
         return h
     raise InputError(f"height source must be one of {', '.join(HEIGHT_SOURCES)} (got {heights.source!r})")
 
@@ -151,13 +176,22 @@ def point_heights(lon: np.ndarray, lat: np.ndarray, z: np.ndarray, datum: str | 
                              f"({PLAUSIBLE_HEIGHTS[0]:g} to {PLAUSIBLE_HEIGHTS[1]:g} m ellipsoidal; feature ids "
                              f"{', '.join(str(i) for i in ids[implausible][:5])}); {remedy}")
     if (~use_z).any():
-        h[~use_z] = surface().height(lon[~use_z], lat[~use_z])
+        terrain = surface()
+        h[~use_z] = terrain.height(lon[~use_z], lat[~use_z])
         off = ~use_z & ~np.isfinite(h)
         if off.any():
             first = ", ".join(str(i) for i in ids[off][:5])
-            raise InputError(f"{source}: {int(off.sum())} features have missing or non-finite DEM heights (points "
-                             f"off the DEM or on its nodata) (feature ids {first}...)")
+            raise InputError(f"{source}: {no_height(terrain, lon, lat, off)} (feature ids {first}"
+                             f"{', ...' if off.sum() > 5 else ''}); give those points Z values, or a DEM that "
+                             "covers them")
     return h
+
+
+def no_height(surface, lon: np.ndarray, lat: np.ndarray, missing: np.ndarray) -> str:
+    """'<DEM> gives no height for <n> of <total> points (<k> off its extent, <m> on its nodata
+    holes)': the ``missing`` (bool (n,)) of the points at lon, lat (n,) deg."""
+    off, hole = surface.no_height(lon[missing], lat[missing])
+    return f"{surface_name(surface)} {no_height_words(int(off.sum()), int(hole.sum()), lon.size, 'points')}"
 
 
 # --- delimited text files and per-point columns ---------------------------------------------
@@ -254,14 +288,21 @@ def resolve_cameras(table, scene, camera: str | None = None):
 
     camera: a name (or index) for all points, overriding the table's. Otherwise points with
     an empty camera get the scene's only camera; a camera given as an index (e.g. '1') that is
-    no camera name is taken as an index. InputError for unknown cameras or points without one
-    in a multi-camera scene.
+    no camera name is taken as an index. A scene of one camera takes every point when the table
+    names one other camera for all of them (the simulator's 'HRC' against an RPC product's camera),
+    and logs a warning saying so. InputError for unknown cameras (of a multi-camera scene, or
+    among several names), or points without one in a multi-camera scene.
     """
     names = [c.name for c in scene.cameras]
     if camera not in (None, ""):
         key = int(camera) if isinstance(camera, int) or (str(camera).isdigit() and camera not in names) else camera
         return replace(table, camera=np.full(len(table), names[scene.camera_index(key)]))
     cams = table.camera
+    named = set(np.unique(cams).tolist()) - {""}
+    if len(names) == 1 and len(named) == 1 and not named & {names[0]} and not next(iter(named)).isdigit():
+        log.warning("the camera column names camera %r for the points, but the scene has one camera, %r: all %d "
+                    "point(s) are taken as measured in it", next(iter(named)), names[0], len(table))
+        return replace(table, camera=np.full(len(table), names[0]))
     missing = cams == ""
     if missing.any():
         if len(names) > 1:

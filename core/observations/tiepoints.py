@@ -29,7 +29,7 @@ from ..errors import InputError
 from ..files import OutputSet
 from ..geodesy import ecef_to_geodetic
 from ..model.intersection import intersect
-from ..validation import MAX_IMAGE_COORDINATE, implausible_image_coordinates, spread_problem
+from ..validation import MAX_IMAGE_COORDINATE, implausible_image_coordinates, per_point, spread_problem
 from ..vector_io import layer_to_wgs84_3d, open_layer, wgs84_3d, write_layer
 from .tables import (SCENE_METADATA_KEY, csv_column, listed, nullable_floats, parse_numbers, per_point_sigmas, present,
                      read_delimited, require_finite, require_unique, resolve_cameras)
@@ -124,8 +124,12 @@ class CsvMapping:
 def build_table(ids, camera, col, row, *, scene=None, sigma_px=DEFAULT_SIGMA_PX,
                 source: str = "tie-point input") -> TieTable:
     """A tie table from raw columns ((n,) arrays; camera and scene None: all ''). sigma_px: a
-    number or (n,) px. ``source`` names the input in the messages. InputError for empty ids,
-    missing or non-finite image coordinates and coordinates beyond any image (naming the points)."""
+    number or (n,) px. ``source`` names the input in the messages. InputError for columns of
+    different lengths (naming them: core.validation.per_point), empty ids, missing or non-finite
+    image coordinates and coordinates beyond any image (naming the points)."""
+    optional = {k: v for k, v in dict(camera=camera, scene=scene).items() if v is not None}
+    ids, col, row, sigma_px, *given = per_point(ids=ids, col=col, row=row, sigma_px=sigma_px, **optional)
+    camera, scene = (dict(zip(optional, given)).get(k) for k in ("camera", "scene"))
     ids = np.char.strip(np.asarray(ids, dtype=str))
     if ids.size == 0:
         raise InputError(f"{source}: no tie points")

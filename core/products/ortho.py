@@ -28,6 +28,7 @@ import numpy as np
 from osgeo import gdal_array
 from pyproj import CRS, Transformer
 
+from ..dem import no_height_words, surface_name
 from ..errors import InputError
 from ..files import OutputSet, atomic_outputs, check_destination
 from ..formats.scene_json import scene_to_dict
@@ -36,11 +37,12 @@ from ..model.sensor import SceneModel
 from ..validation import check_nodata
 from .mapping import Mapper, OrthoGrid, utm_crs
 from .orthojobs import OrthoJob, connect_scheduler, surface_description, tiles_on_scheduler
-from .rawimage import RawImage, image_on_surface, open_raw
+from .rawimage import RawImage, check_image_belongs, image_on_surface, open_raw
 from .resampling import check_resampling, write_resampled
 
 log = logging.getLogger(__name__)
 
+PRODUCT_MARK = "PUSHBROOM_PRODUCT"  # metadata item naming the product an image is (not a DEM: core.measure.sources)
 MAX_OUTPUT_PIXELS = 2e9  # per band: ~2 GB at 8 bits, more than any scene needs at its own GSD
 
 
@@ -64,18 +66,29 @@ def default_grid(scene: SceneModel, camera: int, surface, crs: CRS | None = None
     if resolution is None:
         resolution = float(np.hypot(x[-1] - x[-2], y[-1] - y[-2]))
     if not resolution > 0:
-        raise InputError(f"the output resolution must be positive (got {resolution})")
+        raise InputError(f"the output resolution must be positive (got {resolution})", parameter="resolution")
     xmin, ymin, xmax, ymax = extent or (np.min(x[:-2]), np.min(y[:-2]), np.max(x[:-2]), np.max(y[:-2]))
     if not (xmax > xmin and ymax > ymin):
         raise InputError(f"the extent {extent} is empty: it needs xmin < xmax and ymin < ymax")
-    width, height = float(xmax - xmin) / resolution, float(ymax - ymin) / resolution
-    if not width * height <= MAX_OUTPUT_PIXELS:  # also inf: never round sizes that no file can hold
-        raise InputError(f"resolution {resolution:g} m: the output would have {width:.4g} x {height:.4g} pixels "
-                         f"(more than {MAX_OUTPUT_PIXELS:.0e}); choose a coarser resolution or a smaller extent")
+    check_resolution(resolution, float(xmax - xmin), float(ymax - ymin))
     x0 = math.floor(xmin / resolution) * resolution
     y0 = math.ceil(ymax / resolution) * resolution
     cols, rows = int(math.ceil((xmax - x0) / resolution)), int(math.ceil((y0 - ymin) / resolution))
     return OrthoGrid(crs, x0, y0, resolution, cols, rows)
+
+
+def check_resolution(resolution: float, width: float, height: float) -> None:
+    """InputError (parameter 'resolution') for a pixel size (m) that gives a grid over ``width`` x
+    ``height`` m (the footprint or extent) of more than MAX_OUTPUT_PIXELS, or under 2 pixels
+    across its shorter side; the message gives the size the grid would have and the range."""
+    finest = math.sqrt(width * height / MAX_OUTPUT_PIXELS)
+    coarsest = min(width, height) / 2
+    cols, rows = width / resolution, height / resolution
+    if not finest <= resolution <= coarsest:  # also inf: never round sizes that no file can hold
+        raise InputError(f"{resolution:g} m: the orthoimage would have {cols:.4g} x {rows:.4g} pixels over the "
+                         f"{width / 1000:.4g} x {height / 1000:.4g} km it covers; give a pixel size from {finest:.3g} "
+                         f"m ({MAX_OUTPUT_PIXELS:.0e} pixels) to {coarsest:.4g} m (2 pixels across), or another "
+                         "extent", parameter="resolution")
 
 
 def common_grid(grids: list[OrthoGrid]) -> OrthoGrid:
@@ -110,8 +123,10 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
     ``scheduler`` (a Dask distributed address, e.g. tcp://host:8786) as :class:`core.products.orthojobs.OrthoJob` s on
     its workers, which write tile files in a temporary folder beside the output that are then
     assembled here: the same bytes. With ``files`` the output joins that set (its owner commits
-    it). Returns figures: grid, densification error (px), share of the footprint without DEM
-    heights, time."""
+    it). Returns figures: grid, densification error (px; :class:`core.products.mapping.MappingFigures`:
+    the largest error at the checks), the shares (%) of output pixels corrected for relief, refined and
+    mapped exactly, the share (0..1) of the image's footprint in the output with no height and its
+    pixels (those on the DEM's nodata holes), time."""
     t_start = time.perf_counter()
     check_resampling(resampling, tile, step)
     cam = scene.cameras[camera]
@@ -130,15 +145,12 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
     try:
         mapper = Mapper(scene, camera, surface, grid, rows)
         planned = mapper.nodes(0, grid.rows, 0, grid.cols, step, is_cancelled=cancelled)
-        gaps = mapper.dem_gap_share(planned)
-        if gaps > 0:
-            log.warning("DEM %s gives no height for %.1f %% of the image's footprint in the output grid: those "
-                        "pixels are nodata", getattr(surface, "path", ""), 100 * gaps)
         report(0.05)
 
         def georeference(out) -> None:
             out.SetGeoTransform(grid.geotransform())
             out.SetProjection(grid.crs.to_wkt())
+            out.SetMetadataItem(PRODUCT_MARK, "orthoimage")
 
         run_tiles = None
         if scheduler:
@@ -151,7 +163,7 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
                                 planned.window(*window))
 
             run_tiles = partial(tiles_on_scheduler, scheduler, job, output_path)
-        worst = write_resampled(raw, mapper, planned, (grid.rows, grid.cols), output_path, resampling, nodata, tile,
+        mapped = write_resampled(raw, mapper, planned, (grid.rows, grid.cols), output_path, resampling, nodata, tile,
                                 max_error,
                                 georeference=georeference, progress=lambda f: report(0.05 + 0.93 * f),
                                 is_cancelled=cancelled, files=files, run_tiles=run_tiles)
@@ -159,11 +171,25 @@ def orthorectify(scene: SceneModel, image_path, surface, output_path, camera: in
         raw.close()
     report(1.0)
     figures = {"cols": grid.cols, "rows": grid.rows, "resolution_m": grid.resolution, "crs": grid.crs.to_string(),
-               "densification_error_px": worst, "max_error_px": max_error, "dem_gap_share": gaps,
-               "seconds": time.perf_counter() - t_start}
-    log.info("orthoimage %d x %d at %.3f m in %.1f s; densification error <= %.2e px", grid.cols, grid.rows,
-             grid.resolution, figures["seconds"], worst)
+               "densification_error_px": mapped.error_px, "max_error_px": max_error,
+               "relief_corrected_percent": mapped.share(mapped.relief), "refined_percent": mapped.share(mapped.refined),
+               "exact_percent": mapped.share(mapped.exact), "mapping": mapped.sentence(max_error),
+               "dem_gap_share": mapped.gap_share, "dem_gap_pixels": mapped.no_height, "dem_hole_pixels": mapped.holes,
+               "footprint_pixels": mapped.footprint, "seconds": time.perf_counter() - t_start}
+    log.info("orthoimage %d x %d at %.3f m in %.1f s; %s", grid.cols, grid.rows, grid.resolution, figures["seconds"],
+             figures["mapping"])
+    if mapped.no_height:
+        log.warning(gap_sentence(surface, figures))
     return figures
+
+
+def gap_sentence(surface, figures: dict) -> str:
+    """The words for the output pixels of the image's footprint with no height (``figures`` of
+    :func:`orthorectify`)."""
+    holes = figures["dem_hole_pixels"]
+    words = no_height_words(figures["dem_gap_pixels"] - holes, holes, figures["footprint_pixels"],
+                            "output pixels of the image's footprint")
+    return f"{surface_name(surface)} {words}, {100 * figures['dem_gap_share']:.1f} %: those pixels are nodata"
 
 
 # --- every camera of a scene, every scene of a strip ------------------------------------------------
@@ -193,10 +219,12 @@ def strip_products(scene: SceneModel, cameras: list[int]) -> list[OrthoProduct]:
 
 
 def check_images(scene: SceneModel, images: dict[int, str]) -> None:
-    """Refuse, before any work, a raw image that cannot be read or whose size is not its camera's
+    """Refuse, before any work, a raw image that cannot be read, whose size is not its camera's, or whose own
+    RPC puts it on ground the scene does not see there (:func:`core.products.rawimage.check_image_belongs`)
     (``images``: {camera index: path})."""
     for camera, path in images.items():
         open_raw(path, scene.cameras[camera])
+        check_image_belongs(scene, camera, path)
 
 
 def orthorectify_products(scene: SceneModel, images: dict[int, str], surface, folder, products: list[OrthoProduct],

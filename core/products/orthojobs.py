@@ -20,7 +20,8 @@ from ..dem import ConstantHeight, Dem
 from ..errors import Cancelled, InputError
 from ..files import check_closed, closing_errors
 from ..formats.scene_json import scene_from_dict
-from .mapping import Mapper, Nodes, OrthoGrid
+from ..rasters import open_input_raster
+from .mapping import Mapper, MappingFigures, Nodes, OrthoGrid
 from .rawimage import RawImage
 from .resampling import RESAMPLING, create_geotiff, tile_blocks, write_tile
 
@@ -75,15 +76,15 @@ def _job_mapper(scene_text: str, camera: int, grid: tuple, surface: str, rows: t
                   OrthoGrid(CRS.from_wkt(wkt), x0, y0, resolution, cols, n_rows), rows)
 
 
-def run_job(job: OrthoJob) -> float:
-    """Compute one tile (:class:`OrthoJob`) and write it to ``job.output``; returns its
-    densification error (px)."""
+def run_job(job: OrthoJob) -> MappingFigures:
+    """Compute one tile (:class:`OrthoJob`) and write it to ``job.output``; returns what mapping
+    its pixels measured."""
     mapper = _job_mapper(job.scene, job.camera, job.grid, json.dumps(job.surface, sort_keys=True), job.rows)
-    src = gdal.Open(job.image)
+    src = open_input_raster(job.image)
     raw = RawImage(job.image, src, budget=0)  # read by window: a worker holds only its tiles' pixels
     levels = list(job.levels)
     fill = job.nodata if job.nodata is not None else 0.0
-    blocks, overviews, err = tile_blocks(mapper, raw, job.window, job.step, job.max_error, job.nodes,
+    blocks, overviews, figures = tile_blocks(mapper, raw, job.window, job.step, job.max_error, job.nodes,
                                          RESAMPLING[job.resampling], fill, levels, job.nodata)
     r0, r1, c0, c1 = job.window
     out = create_geotiff(job.output, c1 - c0, r1 - r0, raw.count, raw.data_type, levels, job.nodata, [])
@@ -97,7 +98,7 @@ def run_job(job: OrthoJob) -> float:
             out = None  # closes the tile, also after an error (a full disk): GDAL's error is kept, not printed
         raw.close()
     check_closed(job.output, closing)
-    return err
+    return figures
 
 
 def connect_scheduler(scheduler: str):
@@ -115,21 +116,21 @@ def connect_scheduler(scheduler: str):
                          f"{SCHEDULER_TIMEOUT} s ({exc}); give its address, e.g. tcp://host:8786") from None
 
 
-def _run_jobs(scheduler: str, jobs: list[OrthoJob], report, cancelled) -> float:
-    """Run ``jobs`` on the Dask scheduler (``report`` gets the share done); returns the worst
-    densification error (px)."""
+def _run_jobs(scheduler: str, jobs: list[OrthoJob], report, cancelled) -> MappingFigures:
+    """Run ``jobs`` on the Dask scheduler (``report`` gets the share done); returns their
+    mapping figures merged."""
     from distributed import as_completed
     client = connect_scheduler(scheduler)
     try:
         futures = client.map(run_job, jobs, pure=False)
-        worst = 0.0
+        figures = MappingFigures()
         for n, future in enumerate(as_completed(futures, loop=client.loop)):
             if cancelled():
                 client.cancel(futures)
                 raise Cancelled("orthorectification cancelled by the user")
-            worst = max(worst, future.result())
+            figures = figures.merge(future.result())
             report((n + 1) / len(jobs))
-        return worst
+        return figures
     finally:
         client.close()
 
@@ -155,16 +156,16 @@ def _assemble(jobs: list[OrthoJob], out_bands, levels: list[int], folder: Path, 
 
 def tiles_on_scheduler(scheduler: str, job: Callable[[tuple, str, list[int]], OrthoJob], output_path: Path,
                        windows: list[tuple[int, int, int, int]], out_bands, levels: list[int], report,
-                       cancelled) -> float:
+                       cancelled) -> MappingFigures:
     """The ``run_tiles`` of :func:`core.products.resampling.write_resampled` on a Dask scheduler:
     ``job(window, tile file, levels)`` for each window, run by the workers into a temporary folder
     beside ``output_path`` (removed afterwards), then assembled into ``out_bands`` in window
-    order. Returns the worst densification error (px)."""
+    order. Returns the tiles' mapping figures merged."""
     folder = Path(tempfile.mkdtemp(prefix=f".{output_path.name}.", suffix=".tiles", dir=output_path.parent))
     try:
         jobs = [job(w, str(folder / f"tile_{w[0]}_{w[2]}.tif"), levels) for w in windows]
-        worst = _run_jobs(scheduler, jobs, lambda f: report(0.86 * f), cancelled)
+        figures = _run_jobs(scheduler, jobs, lambda f: report(0.86 * f), cancelled)
         _assemble(jobs, out_bands, levels, folder, lambda f: report(0.86 + 0.14 * f), cancelled)
-        return worst
+        return figures
     finally:
         shutil.rmtree(folder, ignore_errors=True)

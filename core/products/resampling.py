@@ -15,7 +15,7 @@ from osgeo import gdal
 
 from ..errors import Cancelled, InputError
 from ..files import OutputSet, closing_errors, write_failure
-from .mapping import Mapper, Nodes
+from .mapping import Mapper, MappingFigures, Nodes
 from .rawimage import RawImage, resample
 
 gdal.UseExceptions()
@@ -40,12 +40,13 @@ def check_resampling(resampling: str, tile: int, step: int) -> None:
 
 def tile_blocks(mapper: Mapper, raw: RawImage, window: tuple[int, int, int, int], step: int, max_error: float,
                 planned: "Nodes | None", order: int, fill, levels: list[int], nodata):
-    """One tile: the bands (resampled), their parts of each overview level and the densification
-    error (px). The same computation for the threads of one process and for a distributed job."""
+    """One tile: the bands (resampled), their parts of each overview level and what mapping its
+    pixels measured (:class:`core.products.mapping.MappingFigures`). The same computation for the
+    threads of one process and for a distributed job."""
     r0, r1, c0, c1 = window
-    col, row, err = mapper.tile(r0, r1, c0, c1, step, max_error, planned)
+    col, row, figures = mapper.tile(r0, r1, c0, c1, step, max_error, planned)
     blocks = resample(raw, col, row, order, fill, mapper.rows)
-    return blocks, [_overview_blocks(b, levels, nodata, order == 0) for b in blocks], err
+    return blocks, [_overview_blocks(b, levels, nodata, order == 0) for b in blocks], figures
 
 
 def _overview_blocks(block: np.ndarray, levels: list[int], nodata, nearest: bool) -> list[np.ndarray]:
@@ -113,7 +114,7 @@ def write_resampled(raw: RawImage, mapper: Mapper, planned: Nodes, shape: tuple[
                     georeference: Callable[[gdal.Dataset], None] | None = None,
                     progress: Callable[[float], None] | None = None,
                     is_cancelled: Callable[[], bool] | None = None, files: OutputSet | None = None,
-                    run_tiles: Callable | None = None) -> float:
+                    run_tiles: Callable | None = None) -> MappingFigures:
     """Resample ``raw`` through ``mapper`` (output pixel -> raw image position; any subclass of
     :class:`Mapper` with its own ``exact``) onto an output of ``shape`` (rows, cols), whose node
     grid ``planned`` (:meth:`Mapper.nodes` over the whole output) it slices, and write it as a
@@ -121,9 +122,9 @@ def write_resampled(raw: RawImage, mapper: Mapper, planned: Nodes, shape: tuple[
     its georeferencing. Tiles on a thread per core, or by ``run_tiles(windows, out_bands, levels,
     progress, is_cancelled)`` (e.g. :func:`core.products.orthojobs.tiles_on_scheduler`), which
     writes every window (r0, r1, c0, c1) into the output's bands with :func:`write_tile` in the
-    order given and returns the worst densification error; ``progress`` gets the share of tiles
+    order given and returns the tiles' mapping figures merged; ``progress`` gets the share of tiles
     done. Written completely or not at all: with ``files`` as part of that set (its owner commits
-    it). Returns the largest densification error measured (px)."""
+    it). Returns what mapping the pixels measured (:class:`core.products.mapping.MappingFigures`)."""
     rows, cols = shape
     fill = nodata if nodata is not None else 0.0
     cancelled = is_cancelled or (lambda: False)
@@ -132,7 +133,7 @@ def write_resampled(raw: RawImage, mapper: Mapper, planned: Nodes, shape: tuple[
     own = files is None
     files = files or OutputSet()
     failed = ""
-    worst = 0.0
+    figures = MappingFigures()
     try:
         out = create_geotiff(files.path(output_path), cols, rows, raw.count, raw.data_type, levels, nodata,
                              ["TILED=YES", f"BLOCKXSIZE={tile}", f"BLOCKYSIZE={tile}", "COMPRESS=DEFLATE",
@@ -143,7 +144,7 @@ def write_resampled(raw: RawImage, mapper: Mapper, planned: Nodes, shape: tuple[
         windows = [(r0, min(r0 + tile, rows), c0, min(c0 + tile, cols))
                    for r0 in range(0, rows, tile) for c0 in range(0, cols, tile)]
         if run_tiles is not None:
-            worst = run_tiles(windows, out_bands, levels, report, cancelled)
+            figures = run_tiles(windows, out_bands, levels, report, cancelled)
         else:
             order = RESAMPLING[resampling]
 
@@ -154,9 +155,9 @@ def write_resampled(raw: RawImage, mapper: Mapper, planned: Nodes, shape: tuple[
                                    nodata)
 
             with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-                for n, (window, (blocks, overviews, err)) in enumerate(zip(windows, pool.map(work, windows))):
+                for n, (window, (blocks, overviews, tiled)) in enumerate(zip(windows, pool.map(work, windows))):
                     write_tile(out_bands, levels, window, blocks, overviews)
-                    worst = max(worst, err)
+                    figures = figures.merge(tiled)
                     report((n + 1) / len(windows))
         out_bands = None
         out.FlushCache()
@@ -177,4 +178,4 @@ def write_resampled(raw: RawImage, mapper: Mapper, planned: Nodes, shape: tuple[
             files.discard()
     if failed:
         raise InputError(f"cannot write {output_path}: {failed}")
-    return worst
+    return figures

@@ -20,15 +20,20 @@ per iteration and coordinate.
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import replace
 
 import numpy as np
 
+from ..dem import no_height_words, surface_name
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic
 from ..model.rpc import RpcModel, rpc_terms
 from ..model.rpcscene import RpcScene
+from .footprint import rays_without_height
+
+log = logging.getLogger(__name__)
 
 DEFAULT_GRID = (31, 31, 7)
 DEFAULT_REGULARISATION = 1e-12
@@ -304,8 +309,9 @@ def dem_height_range(scene, dem, camera=0, margin: float = 0.1, min_margin: floa
                      samples: int = 33) -> tuple[float, float]:
     """(lo, hi) ellipsoidal heights (m) of a DEM (core.dem.Dem or ConstantHeight) over one
     camera's image: the heights where a samples x samples grid of image rays meets it, widened by
-    ``margin`` of the span (at least ``min_margin`` m) for relief between the samples.
-    Raises InputError naming the camera and the DEM when rays leave the DEM."""
+    ``margin`` of the span (at least ``min_margin`` m) for relief between the samples; rays that
+    meet the DEM only on its nodata holes are left out (a warning counts them). Raises InputError
+    naming the camera and the DEM when rays leave the DEM."""
     k = scene.camera_index(camera)
     cam = scene.cameras[k]
     cols = np.linspace(0.0, cam.cols, samples)
@@ -314,10 +320,15 @@ def dem_height_range(scene, dem, camera=0, margin: float = 0.1, min_margin: floa
     xyz = scene.image_to_ground_dem(col, row, dem, camera=k)
     missing = ~np.all(np.isfinite(xyz), axis=1)
     if missing.any():
-        name = getattr(dem, "path", "the terrain surface")
-        raise InputError(f"DEM {name} does not cover camera {cam.name!r} of the scene: {int(missing.sum())} of "
-                         f"{missing.size} image points have no terrain height there; use a DEM covering the "
-                         f"whole footprint, or a constant height")
+        _, hole = rays_without_height(scene, k, col[missing], row[missing], dem)
+        words = no_height_words(int(missing.sum() - hole.sum()), int(hole.sum()), missing.size,
+                                f"points of a {samples} x {samples} grid over its image")
+        if not hole.all() or missing.all():
+            raise InputError(f"{surface_name(dem)} does not cover camera {cam.name!r} of the scene: it {words}; use "
+                             "a DEM covering the whole footprint, or a constant height")
+        log.warning("%s, camera %r: it %s; the height range is taken from the others", surface_name(dem), cam.name,
+                    words)
+        xyz = xyz[~missing]
     _, _, h = ecef_to_geodetic(xyz)
     lo, hi = float(np.min(h)), float(np.max(h))
     pad = max(margin * (hi - lo), min_margin)

@@ -27,9 +27,11 @@ import numpy as np
 from osgeo import gdal_array
 
 from ..model.camera import Camera, Chip, LineTiming
-from ..dem import ConstantHeight
+from ..dem import ConstantHeight, no_height_words, surface_name
 from ..errors import InputError
+from ..geodesy import ecef_to_geodetic
 from ..files import atomic_outputs, check_destination
+from .footprint import rays_without_height
 from .mapping import Mapper
 from .rawimage import RawImage, open_raw
 from .resampling import check_resampling, write_resampled
@@ -53,7 +55,8 @@ def virtual_camera(cam: Camera) -> Camera:
     installation; across track its detectors follow the straight line (uy linear in column)
     fitted by least squares through the real detectors' uy, along track they look at the mean
     ux of the chips with the smallest time offset (the chips whose rows are the image rows);
-    constant line period from the first to the last row's time, with no chip time offset."""
+    constant line period from the first to the last row's time (a reverse scan: the two rows' times in a
+    table), with no chip time offset."""
     cols = np.linspace(0.5, cam.cols - 0.5, min(LINE_SAMPLES, cam.cols))
     ux, uy = cam.image_plane(cols)
     slope, intercept = np.polyfit(cols, uy, 1)
@@ -66,7 +69,10 @@ def virtual_camera(cam: Camera) -> Camera:
                 theta=0.0 if slope > 0 else np.pi, name=f"{cam.name}-virtual")
     t_first, t_last = (float(t) for t in cam.timing.time(np.array([0.5, cam.rows - 0.5])))
     period = (t_last - t_first) / (cam.rows - 1) if cam.rows > 1 else cam.timing.mean_period()
-    return Camera(name=cam.name, cols=cam.cols, rows=cam.rows, timing=LineTiming(t0=t_first, period=period),
+    # a reverse scan's times decrease with the row: a table of the first and last lines' times
+    timing = LineTiming(t0=t_first, period=period) if period > 0 else \
+        LineTiming(lines=np.array([0.0, cam.rows - 1.0]), times=np.array([t_first, t_last]))
+    return Camera(name=cam.name, cols=cam.cols, rows=cam.rows, timing=timing,
                   chips=[chip], focal_length=f, principal_point=(0.0, 0.0), distortion={},
                   installation=cam.installation.copy())
 
@@ -88,19 +94,47 @@ def virtual_scene(scene: SceneModel, camera: int, info: dict | None = None) -> S
                       info={**inherited, "sensor_corrected": how})
 
 
-class _VirtualMapper(Mapper):
+class VirtualMapper(Mapper):
     """Virtual image pixels -> raw image positions: the virtual line of sight on the surface,
-    then the real camera's ground -> image. Pixels whose ray misses the surface are NaN."""
+    then the real camera's ground -> image. Pixels whose ray misses the surface are NaN. The
+    virtual and real lines of sight nearly coincide, so the mapping hardly depends on the relief:
+    it is checked at the cells' centres, the relief between the nodes bounded as for an
+    orthoimage (the DEM's departure times the rate along the virtual line of sight), and cells
+    where that could pass half the tolerance (tall buildings) mapped exactly."""
+
+    maps_ground = False
+    corrects_relief = False
 
     def __init__(self, scene: SceneModel, camera: int, virtual: SceneModel, surface):
         self.scene, self.camera, self.virtual, self.surface = scene, camera, virtual, surface
         self.cam = scene.cameras[camera]
+        self.dem = surface if hasattr(surface, "values_at") else None
 
-    def exact(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Raw (col, row) of virtual positions (i = row, j = col, float, pixel-centre units)."""
+    def at_height_steps(self, i: np.ndarray, j: np.ndarray, steps) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Raw (col, row) of virtual positions (i, j) with their ground moved along the virtual line
+        of sight by each of ``steps`` (m) in height from the surface's mean height."""
+        h = float(np.mean(self.surface.height_range))
+        col, row = np.ravel(j) + 0.5, np.ravel(i) + 0.5
+        return [tuple(a.reshape(np.shape(i)) for a in self._raw_positions(self.virtual.image_to_ground(col, row,
+                                                                                                      h + dh, 0)))
+                for dh in steps]
+
+    def _exact(self, i, j) -> tuple[np.ndarray, ...]:
+        """:meth:`exact` (raw (col, row) of virtual positions: i = row, j = col, float, pixel-centre
+        units), and with a DEM the DEM pixel coordinates (u, v) and values z of the ground points."""
         i, j = np.broadcast_arrays(np.asarray(i, dtype=float), np.asarray(j, dtype=float))
         ground = self.virtual.image_to_ground_dem(j.ravel() + 0.5, i.ravel() + 0.5, self.surface, 0)
-        col, row = np.full(i.size, np.nan), np.full(i.size, np.nan)
+        col, row = (a.reshape(i.shape) for a in self._raw_positions(ground))
+        if self.dem is None:
+            return col, row
+        lon, lat, _ = ecef_to_geodetic(ground)
+        u, v = self.dem.pixel_coordinates(lon, lat)
+        return col, row, u.reshape(i.shape), v.reshape(i.shape), self.dem.values_at(u, v).reshape(i.shape)
+
+    def _raw_positions(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw (col, row) (n,) of ground points (n, 3); NaN where a point is; near a seam as
+        :meth:`_across_seam` puts them."""
+        col, row = np.full(len(ground), np.nan), np.full(len(ground), np.nan)
         ok = np.all(np.isfinite(ground), axis=1)
         if ok.any():
             col[ok], row[ok] = self.scene.ground_to_image(ground[ok], self.camera)
@@ -108,7 +142,7 @@ class _VirtualMapper(Mapper):
             near = ok & (np.abs(np.nan_to_num(col, nan=np.inf)[:, None] - bounds).min(axis=1) < SEAM_ZONE)
             if near.any():
                 col[near], row[near] = self._across_seam(ground[near], col[near], row[near])
-        return col.reshape(i.shape), row.reshape(i.shape)
+        return col, row
 
     def _across_seam(self, ground: np.ndarray, col: np.ndarray, row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Raw (col, row) of ground points (n, 3) near a seam, found at (col, row) on one chip, so that
@@ -178,18 +212,18 @@ def sensor_correct(scene: SceneModel, camera: int, image_path, surface, output_p
     for path in (output_path, *paths.values(), *([scene_path] if scene_path else [])):
         check_destination(path)
     heights = rpc_height_range(scene, camera, surface)  # also: the DEM covers the image
-    virtual = virtual_scene(scene, camera, {"resampling": resampling, "surface": _surface_name(surface),
+    virtual = virtual_scene(scene, camera, {"resampling": resampling, "surface": surface_name(surface),
                                             **(info or {})})
     report(0.0, "virtual camera: image positions on the node grid")
-    mapper = _VirtualMapper(scene, camera, virtual, surface)
+    mapper = VirtualMapper(scene, camera, virtual, surface)
     raw = RawImage(image_path, src, memory_budget)
     cancelled = is_cancelled or (lambda: False)
     try:
         planned = mapper.nodes(0, cam.rows, 0, cam.cols, step, is_cancelled=cancelled)
-        _check_coverage(planned, cam.rows, cam.cols, surface)
+        _check_coverage(planned, cam.rows, cam.cols, virtual, surface)
         report(0.1, "resampling the raw image")
         with atomic_outputs() as files:
-            worst = write_resampled(raw, mapper, planned, (cam.rows, cam.cols), output_path, resampling, nodata,
+            mapped = write_resampled(raw, mapper, planned, (cam.rows, cam.cols), output_path, resampling, nodata,
                                     tile, max_error, progress=lambda f: report(0.1 + 0.8 * f), is_cancelled=cancelled,
                                     files=files)
             raw.close()
@@ -207,30 +241,35 @@ def sensor_correct(scene: SceneModel, camera: int, image_path, surface, output_p
     vcam = virtual.cameras[0]
     figures = {"image": str(output_path), **{k: str(v) for k, v in paths.items()},
                "scene": str(scene_path) if scene_path else None, "cols": cam.cols, "rows": cam.rows,
-               "densification_error_px": worst, "rpc_check_rms_px": fit["check"]["rms_px"],
+               "densification_error_px": mapped.error_px, "mapping": mapped.sentence(max_error, relief=False),
+               "rpc_check_rms_px": fit["check"]["rms_px"],
                "rpc_check_max_px": fit["check"]["max_px"], "height_range": list(heights),
                "virtual_line": {"focal_length_m": vcam.focal_length, "pitch_m": vcam.chips[0].pitch,
-                                "line_period_s": vcam.timing.period},
+                                "line_period_s": vcam.timing.mean_period()},
                "seconds": time.perf_counter() - t_start}
-    log.info("sensor-corrected image %d x %d in %.1f s; densification error <= %.2e px; RPC check RMS %.4f px, "
-             "max %.4f px", cam.cols, cam.rows, figures["seconds"], worst, figures["rpc_check_rms_px"],
+    log.info("sensor-corrected image %d x %d in %.1f s; %s; RPC check RMS %.4f px, "
+             "max %.4f px", cam.cols, cam.rows, figures["seconds"], figures["mapping"], figures["rpc_check_rms_px"],
              figures["rpc_check_max_px"])
+    if mapped.no_height:
+        figures["holes"] = (f"{surface_name(surface)} "
+                            f"{no_height_words(0, mapped.no_height, mapped.pixels, 'pixels of the image')}: "
+                            "their lines of sight meet it only there; those pixels are nodata")
+        log.warning(figures["holes"])
     return figures
 
 
-def _surface_name(surface) -> str:
-    if isinstance(surface, ConstantHeight):
-        return f"constant ellipsoidal height {surface.value:g} m"
-    return f"DEM {getattr(surface, 'path', '')}"
-
-
-def _check_coverage(planned, rows: int, cols: int, surface) -> None:
-    """InputError naming the DEM when some of the virtual image's nodes have no ground point or
-    no raw image position (the DEM ends inside the footprint)."""
+def _check_coverage(planned, rows: int, cols: int, virtual: SceneModel, surface) -> None:
+    """InputError naming the DEM when some of the virtual image's nodes have no ground point other
+    than on the DEM's nodata holes (the DEM ends inside the footprint); pixels on holes stay nodata."""
     inside_rows = planned.r0 + np.arange(planned.ncol.shape[0]) * planned.step <= rows
     inside_cols = planned.c0 + np.arange(planned.ncol.shape[1]) * planned.step <= cols
     missing = ~np.isfinite(planned.ncol[np.ix_(inside_rows, inside_cols)])
-    if missing.any():
-        raise InputError(f"{_surface_name(surface)} does not cover the image: {int(missing.sum())} of "
-                         f"{missing.size} virtual pixels on the node grid do not meet it; use a DEM covering the "
-                         f"whole footprint, or a constant height")
+    if not missing.any():
+        return
+    i, j = np.nonzero(missing)
+    _, hole = rays_without_height(virtual, 0, planned.c0 + j * planned.step + 0.5,
+                                  planned.r0 + i * planned.step + 0.5, surface)
+    if not hole.all():
+        words = no_height_words(int((~hole).sum()), int(hole.sum()), missing.size, "virtual pixels on the node grid")
+        raise InputError(f"{surface_name(surface)} does not cover the image: it {words}; use a DEM covering the "
+                         "whole footprint, or a constant height")

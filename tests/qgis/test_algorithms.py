@@ -72,7 +72,7 @@ def test_footprint_polygons_follow_the_core_outline_on_the_dem(simulated, scene,
 
 def test_footprint_on_a_dem_not_covering_the_scene_is_refused(simulated, tmp_path, scene, dem):
     small = _tiny_dem(tmp_path / "small.tif", scene, dem)
-    with pytest.raises(QgsProcessingException, match="do not meet DEM .*small.tif"):
+    with pytest.raises(QgsProcessingException, match="DEM .*small.tif gives no height for .* points of the image outline"):
         processing.run("pushbroom:footprint", {"SCENE": simulated["TRUE_SCENE"], "DEM": str(small),
                                                "OUTPUT": "memory:"})
 
@@ -194,10 +194,11 @@ def test_points_off_the_dem_are_refused(simulated, tmp_path, scene, dem):
     small = _tiny_dem(tmp_path / "small.tif", scene, dem)
     col, row = _random_image_points(scene, 5)
     lon, lat, _ = ecef_to_geodetic(scene.image_to_ground(col, row, 0.0))
-    with pytest.raises(QgsProcessingException, match="INPUT: 5 features have missing or non-finite DEM heights"):
+    with pytest.raises(QgsProcessingException, match=r"INPUT: DEM .*small.tif gives no height for 5 of 5 points \(5 off its extent\)"):
         processing.run("pushbroom:groundtoimage", {"SCENE": simulated["TRUE_SCENE"], "INPUT": point_layer(lon, lat),
                                                    "DEM": str(small), "OUTPUT": "memory:"})
-    with pytest.raises(QgsProcessingException, match="DEM: the lines of sight of 5 points leave the DEM"):
+    with pytest.raises(QgsProcessingException, match=r"DEM: DEM .*small.tif gives no height for 5 of 5 points \(5 off its extent\): their lines of sight "
+                                                            "leave it"):
         processing.run("pushbroom:imagetoground", {"SCENE": simulated["TRUE_SCENE"], "INPUT": image_table(col, row),
                                                    "DEM": str(small), "OUTPUT": "memory:"})
 

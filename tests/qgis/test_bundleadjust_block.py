@@ -64,9 +64,10 @@ def test_a_blocks_gcps_against_one_scene_say_so(block, tmp_path):
 
 
 @pytest.mark.parametrize("column, value, message", [
-    ("scene", "date9", r"^SCENE_FIELD: scene\(s\) date9 of point\(s\) G\d+ are not scenes of the block \(nad, fwd, bwd\)"),
+    ("scene", "date9", r"^SCENE_FIELD: .*bad\.csv: scene\(s\) date9 of point\(s\) G\d+ are not scenes of the block "
+                       r"\(nad, fwd, bwd\)"),
     ("camera", "PAN", r"^CAMERA_FIELD: scene nad: camera 'PAN' of point\(s\) G\d+ is not in the scene \(cameras: NAD\)"),
-    ("scene", "", r"^SCENE_FIELD: point\(s\) G\d+ name no scene; in a block of 3 scenes"),
+    ("scene", "", r"^SCENE_FIELD: .*bad\.csv: point\(s\) G\d+ name no scene; in a block of 3 scenes"),
 ])
 def test_bad_block_gcps_are_refused_naming_the_field(block, tmp_path, column, value, message):
     lines = Path(block["GCPS"]).read_text().splitlines()

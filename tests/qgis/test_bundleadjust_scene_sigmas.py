@@ -103,11 +103,11 @@ def test_scene_sigmas_inside_a_graphical_model(block, held, tmp_path):
     ({"SCENE_SIGMAS": ["nad", 5, None, None, "nad", 6, None, None]},
      r"^SCENE_SIGMAS: row 2: scene 'nad' is given twice; expected one row per scene"),
     ({"SCENE_SIGMAS": ["nad", 5, None, None], "POSITION_SIGMA": 0.0},
-     r"^SCENE_SIGMAS: .*scene 'nad' overrides position_sigma, whose global value is not given .*give POSITION_SIGMA "
+     r"^SCENE_SIGMAS: .*scene 'nad' overrides POSITION_SIGMA, whose global value is not given .*give POSITION_SIGMA "
      r"too; per-scene values override it"),
     ({"SCENE_SIGMAS": ["fwd", None, None, 5]},
-     r"^SCENE_SIGMAS: .*scene 'fwd' is a rigorous scene: rpc_sigma is the prior of RPC products"),
-    ({"SCENE_SIGMAS": ["nad", 2e6, None, None]}, r"^SCENE_SIGMAS: .*scene 'nad': position_sigma must be between"),
+     r"^SCENE_SIGMAS: .*scene 'fwd' is a rigorous scene: RPC_SIGMA is the prior of RPC products"),
+    ({"SCENE_SIGMAS": ["nad", 2e6, None, None]}, r"^SCENE_SIGMAS: scene 'nad': POSITION_SIGMA must be between"),
 ])
 def test_bad_scene_sigmas_are_refused_naming_the_parameter(block, tmp_path, change, message):
     with pytest.raises(QgsProcessingException, match=message):

@@ -41,7 +41,7 @@ def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground
     dock.resize(600, 900)
     dock.show()
     assert dock.open_image(prepared["OUTPUT"])
-    assert dock.scene is not None and dock.camera_edit.text() == "HRC"
+    assert dock.scene is not None and dock.source.camera_name == "HRC" and dock.raw_image == str(roads["raw"])
     dock.ground_combo.setLayer(ground_layer)
     dock.id_combo.setField("line_id")
     ground = {f["line_id"]: np.array(f.geometry().asPolyline()) for f in ground_layer.getFeatures()}
@@ -66,7 +66,7 @@ def test_dock_digitises_pairs_predicts_and_saves(plugin, prepared, roads, ground
 
     dock.height_combo.setCurrentText("z")
     QTest.mouseClick(dock.predict_button, Qt.LeftButton)
-    assert len(dock.predicted) == 6 and len(dock.bands) >= 6 + 2
+    assert len(dock.predicted) == 6 and len(dock.drawing.items) >= 6 + 2
     r1 = next(p for p in dock.predicted if p.line_id == "R1")
     assert distances_to_polylines(true_points(roads, "R1"), r1.runs()).max() < 1.6
 

@@ -76,12 +76,12 @@ def test_dock_measures_snaps_saves_reopens_and_the_block_adjusts(plugin, gcp_blo
 
     # predictions of the selected point in fwd: from its ground and from its nad observation,
     # through the onboard models (a marker each), several px from the truth
-    dock.point_list.setCurrentRow(0)
+    dock.select_point(0)
     dock.scene_list.setCurrentRow(1)
     assert {p.source for p in dock.predictions} == {"ground", "nad"}
     off = [np.hypot(p.col - true_pixel(gcp_block, SNAPPED, "fwd")[0], p.row - true_pixel(gcp_block, SNAPPED, "fwd")[1])
            for p in dock.predictions]
-    assert len(dock.bands) >= 2 + len(control) and 2.0 < min(off) < 20.0
+    assert len(dock.drawing.items) >= 2 + len(control) and 2.0 < min(off) < 20.0
 
     # Snap the click 2.5 px off in fwd to the nad image: back on the truth; Undo restores the click
     QTest.mouseClick(dock.snap_button, Qt.LeftButton)
@@ -161,9 +161,9 @@ def test_ground_from_a_reference_point_layer_and_sigmas_edited(plugin, gcp_block
     pick_ground(qgis_canvas, lon + 3e-6, lat - 2e-6)             # 0.3 m beside the reference point
     ground = dock.editor.current().ground
     assert (ground.lon, ground.lat, ground.h, ground.source) == (lon, lat, h, "reference"), dock.message_label.text()
-    # the ground is marked on the main canvas (EPSG:4326 here)
-    marker = dock.ground_marker.center()
-    assert dock.ground_marker.isVisible() and (marker.x(), marker.y()) == pytest.approx((lon, lat), abs=1e-12)
+    # the ground is marked on the main canvas (EPSG:4326 here), the selected point highlighted
+    marker = dock.main_markers.selected.point
+    assert dock.main_markers.selected.isVisible() and (marker.x(), marker.y()) == pytest.approx((lon, lat), abs=1e-12)
     # a click far from every reference point (tens of screen px) takes none of them
     QTest.mouseClick(dock.ground_button, Qt.LeftButton)
     pick_ground(qgis_canvas, lon + 2e-4, lat)                    # 20 m east, the canvas +-0.5 m wide
@@ -178,3 +178,58 @@ def test_ground_from_a_reference_point_layer_and_sigmas_edited(plugin, gcp_block
     QTest.mouseClick(dock.undo_button, Qt.LeftButton)
     assert dock.message_label.text() == "Undone: edit"
     dock.dispose()
+
+
+def test_the_table_map_markers_and_adjusted_residuals(plugin, gcp_block, qgis_iface, qgis_canvas,  # noqa: F811
+                                                      qgis_new_project, tmp_path):
+    """Three points measured: all marked on the main map (the selected one highlighted); the table
+    sorts by height as numbers and a click selects the point and zooms to it; an adjusted layer opened
+    back shows each measurement's residual in the scene shown, gone when the point is moved there
+    (Ctrl+Z brings it back)."""
+    from pushbroom_adjust.core.observations.gcps import Residuals, read_gpkg, write_gpkg
+    from pushbroom_adjust.ui.digitising.canvas import ZOOM_TO_POINT_PX
+    qgis_canvas.resize(800, 800)
+    qgis_canvas.setDestinationCrs(QgsCoordinateReferenceSystem("EPSG:4326"))
+    dock = dock_for(gcp_block, qgis_iface)
+    ids = gcp_block["inside"][1:4]
+    for point_id in ids:
+        measure_point(dock, gcp_block, qgis_canvas, point_id)
+    markers = dock.main_markers.drawing.items
+    assert sorted(m.label for m in markers) == sorted(ids) and dock.main_markers.selected.label == ids[-1]
+    assert [m.style.legend for m in markers].count("selected point") == 1
+
+    table = dock.table
+    table.sortByColumn(4, Qt.DescendingOrder)                       # h (m), highest first
+    heights = [float(table.item(r, 4).text()) for r in range(table.rowCount())]
+    assert heights == sorted(heights, reverse=True) and len(heights) == 3
+    top = table.item(0, 0).text()
+    dock.scene_list.setCurrentRow(0)                                # the whole image shown
+    QTest.mouseClick(table.viewport(), Qt.LeftButton, Qt.NoModifier, table.visualItemRect(table.item(0, 0)).center())
+    assert dock.editor.current().id == top
+    seen = dock.editor.current().observation("nad", "NAD")
+    centre = dock.canvas.extent().center()
+    assert (centre.x(), -centre.y()) == pytest.approx((seen.col, seen.row), abs=1e-6)
+    shown = dock.canvas.extent()                                    # +-40 px along the canvas's shorter side
+    assert min(shown.width(), shown.height()) == pytest.approx(2 * ZOOM_TO_POINT_PX)
+
+    saved = tmp_path / "gcps.gpkg"
+    assert dock.save(str(saved)), dock.message_label.text()
+    adjusted = read_gpkg(saved)
+    n = len(adjusted)
+    adjusted.residuals = Residuals(np.full(n, 0.3), np.full(n, -0.4), np.full(n, 0.5), np.full(n, 1.0), np.ones(n, bool))
+    write_gpkg(adjusted, tmp_path / "adjusted_gcps.gpkg")
+    assert dock.open_layer(str(tmp_path / "adjusted_gcps.gpkg"))
+    assert dock.message_label.text().endswith(f", {n} observations with their residuals")
+    assert [table.item(r, 3).text() for r in range(3)] == ["0.50"] * 3
+    assert {table.item(r, 5).text() for r in range(3)} == {"the layer adjusted_gcps.gpkg"}
+    dock.select_point(0)
+    moved = dock.editor.current().observation("nad", "NAD")
+    dock.image_clicked(moved.col + 1.0, moved.row, Qt.LeftButton)
+    row = next(r for r in range(3) if table.item(r, 0).text() == dock.editor.current().id)
+    assert table.item(row, 3).text() == ""
+    dock.undo_action.trigger()
+    assert table.item(row, 3).text() == "0.50" and dock.message_label.text() == "Undone: move"
+    dock.tools.zoom_image.trigger()
+    assert dock.canvas.extent().contains(dock.canvas.layer.extent())
+    dock.dispose()
+    assert dock.main_markers.drawing.items == []

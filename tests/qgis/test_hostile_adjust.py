@@ -117,6 +117,7 @@ def test_a_run_at_its_pass_limit_says_so(sims, tmp_path):
     rep, log = _adjust(sim, _gcps(sim, tmp_path), tmp_path, MAX_ROBUST_PASSES=1)
     assert rep["robust"]["stopped_at_limit"]
     assert "robust estimation stopped at its limit of 1 passes; the flags may be incomplete" in log.warnings
+    assert "robust estimation stopped at its limit of 1 passes; the flags may be incomplete" in rep["warnings"]
     assert "stopped at its limit of 1 passes" in (tmp_path / "report.html").read_text()
 
 

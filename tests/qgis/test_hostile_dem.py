@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from osgeo import gdal, osr
+from osgeo import gdal, ogr, osr
 
 import processing
-from tests.support.hostile import assert_refused, assert_unchanged, snapshot
+from tests.support.hostile import assert_refused, assert_refused_cli, assert_unchanged, huge_vrt, snapshot
 
 gdal.UseExceptions()
 ALGORITHMS = ("footprint", "imagetoground", "orthorectify")
@@ -143,32 +143,10 @@ def test_dem_with_nan_nodata_gives_the_same_footprint(simulated, sim_dem, tmp_pa
     assert _area(simulated, path) == pytest.approx(true_area, rel=1e-9)
 
 
-def _huge_vrt(simulated, folder, factor: int = 1000):
-    """A VRT of the simulator's DEM at 1/factor of its pixel size: ~2 million pixels square."""
-    src = gdal.Open(simulated["DEM"])
-    gt = src.GetGeoTransform()
-    nx, ny = src.RasterXSize * factor, src.RasterYSize * factor
-    vrt = folder / "huge.vrt"
-    vrt.write_text(f"""<VRTDataset rasterXSize="{nx}" rasterYSize="{ny}">
-  <SRS>{_wgs84().replace('"', '&quot;')}</SRS>
-  <GeoTransform>{gt[0]}, {gt[1] / factor}, 0, {gt[3]}, 0, {gt[5] / factor}</GeoTransform>
-  <VRTRasterBand dataType="Float32" band="1">
-    <NoDataValue>-32768</NoDataValue>
-    <SimpleSource>
-      <SourceFilename relativeToVRT="0">{simulated["DEM"]}</SourceFilename>
-      <SourceBand>1</SourceBand>
-      <SrcRect xOff="0" yOff="0" xSize="{src.RasterXSize}" ySize="{src.RasterYSize}"/>
-      <DstRect xOff="0" yOff="0" xSize="{nx}" ySize="{ny}"/>
-    </SimpleSource>
-  </VRTRasterBand>
-</VRTDataset>""")
-    return str(vrt)
-
-
 def test_huge_vrt_dem_footprint_reads_it_coarsely(simulated, tmp_path, true_area):
     """A DEM of ~2 million pixels square (~16 TB of heights) traces the footprint from a coarse
     read: same area as on the simulator's DEM (the VRT is that DEM, resampled)."""
-    assert _area(simulated, _huge_vrt(simulated, tmp_path)) == pytest.approx(true_area, rel=1e-3)
+    assert _area(simulated, huge_vrt(simulated["DEM"], tmp_path / "huge.vrt")) == pytest.approx(true_area, rel=1e-3)
 
 
 @pytest.mark.parametrize("alg", ("imagetoground", "orthorectify"))
@@ -178,13 +156,50 @@ def test_huge_vrt_dem_at_full_resolution_is_refused(simulated, raw_image, tmp_pa
     out = tmp_path / "out"
     out.mkdir()
     _points(out)
-    vrt = _huge_vrt(simulated, tmp_path)
+    vrt = huge_vrt(simulated["DEM"], tmp_path / "huge.vrt")
     assert_refused(f"pushbroom:{alg}", _params(alg, simulated, vrt, raw_image, out), "huge.vrt", "coarser DEM",
                    watch=[vrt, out])
 
 
-def test_a_dem_that_is_not_a_raster(simulated, tmp_path):
-    path = tmp_path / "text.tif"
-    path.write_text("not a raster\n")
-    assert_refused("pushbroom:footprint", {"SCENE": simulated["TRUE_SCENE"], "DEM": str(path), "DEM_DATUM": "geoid",
-                                           "OUTPUT": "memory:"}, "DEM", watch=[tmp_path])
+def _not_rasters(folder) -> dict:
+    """Files given as DEM that are no raster, and what the refusal says about each."""
+    (folder / "text.tif").write_text("not a raster\n")
+    ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(folder / "points.gpkg"))
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(4326)
+    layer = ds.CreateLayer("points", srs, ogr.wkbPoint)
+    feature = ogr.Feature(layer.GetLayerDefn())
+    feature.SetGeometry(ogr.CreateGeometryFromWkt("POINT (113.9 34.5)"))
+    layer.CreateFeature(feature)
+    feature = layer = ds = None
+    (folder / "dem_folder").mkdir()
+    return {"text file": (folder / "text.tif", "is not a raster GDAL can read"),
+            "vector file": (folder / "points.gpkg", "is a vector file (GPKG: points, lines or polygons), not a raster"),
+            "missing file": (folder / "missing.tif", "does not exist"),
+            "folder": (folder / "dem_folder", "is a folder, not a raster file")}
+
+
+NOT_RASTERS = ("text file", "vector file", "missing file", "folder")
+
+
+@pytest.mark.parametrize("alg", ALGORITHMS)
+@pytest.mark.parametrize("case", NOT_RASTERS)
+def test_a_dem_that_is_not_a_raster(simulated, raw_image, tmp_path, alg, case):
+    """Not QGIS's 'Could not load source layer for DEM: ... not found': the DEM, its file, what the
+    file is and what DEM takes."""
+    inputs = tmp_path / "inputs"
+    inputs.mkdir()
+    path, expected = _not_rasters(inputs)[case]
+    out = tmp_path / "out"
+    out.mkdir()
+    _points(out)
+    assert_refused(f"pushbroom:{alg}", _params(alg, simulated, str(path), raw_image, out), f"DEM: {path} {expected}",
+                   "give a DEM: heights in metres on a map grid with a CRS", watch=[inputs, out])
+
+
+def test_a_dem_that_is_not_a_raster_on_the_command_line(simulated, qgis_process, tmp_path):
+    """What the issue met: qgis_process said only 'An error was encountered while checking parameter values'."""
+    path, expected = _not_rasters(tmp_path)["vector file"]
+    assert_refused_cli(qgis_process, "pushbroom:footprint", {"SCENE": simulated["TRUE_SCENE"], "DEM": path,
+                                                             "OUTPUT": tmp_path / "fp.gpkg"},
+                       f"DEM: {path} {expected}", "give a DEM", watch=[tmp_path])

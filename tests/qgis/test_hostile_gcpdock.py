@@ -109,3 +109,38 @@ def test_snap_without_the_point_in_another_scene_says_so(dock, gcp_block):  # no
     dock.snap_combo.setCurrentText("reference orthoimage")
     QTest.mouseClick(dock.snap_button, Qt.LeftButton)
     assert dock.message_label.text() == "choose the reference orthoimage layer to snap to"
+
+
+def test_a_scene_with_another_image_or_none_is_refused_and_nothing_is_written_beside_it(dock, gcp_block,  # noqa: F811
+                                                                                         tmp_path):
+    nad = gcp_block["result"].members["nad"]
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    shutil.copy(nad["onboard_scene"], folder / "scene.json")
+    before = snapshot(folder, nad["images"]["NAD"].parent)
+    assert not dock.add_scene(str(folder / "scene.json"))             # no raster of 500 x 500 px beside it
+    assert "no raster of camera NAD's size (500 x 500 px) beside the scene file" in dock.message_label.text()
+    assert not dock.add_scene(str(folder / "scene.json"), str(gcp_block["result"].reference))
+    assert "692 x 692 pixels but camera NAD of the scene delivers 500 x 500" in dock.message_label.text()
+    assert not dock.add_scene(str(folder / "scene.json"), str(nad["images"]["NAD"]), "FWD")
+    assert "scene.json: camera 'FWD' is not in this scene" in dock.message_label.text()
+    assert dock.add_scene(str(folder / "scene.json"), str(nad["images"]["NAD"]))  # named 'scene': a third view
+    assert dock.scene_list.count() == 3
+    assert_unchanged(before, [folder, nad["images"]["NAD"].parent])
+
+
+def test_disposing_twice_warns_of_nothing(plugin, gcp_block, qgis_iface, qgis_new_project, capfd):  # noqa: F811
+    """Markers on both canvases, the dock disposed twice (QGIS unloading the plugin after its own
+    teardown began): no 'QGraphicsScene::removeItem: item's scene (0x0) is different' on stderr."""
+    from pushbroom_adjust.ui.digitising.gcpdock import GcpDock
+    dock = GcpDock(qgis_iface)
+    dock.show()
+    assert dock.add_scene(gcp_block["displays"]["nad"])
+    measured(dock, gcp_block)
+    dock.redraw()
+    assert dock.drawing.items and dock.main_markers.drawing.items
+    capfd.readouterr()
+    dock.dispose()
+    dock.dispose()
+    assert "QGraphicsScene" not in capfd.readouterr().err
+    assert dock.drawing.items == [] and dock.main_markers.drawing.items == []

@@ -3,6 +3,7 @@ refused with a message naming it and what to change, every given file and the ou
 unchanged; a reference in a geographic CRS is legitimate and matches."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ from osgeo import gdal, osr
 import processing
 from pushbroom_adjust.core.observations import gcps
 from tests.support.matchscene import SEARCH, mini_scene, true_errors
+from tests.support.dems import read_dem, with_holes
 from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
 
 gdal.UseExceptions()
@@ -157,29 +159,31 @@ def test_a_search_range_beyond_the_image_is_clipped_to_it(mini, tmp_path):
     assert len(e) >= 250 and np.median(e) <= 0.1 and np.mean(e > 1) <= 0.03
 
 
-def _holed_dem(mini, path) -> str:
-    """The mini scene's DEM with NaN (its nodata) over a band of its columns: a DSM's hole."""
-    ds = gdal.GetDriverByName("GTiff").CreateCopy(str(path), gdal.Open(str(mini.dem)))
-    band = ds.GetRasterBand(1)
-    heights = band.ReadAsArray().astype(float)
-    heights[:, heights.shape[1] // 3:heights.shape[1] // 2] = -9999.0
-    band.WriteArray(heights)
-    band.SetNoDataValue(-9999.0)
-    ds = None
-    return str(path)
+def _holed_dem(mini, path, nodata) -> str:
+    """The mini scene's DEM with holes over a band of its columns (a DSM's hole): NaN, or ``nodata``
+    in an Int16 DEM as SRTM writes its voids (tests/support/dems.py)."""
+    z, _, _ = read_dem(mini.dem)
+    mask = np.zeros(z.shape, bool)
+    mask[:, z.shape[1] // 3:z.shape[1] // 2] = True
+    return with_holes(mini.dem, path, mask, nodata)
 
 
-def test_a_dem_with_holes_rejects_the_gcps_it_has_no_height_for(mini, tmp_path):
-    """A DEM with nodata over a band of the scene: no traceback (before: 'ValueError: cannot convert
+@pytest.mark.parametrize("nodata", [None, -32768], ids=["NaN", "nodata -32768"])
+def test_a_dem_with_holes_rejects_the_gcps_it_has_no_height_for(mini, tmp_path, nodata):
+    """A DEM with holes over a band of the scene: no traceback (before: 'ValueError: cannot convert
     float NaN to integer' in the coarse pass); the grid points whose ground lies in the hole are matched
     at the estimated height and rejected as 'no DEM height' (a GCP's height would be a guess), counted
-    in the log; the others are GCPs as accurate as on the whole DEM."""
-    dem = _holed_dem(mini, tmp_path / "holed_dem.tif")
+    in the log with the DEM named; the others are GCPs as accurate as on the whole DEM."""
+    dem = _holed_dem(mini, tmp_path / "holed_dem.tif", nodata)
     log = LogFeedback()
     out = processing.run(ALG, _params(mini, tmp_path, DEM=dem), feedback=log)
     rejected = next(line for line in log.lines if line.startswith("rejected: "))
     holes = int(rejected.split(" no DEM height")[0].rsplit(" ", 1)[-1])
     assert holes >= 20, rejected
+    counted = re.search(r"DEM \S+holed_dem.tif gives no height for (\d+) of (\d+) grid points \((\d+) on its nodata "
+                        r"holes\): the reference was rectified there at the estimated height [\d.]+ m, and the (\d+) "
+                        r"matches among them rejected as 'no DEM height'", "\n".join(log.lines))
+    assert counted and int(counted.group(1)) == int(counted.group(3)) >= int(counted.group(4)) == holes, log.lines
     table = gcps.read_gpkg(out["OUTPUT"])
     e = true_errors(mini.folder, table)
     assert len(e) >= 150 and np.median(e) <= 0.1 and np.mean(e > 1) <= 0.03

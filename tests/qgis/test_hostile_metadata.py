@@ -47,10 +47,16 @@ def test_retina_wider_than_the_image_gives_the_same_footprint(shared_data, tmp_p
     assert _area(_edited(shared_data, tmp_path, _retina(first, last))) == pytest.approx(full_area, rel=1e-12)
 
 
+def _rfm_columns_from(first: int):
+    """The Global_RFM of a product cut across track from retina column ``first``: its column offset
+    moved by the cut (a cut product's RFM is its own; the reader checks the model against it)."""
+    return lambda t: re.sub(r"(<Col>\s*<A>[^<]*</A>\s*<B>)[^<]*", rf"\g<1>{20000.5 - (first - 1)!r}", t, count=1)
+
+
 def test_product_cut_across_track_has_its_share_of_the_footprint(shared_data, tmp_path, full_area):
     """Columns 10001..30000 of the acquisition: half the columns, about half the area."""
-    cut = _edited(shared_data, tmp_path, lambda t: _retina(10001, 30000)(
-        t.replace("<NCOLS>40000</NCOLS>", "<NCOLS>20000</NCOLS>", 1)))
+    cut = _edited(shared_data, tmp_path, lambda t: _rfm_columns_from(10001)(_retina(10001, 30000)(
+        t.replace("<NCOLS>40000</NCOLS>", "<NCOLS>20000</NCOLS>", 1))))
     assert _area(cut) == pytest.approx(full_area / 2, rel=0.02)
 
 

@@ -88,6 +88,13 @@ def test_an_output_folder_whose_parent_is_missing(provider, d):
     assert_refused(ALG, _params(d, ORTHO_FOLDER=str(d / "no" / "such")), "does not exist", watch=[d])
 
 
+def test_an_output_folder_that_is_a_file(provider, d):
+    """Not 'folder ... does not exist': ORTHO_FOLDER names a file."""
+    (d / "notes.txt").write_text("a file\n")
+    assert_refused(ALG, _params(d, ORTHO_FOLDER=str(d / "notes.txt")), f"ORTHO_FOLDER: {d / 'notes.txt'} is a file, "
+                   "not a folder", watch=[d])
+
+
 def test_no_image_without_all_cameras(provider, d):
     params = _params(d, ALL_CAMERAS=False, OUTPUT=str(d / "o.tif"))
     assert_refused(ALG, params, "INPUT: no raw image given", "ALL_CAMERAS", watch=[d])

@@ -122,3 +122,54 @@ def test_a_crop_with_its_offsets_moved_is_accepted(good, tmp_path):
     res = processing.run("pushbroom:footprint", {"SCENE": str(crop), "HEIGHT": 575.0, "OUTPUT": "memory:"})
     assert res["OUTPUT"].featureCount() == 1
 
+
+
+@pytest.fixture(scope="module")
+def other_products(provider, shared_data, tmp_path_factory) -> dict:
+    """An RPC scene (the Ventoux left crop's _RPC.TXT, 500 x 500 px) and, of the same size, another product's
+    image: a crop of the Giza img1 carrying its own RPC (gdal_translate writes it into the GeoTIFF's tags), one
+    without an RPC, and a DEM of the Giza plateau with heights inside the Ventoux RPC's range (500 m,
+    ellipsoidal)."""
+    folder = tmp_path_factory.mktemp("other_products")
+    ventoux = folder / "ventoux"
+    ventoux.mkdir()
+    for name in ("left_image.tif", "left_image_RPC.TXT"):
+        (ventoux / name).write_bytes((shared_data / "pleiades_ventoux" / name).read_bytes())
+    giza = gdal.Translate(str(folder / "giza_crop.tif"), str(shared_data / "pleiades_gizeh" / "img1.tif"),
+                          srcWin=[100, 100, 500, 500])
+    assert giza.GetMetadata("RPC")
+    giza = None
+    plain = write_image(folder / "plain.tif", 500, 500)
+    dem = gdal.GetDriverByName("GTiff").Create(str(folder / "giza_dem.tif"), 40, 40, 1, gdal.GDT_Float32)
+    dem.SetGeoTransform((31.10, 0.001, 0.0, 30.00, 0.0, -0.001))
+    dem.SetProjection("EPSG:4326")
+    dem.GetRasterBand(1).Fill(500.0)
+    dem = None
+    return {"scene": str(ventoux / "left_image_RPC.TXT"), "giza": str(folder / "giza_crop.tif"),
+            "plain": str(plain), "dem": str(folder / "giza_dem.tif"), "folder": folder}
+
+
+def test_an_rpc_scene_given_another_products_image_is_refused_naming_both(other_products, tmp_path):
+    """Issue 28's hostile case ('DEM does not cover the scene' for an RPC scene given another product's image):
+    the image carries its own RPC, which puts it on the Giza plateau, where the Ventoux RPC sees nothing: refused
+    before the DEM is read, naming INPUT, the image and the scene, and where the image's RPC puts it."""
+    o = other_products
+    assert_refused("pushbroom:orthorectify", {"INPUT": o["giza"], "SCENE": o["scene"], "DEM": o["dem"],
+                                              "DEM_DATUM": "ellipsoid", "RESOLUTION": 1.0,
+                                              "OUTPUT": str(tmp_path / "o.tif")},
+                   "INPUT: ", f"{o['giza']}: the image and the scene {o['scene']} do not belong together",
+                   "the image's own RPC puts its centre at latitude 29.9", "which the scene ",
+                   "Is it the scene's image, and the scene the image's model?", watch=[tmp_path, o["folder"]])
+
+
+def test_an_rpc_scene_given_an_image_without_rpc_and_another_area_s_dem(other_products, tmp_path):
+    """Without an RPC of its own the image cannot be judged; the DEM of another area then does not cover the
+    scene, and the refusal names the DEM, the scene and where the scene puts the image (north-west of Mont
+    Ventoux), so that the mismatch shows."""
+    o = other_products
+    assert_refused("pushbroom:orthorectify", {"INPUT": o["plain"], "SCENE": o["scene"], "DEM": o["dem"],
+                                              "DEM_DATUM": "ellipsoid", "RESOLUTION": 1.0,
+                                              "OUTPUT": str(tmp_path / "o.tif")},
+                   f"DEM {o['dem']} does not cover the scene {o['scene']}: the image's ",
+                   "the scene puts the image's centre at latitude 44.20", "longitude 5.19",
+                   "check that the scene is the image's model", watch=[tmp_path, o["folder"]])

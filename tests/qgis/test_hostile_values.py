@@ -230,6 +230,17 @@ def test_output_no_disk_holds(provider, simulated, files, tmp_path, resolution):
     assert "e+" in message  # the size it would have, e.g. 2.9e+10 x 2.9e+10 pixels
 
 
+@pytest.mark.parametrize("resolution", [1e7, 1e5])
+def test_a_pixel_larger_than_the_scene(provider, simulated, files, tmp_path, resolution):
+    """Not 'ground coordinates contain NaN or infinite values' (the grid's pixel centres far off the
+    UTM zone): RESOLUTION, the size the grid would have and the range."""
+    assert_refused("pushbroom:orthorectify", {"INPUT": files["byte"], "SCENE": simulated["ONBOARD_SCENE"],
+                                              "HEIGHT": 800.0, "RESOLUTION": resolution,
+                                              "OUTPUT": str(tmp_path / "o.tif")},
+                   f"RESOLUTION: {resolution:g} m: the orthoimage would have", "give a pixel size from",
+                   "(2 pixels across)", watch=[tmp_path])
+
+
 def _utm_box(files, dx: float, dy: float, half: float) -> str:
     lon, lat = files["centre_lonlat"]
     crs = utm_crs(lon, lat)

@@ -39,3 +39,22 @@ def test_metadata_declares_a_processing_provider():
     general = meta["general"]
     assert general["name"] == "Pushbroom Adjust" and general["hasProcessingProvider"] == "yes"
     assert general["qgisMinimumVersion"] == "3.22" and general["icon"].endswith(".svg")
+
+
+def test_no_algorithm_registers_an_output_twice(provider):
+    """A destination parameter makes its own output: registering it again is the start-up line
+    'Duplicate output OUTPUT_FOLDER registered for alg simulatescene' (a CRITICAL Processing message)."""
+    logged = []
+
+    def keep(text, tag, level):
+        logged.append(text)
+
+    QgsApplication.messageLog().messageReceived.connect(keep)
+    try:
+        for alg in provider.algorithms():
+            alg.createInstance().initAlgorithm({})
+    finally:
+        QgsApplication.messageLog().messageReceived.disconnect(keep)
+    assert [t for t in logged if "Duplicate output" in t] == []
+    simulate = [a for a in provider.algorithms() if a.id() in ("pushbroom:simulatescene", "pushbroom:simulateblock")]
+    assert all(a.outputDefinition("OUTPUT_FOLDER") is not None for a in simulate) and len(simulate) == 2

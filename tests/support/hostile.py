@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import gc
 import hashlib
+import os
 import subprocess
 import sys
 from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from osgeo import gdal
 from qgis.core import QgsProcessingException, QgsProcessingFeedback
 
 import processing
@@ -115,3 +117,25 @@ class LogFeedback(QgsProcessingFeedback):
     def pushWarning(self, warning):  # noqa: N802
         self.lines.append(warning)
         self.warnings.append(warning)
+
+
+def huge_vrt(dem, vrt: Path, factor: int = 1000) -> str:
+    """A VRT at ``vrt`` of the DEM file ``dem`` at 1/factor of its pixel size (the simulator's: ~2
+    million pixels square, ~16 TB of heights, for factor 1000), naming the DEM relative to its folder."""
+    src = gdal.Open(str(dem))
+    gt, nx, ny = src.GetGeoTransform(), src.RasterXSize * factor, src.RasterYSize * factor
+    srs = src.GetProjection().replace('"', "&quot;")
+    vrt.write_text(f"""<VRTDataset rasterXSize="{nx}" rasterYSize="{ny}">
+  <SRS>{srs}</SRS>
+  <GeoTransform>{gt[0]}, {gt[1] / factor}, 0, {gt[3]}, 0, {gt[5] / factor}</GeoTransform>
+  <VRTRasterBand dataType="Float32" band="1">
+    <NoDataValue>-32768</NoDataValue>
+    <SimpleSource>
+      <SourceFilename relativeToVRT="1">{os.path.relpath(dem, vrt.parent)}</SourceFilename>
+      <SourceBand>1</SourceBand>
+      <SrcRect xOff="0" yOff="0" xSize="{src.RasterXSize}" ySize="{src.RasterYSize}"/>
+      <DstRect xOff="0" yOff="0" xSize="{nx}" ySize="{ny}"/>
+    </SimpleSource>
+  </VRTRasterBand>
+</VRTDataset>""")
+    return str(vrt)

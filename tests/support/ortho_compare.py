@@ -10,7 +10,7 @@ from pyproj import CRS, Transformer
 from dataclasses import replace
 
 from pushbroom_adjust.core.dem import Dem
-from pushbroom_adjust.core.products.mapping import Mapper, OrthoGrid
+from pushbroom_adjust.core.products.mapping import Mapper, MappingFigures, OrthoGrid
 from pushbroom_adjust.simulation.texture import texture_at, texture_frame
 from pushbroom_adjust.simulation.render import render_image
 from pushbroom_adjust.core.formats import load_scene
@@ -145,3 +145,28 @@ def gdal_rpc_against_rigorous(scene, dem_path, raw_path, grid: OrthoGrid, n: int
     pts = np.array(tr.TransformPoints(1, np.stack([lon, lat, np.zeros_like(lon)], axis=1).tolist())[0])
     inside = (col > 1) & (col < raw.RasterXSize - 1) & (row > 1) & (row < raw.RasterYSize - 1)
     return np.hypot(pts[:, 0] - col, pts[:, 1] - row)[inside]
+
+
+def mapped_positions(mapper: Mapper, grid: OrthoGrid, step: int = 32, tile: int = 512, max_error: float = 0.01):
+    """(col, row, MappingFigures) of every output pixel of ``grid`` as orthorectify maps them
+    (the planned node grid, then tile by tile)."""
+    planned = mapper.nodes(0, grid.rows, 0, grid.cols, step)
+    col, row = np.empty((grid.rows, grid.cols)), np.empty((grid.rows, grid.cols))
+    figures = MappingFigures()
+    for r0 in range(0, grid.rows, tile):
+        for c0 in range(0, grid.cols, tile):
+            r1, c1 = min(r0 + tile, grid.rows), min(c0 + tile, grid.cols)
+            col[r0:r1, c0:c1], row[r0:r1, c0:c1], tiled = mapper.tile(r0, r1, c0, c1, step, max_error, planned)
+            figures = figures.merge(tiled)
+    return col, row, figures
+
+
+def exact_errors(mapper: Mapper, grid: OrthoGrid, col: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """|mapped - exact| image position (px) at every output pixel of ``grid`` that lies in the image
+    (the exact model: the scene's ground -> image of the pixel's ground point at the DEM's height);
+    AssertionError where one has a position and the other not."""
+    i, j = np.meshgrid(np.arange(grid.rows, dtype=float), np.arange(grid.cols, dtype=float), indexing="ij")
+    ecol, erow = mapper.exact_many(i, j)
+    assert np.array_equal(np.isfinite(ecol), np.isfinite(col)), "pixels with a position in one mapping only"
+    inside = mapper.in_image(ecol, erow)
+    return np.hypot(col - ecol, row - erow)[inside]

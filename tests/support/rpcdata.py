@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from osgeo import gdal
 
-from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
+from pushbroom_adjust.core.formats.dimaprfm import read_dimap_rfm
 from pushbroom_adjust.core.formats.maxar import read_maxar_rpc
 from pushbroom_adjust.core.model.rpc import RpcModel
 from pushbroom_adjust.core.formats.rpcfiles import set_geotiff_rpc, write_rpc

@@ -20,7 +20,7 @@ from pushbroom_adjust.core.adjust import AdjustmentSettings, adjust
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.observations.gcps import GcpTable
 from pushbroom_adjust.core.geodesy import geodetic_to_ecef
-from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
+from pushbroom_adjust.core.formats.dimaprfm import read_dimap_rfm
 from pushbroom_adjust.core.rotations import matrix_to_quat, rotation_from_angles
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.model.sensor import SceneModel

@@ -89,8 +89,9 @@ def test_mixed_ties_only_block_is_held_by_the_onboard_sigmas(block, mixed):
     keeps little information of its own with the trajectories free, which is no defect) with a
     sigma of the onboard accuracy. Measured: tie RMS 21.5 px before, 0.32 after; R's a0 -5.1 +-
     22.3 px, b0 -5.9 +- 31.6 px (truth -3.2, 2.5); absolute check error (true ground through the
-    adjusted scene against the truth) S1 2.7 px, R 8.5 px (13 and 18 m: the onboard datum); 9 s."""
-    out = adjust_block(block.onboard, None, mixed[3], SETTINGS)
+    adjusted scene against the truth) S1 2.7 px, R 8.5 px (13 and 18 m: the onboard datum); 9 s. RPC_CORRECTION
+    is given (drift: R's bias drifts along its rows); auto would take shift, the block having no control point."""
+    out = adjust_block(block.onboard, None, mixed[3], replace(SETTINGS, rpc_correction="drift"))
     rep = out.report
     assert "onboard pseudo-observations" in rep["datum"] and "RPC" not in rep["datum"]
     assert rep["block"]["tie_rmse_px"] < 0.5 < 10.0 < rep["block"]["tie_rmse_before_px"]
@@ -158,7 +159,7 @@ def test_rpc_only_block(block):
 def test_rpc_ties_only_block_is_held_by_the_vendor_accuracy(block):
     """No GCPs: the RPC images' stated accuracy (RPC_SIGMA 5 px; their biases are 2-4 px) holds
     where the block lies, and the report says so; without it the datum is a defect, refused naming
-    settings.rpc_sigma. Measured: tie RMS 3.4 px before, 0.29 after; moved from the vendor
+    RPC_SIGMA. Measured: tie RMS 3.4 px before, 0.29 after; moved from the vendor
     geolocation R 5.3 m, S1 24.2 m, S2 22.0 m against stated 11.1, 25.0, 27.8 m (5 px)."""
     ties, _, _ = block.tables(block.rpc_true)
     settings = replace(SETTINGS, rpc_sigma=5.0)
@@ -170,9 +171,9 @@ def test_rpc_ties_only_block_is_held_by_the_vendor_accuracy(block):
         assert entry["moved_m"] <= 3.0 * entry["vendor_sigma_m"], (name, entry["moved_m"], entry["vendor_sigma_m"])
     components = out.adjustment.report["variance_components"]["RPC correction pseudo-observations"]
     assert components["holds_datum"] and not components["estimated"]
-    with pytest.raises(InputError, match="datum defect.*RPC_SIGMA") as err:
+    with pytest.raises(InputError, match=r"datum defect.*Give RPC_SIGMA \(the vendor's stated accuracy") as err:
         adjust_block(block.rpc_vendor, None, ties, SETTINGS)
-    assert err.value.parameter == "settings.rpc_sigma"
+    assert err.value.parameter == "settings.rpc_sigma" and "settings." not in str(err.value)
 
 
 def test_bad_rpc_block_input_is_named(block):
@@ -180,7 +181,7 @@ def test_bad_rpc_block_input_is_named(block):
     with pytest.raises(InputError, match="INTERIOR") as err:
         adjust_block(block.rpc_vendor, gcps, ties, replace(SETTINGS, interior="*.k1"))
     assert err.value.parameter == "settings.interior"
-    with pytest.raises(InputError, match="rpc_sigma") as err:
+    with pytest.raises(InputError, match="^RPC_SIGMA must be empty") as err:
         adjust_block(block.rpc_vendor, gcps, ties, replace(SETTINGS, rpc_sigma=-1.0))
     assert err.value.parameter == "settings.rpc_sigma"
     unobserved = RpcScene(block.rpc_vendor["R"].rpc, block.rpc_vendor["R"].camera)

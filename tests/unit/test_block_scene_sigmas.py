@@ -112,12 +112,12 @@ def test_an_rpc_products_own_stated_accuracy(tmp_path):
 # --- refusals ------------------------------------------------------------------------------
 @pytest.mark.parametrize("sigmas, message", [
     ({"S1": {"position_sgima": 1.0}}, r"scene 'S1' has unknown key\(s\) 'position_sgima'"),
-    ({"S1": {"position_sigma": 1e7}}, r"scene 'S1': position_sigma must be between 0.0001 and 1e\+06 m"),
-    ({"S1": {"attitude_sigma": 1.0}}, r"scene 'S1': attitude_sigma must be between .* rad"),
-    ({"S1": {"rpc_sigma": 0.0}}, r"scene 'S1': rpc_sigma must be between 0.001 and 100000 px"),
-    ({"S1": {"position_sigma": "1 m"}}, r"scene 'S1': position_sigma must be between .*got '1 m'"),
-    ({"S1": {"position_sigma": None}}, r"scene 'S1': position_sigma must be between .*got None"),
-    ({"S1": {}}, r"scene 'S1' needs a name and at least one of position_sigma"),
+    ({"S1": {"position_sigma": 1e7}}, r"scene 'S1': POSITION_SIGMA must be between 0.0001 and 1e\+06 m"),
+    ({"S1": {"attitude_sigma": 1.0}}, r"scene 'S1': ATTITUDE_SIGMA must be between .* rad"),
+    ({"S1": {"rpc_sigma": 0.0}}, r"scene 'S1': RPC_SIGMA must be between 0.001 and 100000 px"),
+    ({"S1": {"position_sigma": "1 m"}}, r"scene 'S1': POSITION_SIGMA must be between .*got '1 m'"),
+    ({"S1": {"position_sigma": None}}, r"scene 'S1': POSITION_SIGMA must be between .*got None"),
+    ({"S1": {}}, r"scene 'S1' needs a name and at least one of POSITION_SIGMA"),
     ({"": {"position_sigma": 1.0}}, r"scene '' needs a name"),
 ])
 def test_bad_scene_sigmas_are_refused_by_the_settings(sigmas, message):
@@ -132,14 +132,14 @@ def test_scene_sigmas_the_block_cannot_take_are_refused(block, shared_data):
         (block.onboard, replace(OWN, scene_sigmas={"S9": {"position_sigma": 1.0}}),
          r"scene 'S9' is not in the block \(scenes: S1, S2, S3\)"),
         (block.onboard, replace(OWN, attitude_sigma=None),
-         r"scene 'S1' overrides attitude_sigma, whose global value is not given .*: give ATTITUDE_SIGMA too; "
+         r"scene 'S1' overrides ATTITUDE_SIGMA, whose global value is not given .*: give ATTITUDE_SIGMA too; "
          "per-scene values override it"),
         (block.onboard, replace(OWN, scene_sigmas={"S2": {"rpc_sigma": 5.0}}, rpc_sigma=10.0),
-         r"scene 'S2' is a rigorous scene: rpc_sigma is the prior of RPC products .*remove its rpc_sigma"),
+         r"scene 'S2' is a rigorous scene: RPC_SIGMA is the prior of RPC products .*remove its RPC_SIGMA"),
         (rpc, replace(OWN, scene_sigmas={"P": {"attitude_sigma": 1e-5}}),
-         r"scene 'P' is an RPC product: it has no onboard trajectory .*remove its attitude_sigma"),
+         r"scene 'P' is an RPC product: it has no onboard trajectory .*remove its ATTITUDE_SIGMA"),
         (rpc, replace(OWN, scene_sigmas={"P": {"rpc_sigma": 5.0}}),
-         r"scene 'P' overrides rpc_sigma, whose global value is not given .*give RPC_SIGMA too"),
+         r"scene 'P' overrides RPC_SIGMA, whose global value is not given .*give RPC_SIGMA too"),
     ]:
         with pytest.raises(InputError, match=message) as err:
             adjust_block(scenes, None, block.ties, settings)

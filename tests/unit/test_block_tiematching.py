@@ -119,8 +119,8 @@ def test_a_dem_with_holes_is_filled_and_its_holes_counted(block, tmp_path, caplo
     holed = Dem(path, "geoid")
     with caplog.at_level(logging.INFO, logger="pushbroom_adjust.core.measure"):
         table, rejected = match_block_tiepoints(block["views"][:2], holed, SETTINGS)
-    holes = re.search(r"nad/NAD-fwd/NAD: DEM \S+holed_dem.tif has no height under (\d+) of the (\d+) grid points: "
-                      r"those were matched at the estimated height [\d.]+ m \((\d+) matched", caplog.text)
+    holes = re.search(r"nad/NAD-fwd/NAD: DEM \S+holed_dem.tif gives no height for (\d+) of (\d+) grid points "
+                      r"\(\d+ on its nodata holes\): those were matched at the estimated height [\d.]+ m \((\d+) matched", caplog.text)
     assert holes and int(holes.group(1)) > 40 and int(holes.group(3)) > 0.8 * int(holes.group(1)), caplog.text
     base, mine = table.scene == "nad", table.scene == "fwd"
     ground = dict(zip(table.id[base], block["true"]["nad"].image_to_ground_dem(table.col[base], table.row[base],

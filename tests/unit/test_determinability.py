@@ -50,7 +50,7 @@ def test_overflowed_normal_equations_are_named_not_a_linalg_error(bad):
     (AdjustmentSettings(attitude_sigma=10.0), "attitude_sigma"),
 ])
 def test_onboard_sigmas_beyond_any_gnss_or_star_tracker_are_refused(settings, name):
-    with pytest.raises(InputError, match=rf"{name} must be empty \(no pseudo-observations\) or between") as info:
+    with pytest.raises(InputError, match=rf"{name.upper()} must be empty \(no pseudo-observations\) or between") as info:
         settings.validate()
     assert info.value.parameter == f"settings.{name}"
 

@@ -68,9 +68,33 @@ def test_display_copy_refuses_other_names_and_sizes(tmp_path):
         write_display_vrt(raw, tmp_path / "display.tif")
     with pytest.raises(InputError, match="300 x 200 pixels but camera HRC .* 12246 x 9000"):
         check_image_size(raw, 12246, 9000, "HRC")
-    with pytest.raises(InputError, match="cannot be read as a raster"):
+    with pytest.raises(InputError, match="missing.tif does not exist"):
         check_image_size(tmp_path / "missing.tif", 1, 1, "HRC")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["raw.tif"]
+    (tmp_path / "text.tif").write_text("not a raster")
+    with pytest.raises(InputError, match="text.tif is not a raster GDAL can read"):
+        check_image_size(tmp_path / "text.tif", 1, 1, "HRC")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["raw.tif", "text.tif"]
+
+
+@pytest.mark.parametrize("cols, rows, exact", [(300, 200, True), (3000, 2000, False)])
+def test_a_display_copy_carries_the_images_statistics(tmp_path, cols, rows, exact):
+    """Asked for statistics (as QGIS asks of every raster it loads), the display copy gives its own:
+    nothing is computed on the raw image and nothing written beside it. Exact up to 1 Mpx; beyond, from
+    whole 256 x 256 tiles spread over the image (here 24 of 96, flagged approximate: QGIS takes them as
+    they are for rasters over 0.5 Mpx)."""
+    raw = tmp_path / "raw.tif"
+    gdal.Translate(str(raw), str(_raster(tmp_path / "striped.tif", cols, rows, rpc=False)), creationOptions=["TILED=YES"])
+    (tmp_path / "striped.tif").unlink()
+    write_display_vrt(raw, tmp_path / "display.vrt")
+    ds = gdal.Open(str(tmp_path / "display.vrt"))
+    band = ds.GetRasterBand(1)
+    values = gdal.Open(str(raw)).ReadAsArray().astype(float)
+    low, high, mean, std = band.GetStatistics(not exact, False)  # False: only what the VRT holds
+    assert (low, high) == (values.min(), values.max())
+    assert abs(mean - values.mean()) < (1e-9 if exact else 1.0) and abs(std - values.std()) < (1e-9 if exact else 1.0)
+    assert (band.GetMetadataItem("STATISTICS_APPROXIMATE") == "YES") != exact
+    band = ds = None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["display.vrt", "raw.tif"]
 
 
 def test_empty_line_layer_has_the_image_lines_format(tmp_path):

@@ -16,6 +16,7 @@ from pushbroom_adjust.core.measure.pointsnap import PointSnapSettings
 from pushbroom_adjust.core.measure.tiematching import View
 from pushbroom_adjust.core.observations.gcps import read_gpkg, write_gpkg
 from pushbroom_adjust.core.observations.tables import Heights
+from tests.support.dems import read_dem, with_holes
 from tests.support.gcpblock import NAMES, gcp_block, true_ground, true_pixel  # noqa: F401 (the fixture)
 
 SIZE = (500, 500)
@@ -105,6 +106,23 @@ def test_predictions_through_the_true_models_meet_the_truth(gcp_block):  # noqa:
     off = predict(measured(gcp_block, gcp_block["inside"][0]).current(), onboard["fwd"], onboard, dem)
     assert all(np.hypot(p.col - truth[0], p.row - truth[1]) > 2.0 for p in off for truth in
                [true_pixel(gcp_block, gcp_block["inside"][0], "fwd")])   # the onboard models are off
+
+
+def test_a_prediction_through_a_dem_hole_has_no_position(gcp_block, tmp_path):  # noqa: F811
+    """The nad observation's ray meets the DEM only on a hole: its prediction is NaN (no error about
+    NaN ground coordinates), the one from the ground stays."""
+    point_id = gcp_block["inside"][0]
+    lon, lat, _ = true_ground(gcp_block, point_id)
+    z, gt, _ = read_dem(gcp_block["result"].dem)
+    mask = np.zeros(z.shape, bool)
+    i, j = int((lat - gt[3]) / gt[5]), int((lon - gt[0]) / gt[1])
+    mask[i - 3:i + 4, j - 3:j + 4] = True
+    dem = Dem(with_holes(gcp_block["result"].dem, tmp_path / "holes.tif", mask), "geoid")
+    all_views = views(gcp_block)
+    got = {p.source: (p.col, p.row) for p in predict(measured(gcp_block, point_id).current(), all_views["fwd"],
+                                                      all_views, dem)}
+    assert np.isnan(got["nad"]).all() and np.hypot(*(np.array(got["ground"]) - true_pixel(gcp_block, point_id,
+                                                                                            "fwd"))) < 0.01
 
 
 def test_snap_between_scenes_recovers_the_true_pixel(gcp_block):  # noqa: F811

@@ -128,7 +128,7 @@ def test_heights_from_a_dem_and_uncovered_points(tmp_path):
     ds = None
     path = tmp_path / "p.csv"
     path.write_text("id,col,row,lon,lat\na,1,1,0,0\nb,2,2,0.5,0\n")
-    with pytest.raises(InputError, match=r"dem.tif does not cover point\(s\) b"):
+    with pytest.raises(InputError, match=r"dem.tif gives no height for 1 of 2 points \(1 off its extent\): point\(s\) b"):
         G.read_csv(path, G.CsvMapping(), "EPSG:4326", Heights("dem", "ellipsoid", dem=dem_path))
     path.write_text("id,col,row,lon,lat\na,1,1,0,0\n")
     t = G.read_csv(path, G.CsvMapping(), "EPSG:4326", Heights("dem", "geoid", dem=dem_path))
@@ -192,13 +192,20 @@ def test_check_fraction_is_deterministic_and_spread_along_track():
         G.assign_check_points(table, 1.5)
 
 
-def test_cameras_are_resolved_by_name_index_or_single_camera():
+def test_cameras_are_resolved_by_name_index_or_single_camera(caplog):
     scene = _scene()
     table = G.GcpTable(np.array(["a", "b"]), "control", np.array(["", "0"]), 1.0, 1.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.0)
     assert resolve_cameras(table, scene).camera.tolist() == ["PAN", "PAN"]
     assert resolve_cameras(table, scene, "0").camera.tolist() == ["PAN", "PAN"]
-    bad = G.GcpTable(np.array(["a"]), "control", np.array(["NAD"]), 1.0, 1.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.0)
-    with pytest.raises(InputError, match=r"camera 'NAD' of point\(s\) a is not in the scene \(cameras: PAN\)"):
+    # one other camera named for every point of a single-camera scene (the simulator's HRC against an RPC
+    # product): every point is the scene's, and the log says so
+    other = G.GcpTable(np.array(["a", "b"]), "control", np.array(["NAD", ""]), 1.0, 1.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.0)
+    assert resolve_cameras(other, scene).camera.tolist() == ["PAN", "PAN"]
+    assert "the camera column names camera 'NAD' for the points, but the scene has one camera, 'PAN': all 2 " \
+           "point(s) are taken as measured in it" in caplog.messages
+    # several other cameras: which rows are the scene's cannot be told
+    bad = G.GcpTable(np.array(["a", "b"]), "control", np.array(["NAD", "FWD"]), 1.0, 1.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.0)
+    with pytest.raises(InputError, match=r"camera '(NAD|FWD)' of point\(s\) (a|b) is not in the scene \(cameras: PAN\)"):
         resolve_cameras(bad, scene)
 
 

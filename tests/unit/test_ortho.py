@@ -9,9 +9,10 @@ from pyproj import CRS, Transformer
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import Cancelled, InputError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
-from pushbroom_adjust.core.products.mapping import OrthoGrid
+from pushbroom_adjust.core.products.mapping import Mapper, OrthoGrid
 from pushbroom_adjust.core.products.ortho import common_grid, default_grid, orthorectify
-from tests.support.ortho_compare import rendered_cut, shift_against_texture
+from tests.support.dems import blob_holes, read_dem, western_part, with_holes
+from tests.support.ortho_compare import read_band, rendered_cut, shift_against_texture
 
 
 @pytest.fixture(scope="module")
@@ -74,32 +75,77 @@ def test_bad_input_is_refused_and_nothing_is_left(rendered, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["small.tif"]
 
 
-def western_half(dem: Dem) -> Dem:
-    """The DEM with heights only west of its middle meridian."""
-    part = Dem.__new__(Dem)
-    part.__dict__.update(dem.__dict__)
-    lon0 = dem.gt[0] + dem.gt[1] * dem.shape[1] / 2
-    part.height = lambda lon, lat: np.where(np.asarray(lon) < lon0, dem.height(lon, lat), np.nan)
-    return part
-
-
 def test_a_dem_covering_part_of_the_scene(rendered, tmp_path, caplog):
     """Without an extent the grid cannot be planned (error naming the DEM); on a given grid the
-    uncovered part is nodata and its share is reported and logged as a warning."""
+    output pixels of the image's footprint with no height are nodata, and the warning counts them
+    pixel by pixel (off the DEM, on its holes): exactly the footprint's pixels the orthoimage leaves
+    empty."""
     scene, dem, frame, folder = rendered
-    part = western_half(dem)
-    with pytest.raises(InputError, match=rf"DEM {dem.path} does not cover the scene: the image's (centre|border) does not meet it"):
+    part = Dem(western_part(dem.path, tmp_path / "west.tif"), datum="geoid")
+    with pytest.raises(InputError, match=rf"DEM {part.path} does not cover the scene .*: the image's (centre|border) "
+                                         r"does not meet it \(the scene puts the image's centre at latitude"):
         default_grid(scene, 0, part)
     grid = default_grid(scene, 0, dem)
-    figures = orthorectify(scene, folder / "raw.tif", part, tmp_path / "o.tif", grid=grid)
-    assert 0.3 < figures["dem_gap_share"] < 0.7
-    assert "gives no height for" in caplog.text
     full = orthorectify(scene, folder / "raw.tif", dem, tmp_path / "full.tif", grid=grid)
-    assert full["dem_gap_share"] == 0
-    ds_part, ds_full = gdal.Open(str(tmp_path / "o.tif")), gdal.Open(str(tmp_path / "full.tif"))
-    covered_part = np.mean(ds_part.GetRasterBand(1).ReadAsArray() > 0)
-    covered_full = np.mean(ds_full.GetRasterBand(1).ReadAsArray() > 0)
-    assert covered_part / covered_full == pytest.approx(1 - figures["dem_gap_share"], abs=0.03)
+    footprint = read_band(str(tmp_path / "full.tif")) > 0
+    assert full["dem_gap_share"] == 0 and full["footprint_pixels"] == pytest.approx(footprint.sum(), rel=1e-4)
+    figures = orthorectify(scene, folder / "raw.tif", part, tmp_path / "o.tif", grid=grid)
+    empty = footprint & (read_band(str(tmp_path / "o.tif")) == 0)
+    assert 0.3 < figures["dem_gap_share"] < 0.7
+    assert figures["dem_gap_pixels"] == pytest.approx(empty.sum(), rel=1e-3)
+    assert figures["dem_gap_share"] == pytest.approx(empty.sum() / footprint.sum(), abs=1e-3)
+    assert figures["dem_hole_pixels"] == 0
+    assert f"DEM {part.path} gives no height for {figures['dem_gap_pixels']} of {figures['footprint_pixels']} " \
+           "output pixels of the image's footprint (" in caplog.text and "off its extent)" in caplog.text
+
+
+def test_a_dem_cut_to_the_orthoimage_counts_only_the_pixels_it_leaves_empty(rendered, tmp_path):
+    """Issue 28's warning said the DEM gave no height for 9.8 % of the footprint while 0.1 % of the
+    orthoimage was empty: the share was counted on the node grid, whose last nodes lie past the
+    grid's edge, beyond a DEM cut to it. Measured on a 1024 x 1024 px window and the DEM cut to its
+    extent: the previous count said 2.0 %, the footprint's empty pixels are 0.23 %."""
+    scene, dem, frame, folder = rendered
+    g = default_grid(scene, 0, dem)
+    n = 1024
+    grid = OrthoGrid(g.crs, g.x0 + 5000 * g.resolution, g.y0 - 1200 * g.resolution, g.resolution, n, n)
+    x = grid.x0 + np.array([0, n, 0, n]) * grid.resolution
+    y = grid.y0 - np.array([0, 0, n, n]) * grid.resolution
+    lon, lat = Transformer.from_crs(grid.crs, CRS.from_epsg(4326), always_xy=True).transform(x, y)
+    gdal.Warp(str(tmp_path / "cut.tif"), dem.path, outputBounds=(lon.min(), lat.min(), lon.max(), lat.max()),
+              xRes=1 / 3600, yRes=1 / 3600, resampleAlg="bilinear")
+    full = orthorectify(scene, folder / "raw.tif", dem, tmp_path / "full.tif", grid=grid)
+    figures = orthorectify(scene, folder / "raw.tif", Dem(tmp_path / "cut.tif", "geoid"), tmp_path / "o.tif", grid=grid)
+    footprint = read_band(str(tmp_path / "full.tif")) > 0
+    empty = footprint & (read_band(str(tmp_path / "o.tif")) == 0)
+    assert full["dem_gap_pixels"] == 0 and 0 < empty.sum() < 0.01 * footprint.sum()
+    assert figures["dem_gap_pixels"] == pytest.approx(empty.sum(), rel=0.02)
+    assert figures["dem_gap_share"] == pytest.approx(empty.sum() / footprint.sum(), rel=0.02)
+
+
+@pytest.mark.parametrize("nodata", [None, -32768])
+def test_a_dem_with_holes(rendered, tmp_path, caplog, nodata):
+    """A DEM with voids inside the footprint, as NaN or as a nodata value: no error, the pixels
+    on the voids are nodata and counted as on its holes, the rest mapped within the tolerance."""
+    scene, dem, frame, folder = rendered
+    z, gt, _ = read_dem(dem.path)
+    holes = blob_holes(z.shape, 0.02, size=8)
+    holey = Dem(with_holes(dem.path, tmp_path / "holes.tif", holes, nodata), datum="geoid")
+    grid = default_grid(scene, 0, dem)
+    grid = OrthoGrid(grid.crs, grid.x0 + 2048 * grid.resolution, grid.y0 - 1024 * grid.resolution, grid.resolution,
+                     2048, 2048)
+    full = orthorectify(scene, folder / "raw.tif", dem, tmp_path / "full.tif", grid=grid)
+    figures = orthorectify(scene, folder / "raw.tif", holey, tmp_path / "o.tif", grid=grid)
+    footprint = read_band(str(tmp_path / "full.tif")) > 0
+    empty = footprint & (read_band(str(tmp_path / "o.tif")) == 0)
+    assert full["dem_gap_pixels"] == 0 and figures["dem_hole_pixels"] == figures["dem_gap_pixels"] > 1000
+    assert figures["dem_gap_pixels"] == pytest.approx(empty.sum(), rel=1e-3)
+    assert figures["densification_error_px"] <= 0.01
+    assert "on its nodata holes)" in caplog.text and "off its extent" not in caplog.text
+    check = np.random.default_rng(0).integers(0, 2048, (2, 20_000))
+    mapper = Mapper(scene, 0, holey, grid)
+    col, row = mapper.exact(*check.astype(float))
+    inside = footprint[check[0], check[1]]
+    assert np.array_equal(np.isfinite(col)[inside], (read_band(str(tmp_path / "o.tif"))[check[0], check[1]] > 0)[inside])
 
 
 def test_cancel_or_a_failure_midway_leaves_no_file(rendered, tmp_path, monkeypatch):

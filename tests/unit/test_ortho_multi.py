@@ -100,7 +100,7 @@ def test_a_job_is_plain_data_and_runs_alone(strip, tmp_path):
                    (grid.crs.to_wkt(), grid.x0, grid.y0, grid.resolution, grid.cols, grid.rows), window,
                    surface_description(dem), "bilinear", 0.0, str(tmp_path / "tile.tif"), p.rows,
                    nodes=planned.window(*window))
-    assert run_job(pickle.loads(pickle.dumps(job))) <= 0.01
+    assert run_job(pickle.loads(pickle.dumps(job))).error_px <= 0.01
     r0, r1, c0, c1 = window
     tile, ref = gdal.Open(str(tmp_path / "tile.tif")), gdal.Open(str(whole))
     expected = ref.GetRasterBand(1).ReadAsArray(c0, r0, c1 - c0, r1 - r0)

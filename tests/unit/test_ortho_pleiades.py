@@ -14,7 +14,7 @@ from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic
 from pushbroom_adjust.core.products.mapping import utm_crs
 from pushbroom_adjust.core.products.ortho import default_grid, orthorectify
-from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
+from pushbroom_adjust.core.formats.dimaprfm import read_dimap_rfm
 from pushbroom_adjust.core.formats.rpcfiles import sidecar_path, write_rpc
 from pushbroom_adjust.core.formats import load_scene
 from tests.support.ortho_compare import gdalwarp_rpc, image_difference

@@ -174,5 +174,5 @@ def test_scene_json_refuses_a_correction_for_an_unknown_camera(strip):
 
 
 def test_camera_trajectory_setting_is_checked():
-    with pytest.raises(InputError, match="camera trajectory must be one of shared, per_camera"):
+    with pytest.raises(InputError, match="CAMERA_TRAJECTORY must be one of shared, per_camera"):
         replace(AdjustmentSettings(), camera_trajectory="each").validate()

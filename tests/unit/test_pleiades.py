@@ -12,7 +12,7 @@ from osgeo import gdal
 from pushbroom_adjust.core.dem import ConstantHeight, Dem
 from pushbroom_adjust.core.errors import MetadataError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
+from pushbroom_adjust.core.formats.dimaprfm import read_dimap_rfm
 from pushbroom_adjust.core.formats import load_scene
 
 XML = "pleiades/PHRDIMAP_P1BP--2018122638935449CP.XML"
@@ -268,8 +268,15 @@ PERIOD_S = 0.0735e-3  # SENSOR_LINE_PERIOD of the product
 def variant(shared_data, tmp_path, cols=None, rows=None, retina=None, start_row=0, name="variant.XML"):
     """The product edited as DIMAP allows: Raster_Dimensions NCOLS/NROWS, Position_In_Retina
     FIRST_COL..LAST_COL and the sensor model's START/END moved by start_row lines (a product cut
-    from the acquisition keeps the retina's look-angle polynomials)."""
+    from the acquisition keeps the retina's look-angle polynomials), its Global_RFM's column and row
+    offsets moved by the same cut (a cut product's RFM is its own: the reader checks the model
+    against it)."""
     text = (shared_data / XML).read_text()
+    first_col = retina[0] if retina is not None else 1
+    if first_col != 1 or start_row:
+        for tag, offset in (("Col", 20000.5 - (first_col - 1)), ("Row", 19124.5 - start_row)):
+            text, n = re.subn(rf"(<{tag}>\s*<A>[^<]*</A>\s*<B>)[^<]*", rf"\g<1>{offset!r}", text, count=1)
+            assert n == 1
     if cols is not None:
         text = text.replace("<NCOLS>40000</NCOLS>", f"<NCOLS>{cols}</NCOLS>", 1)
     if rows is not None:

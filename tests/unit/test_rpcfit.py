@@ -20,7 +20,7 @@ from osgeo import gdal, osr
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from pushbroom_adjust.core.formats.dimap import read_dimap_rfm
+from pushbroom_adjust.core.formats.dimaprfm import read_dimap_rfm
 from pushbroom_adjust.core.formats.rpcfiles import image_vrt_with_rpc, rpc_metadata, set_geotiff_rpc, sidecar_path, write_rpc
 from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc
 from pushbroom_adjust.core.formats import load_scene

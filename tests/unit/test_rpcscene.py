@@ -125,7 +125,8 @@ def test_bad_rpc_text_is_named(pleiades, tmp_path, edit, expected):
 
 def test_a_dimap_rpc_file(shared_data, tmp_path):
     """A Pleiades RPC_*.XML (<Dimap_Document><Rational_Function_Model><Global_RFM>): the vendor RFM
-    and the image size of its validity domain."""
+    and, with no DIM_*.XML or image tile beside it, the image size of its validity domain, with a
+    warning saying so and where the product was looked for."""
     text = (shared_data / PLEIADES).read_text()
     rfm = text[text.index("<Global_RFM>"):text.index("</Global_RFM>") + len("</Global_RFM>")]
     path = tmp_path / "RPC_PHR1B_P_TEST.XML"
@@ -133,7 +134,10 @@ def test_a_dimap_rpc_file(shared_data, tmp_path):
                     "</Dimap_Document>")
     scene = load_scene(path)
     assert isinstance(scene, RpcScene) and (scene.camera.cols, scene.camera.rows) == (40000, 38248)
-    assert scene.info["warnings"] == []
+    (warning,) = scene.info["warnings"]
+    assert "40000 x 38248 px is taken from the RFM's direct-model validity domain" in warning
+    assert "neither DIM_PHR1B_P_TEST.XML nor a single image tile IMG_PHR1B_P_TEST_R1C1.* was found" in warning
+    assert scene.camera.size_source in warning
     text_scene = load_scene(write_rpc(pleiades_rpc(shared_data), tmp_path / "phr_RPC.TXT"))
     col, row, h = _points(scene)
     xyz = scene.image_to_ground(col, row, h)

@@ -10,6 +10,7 @@ from qgis.PyQt.QtGui import QIcon
 
 from .. import RESOURCES
 from ..feedback import processing_errors, push_lines
+from ..inputs import is_raster_input, raster_refusal
 from ..parameters import enum_refusal, tr
 
 
@@ -32,6 +33,8 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     GROUP, GROUP_ID = "Sensor model", "sensormodel"
     HELP = ""
     CORE_PARAMETERS: dict[str, str] = {}
+    SCENE_OR_SCENES = ("work on one scene", "work on a block of scenes")
+    """What the algorithm does with SCENE and with SCENES, for the refusal of both (ui.blockmatch.block_given)."""
 
     def name(self):
         return self.ID
@@ -82,16 +85,25 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
     def checkParameterValues(self, parameters, context):  # noqa: N802
         """Enumerations take value names only (see ui.parameters.enum_refusal); an empty text is
-        'not given', as the toolbox's '[Not selected]' is. The rest is QGIS's own check."""
+        'not given', as the toolbox's '[Not selected]' is. Rasters are checked by GDAL, naming the
+        parameter, without being loaded as QGIS layers (ui.inputs.raster_refusal; ui.parameters.RasterInput
+        says why). The rest is QGIS's own check."""
         given = dict(parameters)
         for definition in self.parameterDefinitions():
             if isinstance(definition, QgsProcessingParameterEnum):
                 refusal = enum_refusal(definition, given.get(definition.name()))
-                if refusal:
-                    return False, refusal
                 if given.get(definition.name()) == "":
                     given[definition.name()] = None
+            else:
+                refusal = raster_refusal(self, parameters, definition, context) if is_raster_input(definition) else ""
+            if refusal:
+                return False, refusal
         return super().checkParameterValues(given, context)
+
+    def validateInputCrs(self, parameters, context):  # noqa: N802
+        """Always true: the inputs lie in different frames by nature (raw images in pixels, the DEM and
+        reference in their own CRSs), and QGIS's check would load every input raster as a layer."""
+        return True
 
     # --- the adapter around core calls ---------------------------------------------------------
     def core_errors(self, default: str = ""):

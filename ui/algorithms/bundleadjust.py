@@ -92,6 +92,8 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
     SCENE_SIGMAS = SCENE_SIGMAS
     CAMERA_TRAJECTORY = CAMERA_TRAJECTORY
     LINES, OUTPUT_LINE_RESIDUALS = "LINES", "OUTPUT_LINE_RESIDUALS"
+    SCENE_OR_SCENES = ("adjust one scene (its cameras, or the scenes of one strip)",
+                       "adjust several scenes together as a block, each observation naming its scene")
     # The inputs core errors name (core.errors.InputError.parameter) -> this algorithm's parameters.
     CORE_PARAMETERS = {
         "gcps": GCPS, "ties": TIE_POINTS, "lines": LINES, "scene": SCENE,

@@ -4,17 +4,18 @@ from pathlib import Path
 
 from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProcessingOutputNumber,
                        QgsProcessingOutputRasterLayer, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer)
+                       QgsProcessingParameterNumber)
 
 from ...core.dem import ConstantHeight
 from ...core.files import Output, atomic_outputs
 from ...core.formats.rpcfiles import image_vrt_with_rpc, report_path, write_rpc
+from ...core.products import rpcfit
 from ...core.products.rpcfit import dem_height_range, fit_rpc
-from ..feedback import check_cancelled, core_call, feedback_callbacks, processing_errors
-from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, layer_file,
-                      load_scene_for)
+from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
+from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, load_scene_for,
+                      raster_file)
 from ..outputs import check_outputs
-from ..parameters import CAMERA, DEM, SCENE, tr
+from ..parameters import CAMERA, DEM, SCENE, RasterInput, tr
 from .base import PushbroomAlgorithm
 
 
@@ -70,7 +71,7 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
                "vanishes at a fit node or the independent check's largest error exceeds twice the fit's."),
             advanced=True)
         self.add_parameter(
-            QgsProcessingParameterRasterLayer(self.IMAGE, tr("Image of this camera (optional)"), optional=True),
+            RasterInput(self.IMAGE, tr("Image of this camera (optional)"), optional=True),
             tr("The raw image the scene's camera took (same size as the camera's image). When given, a VRT "
                "named after OUTPUT (e.g. scene_RPC.TXT -> scene.vrt) is written beside OUTPUT: it shows the "
                "image unchanged, with the RPC in its metadata, so GDAL and QGIS can orthorectify it. The image "
@@ -96,9 +97,9 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         if name.endswith(".txt") and not name.endswith("_rpc.txt"):
             feedback.pushWarning(f"{out.name} does not end in _RPC.TXT: GDAL will not find it beside an image "
                                  f"by itself")
-        layer = self.parameterAsRasterLayer(parameters, self.IMAGE, context)
+        image = raster_file(self, parameters, self.IMAGE, context)
         stem = out.name[:-len("_RPC.TXT")] if name.endswith("_rpc.txt") else out.stem
-        vrt = out.with_name(stem + ".vrt") if layer is not None else None
+        vrt = out.with_name(stem + ".vrt") if image else None
         check_outputs(self, parameters, context, {self.OUTPUT: [out, Output(report_path(out), "its fit report"),
                                                                  Output(vrt, "the VRT of IMAGE with the RPC")]})
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
@@ -110,7 +111,7 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
             heights = (surface.value - span, surface.value + span)
         else:
             feedback.setProgressText("height range of the DEM over the image")
-            with processing_errors(f"{DEM}: "):
+            with processing_errors(f"{DEM}: "), core_log_to(feedback, rpcfit.__name__):
                 heights = dem_height_range(scene, surface, camera)
         check_cancelled(feedback)
         grid = self.parameterAsInt(parameters, self.GRID, context)
@@ -125,7 +126,6 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
 
         with processing_errors(f"{self.OUTPUT}: "), atomic_outputs() as files:  # all three files or none
             if vrt is not None:
-                image = layer_file(layer)
                 with processing_errors(f"{self.IMAGE}: "):
                     image_vrt_with_rpc(rpc, image, vrt, cam.cols, cam.rows, files)
                 report["image"] = image

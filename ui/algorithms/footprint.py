@@ -8,7 +8,7 @@ from ...core.products.footprint import footprints
 from ..feedback import check_cancelled, core_call
 from ..inputs import add_dem_parameters, add_scene_parameters, dem_from_parameters, load_scene_for
 from ..outputs import STYLES, check_outputs, output_sink, style_output_on_load
-from ..parameters import SCENE, tr
+from ..parameters import DEM, SCENE, tr
 from .base import PushbroomAlgorithm
 
 
@@ -53,6 +53,8 @@ class FootprintAlgorithm(PushbroomAlgorithm):
                 check_cancelled(feedback)
                 feedback.setProgressText(f"camera {scene.cameras[k].name}")
                 (fp,) = core_call(footprints, scene, surface, cameras=[k], samples_per_edge=samples)
+                if fp.note:
+                    feedback.pushWarning(f"{DEM}: {fp.note}")
                 out = QgsFeature(fields)
                 ring = QgsLineString(fp.lon.tolist(), fp.lat.tolist())
                 out.setGeometry(QgsGeometry(QgsPolygon(ring)))

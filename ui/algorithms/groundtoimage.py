@@ -87,8 +87,6 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
             p = g.vertexAt(0)
             xyz[i] = p.x(), p.y(), p.z()
         bad = ~np.all(np.isfinite(xyz[:, :2]), axis=1)
-        if n == 0:
-            raise QgsProcessingException(f"{self.INPUT}: the layer has no features")
         if bad.any():
             raise QgsProcessingException(nonfinite_message(self.INPUT, "point coordinates", ids, bad))
         lon, lat = lonlat_of(self.INPUT, source.sourceCrs(), xyz[:, 0], xyz[:, 1])

@@ -6,7 +6,8 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFi
                        QgsWkbTypes)
 from qgis.PyQt.QtCore import QVariant
 
-from ...core.dem import ConstantHeight
+from ...core.dem import ConstantHeight, no_height_words, surface_name
+from ...core.products.footprint import rays_without_height
 from ...core.geodesy import ecef_to_geodetic
 from ..feedback import check_cancelled, core_call
 from ..inputs import (add_dem_parameters, add_scene_parameters, dem_from_parameters, nonfinite_message,
@@ -47,8 +48,6 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         check_outputs(self, parameters, context)
         scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT, feedback)
-        if not features:
-            raise QgsProcessingException(f"{self.INPUT}: the table has no features")
         col, row = self._image_points(parameters, context, source, features)
         surface = dem_from_parameters(self, parameters, context, scene, feedback)
         check_cancelled(feedback)
@@ -64,15 +63,29 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
             xyz = core_call(scene.image_to_ground_dem, col, row, surface, camera)
         missed = ~np.all(np.isfinite(xyz), axis=1)
         if missed.any():
-            where = "miss the Earth" if isinstance(surface, ConstantHeight) else \
-                "leave the DEM (it does not cover them)"
-            ids = np.array([f.id() for f in features])
-            raise QgsProcessingException(f"{DEM}: the lines of sight of {int(missed.sum())} points {where}; "
-                                         f"feature ids {', '.join(str(i) for i in ids[missed][:5])}")
-        lon, lat, h = ecef_to_geodetic(xyz)
+            self._missed(scene, camera, col, row, surface, features, missed, feedback)
+            features = [f for f, m in zip(features, missed) if not m]
+        lon, lat, h = ecef_to_geodetic(xyz[~missed])
         dest = self._write(parameters, context, source, features, lon, lat, h)
         feedback.setProgress(100)
         return {self.OUTPUT: dest}
+
+    @staticmethod
+    def _missed(scene, camera: int, col, row, surface, features, missed, feedback) -> None:
+        """Points whose lines of sight met no height: left out with a warning that counts them when
+        they meet the DEM only on its nodata holes; else refused, naming the DEM and why."""
+        lost = [str(f.id()) for f, m in zip(features, missed) if m]
+        ids = ", ".join(lost[:5]) + (", ..." if len(lost) > 5 else "")
+        if isinstance(surface, ConstantHeight):
+            raise QgsProcessingException(f"{DEM}: the lines of sight of {int(missed.sum())} points miss the Earth; "
+                                         f"feature ids {ids}")
+        off, hole = core_call(rays_without_height, scene, camera, col[missed], row[missed], surface)
+        words = no_height_words(int(missed.sum() - hole.sum()), int(hole.sum()), missed.size, "points")
+        if not hole.all() or missed.all():
+            raise QgsProcessingException(f"{DEM}: {surface_name(surface)} {words}: their lines of sight leave it (it "
+                                         f"does not cover them); feature ids {ids}")
+        feedback.pushWarning(f"{DEM}: {surface_name(surface)} {words}: their lines of sight meet it only there; "
+                             f"those points are left out (feature ids {ids})")
 
     def _image_points(self, parameters, context, source, features):
         names = [self.parameterAsString(parameters, p, context) or default

@@ -6,13 +6,14 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessin
                        QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterString,
                        QgsProcessingParameterVectorDestination, QgsWkbTypes)
 
+from ...core import observations
 from ...core.observations import gcps
 from ...core.observations.blockscenes import check_against_block
 from ...core.observations.tables import per_point_sigmas
 from ..blockmatch import block_given, one_scene_file, scene_files
 from ..feedback import check_cancelled, core_call, core_log_to, processing_errors
 from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts, block_scene_names,
-                      field_values, heights_from_parameters, load_scene_for, require_points)
+                      field_values, heights_from_parameters, load_scene_for, require_points, source_features)
 from ..outputs import STYLES, geopackage_output, style_output_on_load
 from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD, SCENE,
                           SCENE_FIELD, SCENES, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction,
@@ -47,6 +48,10 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
     GROUND_CRS, HEIGHT_SOURCE, CHECK_FRACTION, Z_DATUM = "GROUND_CRS", HEIGHT_SOURCE, CHECK_FRACTION, Z_DATUM
     SIGMA_PX, SIGMA_XY, SIGMA_Z, OUTPUT = SIGMA_PX, "SIGMA_XY", "SIGMA_Z", "OUTPUT"
     SIGMA_FIELDS = SIGMA_FIELDS
+    # The inputs core errors name (core.errors.InputError.parameter) -> this algorithm's parameters.
+    CORE_PARAMETERS = {"gcps.scene": SCENE_FIELD, "gcps.camera": CAMERA_FIELD}
+    SCENE_OR_SCENES = ("check every point against one scene",
+                       f"check each row against the scene of the block it names ({SCENE_FIELD})")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False, or_scenes=True)
@@ -111,16 +116,16 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
             paths = dict(zip(block_scene_names(scene_files(self, parameters, context)),
                              scene_files(self, parameters, context)))
             scenes = {name: load_scene_for(SCENES, path, feedback) for name, path in paths.items()}
-            with core_log_to(feedback, gcps.__name__):
-                table = self._read(parameters, context)
+            with core_log_to(feedback, observations.__name__):  # gcps, tables (cameras)
+                table = self._read(parameters, context, block=list(paths))
                 check_cancelled(feedback)
                 feedback.setProgressText(f"checking {len(table)} rows against the scene each names")
-                with processing_errors("", {"gcps.scene": self.SCENE_FIELD, "gcps.camera": self.CAMERA_FIELD}):
+                with self.core_errors():
                     table = check_against_block(table, scenes, paths, camera_name, fraction)
         else:
             scene_path = one_scene_file(self, parameters, context)
             scene = load_scene_for(SCENE, scene_path, feedback)
-            with core_log_to(feedback, gcps.__name__):
+            with core_log_to(feedback, observations.__name__):  # gcps, tables (cameras)
                 table = self._one_scene(self._read(parameters, context), feedback)
                 check_cancelled(feedback)
                 feedback.setProgressText(f"checking {len(table)} points against {scene_path}")
@@ -143,12 +148,15 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                  f"block are checked each against its own scene with {SCENES}")
         return table
 
-    def _read(self, parameters, context) -> gcps.GcpTable:
+    def _read(self, parameters, context, block: list[str] | None = None) -> gcps.GcpTable:
+        """The table of INPUT_FILE or INPUT; ``block``: the names of SCENES, which every row's scene
+        must be one of (checked before anything else about the rows)."""
         path = self.parameterAsFile(parameters, self.INPUT_FILE, context)
         source = self.parameterAsSource(parameters, self.INPUT, context)
         if bool(path) == (source is not None):
             raise QgsProcessingException(f"give either {self.INPUT_FILE} (CSV or .points) or {self.INPUT} "
                                          f"(point layer), not {'both' if path else 'neither'}")
+        features = source_features(self.INPUT, source) if source is not None else []  # an empty one said first
         crs_of_points = source.sourceCrs() if source is not None else \
             self.parameterAsCrs(parameters, self.GROUND_CRS, context)
         heights = heights_from_parameters(self, parameters, context, crs_of_points)
@@ -156,7 +164,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                   for k, name in (("px", self.SIGMA_PX), ("xy", self.SIGMA_XY), ("z", self.SIGMA_Z))}
         crs = _crs_text(self.parameterAsCrs(parameters, self.GROUND_CRS, context))
         if source is not None:
-            return self._from_layer(parameters, context, source, heights, sigmas)
+            return self._from_layer(parameters, context, source, features, heights, sigmas, block)
         if path.lower().endswith(".points"):
             given = [name for name in (*self.SIGMA_FIELDS.values(), self.SCENE_FIELD)
                      if self.parameterAsString(parameters, name, context)]
@@ -174,14 +182,12 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                   role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD],
                                   scene=self.parameterAsString(parameters, self.SCENE_FIELD, context).strip() or None,
                                   **fields)
-        return core_call(gcps.read_csv, path, mapping, crs, heights, **sigmas)
+        with self.core_errors():
+            return gcps.read_csv(path, mapping, crs, heights, block, **sigmas)
 
-    def _from_layer(self, parameters, context, source, heights, sigmas) -> gcps.GcpTable:
+    def _from_layer(self, parameters, context, source, features, heights, sigmas, block) -> gcps.GcpTable:
         """Arrays of the layer's features -> core.gcps.build_table (which checks them)."""
         require_points(self.INPUT, source)
-        features = list(source.getFeatures())
-        if not features:
-            raise QgsProcessingException(f"{self.INPUT}: the layer has no features")
         column = field_values(self, parameters, context, source, features)
         xyz = np.array([_point_xyz(f) for f in features], dtype=float)
         ids = column(self.ID_FIELD, False, "id") or [f.id() for f in features]
@@ -194,14 +200,15 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         z = column(self.Z_FIELD, False)
         if z is None and QgsWkbTypes.hasZ(source.wkbType()):
             z = xyz[:, 2]
-        return core_call(gcps.build_table, [str(i) for i in ids], attribute_floats(column(self.COL_FIELD, True)),
-                         attribute_floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
-                         crs=_crs_text(source.sourceCrs()), heights=heights,
-                         z=None if z is None else attribute_floats(z),
-                         role=attribute_texts(column(self.ROLE_FIELD, False, "role")),
-                         camera=attribute_texts(column(self.CAMERA_FIELD, False, "camera")),
-                         scene=attribute_texts(column(self.SCENE_FIELD, False, "scene")),
-                         source=f"{self.INPUT} layer", **sigmas)
+        with self.core_errors():
+            return gcps.build_table([str(i) for i in ids], attribute_floats(column(self.COL_FIELD, True)),
+                                    attribute_floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
+                                    crs=_crs_text(source.sourceCrs()), heights=heights,
+                                    z=None if z is None else attribute_floats(z),
+                                    role=attribute_texts(column(self.ROLE_FIELD, False, "role")),
+                                    camera=attribute_texts(column(self.CAMERA_FIELD, False, "camera")),
+                                    scene=attribute_texts(column(self.SCENE_FIELD, False, "scene")), block=block,
+                                    source=f"{self.INPUT} layer", **sigmas)
 
     # --- report ---------------------------------------------------------------------------
     @staticmethod

@@ -7,7 +7,8 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
 from ...core.observations import tiepoints
 from ...core.observations.tables import per_point_sigmas
 from ..feedback import check_cancelled, core_call, core_log_to
-from ..inputs import add_scene_parameters, attribute_floats, attribute_texts, field_values, load_scene_for
+from ..inputs import (add_scene_parameters, attribute_floats, attribute_texts, field_values, load_scene_for,
+                      source_features)
 from ..outputs import geopackage_output, write_tie_layer
 from ..parameters import (CAMERA_FIELD, COL_FIELD, ID_FIELD, ROW_FIELD, SCENE, SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX,
                           camera_field, id_field, image_field, scene_field, sigma_field, sigma_px, tr)
@@ -93,9 +94,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
 
     def _from_layer(self, parameters, context, source, sigma: float) -> tiepoints.TieTable:
         """Arrays of the layer's features -> core.tiepoints.build_table (which checks them)."""
-        features = list(source.getFeatures())
-        if not features:
-            raise QgsProcessingException(f"{self.INPUT}: the layer has no features")
+        features = source_features(self.INPUT, source)
         column = field_values(self, parameters, context, source, features)
         ids = attribute_texts(column(self.ID_FIELD, True, "id"))
         what = f"{self.INPUT} layer"

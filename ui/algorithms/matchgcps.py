@@ -1,17 +1,16 @@
 """pushbroom:matchgcps — ground control points matched automatically between the raw image and
 a reference orthoimage through the scene model, written as the GCP layer the adjustment reads."""
 import numpy as np
-from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterRasterLayer,
-                       QgsProcessingParameterVectorDestination)
+from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParameterVectorDestination
 
 from ...core import measure
 from ...core.observations import gcps
 from ...core.measure.matching import match_gcps
 from ..feedback import core_call, core_log_to, feedback_callbacks, processing_errors
 from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, load_scene_for,
-                      matching_settings)
+                      matching_settings, raster_file)
 from ..outputs import STYLES, geopackage_output, style_output_on_load
-from ..parameters import CAMERA, CHECK_FRACTION, SCENE, check_fraction, matching_parameters, tr
+from ..parameters import CAMERA, CHECK_FRACTION, SCENE, RasterInput, check_fraction, matching_parameters, tr
 from .base import PushbroomAlgorithm
 
 
@@ -40,10 +39,10 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
     INPUT, REFERENCE, OUTPUT = "INPUT", "REFERENCE", "OUTPUT"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image")),
+        self.add_parameter(RasterInput(self.INPUT, tr("Raw image")),
                            tr("The scene's raw image (first band matched), of the size the scene's camera images."))
         add_scene_parameters(self)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.REFERENCE, tr("Reference orthoimage")),
+        self.add_parameter(RasterInput(self.REFERENCE, tr("Reference orthoimage")),
                            tr("A north-up orthoimage of the scene's ground in a projected or geographic CRS, any GSD "
                               "(first band matched; its nodata value is honoured). It must overlap the scene."))
         add_dem_parameters(self)
@@ -77,10 +76,10 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
         return {self.OUTPUT: dest}
 
     def _raster(self, parameters, context, name: str) -> str:
-        layer = self.parameterAsRasterLayer(parameters, name, context)
-        if layer is None:
+        path = raster_file(self, parameters, name, context)
+        if not path:
             raise QgsProcessingException(f"{name}: no raster given")
-        return layer.source().split("|")[0]
+        return path
 
     @staticmethod
     def _report(result, feedback) -> None:

@@ -45,6 +45,8 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
             "image's grid is matched in every other through each scene's own model, the field 'scene' names each "
             "observation's scene, and the checks against one scene (and the a-priori intersection) are left out.")
     OUTPUT = "OUTPUT"
+    SCENE_OR_SCENES = ("match tie points between the cameras of one scene",
+                       "match tie points between the images of several scenes")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False, or_scenes=True)

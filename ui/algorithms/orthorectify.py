@@ -13,18 +13,17 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY,
                        QgsProcessingParameterCrs, QgsProcessingParameterExtent,
                        QgsProcessingParameterFolderDestination,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
-                       QgsProcessingParameterRasterLayer, QgsProcessingParameterString, QgsProcessingUtils,
-                       QgsRectangle)
+                       QgsProcessingParameterString, QgsProcessingUtils, QgsRectangle)
 
 from ...core.dem import ConstantHeight
-from ...core.products.ortho import (check_images, default_grid, orthorectify, orthorectify_products, scene_utm_crs,
-                           strip_products)
+from ...core.products.ortho import (check_images, default_grid, gap_sentence, orthorectify, orthorectify_products,
+                                    scene_utm_crs, strip_products)
 from ...core.products.footprint import footprints
 from ..feedback import core_call, feedback_callbacks, processing_errors
 from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, camera_images_for, dem_from_parameters,
-                      load_scene_for)
+                      load_scene_for, raster_file)
 from ..outputs import check_outputs
-from ..parameters import CAMERA, DEM, INPUTS, RESAMPLING, SCENE, camera_images, enum_value, resampling, tr
+from ..parameters import CAMERA, DEM, INPUTS, RESAMPLING, SCENE, RasterInput, camera_images, enum_value, resampling, tr
 from .base import PushbroomAlgorithm
 
 
@@ -34,12 +33,15 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
     GROUP, GROUP_ID = "Products", "products"
     HELP = ("Resamples a raw pushbroom image onto a north-up map grid with the scene's rigorous model (onboard "
             "or adjusted) and a DEM. Every output pixel's image position is computed exactly on a coarse grid "
-            "and densified within 0.01 px (checked per tile); cells along the seams of staggered CCD arrays "
-            "are mapped pixel by pixel, so no seam is smeared. Works in tiles on all cores with bounded memory "
+            "and densified within 0.01 px of the exact model, on any DEM: checked at every cell of the grid, "
+            "the relief of a DSM's steps between the nodes corrected pixel by pixel, cells along the seams of "
+            "staggered CCD arrays and cells failing the check mapped exactly; the log states the figure met. "
+            "Works in tiles on all cores with bounded memory "
             "(raw images over 1 GiB are read window by window); "
             "writes a tiled, DEFLATE-compressed GeoTIFF with overviews and nodata, completely or not at all. "
-            "With a DEM that covers only part of the scene, give an EXTENT inside it: pixels without a height "
-            "are nodata and a warning gives their share of the footprint. "
+            "With a DEM that covers only part of the scene, or with nodata holes, give an EXTENT inside it: "
+            "pixels without a height are nodata and a warning counts the output pixels of the image's footprint "
+            "with no height (off the DEM, on its holes). "
             "With ALL_CAMERAS, every camera of the scene (e.g. the forward, nadir and backward lines of a "
             "three-line camera) is orthorectified in one run from INPUTS (one raw image per camera, in the scene's "
             "camera order) into ORTHO_FOLDER as ortho_<CAMERA>.tif; a strip of several scenes in one image per "
@@ -51,9 +53,10 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         "INPUT", "CRS", "RESOLUTION", RESAMPLING, "NODATA", "EXTENT", "OUTPUT"
     ALL_CAMERAS, INPUTS, ORTHO_FOLDER, ORTHOIMAGES, SCHEDULER = \
         "ALL_CAMERAS", INPUTS, "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER"
+    CORE_PARAMETERS = {"resolution": RESOLUTION}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image"), optional=True),
+        self.add_parameter(RasterInput(self.INPUT, tr("Raw image"), optional=True),
                   tr("The scene's raw image (any GDAL format, any number of bands and data type), of the size the "
                   "scene's camera images, without georeferencing. Required unless ALL_CAMERAS."))
         self.add_parameter(QgsProcessingParameterBoolean(self.ALL_CAMERAS, tr("Every camera of the scene"), False,
@@ -100,13 +103,14 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             raise QgsProcessingException(f"{self.OUTPUT}: the orthoimage is written as GeoTIFF; use a .tif file "
                                          f"(got {output})")
         check_outputs(self, parameters, context, {self.OUTPUT: [output]})
-        layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)
-        if layer is None:
+        image = raster_file(self, parameters, self.INPUT, context)
+        if not image:
             raise QgsProcessingException(f"{self.INPUT}: no raw image given (or set {self.ALL_CAMERAS} with "
                                          f"{self.INPUTS} for every camera)")
-        image = layer.source().split("|")[0]
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
+        with processing_errors(f"{self.INPUT}: "):
+            check_images(scene, {camera: image})
         surface = dem_from_parameters(self, parameters, context, scene, feedback)
         crs = self._crs(parameters, context)
         extent = None
@@ -118,13 +122,14 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             self._check_extent(scene, camera, surface, crs, extent, feedback)
         resolution = self.parameterAsDouble(parameters, self.RESOLUTION, context) or None
         feedback.setProgressText("planning the output grid")
-        grid = core_call(default_grid, scene, camera, surface, crs, resolution, extent)
+        with self.core_errors():
+            grid = default_grid(scene, camera, surface, crs, resolution, extent)
         feedback.pushInfo(f"orthoimage {grid.cols} x {grid.rows} px at {grid.resolution:.3f} m in "
                           f"{grid.crs.to_string()}")
         progress, is_cancelled = feedback_callbacks(feedback)
         figures = core_call(orthorectify, scene, image, surface, output, camera, grid,
                             is_cancelled=is_cancelled, progress=progress, **self._options(parameters, context))
-        self._report(feedback, figures)
+        self._report(feedback, figures, surface)
         return {self.OUTPUT: output}
 
     def _options(self, parameters, context) -> dict:
@@ -133,18 +138,19 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                 "nodata": self.parameterAsDouble(parameters, self.NODATA, context),
                 "scheduler": self.parameterAsString(parameters, self.SCHEDULER, context).strip() or None}
 
-    def _report(self, feedback, figures: dict, name: str = "") -> None:
-        feedback.pushInfo(f"{name}written in {figures['seconds']:.1f} s; image positions densified within "
-                          f"{figures['densification_error_px']:.1e} px of the exact model")
-        if figures["dem_gap_share"] > 0:
-            feedback.pushWarning(f"{DEM}: {name}the DEM gives no height for {100 * figures['dem_gap_share']:.1f} % "
-                                 "of the image's footprint in the output; those pixels are nodata")
+    def _report(self, feedback, figures: dict, surface, name: str = "") -> None:
+        feedback.pushInfo(f"{name}written in {figures['seconds']:.1f} s; {figures['mapping']}")
+        if figures["dem_gap_pixels"]:
+            feedback.pushWarning(f"{DEM}: {name}{gap_sentence(surface, figures)}")
 
     def _all_cameras(self, parameters, context, feedback) -> dict:
         """Every camera (and scene of a strip) of SCENE from INPUTS into ORTHO_FOLDER."""
         folder = self.parameterAsString(parameters, self.ORTHO_FOLDER, context)
         if not folder or folder == "TEMPORARY_OUTPUT":
             folder = QgsProcessingUtils.tempFolder()
+        if Path(folder).is_file():
+            raise QgsProcessingException(f"{self.ORTHO_FOLDER}: {folder} is a file, not a folder; give a folder for "
+                                         "the orthoimages (created when its parent exists)")
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         images = camera_images_for(self, parameters, context, scene)
         products = strip_products(scene, list(images))
@@ -178,8 +184,8 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                                               QgsCoordinateReferenceSystem(crs.to_wkt()))
                 extent = (rect.xMinimum(), rect.yMinimum(), rect.xMaximum(), rect.yMaximum())
                 self._check_extent(scene, product.camera, surface, crs, extent, feedback)
-            grids.append(core_call(default_grid, scene, product.camera, surface, crs, resolution, extent,
-                                   product.rows))
+            with self.core_errors():
+                grids.append(default_grid(scene, product.camera, surface, crs, resolution, extent, product.rows))
             g = grids[-1]
             feedback.pushInfo(f"{product.name}: {g.cols} x {g.rows} px at {g.resolution:.3f} m in "
                               f"{g.crs.to_string()}")
@@ -187,7 +193,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         figures = core_call(orthorectify_products, scene, images, surface, folder, products, grids,
                             progress=progress, is_cancelled=is_cancelled, **self._options(parameters, context))
         for product, fig in zip(products, figures):
-            self._report(feedback, fig, f"{product.name}: ")
+            self._report(feedback, fig, surface, f"{product.name}: ")
         return {self.ORTHO_FOLDER: str(folder), self.ORTHOIMAGES: [str(p) for p in outputs]}
 
     def _check_extent(self, scene, camera: int, surface, crs: CRS, extent: tuple, feedback) -> None:

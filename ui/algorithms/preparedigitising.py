@@ -1,14 +1,13 @@
 """pushbroom:preparedigitising — display copy of a raw image and an empty image-line layer."""
-from qgis.core import (QgsProcessingContext, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterRasterLayer)
+from qgis.core import QgsProcessingContext, QgsProcessingParameterFileDestination
 
 from ...core.measure.display import check_image_size, write_display_vrt, write_empty_lines
 from ...core.files import atomic_outputs
 from ...core.observations.lines import IMAGE_LAYER
 from ..feedback import processing_errors
-from ..inputs import add_scene_parameters, camera_for, layer_file, load_scene_for
+from ..inputs import add_scene_parameters, camera_for, load_scene_for, raster_file
 from ..outputs import check_outputs
-from ..parameters import CAMERA, SCENE, tr
+from ..parameters import CAMERA, SCENE, RasterInput, tr
 from .base import PushbroomAlgorithm
 
 
@@ -25,7 +24,7 @@ class PrepareDigitisingAlgorithm(PushbroomAlgorithm):
     INPUT, OUTPUT, OUTPUT_LINES = "INPUT", "OUTPUT", "OUTPUT_LINES"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image")),
+        self.add_parameter(RasterInput(self.INPUT, tr("Raw image")),
                            tr("The raw (unrectified) image of the scene's camera CAMERA, with the camera's number "
                               "of columns and rows."))
         add_scene_parameters(self)
@@ -43,7 +42,7 @@ class PrepareDigitisingAlgorithm(PushbroomAlgorithm):
         check_outputs(self, parameters, context)
         scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
         camera = scene.cameras[camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))]
-        image = layer_file(self.parameterAsRasterLayer(parameters, self.INPUT, context))
+        image = raster_file(self, parameters, self.INPUT, context)
         output = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
         lines = self.parameterAsFileOutput(parameters, self.OUTPUT_LINES, context)
         with processing_errors(f"{self.INPUT}: "):

@@ -6,17 +6,18 @@ from __future__ import annotations
 from pathlib import Path
 
 from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProcessingOutputNumber,
-                       QgsProcessingOutputRasterLayer, QgsProcessingParameterRasterDestination,
-                       QgsProcessingParameterRasterLayer)
+                       QgsProcessingOutputRasterLayer, QgsProcessingParameterRasterDestination)
 
 from ...core.files import Output
 from ...core.model.sensor import SceneModel
+from ...core.products import rpcfit
 from ...core.products.sensorcorrect import output_files, sensor_correct
-from ..feedback import core_call, feedback_callbacks
-from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, layer_file,
-                      load_scene_for)
+from ..feedback import core_call, core_log_to, feedback_callbacks
+from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, load_scene_for,
+                      raster_file)
 from ..outputs import check_outputs
-from ..parameters import CAMERA, OUTPUT_SCENE, RESAMPLING, SCENE, enum_value, output_scene, resampling, tr
+from ..parameters import (CAMERA, DEM, OUTPUT_SCENE, RESAMPLING, SCENE, RasterInput, enum_value, output_scene,
+                          resampling, tr)
 from .base import PushbroomAlgorithm
 
 
@@ -45,7 +46,7 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
     RPC, REPORT, IMAGE_WITH_RPC, RMS_PX, MAX_PX = "RPC", "REPORT", "IMAGE_WITH_RPC", "RMS_PX", "MAX_PX"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image (one camera)")),
+        self.add_parameter(RasterInput(self.INPUT, tr("Raw image (one camera)")),
                            tr("The raw image of the camera CAMERA of SCENE (any GDAL format, any bands and data "
                               "type), of the size that camera images."))
         add_scene_parameters(self)
@@ -73,10 +74,9 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
             self.OUTPUT: [output, Output(derived["rpc"], "its RPC"), Output(derived["report"], "its RPC report"),
                           Output(derived["vrt"], "its VRT with the RPC")],
             OUTPUT_SCENE: [scene_out]})
-        layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)
-        if layer is None:
+        image = raster_file(self, parameters, self.INPUT, context)
+        if not image:
             raise QgsProcessingException(f"{self.INPUT}: no raw image given")
-        image = layer_file(layer) or layer.source().split("|")[0]
         scene_path = self.parameterAsFile(parameters, SCENE, context)
         scene = load_scene_for(SCENE, scene_path, feedback)
         if not isinstance(scene, SceneModel):
@@ -87,13 +87,15 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
         camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
         surface = dem_from_parameters(self, parameters, context)
         progress, is_cancelled = feedback_callbacks(feedback)
-        figures = core_call(sensor_correct, scene, camera, image, surface, output, scene_out,
-                            enum_value(self, parameters, RESAMPLING, context),
-                            info={"source_scene": str(scene_path), "source_image": image},
-                            progress=progress, is_cancelled=is_cancelled)
+        with core_log_to(feedback, rpcfit.__name__):
+            figures = core_call(sensor_correct, scene, camera, image, surface, output, scene_out,
+                                enum_value(self, parameters, RESAMPLING, context),
+                                info={"source_scene": str(scene_path), "source_image": image},
+                                progress=progress, is_cancelled=is_cancelled)
         feedback.pushInfo(f"sensor-corrected image {figures['cols']} x {figures['rows']} px written in "
-                          f"{figures['seconds']:.1f} s; image positions densified within "
-                          f"{figures['densification_error_px']:.1e} px of the exact model")
+                          f"{figures['seconds']:.1f} s; {figures['mapping']}")
+        if figures.get("holes"):
+            feedback.pushWarning(f"{DEM}: {figures['holes']}")
         feedback.pushInfo(f"RPC fitted to the virtual camera over heights {figures['height_range'][0]:.0f} to "
                           f"{figures['height_range'][1]:.0f} m: independent check RMS {figures['rpc_check_rms_px']:.4f}"
                           f" px, max {figures['rpc_check_max_px']:.4f} px")

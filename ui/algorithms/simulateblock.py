@@ -1,6 +1,6 @@
 """pushbroom:simulateblock — a block of several independent scenes over one ground (tri-stereo,
 a stereo pair, two dates, neighbouring strips, an RPC product of another date) with known truth."""
-from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputMultipleLayers,
+from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputMultipleLayers,
                        QgsProcessingOutputRasterLayer)
 
 from ...simulation.block import simulate_block
@@ -52,7 +52,6 @@ class SimulateBlockAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputRasterLayer(self.DEM, tr("DEM (GeoTIFF, EGM96 geoid heights)")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.REFERENCE, tr("Reference orthoimage, when rendered")))
         self.addOutput(QgsProcessingOutputFile(self.MANIFEST, tr("Block settings and drawn errors (JSON)")))
-        self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, tr("Output folder")))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         spec = PRESETS[enum_value(self, parameters, PRESET, context)]

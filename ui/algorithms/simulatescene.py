@@ -1,6 +1,6 @@
 """pushbroom:simulatescene — a simulated scene with known truth: onboard and true sensor models,
 GCPs, tie points, a DEM and optionally rendered raw images, from a preset sensor."""
-from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputMultipleLayers,
+from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputMultipleLayers,
                        QgsProcessingOutputRasterLayer,
                        QgsProcessingParameterNumber)
 
@@ -158,7 +158,6 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputMultipleLayers(self.IMAGES, tr("Raw images of every camera, in the "
                                                                          "scene's camera order, when rendered")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.REFERENCE, tr("Reference orthoimage, when rendered")))
-        self.addOutput(QgsProcessingOutputFolder(self.OUTPUT_FOLDER, tr("Output folder")))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         preset = enum_value(self, parameters, self.PRESET, context)

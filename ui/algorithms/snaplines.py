@@ -1,15 +1,14 @@
 """pushbroom:snaplines — image lines digitised on a raw image refined to the road's centre or an
 edge with sub-pixel profiles across them (core.snapping)."""
 import numpy as np
-from qgis.core import (QgsProcessing, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterLayer, QgsProcessingParameterVectorDestination)
+from qgis.core import QgsProcessing, QgsProcessingParameterNumber, QgsProcessingParameterVectorDestination
 
 from ...core.observations import lines as core_lines
 from ...core.measure.snapping import SnapSettings, kept_reasons, snap_lines
 from ..feedback import processing_errors
-from ..inputs import layer_file, ogr_source
+from ..inputs import ogr_source, raster_file
 from ..outputs import geopackage_output
-from ..parameters import enum_parameter, enum_value, image_lines, tr
+from ..parameters import RasterInput, enum_parameter, enum_value, image_lines, tr
 from .base import PushbroomAlgorithm
 
 DEFAULTS = SnapSettings()
@@ -31,7 +30,7 @@ class SnapLinesAlgorithm(PushbroomAlgorithm):
     WIDTH, SEARCH, REACH, MAX_SIGMA = "WIDTH", "SEARCH", "REACH", "MAX_SIGMA"
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(QgsProcessingParameterRasterLayer(self.INPUT, tr("Raw image")),
+        self.add_parameter(RasterInput(self.INPUT, tr("Raw image")),
                            tr("The raw image the lines were digitised on (or its display copy from 'Prepare "
                               "digitising'); band 1 is used."))
         self.addParameter(image_lines())
@@ -66,7 +65,7 @@ class SnapLinesAlgorithm(PushbroomAlgorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         dest = geopackage_output(self, parameters, context, self.OUTPUT, "snapped_lines.gpkg", "snapped lines")
-        image = layer_file(self.parameterAsRasterLayer(parameters, self.INPUT, context))
+        image = raster_file(self, parameters, self.INPUT, context)
         path, name = ogr_source(self.IMAGE_LINES, self.parameterAsVectorLayer(parameters, self.IMAGE_LINES, context),
                                 "image line layer")
         settings = SnapSettings(mode=enum_value(self, parameters, self.MODE, context),

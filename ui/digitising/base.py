@@ -1,124 +1,126 @@
-"""What the docks that measure on raw images share: a map canvas of their own showing a display
-copy (pushbroom:preparedigitising) in the pixel frame x = col, y = -row, a map tool that turns
-clicks on it into pixel positions, one-shot picking on the main map canvas, the heights form
-(Z, DEM or constant), rubber bands, a status line, and releasing the canvas before QGIS exits.
+"""What the docks that measure on raw images share, laid out as QGIS's Georeferencer: the form
+(collapsible, above), a row of buttons, the canvas tools (measure, pan, zoom, undo, delete), the
+dock's own canvas showing the raw image in the pixel frame (:mod:`.canvas`), a legend and the pixel
+under the cursor, then the dock's list or table; a splitter between them gives the canvas most of
+the dock. Ctrl+Z undoes and Delete deletes while the dock has the focus. Also one-shot picking on
+the main map canvas and releasing everything before QGIS exits.
 """
 from __future__ import annotations
 
-from qgis.core import QgsGeometry, QgsMapLayerProxyModel, QgsPointXY, QgsRasterLayer, QgsWkbTypes
-from qgis.gui import QgsMapCanvas, QgsMapLayerComboBox, QgsMapTool, QgsMapToolEmitPoint, QgsRubberBand
+from qgis.core import QgsPointXY
+from qgis.gui import QgsMapToolEmitPoint
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtGui import QColor
-from qgis.PyQt.QtWidgets import (QComboBox, QDockWidget, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
-                                 QListWidget, QPushButton, QVBoxLayout, QWidget)
+from qgis.PyQt.QtGui import QKeySequence
+from qgis.PyQt.QtWidgets import (QAction, QDockWidget, QFormLayout, QFrame, QHBoxLayout, QLabel, QPushButton,
+                                 QScrollArea, QSplitter, QVBoxLayout, QWidget)
 
-from ...core.observations.tables import Heights
-from ..parameters import DATUMS, HEIGHT_SOURCES, tr
+from ..parameters import tr
+from .canvas import CanvasTools, PixelCanvas, PixelTool, pixel_of, theme_icon
+from .form import HeightsRows
+from .markers import CanvasDrawing
 
-
-def pixel_of(point: QgsPointXY) -> tuple[float, float]:
-    """(col, row) px of a point of the pixel frame (x = col, y = -row)."""
-    return point.x(), -point.y()
-
-
-def point_of(col: float, row: float) -> QgsPointXY:
-    return QgsPointXY(col, -row)
-
-
-class PixelTool(QgsMapTool):
-    """On a dock's canvas: a release of the left or right button calls the dock's
-    ``image_clicked(col, row, button)``; moving shows the pixel under the cursor."""
-
-    def __init__(self, dock: "PixelCanvasDock"):
-        super().__init__(dock.canvas)
-        self.dock = dock
-
-    def canvasMoveEvent(self, event):  # noqa: N802 (QGIS API name)
-        self.dock.show_pixel(*pixel_of(event.mapPoint()))
-
-    def canvasReleaseEvent(self, event):  # noqa: N802
-        if event.button() in (Qt.LeftButton, Qt.RightButton):
-            self.dock.image_clicked(*pixel_of(event.mapPoint()), event.button())
+LINE_MARGIN_PX = 20.0  # image px shown around a line zoomed to
 
 
 class PixelCanvasDock(QDockWidget):
-    """The shared dock. Subclasses build their widgets into ``self.body_layout`` and ``self.form``
-    (between them and the canvas), then call :meth:`finish_layout`; they implement
-    ``image_clicked(col, row, button)`` and ``main_clicked(point)`` (a pick on the main canvas,
-    in its CRS)."""
+    """The shared dock. Subclasses put their rows into ``self.form``, then call :meth:`build`; they
+    implement ``image_clicked(col, row, button)``, ``main_clicked(point)`` (a pick on the main
+    canvas, in its CRS), ``undo()``, ``delete_selected()`` and ``selected_pixels()`` (what 'zoom
+    to the selected one' frames: [(col, row)] px)."""
 
-    def __init__(self, title: str, name: str, iface, parent=None):
+    def __init__(self, title: str, name: str, iface, hint: str, parent=None):
         super().__init__(title, parent)
         self.setObjectName(name)
         self.iface = iface
-        self.layer: QgsRasterLayer | None = None
-        self.bands: list[QgsRubberBand] = []
-        self.previous_main_tool = None
-        self.canvas = QgsMapCanvas()
-        self.canvas.setMinimumHeight(250)
-        self.pixel_label, self.message_label = QLabel(), QLabel()
+        self.canvas = PixelCanvas(hint)
+        self.drawing = CanvasDrawing(self.canvas)
+        self.tool = PixelTool(self.canvas, self.image_clicked)
+        self.canvas.xyCoordinates.connect(lambda at: self.show_pixel(*pixel_of(at)))  # whatever the tool
+        self.pixel_label, self.message_label = QLabel(" "), QLabel()
         self.message_label.setWordWrap(True)
-        self.tool = PixelTool(self)
-        self.canvas.setMapTool(self.tool)
+        self.message_label.setTextInteractionFlags(Qt.TextSelectableByMouse)
+        self.previous_main_tool = None
         self.pick_tool = QgsMapToolEmitPoint(iface.mapCanvas())
         self.pick_tool.canvasClicked.connect(self._picked)
-        self.body_layout = QVBoxLayout()
         self.form = QFormLayout()
-        self.body_layout.addLayout(self.form)
+        self.heights_rows: HeightsRows | None = None
 
-    def add_buttons(self, *rows) -> None:
-        """Rows of push buttons under the form, each a sequence of (attribute, text, slot); every
-        button kept as ``self.<attribute>``."""
-        for row in rows:
-            buttons = QHBoxLayout()
-            for attr, text, slot in row:
-                button = QPushButton(text)
-                button.clicked.connect(slot)
-                setattr(self, attr, button)
-                buttons.addWidget(button)
-            self.body_layout.addLayout(buttons)
-
-    def finish_with_list(self, on_select) -> QListWidget:
-        """:meth:`finish_layout` with a list under the canvas (its row changes go to ``on_select``)."""
-        listed = QListWidget()
-        listed.setMaximumHeight(110)
-        listed.currentRowChanged.connect(on_select)
-        self.finish_layout([listed])
-        return listed
-
-    def finish_layout(self, below_canvas=()) -> None:
-        """Put the canvas, the widgets ``below_canvas`` and the status lines under the form."""
-        self.body_layout.addWidget(self.canvas, 1)
-        for widget in below_canvas:
-            self.body_layout.addWidget(widget)
-        self.body_layout.addWidget(self.pixel_label)
-        self.body_layout.addWidget(self.message_label)
+    # --- layout ---------------------------------------------------------------------------------
+    def build(self, buttons, measure: tuple[str, str], legend: QWidget, below: QWidget) -> None:
+        """Lay the dock out. ``buttons``: rows of (attribute, text, slot), each button kept as
+        ``self.<attribute>``; ``measure``: the measuring tool's (tool tip, theme icon)."""
+        form_box = QWidget()
+        form_box.setLayout(self.form)
+        self.form_pane = QScrollArea()
+        self.form_pane.setWidget(form_box)
+        self.form_pane.setWidgetResizable(True)
+        self.form_pane.setFrameShape(QFrame.NoFrame)
+        centre = QWidget()
+        column = QVBoxLayout(centre)
+        column.setContentsMargins(0, 0, 0, 0)
+        for row in buttons:
+            column.addLayout(self._button_row(row))
+        self.tools = CanvasTools(self.canvas, self.tool, *measure, self.zoom_to_selected)
+        self.tools.addSeparator()
+        self.undo_action = self._action("/mActionUndo.svg", tr("Undo the last change (Ctrl+Z)"), QKeySequence.Undo,
+                                        self.undo)
+        self.delete_action = self._action("/mActionDeleteSelected.svg", tr("Delete the selected one (Delete)"),
+                                          QKeySequence.Delete, self.delete_selected)
+        self.undo_button = self.tools.widgetForAction(self.undo_action)
+        self.delete_button = self.tools.widgetForAction(self.delete_action)
+        self.tools.addSeparator()
+        self.form_action = self.tools.addAction(theme_icon("/mActionOptions.svg"), tr("Show or hide the settings"))
+        self.form_action.setCheckable(True)
+        self.form_action.setChecked(True)
+        self.form_action.toggled.connect(self.form_pane.setVisible)
+        column.addWidget(self.tools)
+        column.addWidget(self.canvas, 1)
+        column.addWidget(legend)
+        column.addWidget(self.pixel_label)
+        splitter = QSplitter(Qt.Vertical)
+        for k, (widget, stretch) in enumerate(((self.form_pane, 0), (centre, 1), (below, 0))):
+            splitter.addWidget(widget)
+            splitter.setStretchFactor(k, stretch)
+        splitter.setCollapsible(1, False)
+        splitter.setSizes([250, 520, 140])
+        self.splitter = splitter
         body = QWidget()
-        body.setLayout(self.body_layout)
+        layout = QVBoxLayout(body)
+        layout.addWidget(splitter, 1)
+        layout.addWidget(self.message_label)
         self.setWidget(body)
+        self.setMinimumWidth(380)
 
-    def add_height_rows(self, tooltip: str) -> None:
-        """Rows 'Heights from' (z / dem / constant), 'DEM', 'Height datum', 'Constant height' in the form."""
-        self.height_combo = QComboBox()
-        self.height_combo.addItems(HEIGHT_SOURCES)
-        self.height_combo.setToolTip(tooltip)
-        self.dem_combo = QgsMapLayerComboBox()
-        self.dem_combo.setFilters(QgsMapLayerProxyModel.RasterLayer)
-        self.dem_combo.setAllowEmptyLayer(True)
-        self.datum_combo = QComboBox()
-        self.datum_combo.addItems(DATUMS)
-        self.height_spin = QDoubleSpinBox()
-        self.height_spin.setRange(-500.0, 9000.0)
-        self.form.addRow(tr("Heights from"), self.height_combo)
-        self.form.addRow(tr("DEM"), self.dem_combo)
-        self.form.addRow(tr("Height datum"), self.datum_combo)
-        self.form.addRow(tr("Constant height (m)"), self.height_spin)
+    def _button_row(self, row) -> QHBoxLayout:
+        buttons = QHBoxLayout()
+        for attr, text, slot in row:
+            button = QPushButton(text)
+            button.clicked.connect(slot)
+            setattr(self, attr, button)
+            buttons.addWidget(button)
+        return buttons
 
-    def heights(self) -> Heights:
-        dem = self.dem_combo.currentLayer()
-        return Heights(self.height_combo.currentText(), self.datum_combo.currentText(),
-                       dem.source().split("|")[0] if dem is not None else None, self.height_spin.value())
+    def _action(self, icon: str, text: str, keys, slot) -> QAction:
+        """A tool bar action with a shortcut that works while the focus is in the dock."""
+        action = QAction(theme_icon(icon), text, self)
+        action.setShortcut(keys)
+        action.setShortcutContext(Qt.WidgetWithChildrenShortcut)
+        action.triggered.connect(slot)
+        self.tools.addAction(action)
+        self.addAction(action)
+        return action
 
+    def add_height_rows(self, tooltip: str, z_words: str, source: str) -> None:
+        """The heights rows (:class:`.form.HeightsRows`) in the form."""
+        self.heights_rows = rows = HeightsRows(self.form, tooltip, z_words, source)
+        self.height_combo, self.dem_combo, self.datum_combo, self.height_spin = (rows.source, rows.dem, rows.datum,
+                                                                                 rows.value)
+
+    def heights(self):
+        """(:class:`core.observations.tables.Heights`, where they come from in words)."""
+        return self.heights_rows.heights()
+
+    # --- messages and the view ------------------------------------------------------------------
     def tell(self, text: str) -> None:
         self.message_label.setText(text)
 
@@ -129,55 +131,39 @@ class PixelCanvasDock(QDockWidget):
     def show_raster(self, path: str, name: str) -> bool:
         """Show the raster at ``path`` (a display copy) alone on the dock's canvas, whole; False
         (with a message) when QGIS cannot show it."""
-        layer = QgsRasterLayer(path, name)
-        if not layer.isValid():
+        if not self.canvas.show_raster(path, name):
             self.tell(tr("{path}: QGIS cannot show this raster").format(path=path))
             return False
-        self.canvas.setDestinationCrs(layer.crs())
-        self.canvas.setLayers([layer])
-        self.layer = layer
-        self.canvas.setExtent(layer.extent())
-        self.canvas.refresh()
         return True
+
+    def zoom_to_selected(self) -> None:
+        """Frame what is selected (a point: at ZOOM_TO_POINT_PX either side; a line: its vertices)."""
+        pixels = self.selected_pixels()
+        if not pixels:
+            self.tell(tr("Nothing selected to zoom to"))
+        elif len(pixels) == 1:
+            self.canvas.zoom_to_pixel(*pixels[0])
+        else:
+            cols, rows = [p[0] for p in pixels], [p[1] for p in pixels]
+            half = max(max(cols) - min(cols), max(rows) - min(rows)) / 2 + LINE_MARGIN_PX
+            self.canvas.zoom_to_pixel((max(cols) + min(cols)) / 2, (max(rows) + min(rows)) / 2, half)
 
     # --- picking on the main map canvas ---------------------------------------------------------
     def start_picking(self, message: str) -> None:
         """The next click on the main map canvas goes to ``main_clicked``."""
         main = self.iface.mapCanvas()
-        self.previous_main_tool = main.mapTool()
+        if main.mapTool() is not self.pick_tool:
+            self.previous_main_tool = main.mapTool()
         main.setMapTool(self.pick_tool)
         self.tell(message)
 
     def _picked(self, point: QgsPointXY, button=None) -> None:
+        main = self.iface.mapCanvas()
         if self.previous_main_tool is not None:
-            self.iface.mapCanvas().setMapTool(self.previous_main_tool)
+            main.setMapTool(self.previous_main_tool)
+        else:
+            main.unsetMapTool(self.pick_tool)
         self.main_clicked(point)
-
-    # --- drawing ------------------------------------------------------------------------------
-    def clear_bands(self) -> None:
-        for band in self.bands:
-            self.canvas.scene().removeItem(band)
-        self.bands = []
-
-    def add_band(self, geometry: QgsGeometry, kind, colour: QColor, width: int, dashed: bool = False,
-                 icon=None) -> QgsRubberBand:
-        """A rubber band of ``geometry`` (pixel frame) on the dock's canvas, kept until cleared."""
-        band = QgsRubberBand(self.canvas, kind)
-        band.setColor(colour)
-        band.setWidth(width)
-        if dashed:
-            band.setLineStyle(Qt.DashLine)
-        if icon is not None:
-            band.setIcon(icon)
-            band.setIconSize(12)
-        band.setToGeometry(geometry, None)
-        self.bands.append(band)
-        return band
-
-    def add_polyline(self, vertices, colour: QColor, width: int, dashed: bool = False) -> None:
-        """A polyline band through pixel positions [(col, row)]."""
-        self.add_band(QgsGeometry.fromPolylineXY([point_of(c, r) for c, r in vertices]), QgsWkbTypes.LineGeometry,
-                      colour, width, dashed)
 
     def closeEvent(self, event):  # noqa: N802 (Qt API name)
         main = self.iface.mapCanvas()
@@ -186,10 +172,11 @@ class PixelCanvasDock(QDockWidget):
         super().closeEvent(event)
 
     def dispose(self) -> None:
-        """Release the canvas's layer and rubber bands while QGIS is alive: a render job or a
-        raster layer outliving QGIS's exit frees a raster pipe whose provider is gone (a crash)."""
+        """Release the canvas's layer and drawing while QGIS is alive (a render job or a raster
+        layer outliving QGIS's exit frees a raster pipe whose provider is gone: a crash), and stop
+        following the project. Safe to call twice."""
         self.close()
-        self.canvas.stopRendering()
-        self.canvas.setLayers([])
-        self.clear_bands()
-        self.layer = None
+        self.drawing.clear()
+        self.canvas.dispose()
+        if self.heights_rows is not None:
+            self.heights_rows.dem.dispose()

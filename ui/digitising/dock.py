@@ -1,16 +1,15 @@
-"""The dock 'Digitise control lines on the raw image': its own map canvas showing a display copy
-(pushbroom:preparedigitising) in the pixel frame x = col, y = -row, a map tool that digitises
+"""The dock 'Digitise control lines on the raw image': its own map canvas showing a raw image (opened
+with its scene, or a display copy) in the pixel frame x = col, y = -row, a map tool that digitises
 image lines, pairing with ground lines picked on the main map canvas, ground lines predicted into
 the image by the scene model, Snap (the selected line to the road's centre or an edge of the raw
-image the display copy shows, :mod:`core.snapping`, undoable) and Save to an ``image_lines``
-GeoPackage layer. With a scene file given, each saved line names its scene (the field ``scene``: the
-name bundleadjust with SCENES gives that file, :func:`ui.inputs.block_scene_names`), so that the
-layer serves a block of scenes as it is.
+image, :mod:`core.measure.snapping`, undoable) and Save to an ``image_lines`` GeoPackage layer. With
+a scene, each saved line names its scene (the field ``scene``: the name bundleadjust with SCENES
+gives that file, :func:`ui.inputs.block_scene_names`), so that the layer serves a block of scenes
+as it is.
 
 The logic lives in :mod:`core.measure.digitising` (vertices, undo, pairing, prediction); this module
-turns mouse events and buttons into its calls and draws its state. The canvas, its map tool, picking
-on the main canvas, the heights form and the rubber bands are :mod:`.base`'s (shared with the GCP
-dock, :mod:`.gcpdock`).
+turns mouse events and buttons into its calls and draws its state. The canvas and its tools, picking
+on the main canvas and the heights form are :mod:`.base`'s (shared with the GCP dock, :mod:`.gcpdock`).
 """
 from __future__ import annotations
 
@@ -19,22 +18,22 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform, Qgs
                        QgsProject, QgsWkbTypes)
 from qgis.gui import QgsFieldComboBox, QgsMapLayerComboBox
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtGui import QColor
-from qgis.PyQt.QtWidgets import (QComboBox, QDoubleSpinBox, QFileDialog, QHBoxLayout, QLabel, QLineEdit, QPushButton)
+from qgis.PyQt.QtWidgets import QComboBox, QDialog, QFileDialog, QLabel, QListWidget
 
 from ...core.errors import PushbroomError
-from ...core.formats import load_scene
 from ...core.measure.digitising import LineEditor, nearest_line, predict_lines
-from ...core.measure.display import read_display_source
 from ...core.measure.snapping import MODES as SNAP_MODES
 from ...core.measure.snapping import SnapSettings
+from ...core.measure.sources import open_image_source
 from ...core.observations.lines import write_gpkg
 from ..inputs import block_scene_names
 from ..parameters import tr
 from .base import PixelCanvasDock
+from .canvas import point_of
+from .form import labelled_row, spin_box
+from .markers import legend
+from .opening import SceneDialog, cache_folder
 
-LINE_COLOUR, CURRENT_COLOUR, SELECTED_COLOUR, PREDICTED_COLOUR = (QColor(0, 200, 255), QColor(255, 220, 0),
-                                                                    QColor(255, 60, 60), QColor(255, 0, 255))
 PREDICTION_STEP_M = 20.0  # ground spacing of predicted points: a few pixels of a 2-5 m GSD image
 
 
@@ -42,51 +41,46 @@ class DigitisingDock(PixelCanvasDock):
     """The dock. ``iface``: the QGIS interface (its mapCanvas() is where ground lines are picked)."""
 
     def __init__(self, iface, parent=None):
-        super().__init__(tr("Digitise control lines on the raw image"), "PushbroomDigitisingDock", iface, parent)
+        super().__init__(tr("Digitise control lines on the raw image"), "PushbroomDigitisingDock", iface,
+                         tr("Open image… to start: a scene file and its raw image"), parent)
         self.editor = LineEditor()
-        self.raw_image = ""  # the raw image the display copy shows (snapping reads its pixels)
-        self.scene, self.camera_name, self.predicted = None, "", []
+        self.source = None  # the core.measure.sources.ImageSource shown
+        self.raw_image = ""  # the raw image shown (snapping reads its pixels)
+        self.scene, self.predicted = None, []
         self._build()
 
     # --- widgets -------------------------------------------------------------------------------
     def _build(self) -> None:
         form = self.form
-        self.image_button = QPushButton(tr("Open display copy…"))
-        self.image_button.clicked.connect(self._choose_image)
-        form.addRow(tr("Image"), self.image_button)
-        self.scene_edit, self.camera_edit = QLineEdit(), QLineEdit()
-        self.scene_edit.editingFinished.connect(self._load_scene)
-        form.addRow(tr("Scene"), self.scene_edit)
-        form.addRow(tr("Camera"), self.camera_edit)
+        self.scene_label = QLabel(tr("none"))
+        self.scene_label.setWordWrap(True)
+        form.addRow(tr("Scene"), self.scene_label)
         self.ground_combo = QgsMapLayerComboBox()
         self.ground_combo.setFilters(QgsMapLayerProxyModel.LineLayer)
         self.id_combo = QgsFieldComboBox()
         self.ground_combo.layerChanged.connect(self.id_combo.setLayer)
         self.id_combo.setLayer(self.ground_combo.currentLayer())
-        form.addRow(tr("Ground lines"), self.ground_combo)
-        form.addRow(tr("Line id field"), self.id_combo)
+        form.addRow(tr("Ground lines"), labelled_row(("", self.ground_combo), (tr("id field"), self.id_combo)))
         self.add_height_rows(tr("Heights of the ground lines for the prediction: z = the lines' Z values, dem = the "
-                                "DEM below, constant = the height below"))
+                                "DEM below (the constant when none is chosen), constant = the height below"),
+                             tr("the lines' Z"), "z")
         self.snap_mode_combo = QComboBox()
         self.snap_mode_combo.addItems(SNAP_MODES)
         self.snap_mode_combo.setToolTip(tr("Snap moves the selected line's vertices across it to the centre of a "
                                            "bright band (a road) or to the strongest edge"))
-        self.snap_width_spin = QDoubleSpinBox()
-        self.snap_width_spin.setRange(0.5, 19.5)
-        self.snap_width_spin.setValue(SnapSettings().width)
-        snapping = QHBoxLayout()
-        snapping.addWidget(self.snap_mode_combo)
-        snapping.addWidget(QLabel(tr("band width (px)")))
-        snapping.addWidget(self.snap_width_spin)
-        form.addRow(tr("Snap to"), snapping)
-        self.add_buttons((("finish_button", tr("Finish"), self.finish_line),
-                          ("undo_button", tr("Undo"), self.undo),
-                          ("delete_button", tr("Delete"), self.delete_selected),
-                          ("pair_button", tr("Pair"), self.start_pairing),
-                          ("snap_button", tr("Snap"), self.snap),
-                          ("predict_button", tr("Predict"), self.predict),
-                          ("save_button", tr("Save…"), self._choose_save)))
-        self.line_list = self.finish_with_list(self._list_selected)
+        self.snap_width_spin = spin_box(SnapSettings().width, 0.5, 19.5, " px", tr("the band's width"))
+        form.addRow(tr("Snap to"), labelled_row(("", self.snap_mode_combo), (tr("band width"), self.snap_width_spin)))
+        self.line_list = QListWidget()
+        self.line_list.currentRowChanged.connect(self._list_selected)
+        self.build(((("image_button", tr("Open image…"), self._choose_image),
+                     ("finish_button", tr("Finish"), self.finish_line),
+                     ("pair_button", tr("Pair"), self.start_pairing)),
+                    (("snap_button", tr("Snap"), self.snap),
+                     ("predict_button", tr("Predict"), self.predict),
+                     ("save_button", tr("Save…"), self._choose_save))),
+                   (tr("Digitise: left click adds a vertex, right click ends the line"), "/mActionCaptureLine.svg"),
+                   legend((), (("line", tr("lines")), ("selected", tr("selected")), ("drawing", tr("being drawn")),
+                               ("predicted", tr("ground lines predicted")))), self.line_list)
 
     def image_clicked(self, col: float, row: float, button) -> None:
         """Left click adds a vertex, right click finishes the line."""
@@ -97,40 +91,29 @@ class DigitisingDock(PixelCanvasDock):
 
     # --- image and scene ------------------------------------------------------------------------
     def _choose_image(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, tr("Display copy"), "", "Virtual raster (*.vrt);;All files (*)")
-        if path:
-            self.open_image(path)
+        dialog = SceneDialog(self, tr("Open a raw image with its scene"))
+        if dialog.exec_() == QDialog.Accepted:
+            self.open_image(*dialog.chosen())
 
-    def open_image(self, path: str) -> bool:
-        """Show a display copy (or any raster in the pixel frame) and take the scene and camera it
-        names; False (with a message) when it cannot be read."""
+    def open_image(self, path: str, image: str | None = None, camera: str | None = None) -> bool:
+        """Show a raw image: the scene file ``path`` with its raw ``image`` of ``camera`` (None: the
+        image found beside the scene, its first camera), a display copy (which names them), or a
+        raster alone (no scene: no prediction, no scene name on saving); False (with a message)
+        when it cannot be read."""
         try:
-            source = read_display_source(path)
+            source = open_image_source(path, cache_folder(), image, camera, require_scene=False)
         except PushbroomError as exc:
             self.tell(str(exc))
             return False
-        if not self.show_raster(path, tr("Display copy")):
+        if not self.show_raster(str(source.display), tr("Raw image")):
             return False
-        self.raw_image = source.image
-        self.scene_edit.setText(source.scene)
-        self.camera_edit.setText(source.camera)
-        self._load_scene()
+        self.source, self.raw_image, self.scene, self.predicted = source, str(source.image), source.scene, []
+        self.scene_label.setText(f"{source.scene_path} ({source.camera_name})" if source.scene_path else
+                                 tr("none: the image alone (no prediction)"))
+        self.tell(tr("{image} shown{scene}").format(image=source.image, scene=tr(", camera {c} of {s}").format(
+            c=source.camera_name, s=source.scene_path) if source.scene_path else tr(" without a scene")))
+        self.redraw()
         return True
-
-    def _load_scene(self) -> None:
-        path = self.scene_edit.text().strip()
-        self.scene = None
-        if not path:
-            self.tell(tr("No scene: give the scene file to see predicted ground lines"))
-            return
-        try:
-            self.scene = load_scene(path)
-        except PushbroomError as exc:
-            self.tell(str(exc))
-
-    def camera_index(self) -> int:
-        text = self.camera_edit.text().strip()
-        return self.scene.camera_index(int(text) if text.isdigit() else text) if text else 0
 
     # --- digitising -----------------------------------------------------------------------------
     def add_vertex(self, col: float, row: float) -> None:
@@ -155,7 +138,7 @@ class DigitisingDock(PixelCanvasDock):
     def snap(self) -> None:
         """Snap the selected line to the raw image's feature across it (undoable)."""
         if not self.raw_image:
-            self.tell(tr("Open the display copy first"))
+            self.tell(tr("Open the image first"))
             return
         try:
             refined, total = self.editor.snap_selected(self.raw_image, SnapSettings(
@@ -175,6 +158,12 @@ class DigitisingDock(PixelCanvasDock):
         if 0 <= row < len(self.editor.lines) and self.editor.selected != row:
             self.editor.select(row)
             self.redraw()
+
+    def selected_pixels(self) -> list[tuple[float, float]]:
+        """The selected line's vertices (or those of the line being drawn)."""
+        if self.editor.selected is not None:
+            return list(self.editor.lines[self.editor.selected].vertices)
+        return list(self.editor.current)
 
     # --- pairing with ground lines ------------------------------------------------------------
     def start_pairing(self) -> None:
@@ -197,8 +186,7 @@ class DigitisingDock(PixelCanvasDock):
                 continue
             geometry.transform(transform)
             for part in geometry.constParts():
-                points = [(p.x(), p.y(), p.z()) for p in part.vertices()]
-                xyz = np.array(points, dtype=float)
+                xyz = np.array([(p.x(), p.y(), p.z()) for p in part.vertices()], dtype=float)
                 parts.append(xyz if QgsWkbTypes.hasZ(layer.wkbType()) else xyz[:, :2])
                 ids.append(str(feature[field]))
         return ids, parts
@@ -219,18 +207,18 @@ class DigitisingDock(PixelCanvasDock):
     def predict(self) -> None:
         """Draw the chosen ground lines as the scene model sees them in this camera."""
         if self.scene is None:
-            self.tell(tr("No scene: give the scene file first"))
+            self.tell(tr("No scene: open the image with its scene file to see where the ground lines are"))
             return
+        heights, words = self.heights()
         try:
             ids, parts = self.ground_parts(QgsCoordinateReferenceSystem("EPSG:4326"))
-            self.predicted = predict_lines(self.scene, self.camera_index(), ids, parts, self.heights(),
-                                           PREDICTION_STEP_M)
+            self.predicted = predict_lines(self.scene, self.source.camera, ids, parts, heights, PREDICTION_STEP_M)
         except (PushbroomError, ValueError) as exc:
             self.tell(str(exc))
             return
         shown = sum(bool(p.runs()) for p in self.predicted)
-        self.tell(tr("{shown} of {n} ground lines predicted into the image").format(shown=shown,
-                                                                                     n=len(self.predicted)))
+        self.tell(tr("{shown} of {n} ground lines predicted into the image, heights from {words}").format(
+            shown=shown, n=len(self.predicted), words=words))
         self.redraw()
 
     # --- saving -------------------------------------------------------------------------------
@@ -241,12 +229,13 @@ class DigitisingDock(PixelCanvasDock):
 
     def save(self, path: str) -> bool:
         """Write the lines to layer ``image_lines`` of GeoPackage ``path`` (replaced whole, or not at
-        all), naming the scene file's block name when one is given; False (with the reason shown)
+        all), naming the scene file's block name when there is one; False (with the reason shown)
         when they cannot be saved."""
-        scene_file = self.scene_edit.text().strip()
+        scene_file = self.source.scene_path if self.source is not None else ""
+        camera = self.source.camera_name if self.source is not None else ""
         try:
             scene = block_scene_names([scene_file])[0] if scene_file else ""
-            write_gpkg(path, image=self.editor.image_lines(self.camera_edit.text().strip(), scene=scene))
+            write_gpkg(path, image=self.editor.image_lines(camera, scene=scene))
         except PushbroomError as exc:
             self.tell(str(exc))
             return False
@@ -255,15 +244,16 @@ class DigitisingDock(PixelCanvasDock):
 
     # --- drawing ------------------------------------------------------------------------------
     def redraw(self) -> None:
-        """Rubber bands and the list from the editor's state and the prediction."""
-        self.clear_bands()
+        """Bands and the list from the editor's state and the prediction."""
+        self.drawing.clear()
         for line in self.predicted:
             for run in line.runs():
-                self.add_polyline(run.tolist(), PREDICTED_COLOUR, 1, dashed=True)
+                self.drawing.polyline([point_of(c, r) for c, r in run.tolist()], "predicted")
         for i, line in enumerate(self.editor.lines):
-            self.add_polyline(line.vertices, SELECTED_COLOUR if i == self.editor.selected else LINE_COLOUR, 2)
+            self.drawing.polyline([point_of(c, r) for c, r in line.vertices],
+                                  "selected" if i == self.editor.selected else "line")
         if self.editor.current:
-            self.add_polyline(self.editor.current, CURRENT_COLOUR, 2)
+            self.drawing.polyline([point_of(c, r) for c, r in self.editor.current], "drawing")
         self.line_list.blockSignals(True)
         self.line_list.clear()
         for i, line in enumerate(self.editor.lines):

@@ -1,71 +1,65 @@
-"""The dock 'Measure GCPs on the raw images': the scenes of a block (each added by its display copy,
-pushbroom:preparedigitising, which names its scene file and camera), the raw image of the current
-scene on the dock's canvas in the pixel frame x = col, y = -row; a click measures the selected
-point there, a click on the main map canvas (or the nearest point of a reference layer) gives its
-ground; where the selected point should be in the current image is drawn, a marker per estimate
-(its ground, and its observation in each other scene, through the scenes' current models); Snap
-refines the observation by least-squares template matching against another scene's image or a
-reference orthoimage; Undo; Save to a GCP GeoPackage; Open a saved one.
+"""The dock 'Measure GCPs on the raw images': the scenes of a block (each added by its scene file
+and raw image, or a display copy), the raw image of the current scene on the dock's canvas in the
+pixel frame x = col, y = -row; a click measures the selected point there, a click on the main map
+canvas (or the nearest point of a reference layer) gives its ground; where the selected point
+should be in the current image is drawn, a marker per estimate (its ground, and its observation in
+each other scene, through the scenes' current models); Snap refines the observation by
+least-squares template matching against another scene's image or a reference orthoimage; Undo;
+Save to a GCP GeoPackage; Open a saved one, or bundleadjust's adjusted GCPs with their residuals.
 
 The logic lives in :mod:`core.measure.gcpmeasure`; this module turns events into its calls and
-draws its state. The canvas, map tool, main-canvas picking and heights form are :mod:`.base`'s.
+draws its state. The canvas and its tools, main-canvas picking and the heights form are
+:mod:`.base`'s; the table :mod:`.pointtable`'s, the markers :mod:`.markers`' and :mod:`.mainmap`'s.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform, QgsGeometry, QgsMapLayerProxyModel,
-                       QgsPointXY, QgsProcessingException, QgsProject, QgsWkbTypes)
-from qgis.gui import QgsMapLayerComboBox, QgsRubberBand, QgsVertexMarker
+from qgis.core import QgsMapLayerProxyModel, QgsProcessingException
+from qgis.gui import QgsMapLayerComboBox
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtGui import QColor
-from qgis.PyQt.QtWidgets import (QComboBox, QDoubleSpinBox, QFileDialog, QHBoxLayout, QLineEdit, QListWidget)
+from qgis.PyQt.QtWidgets import QComboBox, QDialog, QFileDialog, QLineEdit, QListWidget
 
 from ...core.errors import PushbroomError
 from ...core.files import check_outputs
-from ...core.formats import load_scene
-from ...core.measure.display import check_image_size, read_display_source
 from ...core.measure.gcpmeasure import PointEditor, predict, snap_to_reference, snap_to_scene, surface_for
+from ...core.measure.sources import ImageSource, open_image_source
 from ...core.measure.tiematching import View
 from ...core.observations.gcps import ROLES, read_gpkg, write_gpkg
 from ..inputs import block_scene_names
 from ..parameters import tr
-from .base import PixelCanvasDock, point_of
+from .base import PixelCanvasDock
+from .canvas import point_of
+from .form import labelled_row, layer_path, spin_box
+from .mainmap import MainMapMarkers, canvas_to_wgs84, nearest_reference
+from .markers import legend
+from .opening import SceneDialog, cache_folder
+from .pointtable import PointTable
 
-MEASURED_COLOUR, OTHER_COLOUR, PREDICTED_COLOUR = QColor(255, 60, 60), QColor(0, 200, 255), QColor(255, 0, 255)
 SNAP_TARGETS = ("other scene", "reference orthoimage")
 REFERENCE_TOLERANCE_PX = 20  # screen px: a click farther from every reference point takes none of them
-
-
-def wgs84() -> QgsCoordinateReferenceSystem:
-    """EPSG:4326, made when needed (not at import, before QGIS has its CRS database)."""
-    return QgsCoordinateReferenceSystem("EPSG:4326")
 
 
 class GcpDock(PixelCanvasDock):
     """The dock. ``iface``: the QGIS interface (its mapCanvas() is where ground positions are picked)."""
 
     def __init__(self, iface, parent=None):
-        super().__init__(tr("Measure GCPs on the raw images"), "PushbroomGcpDock", iface, parent)
+        super().__init__(tr("Measure GCPs on the raw images"), "PushbroomGcpDock", iface,
+                         tr("Add scene… to start: a scene file and its raw image, for each scene of the block"), parent)
         self.editor = PointEditor()
-        self.views: list[View] = []       # the block's images, in the scene list's order
-        self.sources: list[tuple[str, str]] = []  # (scene file, display copy) of each
-        self.current: int | None = None   # index of the image shown
+        self.views: list[View] = []                # the block's images, in the scene list's order
+        self.sources: list[tuple[str, ImageSource]] = []  # (the file opened, what it opened) of each
+        self.current: int | None = None            # index of the image shown
         self.predictions = []
-        self.ground_marker = QgsVertexMarker(iface.mapCanvas())
-        self.ground_marker.setColor(MEASURED_COLOUR)
-        self.ground_marker.setIconType(QgsVertexMarker.ICON_X)
-        self.ground_marker.setIconSize(14)
-        self.ground_marker.setPenWidth(2)
-        self.ground_marker.hide()
+        self.main_markers = MainMapMarkers(iface.mapCanvas())
         self._build()
 
     # --- widgets -------------------------------------------------------------------------------
     def _build(self) -> None:
         form = self.form
         self.scene_list = QListWidget()
-        self.scene_list.setMaximumHeight(90)
+        self.scene_list.setMaximumHeight(80)
         self.scene_list.currentRowChanged.connect(self.show_scene)
         form.addRow(tr("Scenes"), self.scene_list)
         self.id_edit = QLineEdit()
@@ -73,98 +67,78 @@ class GcpDock(PixelCanvasDock):
         self.role_combo = QComboBox()
         self.role_combo.addItems(ROLES)
         self.role_combo.activated.connect(lambda _: self._edit(role=self.role_combo.currentText()))
-        ident = QHBoxLayout()
-        ident.addWidget(self.id_edit)
-        ident.addWidget(self.role_combo)
-        form.addRow(tr("Point id, role"), ident)
-        sigmas = QHBoxLayout()
-        for attr, tip, value, low in (("sigma_px_spin", tr("image sigma (px) of the point in the current scene"), 0.5,
-                                       0.01),
-                                      ("sigma_xy_spin", tr("ground sigma across (m)"), 1.0, 0.0),
-                                      ("sigma_z_spin", tr("ground sigma in height (m)"), 1.0, 0.0)):
-            spin = QDoubleSpinBox()
-            spin.setRange(low, 1000.0)
-            spin.setDecimals(2)
-            spin.setValue(value)
-            spin.setToolTip(tip)
+        form.addRow(tr("Point"), labelled_row((tr("id"), self.id_edit), (tr("role"), self.role_combo)))
+        self.sigma_px_spin = spin_box(0.5, 0.01, 1000.0, " px", tr("image sigma of the point in the scene shown"))
+        self.sigma_xy_spin = spin_box(1.0, 0.0, 1000.0, " m", tr("ground sigma in plan"))
+        self.sigma_z_spin = spin_box(1.0, 0.0, 1000.0, " m", tr("ground sigma in height"))
+        for spin in (self.sigma_px_spin, self.sigma_xy_spin, self.sigma_z_spin):
             spin.editingFinished.connect(self._edit_sigmas)
-            setattr(self, attr, spin)
-            sigmas.addWidget(spin)
-        form.addRow(tr("Sigmas px, xy m, z m"), sigmas)
+        form.addRow(tr("Sigmas"), labelled_row((tr("image"), self.sigma_px_spin), (tr("plan"), self.sigma_xy_spin),
+                                               (tr("height"), self.sigma_z_spin)))
         self.reference_combo = QgsMapLayerComboBox()
         self.reference_combo.setFilters(QgsMapLayerProxyModel.PointLayer)
         self.reference_combo.setAllowEmptyLayer(True)
         self.reference_combo.setLayer(None)
         form.addRow(tr("Reference points"), self.reference_combo)
-        self.add_height_rows(tr("Heights of the ground positions: z = the reference point's Z, dem = the DEM below, "
-                                "constant = the height below (also the surface observations are projected on)"))
-        self.height_combo.setCurrentText("dem")
+        self.add_height_rows(tr("Heights of the ground positions: z = the reference point's Z, dem = the DEM below "
+                                "(the constant when none is chosen), constant = the height below; also the surface "
+                                "observations are projected on"), tr("the reference point's Z"), "dem")
         self.snap_combo = QComboBox()
         self.snap_combo.addItems(SNAP_TARGETS)
         self.ortho_combo = QgsMapLayerComboBox()
         self.ortho_combo.setFilters(QgsMapLayerProxyModel.RasterLayer)
         self.ortho_combo.setAllowEmptyLayer(True)
         self.ortho_combo.setLayer(None)
-        snapping = QHBoxLayout()
-        snapping.addWidget(self.snap_combo)
-        snapping.addWidget(self.ortho_combo)
-        form.addRow(tr("Snap to"), snapping)
-        rows = (("add_scene_button", tr("Add scene…"), self._choose_scene),
-                ("new_button", tr("New point"), self.new_point),
-                ("ground_button", tr("Ground"), self.start_ground),
-                ("snap_button", tr("Snap"), self.snap),
-                ("undo_button", tr("Undo"), self.undo),
-                ("delete_button", tr("Delete"), self.delete_selected),
-                ("open_button", tr("Open…"), self._choose_open),
-                ("save_button", tr("Save…"), self._choose_save))
-        self.add_buttons(rows[:4], rows[4:])
-        self.point_list = self.finish_with_list(self._list_selected)
+        form.addRow(tr("Snap to"), labelled_row(("", self.snap_combo), (tr("orthoimage"), self.ortho_combo)))
+        self.table = PointTable(self.select_point)
+        self.build(((("add_scene_button", tr("Add scene…"), self._choose_scene),
+                     ("new_button", tr("New point"), self.new_point),
+                     ("ground_button", tr("Ground"), self.start_ground),
+                     ("snap_button", tr("Snap"), self.snap)),
+                    (("open_button", tr("Open…"), self._choose_open),
+                     ("save_button", tr("Save…"), self._choose_save))),
+                   (tr("Measure: a click measures the selected point (a new one when none is)"),
+                    "/mActionCapturePoint.svg"),
+                   legend(("selected", "measured", "ground", "scene")), self.table)
 
     # --- the block's scenes ---------------------------------------------------------------------
     def _choose_scene(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, tr("Display copy of a scene"), "",
-                                              "Virtual raster (*.vrt);;All files (*)")
-        if path:
-            self.add_scene(path)
+        dialog = SceneDialog(self, tr("Add a scene of the block"))
+        if dialog.exec_() == QDialog.Accepted:
+            self.add_scene(*dialog.chosen())
 
-    def add_scene(self, display: str) -> bool:
-        """Add the scene a display copy shows (its scene file and camera, named as the block's
-        algorithms name it) and show it; False (with the reason shown) when it cannot be used."""
+    def add_scene(self, path: str, image: str | None = None, camera: str | None = None) -> bool:
+        """Add a scene of the block: its scene file with raw ``image`` of ``camera`` (None: the
+        image found beside the scene, its first camera), or a display copy (which names them),
+        named as the block's algorithms name it, and show it; False (with the reason shown) when
+        it cannot be used."""
         try:
-            source = read_display_source(display)
-            if not source.scene:
-                raise PushbroomError(tr("{path}: names no scene file; make it with Prepare raw image for "
-                                        "digitising (pushbroom:preparedigitising)").format(path=display))
-            scene = load_scene(source.scene)
-            camera = scene.camera_index(source.camera or 0)
-            check_image_size(source.image, scene.cameras[camera].cols, scene.cameras[camera].rows,
-                             scene.cameras[camera].name)
-            scene_files = list(dict.fromkeys([s for s, _ in self.sources] + [source.scene]))
-            name = block_scene_names(scene_files)[scene_files.index(source.scene)]
+            source = open_image_source(path, cache_folder(), image, camera)
+            scene_files = list(dict.fromkeys([s.scene_path for _, s in self.sources] + [source.scene_path]))
+            name = block_scene_names(scene_files)[scene_files.index(source.scene_path)]
         except (PushbroomError, QgsProcessingException) as exc:
             self.tell(str(exc))
             return False
-        view = View(name, scene, camera, Path(source.image))
+        view = View(name, source.scene, source.camera, source.image)
         if any(v.label == view.label for v in self.views):
             self.tell(tr("{label} is in the block already").format(label=view.label))
             return False
         self.views.append(view)
-        self.sources.append((source.scene, display))
+        self.sources.append((str(path), source))
         self.scene_list.addItem(view.label)
         self.scene_list.setCurrentRow(len(self.views) - 1)
         return True
 
     def show_scene(self, index: int) -> None:
         """Show the image of the block's scene ``index`` (its display copy)."""
-        if not 0 <= index < len(self.views):
-            return
-        if self.show_raster(self.sources[index][1], self.views[index].label):
+        if 0 <= index < len(self.views) and self.show_raster(str(self.sources[index][1].display),
+                                                            self.views[index].label):
             self.current = index
             self.redraw()
 
     def view(self) -> View:
         if self.current is None:
-            raise PushbroomError(tr("add a scene of the block first (Add scene…: its display copy)"))
+            raise PushbroomError(tr("add a scene of the block first (Add scene…)"))
         return self.views[self.current]
 
     # --- measuring ------------------------------------------------------------------------------
@@ -191,21 +165,20 @@ class GcpDock(PixelCanvasDock):
     def start_ground(self) -> None:
         """The next click on the main map canvas gives the selected point's ground."""
         if self.editor.selected is None:
-            self.tell(tr("Select a point first (in the list), then press Ground"))
+            self.tell(tr("Select a point first (in the table), then press Ground"))
             return
         self.start_picking(tr("Click the point on the map (the nearest reference point is taken when a reference "
                               "layer is chosen)"))
 
     def main_clicked(self, point) -> None:
         """The selected point's ground at ``point`` (main canvas CRS), or at the nearest point of the
-        reference layer (within REFERENCE_TOLERANCE_PX of the click)."""
+        reference layer (within REFERENCE_TOLERANCE_PX of the click); its height as the form says."""
         canvas = self.iface.mapCanvas()
-        crs = canvas.mapSettings().destinationCrs()
-        at = QgsCoordinateTransform(crs, wgs84(), QgsProject.instance()).transform(point)
+        at = canvas_to_wgs84(canvas, point)
         lon, lat, z, source = at.x(), at.y(), None, "canvas"
         layer = self.reference_combo.currentLayer()
         if layer is not None:
-            found = self._nearest_reference(layer, point, crs)
+            found = nearest_reference(layer, point, canvas.mapSettings().destinationCrs())
             if found is None:
                 self.tell(tr("The reference layer {name} holds no point").format(name=layer.name()))
                 return
@@ -217,48 +190,27 @@ class GcpDock(PixelCanvasDock):
                              "click itself").format(name=layer.name(), tol=REFERENCE_TOLERANCE_PX, px=pixels))
                 return
             source = "reference"
+        heights, words = self.heights()
         try:
-            ground = self.editor.set_ground_at(lon, lat, self.heights(), z, source)
+            ground = self.editor.set_ground_at(lon, lat, heights, z, source, words)
         except PushbroomError as exc:
             self.tell(str(exc))
             return
-        self.tell(tr("Point {id}: ground lon {lon:.6f}, lat {lat:.6f}, h {h:.1f} m (ellipsoidal) from the "
-                     "{src}").format(id=self.editor.current().id, lon=ground.lon, lat=ground.lat, h=ground.h,
-                                     src=source))
+        self.tell(tr("Point {id}: ground lon {lon:.6f}, lat {lat:.6f} from the {src}, h {h:.1f} m (ellipsoidal) from "
+                     "{words}").format(id=self.editor.current().id, lon=ground.lon, lat=ground.lat, src=source,
+                                       h=ground.h, words=words))
         self.redraw()
-
-    @staticmethod
-    def _nearest_reference(layer, click, crs):
-        """(lon, lat deg, z or None, distance in ``crs`` units) of the point of ``layer`` nearest to
-        ``click`` (in ``crs``, the main canvas's); None without points."""
-        to_canvas = QgsCoordinateTransform(layer.crs(), crs, QgsProject.instance())
-        to_wgs84 = QgsCoordinateTransform(layer.crs(), wgs84(), QgsProject.instance())
-        points = []
-        for feature in layer.getFeatures():
-            geometry = QgsGeometry(feature.geometry())
-            if not geometry.isEmpty():
-                vertex = geometry.vertexAt(0)
-                there = to_canvas.transform(QgsPointXY(vertex.x(), vertex.y()))
-                points.append((there.x(), there.y(), vertex.x(), vertex.y(), vertex.z()))
-        if not points:
-            return None
-        xy = np.array(points)
-        distance = np.hypot(xy[:, 0] - click.x(), xy[:, 1] - click.y())
-        k = int(np.argmin(distance))
-        lonlat = to_wgs84.transform(QgsPointXY(xy[k, 2], xy[k, 3]))
-        has_z = QgsWkbTypes.hasZ(layer.wkbType()) and np.isfinite(xy[k, 4])
-        return lonlat.x(), lonlat.y(), float(xy[k, 4]) if has_z else None, float(distance[k])
 
     def snap(self) -> None:
         """Snap the selected point's observation in the current scene (undoable)."""
         try:
             view, point = self.view(), self.editor.current()
-            surface = surface_for(self.heights(), view)
+            surface = surface_for(self.heights()[0], view)
             if self.snap_combo.currentText() == SNAP_TARGETS[1]:
                 ortho = self.ortho_combo.currentLayer()
                 if ortho is None:
                     raise PushbroomError(tr("choose the reference orthoimage layer to snap to"))
-                result = snap_to_reference(point, view, ortho.source().split("|")[0], surface)
+                result = snap_to_reference(point, view, layer_path(ortho), surface)
                 target = ortho.name()
             else:
                 others = [v for v in self.views if v.scene_name != view.scene_name
@@ -297,7 +249,8 @@ class GcpDock(PixelCanvasDock):
         self.redraw()
 
     def delete_selected(self) -> None:
-        self.tell(tr("Point deleted") if self.editor.delete_selected() else tr("Select a point in the list first"))
+        self.tell(tr("Point deleted (Ctrl+Z brings it back)") if self.editor.delete_selected()
+                  else tr("Select a point in the table first"))
         self.redraw()
 
     def _edit(self, **change) -> None:
@@ -329,10 +282,25 @@ class GcpDock(PixelCanvasDock):
         self.redraw()
         return True
 
-    def _list_selected(self, row: int) -> None:
-        if 0 <= row < len(self.editor.points) and self.editor.selected != row:
-            self.editor.select(row)
-            self.redraw()
+    def select_point(self, index: int | None) -> None:
+        """Select point ``index`` (of the editor's list), draw it and zoom to it."""
+        if index is not None and not 0 <= index < len(self.editor.points):
+            return
+        self.editor.select(index)
+        self.redraw()
+        if self.selected_pixels():
+            self.zoom_to_selected()
+
+    def selected_pixels(self) -> list[tuple[float, float]]:
+        """The selected point in the scene shown: its measurement, else where it is predicted."""
+        if self.editor.selected is None or self.current is None:
+            return []
+        view = self.views[self.current]
+        seen = self.editor.current().observation(view.scene_name, view.camera_name)
+        if seen is not None:
+            return [(seen.col, seen.row)]
+        at = [(p.col, p.row) for p in self.predictions if np.isfinite(p.col) and np.isfinite(p.row)]
+        return [tuple(np.mean(at, axis=0))] if at else []
 
     # --- files ----------------------------------------------------------------------------------
     def _choose_save(self) -> None:
@@ -342,10 +310,14 @@ class GcpDock(PixelCanvasDock):
 
     def inputs(self) -> dict:
         """{what: files} the dock reads: a save must not replace any of them."""
-        files = {f"{v.label} ({what})": [path] for v, (scene, display) in zip(self.views, self.sources)
-                 for what, path in (("scene file", scene), ("display copy", display), ("raw image", str(v.image)))}
+        files = {}
+        for view, (opened, source) in zip(self.views, self.sources):
+            displays = [str(source.display)] + [opened] * (opened not in (source.scene_path, str(source.image)))
+            for what, paths in (("scene file", [source.scene_path]), ("display copy", displays),
+                                ("raw image", [str(source.image)])):
+                files[f"{view.label} ({what})"] = paths
         dem = self.dem_combo.currentLayer()
-        return {**files, "DEM": [dem.source().split("|")[0]] if dem is not None else []}
+        return {**files, "DEM": [layer_path(dem)] if dem is not None else []}
 
     def save(self, path: str) -> bool:
         """Write the points to GeoPackage ``path`` (layer gcps, replaced whole, or not at all);
@@ -362,90 +334,84 @@ class GcpDock(PixelCanvasDock):
         return True
 
     def _choose_open(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, tr("Open GCPs"), "", "GeoPackage (*.gpkg)")
+        path, _ = QFileDialog.getOpenFileName(self, tr("Open GCPs (saved here, or adjusted by bundleadjust)"), "",
+                                              "GeoPackage (*.gpkg)")
         if path:
             self.open_layer(path)
 
     def open_layer(self, path: str) -> bool:
-        """Continue from a saved GCP layer (its scenes must be in the dock); False (with the reason
-        shown) when it cannot be read."""
+        """Continue from a saved GCP layer, or bundleadjust's adjusted GCPs (OUTPUT_GCPS: their
+        residuals shown in the table); its scenes must be in the dock (those that are not are
+        named); False (with the reason shown) when it cannot be read."""
         try:
-            self.editor.load(read_gpkg(path), list(dict.fromkeys(v.scene_name for v in self.views)), path)
+            self.editor.load(read_gpkg(path), list(dict.fromkeys(v.scene_name for v in self.views)), path,
+                             tr("the layer {name}").format(name=Path(path).name))
         except PushbroomError as exc:
             self.tell(str(exc))
             return False
-        self.tell(tr("{n} points read from {path}").format(n=len(self.editor.points), path=path))
+        with_residuals = sum(o.residual is not None for p in self.editor.points for o in p.observations)
+        self.tell(tr("{n} points read from {path}").format(n=len(self.editor.points), path=path)
+                  + (tr(", {k} observations with their residuals").format(k=with_residuals) if with_residuals else ""))
         self.redraw()
         return True
 
     # --- drawing ----------------------------------------------------------------------------------
-    def _marker(self, col: float, row: float, colour: QColor, icon) -> None:
-        self.add_band(QgsGeometry.fromPointXY(point_of(col, row)), QgsWkbTypes.PointGeometry, colour, 2, icon=icon)
-
     def redraw(self) -> None:
-        """Markers, predictions and the lists from the editor's state."""
-        self.clear_bands()
+        """Markers (the image's, the main map's), predictions and the table from the editor's state."""
+        self.drawing.clear()
         self.predictions = []
         view = self.views[self.current] if self.current is not None else None
-        self._mark_ground()
         if view is not None:
+            if self.editor.selected is not None:
+                self._draw_predictions(view)
             for i, point in enumerate(self.editor.points):
                 seen = point.observation(view.scene_name, view.camera_name)
                 if seen is not None:
-                    self._marker(seen.col, seen.row, MEASURED_COLOUR if i == self.editor.selected else OTHER_COLOUR,
-                                 QgsRubberBand.ICON_CROSS)
-            if self.editor.selected is not None:
-                self._draw_predictions(view)
-        self._fill_list()
-
-    def _mark_ground(self) -> None:
-        """The selected point's ground position marked on the main map canvas (hidden without one)."""
-        ground = self.editor.current().ground if self.editor.selected is not None else None
-        if ground is None:
-            self.ground_marker.hide()
-            return
-        crs = self.iface.mapCanvas().mapSettings().destinationCrs()
-        at = QgsCoordinateTransform(wgs84(), crs, QgsProject.instance()).transform(QgsPointXY(ground.lon, ground.lat))
-        self.ground_marker.setCenter(at)
-        self.ground_marker.show()
-
-    def closeEvent(self, event):  # noqa: N802 (Qt API name)
-        self.ground_marker.hide()
-        super().closeEvent(event)
-
-    def dispose(self) -> None:
-        """Also take the ground marker off the main map canvas."""
-        self.iface.mapCanvas().scene().removeItem(self.ground_marker)
-        super().dispose()
+                    self.drawing.marker(point_of(seen.col, seen.row),
+                                        "selected" if i == self.editor.selected else "measured", point.id)
+        self.main_markers.show(self.editor.points, self.editor.selected)
+        self._fill_form(view)
 
     def _draw_predictions(self, view: View) -> None:
+        point = self.editor.current()
         try:
-            self.predictions = predict(self.editor.current(), view, {v.scene_name: v for v in self.views},
-                                       surface_for(self.heights(), view))
+            self.predictions = predict(point, view, {v.scene_name: v for v in self.views},
+                                       surface_for(self.heights()[0], view))
         except PushbroomError as exc:
             self.tell(str(exc))
             return
-        for p in self.predictions:
-            if np.isfinite(p.col) and np.isfinite(p.row):
-                self._marker(p.col, p.row, PREDICTED_COLOUR, QgsRubberBand.ICON_CIRCLE)
+        shown = [p for p in self.predictions if np.isfinite(p.col) and np.isfinite(p.row)]
+        for k, p in enumerate(shown):
+            # estimates within a pixel of an earlier one share its label, which names them all
+            near = [q.source for q in shown if abs(q.col - p.col) < 1.0 and abs(q.row - p.row) < 1.0]
+            first = next(i for i, q in enumerate(shown) if q.source == near[0])
+            self.drawing.marker(point_of(p.col, p.row), "ground" if p.source == "ground" else "scene",
+                                f"{point.id} ({', '.join(near)})" if first == k else "")
 
-    def _fill_list(self) -> None:
-        self.point_list.blockSignals(True)
-        self.point_list.clear()
-        for point in self.editor.points:
-            ground = point.ground.source if point.ground is not None else tr("no ground")
-            self.point_list.addItem(tr("{id} ({role}): {n} images, {ground}").format(
-                id=point.id, role=point.role, n=len(point.observations), ground=ground))
-        self.point_list.setCurrentRow(-1 if self.editor.selected is None else self.editor.selected)
-        self.point_list.blockSignals(False)
-        if self.editor.selected is not None:
-            point = self.editor.current()
-            self.id_edit.setText(point.id)
-            self.role_combo.setCurrentText(point.role)
-            if point.ground is not None:
-                self.sigma_xy_spin.setValue(point.ground.sigma_xy)
-                self.sigma_z_spin.setValue(point.ground.sigma_z)
-            view = self.views[self.current] if self.current is not None else None
-            seen = point.observation(view.scene_name, view.camera_name) if view is not None else None
-            if seen is not None:
-                self.sigma_px_spin.setValue(seen.sigma_px)
+    def _fill_form(self, view: View | None) -> None:
+        self.table.fill(self.editor.points, self.editor.selected, view.scene_name if view else None,
+                        view.camera_name if view else None)
+        if self.editor.selected is None:
+            return
+        point = self.editor.current()
+        self.id_edit.setText(point.id)
+        self.role_combo.setCurrentText(point.role)
+        if point.ground is not None:
+            self.sigma_xy_spin.setValue(point.ground.sigma_xy)
+            self.sigma_z_spin.setValue(point.ground.sigma_z)
+        seen = point.observation(view.scene_name, view.camera_name) if view is not None else None
+        if seen is not None:
+            self.sigma_px_spin.setValue(seen.sigma_px)
+
+    def closeEvent(self, event):  # noqa: N802 (Qt API name)
+        self.main_markers.hide()  # back when the dock is shown again
+        super().closeEvent(event)
+
+    def showEvent(self, event):  # noqa: N802 (Qt API name)
+        super().showEvent(event)
+        self.main_markers.show(self.editor.points, self.editor.selected)
+
+    def dispose(self) -> None:
+        """Also take the markers off the main map canvas."""
+        self.main_markers.dispose()
+        super().dispose()

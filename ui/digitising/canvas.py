@@ -1,0 +1,149 @@
+"""The docks' own map canvas and its tools: the raw image in the pixel frame x = col, y = -row
+(a display copy, :mod:`core.measure.display`), the measuring tool that turns clicks into pixel
+positions, and the view tools a Georeferencer user expects (pan, zoom in and out, zoom to the
+image, zoom to the selected point or line) in a tool bar above the canvas.
+
+The canvas has no CRS, and neither have the layers it shows: a transform from the pixel frame to
+anything else cannot exist, and QGIS asks for one wherever a canvas has a CRS (the project's
+ellipsoid for distances, the CRS a project read gives every canvas, each layer's transform), then
+raises a red bar over the main window. Without a CRS every transform is the identity and nothing
+is asked; the display copy's geotransform alone puts pixel (col, row) at x = col, y = -row.
+"""
+from __future__ import annotations
+
+from qgis.core import QgsApplication, QgsCoordinateReferenceSystem, QgsPointXY, QgsProject, QgsRasterLayer, QgsRectangle
+from qgis.gui import QgsMapCanvas, QgsMapTool, QgsMapToolPan, QgsMapToolZoom
+from qgis.PyQt.QtCore import Qt
+from qgis.PyQt.QtWidgets import QAction, QActionGroup, QLabel, QToolBar
+
+from ..parameters import tr
+
+ZOOM_TO_POINT_PX = 40.0  # half the width (image px) the view shows around a point zoomed to
+
+
+def pixel_of(point: QgsPointXY) -> tuple[float, float]:
+    """(col, row) px of a point of the pixel frame (x = col, y = -row)."""
+    return point.x(), -point.y()
+
+
+def point_of(col: float, row: float) -> QgsPointXY:
+    return QgsPointXY(col, -row)
+
+
+def theme_icon(name: str):
+    """A QGIS theme icon ('/mActionPan.svg')."""
+    return QgsApplication.getThemeIcon(name)
+
+
+class PixelTool(QgsMapTool):
+    """The measuring tool: a release of the left or right button calls ``on_click(col, row,
+    button)``."""
+
+    def __init__(self, canvas: QgsMapCanvas, on_click):
+        super().__init__(canvas)
+        self.on_click = on_click
+        self.setCursor(Qt.CrossCursor)
+
+    def canvasReleaseEvent(self, event):  # noqa: N802
+        if event.button() in (Qt.LeftButton, Qt.RightButton):
+            self.on_click(*pixel_of(event.mapPoint()), event.button())
+
+
+class PixelCanvas(QgsMapCanvas):
+    """A map canvas showing one raster in the pixel frame, without a CRS (see the module), with
+    ``hint`` written over it while it shows nothing. A project read gives every canvas the
+    project's CRS and extent: this one takes its own back."""
+
+    def __init__(self, hint: str):
+        super().__init__()
+        self.setCanvasColor(Qt.white)
+        self.layer: QgsRasterLayer | None = None
+        self.hint = QLabel(hint, self)
+        self.hint.setAlignment(Qt.AlignCenter)
+        self.hint.setWordWrap(True)
+        self.hint.setStyleSheet("color: #444; font-size: 15px; background: transparent")
+        QgsProject.instance().readProject.connect(self._restore)
+
+    def show_raster(self, path: str, name: str) -> bool:
+        """Show the raster at ``path`` alone, whole; False when QGIS cannot read it."""
+        layer = QgsRasterLayer(path, name)
+        if not layer.isValid():
+            return False
+        layer.setCrs(QgsCoordinateReferenceSystem())
+        self.layer = layer
+        self.setLayers([layer])
+        self.hint.hide()
+        self.zoom_to_image()
+        return True
+
+    def zoom_to_image(self) -> None:
+        if self.layer is not None:
+            self.setExtent(self.layer.extent())
+            self.refresh()
+
+    def zoom_to_pixel(self, col: float, row: float, half: float = ZOOM_TO_POINT_PX) -> None:
+        """Centre the view on (col, row) px, ``half`` px either side (or the current scale when
+        that is closer)."""
+        half = min(half, max(self.extent().width(), 1.0) / 2)
+        self.setExtent(QgsRectangle(col - half, -row - half, col + half, -row + half))
+        self.refresh()
+
+    def release(self) -> None:
+        """Show nothing and let go of the layer (its raster pipe must not outlive QGIS)."""
+        self.stopRendering()
+        self.setLayers([])
+        self.layer = None
+        self.hint.show()
+
+    def _restore(self, *args) -> None:
+        self.setDestinationCrs(QgsCoordinateReferenceSystem())
+        self.zoom_to_image()
+
+    def resizeEvent(self, event):  # noqa: N802 (Qt API name)
+        super().resizeEvent(event)
+        self.hint.setGeometry(10, 10, max(self.width() - 20, 1), max(self.height() - 20, 1))
+
+    def dispose(self) -> None:
+        """Release the layer and stop following the project (before the widget goes)."""
+        self.release()
+        try:
+            QgsProject.instance().readProject.disconnect(self._restore)
+        except TypeError:  # disconnected already (disposed twice)
+            pass
+
+
+class CanvasTools(QToolBar):
+    """The tool bar above a :class:`PixelCanvas`: ``measure`` (the dock's own tool: ``tool``,
+    checked first), pan, zoom in, zoom out (one of them active at a time, as in QGIS), zoom to
+    the image and zoom to the selection (``zoom_selected()``, the dock's)."""
+
+    def __init__(self, canvas: PixelCanvas, tool: QgsMapTool, measure_text: str, measure_icon: str, zoom_selected):
+        super().__init__()
+        self.setIconSize(self.iconSize() * 0.8)
+        self.canvas = canvas
+        group = QActionGroup(self)
+        self.tools = {}
+        for key, icon, text, map_tool in (
+                ("measure", measure_icon, measure_text, tool),
+                ("pan", "/mActionPan.svg", tr("Pan (or drag with the middle button)"), QgsMapToolPan(canvas)),
+                ("zoom_in", "/mActionZoomIn.svg", tr("Zoom in (or the mouse wheel)"), QgsMapToolZoom(canvas, False)),
+                ("zoom_out", "/mActionZoomOut.svg", tr("Zoom out"), QgsMapToolZoom(canvas, True))):
+            action = QAction(theme_icon(icon), text, self)
+            action.setCheckable(True)
+            group.addAction(action)
+            map_tool.setAction(action)
+            action.triggered.connect(lambda _=False, t=map_tool: canvas.setMapTool(t))
+            self.addAction(action)
+            self.tools[key] = (action, map_tool)
+        self.addSeparator()
+        self.zoom_image = self.addAction(theme_icon("/mActionZoomFullExtent.svg"), tr("Zoom to the image"),
+                                         canvas.zoom_to_image)
+        self.zoom_selected = self.addAction(theme_icon("/mActionZoomToSelected.svg"), tr("Zoom to the selected one"),
+                                            zoom_selected)
+        self.use("measure")
+
+    def use(self, key: str) -> None:
+        """Make tool ``key`` (measure, pan, zoom_in, zoom_out) the canvas's."""
+        action, map_tool = self.tools[key]
+        action.setChecked(True)
+        self.canvas.setMapTool(map_tool)

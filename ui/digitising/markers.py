@@ -1,0 +1,193 @@
+"""What the docks draw on a canvas: hollow point markers with the point's id beside them, one
+style per source (measured, predicted from the ground, predicted from another scene), a legend
+of those styles, and line bands. Markers keep their screen size at any zoom and are hollow, so
+that at whole-image zoom a prediction does not hide the measurement under it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from qgis.core import QgsGeometry, QgsPointXY, QgsWkbTypes
+from qgis.gui import QgsMapCanvas, QgsMapCanvasItem, QgsRubberBand
+from qgis.PyQt import sip
+from qgis.PyQt.QtCore import QPointF, QRectF, Qt
+from qgis.PyQt.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPainterPath, QPen, QPixmap, QPolygonF
+from qgis.PyQt.QtWidgets import QHBoxLayout, QLabel, QWidget
+
+from ..parameters import tr
+
+
+@dataclass(frozen=True)
+class MarkerStyle:
+    """A marker: its colour (r, g, b), shape (circle, square, diamond), size and pen width
+    (screen px), whether a dot marks the exact position, and its legend text."""
+    colour: tuple[int, int, int]
+    shape: str
+    size: float
+    width: float
+    dot: bool
+    legend: str
+
+    def qcolor(self, alpha: int = 255) -> QColor:
+        return QColor(*self.colour, alpha)
+
+
+STYLES = {
+    "selected": MarkerStyle((230, 20, 20), "circle", 16, 2.0, True, "selected point"),
+    "measured": MarkerStyle((0, 150, 255), "circle", 12, 1.5, True, "measured"),
+    "ground": MarkerStyle((255, 140, 0), "square", 14, 1.5, False, "predicted from its ground"),
+    "scene": MarkerStyle((200, 0, 200), "diamond", 18, 1.5, False, "predicted from another scene"),
+}
+LINE_STYLES = {  # (colour, alpha, width px, dashed): thin and half transparent, the road stays visible under them
+    "line": ((0, 170, 255), 170, 1, False),
+    "selected": ((255, 40, 40), 150, 1, False),
+    "drawing": ((255, 200, 0), 220, 1, False),
+    "predicted": ((200, 0, 200), 170, 1, True),
+}
+
+
+def shape_path(shape: str, size: float) -> QPainterPath:
+    """The outline of a marker ``shape`` of ``size`` px, centred on (0, 0)."""
+    r = size / 2
+    path = QPainterPath()
+    if shape == "square":
+        path.addRect(QRectF(-r * 0.8, -r * 0.8, 1.6 * r, 1.6 * r))
+    elif shape == "diamond":
+        path.addPolygon(QPolygonF([QPointF(0, -r), QPointF(r, 0), QPointF(0, r), QPointF(-r, 0), QPointF(0, -r)]))
+    else:
+        path.addEllipse(QPointF(0, 0), r, r)
+    return path
+
+
+def paint_marker(painter: QPainter, style: MarkerStyle, label: str = "", font: QFont | None = None) -> None:
+    """Draw a marker of ``style`` at the painter's origin, ``label`` beside it (white halo)."""
+    painter.setRenderHint(QPainter.Antialiasing)
+    outline = shape_path(style.shape, style.size)
+    painter.setBrush(Qt.NoBrush)
+    painter.setPen(QPen(QColor(255, 255, 255, 160), style.width + 2))
+    painter.drawPath(outline)
+    painter.setPen(QPen(style.qcolor(), style.width))
+    painter.drawPath(outline)
+    if style.dot:
+        painter.setBrush(style.qcolor())
+        painter.drawEllipse(QPointF(0, 0), 1.2, 1.2)
+    if label:
+        text = QPainterPath()
+        text.addText(QPointF(style.size / 2 + 2, -style.size / 2), font or label_font(), label)
+        painter.setPen(QPen(QColor(255, 255, 255, 220), 3))
+        painter.setBrush(Qt.NoBrush)
+        painter.drawPath(text)
+        painter.setPen(Qt.NoPen)
+        painter.setBrush(style.qcolor())
+        painter.drawPath(text)
+
+
+def label_font() -> QFont:
+    font = QFont()
+    font.setPointSizeF(8.5)
+    font.setBold(True)
+    return font
+
+
+class PointMarker(QgsMapCanvasItem):
+    """A marker of ``style`` at ``point`` (map coordinates of ``canvas``), labelled ``label``."""
+
+    def __init__(self, canvas: QgsMapCanvas, point: QgsPointXY, style: MarkerStyle, label: str = ""):
+        super().__init__(canvas)
+        self.point, self.style, self.label, self.font = point, style, label, label_font()
+        width = QFontMetricsF(self.font).horizontalAdvance(label) if label else 0.0
+        r = style.size / 2 + style.width + 2
+        self.bounds = QRectF(-r, -r - 14, 2 * r + width + 6, 2 * r + 16)
+        self.setZValue(20 if style.dot else 10)  # measurements above predictions
+        self.updatePosition()
+
+    def paint(self, painter, option=None, widget=None):
+        paint_marker(painter, self.style, self.label, self.font)
+
+    def boundingRect(self):  # noqa: N802 (Qt API name)
+        return self.bounds
+
+    def updatePosition(self):  # noqa: N802 (QGIS API name)
+        self.setPos(self.toCanvasCoordinates(self.point))
+
+
+def remove_item(item) -> None:
+    """Take a canvas item off whatever scene holds it and delete it (nothing when it is gone with
+    its canvas already)."""
+    if sip.isdeleted(item):
+        return
+    scene = item.scene()
+    if scene is not None:
+        scene.removeItem(item)
+    sip.delete(item)
+
+
+class CanvasDrawing:
+    """The markers and bands a dock keeps on one canvas, replaced together."""
+
+    def __init__(self, canvas: QgsMapCanvas):
+        self.canvas = canvas
+        self.items = []
+
+    def clear(self) -> None:
+        for item in self.items:
+            remove_item(item)
+        self.items = []
+
+    def marker(self, point: QgsPointXY, kind: str, label: str = "") -> PointMarker:
+        """A marker of STYLES[kind] at ``point`` (map coordinates)."""
+        item = PointMarker(self.canvas, point, STYLES[kind], label)
+        self.items.append(item)
+        return item
+
+    def polyline(self, points: list[QgsPointXY], kind: str) -> QgsRubberBand:
+        """A band through ``points`` (map coordinates) in LINE_STYLES[kind]."""
+        colour, alpha, width, dashed = LINE_STYLES[kind]
+        band = QgsRubberBand(self.canvas, QgsWkbTypes.LineGeometry)
+        band.setColor(QColor(*colour, alpha))
+        band.setWidth(width)
+        if dashed:
+            band.setLineStyle(Qt.DashLine)
+        band.setToGeometry(QgsGeometry.fromPolylineXY(points), None)
+        self.items.append(band)
+        return band
+
+
+def legend(kinds, lines: tuple[str, ...] = ()) -> QWidget:
+    """A one-row legend: a swatch and a text per marker kind of STYLES (and line kind of
+    LINE_STYLES: ``lines`` as (kind, text) pairs)."""
+    widget = QWidget()
+    row = QHBoxLayout(widget)
+    row.setContentsMargins(2, 0, 2, 0)
+    for kind in kinds:
+        style = STYLES[kind]
+        pixmap = QPixmap(22, 22)
+        pixmap.fill(Qt.transparent)
+        painter = QPainter(pixmap)
+        painter.translate(11, 11)
+        paint_marker(painter, MarkerStyle(style.colour, style.shape, min(style.size, 16), style.width, style.dot, ""))
+        painter.end()
+        row.addWidget(swatch(pixmap, tr(style.legend)))
+    for kind, text in lines:
+        colour, _, _, dashed = LINE_STYLES[kind]
+        pixmap = QPixmap(22, 22)
+        pixmap.fill(Qt.transparent)
+        painter = QPainter(pixmap)
+        painter.setPen(QPen(QColor(*colour), 2, Qt.DashLine if dashed else Qt.SolidLine))
+        painter.drawLine(2, 16, 20, 6)
+        painter.end()
+        row.addWidget(swatch(pixmap, text))
+    row.addStretch(1)
+    return widget
+
+
+def swatch(pixmap: QPixmap, text: str) -> QWidget:
+    widget = QWidget()
+    row = QHBoxLayout(widget)
+    row.setContentsMargins(0, 0, 6, 0)
+    row.setSpacing(2)
+    icon = QLabel()
+    icon.setPixmap(pixmap)
+    row.addWidget(icon)
+    row.addWidget(QLabel(text))
+    return widget
