@@ -173,7 +173,8 @@ def test_a_dem_with_holes_rejects_the_gcps_it_has_no_height_for(mini, tmp_path, 
     """A DEM with holes over a band of the scene: no traceback (before: 'ValueError: cannot convert
     float NaN to integer' in the coarse pass); the grid points whose ground lies in the hole are matched
     at the estimated height and rejected as 'no DEM height' (a GCP's height would be a guess), counted
-    in the log with the DEM named; the others are GCPs as accurate as on the whole DEM."""
+    in the log with the DEM named; the others are GCPs as accurate as on the whole DEM (measured, NaN and
+    -32768 alike: no height for 106 of 336 grid points, 97 matches among them rejected, 206 GCPs)."""
     dem = _holed_dem(mini, tmp_path / "holed_dem.tif", nodata)
     log = LogFeedback()
     out = processing.run(ALG, _params(mini, tmp_path, DEM=dem), feedback=log)
