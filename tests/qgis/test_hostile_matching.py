@@ -14,7 +14,8 @@ import processing
 from pushbroom_adjust.core.observations import gcps
 from tests.support.matchscene import SEARCH, mini_scene, true_errors
 from tests.support.dems import read_dem, with_holes
-from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.processing import RecordingFeedback
 
 gdal.UseExceptions()
 ALG = "pushbroom:matchgcps"
@@ -152,7 +153,7 @@ def test_reference_in_geographic_coordinates_matches(mini, tmp_path):
 def test_a_search_range_beyond_the_image_is_clipped_to_it(mini, tmp_path):
     """SEARCH_RANGE 5 km over an image of 4.8 km (2027 px of 2.358 m): clipped to the image, said in the
     log, and matched (before: refused, 'search range 5000 m needs ... px chips, more than the image')."""
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run(ALG, _params(mini, tmp_path, SEARCH_RANGE=5000), feedback=log)
     assert any(line.startswith("search range 5000 m clipped to 4779 m: 2027 px") for line in log.lines), log.lines
     e = true_errors(mini.folder, gcps.read_gpkg(out["OUTPUT"]))
@@ -176,7 +177,7 @@ def test_a_dem_with_holes_rejects_the_gcps_it_has_no_height_for(mini, tmp_path, 
     in the log with the DEM named; the others are GCPs as accurate as on the whole DEM (measured, NaN and
     -32768 alike: no height for 106 of 336 grid points, 97 matches among them rejected, 206 GCPs)."""
     dem = _holed_dem(mini, tmp_path / "holed_dem.tif", nodata)
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run(ALG, _params(mini, tmp_path, DEM=dem), feedback=log)
     rejected = next(line for line in log.lines if line.startswith("rejected: "))
     holes = int(rejected.split(" no DEM height")[0].rsplit(" ", 1)[-1])

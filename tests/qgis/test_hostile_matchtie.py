@@ -15,7 +15,8 @@ from pushbroom_adjust.core.measure.finepass import SIGMA_FLOOR
 from pushbroom_adjust.core.observations import tiepoints
 from tests.support.dems import read_dem, with_holes
 from tests.support.matchscene import mini_tlc_scene
-from tests.support.hostile import LogFeedback, assert_refused, assert_refused_cli
+from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.processing import RecordingFeedback
 
 gdal.UseExceptions()
 ALG = "pushbroom:matchtiepoints"
@@ -142,7 +143,7 @@ def test_a_search_range_beyond_the_image_is_clipped_to_it(tlc, tmp_path):
     """SEARCH_RANGE 20 km over an image of 7.5 km (1500 px of 5 m): clipped to the image, said in the
     log, and matched as with 300 m (before: refused, 'search range 20000 m needs ... px chips, more than
     the image')."""
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run(ALG, _params(tlc, tmp_path, SEARCH_RANGE=20_000), feedback=log)
     assert any(line.startswith("search range 20000 m clipped to 7500 m: 1500 px, the image's larger side")
                for line in log.lines), log.lines
@@ -184,7 +185,7 @@ def test_a_dem_with_holes_is_matched_on_and_its_holes_counted(tlc, tmp_path, nod
     mask = np.zeros(z.shape, bool)
     mask[:, z.shape[1] // 3:z.shape[1] // 2] = True
     dem = with_holes(tlc.dem, tmp_path / "holed_dem.tif", mask, nodata)
-    log = LogFeedback()
+    log = RecordingFeedback()
     out = processing.run(ALG, _params(tlc, tmp_path, DEM=dem), feedback=log)
     text = "\n".join(log.lines)
     for camera in ("FWD", "BWD"):

@@ -10,8 +10,8 @@ import processing
 from pushbroom_adjust.core.observations import gcps
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.formats import load_scene
-from tests.support.hostile import LogFeedback
 from tests.support.matchscene import SEARCH, mini_scene, true_errors
+from tests.support.processing import RecordingFeedback
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +77,7 @@ def test_window_and_fine_radius_reach_the_matcher(mini, tmp_path):
     seam by default (31 px, 8 px); 576 and 54 with FINE_RADIUS 40 or WINDOW 101)."""
     grids, seams = {}, {}
     for name, kw in {"default": {}, "FINE_RADIUS": {"FINE_RADIUS": 40}, "WINDOW": {"WINDOW": 101}}.items():
-        log = LogFeedback()
+        log = RecordingFeedback()
         processing.run("pushbroom:matchgcps", params(mini, tmp_path / f"{name}.gpkg", **kw), feedback=log)
         text = "\n".join(log.lines)
         grids[name] = int(re.search(r"matched \d+ of (\d+) grid points", text).group(1))
