@@ -1,5 +1,6 @@
 """pushbroom:orthorectify in QGIS and from qgis_process, on a rendered cut of a simulated scene."""
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -78,11 +79,16 @@ def test_a_dem_covering_part_of_the_scene_is_warned(provider, raw, tmp_path):
     processing.run("pushbroom:orthorectify", {"INPUT": image, "SCENE": scene, "DEM": str(half), "RESOLUTION": 10,
                                               "EXTENT": extent, "OUTPUT": str(tmp_path / "part.tif")},
                    feedback=feedback)
-    assert any("the DEM gives no height for" in w for w in feedback.warnings), feedback.warnings
+    said = [re.search(r"gives no height for (\d+) of (\d+) output pixels", w) for w in feedback.warnings
+            if w.startswith(f"DEM: DEM {half} gives no height for")]
+    assert said and said[0], feedback.warnings
     part_ds = gdal.Open(str(tmp_path / "part.tif"))  # held: a band outliving its dataset crashes GDAL
     part = part_ds.GetRasterBand(1).ReadAsArray()
     whole = ds.GetRasterBand(1).ReadAsArray()
     assert part.shape == whole.shape and 0.2 < np.mean(part > 0) / np.mean(whole > 0) < 0.8
+    # the warning counts the footprint's pixels the partial DEM leaves empty
+    empty, footprint = int(((whole > 0) & (part == 0)).sum()), int((whole > 0).sum())
+    assert int(said[0][1]) == pytest.approx(empty, rel=2e-3) and int(said[0][2]) == pytest.approx(footprint, rel=2e-3)
 
 
 def test_orthorectify_from_the_command_line(qgis_process, raw, tmp_path):
