@@ -15,7 +15,10 @@ import pytest
 from osgeo import gdal
 
 from pushbroom_adjust.core.adjust import AdjustmentSettings
-from pushbroom_adjust.core.adjust.block import adjust_block
+from pushbroom_adjust.core.adjust.block import adjust_block, block_inputs
+from pushbroom_adjust.core.adjust.blockproblem import BlockProblem
+from pushbroom_adjust.core.adjust.checks import check_inputs
+from pushbroom_adjust.core.adjust.ties import set_up_ties
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.formats.rpcfiles import rpc_metadata
@@ -187,3 +190,84 @@ def test_bad_rpc_block_input_is_named(block):
     unobserved = RpcScene(block.rpc_vendor["R"].rpc, block.rpc_vendor["R"].camera)
     with pytest.raises(InputError, match="'P'.*no control point or tie point"):
         adjust_block({**block.rpc_vendor, "P": unobserved}, gcps, ties, SETTINGS)
+
+
+# --- the block's problem: what each camera's parameters are, how the unknowns are numbered ------------
+STEPS = {"m": 1e-5, "rad": 1e-5, "px": 0.5, "px/px": 1e-3}
+"""A change in each parameter's unit that moves an imaged point by a tenth of a pixel or more (a
+position by 1 m; other lengths are in the focal plane: 10 um)."""
+
+
+def block_problem(scenes: dict, tables: tuple, settings: AdjustmentSettings) -> BlockProblem:
+    """The problem the engine solves for the block ``scenes`` and its (ties, gcps, _) ``tables``."""
+    ties, gcps, _ = tables
+    composite, gcps, ties, _ = block_inputs(scenes, gcps, ties, None)
+    return BlockProblem(composite, check_inputs(composite, gcps, settings, ties), settings,
+                        set_up_ties(composite, ties))
+
+
+def moved_cameras(problem: BlockProblem, j: int) -> set:
+    """The cameras (indices) whose observations move (> 1e-6 px) when free parameter j changes."""
+    values = problem.params.values()
+    before = problem.residuals()
+    changed = values.copy()
+    p = problem.params.params[j]
+    changed[j] += 1.0 if p.block == "position" else STEPS[p.unit]
+    problem.params.set_values(changed)
+    try:
+        after = problem.residuals()
+    finally:
+        problem.params.set_values(values)
+    assert np.isfinite(after).all(), p.name
+    return set(np.unique(problem.obs.camera[np.abs(after - before).max(axis=1) > 1e-6]).tolist())
+
+
+def assert_imaged_by_is_what_moves(problem: BlockProblem) -> None:
+    """Every free parameter is marked imaged by exactly the cameras whose observations it moves."""
+    cameras = range(len(problem.scene.cameras))
+    marked = np.array([problem.params.imaged_by(c) for c in cameras])  # (cameras, parameters)
+    for j in problem.params.free:
+        name = problem.params.params[j].name
+        assert set(np.nonzero(marked[:, j])[0].tolist()) == moved_cameras(problem, j), name
+
+
+def test_block_parameters_imaged_by_marks_what_each_camera_sees(block):
+    """Two rigorous TH-1 scenes (their trajectories, S1's nadir chip and S2's forward focal length
+    free) and R's RPC image (a0, a2, b0, b2 free): each of the 32 free parameters is marked for
+    exactly the cameras whose observations it moves (changed one at a time)."""
+    problem = block_problem(block.onboard, block.tables(block.true),
+                            replace(SETTINGS, interior="S1/NAD-1.*, S2/FWD.f"))
+    names = [c.name for c in problem.scene.cameras]
+    assert names == ["S1/NAD", "S1/FWD", "S1/BWD", "S2/NAD", "S2/FWD", "S2/BWD", "R/PAN"]
+    assert problem.params.free.size == 24 + 4 + 4
+    assert_imaged_by_is_what_moves(problem)
+    params = problem.params.params
+    rpc = problem.params.imaged_by(names.index("R/PAN"))
+    assert [params[j].name for j in np.nonzero(rpc)[0]] == [f"R/PAN.{t}" for t in TERMS]  # fixed ones too
+    nadir = problem.params.imaged_by(names.index("S1/NAD"))
+    assert {params[j].name for j in np.nonzero(nadir)[0] if params[j].block in ("chip", "camera")} >= \
+        {"S1/NAD-1.dx", "S1/NAD-1.dy", "S1/NAD-1.theta"}
+    assert not any(params[j].name.startswith(("S2", "R/", "S1/FWD", "S1/BWD")) for j in np.nonzero(nadir)[0])
+
+
+def test_block_unknowns_are_the_rigorous_ones_then_each_images_free_terms(block):
+    """The mixed block (24 rigorous unknowns, then R's 4) and three RPC images alone (4 each, in the
+    block's order): the free parameters numbered in order, the rigorous composite's first, then
+    each RPC image's free terms together; an RPC observation's columns are exactly its image's."""
+    for scenes, tables, rigorous in ((block.onboard, block.tables(block.true), 24),
+                                     (block.rpc_vendor, block.tables(block.rpc_true, "lattices"), 0)):
+        problem = block_problem(scenes, tables, SETTINGS)
+        params, unknown, free = problem.params.params, problem.unknown, problem.params.free
+        np.testing.assert_array_equal(unknown[free], np.arange(free.size))
+        assert (np.delete(unknown, free) == -1).all()
+        assert all(params[j].block in ("position", "attitude") for j in free[:rigorous])
+        cameras = problem.scene.cameras[problem.scene.n_rigorous:]
+        assert len(cameras) == len(scenes) - (2 if rigorous else 0)
+        assert free.size == rigorous + 4 * len(cameras)
+        for k, cam in enumerate(cameras):
+            mine = rigorous + 4 * k + np.arange(4)  # drift mode: a0, a2, b0, b2
+            assert [params[j].name for j in free[mine]] == [f"{cam.name}.{t}" for t in ("a0", "a2", "b0", "b2")]
+            rows = problem.columns[problem.obs.camera == problem.scene.n_rigorous + k]
+            assert rows.shape[0] > 0
+            assert all(sorted(r[r >= 0].tolist()) == mine.tolist() for r in rows), cam.name
+    assert_imaged_by_is_what_moves(problem)  # the RPC images alone: each image's terms move it alone
