@@ -54,8 +54,8 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InputError
-from ..model.block import SEPARATOR, block_camera, compose_block, split_block
-from ..model.mixedblock import MixedBlock, compose_mixed
+from ..model.block import SEPARATOR, block_camera
+from ..model.mixedblock import MixedBlock, compose_mixed, split_scenes
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel, rows_by
 from ..observations.gcps import GcpTable
@@ -149,7 +149,7 @@ def block_lines(scenes: dict[str, SceneModel | RpcScene], lines: ControlLines) -
     need rigorous scene models)."""
     image = lines.image
     scene_of = _scene_column(image.scene, image.line_id, scenes, "lines", kind="line")
-    rpc = [name for name, scene in scenes.items() if isinstance(scene, RpcScene)]
+    rpc = [name for name, scene in scenes.items() if scene.rpc_images()]
     if rpc:
         on_rpc = np.isin(scene_of, rpc)
         where = (f"line(s) {listed(np.unique(image.line_id[on_rpc]))} are measured in the RPC product(s) "
@@ -186,8 +186,7 @@ def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
     scene without control, tie or line observations."""
     if not isinstance(scenes, dict) or not scenes:
         raise InputError("a block needs a dict of one or more named scenes", parameter="scenes")
-    with_rpc = any(isinstance(scene, RpcScene) for scene in scenes.values())
-    composite = compose_mixed(scenes) if with_rpc else compose_block(scenes)
+    composite = compose_mixed(scenes)
     if gcps is None:
         none = np.zeros(0)
         gcps = GcpTable(none.astype(str), "control", none.astype(str), *(none,) * 8)
@@ -231,7 +230,7 @@ def adjust_block(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
                         "their heights are weakly determined: %s", int(weak.sum()), MIN_CONVERGENCE_DEG,
                         listed(convergence[0][weak]))
     out = adjust(composite, gcps, settings, progress, is_cancelled, ties=ties, lines=lines)
-    adjusted = out.scene.split() if isinstance(out.scene, MixedBlock) else split_block(out.scene)
+    adjusted = split_scenes(out.scene)
     for name, scene in adjusted.items():
         if "adjustment" in scene.info:
             scene.info["adjustment"] = {**scene.info["adjustment"], "block": {"scene": name, "scenes": list(scenes)}}
