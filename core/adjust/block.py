@@ -1,21 +1,23 @@
 """Bundle adjustment of a block of independent scenes (stereo pair, tri-stereo, multi-date,
 neighbouring orbits; rigorous scenes and RPC products mixed) as one: :func:`adjust_block`.
 
-Route: the block is one composite scene (:func:`core.model.block.compose_block`: every scene's
-cameras renamed ``<scene>/<camera>``, each looking through its own scene's platform, times from
-its own scene's epoch), adjusted by the single-scene engine (:func:`core.adjust.engine.adjust`)
-unchanged in its stages, and split back into one adjusted scene per input
-(:func:`core.model.block.split_block`). The engine's parameters already group cameras into
-trajectory corrections (:func:`core.adjust.parameters.trajectory_groups`): one per measured
-trajectory, i.e. one per scene of the block (``camera_trajectory='shared'``) on a time basis over
-that scene's own lines with its own onboard pseudo-observations, or one per camera
-(``'per_camera'``); interior and installation parameters per camera as the settings ask (camera
-names carry the scene: ``INTERIOR=B/FWD.roll``). Ground points (GCPs and tie points) are shared
-unknowns across scenes, eliminated from the normal equations as in one scene. This reuses the
-determinability checks, Levenberg-Marquardt, robust estimation, variance components, check
-points, the report and the written-vs-fitted check (which writes and reads back each scene of the
-block), where composing per-scene normal equations (the other route) would have had to repeat
-each of those stages for a block.
+Route: the block is one composite scene (:func:`core.model.mixedblock.compose_mixed`; of rigorous
+scenes alone :func:`core.model.block.compose_block`: every scene's cameras renamed
+``<scene>/<camera>``, each looking through its own scene's platform, times from its own scene's
+epoch), adjusted by the single-scene engine (:func:`core.adjust.engine.adjust`) unchanged in its
+stages, and split back into one adjusted scene per input
+(:func:`core.model.mixedblock.split_scenes`). Each member answers for its own kind
+(:mod:`core.model.kinds`): no step asks whether it holds a rigorous scene or an RPC product. The
+engine's parameters already group cameras into trajectory corrections
+(:func:`core.adjust.parameters.trajectory_groups`): one per measured trajectory, i.e. one per scene
+of the block (``camera_trajectory='shared'``) on a time basis over that scene's own lines with its
+own onboard pseudo-observations, or one per camera (``'per_camera'``); interior and installation
+parameters per camera as the settings ask (camera names carry the scene: ``INTERIOR=B/FWD.roll``).
+Ground points (GCPs and tie points) are shared unknowns across scenes, eliminated from the normal
+equations as in one scene. This reuses the determinability checks, Levenberg-Marquardt, robust
+estimation, variance components, check points, the report and the written-vs-fitted check (which
+writes and reads back each scene of the block), where composing per-scene normal equations (the
+other route) would have had to repeat each of those stages for a block.
 
 RPC scenes (:class:`core.model.rpcscene.RpcScene`, any number, with or without rigorous scenes):
 the block is then a :class:`core.model.mixedblock.MixedBlock` (the rigorous scenes' composite and
