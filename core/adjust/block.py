@@ -1,21 +1,23 @@
 """Bundle adjustment of a block of independent scenes (stereo pair, tri-stereo, multi-date,
 neighbouring orbits; rigorous scenes and RPC products mixed) as one: :func:`adjust_block`.
 
-Route: the block is one composite scene (:func:`core.model.block.compose_block`: every scene's
-cameras renamed ``<scene>/<camera>``, each looking through its own scene's platform, times from
-its own scene's epoch), adjusted by the single-scene engine (:func:`core.adjust.engine.adjust`)
-unchanged in its stages, and split back into one adjusted scene per input
-(:func:`core.model.block.split_block`). The engine's parameters already group cameras into
-trajectory corrections (:func:`core.adjust.parameters.trajectory_groups`): one per measured
-trajectory, i.e. one per scene of the block (``camera_trajectory='shared'``) on a time basis over
-that scene's own lines with its own onboard pseudo-observations, or one per camera
-(``'per_camera'``); interior and installation parameters per camera as the settings ask (camera
-names carry the scene: ``INTERIOR=B/FWD.roll``). Ground points (GCPs and tie points) are shared
-unknowns across scenes, eliminated from the normal equations as in one scene. This reuses the
-determinability checks, Levenberg-Marquardt, robust estimation, variance components, check
-points, the report and the written-vs-fitted check (which writes and reads back each scene of the
-block), where composing per-scene normal equations (the other route) would have had to repeat
-each of those stages for a block.
+Route: the block is one composite scene (:func:`core.model.mixedblock.compose_mixed`; of rigorous
+scenes alone :func:`core.model.block.compose_block`: every scene's cameras renamed
+``<scene>/<camera>``, each looking through its own scene's platform, times from its own scene's
+epoch), adjusted by the single-scene engine (:func:`core.adjust.engine.adjust`) unchanged in its
+stages, and split back into one adjusted scene per input
+(:func:`core.model.mixedblock.split_scenes`). Each member answers for its own kind
+(:mod:`core.model.kinds`): no step asks whether it holds a rigorous scene or an RPC product. The
+engine's parameters already group cameras into trajectory corrections
+(:func:`core.adjust.parameters.trajectory_groups`): one per measured trajectory, i.e. one per scene
+of the block (``camera_trajectory='shared'``) on a time basis over that scene's own lines with its
+own onboard pseudo-observations, or one per camera (``'per_camera'``); interior and installation
+parameters per camera as the settings ask (camera names carry the scene: ``INTERIOR=B/FWD.roll``).
+Ground points (GCPs and tie points) are shared unknowns across scenes, eliminated from the normal
+equations as in one scene. This reuses the determinability checks, Levenberg-Marquardt, robust
+estimation, variance components, check points, the report and the written-vs-fitted check (which
+writes and reads back each scene of the block), where composing per-scene normal equations (the
+other route) would have had to repeat each of those stages for a block.
 
 RPC scenes (:class:`core.model.rpcscene.RpcScene`, any number, with or without rigorous scenes):
 the block is then a :class:`core.model.mixedblock.MixedBlock` (the rigorous scenes' composite and
@@ -54,8 +56,8 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InputError
-from ..model.block import SEPARATOR, block_camera, compose_block, split_block
-from ..model.mixedblock import MixedBlock, compose_mixed
+from ..model.block import SEPARATOR, block_camera
+from ..model.mixedblock import MixedBlock, compose_mixed, split_scenes
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel, rows_by
 from ..observations.gcps import GcpTable
@@ -149,7 +151,7 @@ def block_lines(scenes: dict[str, SceneModel | RpcScene], lines: ControlLines) -
     need rigorous scene models)."""
     image = lines.image
     scene_of = _scene_column(image.scene, image.line_id, scenes, "lines", kind="line")
-    rpc = [name for name, scene in scenes.items() if isinstance(scene, RpcScene)]
+    rpc = [name for name, scene in scenes.items() if scene.rpc_images()]
     if rpc:
         on_rpc = np.isin(scene_of, rpc)
         where = (f"line(s) {listed(np.unique(image.line_id[on_rpc]))} are measured in the RPC product(s) "
@@ -186,8 +188,7 @@ def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
     scene without control, tie or line observations."""
     if not isinstance(scenes, dict) or not scenes:
         raise InputError("a block needs a dict of one or more named scenes", parameter="scenes")
-    with_rpc = any(isinstance(scene, RpcScene) for scene in scenes.values())
-    composite = compose_mixed(scenes) if with_rpc else compose_block(scenes)
+    composite = compose_mixed(scenes)
     if gcps is None:
         none = np.zeros(0)
         gcps = GcpTable(none.astype(str), "control", none.astype(str), *(none,) * 8)
@@ -231,7 +232,7 @@ def adjust_block(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
                         "their heights are weakly determined: %s", int(weak.sum()), MIN_CONVERGENCE_DEG,
                         listed(convergence[0][weak]))
     out = adjust(composite, gcps, settings, progress, is_cancelled, ties=ties, lines=lines)
-    adjusted = out.scene.split() if isinstance(out.scene, MixedBlock) else split_block(out.scene)
+    adjusted = split_scenes(out.scene)
     for name, scene in adjusted.items():
         if "adjustment" in scene.info:
             scene.info["adjustment"] = {**scene.info["adjustment"], "block": {"scene": name, "scenes": list(scenes)}}

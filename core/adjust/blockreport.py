@@ -87,12 +87,12 @@ def vendor_move(before: MixedBlock, after: MixedBlock, camera: int, out: Adjustm
             "correction": terms}
 
 
-def _move(composite, out: AdjustmentResult, name: str, settings: AdjustmentSettings) -> dict:
+def _move(composite, out: AdjustmentResult, name: str, member, settings: AdjustmentSettings) -> dict:
     """Block scene ``name``'s move from its input geolocation: :func:`vendor_move` for an RPC image,
     :func:`onboard_move` for a rigorous scene; with its ``model`` ('rpc' or 'rigorous') and the
     sigmas it was adjusted with (``sigmas``, :func:`core.adjust.scenesigmas.stated_sigmas`)."""
     cameras = scene_cameras(composite, name)
-    if isinstance(composite, MixedBlock) and cameras[0] >= composite.n_rigorous:
+    if member.rpc_images():
         return {"model": "rpc", **vendor_move(composite, out.scene, cameras[0], out, settings, name),
                 "sigmas": stated_sigmas(settings, name, True)}
     return {"model": "rigorous", **onboard_move(composite, out.scene, cameras, settings, name),
@@ -156,7 +156,7 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
                              "rmse_px": _rms_px(pts["res_col"][g & control], pts["res_row"][g & control])},
                  "check_points": {"observations": int((g & check).sum()),
                                   "rmse_px": _rms_px(pts["res_col"][g & check], pts["res_row"][g & check])},
-                 **_move(composite, out, name, settings)}
+                 **_move(composite, out, name, scenes[name], settings)}
         if tie_res is not None:
             entry["ties"] = {"observations": int(t.sum()), "rmse_px": _rms_px(tie_res[0][t], tie_res[1][t]),
                              "rmse_before_px": _rms_px(before[t, 0], before[t, 1])}

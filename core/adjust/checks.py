@@ -7,8 +7,6 @@ import numpy as np
 
 from ..errors import InputError
 from ..model.block import is_block
-from ..model.mixedblock import MixedBlock
-from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..observations.tables import resolve_cameras
@@ -50,7 +48,7 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
     lines in several directions hold the datum as points do (the report's lines/directions
     says when they do not)."""
     settings.validate()
-    if settings.scene_sigmas and not (is_block(scene) or isinstance(scene, MixedBlock)):
+    if settings.scene_sigmas and not is_block(scene):
         raise InputError("SCENE_SIGMAS: per-scene sigmas are for a block of scenes (SCENES); one scene takes "
                          "POSITION_SIGMA, ATTITUDE_SIGMA and RPC_SIGMA",
                          parameter="settings.scene_sigmas")
@@ -71,7 +69,7 @@ def check_inputs(scene: SceneModel, table: GcpTable, settings: AdjustmentSetting
         check_ties(scene, ties, table.id)
     with_lines = lines is not None and len(lines.image) > 0
     if with_lines:
-        if isinstance(scene, RpcScene):
+        if scene.rigorous_part() is None:
             raise InputError("control lines need a rigorous (physical) scene model; an RPC scene's correction is "
                              "adjusted from GCPs", parameter="lines")
         check_lines(scene, lines)
@@ -106,8 +104,8 @@ def block_datum(table: GcpTable, settings: AdjustmentSettings, ties: TieTable | 
     scenes, and its RPC images the prior settings.rpc_sigma."""
     if ties is None or len(ties) == 0:
         return None
-    trajectories = not isinstance(scene, MixedBlock) or scene.rigorous is not None
-    images = len(scene.images) if isinstance(scene, MixedBlock) else 0
+    trajectories = scene.rigorous_part() is not None
+    images = len(scene.rpc_images())
     return datum(np.unique(table.id[table.role == "control"]).size,
                  settings.position_sigma if trajectories else None, settings.attitude_sigma if trajectories else None,
                  *datum_lines(lines), rpc_images=images, rpc_sigma=settings.rpc_sigma if images else None)

@@ -27,18 +27,32 @@ from .problem import Problem
 FITTED_TOLERANCE = 0.01  # px: the written scene against the fitted image positions
 
 
-def written(scene: SceneModel | RpcScene) -> SceneModel | RpcScene:
-    """``scene`` as it reads back from its scene JSON; a block's composite as its scenes read
-    back (:func:`core.model.block.split_block`), composed again; a block with RPC images as its
-    parts read back."""
-    if isinstance(scene, MixedBlock):
-        return scene.with_parts(written(scene.rigorous) if scene.rigorous is not None else None,
-                                {name: written(img) for name, img in scene.images.items()})
-    if is_block(scene):
-        return compose_block({name: written(s) for name, s in split_block(scene).items()})
-    if isinstance(scene, RpcScene):
+class _Written:
+    """Each kind of scene as it reads back from what is written of it (asked through ``answer``,
+    :mod:`core.model.kinds`)."""
+
+    def rigorous(self, scene: SceneModel) -> SceneModel:
+        """Its scene JSON read back; a block's composite as its scenes read back
+        (:func:`core.model.block.split_block`), composed again."""
+        if is_block(scene):
+            return compose_block({name: self.rigorous(s) for name, s in split_block(scene).items()})
+        return scene_from_dict(scene_to_dict(scene), "the adjusted scene")
+
+    def rpc(self, scene: RpcScene) -> RpcScene:
+        """Its RPC scene JSON read back."""
         return rpc_scene_from_dict(rpc_scene_to_dict(scene), "the adjusted scene")
-    return scene_from_dict(scene_to_dict(scene), "the adjusted scene")
+
+    def block(self, scene: MixedBlock) -> MixedBlock:
+        """Its parts read back."""
+        rigorous = scene.rigorous_part()
+        return scene.with_parts(None if rigorous is None else self.rigorous(rigorous),
+                                {name: self.rpc(img) for name, img in scene.images.items()})
+
+
+def written(scene: SceneModel | RpcScene | MixedBlock) -> SceneModel | RpcScene | MixedBlock:
+    """``scene`` as it reads back from its scene JSON; a block's composite as its scenes read
+    back, composed again; a block with RPC images as its parts read back (:class:`_Written`)."""
+    return scene.answer(_Written())
 
 
 def check_written_scene(problem: Problem, scene: SceneModel | RpcScene) -> dict:
@@ -54,11 +68,7 @@ def check_written_scene(problem: Problem, scene: SceneModel | RpcScene) -> dict:
         m = obs.camera == c
         if not m.any():
             continue
-        if isinstance(back, RpcScene):
-            imaged[m, 0], imaged[m, 1] = back.ground_to_image(x[m], c)
-        else:
-            imaged[m, 0], imaged[m, 1] = back.ground_to_image_on_chip(x[m], c, obs.chip[m], fitted[m, 0],
-                                                                      fitted[m, 1])
+        imaged[m, 0], imaged[m, 1] = back.ground_to_image_on_chip(x[m], c, obs.chip[m], fitted[m, 0], fitted[m, 1])
     miss = np.hypot(*(imaged - fitted).T)
     bad = ~(miss <= FITTED_TOLERANCE)
     if bad.any():

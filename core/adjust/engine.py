@@ -15,6 +15,7 @@ critical value at the end are flagged (never deleted from the input).
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from typing import Callable
 
 from ..errors import InputError, NoDescentError
@@ -41,21 +42,30 @@ from .ties import TieSetUp, set_up_ties
 log = logging.getLogger(__name__)
 
 
-def _problem_for(scene, table: GcpTable, settings: AdjustmentSettings, ties: TieSetUp,
-                 lines: LineSetUp | None = None) -> Problem:
-    """The problem of a rigorous scene, of an RPC scene (its image-space correction,
-    :mod:`core.adjust.rpcbias`), or of a block with RPC images (:mod:`core.adjust.blockproblem`)."""
-    if isinstance(scene, MixedBlock):
-        if len(lines or ()):
-            raise InputError("control lines need rigorous (physical) scene models; a block with RPC images is "
-                             "adjusted from GCPs and tie points", parameter="lines")
-        return BlockProblem(scene, table, settings, ties)
-    if isinstance(scene, RpcScene):
-        if len(ties):
+@dataclass
+class _ProblemOf:
+    """The engine's problem of each kind of scene (asked through ``scene.answer``,
+    :mod:`core.model.kinds`): of a rigorous scene, of an RPC scene (its image-space correction,
+    :mod:`core.adjust.rpcbias`), of a block with RPC images (:mod:`core.adjust.blockproblem`)."""
+    table: GcpTable
+    settings: AdjustmentSettings
+    ties: TieSetUp
+    lines: LineSetUp | None = None
+
+    def rigorous(self, scene: SceneModel) -> Problem:
+        return Problem(scene, self.table, self.settings, self.ties, self.lines)
+
+    def rpc(self, scene: RpcScene) -> RpcProblem:
+        if len(self.ties):
             raise InputError("tie points need a rigorous (physical) scene model with several cameras; an RPC "
                              "scene is one image", parameter="ties")
-        return RpcProblem(scene, table, settings)
-    return Problem(scene, table, settings, ties, lines)
+        return RpcProblem(scene, self.table, self.settings)
+
+    def block(self, scene: MixedBlock) -> BlockProblem:
+        if len(self.lines or ()):
+            raise InputError("control lines need rigorous (physical) scene models; a block with RPC images is "
+                             "adjusted from GCPs and tie points", parameter="lines")
+        return BlockProblem(scene, self.table, self.settings, self.ties)
 
 
 def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | None = None,
@@ -74,7 +84,7 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     held = block_datum(table, settings, ties, lines, scene)
     progress(0.02, "setting up the observations")
     tie_set = set_up_ties(scene, ties) if ties is not None and len(ties) else TieSetUp.empty()
-    problem = _problem_for(scene, table, settings, tie_set, set_up_lines(scene, lines))
+    problem = scene.answer(_ProblemOf(table, settings, tie_set, set_up_lines(scene, lines)))
     if problem.rpc_choice is not None:
         log.info("%s", problem.rpc_choice["sentence"])
     check_redundancy(problem)

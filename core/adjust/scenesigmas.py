@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from ..errors import InputError
 from ..model.block import SEPARATOR
-from ..model.rpcscene import RpcScene
 from ..rotations import ARCSEC
 from .settings import PARAMETERS, AdjustmentSettings
 
@@ -31,7 +30,7 @@ def check_scene_sigmas(scenes: dict, settings: AdjustmentSettings) -> None:
         if scene not in scenes:
             raise InputError(f"SCENE_SIGMAS: scene {scene!r} is not in the block (scenes: {', '.join(scenes)})",
                              parameter="settings.scene_sigmas")
-        rpc = isinstance(scenes[scene], RpcScene)
+        rpc = bool(scenes[scene].rpc_images())
         wrong = [k for k in sigmas if (k in RIGOROUS_SIGMAS) == rpc]
         if wrong:
             what = "an RPC product: it has no onboard trajectory (its prior is RPC_SIGMA)" if rpc else \

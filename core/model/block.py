@@ -19,11 +19,11 @@ from __future__ import annotations
 from dataclasses import replace
 
 from ..errors import InputError
+from .kinds import BLOCK_KEY
 from .sensor import SceneModel
 from .trajectory import Platform
 
 SEPARATOR = "/"
-BLOCK_KEY = "block"  # composite.info[BLOCK_KEY]: {scene name: {"epoch", "cameras", "info"}}
 
 
 def block_camera(scene: str, camera: str) -> str:
@@ -32,8 +32,9 @@ def block_camera(scene: str, camera: str) -> str:
 
 
 def is_block(scene) -> bool:
-    """Whether ``scene`` is a block's composite (made by :func:`compose_block`)."""
-    return isinstance(scene, SceneModel) and BLOCK_KEY in scene.info
+    """Whether ``scene`` (any kind, :mod:`core.model.kinds`) is a block: a composite made by
+    :func:`compose_block` or a block with RPC images."""
+    return bool(scene.block_members())
 
 
 def check_scene_names(scenes: dict) -> None:

@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import InputError
 from .block import block_camera, check_scene_names, compose_block, split_block
 from .rpcscene import RpcScene
-from .sensor import SceneModel, as_points
+from .sensor import SceneModel
 
 
 @dataclass
@@ -71,7 +71,7 @@ class MixedBlock:
     def platform_of(self, camera: int):
         """The trajectory a rigorous camera sees; None for an RPC image (no platform)."""
         scene, c = self.part(camera)
-        return None if isinstance(scene, RpcScene) else scene.platform_of(c)
+        return scene.platform_of(c)
 
     # --- image <-> ground, by the camera's own scene ---------------------------------------------
     def ground_to_image(self, xyz, camera: int = 0, **kwargs) -> tuple[np.ndarray, np.ndarray]:
@@ -92,8 +92,6 @@ class MixedBlock:
         """A rigorous camera's :meth:`SceneModel.ground_to_image_on_chip`; an RPC image (one chip)
         its ground_to_image."""
         scene, c = self.part(self.camera_index(camera))
-        if isinstance(scene, RpcScene):
-            return scene.ground_to_image(xyz)
         return scene.ground_to_image_on_chip(xyz, c, chip, col, row)
 
     def line_of_sight(self, col, row, camera: int = 0):
@@ -102,14 +100,7 @@ class MixedBlock:
         the top of its RPC's height range and u the direction down to the ground it sees at the
         bottom (beyond them the RPC is extrapolated)."""
         scene, c = self.part(self.camera_index(camera))
-        if not isinstance(scene, RpcScene):
-            return scene.line_of_sight(col, row, c)
-        col, row = as_points(col, row)
-        lo, hi = scene.height_range
-        top = scene.image_to_ground(col, row, hi)
-        down = scene.image_to_ground(col, row, lo) - top
-        zeros = np.zeros_like(top)
-        return np.zeros(col.size), top, zeros, down / np.linalg.norm(down, axis=1)[:, None]
+        return scene.line_of_sight(col, row, c)
 
     # --- the scenes ----------------------------------------------------------------------------
     def split(self) -> dict:
@@ -129,16 +120,55 @@ class MixedBlock:
         """This block with other scenes in its parts (e.g. adjusted ones), its info copied."""
         return MixedBlock(rigorous, images, list(self.order), dict(self.info))
 
+    # --- what it answers of its kind (core.model.kinds) ---------------------------------------
+    def rigorous_part(self) -> SceneModel | None:
+        """The composite of the block's rigorous scenes (None: RPC images only)."""
+        return self.rigorous
 
-def compose_mixed(scenes: dict) -> MixedBlock:
-    """The block ``scenes`` (name -> SceneModel or RpcScene, in order) as a :class:`MixedBlock`;
-    the rigorous ones composed by :func:`core.model.block.compose_block`. InputError naming the
-    scene for a name that is empty or holds '/', a scene listed twice, rigorous scenes that disagree
-    on their corrections."""
+    def rpc_images(self) -> list[RpcScene]:
+        """The block's RPC images, in block order."""
+        return list(self.images.values())
+
+    def block_members(self) -> list[str]:
+        """The block's scene names, in order."""
+        return list(self.order)
+
+    def answer(self, question):
+        """``question.block(self)``."""
+        return question.block(self)
+
+
+def compose_mixed(scenes: dict) -> SceneModel | MixedBlock:
+    """The block ``scenes`` (name -> SceneModel or RpcScene, in order) as one scene: the rigorous
+    scenes' composite (:func:`core.model.block.compose_block`) when they are all rigorous, else a
+    :class:`MixedBlock` of that composite (None without rigorous scenes) and the RPC images, each
+    scene giving its own parts (:mod:`core.model.kinds`). InputError naming the scene for a name
+    that is empty or holds '/', a scene listed twice, rigorous scenes that disagree on their
+    corrections."""
     check_scene_names(scenes)
-    rigorous = {n: s for n, s in scenes.items() if not isinstance(s, RpcScene)}
-    rpc = {n: s for n, s in scenes.items() if isinstance(s, RpcScene)}
+    rigorous = {n: s.rigorous_part() for n, s in scenes.items() if s.rigorous_part() is not None}
+    rpc = {n: img for n, s in scenes.items() for img in s.rpc_images()}
+    if not rpc:
+        return compose_block(rigorous)
     composite = compose_block(rigorous) if rigorous else None
     images = {n: RpcScene(s.rpc, replace(s.camera, name=block_camera(n, s.camera.name)), s.correction.copy(),
                           dict(s.info)) for n, s in rpc.items()}
     return MixedBlock(composite, images, list(scenes))
+
+
+class _Split:
+    """The scenes of each kind of block composite (asked through ``answer``, core.model.kinds)."""
+
+    rigorous = staticmethod(split_block)
+
+    def block(self, scene: MixedBlock) -> dict:
+        return scene.split()
+
+    def rpc(self, scene: RpcScene) -> dict:
+        raise ValueError("an RPC scene is not a block's composite: it has no scenes to split into")
+
+
+def split_scenes(composite: SceneModel | MixedBlock) -> dict:
+    """The scenes of a block's composite (:func:`compose_mixed`), name -> scene in block order:
+    :func:`core.model.block.split_block` of a rigorous composite, :meth:`MixedBlock.split`."""
+    return composite.answer(_Split())

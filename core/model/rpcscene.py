@@ -116,6 +116,25 @@ class RpcScene:
         needed: an RPC images ground points directly)."""
         return self.ground_to_image(xyz, camera)
 
+    def ground_to_image_on_chip(self, xyz, camera: int, chip, col, row) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`ground_to_image` (the image is one chip; no first guesses are needed)."""
+        return self.ground_to_image(xyz, camera)
+
+    def platform_of(self, camera: int) -> None:
+        """None: an RPC image has no platform (no trajectory to correct)."""
+        return None
+
+    def line_of_sight(self, col, row, camera: int = 0):
+        """(t (n,) s, S (n,3) ECEF m, v (n,3) m/s, u (n,3) unit directions ECEF) as
+        :meth:`core.model.sensor.SceneModel.line_of_sight`: t and v are 0, S the ground the image
+        sees at the top of its RPC's height range and u the direction down to the ground it sees at
+        the bottom (beyond them the RPC is extrapolated): its ray as far as the RPC describes one."""
+        col, row = as_points(col, row)
+        lo, hi = self.height_range
+        top = self.image_to_ground(col, row, hi, camera)
+        down = self.image_to_ground(col, row, lo, camera) - top
+        return np.zeros(col.size), top, np.zeros_like(top), down / np.linalg.norm(down, axis=1)[:, None]
+
     def ground_to_image(self, xyz, camera: int = 0, **_) -> tuple[np.ndarray, np.ndarray]:
         """GDAL (col (n,), row (n,)) of ECEF points (n, 3), or of one point (3,) (other shapes: InputError
         naming ``xyz``, core.validation.ground_points): the RPC and the correction. NaN far
@@ -183,6 +202,23 @@ class RpcScene:
         return out
 
     # --- correction and checks -------------------------------------------------------------
+    # --- what it answers of its kind (core.model.kinds) ---------------------------------------
+    def rigorous_part(self) -> None:
+        """None: an RPC scene holds no rigorous scene."""
+        return None
+
+    def rpc_images(self) -> list["RpcScene"]:
+        """The scene itself: its one image."""
+        return [self]
+
+    def block_members(self) -> list[str]:
+        """[]: a scene on its own (a block of one)."""
+        return []
+
+    def answer(self, question):
+        """``question.rpc(self)``."""
+        return question.rpc(self)
+
     def correct(self, col, row) -> tuple[np.ndarray, np.ndarray]:
         """Corrected image positions of the RPC's own (col, row)."""
         a, b = self.correction

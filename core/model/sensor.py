@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 
 from . import corrections as corr
 from .camera import Camera
+from .kinds import RigorousKind
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic, enu_rotation, geodetic_to_ecef, ray_height_intersection, up_vector
 from ..validation import ground_points, per_point
@@ -33,7 +34,7 @@ DEFAULT_HEIGHT_RANGE = (-500.0, 5000.0)
 
 
 @dataclass
-class SceneModel:
+class SceneModel(RigorousKind):
     """Cameras + platform trajectory + switchable corrections for one scene (or strip).
 
     info holds descriptive metadata (sensor, product id, source file, height_range ...).

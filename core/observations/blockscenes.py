@@ -15,7 +15,6 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError
-from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel
 from .gcps import GcpTable, Residuals, apriori_residuals, assign_check_points
 from .tables import resolve_cameras, scene_of_rows
@@ -32,7 +31,7 @@ def rpc_product_cameras(table, scene_of, scenes: dict):
     cameras = table.camera.astype(object)
     renamed = []
     for name, scene in scenes.items():
-        if isinstance(scene, RpcScene) and len(scene.cameras) == 1:
+        if scene.rpc_images() and len(scene.cameras) == 1:
             rows = np.asarray(scene_of) == name
             if (cameras[rows] != scene.cameras[0].name).any():
                 renamed.append(name)

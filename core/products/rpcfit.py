@@ -361,4 +361,4 @@ def refined_rpcs(scenes: dict) -> dict[str, tuple[RpcModel, str]]:
     """Per RPC scene of ``scenes`` (name -> adjusted scene, e.g. a block adjustment's
     :attr:`core.adjust.block.BlockResult.scenes`) its refined RPC and how it was made
     (:func:`refined_rpc`), as a single RPC scene's adjustment writes it; other scenes left out."""
-    return {name: refined_rpc(scene) for name, scene in scenes.items() if isinstance(scene, RpcScene)}
+    return {name: refined_rpc(scene) for name, scene in scenes.items() if scene.rpc_images()}
