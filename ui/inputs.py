@@ -16,13 +16,13 @@ from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProce
                        QgsProcessingParameterRasterLayer, QgsProcessingUtils, QgsProperty, QgsProviderRegistry,
                        QgsWkbTypes)
 
-from ..core.dem import ConstantHeight, Dem
 from ..core.errors import PushbroomError
 from ..core.formats import load_scene
 from ..core.formats.rpcfiles import image_name
 from ..core.measure.matching import MatchSettings
 from ..core.observations.tables import Heights, present
 from ..core.rasters import check_input_raster
+from ..core.runs.base import camera_images, surface_from
 from ..core.validation import check_terrain_height
 from . import parameters as vocabulary
 from .feedback import core_call, error_message, processing_errors
@@ -306,26 +306,16 @@ def add_dem_parameters(alg) -> None:
 
 
 def dem_from_parameters(alg, parameters, context, scene=None, feedback=None):
-    """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one.
+    """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one
+    (:func:`core.runs.base.surface_from`).
 
     With an RPC ``scene`` (core.model.rpcscene.RpcScene), heights that do not meet the RPC's
     height range are refused and heights partly outside it are a warning to ``feedback``."""
-    path = raster_file(alg, parameters, DEM, context)
-    if not path:
-        with processing_errors():
-            surface = ConstantHeight(check_terrain_height(alg.parameterAsDouble(parameters, HEIGHT, context), HEIGHT))
-        what = f"{HEIGHT} {surface.value:g} m"
-    else:
-        datum = enum_value(alg, parameters, DEM_DATUM, context)
-        with processing_errors(f"{DEM}: "):
-            surface = Dem(path, datum)
-            surface.height_range  # reads the DEM's overview: implausible heights are refused before any output
-        what = f"{DEM} {path}"
-    if hasattr(scene, "check_surface"):
-        with processing_errors():
-            warning = scene.check_surface(surface.height_range, what)
-        if warning and feedback is not None:
-            feedback.pushWarning(warning)
+    with processing_errors():
+        surface, lines = surface_from(alg.terrain(parameters, context), scene)
+    if feedback is not None:
+        for line in lines:
+            feedback.pushWarning(line.text)
     return surface
 
 
@@ -353,19 +343,10 @@ def heights_from_parameters(alg, parameters, context, crs) -> Heights:
 # --- raw images and matching settings ----------------------------------------------------------
 def camera_images_for(alg, parameters, context, scene) -> dict[int, str]:
     """{camera index: file} of INPUTS, one raw image per camera of ``scene`` in its camera order;
-    QgsProcessingException naming the cameras when the count differs or a layer is not a file."""
-    files = raster_files(alg, parameters, vocabulary.INPUTS, context)
-    names = [cam.name for cam in scene.cameras]
-    if len(files) != len(names):
-        raise QgsProcessingException(f"{vocabulary.INPUTS}: {len(files)} raw image(s) given, but the scene has "
-                                     f"{len(names)} camera(s) ({', '.join(names)}): give one image per camera, "
-                                     "in that order")
-    images = dict(enumerate(files))
-    missing = [names[k] for k, path in images.items() if not path]
-    if missing:
-        raise QgsProcessingException(f"{vocabulary.INPUTS}: the image(s) of camera(s) {', '.join(missing)} are not "
-                                     "files (memory or service layers); save them as GeoTIFF first")
-    return images
+    QgsProcessingException naming the cameras when the count differs or a layer is not a file
+    (:func:`core.runs.base.camera_images`)."""
+    with processing_errors(f"{vocabulary.INPUTS}: "):
+        return camera_images(scene, raster_files(alg, parameters, vocabulary.INPUTS, context))
 
 
 def matching_settings(alg, parameters, context, **fixed) -> MatchSettings:

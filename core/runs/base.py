@@ -1,0 +1,122 @@
+"""What the use cases share: their result, the inputs every one reads first (the scene file, the
+terrain), the check of the files they write against the files they read, and the naming of the
+input an error concerns."""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+from ..dem import ConstantHeight, Dem
+from ..errors import InputError, PushbroomError
+from ..files import check_outputs
+from ..formats import load_scene
+from ..log import LogLine
+from ..validation import check_terrain_height
+
+# The inputs the use cases' errors and log lines name (InputError.parameter, LogLine.parameter).
+SCENE, CAMERA, DEM, IMAGES = "scene", "camera", "dem", "images"
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What a use case did: ``files`` {output name: the file (or files) written}, ``figures`` (numbers
+    about the result, by name) and ``lines``, the sentences for the log in order."""
+    files: dict = field(default_factory=dict)
+    figures: dict = field(default_factory=dict)
+    lines: list[LogLine] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Terrain:
+    """Where heights come from: ``dem`` (a raster file; '' for none) with its ``datum`` ('geoid' or
+    'ellipsoid'), else the constant ``height`` (m, ellipsoidal); ``height_name``: how the caller
+    calls the height and ``dem_name`` the DEM, for their refusals (e.g. 'HEIGHT', 'DEM')."""
+    dem: str = ""
+    datum: str = "geoid"
+    height: float = 0.0
+    height_name: str = "HEIGHT"
+    dem_name: str = "DEM"
+
+
+@dataclass(frozen=True)
+class FilesInUse:
+    """The files around a run, by the caller's parameter names: ``reads`` {input: files it reads},
+    ``writes`` {output: files} of outputs the run does not plan itself. None of the run's outputs may
+    replace one of them (:func:`core.files.check_outputs`)."""
+    reads: Mapping[str, Sequence] = field(default_factory=dict)
+    writes: Mapping[str, Sequence] = field(default_factory=dict)
+
+    def check(self, planned: Mapping[str, Sequence]) -> None:
+        """Refuse, before any work, ``planned`` outputs {name: [file, Output...]} that would replace an
+        input or another output, and destinations that cannot be written."""
+        others = {name: files for name, files in self.writes.items() if name not in planned}
+        check_outputs(self.reads, {**planned, **others})
+
+
+@contextmanager
+def concerning(parameter: str):
+    """A core error raised inside concerns input ``parameter`` (core terms): re-raised as an
+    InputError naming it, unless it names several inputs itself (parameter '')."""
+    try:
+        yield
+    except PushbroomError as exc:
+        if getattr(exc, "parameter", None) == "":
+            raise
+        raise InputError(str(exc), parameter=parameter) from None
+
+
+def scene_from(path: str) -> tuple:
+    """(scene, log lines) of a scene file (any format :func:`core.formats.load_scene` reads); errors
+    concern SCENE. The lines: the reader's warnings (what it assumed about the file) and the check of
+    a vendor product against its own RPC (:mod:`core.formats.vendorcheck`)."""
+    if not path:
+        raise InputError("no scene file given", parameter=SCENE)
+    with concerning(SCENE):
+        scene = load_scene(path)
+    lines = [LogLine(warning, True, SCENE) for warning in scene.info.get("warnings", [])]
+    if "rpc_check" in scene.info and scene.info.get("source") == str(path):
+        lines.append(LogLine(scene.info["rpc_check"]["summary"], False, SCENE))
+    return scene, lines
+
+
+def camera_of(scene, text: str | None) -> int:
+    """Camera index of ``scene`` from a camera name or index ('' or None: the first); errors concern CAMERA."""
+    text = (text or "").strip()
+    if not text:
+        return 0
+    with concerning(CAMERA):
+        return scene.camera_index(int(text) if text.isdigit() else text)
+
+
+def surface_from(terrain: Terrain, scene=None) -> tuple:
+    """(surface, log lines): :class:`core.dem.Dem` of the terrain's DEM (its heights read, so that
+    implausible ones are refused before any output), or :class:`core.dem.ConstantHeight`. With an RPC
+    ``scene``, heights that miss the RPC's height range are refused, heights partly outside it are a
+    warning line."""
+    if not terrain.dem:
+        surface = ConstantHeight(check_terrain_height(terrain.height, terrain.height_name))
+        what = f"{terrain.height_name} {surface.value:g} m"
+    else:
+        try:
+            surface = Dem(terrain.dem, terrain.datum)
+            surface.height_range  # reads the DEM's overview: implausible heights are refused before any output
+        except PushbroomError as exc:  # named here: the reader's message may start with the word DEM itself
+            raise InputError(f"{terrain.dem_name}: {exc}", parameter=DEM) from None
+        what = f"{terrain.dem_name} {terrain.dem}"
+    warning = scene.check_surface(surface.height_range, what) if hasattr(scene, "check_surface") else None
+    return surface, [LogLine(warning, True)] if warning else []
+
+
+def camera_images(scene, files) -> dict[int, str]:
+    """{camera index: file} of one raw image per camera of ``scene`` in its camera order; errors
+    concern IMAGES, naming the cameras, when the count differs or an image is not a file ('')."""
+    names = [cam.name for cam in scene.cameras]
+    if len(files) != len(names):
+        raise InputError(f"{len(files)} raw image(s) given, but the scene has {len(names)} camera(s) "
+                         f"({', '.join(names)}): give one image per camera, in that order", parameter=IMAGES)
+    missing = [names[k] for k, path in enumerate(files) if not path]
+    if missing:
+        raise InputError(f"the image(s) of camera(s) {', '.join(missing)} are not files (memory or service "
+                         "layers); save them as GeoTIFF first", parameter=IMAGES)
+    return dict(enumerate(files))
