@@ -32,7 +32,7 @@ run() {  # run ALGORITHM PARAM=VALUE... ; full log in out/logs/ALGORITHM.log
     fi
     # qgis_process prints its progress dots before an algorithm's first line: strip them
     sed -E 's/^[.0-9]*\.\.//' "$OUT/logs/$alg.log" |
-        grep -E "^(WARNING|[a-z].*residuals|[0-9]+ points|sigma0|check points|orthoimage|written in|check on|  CCD|matched|rejected|coarse pass \(|sensor-corrected image|RPC fitted)" || true
+        grep -E "^(WARNING|[a-z].*residuals|[0-9]+ points|sigma0|check points|orthoimage|written in|check on|  CCD|matched|rejected|onboard offset|sensor-corrected image|RPC fitted)" || true
 }
 
 SIM="$OUT/simulation"

@@ -12,4 +12,4 @@ export PROJ_DATA="${PROJ_DATA:-/usr/share/proj}" PROJ_LIB="${PROJ_LIB:-/usr/shar
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
 # Keep QGIS's own settings and profiles away from the user's.
 export QGIS_CUSTOM_CONFIG_PATH="${QGIS_CUSTOM_CONFIG_PATH:-$(mktemp -d)}"
-exec .venv/bin/python -m pytest tests/unit tests/qgis -q -p no:cacheprovider "$@" </dev/null
+exec .venv/bin/python -m pytest tests/unit tests/scenarios tests/qgis -q -p no:cacheprovider "$@" </dev/null

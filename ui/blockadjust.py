@@ -28,8 +28,8 @@ from ..core.adjust.block import adjust_block, block_inputs
 from ..core.adjust.linepoints import ControlLines
 from ..core.adjust.outputs import ground_residuals, write_adjusted_gcps, write_block_tie_points, write_line_residuals
 from ..core.adjust.report import log_lines, write_report_json
-from ..core.adjust.report_html import block_section, block_warnings, write_report_html
-from ..core.adjust.scenesigmas import check_scene_sigmas, sigmas_text
+from ..core.adjust.report_html import block_section, write_report_html
+from ..core.adjust.scenesigmas import check_scene_sigmas
 from ..core.errors import InputError
 from ..core.files import Output, atomic_outputs, check_folder_destination
 from ..core.formats.rpcfiles import report_path, write_rpc
@@ -272,37 +272,9 @@ def write_block(result, planned: dict, table, gcp_source: tuple, ties, files, fe
 
 def log_block(result, n_ties: int | None, alg, feedback) -> None:
     """The adjustment's log sentences, then per scene and for the block the figures a user reads
-    first (:func:`core.adjust.block.block_report`)."""
+    first and the block's own warnings (:meth:`core.adjust.report_types.BlockReport.log_lines`)."""
     alg.push_core_lines(feedback, log_lines(result.adjustment.report, n_ties))
-
-    def px(value) -> str:
-        return "-" if value is None else f"{value:.3f} px"
-
-    def metres(value) -> str:
-        return "-" if value is None else f"{value:.1f} m RMS"
-
-    for name, s in result.report["scenes"].items():
-        ties = s.get("ties")
-        tie_text = f"; ties {px(ties['rmse_before_px'])} before, {px(ties['rmse_px'])} after" if ties else ""
-        rpc = s.get("model") == "rpc"
-        sigma = s["vendor_sigma_m" if rpc else "onboard_sigma_m"]
-        source = "its vendor RPC (stated accuracy" if rpc else "its onboard geolocation (onboard sigma"
-        lines = s.get("lines")
-        line_text = f"; {lines['lines']} control lines ({lines['points']} points), across-line " \
-            f"{metres(lines['across_rmse_before_m'])} before, {metres(lines['across_rmse_m'])} after" if lines else ""
-        control = f"control {px(s['control']['rmse_px'])} ({s['control']['observations']} obs.)" \
-            if s["control"]["observations"] else "no control points"
-        check = f"check {px(s['check_points']['rmse_px'])} ({s['check_points']['observations']} obs.)" \
-            if s["check_points"]["observations"] else "no check points"
-        feedback.pushInfo(f"scene {name}: {control}, {check}"
-                          f"{tie_text}{line_text}; moved {s['moved_m']:.1f} m from {source} "
-                          f"{'-' if sigma is None else f'{sigma:.1f} m'}; stated {sigmas_text(s['sigmas'])})")
-    block = result.report["block"]
-    feedback.pushInfo(f"block of {block['scenes']} scenes: sigma0 {block['sigma0']:.3f}, tie RMS "
-                      f"{px(block['tie_rmse_before_px'])} before, {px(block['tie_rmse_px'])} after; "
-                      f"{result.report['datum']}")
-    for warning in block_warnings(result.report):  # the adjustment's own are among its log lines above
-        feedback.pushWarning(warning)
+    alg.push_core_lines(feedback, result.report.log_lines())
 
 
 # --- the run -----------------------------------------------------------------------------------

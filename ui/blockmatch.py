@@ -13,12 +13,13 @@ from pathlib import Path
 import numpy as np
 from qgis.core import QgsProcessingException
 
+from ..core import measure
 from ..core.measure.tiematching import View, match_block_tiepoints
 from ..core.model.rpcscene import size_note
 from ..core.observations import tiepoints
 from ..core.products.ortho import check_images
 from ..core.rasters import check_input_raster
-from .feedback import check_cancelled, feedback_callbacks, processing_errors
+from .feedback import check_cancelled, core_log_to, feedback_callbacks, processing_errors
 from .inputs import block_scene_names, dem_from_parameters, load_scene_for, matching_settings, raster_files
 from .parameters import INPUTS, SCENE, SCENES
 
@@ -102,7 +103,7 @@ def match_block(alg, parameters, context, feedback):
     surface = dem_from_parameters(alg, parameters, context, views[0].scene, feedback)
     settings = matching_settings(alg, parameters, context)
     progress, is_cancelled = feedback_callbacks(feedback)
-    with processing_errors("", CORE_PARAMETERS):
+    with processing_errors("", CORE_PARAMETERS), core_log_to(feedback, measure.__name__):
         table, rejected = match_block_tiepoints(views, surface, settings, 0,
                                                 lambda f, m=None: progress(0.9 * f, m), is_cancelled)
     check_cancelled(feedback)

@@ -358,6 +358,7 @@ def matching_settings(alg, parameters, context, **fixed) -> MatchSettings:
                                  window=alg.parameterAsInt(parameters, vocabulary.WINDOW, context),
                                  min_correlation=alg.parameterAsDouble(parameters, vocabulary.MIN_CORRELATION,
                                                                        context),
-                                 search=alg.parameterAsDouble(parameters, vocabulary.SEARCH_RANGE, context), **fixed)
+                                 search=alg.parameterAsDouble(parameters, vocabulary.SEARCH_RANGE, context),
+                                 fine_radius=alg.parameterAsInt(parameters, vocabulary.FINE_RADIUS, context), **fixed)
         settings.validate()
     return settings

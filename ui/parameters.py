@@ -37,8 +37,8 @@ OUTPUT_SCENE = "OUTPUT_SCENE"
 RPC_CORRECTION = "RPC_CORRECTION"
 CAMERA_TRAJECTORY = "CAMERA_TRAJECTORY"
 INPUTS = "INPUTS"
-SPACING, N_POINTS, WINDOW, MIN_CORRELATION, SEARCH_RANGE = \
-    "SPACING", "N_POINTS", "WINDOW", "MIN_CORRELATION", "SEARCH_RANGE"
+SPACING, N_POINTS, WINDOW, MIN_CORRELATION, SEARCH_RANGE, FINE_RADIUS = \
+    "SPACING", "N_POINTS", "WINDOW", "MIN_CORRELATION", "SEARCH_RANGE", "FINE_RADIUS"
 
 # Value names of the enumerations, in the order the drop-down lists show them; they are the
 # core's own names (core.dem datums, core.observations.tables.Heights.source, core.model.timebasis.KINDS, ...).
@@ -352,7 +352,7 @@ def camera_images() -> RasterInputs:
 
 def matching_parameters() -> list[QgsProcessingParameterNumber]:
     """The image matching settings (core.matching.MatchSettings): SPACING, N_POINTS, WINDOW,
-    MIN_CORRELATION, SEARCH_RANGE."""
+    MIN_CORRELATION, SEARCH_RANGE, FINE_RADIUS."""
     number = QgsProcessingParameterNumber
     out = []
     for name, label, kind, default, lo, hi, help_text in (
@@ -361,15 +361,21 @@ def matching_parameters() -> list[QgsProcessingParameterNumber]:
             (N_POINTS, tr("Number of points (0: use the spacing)"), number.Integer, 0, 0, 10_000_000,
              tr("About this many grid points, evenly spread over the image; 0: SPACING decides.")),
             (WINDOW, tr("Matching window (px)"), number.Integer, 31, 9, 257,
-             tr("Side of the square window correlated, in raw image pixels (odd). Larger: fewer ambiguous "
-                "matches on weak texture, slower.")),
+             tr("Side of the square window correlated and fitted by least squares, in raw image pixels (odd). "
+                "Larger: more texture per window (sand, fields), slower. 31 suits 0.5 m Pleiades and 2-5 m "
+                "images alike.")),
             (MIN_CORRELATION, tr("Quality threshold (correlation)"), number.Double, 0.6, 0.05, 0.99,
              tr("Matches whose correlation peak is below this value are rejected (clouds, water, changed "
                 "land cover). The second-to-first peak ratio must also be below 0.85.")),
             (SEARCH_RANGE, tr("Search range (m)"), number.Double, 1000.0, 10.0, 50_000.0,
-             tr("Largest onboard position error looked for, in metres on the ground (for tie points: the "
-                "largest disagreement between the cameras). When the run says no consistent match was found, "
-                "a larger value (about twice the expected error) may find it."))):
+             tr("Largest onboard position error looked for, in metres on the ground (for tie points: between "
+                "the images). Searched on a coarse copy first, so a large range costs little; one beyond the "
+                "image is clipped to it (the log says so). If no consistent match is found, try twice the "
+                "expected error.")),
+            (FINE_RADIUS, tr("Fine search radius (px)"), number.Integer, 8, 2, 64,
+             tr("How far, in raw image pixels, each window is searched around the offset the coarse levels "
+                "predict (a clear peak within 3 px is taken first). Larger: follows relief the DEM lacks, but "
+                "meets more repeated texture; smaller: faster."))):
         parameter = number(name, label, kind, default, minValue=lo, maxValue=hi)
         parameter.setHelp(help_text)
         out.append(parameter)

@@ -54,7 +54,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InputError
-from ..model.block import SEPARATOR, block_camera, compose_block, scene_cameras, split_block
+from ..model.block import SEPARATOR, block_camera, compose_block, split_block
 from ..model.mixedblock import MixedBlock, compose_mixed
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel, rows_by
@@ -63,24 +63,25 @@ from ..observations.tables import listed, resolve_cameras
 from ..observations.tiepoints import TieTable
 from .engine import adjust
 from .linepoints import ControlLines
+from .blockreport import block_report
+from .report_types import BlockReport
 from .results import AdjustmentResult
-from .scenesigmas import check_scene_sigmas, stated_sigmas
+from .scenesigmas import check_scene_sigmas
 from .settings import AdjustmentSettings
 from .ties import camera_indices
 
 log = logging.getLogger(__name__)
 
-GRID = 3  # image points per axis at which each camera's move from its onboard geolocation is measured
 # deg: tie points whose onboard rays are all closer than this meet at a weakly determined height
 # (seen from one direction only, e.g. by the nadir cameras of scenes from one orbit)
 MIN_CONVERGENCE_DEG = 1.0
-DRIFT_SIGMAS = 3.0  # a scene held by its onboard or vendor sigmas alone that moves farther is named
 
 
 @dataclass
 class BlockResult:
     """scenes: the adjusted scenes (name -> SceneModel or RpcScene, the block's order), each writable
-    with :func:`core.formats.scene_json.save_scene`; report: JSON-ready figures (see :func:`block_report`);
+    with :func:`core.formats.scene_json.save_scene`; report: the block's figures and its adjustment's
+    (:class:`core.adjust.report_types.BlockReport`, :func:`core.adjust.blockreport.block_report`);
     tie_points: per tie point (m,) arrays id, lon, lat (deg), h (ellipsoidal m) of its adjusted
     ground (NaN for points left out), rays (observations used), scenes (scenes it was seen in),
     convergence_deg (the largest angle between its onboard rays, :func:`ray_convergence`);
@@ -89,7 +90,7 @@ class BlockResult:
     (:attr:`AdjustmentResult.lines`) with ``camera`` the scene's own camera name and ``scene`` (n,)
     the scene each point was measured in (empty without control lines)."""
     scenes: dict[str, SceneModel | RpcScene]
-    report: dict
+    report: BlockReport
     tie_points: dict
     adjustment: AdjustmentResult
     line_points: dict = field(default_factory=dict)
@@ -280,175 +281,3 @@ def tie_point_ground(out: AdjustmentResult, ties: TieTable | None) -> dict:
     return {"id": ids, **{k: out.tie_points[k][first] for k in ("lon", "lat", "h")},
             "rays": np.bincount(point[used], minlength=ids.size),
             "scenes": np.bincount(seen[:, 0], minlength=ids.size)}
-
-
-def _rms_px(res_col: np.ndarray, res_row: np.ndarray) -> float | None:
-    """Root mean square length (px) of finite residual vectors (None without any)."""
-    ok = np.isfinite(res_col) & np.isfinite(res_row)
-    return float(np.sqrt(np.mean(res_col[ok] ** 2 + res_row[ok] ** 2))) if ok.any() else None
-
-
-def _lattice(cam) -> tuple[np.ndarray, np.ndarray]:
-    """(col, row) (GRID^2,) px of a GRID x GRID lattice over a camera's image."""
-    return tuple(a.ravel() for a in np.meshgrid(np.linspace(0, cam.cols, GRID), np.linspace(0, cam.rows, GRID)))
-
-
-def ground_move(before, after, cameras: list[int]) -> float:
-    """The largest distance (m) between the ground seen through ``before`` and ``after``
-    (composites) at a GRID x GRID lattice of each of their ``cameras``, at the mean height of
-    ``before``."""
-    height = float(np.mean(before.height_range))
-    moved = 0.0
-    for c in cameras:
-        col, row = _lattice(before.cameras[c])
-        g0, g1 = before.image_to_ground(col, row, height, c), after.image_to_ground(col, row, height, c)
-        moved = max(moved, float(np.nanmax(np.linalg.norm(g1 - g0, axis=1))))
-    return moved
-
-
-def onboard_move(before: SceneModel, after: SceneModel, cameras: list[int],
-                 settings: AdjustmentSettings, scene: str = "") -> dict:
-    """How far the adjustment moved a rigorous scene's ground from where its onboard model puts it
-    (:func:`ground_move`); and the onboard sigma (m) of that ground, sqrt(position_sigma^2 +
-    (attitude_sigma * range)^2) with range (m) the largest satellite-to-ground distance at the
-    lattice (None when a sigma is not stated), with block scene ``scene``'s own sigmas where it
-    states them (settings.scene_sigmas)."""
-    height = float(np.mean(before.height_range))
-    ranges = []
-    for c in cameras:
-        col, row = _lattice(before.cameras[c])
-        ground = before.image_to_ground(col, row, height, c)
-        ranges.append(float(np.linalg.norm(before.line_of_sight(col, row, c)[1] - ground, axis=1).max()))
-    ps, at = settings.sigma("position_sigma", scene), settings.sigma("attitude_sigma", scene)
-    sigma = None if ps is None or at is None else float(np.hypot(ps, at * max(ranges)))
-    return {"moved_m": ground_move(before, after, cameras), "onboard_sigma_m": sigma}
-
-
-def vendor_move(before: MixedBlock, after: MixedBlock, camera: int, out: AdjustmentResult,
-                settings: AdjustmentSettings, scene: str = "") -> dict:
-    """How far the adjustment moved an RPC image's ground from where its vendor RPC (with its
-    input correction) puts it (:func:`ground_move`); the vendor's stated accuracy in metres on the
-    ground (the rpc_sigma of block scene ``scene``, its own or the global one, times the ground
-    sample distance at the image centre; None without it); and its adjusted correction terms (value
-    and posterior sigma, px and px per px)."""
-    cam = before.cameras[camera]
-    centre = before.image_to_ground([cam.cols / 2, cam.cols / 2 + 1], [cam.rows / 2] * 2,
-                                    float(np.mean(before.height_range)), camera)
-    gsd = float(np.linalg.norm(centre[1] - centre[0]))
-    prefix = f"{cam.name}."
-    terms = {p["name"][len(prefix):]: {"value": p["value"], "sigma": p["sigma"], "unit": p["unit"]}
-             for p in out.report["parameters"] if p["name"].startswith(prefix) and p["mode"] != "fixed"}
-    stated = settings.sigma("rpc_sigma", scene)
-    return {"moved_m": ground_move(before, after, [camera]),
-            "vendor_sigma_m": None if stated is None else stated * gsd,
-            "correction": terms}
-
-
-def _move(composite, out: AdjustmentResult, name: str, settings: AdjustmentSettings) -> dict:
-    """Block scene ``name``'s move from its input geolocation: :func:`vendor_move` for an RPC image,
-    :func:`onboard_move` for a rigorous scene; with its ``model`` ('rpc' or 'rigorous') and the
-    sigmas it was adjusted with (``sigmas``, :func:`core.adjust.scenesigmas.stated_sigmas`)."""
-    cameras = scene_cameras(composite, name)
-    if isinstance(composite, MixedBlock) and cameras[0] >= composite.n_rigorous:
-        return {"model": "rpc", **vendor_move(composite, out.scene, cameras[0], out, settings, name),
-                "sigmas": stated_sigmas(settings, name, True)}
-    return {"model": "rigorous", **onboard_move(composite, out.scene, cameras, settings, name),
-            "sigmas": stated_sigmas(settings, name, False)}
-
-
-def beyond_stated(per_scene: dict, controlled: bool) -> list[str]:
-    """Warnings for the scenes of a block held by no control point that moved more than DRIFT_SIGMAS
-    times their stated (onboard or vendor) accuracy from where their input model put them: the tie
-    points pull them along what only those sigmas hold, the sign of an error the adjustment does
-    not model (lens terms left out of a tri-stereo: 450 m, 8 sigmas)."""
-    if controlled:
-        return []
-    out = []
-    for name, entry in per_scene.items():
-        sigma = entry.get("onboard_sigma_m", entry.get("vendor_sigma_m"))
-        if sigma and entry["moved_m"] > DRIFT_SIGMAS * sigma:
-            moved = entry["moved_m"]
-            out.append(f"scene {name} moved {moved:.0f} m from its input geolocation, {moved / sigma:.1f} times its "
-                       f"stated accuracy ({sigma:.0f} m), with no control point to hold it: the tie points pull it, a "
-                       "sign of an error the adjustment does not model (estimate the interior, INTERIOR=default, or "
-                       "add control)")
-    return out
-
-
-def datum_sentence(report: dict) -> str:
-    """How the block's datum is held, in words (from the engine report's ``datum``)."""
-    held = report.get("datum")
-    if held is None:  # no tie points: each scene held by its own control, points or lines
-        if "lines" not in report:
-            return "datum held by the control points (no tie points)"
-        points = report["observations"]["control_points"]
-        return f"datum held by the control lines{' and points' if points else ''} (no tie points)"
-    sentence = f"datum held by the {held['held_by']}"
-    return f"{sentence}: {held['note']}" if held.get("note") else sentence
-
-
-def _line_entry(points: dict, rows: np.ndarray) -> dict:
-    """Line figures of the line points ``rows`` (n,) bool of :func:`scene_line_points`: lines and
-    points used (not flagged), points flagged, RMS (m) of their across-line misfit after and
-    before (rays through the adjusted and the input scene meeting the line's height)."""
-    used = rows & ~points["flagged"]
-    rms = lambda a: float(np.sqrt(np.mean(a * a))) if a.size else None  # noqa: E731
-    return {"lines": int(np.unique(points["line_id"][used]).size), "points": int(used.sum()),
-            "points_flagged": int((rows & points["flagged"]).sum()),
-            "across_rmse_m": rms(points["across_m"][used]),
-            "across_rmse_before_m": rms(points["across_before_m"][used])}
-
-
-def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: AdjustmentResult,
-                 gcps: GcpTable, ties: TieTable | None, settings: AdjustmentSettings,
-                 line_points: dict | None = None) -> dict:
-    """Per scene and block figures: image residual RMS (px) of control observations, tie
-    observations (after; before: through the onboard scenes with the onboard intersection) and
-    check points (the adjusted scene's ground -> image of their stated ground), the move from the
-    onboard geolocation (:func:`onboard_move`) and the sigmas the scene was adjusted with, with
-    control lines their lines and points used and across-line RMS (m, :func:`_line_entry`; per
-    line in the engine's report["lines"]); sigma0, the datum sentence and ``datum_directions`` (the
-    moves of the whole block the tie points leave to the priors or hardly determine, with their
-    size: :mod:`core.adjust.datumdirections`), ``warnings`` (the block's own, scenes moved beyond their
-    stated accuracy, then the engine's: the robust loop stopped at its limit, reliability, datum
-    moves beyond the priors), the written-vs-fitted figures and the engine's whole report
-    (``adjustment``)."""
-    rep, pts = out.report, out.points
-    control, check = pts["role"] == "control", pts["role"] == "check"
-    tie_res = (out.tie_points["res_col"], out.tie_points["res_row"]) if ties is not None and len(ties) else None
-    before = None
-    if tie_res is not None:  # the engine's start: the onboard intersection
-        before = np.stack([out.tie_points["res_col_before"], out.tie_points["res_row_before"]], axis=1)
-    per_scene = {}
-    for name in scenes:
-        g, t = gcps.block_scene == name, (ties.scene == name) if tie_res is not None else None
-        entry = {"cameras": [c.name for c in scenes[name].cameras],
-                 "control": {"observations": int((g & control).sum()),
-                             "rmse_px": _rms_px(pts["res_col"][g & control], pts["res_row"][g & control])},
-                 "check_points": {"observations": int((g & check).sum()),
-                                  "rmse_px": _rms_px(pts["res_col"][g & check], pts["res_row"][g & check])},
-                 **_move(composite, out, name, settings)}
-        if tie_res is not None:
-            entry["ties"] = {"observations": int(t.sum()), "rmse_px": _rms_px(tie_res[0][t], tie_res[1][t]),
-                             "rmse_before_px": _rms_px(before[t, 0], before[t, 1])}
-        if line_points:
-            entry["lines"] = _line_entry(line_points, line_points["scene"] == name)
-        per_scene[name] = entry
-    block = {"scenes": len(scenes), "sigma0": rep["sigma0"],
-             "control_rmse_px": _rms_px(pts["res_col"][control], pts["res_row"][control]),
-             "check_rmse_px": _rms_px(pts["res_col"][check], pts["res_row"][check]),
-             "tie_points": rep["observations"]["tie_points"],
-             "tie_rmse_px": None if tie_res is None else _rms_px(*tie_res),
-             "tie_rmse_before_px": None if before is None else _rms_px(before[:, 0], before[:, 1]),
-             "lines": _line_entry(line_points, np.ones(line_points["scene"].size, bool)) if line_points else None}
-    datum = datum_sentence(rep)
-    warnings = beyond_stated(per_scene, bool((gcps.role == "control").any()))
-    for warning in warnings:
-        log.warning("%s", warning)
-    warnings += rep["warnings"]  # the adjustment's (robust loop at its limit, reliability, datum): logged by the engine
-    log.info("block of %d scenes: sigma0 %.3f, tie RMS %s px; %s", len(scenes), rep["sigma0"],
-             "-" if block["tie_rmse_px"] is None else f"{block['tie_rmse_px']:.3f}", datum)
-    return {"block": block, "scenes": per_scene, "datum": datum,
-            "datum_directions": (rep.get("datum") or {}).get("directions", []), "warnings": warnings,
-            "written_vs_fitted": rep.get("written_vs_fitted"), "adjustment": rep}
-

@@ -26,14 +26,13 @@ from ..observations.tiepoints import TieTable
 from .blockproblem import BlockProblem
 from .checks import block_datum, check_inputs, check_redundancy
 from .consistency import check_written_scene
-from .datumdirections import with_directions
 from .determinability import check_determinability
 from .estimation import estimate
 from .linepoints import ControlLines, LineSetUp, set_up_lines
 from .minimalprior import hold_weak_trajectory
 from .problem import Problem
-from .report import report_warnings
-from .results import AdjustmentResult, record_in_scene, result_of, with_yaw
+from .report_types import StageOutcomes
+from .results import AdjustmentResult, result_of
 from .rpcbias import RpcProblem
 from .selection import conventional_instead, interior_free, select_interior
 from .settings import AdjustmentSettings
@@ -99,17 +98,6 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
                     len(est.passes))
     progress(0.92, "evaluating check points")
     adjusted = problem.params.adjusted_scene()
-    written_vs_fitted = check_written_scene(problem, adjusted)
-    out = result_of(problem, table, adjusted, est, determinability)
-    rep = out.report
-    rep["interior_selection"] = selection
-    rep["rpc_correction"] = problem.rpc_choice
-    rep["trajectory_prior"] = trajectory_prior
-    rep["written_vs_fitted"] = written_vs_fitted
-    if held is not None:
-        held = rep["datum"] = with_directions(with_yaw(held, problem, est.st), problem, est.result)
-        log.info("datum held by %s%s", held["held_by"], f": {held['note']}" if "note" in held else "")
-    rep["warnings"] = report_warnings(rep)
-    record_in_scene(adjusted, problem.settings, out, determinability, selection, held, int(problem.ties.ids.size))
-    return out
-
+    stages = StageOutcomes(determinability, selection, problem.rpc_choice, trajectory_prior,
+                           check_written_scene(problem, adjusted), held)
+    return result_of(problem, table, adjusted, est, stages)

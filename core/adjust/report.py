@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+from collections.abc import Mapping
 from typing import NamedTuple
 
 import numpy as np
@@ -24,8 +25,9 @@ log = logging.getLogger(__name__)
 # --- JSON ---------------------------------------------------------------------------------------
 def plain(value):
     """JSON-ready copy of ``value``: numpy scalars and arrays become Python numbers and lists,
-    NaN and infinities become None, dict keys strings; other objects (paths, enums) their str()."""
-    if isinstance(value, dict):
+    NaN and infinities become None, dict keys strings, a report (:mod:`core.adjust.report_types`) its
+    JSON; other objects (paths, enums) their str()."""
+    if isinstance(value, Mapping):
         return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [plain(v) for v in value]
@@ -42,12 +44,12 @@ def plain(value):
     return str(value)
 
 
-def report_to_json(report: dict) -> str:
+def report_to_json(report: Mapping) -> str:
     """The report as strict JSON text (numpy types converted, NaN and infinities as null)."""
     return json.dumps(plain(report), indent=1, allow_nan=False)
 
 
-def write_report_json(report: dict, path, files: OutputSet | None = None) -> None:
+def write_report_json(report: Mapping, path, files: OutputSet | None = None) -> None:
     """Write the report as JSON to ``path``, completely or not at all (with ``files``, as part of
     that set)."""
     write_text(path, report_to_json(report), files)
@@ -59,9 +61,17 @@ LEFT_OUT_REASONS = {"single_ray": "seen by one camera only (one ray fixes no gro
                     "not_intersected": "their onboard rays could not be intersected"}
 
 
-def datum_sentence(datum: dict) -> str:
-    """How the datum of a block with tie points is held (``report["datum"]``), in one sentence."""
-    return f"datum held by {datum['held_by']}" + (f": {datum['note']}" if datum.get("note") else "")
+def datum_sentence(rep: Mapping, article: str = "") -> str:
+    """How the datum of an adjustment ``report`` is held, in one sentence: with tie points as its
+    ``datum`` says (held by what, and the note), without them by the control points or lines.
+    article: put before what holds it ('the ' in a block report, whose JSON has said so)."""
+    held = rep.get("datum")
+    if held is None:  # no tie points: each scene held by its own control, points or lines
+        if "lines" not in rep:
+            return f"datum held by {article}control points (no tie points)"
+        points = rep["observations"]["control_points"]
+        return f"datum held by {article}control lines{' and points' if points else ''} (no tie points)"
+    return f"datum held by {article}{held['held_by']}" + (f": {held['note']}" if held.get("note") else "")
 
 
 def tie_point_lines(ties: dict) -> list[tuple[str, bool]]:
@@ -107,7 +117,7 @@ def residual_text(summary: dict, none: str) -> str:
     return f"RMSE col {summary['rmse_col']:.3f} px, row {summary['rmse_row']:.3f} px"
 
 
-def control_residual_sentence(rep: dict) -> str:
+def control_residual_sentence(rep: Mapping) -> str:
     """The control residuals of ``report`` in words: their RMSE, or that there are no control points
     (a block held by tie points and priors), or that none was left (all flagged)."""
     n = rep["observations"]["control_points"]
@@ -142,13 +152,13 @@ def onboard_advice(settings: dict) -> str:
             f"{' and '.join(what for _, what in missing)} accuracy) to hold it")
 
 
-def robust_limit_sentence(rep: dict) -> str:
+def robust_limit_sentence(rep: Mapping) -> str:
     """The warning of a robust estimation stopped at its pass limit (``report["robust"]``)."""
     return (f"robust estimation stopped at its limit of {len(rep['robust']['passes'])} passes; the flags may be "
             "incomplete")
 
 
-def report_warnings(rep: dict) -> list[str]:
+def report_warnings(rep: Mapping) -> list[str]:
     """The warnings of an adjustment ``report``, for its JSON (``warnings``) and a block's: the robust
     estimation stopped at its pass limit, the reliability problems, and the datum directions the tie
     points moved along beyond the priors' sigma (:func:`core.adjust.datumdirections.beyond_prior`)."""
@@ -166,15 +176,15 @@ class LogLine(NamedTuple):
     parameter: str | None = None
 
 
-def log_lines(report: dict, tie_observations: int | None = None) -> list[LogLine]:
-    """What the log says after an adjustment, from its ``report`` (:class:`core.adjust.results.
-    AdjustmentResult`): the outcome (correlations, fixed parameters, variance components, robust
+def log_lines(report: Mapping, tie_observations: int | None = None) -> list[LogLine]:
+    """What the log says after an adjustment, from its ``report`` (:class:`core.adjust.report_types.
+    AdjustmentReport`): the outcome (correlations, fixed parameters, variance components, robust
     estimation, reliability, sigma0, control and check point figures), then the tie points
     (``tie_observations``: how many were given; None without tie points) and the control lines."""
     return [*outcome_lines(report), *tie_lines(report, tie_observations), *control_line_lines(report.get("lines"))]
 
 
-def outcome_lines(rep: dict) -> list[LogLine]:
+def outcome_lines(rep: Mapping) -> list[LogLine]:
     """The RPC correction chosen by default (RPC_CORRECTION=auto), correlations the control hardly
     separates, parameters fixed as not determinable, variance components, observations held flagged
     and a robust estimation stopped at its limit, reliability problems, sigma0 and the control
@@ -213,7 +223,7 @@ def outcome_lines(rep: dict) -> list[LogLine]:
     return out
 
 
-def sigma0_sentence(rep: dict) -> str:
+def sigma0_sentence(rep: Mapping) -> str:
     """'sigma0 0.912 (passes the 95 % test)'; without redundancy to estimate it, says so."""
     sigma0 = rep.get("sigma0")
     if sigma0 is None or not math.isfinite(sigma0):
@@ -221,7 +231,7 @@ def sigma0_sentence(rep: dict) -> str:
     return f"sigma0 {sigma0:.3f} ({'passes' if rep['sigma0_test']['passed'] else 'fails'} the 95 % test)"
 
 
-def tie_lines(rep: dict, tie_observations: int | None) -> list[LogLine]:
+def tie_lines(rep: Mapping, tie_observations: int | None) -> list[LogLine]:
     """The tie-point figures (:func:`tie_point_lines`) and how the datum is held; a warning when
     tie points were given (``tie_observations`` of them) but none entered the adjustment."""
     out = []
@@ -231,7 +241,7 @@ def tie_lines(rep: dict, tie_observations: int | None) -> list[LogLine]:
     out += [LogLine(text, warning) for text, warning in tie_point_lines(rep["tie_points"])] \
         if rep.get("tie_points") else []
     if rep.get("datum"):
-        out.append(LogLine(datum_sentence(rep["datum"])))
+        out.append(LogLine(datum_sentence(rep)))
         out += [LogLine(text, True) for text in beyond_prior(rep["datum"].get("directions", []))]
     return out
 

@@ -19,6 +19,7 @@ from .checkpoints import model_error_message, without_label
 from .datumdirections import beyond_prior
 from .report import (control_residual_sentence, datum_sentence, ground_taken_sentence, joint_sentence, joint_sets,
                      plain, robust_limit_sentence, tie_point_lines)
+from .report_types import AdjustmentReport, BlockReport
 from .report_plots import chip_figure, residual_vector_figure, trajectory_figure
 from .scenesigmas import sigmas_text
 
@@ -34,7 +35,7 @@ _STYLE = ("body{font-family:sans-serif;max-width:1150px;margin:2em auto;color:#2
           "img{max-width:100%}")
 
 
-def write_report_html(report: dict, points: dict, path, title: str = "Bundle adjustment report",
+def write_report_html(report: AdjustmentReport, points: dict, path, title: str = "Bundle adjustment report",
                       files: OutputSet | None = None, preface: str = "") -> None:
     """Write one self-contained HTML page (plots as inline PNG) of an adjustment's ``report`` and
     per-GCP ``points`` (see :class:`core.adjust.engine.AdjustmentResult`) to ``path``,
@@ -54,8 +55,8 @@ def write_report_html(report: dict, points: dict, path, title: str = "Bundle adj
     log.info("wrote the adjustment report %s", path)
 
 
-def block_section(block_report: dict) -> str:
-    """HTML of a block adjustment's own figures (:func:`core.adjust.block.block_report`): how the
+def block_section(block_report: BlockReport) -> str:
+    """HTML of a block adjustment's own figures (:class:`core.adjust.report_types.BlockReport`): how the
     datum is held, then per scene and for the block the image residual RMS (px) of control, check
     and tie observations (ties before: the onboard scenes with their onboard intersection) and how
     far each scene's ground moved from its onboard geolocation (an RPC product's: its vendor RPC)
@@ -75,7 +76,7 @@ def block_section(block_report: dict) -> str:
                  "", "", ""])
     header = ["scene", "cameras", "control obs.", "control RMS px", "check obs.", "check RMS px", "tie obs.",
               "tie RMS before px", "tie RMS after px", "moved m", "onboard / vendor sigma m", "stated sigmas"]
-    warnings = "".join(f"<p class='bad'>{html.escape(w)}</p>" for w in block_warnings(rep))
+    warnings = "".join(f"<p class='bad'>{html.escape(w)}</p>" for w in block_report.own_warnings())
     return (f"<h2>Block of {block['scenes']} scenes</h2><p class='big'>{html.escape(rep['datum'])}; sigma0 "
             f"{_fmt(block['sigma0'])}.</p>" + warnings + _table(header, rows, left=2) + _block_lines(rep)
             + "<p>Each scene's move is the largest distance between the ground its onboard (or vendor RPC) and its "
@@ -84,13 +85,6 @@ def block_section(block_report: dict) -> str:
               "sigmas are those each scene's pseudo-observations carried, '(own)' where SCENE_SIGMAS gave the scene "
               "its own. The sections below are the adjustment of the whole block (cameras named "
               "&lt;scene&gt;/&lt;camera&gt;).</p>")
-
-
-def block_warnings(block_report: dict) -> list[str]:
-    """The warnings of a block report that are the block's own (a scene moved beyond its stated
-    accuracy): those of its adjustment (``adjustment.warnings``) the adjustment's report shows itself."""
-    shown = set(block_report.get("adjustment", {}).get("warnings", []))
-    return [w for w in block_report.get("warnings", []) if w not in shown]
 
 
 def _block_lines(rep: dict) -> str:
@@ -269,7 +263,7 @@ def _tie_point_section(rep: dict) -> str:
         return ""
     items = [f"<li>{html.escape(text)}</li>" for text, _ in tie_point_lines(ties)]
     if rep.get("datum"):
-        items.append(f"<li>{html.escape(datum_sentence(rep['datum']))}</li>")
+        items.append(f"<li>{html.escape(datum_sentence(rep))}</li>")
     rows = [[html.escape(cam), str(r.get("count", 0)), _fmt(r.get("rmse_col")), _fmt(r.get("rmse_row")),
              _fmt(r.get("max"), ".2f")] for cam, r in ties["residuals_per_camera"].items()]
     return ("<h2>Tie points</h2><ul>" + "".join(items) + "</ul>"

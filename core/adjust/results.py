@@ -1,6 +1,6 @@
-"""What an adjustment returns: :class:`AdjustmentResult` (the adjusted scene, the JSON-ready report,
-per-observation arrays of control and check points, tie points and line points) built from the
-final solution and its statistics."""
+"""What an adjustment returns: :class:`AdjustmentResult` (the adjusted scene, its report, per-observation
+arrays of control and check points, tie points and line points) built once from the final solution,
+its statistics and what the stages around it returned (:class:`core.adjust.report_types.StageOutcomes`)."""
 from __future__ import annotations
 
 import logging
@@ -13,13 +13,15 @@ from ..model.block import chip_label
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..observations.tables import listed
+from .datumdirections import with_directions
 from .checkpoints import accuracy, check_point_report, intersection_accuracy, log_check_points
 from .estimation import Estimate
 from .linepoints import directions, per_line, ray_offsets
 from .problem import Problem
-from .settings import AdjustmentSettings
 from .breakdown import breakdown
 from .robust import component_report, critical, sigma0_test, stated_sigma0
+from .report import datum_sentence
+from .report_types import AdjustmentReport, StageOutcomes
 from .statistics import Statistics, correlated_pairs
 from .parameters import ParameterSet, trajectory_groups
 from .ties import yaw_hold, yaw_sentence
@@ -28,7 +30,7 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class AdjustmentResult:
-    """scene: the adjusted scene; report: JSON-ready statistics; points: per input row
+    """scene: the adjusted scene; report: its figures (:class:`AdjustmentReport`); points: per input row
     (control and check) arrays: id, role, camera, col, row, res_col, res_row (px,
     predicted - measured), res_px, w_col, w_row (normalised residuals), redundancy, weight
     (final weight factor), flagged (bool), res_col_stated, res_row_stated (px: the adjusted
@@ -47,14 +49,18 @@ class AdjustmentResult:
     scene), flagged (the point or its line), line_flagged, lon, lat, h of its adjusted ground
     point; per line in report["lines"]["per_line"] (empty without lines)."""
     scene: SceneModel
-    report: dict
+    report: AdjustmentReport
     points: dict = field(default_factory=dict)
     tie_points: dict = field(default_factory=dict)
     lines: dict = field(default_factory=dict)
 
 
 def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Estimate,
-            determinability: list) -> AdjustmentResult:
+              stages: StageOutcomes) -> AdjustmentResult:
+    """The adjustment's result from its final ``problem`` and estimate ``est``: the adjusted scene
+    ``adjusted`` (which gets its record of the adjustment, :meth:`AdjustmentReport.scene_record`),
+    the report of the solution's figures and the ``stages``' outcomes, and the per-observation
+    arrays (see :class:`AdjustmentResult`)."""
     crit = critical(problem.settings.alpha)
     result, st = est.result, est.st
     params = problem.params
@@ -111,7 +117,7 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
     for p in problems:
         log.warning("%s%s", p["message"], "" if p["reliable"] else "; the result is not reliable")
     tie_ids = problem.ties.table.id[problem.rows[problem.is_tie]]
-    report = {
+    figures = {
         "settings": asdict(problem.settings),
         "observations": {"control_points": problem.n_control, "image_observations": int(gcp.sum()),
                          "check_points": int(checks.size), "unknowns": int(free.size),
@@ -129,7 +135,7 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
         "sigma0_adjusted": st.sigma0,
         "sigma0_test": sigma0_test(sigma0, dof),
         "variance_components": component_report(problem, est.components, est.kappa, est.joint),
-        "determinability": determinability,
+        "determinability": stages.determinability,
         "parameters": parameters,
         "high_correlations": pairs,
         "control_residuals": _residual_summary(st.v[good & gcp]),
@@ -143,13 +149,14 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
         "trajectory": _trajectory_curves(problem.params.trajectories) if problem.params.position_basis is not None
         else None,
     }
-    if len(problem.ties.table):
-        report["tie_points"], ties = _tie_points(problem, st, flagged, good)
-    else:
-        ties = {}
-    lines = {}
-    if len(problem.lines):
-        report["lines"], lines = _line_results(problem, adjusted, st, flagged)
+    figures["tie_points"], ties = _tie_points(problem, st, flagged, good) if len(problem.ties.table) else (None, {})
+    figures["lines"], lines = _line_results(problem, adjusted, st, flagged) if len(problem.lines) else (None, {})
+    report = AdjustmentReport(**figures, interior_selection=stages.interior_selection,
+                              rpc_correction=stages.rpc_correction, trajectory_prior=stages.trajectory_prior,
+                              written_vs_fitted=stages.written_vs_fitted, datum=_datum(stages.held, problem, est))
+    if report.datum is not None:
+        log.info("%s", datum_sentence(report))
+    adjusted.info["adjustment"] = report.scene_record()
     return AdjustmentResult(adjusted, report, points, ties, lines)
 
 
@@ -225,11 +232,15 @@ def _line_results(problem: Problem, adjusted, st: Statistics, flagged: np.ndarra
 
 
 
-def with_yaw(held: dict, problem: Problem, st: Statistics) -> dict:
-    """The datum entry with the posterior sigma of the block's yaw (:func:`yaw_hold`) and its
-    sentence appended to the note."""
-    yaw = yaw_hold(problem.params, st.sigma0 ** 2 * st.Q)
-    return {**held, "yaw": yaw, "note": "; ".join(filter(None, (held.get("note"), yaw_sentence(yaw))))}
+def _datum(held: dict | None, problem: Problem, est: Estimate) -> dict | None:
+    """The report's datum entry: how it is held before the solution (``held``, None without tie
+    points) with the posterior sigma of the block's yaw (:func:`yaw_hold`, its sentence appended
+    to the note) and the datum directions (:func:`core.adjust.datumdirections.with_directions`)."""
+    if held is None:
+        return None
+    yaw = yaw_hold(problem.params, est.st.sigma0 ** 2 * est.st.Q)
+    with_yaw = {**held, "yaw": yaw, "note": "; ".join(filter(None, (held.get("note"), yaw_sentence(yaw))))}
+    return with_directions(with_yaw, problem, est.result)
 
 
 def _at_stated_ground(scene, table: GcpTable) -> np.ndarray:
@@ -290,28 +301,3 @@ def _trajectory_curves(params: ParameterSet, samples: int = 200) -> dict:
     if len(params.owners) > 1:
         out["per_camera"] = {params.owner_name(o): curves(o) for o in range(len(params.owners))}
     return out
-
-
-def record_in_scene(adjusted: SceneModel, settings: AdjustmentSettings, out: AdjustmentResult, determinability: list,
-                    selection: dict | None, held: dict | None, tie_points: int) -> None:
-    """What the adjusted scene carries of its adjustment (``info["adjustment"]``): settings, sigma0,
-    variance components, reliability, the parameters that are not fixed at 0, determinability,
-    interior selection, check-point figures, and with tie points the datum, with lines their figures."""
-    rep = out.report
-    adjusted.info["adjustment"] = {
-        "settings": asdict(settings), "sigma0": rep["sigma0"],
-        "variance_components": {k: {f: v[f] for f in ("apriori_sigma", "estimated_sigma", "unit", "estimated")}
-                                for k, v in rep["variance_components"].items()},
-        "reliable": rep["reliability"]["reliable"], "robust_stopped_at_limit": rep["robust"]["stopped_at_limit"],
-        "parameters": [{k: p[k] for k in ("name", "value", "sigma", "unit", "mode")}
-                       for p in out.report["parameters"] if p["mode"] != "fixed" or p["value"] != 0.0],
-        "determinability": determinability, "interior_selection": selection,
-        "check_points": {k: out.report["check_points"].get(k) for k in ("points", "image", "ground")}}
-    if held is not None:
-        adjusted.info["adjustment"]["datum"] = {k: held[k] for k in ("held_by", "control_points", "control_lines",
-                                                                "note", "yaw", "directions")
-                                                  if k in held}
-        adjusted.info["adjustment"]["tie_points"] = tie_points
-    if "lines" in rep:
-        adjusted.info["adjustment"]["lines"] = {k: rep["lines"][k] for k in ("lines", "points", "flagged_line_ids",
-                                                                             "across_rmse_m", "directions")}

@@ -21,7 +21,7 @@ Vendor conventions and how they are converted here:
     EPH and ATT sample k (1-based index) is at STARTTIME + (k - 1) * TIMEINTERVAL. The TLC
     line times decrease with the line in a reverse scan (SCANDIRECTION Reverse; GeoEye-1).
 These conventions were checked on two WorldView-2 scenes: the model meets the vendor RPB to
-0.18/0.38 px and the IMD corner coordinates to 0.07 px (tests/unit/test_worldview.py); a
+0.18/0.38 px and the IMD corner coordinates to 0.07 px (tests/unit/formats/test_maxar.py); a
 reversed detector, a scalar-first reading or an inverted attitude would be pixels to
 kilometres off.
 

@@ -1,39 +1,37 @@
 """Automatic ground control points: the raw image matched against a reference orthoimage
-through the scene model (the approach of seed 000, Zheng et al. 2015).
+through the scene model (the approach of seed 000, Zheng et al. 2015), and the grid matching that
+tie points share (:mod:`core.measure.tiematching`).
 
 For each point p0 (col, row; GDAL pixel centres) of a grid over the raw image:
 
-1. **Prediction.** The onboard model maps the pixels of a window around p0 to the ground
-   (rays on the DEM) and the reference is sampled there: the *predicted chip*, the
-   reference resampled into the raw image's geometry. The map raw -> reference pixel is exact
-   at 3 x 3 nodes of each window and interpolated between them by biquadratic Lagrange
-   polynomials (the map is smooth over a window; the error is far below 0.01 px).
-2. **Coarse pass.** Onboard errors of hundreds of metres are found first at low resolution:
-   a few large chips (raw image block-averaged by a factor f, reference smoothed alike) are
-   correlated over the whole search range, and a plane offset(col, row) is fitted to the
-   consistent matches. Too few consistent matches is an error that names the search range.
-3. **Fine pass.** Each predicted chip (``window`` px) is correlated with the raw image over
-   +-``fine_radius`` px around the coarse prediction: normalised cross-correlation computed
-   by FFT (scipy.fft, vectorised over a batch of chips; local sums by integral images), the
-   peak refined to sub-pixel by a least-squares paraboloid on its 3 x 3 neighbourhood.
+1. **Prediction.** The onboard model maps the pixels of a window around p0 to the ground (rays on
+   the terrain surface: the DEM, its holes filled at the terrain's median height,
+   :mod:`core.measure.surface`) and the reference is sampled there: the *predicted chip*, the
+   reference resampled into the raw image's geometry, a frame in which view angles, scales and
+   the relief the surface holds no longer differ (:mod:`core.measure.prediction`).
+2. **Coarse to fine** (:mod:`core.measure.pyramid`). The onboard models' offset is found over an
+   image pyramid: the whole image block-averaged, correlated over the whole search range (clipped
+   to the image), then local chips at finer levels, each searched a few level pixels around what
+   its neighbours found, so the offset follows the parallax of relief the surface lacks.
+3. **Fine pass** (:mod:`core.measure.finepass`). Each predicted chip (``window`` px) is correlated
+   with the raw image over +-``fine_radius`` px around the offset predicted for it (normalised
+   cross-correlation by FFT, vectorised over a batch of chips), refined by least-squares matching
+   with gain and offset (Gruen 1985) and checked backward (raw chip -> reference).
 4. **Rejection.** A point is rejected, with its reason counted, when a chip it compares would
    straddle a CCD seam (its predicted window, the raw search area where the coarse pass puts the
    match, or for tie points the other camera's window: the chips on either side of a seam look at
    different ground along track, so such a chip mixes two views and its match is biased by up to
-   a pixel), its window leaves the image or the reference, its ray misses the DEM, the raw chip has too little texture
-   (standard deviation < ``min_texture`` DN), the correlation peak is low (< ``min_correlation``:
-   clouds, changed land cover, water), ambiguous (second peak / first peak > ``max_peak_ratio``)
-   or on the border of the search area, or its offset disagrees with its neighbours' on the same
-   chip by a pixel or more (:func:`core.measure.matchchecks.inconsistent`).
+   a pixel), its window leaves the image or the reference, its ray misses the surface, the DEM has
+   no height under a GCP, the raw chip has too little texture (standard deviation <
+   ``min_texture`` DN), the correlation peak is low (< ``min_correlation``: clouds, changed land
+   cover, water), ambiguous (second peak / first peak > ``max_peak_ratio``) or on the border of
+   the search area, the least-squares fit fails, the backward match disagrees, or its offset
+   disagrees with its neighbours' on the same chip by a pixel or more
+   (:func:`core.measure.matchchecks.inconsistent`).
 
-Tie points (:mod:`core.measure.tiematching`) use the same machinery (:func:`match_grid`) with
-another raw image as the reference (ground -> its image through its scene model): the images are
-compared in the base image's geometry, so different view angles do not defeat the correlation.
-
-A match says: the ground point G0 the onboard model sees at p0 (on the DEM) is seen in the
-raw image at p0 + d. So the GCP is ground G0 (lon, lat, ellipsoidal h) at image p0 + d.
-Its sigma (px) follows least-squares matching precision: sigma^2 = (1 - rho) / sum(g'^2) per
-axis, g the raw chip in standard units, rho the correlation (floor SIGMA_FLOOR).
+A match says: the ground point G0 the onboard model sees at p0 (on the DEM) is seen in the raw
+image at p0 + d. So the GCP is ground G0 (lon, lat, ellipsoidal h) at image p0 + d. Its sigma (px)
+is the least-squares fit's (sigma0^2 (N^-1) per axis, floor SIGMA_FLOOR).
 """
 from __future__ import annotations
 
@@ -42,41 +40,43 @@ import math
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
 
 from ..errors import Cancelled, InputError
 from ..geodesy import ecef_to_geodetic
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..products.rawimage import RawImage
-from .correlation import Peaks, block_mean, find_peaks, ncc, sample
+from .finepass import BACKWARD_RADIUS, fine_batch
 from .matchchecks import inconsistent, within_one_chip
+from .prediction import predicted_positions
+from .pyramid import NEIGHBOURS, CoarseOffsets, coarse_offsets, raw_levels
 from .reference import MEMORY_BUDGET, Reference, check_overlap, open_checked
+from .surface import FilledSurface, filled_surface
 
 log = logging.getLogger(__name__)
 
 INCONSISTENT = "inconsistent with its neighbours"
+NO_DEM_HEIGHT = "no DEM height"
+FIT_FAILED, BACKWARD = "least-squares fit failed", "backward match disagrees"
 REASONS = ("near a CCD seam", "outside the image", "off the DEM", "outside the reference", "low texture",
-           "low correlation", "ambiguous peak", "peak on the search border", INCONSISTENT)
-COARSE_TEMPLATE = 64      # coarse chip size (coarse px)
-COARSE_RADIUS = 40        # coarse search radius (coarse px): sets the block-averaging factor
-COARSE_GRID = 5           # coarse chips per side
-MIN_CONSISTENT = 3        # coarse matches that must agree
-SIGMA_FLOOR = 0.08        # px per axis: the error floor bench_matchgcps.py measures (RMSE 0.081 px per axis of the
-                          # matches within 1 px of the truth: spline sampling, peak fit), unseen by the formula
+           "low correlation", "ambiguous peak", "peak on the search border", INCONSISTENT, NO_DEM_HEIGHT,
+           FIT_FAILED, BACKWARD)
+# the reasons a better predicted offset may overcome: matched once more around the matched neighbours'
+RETRIED = ("ambiguous peak", "peak on the search border", INCONSISTENT, FIT_FAILED, BACKWARD)
 
 
 @dataclass(frozen=True)
 class MatchSettings:
     """spacing (px between grid points; count > 0 overrides it with about that many points),
     window (px, odd), min_correlation, max_peak_ratio, min_texture (DN), search (m: largest
-    onboard error looked for), fine_radius (px around the coarse prediction), batch (chips
-    per FFT batch), workers (threads; 0 = all cores), sigma_xy / sigma_z (m, ground sigmas
-    written to the GCPs; sigma_xy None = half a reference pixel)."""
+    onboard error looked for; clipped to the image), fine_radius (px searched around the offset
+    the pyramid predicts), batch (chips per FFT batch), workers (threads; 0 = all cores),
+    sigma_xy / sigma_z (m, ground sigmas written to the GCPs; sigma_xy None = half a reference
+    pixel)."""
     spacing: float = 200.0
     count: int = 0
     window: int = 31
@@ -109,8 +109,8 @@ class MatchSettings:
 class MatchResult:
     """The matched GCPs and how they were found. table: the GCPs that passed; quality: their
     correlation peak (n,); peak_ratio (n,); offset (n, 2) px matched minus p0 (col, row);
-    rejected: {reason: count} over all grid points; coarse: the coarse pass (offset plane
-    coefficients in px, number of consistent chips, factor); seconds: matching wall time."""
+    rejected: {reason: count} over all grid points; coarse: the coarse-to-fine search
+    (:meth:`core.measure.pyramid.CoarseOffsets.summary`); seconds: matching wall time."""
     table: GcpTable
     quality: np.ndarray
     peak_ratio: np.ndarray
@@ -121,35 +121,18 @@ class MatchResult:
     seconds: float = 0.0
 
 
-# --- geometry ------------------------------------------------------------------------------------
-_LAGRANGE = lambda t: np.stack([t * (t - 1) / 2, 1 - t * t, t * (t + 1) / 2], axis=-1)  # noqa: E731
-
-
-def predicted_positions(scene: SceneModel, camera: int, dem, ref: Reference, col: np.ndarray, row: np.ndarray,
-                        half: float, size: int, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Reference array positions (x, y), each (n, size, size), of the raw pixels
-    p0 + step * (k - (size-1)/2), k = 0..size-1 (rows then cols) around the n points (col, row),
-    through ``scene`` on ``dem``; and the ECEF ground (n, 3) of the points themselves. The map is
-    exact at 3 x 3 nodes spaced ``half`` px and biquadratic between. NaN where a ray misses."""
-    n = col.size
-    d = np.array([-half, 0.0, half])
-    nc = (col[:, None, None] + d[None, None, :]) + 0 * d[None, :, None]
-    nr = (row[:, None, None] + d[None, :, None]) + 0 * d[None, None, :]
-    ground = scene.image_to_ground_dem(nc.ravel(), nr.ravel(), dem, camera)
-    x, y = (v.reshape(n, 3, 3) for v in ref.ground_pixel(ground))
-    w = _LAGRANGE(step * (np.arange(size) - (size - 1) / 2) / half)  # (size, 3)
-    px = np.einsum("ia,jb,nab->nij", w, w, x)
-    py = np.einsum("ia,jb,nab->nij", w, w, y)
-    return px, py, ground.reshape(n, 9, 3)[:, 4]
-
-
 # --- the grid ------------------------------------------------------------------------------------
+def grid_spacing(cam, settings: MatchSettings) -> float:
+    """The grid's spacing (px): SPACING, or for about N_POINTS points over the image when given."""
+    if settings.count > 0:
+        return max(math.sqrt(cam.cols * cam.rows / settings.count), 8.0)
+    return settings.spacing
+
+
 def grid_points(cam, settings: MatchSettings, margin: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Pixel centres (col, row) of the grid whose windows (+ ``margin``) lie inside one CCD chip
     and the image rows; and the number of grid points dropped near CCD seams."""
-    spacing = settings.spacing
-    if settings.count > 0:
-        spacing = max(math.sqrt(cam.cols * cam.rows / settings.count), 8.0)
+    spacing = grid_spacing(cam, settings)
     cols = np.arange(margin + spacing / 2, cam.cols - margin, spacing)
     rows = np.arange(margin + spacing / 2, cam.rows - margin, spacing)
     cc, rr = np.meshgrid(np.floor(cols) + 0.5, np.floor(rows) + 0.5)
@@ -161,149 +144,22 @@ def grid_points(cam, settings: MatchSettings, margin: int) -> tuple[np.ndarray, 
     return cc[inside], rr[inside], int((~inside).sum())
 
 
-# --- coarse pass ---------------------------------------------------------------------------------
-def coarse_offsets(scene: SceneModel, camera: int, dem, ref: Reference, raw: RawImage, gsd: float,
-                   settings: MatchSettings) -> dict:
-    """The offset plane (raw px) d(col, row) = a + b (col - c0) / cols + e (row - r0) / rows from
-    block-averaged chips correlated over the whole search range. InputError when too few
-    chips agree: the reference does not show the scene's ground, or the error exceeds the range."""
-    cam = scene.cameras[camera]
-    radius_px = settings.search / gsd
-    f = max(1, int(math.ceil(radius_px / COARSE_RADIUS)))
-    r = int(math.ceil(radius_px / f)) + 2
-    t = COARSE_TEMPLATE
-    span = f * (t + 2 * r)
-    if span > min(cam.cols, cam.rows):
-        raise InputError(f"search range {settings.search:g} m needs {span} px chips, more than the image "
-                         f"({cam.cols} x {cam.rows} px): choose a smaller search range")
-    half = span / 2
-    c0 = np.linspace(half, cam.cols - half, COARSE_GRID)
-    r0 = np.linspace(half, cam.rows - half, COARSE_GRID)
-    cc, rr = (np.floor(v.ravel()) + 0.5 for v in np.meshgrid(c0, r0))
-    px, py, _ = predicted_positions(scene, camera, dem, ref, cc, rr, f * t / 2, t, f)
-    smooth = 0.5 * f * gsd / ref.gsd
-    templates, searches = [], []
-    for k in range(cc.size):
-        finite = np.isfinite(px[k])
-        if not finite.all():
-            templates.append(None)
-            searches.append(None)
-            continue
-        win, wx, wy = ref.float_window(px[k], py[k], 4)
-        templates.append(sample(gaussian_filter(win, smooth) if smooth > 0.3 else win, wx, wy, px[k], py[k]))
-        sx, sy = int(np.floor(cc[k] - half)), int(np.floor(rr[k] - half))
-        searches.append(block_mean(raw.window(sy, sy + span, sx, sx + span)[0].astype(np.float32), f))
-    usable = [k for k in range(cc.size) if templates[k] is not None and np.isfinite(templates[k]).all()
-              and np.std(templates[k]) > settings.min_texture and np.std(searches[k]) > settings.min_texture]
-    if not usable:
-        raise InputError(f"reference {ref.path}: it does not cover the scene's ground where the onboard model "
-                         "puts it (or shows no texture there): check that it overlaps the scene")
-    c = ncc(np.stack([templates[k] for k in usable]), np.stack([searches[k] for k in usable]))
-    peaks = find_peaks(c, 4)
-    good = (peaks.value > 0.5) & (peaks.ratio < settings.max_peak_ratio) & ~peaks.border
-    # offset (raw px) of the raw chip from the prediction: template pixel k (centre p0 + f (k - (t-1)/2))
-    # meets coarse search pixel k + d, whose centre is origin + f (k + d + 1/2)
-    cu, ru = cc[usable], rr[usable]
-    dx = np.floor(cu - half) + f * (peaks.dx + t / 2) - cu
-    dy = np.floor(ru - half) + f * (peaks.dy + t / 2) - ru
-    consistent = good.copy()
-    if good.sum() >= MIN_CONSISTENT:
-        mx, my = np.median(dx[good]), np.median(dy[good])
-        consistent &= np.hypot(dx - mx, dy - my) <= 2.0 * f + 4.0
-    n_ok = int(consistent.sum())
-    log.info("coarse pass: factor %d, %d chips, %d usable, %d good, %d consistent", f, cc.size, len(usable),
-             int(good.sum()), n_ok)
-    if n_ok < MIN_CONSISTENT:
-        on_border = int(peaks.border.sum())
-        raise InputError(
-            f"no consistent match between the image and reference {ref.path} within the search range "
-            f"(+-{settings.search:g} m): {n_ok} of {len(usable)} coarse chips agree ({on_border} peak on the border "
-            "of the search area). Either the onboard model is farther off than the search range (increase the "
-            "search range, e.g. to twice the expected onboard error), or the reference does not show the same "
-            "ground (check its overlap, date and CRS)")
-    a = np.stack([np.ones(n_ok), (cu[consistent] - cam.cols / 2) / cam.cols,
-                  (ru[consistent] - cam.rows / 2) / cam.rows], axis=1)
-    coef_x = np.linalg.lstsq(a if n_ok >= 4 else a[:, :1], dx[consistent], rcond=None)[0]
-    coef_y = np.linalg.lstsq(a if n_ok >= 4 else a[:, :1], dy[consistent], rcond=None)[0]
-    pad = np.zeros(3 - coef_x.size)
-    return {"factor": f, "chips": int(cc.size), "consistent": n_ok, "col_plane_px": np.r_[coef_x, pad].tolist(),
-            "row_plane_px": np.r_[coef_y, pad].tolist(),
-            "spread_px": float(np.max(np.hypot(dx[consistent] - np.median(dx[consistent]),
-                                               dy[consistent] - np.median(dy[consistent])))) if n_ok else 0.0}
-
-
-def _plane(coarse: dict, cam, col: np.ndarray, row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    u, v = (col - cam.cols / 2) / cam.cols, (row - cam.rows / 2) / cam.rows
-    a, b = np.array(coarse["col_plane_px"]), np.array(coarse["row_plane_px"])
-    return a[0] + a[1] * u + a[2] * v, b[0] + b[1] * u + b[2] * v
-
-
-# --- fine pass -----------------------------------------------------------------------------------
-def _fine_batch(px, py, col, row, shift_c, shift_r, ref: Reference, raw: RawImage, nodata,
-                settings: MatchSettings, workers: int) -> dict:
-    """Match one batch: reference chips (b, w, w) sampled at (px, py) against raw search areas
-    centred on (col, row) + integer shifts. Returns per-chip offsets, peaks and reasons."""
-    w, r = settings.window, settings.fine_radius
-    s = w + 2 * r
-    b = col.size
-    win, wx, wy = ref.window(px, py, 3)
-    templates = sample(win, wx, wy, px, py, ref.nodata)
-    # raw search areas: upper-left pixel index of each
-    sc = (np.floor(col) + shift_c - (s - 1) / 2).astype(int)
-    sr = (np.floor(row) + shift_r - (s - 1) / 2).astype(int)
-    outside = (sc < 0) | (sr < 0) | (sc + s > raw.cols) | (sr + s > raw.rows)
-    scc, src = np.clip(sc, 0, raw.cols - s), np.clip(sr, 0, raw.rows - s)
-    bx0, by0 = int(scc.min()), int(src.min())
-    block = raw.window(by0, int(src.max()) + s, bx0, int(scc.max()) + s)[0]
-    k = np.arange(s)
-    search = block[(src - by0)[:, None, None] + k[None, :, None], (scc - bx0)[:, None, None] + k[None, None, :]]
-    search = search.astype(np.float32)
-    if nodata is not None:
-        outside |= (search == nodata).any(axis=(1, 2))
-    no_ref = ~np.isfinite(templates).all(axis=(1, 2))
-    templates = np.where(np.isfinite(templates), templates, 0.0)
-    centre = search[:, r:r + w, r:r + w]
-    texture = np.minimum(centre.std(axis=(1, 2)), templates.std(axis=(1, 2)))
-    c = ncc(templates, search, workers)
-    p = find_peaks(c, 4)
-    # matched image position of the template centre
-    mc = scc + p.dx + (w - 1) / 2 + 0.5
-    mr = src + p.dy + (w - 1) / 2 + 0.5
-    top = np.clip(np.rint(p.dy).astype(int), 0, 2 * r)[:, None, None]
-    left = np.clip(np.rint(p.dx).astype(int), 0, 2 * r)[:, None, None]
-    g = search[np.arange(b)[:, None, None], top + k[None, :w, None], left + k[None, None, :w]]
-    g = (g - g.mean(axis=(1, 2), keepdims=True)) / np.maximum(g.std(axis=(1, 2), keepdims=True), 1e-6)
-    gy, gx = np.gradient(g, axis=(1, 2))
-    rho = np.clip(p.value, 1e-3, 1.0)
-    sig = np.sqrt(0.5 * ((1 - rho) / np.maximum((gx * gx).sum(axis=(1, 2)), 1e-9)
-                         + (1 - rho) / np.maximum((gy * gy).sum(axis=(1, 2)), 1e-9)))
-    return {"col": mc, "row": mr, "value": p.value, "ratio": p.ratio, "sigma": np.maximum(sig, SIGMA_FLOOR),
-            "reasons": _reasons(outside, no_ref, texture, p, settings)}
-
-
-def _reasons(outside, no_ref, texture, p: Peaks, settings: MatchSettings) -> np.ndarray:
-    """Index into REASONS of each chip's first failed test; -1 for a match that passes."""
-    tests = [(1, outside), (3, no_ref), (4, texture < settings.min_texture), (5, p.value < settings.min_correlation),
-             (6, p.ratio > settings.max_peak_ratio), (7, p.border)]
-    reason = np.full(outside.size, -1)
-    for index, failed in reversed(tests):
-        reason = np.where(failed, index, reason)
-    return reason
-
-
 @dataclass
 class GridMatch:
     """Per grid point (n,): its position (col, row), the matched position, correlation, peak
     ratio, sigma, the reference position matching the grid point itself (ref_col, ref_row: GDAL
     px of the reference's array; the local affine map applied to the match's offset), the ECEF
     ground (n, 3) of the grid point and the reason index (-1: passed); near_seam: the grid points
-    left out before matching because their own window straddles a CCD seam."""
+    left out before matching because their own window straddles a CCD seam; in_hole: (n,) the grid
+    points whose ground the DEM has no height under (matched at the estimated height); coarse: the
+    pyramid's summary."""
     col: np.ndarray
     row: np.ndarray
     out: dict
     ground: np.ndarray
     reasons: np.ndarray
     near_seam: int
+    in_hole: np.ndarray
     coarse: dict
     seconds: float
 
@@ -312,9 +168,13 @@ class GridMatch:
                 **{REASONS[i]: int((self.reasons == i).sum()) for i in range(1, len(REASONS))}}
 
 
-def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, gsd: float,
-                settings: MatchSettings, report, cancelled) -> GridMatch:
-    """Match the grid of camera ``camera``'s raw image against ``ref`` (coarse, then fine pass)."""
+def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, surface: FilledSurface, gsd: float,
+               settings: MatchSettings, report, cancelled) -> GridMatch:
+    """Match the grid of camera ``camera``'s raw image against ``ref`` (coarse to fine, then the
+    fine pass; see the module docstring). The grid points the fine pass rejects for their peak or
+    its checks (RETRIED) are matched once more around the offsets their matched neighbours found
+    (the plane of the nearest: on a pyramid's face or a hillside these predict a point's parallax
+    to a fraction of a pixel where the coarse levels' chips, tens of metres wide, could not)."""
     cam = scene.cameras[camera]
     src, nodata = open_checked(scene, camera, image_path)
     report(0.01, "reading the images")
@@ -323,36 +183,29 @@ def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, 
     # the interpreter's exit, which crashes it (a refused block ended Python with SIGSEGV).
     src = None
     start = time.perf_counter()
-    report(0.02, "coarse pass: looking for the onboard model's offset")
-    coarse = coarse_offsets(scene, camera, dem, ref, raw, gsd, settings)
-    log.info("coarse offset plane: col %s, row %s px", coarse["col_plane_px"], coarse["row_plane_px"])
-    half = (settings.window - 1) / 2
+    report(0.02, "coarse to fine: looking for the onboard models' offsets")
+    coarse = coarse_offsets(scene, camera, surface, ref, raw_levels(raw, nodata), gsd, settings.search,
+                            grid_spacing(cam, settings), settings.min_texture, settings.max_peak_ratio)
+    w = settings.window
+    half = (w - 1) / 2 + BACKWARD_RADIUS
     h = int(half)
-    col, row, near_seam = grid_points(cam, settings, int(half + settings.fine_radius + 1))
+    col, row, near_seam = grid_points(cam, settings, int((w - 1) / 2 + settings.fine_radius + 1))
     if col.size == 0:
         raise InputError(f"no grid point fits in the image ({cam.cols} x {cam.rows} px) with window "
                          f"{settings.window} px and spacing {settings.spacing:g} px")
-    shift_c, shift_r = (np.rint(v).astype(int) for v in _plane(coarse, cam, col, row))
-    # The raw search area sits where the coarse pass predicts the match (tens of pixels from the
-    # grid point): it too must lie in one chip, or the matched chip mixes two chips' views.
-    s = settings.window + 2 * settings.fine_radius
-    first = np.floor(col) + shift_c - (s - 1) // 2
-    straddles = ~within_one_chip(cam, first, first + s - 1)
-    reasons = np.full(col.size, 2)
-    reasons[straddles] = 0
-    order = np.argsort(np.floor(row / (settings.spacing * 8)) * cam.cols + col, kind="stable")
-    order = order[~straddles[order]]
-    batches = [order[i:i + settings.batch] for i in range(0, order.size, settings.batch)]
     workers = settings.workers or os.cpu_count() or 1
-    out = {k: np.full(col.size, np.nan) for k in ("col", "row", "value", "ratio", "sigma", "ref_col", "ref_row")}
+    out = {k: np.full(col.size, np.nan) for k in ("col", "row", "value", "ratio", "sigma", "gain", "ref_col",
+                                                  "ref_row")}
     ground = np.full((col.size, 3), np.nan)
+    reasons = np.full(col.size, 2)
 
-    def run(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
-        """Predict and match one batch of grid points (indices idx); also the indices whose
-        reference window straddles a seam of the other camera (tie points)."""
+    def run(idx: np.ndarray, field: CoarseOffsets) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray]:
+        """Predict (rectified at ``field``) and match one batch of grid points (indices idx); also
+        the indices whose reference window straddles a seam of the other camera (tie points)."""
         if cancelled():
             raise Cancelled("matching cancelled by the user")
-        px, py, g = predicted_positions(scene, camera, dem, ref, col[idx], row[idx], half, settings.window, 1.0)
+        px, py, g = predicted_positions(scene, camera, surface, ref, col[idx], row[idx], half, 2 * h + 1, 1.0,
+                                        field.predict if field.field is not None else None)
         ok = np.isfinite(g).all(axis=1) & np.isfinite(px).all(axis=(1, 2)) & np.isfinite(py).all(axis=(1, 2))
         seam = np.zeros_like(ok)
         seam[ok] = ref.straddles_seam(px[ok])
@@ -361,7 +214,8 @@ def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, 
             return idx[:0], g[:0], {}, idx[seam]
         seam_idx = idx[seam]
         px, py, idx = px[ok], py[ok], idx[ok]
-        res = _fine_batch(px, py, col[idx], row[idx], shift_c[idx], shift_r[idx], ref, raw, nodata, settings, 1)
+        shift_c, shift_r = (np.rint(v).astype(int) for v in field.predict(col[idx], row[idx]))
+        res = fine_batch(px, py, col[idx], row[idx], shift_c, shift_r, ref, raw, nodata, settings, 1)
         # the reference position of the grid point's own match: centre minus the local map of the offset
         dc, dr = res["col"] - col[idx], res["row"] - row[idx]
         jx = ((px[:, h, h + 1] - px[:, h, h - 1]) / 2, (px[:, h + 1, h] - px[:, h - 1, h]) / 2)
@@ -370,16 +224,41 @@ def match_grid(scene: SceneModel, camera: int, image_path, ref: Reference, dem, 
         res["ref_row"] = py[:, h, h] + 0.5 - jy[0] * dc - jy[1] * dr
         return idx, g[ok], res, seam_idx
 
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        for n, (idx, g, res, seam_idx) in enumerate(pool.map(run, batches)):
-            reasons[seam_idx] = 0
-            if idx.size:
-                for k in out:
-                    out[k][idx] = res[k]
-                reasons[idx], ground[idx] = res["reasons"], g
-            report(0.1 + 0.85 * (n + 1) / len(batches), None)
-    reasons[inconsistent(cam, col, row, out["col"], out["row"], reasons < 0)] = REASONS.index(INCONSISTENT)
-    return GridMatch(col, row, out, ground, reasons, near_seam, coarse, time.perf_counter() - start)
+    def match(todo: np.ndarray, field: CoarseOffsets, progress: tuple[float, float]) -> None:
+        """Match the grid points ``todo`` (indices) in batches on the workers, the results into out,
+        reasons and ground; their raw search areas (where ``field`` puts the match, tens of pixels
+        from the grid point) must lie in one CCD chip too, or the matched chip mixes two views."""
+        s = w + 2 * settings.fine_radius
+        first = np.floor(col[todo]) + np.rint(field.predict(col[todo], row[todo])[0]) - (s - 1) // 2
+        straddles = ~within_one_chip(cam, first, first + s - 1)
+        reasons[todo[straddles]] = 0
+        todo = todo[~straddles]
+        order = todo[np.argsort(np.floor(row[todo] / (grid_spacing(cam, settings) * 8)) * cam.cols + col[todo],
+                                kind="stable")]
+        batches = [order[i:i + settings.batch] for i in range(0, order.size, settings.batch)]
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            for n, (idx, g, res, seam_idx) in enumerate(pool.map(lambda b: run(b, field), batches)):
+                reasons[seam_idx] = 0
+                if idx.size:
+                    for k in out:
+                        out[k][idx] = res[k]
+                    reasons[idx], ground[idx] = res["reasons"], g
+                report(progress[0] + (progress[1] - progress[0]) * (n + 1) / len(batches), None)
+        reasons[inconsistent(cam, col, row, out["col"], out["row"], reasons < 0)] = REASONS.index(INCONSISTENT)
+
+    match(np.arange(col.size), coarse, (0.1, 0.85))
+    retry = np.nonzero(np.isin(reasons, [REASONS.index(r) for r in RETRIED]))[0]
+    ok = reasons < 0
+    if retry.size and ok.sum() > NEIGHBOURS:
+        dense = replace(coarse)
+        dense.set_field(np.stack([col[ok], row[ok]], axis=1),
+                        np.stack([out["col"][ok] - col[ok], out["row"][ok] - row[ok]], axis=1), cam.cols, cam.rows,
+                        grid_spacing(cam, settings) / 2)
+        match(retry, dense, (0.85, 0.95))
+        log.info("the fine pass again around the matched neighbours' offsets: %d of %d grid points rejected for "
+                 "their peak or its checks matched now", int((reasons[retry] < 0).sum()), retry.size)
+    return GridMatch(col, row, out, ground, reasons, near_seam, surface.in_hole(ground), coarse.summary(),
+                     time.perf_counter() - start)
 
 
 def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
@@ -388,15 +267,23 @@ def match_gcps(scene: SceneModel, camera: int, image_path, reference_path, dem,
                is_cancelled: Callable[[], bool] | None = None) -> MatchResult:
     """Ground control points for camera ``camera`` of ``scene`` by matching its raw image
     (``image_path``) against a reference orthoimage over ``dem`` (core.dem.Dem or
-    ConstantHeight; heights of the GCPs come from it). See the module docstring."""
+    ConstantHeight; heights of the GCPs come from it: grid points where it has none are rejected
+    as 'no DEM height'). See the module docstring."""
     settings.validate()
     report = progress or (lambda fraction, message=None: None)
     cancelled = is_cancelled or (lambda: False)
     cam = scene.cameras[camera]
     ref = Reference(reference_path)
-    gsd = float(scene.info.get("gsd_m") or ground_sample_distance(scene, camera, dem))
-    check_overlap(scene, camera, dem, ref, settings.search)
-    m = match_grid(scene, camera, image_path, ref, dem, gsd, settings, report, cancelled)
+    surface = filled_surface(scene, camera, dem)
+    gsd = float(scene.info.get("gsd_m") or ground_sample_distance(scene, camera, surface))
+    check_overlap(scene, camera, surface, ref, settings.search)
+    m = match_grid(scene, camera, image_path, ref, surface, gsd, settings, report, cancelled)
+    if m.in_hole.any():
+        log.info("%s: the reference was rectified there at the estimated height %.1f m, and the %d matches among "
+                 "them rejected as '%s' (a GCP's height there would be a guess)",
+                 surface.missing(m.ground, "grid points"), surface.estimate,
+                 int(((m.reasons < 0) & m.in_hole).sum()), NO_DEM_HEIGHT)
+    m.reasons[(m.reasons < 0) & m.in_hole] = REASONS.index(NO_DEM_HEIGHT)
     ok = m.reasons < 0
     rejected = m.rejected()
     n, total = int(ok.sum()), int(m.col.size + m.near_seam)

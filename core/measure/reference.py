@@ -1,7 +1,8 @@
 """The references image matching compares a raw image with: a georeferenced orthoimage
 (:class:`Reference`) or another camera's raw image through the scene model
-(:class:`ImageReference`, for tie points); and the checks that the images can be matched at all
-(contrast, overlap with the scene).
+(:class:`ImageReference`, for tie points), each also block-averaged for the coarse levels of the
+search (:meth:`Reference.level`); and the checks that the images can be matched at all (contrast,
+overlap with the scene).
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from ..geodesy import ecef_to_geodetic
 from ..model.sensor import SceneModel
 from ..products.rawimage import image_on_surface, open_raw
 from ..rasters import open_input_raster
+from .correlation import BlockMeans, strip_block_mean
 
 gdal.UseExceptions()
 
@@ -65,6 +67,8 @@ class Reference:
             raise InputError(f"reference {self.path}: implausible georeferencing (pixel size {self.gsd:g} m in "
                              f"{self.crs.name}); expected an orthoimage with pixels of 1 mm to 10 km")
         self._local = threading.local()
+        self.budget = budget
+        self._levels: BlockMeans | None = None
         self.data = ds.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
         ds = None
 
@@ -79,9 +83,43 @@ class Reference:
         return self._local.ds
 
     def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Fractional array indices (x, y) of ECEF points (n, 3)."""
+        """Fractional array indices (x, y) of ECEF points (n, 3); NaN for points that are NaN (a
+        ray that missed the surface)."""
+        x, y = np.full(len(ground), np.nan), np.full(len(ground), np.nan)
+        finite = np.isfinite(ground).all(axis=1)
+        if finite.any():
+            x[finite], y[finite] = self._ground_pixel(ground[finite])
+        return x, y
+
+    def _ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lon, lat, _ = ecef_to_geodetic(ground)
         return self.pixel(lon, lat)
+
+    def level(self, factor: int) -> tuple[np.ndarray, int]:
+        """The pixels block-averaged by ``factor`` (a power of two; or by a larger one when its
+        pixels would not fit the memory budget), float32 with nodata NaN (a block holding nodata is
+        NaN), and the factor used (:class:`core.measure.correlation.BlockMeans`). Factor 1 of pixels
+        in memory is the pixels themselves (their own type, nodata as it is)."""
+        if factor == 1 and self.data is not None:
+            return self.data, 1
+        factor = max(2, factor)
+        while self.data is None and self.cols * self.rows * 4 / factor ** 2 > self.budget:
+            factor *= 2
+        if self._levels is None:
+            self._levels = BlockMeans(self._read_level, self.cols, self.rows,
+                                      self.budget if self.data is not None else 0)
+        return self._levels.level(factor), factor
+
+    def _read_level(self, factor: int) -> np.ndarray:
+        """The pixels block-averaged by ``factor``: from memory, or read decimated by GDAL (average)."""
+        cols, rows = self.cols // factor, self.rows // factor
+        if cols < 1 or rows < 1:
+            return np.full((1, 1), np.nan, np.float32)
+        if self.data is not None:
+            return strip_block_mean(self.data, factor, self.nodata)
+        a = self.dataset().GetRasterBand(1).ReadAsArray(0, 0, cols * factor, rows * factor, buf_xsize=cols,
+                                                        buf_ysize=rows, resample_alg=gdal.GRIORA_Average)
+        return _blanked(a, self.nodata)
 
     def pixel(self, lon, lat) -> tuple[np.ndarray, np.ndarray]:
         """Fractional array indices (x = column, y = row; pixel centres at integers) of (lon, lat)."""
@@ -119,10 +157,12 @@ class ImageReference(Reference):
         src, self.nodata = open_checked(scene, camera, image_path)
         self.scene, self.camera, self.path, self.gsd = scene, camera, str(image_path), gsd
         self.cols, self.rows = cam.cols, cam.rows
+        self.budget = budget
+        self._levels = None
         self.data = src.GetRasterBand(1).ReadAsArray() if self.cols * self.rows * 4 <= budget else None
         self._local = threading.local()
 
-    def ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _ground_pixel(self, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         col, row = self.scene.ground_to_image(ground, self.camera)
         return col - 0.5, row - 0.5
 

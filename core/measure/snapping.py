@@ -16,7 +16,7 @@ A straight line fitted to the feature positions across (weighted least squares o
 stations, one outlier rejection at 3 robust sigmas) gives the vertex's refined position
 across the line and its own sigma: the fit's standard error at the vertex (stations closer
 than the width counted as one), never below ``sigma_floor`` px (what the background texture
-leaves on a rendered road: 0.09 px RMS in tests/unit/test_snapping.py). Two passes: the
+leaves on a rendered road: 0.09 px RMS in tests/unit/measure/test_snapping.py). Two passes: the
 second with the refined directions and half the search.
 A vertex with fewer than ``min_stations`` usable profiles, or whose fit is worse than
 ``max_sigma`` px (a junction, a CCD seam where the image of the road jumps, texture that

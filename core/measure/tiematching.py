@@ -14,17 +14,24 @@ itself, the others the matched positions mapped back to it through the local map
 """
 from __future__ import annotations
 
+import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from osgeo import gdal
 
 from ..errors import InputError
 from ..model.sensor import SceneModel
 from ..observations.tiepoints import TieTable
-from .matching import REASONS, MatchSettings, ground_sample_distance, match_grid, reason_text
+from ..rasters import open_input_raster
+from .matching import NO_DEM_HEIGHT, REASONS, MatchSettings, ground_sample_distance, match_grid, reason_text
 from .reference import ImageReference
+from .surface import filled_surface
+
+log = logging.getLogger(__name__)
 
 OUTSIDE_OTHER = "outside the other camera's image"  # REASONS[3] for tie points
 
@@ -84,7 +91,8 @@ def match_block_tiepoints(views: list[View], dem, settings: MatchSettings = Matc
         raise InputError("tie points between scenes need images of at least two scenes", parameter="scenes")
     if not 0 <= base < len(views):
         raise InputError(f"the base image {base} is not one of the {len(views)} given", parameter="base")
-    apart = [v.label for k, v in enumerate(views) if k != base and not overlapping(views[base], v, dem)]
+    filled = filled_surface(views[base].scene, views[base].camera, dem)    # a DSM's holes must not part the scenes
+    apart = [v.label for k, v in enumerate(views) if k != base and not overlapping(views[base], v, filled)]
     if apart:
         raise InputError(f"{', '.join(apart)} do{'es' * (len(apart) == 1)} not overlap {views[base].label}: no "
                          f"point of its image, on the DEM through its onboard model, falls in "
@@ -94,6 +102,45 @@ def match_block_tiepoints(views: list[View], dem, settings: MatchSettings = Matc
 
 
 OVERLAP_GRID = 7  # points per side of the base image tried for an overlap
+IDENTICAL_CORRELATION = 0.99  # two raw images of one size correlating this well pixel for pixel are one image
+IDENTICAL_SIDE = 512          # px: the images compared block-averaged to about this size
+
+
+def refuse_identical_images(base: View, others: list[View]) -> None:
+    """InputError (parameter 'images') when another view's image shows the base image's pixels: same
+    size and a correlation of at least IDENTICAL_CORRELATION pixel for pixel (a copy, or the same
+    image in another format). Two scenes never record the same pixels (noise alone differs), but a
+    copy correlates with itself through two different models at every place where the models'
+    difference is smooth, and the ties it gives contradict the models by the relief parallax
+    between them (measured: a median 13.5 px, at most 24 px, from where the other model puts them)."""
+    size = (base.scene.cameras[base.camera].cols, base.scene.cameras[base.camera].rows)
+    same = [v for v in others if (v.scene.cameras[v.camera].cols, v.scene.cameras[v.camera].rows) == size]
+    if not same:
+        return
+    first = _thumbnail(base.image, size)
+    for v in same:
+        rho = _correlation(first, _thumbnail(v.image, size))
+        if rho >= IDENTICAL_CORRELATION:
+            raise InputError(f"the images of {base.label} ({base.image}) and {v.label} ({v.image}) show the same "
+                             f"pixels (correlation {rho:.4f} pixel for pixel): one image given for two "
+                             f"{'scenes' if base.scene_name else 'cameras'}? Each needs its own image",
+                             parameter="images")
+
+
+def _thumbnail(path, size: tuple[int, int]) -> np.ndarray:
+    """Band 1 of the raster ``path`` (cols, rows = ``size``) block-averaged to about IDENTICAL_SIDE px."""
+    step = max(1, max(size) // IDENTICAL_SIDE)
+    ds = open_input_raster(path)   # held while its band is read: a band outliving its dataset crashes GDAL
+    a = ds.GetRasterBand(1).ReadAsArray(buf_xsize=max(size[0] // step, 1), buf_ysize=max(size[1] // step, 1),
+                                        resample_alg=gdal.GRIORA_Average).astype(np.float64)
+    ds = None
+    return a
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float:
+    a, b = a - a.mean(), b - b.mean()
+    energy = math.sqrt(float((a * a).sum() * (b * b).sum()))
+    return float((a * b).sum()) / energy if energy > 0 else 0.0
 
 
 def overlapping(base: View, other: View, dem) -> bool:
@@ -111,6 +158,15 @@ def overlapping(base: View, other: View, dem) -> bool:
     return bool(np.any(other.scene.cameras[other.camera].in_image(c, r)))
 
 
+def log_match(pair: str, m, surface) -> None:
+    """Log the grid points of ``m`` (:class:`core.measure.matching.GridMatch` of the images ``pair``)
+    that the DEM gives no height under (off its extent or on its holes), and how many of them matched."""
+    if m.in_hole.any():
+        log.info("%s: %s: those were matched at the estimated height %.1f m (%d matched; where the terrain is "
+                 "steep their windows, rectified at that height, match less accurately)", pair,
+                 surface.missing(m.ground, "grid points"), surface.estimate, int(((m.reasons < 0) & m.in_hole).sum()))
+
+
 def match_views(views: list[View], dem, settings: MatchSettings, base: int,
                 progress: Callable[[float, str | None], None] | None = None,
                 is_cancelled: Callable[[], bool] | None = None) -> tuple[TieTable, dict]:
@@ -119,15 +175,19 @@ def match_views(views: list[View], dem, settings: MatchSettings, base: int,
     report = progress or (lambda fraction, message=None: None)
     cancelled = is_cancelled or (lambda: False)
     b = views[base]
-    gsd = float(b.scene.info.get("gsd_m") or ground_sample_distance(b.scene, b.camera, dem))
-    observations, rejected, outside = [], {}, []
     others = [v for k, v in enumerate(views) if k != base]
+    refuse_identical_images(b, others)
+    surface = filled_surface(b.scene, b.camera, dem)
+    gsd = float(b.scene.info.get("gsd_m") or ground_sample_distance(b.scene, b.camera, surface))
+    observations, rejected, outside = [], {}, []
     for n, v in enumerate(others):
         ref = ImageReference(v.scene, v.camera, v.image, gsd)
-        m = match_grid(b.scene, b.camera, b.image, ref, dem, gsd, settings,
+        m = match_grid(b.scene, b.camera, b.image, ref, surface, gsd, settings,
                        lambda f, msg=None, n=n: report((n + f) / len(others), msg), cancelled)
         ok = m.reasons < 0
-        counts = {OUTSIDE_OTHER if r == REASONS[3] else r: c for r, c in m.rejected().items()}
+        counts = {OUTSIDE_OTHER if r == REASONS[3] else r: c for r, c in m.rejected().items()
+                  if r != NO_DEM_HEIGHT}
+        log_match(f"{b.label}-{v.label}", m, surface)
         rejected[v.label] = counts
         if counts[OUTSIDE_OTHER] == m.col.size:
             outside.append(v.label)

@@ -14,7 +14,7 @@ Since n - 1 is proportional to air density, N(h) = (n0 - 1) * R*T0/(M*g) * p(h)/
 layers tilt along the ray: to first order in H/R_E that scales the offset by
 ``1 - H/R_E * (1 + sec^2 z + 2 tan^2 z)`` (about -0.4 % at z = 30 deg).
 
-Checked against the vendor RPCs of two WorldView-2 scenes (tests/unit/test_worldview.py):
+Checked against the vendor RPCs of two WorldView-2 scenes (tests/unit/formats/test_maxar.py):
 aberration with the light-time term and this refraction bring a rigorous model from 35-42 px
 to 0.18 px (5 deg off nadir) and 0.4 px (26 deg) max, the rest being attitude jitter that a
 cubic RPC cannot follow; without the light-time term the columns are off by 0.2-0.35 px.

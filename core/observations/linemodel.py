@@ -23,7 +23,7 @@ takes any (m,3,3) weight in :class:`core.adjust.normal.GroundPrior`) leaves one 
 per image point on the orientation: 2 image equations + 2 line equations - 3 unknowns. To
 first order it is the coplanarity condition: when the ray misses the line, the eliminated
 residual is the image distance, across the image of the line, of the measured point from the
-line's image — what eq. 4 measures as an angle (tests/unit/test_lines.py shows both on a
+line's image — what eq. 4 measures as an angle (tests/unit/observations/test_lines.py shows both on a
 simulated scene). Unlike eq. 4 it needs no straight ground line: a polyline (a curved road)
 associates each point with its nearest segment, refreshed every iteration
 (:func:`line_constraints` with the current X_i), and the weight also holds the line's height.

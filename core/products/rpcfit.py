@@ -7,7 +7,7 @@ Conventions (as everywhere in the core):
 - RPC00B model coordinates (sample, line), as GDAL reads them from a GeoTIFF's RPC tag, an
   ``<image>_RPC.TXT`` or an ``<image>.RPB``, are 0 at the CENTRE of the first pixel:
   sample = col - 0.5, line = row - 0.5 (:class:`core.model.rpc.RpcModel` with ``origin`` = 0). This is
-  what GDAL's RPC transformer applies (checked in tests/unit/test_rpcfit.py by running
+  what GDAL's RPC transformer applies (checked in tests/unit/products/test_rpcfit.py by running
   ``gdal.Transformer(..., ['METHOD=RPC', 'RPC_HEIGHT=h'])`` on a fitted model).
 - Ground: longitude, latitude (degrees, WGS84) and ellipsoidal height (m).
 

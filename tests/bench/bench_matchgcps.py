@@ -86,8 +86,9 @@ def main() -> None:
     print(f"\nmatched {n} of {result.grid_points} grid points (spacing {a.spacing:g} px, window 31 px)")
     print("rejected: " + ", ".join(f"{k} {v}" for k, v in result.rejected.items()))
     c = result.coarse
-    print(f"coarse pass 1:{c['factor']}: {c['consistent']}/{c['chips']} chips agree; offset at centre "
-          f"{c['col_plane_px'][0]:.1f}, {c['row_plane_px'][0]:.1f} px")
+    print(f"coarse to fine: the whole image at 1:{c['factor']} offset by ({c['offset_px'][0]:.1f}, "
+          f"{c['offset_px'][1]:.1f}) px (correlation {c['peak']:.2f}, search +-{c['search_m']:.0f} m); local chips kept "
+          + ", ".join(f"{v['kept']} of {v['chips']} at 1:{v['factor']}" for v in c["levels"]))
 
     col, row = true.ground_to_image(geodetic_to_ecef(table.lon, table.lat, table.h), 0)
     dc, dr = col - table.col, row - table.row

@@ -13,7 +13,7 @@ heights against the truth, before and after (median error, tilt of the error). T
 directions the adjustment names (:mod:`core.adjust.datumdirections`): how each is held, the priors'
 sigma and how far the ties moved along it.
 
-Real: tests/data/pleiades_gizeh, ties matched as tests/unit/test_real_crops.py does (40 px grid, 31 px
+Real: tests/data/pleiades_gizeh, ties matched as tests/scenarios/test_real_crops.py does (40 px grid, 31 px
 window, 60 m search) on flat surfaces at 100, 140 and 240 m; RPC_SIGMA 10 px.
 
 Simulated (:func:`simulation.block.simulate_block`, not rendered): the TH-1 nadir camera cut to

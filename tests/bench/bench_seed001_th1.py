@@ -5,7 +5,7 @@ free 10-parameter set of eq. 7 per camera with and without removal), at the floo
 interior and installation given, the onboard trajectory: only the trajectory is adjusted), and
 with 1 GCP + the tie points + the onboard pseudo-observations. Prints a table (no assertions)
 and which of issue 10's criteria (done-when 1) pass. The block and its adjustments are in
-tests/support/th1_block.py (tests/unit/test_seed001.py asserts their key figures).
+tests/support/th1_block.py (tests/scenarios/test_seed001.py asserts their key figures).
 
 Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_seed001_th1.py
       [--seeds 1 2 3] [--quick] [--checks 80] [--control 9] [--layout random|spread] [--exact-control]

@@ -1,6 +1,6 @@
 """Zhang et al. 2024 (seed 003) on a simulated ZY-3 three-line strip: Plans A-D in one run each,
 with 4 corner GCPs, 16 spread GCPs and no GCP, tie points in all cameras. Prints figures (no
-assertions); tests/unit/test_seed003.py asserts the key ones. The strip, the plans and a run's
+assertions); tests/scenarios/test_seed003.py asserts the key ones. The strip, the plans and a run's
 figures are in tests/support/zy3_strip.py.
 
 Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_seed003_zy3.py

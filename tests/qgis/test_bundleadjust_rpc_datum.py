@@ -5,7 +5,7 @@ user reads, and a robust loop stopped at its pass limit named in the log, block_
 block_report.html (the single-scene report JSON: tests/qgis/test_hostile_adjust.py). The tie sets:
 matched by pushbroom:matchtiepoints (40 px grid, 31 px window, 60 m search), and
 tests/data/pleiades_gizeh/ties_swinging.csv (a loose set on which the loop once swung, see
-tests/unit/test_robust_convergence.py). About 10 s."""
+tests/scenarios/test_robust_convergence.py). About 10 s."""
 import json
 import math
 

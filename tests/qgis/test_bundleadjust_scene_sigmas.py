@@ -7,7 +7,7 @@ block lies. Bad values are refused naming SCENE_SIGMAS, the row and what was exp
 
 The nadir scene is stated far better than its true onboard error (0.5 m, 1 arcsec against ~10 m,
 40 arcsec): it must then stay where its onboard model puts it, and the others come to it. That is
-what the override does, right or wrong; tests/unit/test_block_scene_sigmas.py shows a block nearer
+what the override does, right or wrong; tests/unit/adjust/test_scenesigmas.py shows a block nearer
 the truth when the per-scene sigmas match the scenes' true error levels."""
 import json
 from pathlib import Path

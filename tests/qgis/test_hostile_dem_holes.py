@@ -4,8 +4,8 @@ counted or refused naming the DEM and saying it lies on its holes (harness: host
 
 The DEMs are the simulator's own with square holes (6 DEM pixels, about 180 m) over about 3 % of it, and
 holes under chosen points (a GCP, an image point, a road's vertex): as NaN (Float32, nodata NaN) and as
--32768 (Int16, nodata -32768). The matching algorithms (matchgcps, matchtiepoints, bundleadjust's block
-matching) are not here: their core is another part of issue 28.
+-32768 (Int16, nodata -32768). The matching algorithms have theirs beside their other hostile cases
+(tests/qgis/test_hostile_matching.py for matchgcps, tests/qgis/test_hostile_matchtie.py for matchtiepoints).
 """
 from __future__ import annotations
 

@@ -3,6 +3,7 @@ refused with a message naming it and what to change, every given file and the ou
 unchanged; a reference in a geographic CRS is legitimate and matches."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,9 @@ from osgeo import gdal, osr
 import processing
 from pushbroom_adjust.core.observations import gcps
 from tests.support.matchscene import SEARCH, mini_scene, true_errors
+from tests.support.dems import read_dem, with_holes
 from tests.support.hostile import assert_refused, assert_refused_cli
+from tests.support.processing import RecordingFeedback
 
 gdal.UseExceptions()
 ALG = "pushbroom:matchgcps"
@@ -112,8 +115,7 @@ CASES = {
                          ("1000 x 1000", "is it the scene's image")),
     "onboard_error_beyond_search_range": (lambda m, t: {"SEARCH_RANGE": 60},
                                           ("within the search range", "increase the search range")),
-    "search_range_larger_than_the_image": (lambda m, t: {"SEARCH_RANGE": 5000},
-                                           ("search range", "more than the image")),
+    "fine_radius_above_its_range": (lambda m, t: {"FINE_RADIUS": 65}, ("FINE_RADIUS",)),
     "window_even": (lambda m, t: {"WINDOW": 30}, ("window",)),
     "spacing_larger_than_the_image": (lambda m, t: {"SPACING": 50_000}, ("no grid point fits",)),
     "output_not_geopackage": (lambda m, t: {"OUTPUT": str(t / "gcps.csv")}, ("OUTPUT", "GeoPackage")),
@@ -146,3 +148,44 @@ def test_reference_in_geographic_coordinates_matches(mini, tmp_path):
     e = true_errors(mini.folder, gcps.read_gpkg(out["OUTPUT"]))
     assert len(e) >= 400 and np.median(e) <= 0.2 and np.mean(e > 1) <= 0.03
     assert path.read_bytes() == before
+
+
+def test_a_search_range_beyond_the_image_is_clipped_to_it(mini, tmp_path):
+    """SEARCH_RANGE 5 km over an image of 4.8 km (2027 px of 2.358 m): clipped to the image, said in the
+    log, and matched (before: refused, 'search range 5000 m needs ... px chips, more than the image')."""
+    log = RecordingFeedback()
+    out = processing.run(ALG, _params(mini, tmp_path, SEARCH_RANGE=5000), feedback=log)
+    assert any(line.startswith("search range 5000 m clipped to 4779 m: 2027 px") for line in log.lines), log.lines
+    e = true_errors(mini.folder, gcps.read_gpkg(out["OUTPUT"]))
+    assert len(e) >= 250 and np.median(e) <= 0.1 and np.mean(e > 1) <= 0.03
+
+
+def _holed_dem(mini, path, nodata) -> str:
+    """The mini scene's DEM with holes over a band of its columns (a DSM's hole): NaN, or ``nodata``
+    in an Int16 DEM as SRTM writes its voids (tests/support/dems.py)."""
+    z, _, _ = read_dem(mini.dem)
+    mask = np.zeros(z.shape, bool)
+    mask[:, z.shape[1] // 3:z.shape[1] // 2] = True
+    return with_holes(mini.dem, path, mask, nodata)
+
+
+@pytest.mark.parametrize("nodata", [None, -32768], ids=["NaN", "nodata -32768"])
+def test_a_dem_with_holes_rejects_the_gcps_it_has_no_height_for(mini, tmp_path, nodata):
+    """A DEM with holes over a band of the scene: no traceback (before: 'ValueError: cannot convert
+    float NaN to integer' in the coarse pass); the grid points whose ground lies in the hole are matched
+    at the estimated height and rejected as 'no DEM height' (a GCP's height would be a guess), counted
+    in the log with the DEM named; the others are GCPs as accurate as on the whole DEM (measured, NaN and
+    -32768 alike: no height for 106 of 336 grid points, 97 matches among them rejected, 206 GCPs)."""
+    dem = _holed_dem(mini, tmp_path / "holed_dem.tif", nodata)
+    log = RecordingFeedback()
+    out = processing.run(ALG, _params(mini, tmp_path, DEM=dem), feedback=log)
+    rejected = next(line for line in log.lines if line.startswith("rejected: "))
+    holes = int(rejected.split(" no DEM height")[0].rsplit(" ", 1)[-1])
+    assert holes >= 20, rejected
+    counted = re.search(r"DEM \S+holed_dem.tif gives no height for (\d+) of (\d+) grid points \((\d+) on its nodata "
+                        r"holes\): the reference was rectified there at the estimated height [\d.]+ m, and the (\d+) "
+                        r"matches among them rejected as 'no DEM height'", "\n".join(log.lines))
+    assert counted and int(counted.group(1)) == int(counted.group(3)) >= int(counted.group(4)) == holes, log.lines
+    table = gcps.read_gpkg(out["OUTPUT"])
+    e = true_errors(mini.folder, table)
+    assert len(e) >= 150 and np.median(e) <= 0.1 and np.mean(e > 1) <= 0.03

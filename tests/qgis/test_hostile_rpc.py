@@ -2,7 +2,7 @@
 describes, a DEM or height outside the RPC's height range. Each is refused with a message naming
 the file (and key) or parameter and what is wrong, inputs and output folder unchanged; a legitimate
 crop of an RPC image (offsets moved, as gdal_translate -srcwin writes them) is accepted; so is a crop whose RPC
-keeps the full product's offsets (tests/unit/test_rpc_domain.py)."""
+keeps the full product's offsets (tests/unit/model/test_rpc_domain.py)."""
 from __future__ import annotations
 
 import json

@@ -4,14 +4,17 @@ GDAL reading their _RPC.TXT) on the SRTM window with NaN holes, then bundleadjus
 the adjusted scenes judged by the independent triangulation check of tests/support/independent_match.py (issue
 28, done-when 1). The input files (copied into a folder of their own) stay byte-identical.
 
-Measured (the right crop first; SPACING 56, WINDOW 31, SEARCH_RANGE 10 m, its least value; the fine radius, not
-a parameter, 8 px): 11 ties of the 14 grid points in the two crops' overlap (50 outside the left image, 2 on the
-search border, 1 ambiguous), tie RMS 2.446 -> 0.078 px with RPC_CORRECTION shift and RPC_SIGMA 10 px; 167 check
-points at least 35 px from every tie: 2.407 px through the vendor RPCs, 0.065 px through the adjusted scenes.
+Measured (SPACING 56, so that check points 35 px from every tie remain; SEARCH_RANGE, WINDOW and FINE_RADIUS at
+their defaults, 1000 m clipped to the crop, 31 px, 8 px): the 14 grid points in the two crops' overlap all tied
+(50 outside the right image), tie RMS 2.425 -> 0.056 px with RPC_CORRECTION shift and RPC_SIGMA 10 px; 113 check
+points at least 35 px from every tie: 2.423 px through the vendor RPCs, 0.062 px through the adjusted scenes.
+Before (issue 28's matcher) the right crop had to come first with SEARCH_RANGE 10 m, its least value: 11 ties of
+14, 2.446 -> 0.078 px; 167 check points, 2.407 -> 0.065 px.
 Not asserted here: a srtm_big_hole.tif.aux.xml appears beside the DEM given (issue 28, item 10: another part of
 the issue).
 """
 import json
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -24,10 +27,8 @@ from tests.support.hostile import assert_unchanged, snapshot
 from tests.support.independent_match import triangulation_check
 from tests.support.qgis_process import run_json
 
-# the right crop first: matchtiepoints matches the other images against the first one's grid, and its coarse
-# pass, over the crops' narrow overlap, finds consistent chips from the right crop with SEARCH_RANGE's least
-# value (10 m) and not from the left one (today's matcher: 2 of 4 usable coarse chips agree)
-NAMES = ("right_image", "left_image")
+log = logging.getLogger(__name__)
+NAMES = ("left_image", "right_image")
 FILES = ("left_image.tif", "left_image_RPC.TXT", "right_image.tif", "right_image_RPC.TXT", "srtm_big_hole.tif")
 
 
@@ -42,8 +43,7 @@ def run(shared_data, qgis_process, tmp_path_factory) -> dict:
     images = [str(inputs / f"{n}.tif") for n in NAMES]
     out = tmp_path_factory.mktemp("ventoux_out")
     ties = run_json(qgis_process, "pushbroom:matchtiepoints", SCENES=images, INPUTS=images,
-                    DEM=str(inputs / "srtm_big_hole.tif"), DEM_DATUM="geoid", SPACING=56, WINDOW=31,
-                    SEARCH_RANGE=10, OUTPUT=str(out / "ties.gpkg"))["OUTPUT"]
+                    DEM=str(inputs / "srtm_big_hole.tif"), DEM_DATUM="geoid", SPACING=56, OUTPUT=str(out / "ties.gpkg"))["OUTPUT"]
     adjusted = run_json(qgis_process, "pushbroom:bundleadjust", SCENES=images, TIE_POINTS=ties,
                         RPC_CORRECTION="shift", RPC_SIGMA=10, OUTPUT_FOLDER=str(out / "block"))
     report = json.loads((out / "block" / "block_report.json").read_text())
@@ -54,9 +54,10 @@ def run(shared_data, qgis_process, tmp_path_factory) -> dict:
 def test_the_crops_are_tied_and_adjusted_from_the_command_line(run):
     table = run["ties"]
     n = int((table.scene == NAMES[1]).sum())
-    assert set(table.scene) == set(NAMES) and n >= 9, n                 # measured 11
+    log.info("Ventoux through qgis_process: %d ties, block %s", n, run["report"]["block"])
+    assert set(table.scene) == set(NAMES) and n >= 13, n                # measured 14
     block = run["report"]["block"]
-    assert 2.0 < block["tie_rmse_before_px"] < 2.9 and block["tie_rmse_px"] < 0.12, block  # measured 2.446, 0.078
+    assert 2.0 < block["tie_rmse_before_px"] < 2.9 and block["tie_rmse_px"] < 0.1, block   # measured 2.425, 0.056
     assert_unchanged(run["before"], [run["inputs"] / name for name in FILES])
 
 
@@ -68,7 +69,8 @@ def test_the_adjusted_crops_pass_the_independent_triangulation_check(run):
     check = triangulation_check({"vendor": vendor, "adjusted": tuple(adjusted[f"{n}_adjusted.json"] for n in NAMES)},
                                 tuple(run["images"]), np.stack([table.col[left], table.row[left]], axis=1),
                                 Dem(run["inputs"] / "srtm_big_hole.tif", datum="geoid"), step=8.0)
-    assert len(check.points.a) >= 100                                    # measured 167
-    assert 2.0 < check.rms["vendor"] < 2.9                                # measured 2.407 px
-    assert check.rms["adjusted"] <= 0.1, check.rms                        # measured 0.065 px
+    log.info("Ventoux through qgis_process: %d check points, RMS %s", len(check.points.a), check.rms)
+    assert len(check.points.a) >= 80                                     # measured 113
+    assert 2.0 < check.rms["vendor"] < 2.9                                # measured 2.423 px
+    assert check.rms["adjusted"] <= 0.1, check.rms                        # measured 0.062 px
 

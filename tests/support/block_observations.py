@@ -1,5 +1,5 @@
 """Image observations of known ground points in every camera of a block's scenes, with noise: the
-measurements of the simulated blocks of tests/unit/test_block_adjust.py and
+measurements of the simulated blocks of tests/unit/adjust/test_block.py and
 tests/support/mixed_block.py."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A rendered block of two scenes for measuring GCPs (tests/unit/test_gcpmeasure.py and the GCP
+"""A rendered block of two scenes for measuring GCPs (tests/unit/measure/test_gcpmeasure.py and the GCP
 dock's tests): TH-1 nadir camera cut to 500 x 500 px of 5 m, one scene looking straight down
 (``nad``) and one pitched 18 degrees forward (``fwd``), their onboard models 7.5 px RMS off the
 truth; GCPs with their true image positions (gcps.csv), display copies of both images (naming

@@ -2,7 +2,7 @@
 and sensor, for :func:`core.adjust.block.adjust_block`.
 
 Rigorous: two independent simulations of the TH-1 three-line preset cut to 500 x 500 px (seeds 1
-and 2, trajectory errors as tests/unit/test_block_adjust.py: position bias 10 m and drift 0.02 m/s,
+and 2, trajectory errors as tests/unit/adjust/test_block.py: position bias 10 m and drift 0.02 m/s,
 attitude bias 2e-4 rad and drift 5e-7 rad/s; no interior errors), epochs a week apart.
 
 RPC: a single-line camera of another sensor (focal 1.7 m, 7 um pitch, 505 km, 2.1 m GSD: ZY-3's

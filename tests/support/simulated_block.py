@@ -1,4 +1,4 @@
-"""The simulated block of tests/unit/test_block_adjust.py and test_block_lines.py: three independent
+"""The simulated block of tests/unit/adjust/test_block.py and test_block_lines.py: three independent
 simulations of the TH-1 three-line preset cut to 500 x 500 px (seeds 1, 2, 3: their own trajectory
 errors, position bias 10 m and drift 0.02 m/s, attitude bias 2e-4 rad and drift 5e-7 rad/s; no
 interior errors), given epochs a week apart so that they are distinct products; tie points at the

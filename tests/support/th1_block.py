@@ -1,7 +1,7 @@
 """The seed-001-sized TH-1 three-line block (Zhang et al. 2015 analogue): simulated with 9 GCPs
 measured in all three cameras, 25 tie points and many check points, and adjusted conventionally,
 self-calibrated, at the floor (the true interior) and with 1 GCP; the check figures of each run.
-Used by tests/bench/bench_seed001_th1.py (which prints them) and tests/unit/test_seed001.py
+Used by tests/bench/bench_seed001_th1.py (which prints them) and tests/scenarios/test_seed001.py
 (which asserts them)."""
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Tie points triangulated through a block's RPC scenes, and how their heights changed: the median
-and the tilt of a plane fitted to the change (tests/unit/test_real_datum.py,
+and the tilt of a plane fitted to the change (tests/scenarios/test_real_datum.py,
 tests/bench/bench_rpc_datum.py)."""
 from __future__ import annotations
 

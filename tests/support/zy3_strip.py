@@ -1,7 +1,7 @@
 """The simulated ZY-3 three-line strip of Zhang et al. 2024 (seed 003) and its adjustment by Plans
 A-D: the strip with GCPs in all cameras and tie points, the control layouts (4 corner GCPs, 16 on
 a 2 x 8 grid, none), and the figures a run is judged by. Used by tests/bench/bench_seed003_zy3.py
-(which prints them over several seeds) and tests/unit/test_seed003.py (which asserts the key ones);
+(which prints them over several seeds) and tests/scenarios/test_seed003.py (which asserts the key ones);
 the plans and the strip are described in the bench's docstring."""
 from __future__ import annotations
 

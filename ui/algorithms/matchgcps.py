@@ -3,9 +3,10 @@ a reference orthoimage through the scene model, written as the GCP layer the adj
 import numpy as np
 from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParameterVectorDestination
 
+from ...core import measure
 from ...core.observations import gcps
 from ...core.measure.matching import match_gcps
-from ..feedback import core_call, feedback_callbacks, processing_errors
+from ..feedback import core_call, core_log_to, feedback_callbacks, processing_errors
 from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, load_scene_for,
                       matching_settings, raster_file)
 from ..outputs import STYLES, geopackage_output, style_output_on_load
@@ -46,7 +47,8 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
         surface = dem_from_parameters(self, parameters, context, scene, feedback)
         settings = matching_settings(self, parameters, context)
         progress, is_cancelled = feedback_callbacks(feedback)
-        result = core_call(match_gcps, scene, camera, image, reference, surface, settings, progress, is_cancelled)
+        with core_log_to(feedback, measure.__name__):
+            result = core_call(match_gcps, scene, camera, image, reference, surface, settings, progress, is_cancelled)
         table = core_call(gcps.check_against_scene, result.table, scene, scene_path, None,
                           self.parameterAsDouble(parameters, CHECK_FRACTION, context))
         with processing_errors(f"{self.OUTPUT}: "):
@@ -70,8 +72,8 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
         rejected = ", ".join(f"{v} {k}" for k, v in result.rejected.items() if v)
         feedback.pushInfo(f"rejected: {rejected or 'none'}")
         c = result.coarse
-        feedback.pushInfo(f"coarse pass (1:{c['factor']}): {c['consistent']} of {c['chips']} chips agree; onboard "
-                          f"offset at the image centre {c['col_plane_px'][0]:.1f} px across, "
-                          f"{c['row_plane_px'][0]:.1f} px along track")
+        feedback.pushInfo(f"onboard offset of the whole image (found at 1:{c['factor']}): {c['offset_px'][0]:.1f} px "
+                          f"across, {c['offset_px'][1]:.1f} px along track; searched +-{c['search_m']:.0f} m"
+                          f"{' (SEARCH_RANGE clipped to the image)' if c['clipped'] else ''}")
         feedback.pushInfo(f"quality (correlation) median {np.median(result.quality):.3f}; sigma_px median "
                           f"{np.median(result.table.sigma_px):.2f} px")

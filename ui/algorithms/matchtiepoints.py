@@ -3,6 +3,7 @@ or between the images of several scenes of a block (SCENES, ui.blockmatch), matc
 automatically in a common ground geometry, written as the tie-point layer the adjustment reads."""
 from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParameterVectorDestination
 
+from ...core import measure
 from ...core.observations import tiepoints
 from ...core.measure.tiematching import match_tiepoints
 from ...core.products.ortho import check_images
@@ -56,8 +57,9 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
         surface = dem_from_parameters(self, parameters, context, scene, feedback)
         settings = matching_settings(self, parameters, context)
         progress, is_cancelled = feedback_callbacks(feedback)
-        table, rejected = core_call(match_tiepoints, scene, images, surface, settings, 0,
-                                    lambda f, m=None: progress(0.85 * f, m), is_cancelled)
+        with core_log_to(feedback, measure.__name__):
+            table, rejected = core_call(match_tiepoints, scene, images, surface, settings, 0,
+                                        lambda f, m=None: progress(0.85 * f, m), is_cancelled)
         check_cancelled(feedback)
         self._report_matching(scene, table, rejected, feedback)
         feedback.setProgressText(f"checking and intersecting {len(table)} observations")

@@ -20,7 +20,7 @@ from pushbroom_adjust.core.formats import load_scene
 from tests.support.ortho_compare import gdalwarp_rpc, image_difference
 
 XML = "pleiades/PHRDIMAP_P1BP--2018122638935449CP.XML"
-MNT = "pleiades/MNT_P1BP--2018122638935449CP.tif"  # ellipsoidal heights (tests/unit/test_pleiades.py)
+MNT = "pleiades/MNT_P1BP--2018122638935449CP.tif"  # ellipsoidal heights (tests/unit/formats/test_dimap.py)
 WINDOW = (19000, 18000, 1536)  # first column, first row, size (px) of the textured window
 
 

@@ -1,6 +1,6 @@
 """What tie points alone leave to the priors, on the real Pleiades pair over Giza (issue 28, Done-when 4).
 
-The two crops (tests/data/pleiades_gizeh) tied as tests/unit/test_real_crops.py ties them (40 px grid,
+The two crops (tests/data/pleiades_gizeh) tied as tests/scenarios/test_real_crops.py ties them (40 px grid,
 31 px window, 60 m search, flat at the RPCs' height offset) and adjusted as a block of their vendor RPCs
 without GCPs, RPC_SIGMA 10 px (RPC_CORRECTION left at auto: shift, the block having no control point).
 The ties fix the pair's relative orientation; where the block lies is the priors' alone. The report

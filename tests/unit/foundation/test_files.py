@@ -17,7 +17,7 @@ from pushbroom_adjust.core.files import Output, OutputError, atomic_output, atom
 from pushbroom_adjust.core.vector_io import feature_count, write_layer
 from tests.support.mounts import read_only_folder, tiny_disk
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 def _mode(path) -> int:

@@ -6,8 +6,10 @@ from pyproj import CRS, Transformer
 
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.measure.correlation import find_peaks, ncc
-from pushbroom_adjust.core.measure.matching import REASONS, SIGMA_FLOOR, MatchSettings, match_gcps
+from pushbroom_adjust.core.measure.correlation import find_peaks, masked_ncc, ncc, sample
+from pushbroom_adjust.core.measure.lsm import refine
+from pushbroom_adjust.core.measure.finepass import SIGMA_FLOOR
+from pushbroom_adjust.core.measure.matching import REASONS, MatchSettings, match_gcps
 from pushbroom_adjust.simulation.texture import texture_at
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.measure.tiematching import match_tiepoints
@@ -37,6 +39,90 @@ def test_ncc_recovers_a_known_subpixel_shift():
     np.testing.assert_allclose(peaks.dx - 8, shift[:, 0], atol=0.08)
     np.testing.assert_allclose(peaks.dy - 8, shift[:, 1], atol=0.08)
     assert np.all(peaks.value > 0.9) and not peaks.border.any()
+
+
+def _texture(shape, seed: int = 4) -> np.ndarray:
+    """A band-limited texture (DN) of ``shape``: the simulator's, sampled at 1 px = 1e-5 units."""
+    yy, xx = np.mgrid[0:shape[0], 0:shape[1]].astype(float)
+    return 200 * texture_at(xx * 1e-5, yy * 1e-5, (0.0, 0.0), 0.3, seed)
+
+
+def test_least_squares_matching_recovers_shift_gain_and_offset():
+    """Chips of a texture moved by known sub-pixel shifts (up to 1.2 px from where the search starts),
+    their grey values scaled and offset (another date's radiometry) and noise added: the fit finds
+    each shift to 0.02 px and the gain and offset."""
+    image = _texture((160, 160)).astype(np.float32)
+    w = 31
+    k = np.arange(w) - (w - 1) / 2
+    uu, vv = np.meshgrid(k, k)
+    start = np.array([[50.0, 60.0], [80.0, 90.0], [110.0, 70.0], [70.0, 110.0]])     # (x, y)
+    shift = np.array([[0.3, -0.7], [1.2, 0.4], [-0.45, 0.05], [0.0, 0.0]])
+    gain, offset = np.array([0.6, 1.7, 1.0, 0.8]), np.array([40.0, -25.0, 0.0, 12.0])
+    x, y = start[:, 0] + shift[:, 0], start[:, 1] + shift[:, 1]
+    chips = offset[:, None, None] + gain[:, None, None] * sample(image, 0, 0, x[:, None, None] + uu,
+                                                                  y[:, None, None] + vv)
+    chips += np.random.default_rng(2).normal(0.0, 0.5, chips.shape)
+    fit = refine(chips, image, 0, 0, start[:, 0], start[:, 1])
+    assert fit.converged.all()
+    np.testing.assert_allclose(fit.x, x, atol=0.02)
+    np.testing.assert_allclose(fit.y, y, atol=0.02)
+    # the chip is T = offset + gain G, so the fit's G -> T map is the same
+    np.testing.assert_allclose(fit.gain, gain, rtol=0.02)
+    np.testing.assert_allclose(fit.offset, offset, atol=2.0)
+    assert np.all(fit.sigma < 0.02) and np.all(np.abs(fit.affine) < 0.005)
+
+
+def test_least_squares_matching_recovers_an_affine_window():
+    """A chip sheared and stretched by 5 % (a slope's parallax the models leave): the affine terms
+    find it, and the centre is still found to 0.02 px."""
+    image = _texture((160, 160), seed=7).astype(np.float32)
+    w = 31
+    k = np.arange(w) - (w - 1) / 2
+    uu, vv = np.meshgrid(k, k)
+    a = np.array([[0.05, 0.03], [-0.02, 0.04]])
+    x, y = 80.4, 79.7
+    chip = sample(image, 0, 0, x + (1 + a[0, 0]) * uu + a[0, 1] * vv, y + a[1, 0] * uu + (1 + a[1, 1]) * vv)
+    fit = refine(chip[None], image, 0, 0, np.array([80.0]), np.array([80.0]))
+    assert fit.converged[0]
+    assert abs(fit.x[0] - x) < 0.02 and abs(fit.y[0] - y) < 0.02
+    np.testing.assert_allclose(fit.affine[0], a, atol=0.005)
+
+
+def test_a_chip_without_its_match_does_not_converge():
+    """The chip's texture is not in the image at all (another texture): the fit moves away from the
+    start or ends with a gain at 0, and says so rather than returning a position."""
+    image = _texture((160, 160), seed=4).astype(np.float32)
+    chip = _texture((31, 31), seed=11)[None]
+    fit = refine(chip, image, 0, 0, np.array([80.0]), np.array([80.0]))
+    assert not fit.converged[0]
+
+
+def test_masked_correlation_finds_an_offset_through_holes():
+    """A template with a hole (nodata) and an image that holds the template's content at a known
+    place, half of it outside the image's data: the masked correlation's peak is there, 1.0 where
+    the two overlap; placements of tiny overlap are not considered."""
+    ground = _texture((200, 260))
+    template = ground[60:140, 70:170].copy()
+    template[10:30, 10:40] = np.nan
+    image = np.full((200, 260), np.nan)
+    image[:, :120] = ground[:, :120]                     # the image holds only the ground's left part
+    c, overlap = masked_ncc(template, image, 500)
+    i, j = np.unravel_index(np.argmax(c), c.shape)
+    assert (i, j) == (60, 70) and c[i, j] > 0.999
+    assert overlap[i, j] == np.isfinite(template[:, :50]).sum()   # the template's columns 0-49 over the data
+    assert np.all(c[overlap < 500] == -1.0)
+
+
+def test_the_matchers_second_peak_is_a_peak_not_the_flank_of_the_first():
+    """A single broad peak (smooth, oversampled images) whose flank stays high 3-6 px out has no
+    second local maximum, while its plain second value (what snapping asks for) is high; a separate
+    bump of 0.9 is a second peak either way."""
+    yy, xx = np.mgrid[-8:9, -8:9].astype(float)
+    broad = np.exp(-(xx ** 2 + yy ** 2) / (2 * 6.0 ** 2))
+    bump = broad + 0.9 * np.exp(-((xx - 6) ** 2 + yy ** 2) / 2) * (1 - broad)
+    local, plain = find_peaks(np.stack([broad, bump]), 2, local=True), find_peaks(np.stack([broad, bump]), 2)
+    assert local.ratio[0] < 0.5 and 0.85 < local.ratio[1] < 1.0 and plain.ratio[0] > 0.85
+    assert not local.border.any() and np.allclose(local.dx, [8, 8], atol=0.3)
 
 
 def test_reference_shows_the_rendered_ground_at_its_geotransform(mini):

@@ -1,6 +1,6 @@
 """Control lines in a block (issue 23; Tommaselli & Marcato Junior 2012): three independent
 simulations of the TH-1 three-line preset cut to 500 x 500 px (seeds 1, 2, 3 as in
-tests/unit/test_block_adjust.py: position bias 10 m and drift 0.02 m/s, attitude bias 2e-4 rad and
+tests/unit/adjust/test_block.py: position bias 10 m and drift 0.02 m/s, attitude bias 2e-4 rad and
 drift 5e-7 rad/s, about 110 m on the ground; epochs a week apart), adjusted together by
 :func:`core.adjust.block.adjust_block` with control lines and no GCP.
 
