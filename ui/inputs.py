@@ -307,10 +307,8 @@ def add_dem_parameters(alg) -> None:
 
 def dem_from_parameters(alg, parameters, context, scene=None, feedback=None):
     """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one
-    (:func:`core.runs.base.surface_from`).
-
-    With an RPC ``scene`` (core.model.rpcscene.RpcScene), heights that do not meet the RPC's
-    height range are refused and heights partly outside it are a warning to ``feedback``."""
+    (:func:`core.runs.base.surface_from`); with an RPC ``scene``, heights partly outside the RPC's
+    height range are a warning to ``feedback``."""
     with processing_errors():
         surface, lines = surface_from(alg.terrain(parameters, context), scene)
     if feedback is not None:
