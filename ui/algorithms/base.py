@@ -120,7 +120,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return processing_errors(f"{default}: " if default else "", self.CORE_PARAMETERS)
 
     def push_core_lines(self, feedback, lines) -> None:
-        """The core's log sentences (:class:`core.adjust.report.LogLine`) to the Processing log, a
+        """The core's log sentences (:class:`core.log.LogLine`) to the Processing log, a
         sentence about an input named by the parameter CORE_PARAMETERS gives for it."""
         push_lines(feedback, lines, self.CORE_PARAMETERS)
 
