@@ -3,12 +3,13 @@ terrain), the check of the files they write against the files they read, and the
 input an error concerns."""
 from __future__ import annotations
 
+import logging
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 from ..dem import ConstantHeight, Dem
-from ..errors import InputError, PushbroomError
+from ..errors import Cancelled, InputError, PushbroomError
 from ..files import check_outputs
 from ..formats import load_scene
 from ..log import LogLine
@@ -55,15 +56,43 @@ class FilesInUse:
 
 
 @contextmanager
-def concerning(parameter: str):
+def concerning(parameter: str, name: str = ""):
     """A core error raised inside concerns input ``parameter`` (core terms): re-raised as an
-    InputError naming it, unless it names several inputs itself (parameter '')."""
+    InputError naming it, its message after ``name`` and ': ' when given (the reader's message may
+    start with the input's name itself), unless it names its input itself (parameter '' for several)
+    or is a cancel."""
     try:
         yield
     except PushbroomError as exc:
-        if getattr(exc, "parameter", None) == "":
+        if getattr(exc, "parameter", None) is not None or isinstance(exc, Cancelled):
             raise
-        raise InputError(str(exc), parameter=parameter) from None
+        raise InputError(f"{name}: {exc}" if name else str(exc), parameter=parameter) from None
+
+
+class _ToLines(logging.Handler):
+    """A logging handler that appends each message to a list of LogLines."""
+
+    def __init__(self, lines: list):
+        super().__init__(logging.INFO)
+        self.lines = lines
+
+    def emit(self, record):
+        self.lines.append(LogLine(record.getMessage(), record.levelno >= logging.WARNING))
+
+
+@contextmanager
+def logged(logger_name: str, lines: list):
+    """The messages a core module logs inside (at INFO and above) appended to ``lines`` as LogLines,
+    warnings as warnings: what it noticed about the input, for the run's log."""
+    logger, handler = logging.getLogger(logger_name), _ToLines(lines)
+    previous = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield lines
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(previous)
 
 
 def scene_from(path: str) -> tuple:
@@ -98,11 +127,9 @@ def surface_from(terrain: Terrain, scene=None) -> tuple:
         surface = ConstantHeight(check_terrain_height(terrain.height, terrain.height_name))
         what = f"{terrain.height_name} {surface.value:g} m"
     else:
-        try:
+        with concerning(DEM, terrain.dem_name):
             surface = Dem(terrain.dem, terrain.datum)
             surface.height_range  # reads the DEM's overview: implausible heights are refused before any output
-        except PushbroomError as exc:  # named here: the reader's message may start with the word DEM itself
-            raise InputError(f"{terrain.dem_name}: {exc}", parameter=DEM) from None
         what = f"{terrain.dem_name} {terrain.dem}"
     warning = scene.check_surface(surface.height_range, what) if hasattr(scene, "check_surface") else None
     return surface, [LogLine(warning, True)] if warning else []
