@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from pyproj import CRS, Transformer
+from pyproj import CRS
 from pyproj.exceptions import CRSError
 from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProcessing, QgsProcessingException,
                        QgsProcessingParameterDefinition, QgsProcessingParameterMultipleLayers,
@@ -22,11 +22,11 @@ from ..core.formats.rpcfiles import image_name
 from ..core.measure.matching import MatchSettings
 from ..core.observations.tables import Heights, present
 from ..core.rasters import check_input_raster
-from ..core.runs.base import camera_images, surface_from
+from ..core.runs.base import camera_images, surface_from, z_datum_of
 from ..core.validation import check_terrain_height
 from . import parameters as vocabulary
 from .feedback import core_call, error_message, processing_errors
-from .parameters import CAMERA, DEM, DEM_DATUM, HEIGHT, HEIGHT_SOURCE, SCENE, Z_DATUM, enum_value
+from .parameters import DEM, DEM_DATUM, HEIGHT, HEIGHT_SOURCE, Z_DATUM, enum_value
 
 
 # --- scenes and cameras ------------------------------------------------------------------------
@@ -69,15 +69,12 @@ def camera_for(parameter_name: str, scene, text: str | None) -> int:
         return scene.camera_index(int(text) if text.isdigit() else text)
 
 
-def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT", feedback=None):
-    """(scene, camera index, feature source, its features) from SCENE, CAMERA and a feature
-    source parameter; errors name the parameter, the reader's warnings go to ``feedback``."""
-    scene = load_scene_for(SCENE, alg.parameterAsFile(parameters, SCENE, context), feedback)
-    camera = camera_for(CAMERA, scene, alg.parameterAsString(parameters, CAMERA, context))
+def source_and_features(alg, parameters, context, input_name: str = "INPUT") -> tuple:
+    """(feature source, its features) of a feature source parameter; errors name the parameter."""
     source = alg.parameterAsSource(parameters, input_name, context)
     if source is None:
         raise QgsProcessingException(alg.invalidSourceError(parameters, input_name))
-    return scene, camera, source, source_features(input_name, source)
+    return source, source_features(input_name, source)
 
 
 # Scene JSON files a block's folder layout names by their folder (pushbroom:simulateblock, bundleadjust)
@@ -198,22 +195,16 @@ def ogr_source(parameter_name: str, layer, what: str) -> tuple[str, str | None]:
 
 
 # --- coordinates and attributes ----------------------------------------------------------------
-def lonlat_of(parameter_name: str, crs, x, y) -> tuple[np.ndarray, np.ndarray]:
-    """WGS84 (lon, lat) degrees of coordinates (x, y) in a layer's QgsCoordinateReferenceSystem."""
+def layer_crs(parameter_name: str, crs) -> CRS:
+    """pyproj's CRS of a layer's QgsCoordinateReferenceSystem; refused, naming the parameter, when the
+    layer has none or pyproj does not know it."""
     if not crs.isValid():
         raise QgsProcessingException(f"{parameter_name}: the layer has no valid CRS; assign one first")
     try:
-        source = CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
+        return CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
     except CRSError as exc:
         raise QgsProcessingException(f"{parameter_name}: unknown CRS {crs.authid() or crs.description()} ({exc})") \
             from None
-    lon, lat = Transformer.from_crs(source, CRS.from_epsg(4326), always_xy=True).transform(x, y)
-    lon, lat = np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
-    bad = ~(np.isfinite(lon) & np.isfinite(lat))
-    if bad.any():
-        raise QgsProcessingException(f"{parameter_name}: {bad.sum()} points cannot be converted from "
-                                     f"{crs.authid()} to WGS84 longitude/latitude")
-    return lon, lat
 
 
 def source_features(parameter_name: str, source) -> list:
@@ -246,20 +237,9 @@ def z_datum_of_crs(crs) -> str | None:
     if not crs.isValid():
         return None
     try:
-        pyproj_crs = CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
+        return z_datum_of(CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)))
     except CRSError:
         return None
-    if pyproj_crs.is_geographic and len(pyproj_crs.axis_info) == 3:
-        return "ellipsoid"
-    if pyproj_crs.is_compound and any("EGM96" in (sub.name or "") for sub in pyproj_crs.sub_crs_list[1:]):
-        return "geoid"
-    return None
-
-
-def nonfinite_message(parameter_name: str, what: str, ids, bad) -> str:
-    """Message naming (some of) the features whose values are NaN, missing or infinite."""
-    first = ", ".join(str(i) for i in np.asarray(ids)[bad][:5])
-    return f"{parameter_name}: {int(np.sum(bad))} features have missing or non-finite {what} (feature ids {first}...)"
 
 
 def field_values(alg, parameters, context, source, features) -> Callable[[str, bool], list | None]:

@@ -8,6 +8,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
+import numpy as np
+from pyproj import CRS, Transformer
+
 from ..dem import ConstantHeight, Dem
 from ..errors import Cancelled, InputError, PushbroomError
 from ..files import check_outputs
@@ -147,3 +150,31 @@ def camera_images(scene, files) -> dict[int, str]:
         raise InputError(f"the image(s) of camera(s) {', '.join(missing)} are not files (memory or service "
                          "layers); save them as GeoTIFF first", parameter=IMAGES)
     return dict(enumerate(files))
+
+
+def nonfinite_text(what: str, ids, bad) -> str:
+    """Sentence naming (the first 5 of) the features ``ids`` (n,) whose ``what`` are NaN, missing or
+    infinite (``bad``: mask (n,))."""
+    first = ", ".join(str(i) for i in np.asarray(ids)[bad][:5])
+    return f"{int(np.sum(bad))} features have missing or non-finite {what} (feature ids {first}...)"
+
+
+def lonlat_from(crs: CRS, x, y, crs_name: str) -> tuple[np.ndarray, np.ndarray]:
+    """WGS84 (lon, lat) (n,) degrees of coordinates ``x``, ``y`` (n,) in ``crs`` (called ``crs_name`` in
+    the refusal of points that cannot be converted)."""
+    lon, lat = Transformer.from_crs(crs, CRS.from_epsg(4326), always_xy=True).transform(x, y)
+    lon, lat = np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
+    bad = ~(np.isfinite(lon) & np.isfinite(lat))
+    if bad.any():
+        raise InputError(f"{bad.sum()} points cannot be converted from {crs_name} to WGS84 longitude/latitude")
+    return lon, lat
+
+
+def z_datum_of(crs: CRS) -> str | None:
+    """What Z values in ``crs`` are measured from, when the CRS says it: 'ellipsoid' for a 3D geographic
+    CRS (EPSG:4979), 'geoid' for a compound CRS with EGM96 heights (EPSG:4326+5773); else None."""
+    if crs.is_geographic and len(crs.axis_info) == 3:
+        return "ellipsoid"
+    if crs.is_compound and any("EGM96" in (sub.name or "") for sub in crs.sub_crs_list[1:]):
+        return "geoid"
+    return None
