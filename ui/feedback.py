@@ -74,7 +74,7 @@ def core_log_to(feedback, logger_name: str):
 
 
 def push_lines(feedback, lines: Iterable, parameters: Mapping[str, str] | None = None) -> None:
-    """Write the core's log sentences (:class:`core.adjust.report.LogLine`: text, warning, the input
+    """Write the core's log sentences (:class:`core.log.LogLine`: text, warning, the input
     it concerns) to the Processing log, in order; a sentence about an input ``parameters`` maps to
     an algorithm parameter starts with that parameter's name."""
     for line in lines:

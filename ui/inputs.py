@@ -9,24 +9,24 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from pyproj import CRS, Transformer
+from pyproj import CRS
 from pyproj.exceptions import CRSError
 from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProcessing, QgsProcessingException,
                        QgsProcessingParameterDefinition, QgsProcessingParameterMultipleLayers,
                        QgsProcessingParameterRasterLayer, QgsProcessingUtils, QgsProperty, QgsProviderRegistry,
                        QgsWkbTypes)
 
-from ..core.dem import ConstantHeight, Dem
 from ..core.errors import PushbroomError
 from ..core.formats import load_scene
 from ..core.formats.rpcfiles import image_name
 from ..core.measure.matching import MatchSettings
 from ..core.observations.tables import Heights, present
 from ..core.rasters import check_input_raster
+from ..core.runs.base import camera_images, surface_from, z_datum_of
 from ..core.validation import check_terrain_height
 from . import parameters as vocabulary
 from .feedback import core_call, error_message, processing_errors
-from .parameters import CAMERA, DEM, DEM_DATUM, HEIGHT, HEIGHT_SOURCE, SCENE, Z_DATUM, enum_value
+from .parameters import DEM, DEM_DATUM, HEIGHT, HEIGHT_SOURCE, Z_DATUM, enum_value
 
 
 # --- scenes and cameras ------------------------------------------------------------------------
@@ -69,15 +69,12 @@ def camera_for(parameter_name: str, scene, text: str | None) -> int:
         return scene.camera_index(int(text) if text.isdigit() else text)
 
 
-def scene_camera_and_features(alg, parameters, context, input_name: str = "INPUT", feedback=None):
-    """(scene, camera index, feature source, its features) from SCENE, CAMERA and a feature
-    source parameter; errors name the parameter, the reader's warnings go to ``feedback``."""
-    scene = load_scene_for(SCENE, alg.parameterAsFile(parameters, SCENE, context), feedback)
-    camera = camera_for(CAMERA, scene, alg.parameterAsString(parameters, CAMERA, context))
+def source_and_features(alg, parameters, context, input_name: str = "INPUT") -> tuple:
+    """(feature source, its features) of a feature source parameter; errors name the parameter."""
     source = alg.parameterAsSource(parameters, input_name, context)
     if source is None:
         raise QgsProcessingException(alg.invalidSourceError(parameters, input_name))
-    return scene, camera, source, source_features(input_name, source)
+    return source, source_features(input_name, source)
 
 
 # Scene JSON files a block's folder layout names by their folder (pushbroom:simulateblock, bundleadjust)
@@ -198,22 +195,16 @@ def ogr_source(parameter_name: str, layer, what: str) -> tuple[str, str | None]:
 
 
 # --- coordinates and attributes ----------------------------------------------------------------
-def lonlat_of(parameter_name: str, crs, x, y) -> tuple[np.ndarray, np.ndarray]:
-    """WGS84 (lon, lat) degrees of coordinates (x, y) in a layer's QgsCoordinateReferenceSystem."""
+def layer_crs(parameter_name: str, crs) -> CRS:
+    """pyproj's CRS of a layer's QgsCoordinateReferenceSystem; refused, naming the parameter, when the
+    layer has none or pyproj does not know it."""
     if not crs.isValid():
         raise QgsProcessingException(f"{parameter_name}: the layer has no valid CRS; assign one first")
     try:
-        source = CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
+        return CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
     except CRSError as exc:
         raise QgsProcessingException(f"{parameter_name}: unknown CRS {crs.authid() or crs.description()} ({exc})") \
             from None
-    lon, lat = Transformer.from_crs(source, CRS.from_epsg(4326), always_xy=True).transform(x, y)
-    lon, lat = np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
-    bad = ~(np.isfinite(lon) & np.isfinite(lat))
-    if bad.any():
-        raise QgsProcessingException(f"{parameter_name}: {bad.sum()} points cannot be converted from "
-                                     f"{crs.authid()} to WGS84 longitude/latitude")
-    return lon, lat
 
 
 def source_features(parameter_name: str, source) -> list:
@@ -246,20 +237,9 @@ def z_datum_of_crs(crs) -> str | None:
     if not crs.isValid():
         return None
     try:
-        pyproj_crs = CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
+        return z_datum_of(CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)))
     except CRSError:
         return None
-    if pyproj_crs.is_geographic and len(pyproj_crs.axis_info) == 3:
-        return "ellipsoid"
-    if pyproj_crs.is_compound and any("EGM96" in (sub.name or "") for sub in pyproj_crs.sub_crs_list[1:]):
-        return "geoid"
-    return None
-
-
-def nonfinite_message(parameter_name: str, what: str, ids, bad) -> str:
-    """Message naming (some of) the features whose values are NaN, missing or infinite."""
-    first = ", ".join(str(i) for i in np.asarray(ids)[bad][:5])
-    return f"{parameter_name}: {int(np.sum(bad))} features have missing or non-finite {what} (feature ids {first}...)"
 
 
 def field_values(alg, parameters, context, source, features) -> Callable[[str, bool], list | None]:
@@ -306,26 +286,14 @@ def add_dem_parameters(alg) -> None:
 
 
 def dem_from_parameters(alg, parameters, context, scene=None, feedback=None):
-    """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one.
-
-    With an RPC ``scene`` (core.model.rpcscene.RpcScene), heights that do not meet the RPC's
-    height range are refused and heights partly outside it are a warning to ``feedback``."""
-    path = raster_file(alg, parameters, DEM, context)
-    if not path:
-        with processing_errors():
-            surface = ConstantHeight(check_terrain_height(alg.parameterAsDouble(parameters, HEIGHT, context), HEIGHT))
-        what = f"{HEIGHT} {surface.value:g} m"
-    else:
-        datum = enum_value(alg, parameters, DEM_DATUM, context)
-        with processing_errors(f"{DEM}: "):
-            surface = Dem(path, datum)
-            surface.height_range  # reads the DEM's overview: implausible heights are refused before any output
-        what = f"{DEM} {path}"
-    if hasattr(scene, "check_surface"):
-        with processing_errors():
-            warning = scene.check_surface(surface.height_range, what)
-        if warning and feedback is not None:
-            feedback.pushWarning(warning)
+    """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one
+    (:func:`core.runs.base.surface_from`); with an RPC ``scene``, heights partly outside the RPC's
+    height range are a warning to ``feedback``."""
+    with processing_errors():
+        surface, lines = surface_from(alg.terrain(parameters, context), scene)
+    if feedback is not None:
+        for line in lines:
+            feedback.pushWarning(line.text)
     return surface
 
 
@@ -353,19 +321,10 @@ def heights_from_parameters(alg, parameters, context, crs) -> Heights:
 # --- raw images and matching settings ----------------------------------------------------------
 def camera_images_for(alg, parameters, context, scene) -> dict[int, str]:
     """{camera index: file} of INPUTS, one raw image per camera of ``scene`` in its camera order;
-    QgsProcessingException naming the cameras when the count differs or a layer is not a file."""
-    files = raster_files(alg, parameters, vocabulary.INPUTS, context)
-    names = [cam.name for cam in scene.cameras]
-    if len(files) != len(names):
-        raise QgsProcessingException(f"{vocabulary.INPUTS}: {len(files)} raw image(s) given, but the scene has "
-                                     f"{len(names)} camera(s) ({', '.join(names)}): give one image per camera, "
-                                     "in that order")
-    images = dict(enumerate(files))
-    missing = [names[k] for k, path in images.items() if not path]
-    if missing:
-        raise QgsProcessingException(f"{vocabulary.INPUTS}: the image(s) of camera(s) {', '.join(missing)} are not "
-                                     "files (memory or service layers); save them as GeoTIFF first")
-    return images
+    QgsProcessingException naming the cameras when the count differs or a layer is not a file
+    (:func:`core.runs.base.camera_images`)."""
+    with processing_errors(f"{vocabulary.INPUTS}: "):
+        return camera_images(scene, raster_files(alg, parameters, vocabulary.INPUTS, context))
 
 
 def matching_settings(alg, parameters, context, **fixed) -> MatchSettings:

@@ -15,8 +15,8 @@ from qgis.core import (QgsDataSourceUri, QgsProcessing, QgsFeatureSink, QgsProce
                        QgsProcessingParameterFolderDestination, QgsProperty)
 
 from ..core.files import atomic_output, write_failure
-from ..core.files import check_outputs as check_files
 from ..core.observations import tiepoints
+from ..core.runs.base import FilesInUse
 from ..core.vector_io import feature_count
 from . import RESOURCES
 from .feedback import processing_errors
@@ -57,25 +57,30 @@ def input_files(alg, parameters, context) -> dict[str, list[str]]:
     return files
 
 
+def files_in_use(alg, parameters, context) -> FilesInUse:
+    """The files around a run (:class:`core.runs.base.FilesInUse`): those the inputs given read
+    (:func:`input_files`), and every destination parameter given with the file its value names
+    (folders apart: the algorithm knows which files it writes there)."""
+    writes = {}
+    for definition in alg.destinationParameterDefinitions():
+        name = definition.name()
+        if parameters.get(name) in (None, "") or isinstance(definition, QgsProcessingParameterFolderDestination):
+            continue
+        if isinstance(definition, QgsProcessingParameterFileDestination):
+            writes[name] = [alg.parameterAsFileOutput(parameters, name, context)]
+        else:
+            writes[name] = [destination_file(alg.parameterAsOutputLayer(parameters, name, context))]
+    return FilesInUse(input_files(alg, parameters, context), writes)
+
+
 def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None:
     """Before any work: refuse outputs that would replace an input or each other (derived files
     included) and destinations that cannot be written, naming both parameters
     (:func:`core.files.check_outputs`). ``outputs``: {parameter: [its file, Output(derived file,
     label)...]} for outputs whose paths the algorithm resolved itself; every other destination
     parameter given is checked with the file its value names."""
-    outputs = dict(outputs or {})
-    for definition in alg.destinationParameterDefinitions():
-        name = definition.name()
-        if name in outputs or parameters.get(name) in (None, ""):
-            continue
-        if isinstance(definition, QgsProcessingParameterFolderDestination):
-            continue  # the algorithm knows which files it writes there
-        if isinstance(definition, QgsProcessingParameterFileDestination):
-            outputs[name] = [alg.parameterAsFileOutput(parameters, name, context)]
-        else:
-            outputs[name] = [destination_file(alg.parameterAsOutputLayer(parameters, name, context))]
     with processing_errors():
-        check_files(input_files(alg, parameters, context), outputs)
+        files_in_use(alg, parameters, context).check(dict(outputs or {}))
 
 
 def geopackage_output(alg, parameters, context, name: str, temporary_name: str, what: str) -> str:

@@ -11,11 +11,11 @@ import json
 import logging
 import math
 from collections.abc import Mapping
-from typing import NamedTuple
 
 import numpy as np
 
 from ..files import OutputSet, write_text
+from ..log import LogLine
 from .checkpoints import model_error_message, summary_lines
 from .datumdirections import beyond_prior
 
@@ -166,14 +166,6 @@ def report_warnings(rep: Mapping) -> list[str]:
     out += [p["message"] + ("" if p["reliable"] else "; the result is not reliable")
             for p in rep["reliability"]["problems"]]
     return out + beyond_prior((rep.get("datum") or {}).get("directions", []))
-
-
-class LogLine(NamedTuple):
-    """A sentence for the run's log. ``parameter``: the input it concerns, in the core's terms (as
-    :attr:`core.errors.InputError.parameter`: 'ties'...), for the caller to name; None: none."""
-    text: str
-    warning: bool = False
-    parameter: str | None = None
 
 
 def log_lines(report: Mapping, tie_observations: int | None = None) -> list[LogLine]:

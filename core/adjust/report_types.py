@@ -15,7 +15,8 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields
 from functools import cached_property
 
-from .report import LogLine, datum_sentence, report_warnings
+from ..log import LogLine
+from .report import datum_sentence, report_warnings
 from .scenesigmas import sigmas_text
 
 OMITTED_WHEN_NONE = ("tie_points", "lines", "datum")

@@ -1,6 +1,5 @@
 """pushbroom:exportrpc in real QGIS (processing.run) and on the command line (qgis_process), on the
 small simulated CBERS-02B scene (three staggered CCDs): files GDAL reads, per-CCD figures, bad input."""
-import importlib
 import json
 from pathlib import Path
 
@@ -14,7 +13,6 @@ from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.products.rpcfit import dem_height_range, fit_rpc
 from pushbroom_adjust.core.formats import load_scene
 
-from tests.support.paths import PLUGIN
 from tests.support.qgis_process import run_json
 from tests.support.processing import RecordingFeedback
 
@@ -53,18 +51,6 @@ def test_export_with_a_dem_reports_every_ccd(simulated, tmp_path):
     md = gdal.Open(str(_image(tmp_path / "hrc.tif", 16, 16))).GetMetadata("RPC")
     assert float(md["LINE_OFF"].split()[0]) == rpc.line_off
     assert md["SAMP_NUM_COEFF"].split() == [repr(float(v)) for v in rpc.samp_num]
-
-
-def test_the_sensor_corrected_hint_only_for_a_poor_fit_at_the_seams(plugin):
-    """The hint needs several chips and a seam maximum over 0.1 px; a good fit or one chip gets none."""
-    sensor_corrected_hint = importlib.import_module(f"{PLUGIN}.ui.algorithms.exportrpc").sensor_corrected_hint
-
-    def report(chips, seam_max):
-        seams = {"rms_px": seam_max / 2, "max_px": seam_max} if seam_max is not None else None
-        return {"camera": "HRC", "check": {"chips": [{}] * chips, **({"seams": seams} if seams else {})}}
-    assert "sensorcorrect" in sensor_corrected_hint(report(3, 1.7))
-    assert sensor_corrected_hint(report(3, 0.09)) is None
-    assert sensor_corrected_hint(report(1, None)) is None
 
 
 def test_export_without_a_dem_writes_an_rpb_and_a_vrt_of_the_image(simulated, tmp_path):

@@ -11,7 +11,7 @@ CORE = REPO / "core"
 FORBIDDEN = ("qgis", "PyQt4", "PyQt5", "PyQt6", "sip")
 ABOVE_CORE = ("simulation", "ui")
 # Each package of core/ and its rank; modules directly in core/ are the foundation (rank 0).
-LAYERS = ("model", "formats", "observations", "adjust", "products", "measure")
+LAYERS = ("model", "formats", "observations", "adjust", "products", "measure", "runs")
 MAX_LINES = 500
 
 

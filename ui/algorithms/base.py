@@ -8,11 +8,12 @@ from qgis.core import (QgsProcessingAlgorithm, QgsProcessingParameterDefinition,
                        QgsProcessingParameterFileDestination, QgsProcessingUtils)
 from qgis.PyQt.QtGui import QIcon
 
+from ...core.runs.base import Terrain
 from .. import RESOURCES
-from ..feedback import processing_errors, push_lines
+from ..feedback import feedback_callbacks, processing_errors, push_lines
 from ..help import help_page, short_help
-from ..inputs import is_raster_input, raster_refusal
-from ..parameters import enum_refusal, tr
+from ..inputs import is_raster_input, raster_file, raster_refusal
+from ..parameters import DEM, DEM_DATUM, HEIGHT, enum_refusal, enum_value, tr
 
 
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
@@ -119,6 +120,22 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return processing_errors(f"{default}: " if default else "", self.CORE_PARAMETERS)
 
     def push_core_lines(self, feedback, lines) -> None:
-        """The core's log sentences (:class:`core.adjust.report.LogLine`) to the Processing log, a
+        """The core's log sentences (:class:`core.log.LogLine`) to the Processing log, a
         sentence about an input named by the parameter CORE_PARAMETERS gives for it."""
         push_lines(feedback, lines, self.CORE_PARAMETERS)
+
+    def run_core(self, run, request, feedback):
+        """The one core call of an algorithm: ``run(request, progress, is_cancelled)`` of a use case
+        (:mod:`core.runs`), its errors named by CORE_PARAMETERS, its log lines pushed in order; returns
+        its :class:`core.runs.base.RunResult`."""
+        progress, is_cancelled = feedback_callbacks(feedback)
+        with self.core_errors():
+            result = run(request, progress, is_cancelled)
+        self.push_core_lines(feedback, result.lines)
+        return result
+
+    def terrain(self, parameters, context) -> Terrain:
+        """The terrain of the DEM parameters (ui.inputs.add_dem_parameters): DEM with DEM_DATUM, else HEIGHT."""
+        dem = raster_file(self, parameters, DEM, context)
+        datum = enum_value(self, parameters, DEM_DATUM, context) if dem else "geoid"
+        return Terrain(dem, datum, self.parameterAsDouble(parameters, HEIGHT, context), HEIGHT, DEM)

@@ -1,20 +1,11 @@
 """pushbroom:exportrpc — RPC00B rational polynomials fitted to the rigorous model, written where
-GDAL and QGIS read them, with the fit's check figures per CCD."""
-from pathlib import Path
+GDAL and QGIS read them, with the fit's check figures per CCD (:mod:`core.runs.exportrpc`)."""
+from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputNumber, QgsProcessingOutputRasterLayer,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber)
 
-from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProcessingOutputNumber,
-                       QgsProcessingOutputRasterLayer, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterNumber)
-
-from ...core.dem import ConstantHeight
-from ...core.files import Output, atomic_outputs
-from ...core.formats.rpcfiles import image_vrt_with_rpc, report_path, write_rpc
-from ...core.products import rpcfit
-from ...core.products.rpcfit import dem_height_range, fit_rpc
-from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
-from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, load_scene_for,
-                      raster_file)
-from ..outputs import check_outputs
+from ...core.runs import exportrpc as use_case
+from ..inputs import add_dem_parameters, add_scene_parameters, raster_file
+from ..outputs import files_in_use
 from ..parameters import CAMERA, DEM, SCENE, RasterInput, tr
 from .base import PushbroomAlgorithm
 
@@ -25,7 +16,9 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
     GROUP, GROUP_ID = "Products", "products"
     HEIGHT_SPAN, GRID, HEIGHT_LEVELS, REGULARISATION = "HEIGHT_SPAN", "GRID", "HEIGHT_LEVELS", "REGULARISATION"
     IMAGE, OUTPUT = "IMAGE", "OUTPUT"
-    REPORT, IMAGE_WITH_RPC, RMS_PX, MAX_PX = "REPORT", "IMAGE_WITH_RPC", "RMS_PX", "MAX_PX"
+    REPORT, IMAGE_WITH_RPC, RMS_PX, MAX_PX = use_case.REPORT, use_case.IMAGE_WITH_RPC, "RMS_PX", "MAX_PX"
+    CORE_PARAMETERS = {"scene": SCENE, "camera": CAMERA, "dem": DEM, use_case.IMAGE: IMAGE,
+                       use_case.OUTPUT: OUTPUT}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self)
@@ -73,91 +66,14 @@ class ExportRpcAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputNumber(self.MAX_PX, tr("Check maximum error (px)")))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        out = Path(self.output_path(parameters, context, self.OUTPUT, "image_RPC.TXT"))
-        name = out.name.lower()
-        if not (name.endswith(".txt") or name.endswith(".rpb")):
-            raise QgsProcessingException(f"{self.OUTPUT}: {out} must end in _RPC.TXT (GDAL's RPC text) or .RPB")
-        if name.endswith(".txt") and not name.endswith("_rpc.txt"):
-            feedback.pushWarning(f"{out.name} does not end in _RPC.TXT: GDAL will not find it beside an image "
-                                 f"by itself")
-        image = raster_file(self, parameters, self.IMAGE, context)
-        stem = out.name[:-len("_RPC.TXT")] if name.endswith("_rpc.txt") else out.stem
-        vrt = out.with_name(stem + ".vrt") if image else None
-        check_outputs(self, parameters, context, {self.OUTPUT: [out, Output(report_path(out), "its fit report"),
-                                                                 Output(vrt, "the VRT of IMAGE with the RPC")]})
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
-        camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
-        cam = scene.cameras[camera]
-        surface = dem_from_parameters(self, parameters, context, scene, feedback)
-        if isinstance(surface, ConstantHeight):
-            span = self.parameterAsDouble(parameters, self.HEIGHT_SPAN, context)
-            heights = (surface.value - span, surface.value + span)
-        else:
-            feedback.setProgressText("height range of the DEM over the image")
-            with processing_errors(f"{DEM}: "), core_log_to(feedback, rpcfit.__name__):
-                heights = dem_height_range(scene, surface, camera)
-        check_cancelled(feedback)
-        grid = self.parameterAsInt(parameters, self.GRID, context)
-        levels = self.parameterAsInt(parameters, self.HEIGHT_LEVELS, context)
-        progress, _ = feedback_callbacks(feedback)
-        rpc, report = core_call(fit_rpc, scene, camera, heights, grid=(grid, grid, levels),
-                                regularisation=self.parameterAsDouble(parameters, self.REGULARISATION, context),
-                                progress=lambda f, m=None: progress(0.9 * f, m))
-        check_cancelled(feedback)
-        report["scene"] = str(self.parameterAsFile(parameters, SCENE, context))
-        self._log(feedback, report)
-
-        with processing_errors(f"{self.OUTPUT}: "), atomic_outputs() as files:  # all three files or none
-            if vrt is not None:
-                with processing_errors(f"{self.IMAGE}: "):
-                    image_vrt_with_rpc(rpc, image, vrt, cam.cols, cam.rows, files)
-                report["image"] = image
-                report["image_with_rpc"] = str(vrt)
-            write_rpc(rpc, out, report, files)
-        feedback.pushInfo(f"RPC written to {out} (report {report_path(out)})" +
-                          (f"; image with RPC: {vrt}" if vrt else ""))
-        feedback.setProgress(100.0)
-        check = report["check"]
-        return {self.OUTPUT: str(out), self.REPORT: str(report_path(out)),
-                self.IMAGE_WITH_RPC: str(vrt) if vrt else None,
-                self.RMS_PX: check["rms_px"], self.MAX_PX: check["max_px"]}
-
-    @staticmethod
-    def _log(feedback, report) -> None:
-        check = report["check"]
-        lo, hi = report["height_range"]
-        feedback.pushInfo(f"camera {report['camera']}: RPC00B fitted on {report['fit']['points']} points, heights "
-                          f"{lo:.0f} to {hi:.0f} m (ellipsoidal); regularisation used "
-                          f"{report['regularisation_used']:g}")
-        feedback.pushInfo(f"check on {check['points']} independent points: RMS {check['rms_px']:.4f} px, "
-                          f"max {check['max_px']:.4f} px")
-        for end, fig in check["heights"].items():
-            feedback.pushInfo(f"  at the {end} end ({fig['height_m']:.0f} m): RMS {fig['rms_px']:.4f} px, "
-                              f"max {fig['max_px']:.4f} px")
-        for chip in check["chips"]:
-            if chip["rms_px"] is not None:
-                feedback.pushInfo(f"  CCD {chip['name']} (cols {chip['cols'][0]:.0f}-{chip['cols'][1]:.0f}): "
-                                  f"RMS {chip['rms_px']:.4f} px, max {chip['max_px']:.4f} px")
-        for step in check.get("seam_steps", []):
-            feedback.pushInfo(f"  seam at col {step['col']:.0f}: the rigorous model steps by {step['mean_px']:.3f} px")
-        if "note" in check:
-            feedback.pushWarning(check["note"])
-        hint = sensor_corrected_hint(report)
-        if hint:
-            feedback.pushWarning(hint)
-
-
-SUB_PIXEL = 0.1  # px: an RPC worse than this at the chip seams is not the sub-pixel model users expect
-
-
-def sensor_corrected_hint(report: dict) -> str | None:
-    """For a camera of several chips whose RPC misses the rigorous model at the seams by more
-    than SUB_PIXEL (max), the way to a sub-pixel RPC: the sensor-corrected product."""
-    seams = report["check"].get("seams")
-    if len(report["check"]["chips"]) < 2 or not seams or seams["max_px"] <= SUB_PIXEL:
-        return None
-    return (f"camera {report['camera']}: this RPC misses the rigorous model by up to {seams['max_px']:.2f} px at the "
-            f"CCD seams (RMS {seams['rms_px']:.2f} px), which no RPC of the raw image can avoid. For a sub-pixel "
-            "RPC, make the sensor-corrected product with pushbroom:sensorcorrect (the chips resampled onto one "
-            "straight virtual detector line, which one RPC fits to hundredths of a pixel) "
-            "and export the RPC of that product (its own SCENE) instead")
+        request = use_case.RpcRequest(
+            self.parameterAsFile(parameters, SCENE, context),
+            self.output_path(parameters, context, self.OUTPUT, "image_RPC.TXT"), self.terrain(parameters, context),
+            camera=self.parameterAsString(parameters, CAMERA, context),
+            height_span=self.parameterAsDouble(parameters, self.HEIGHT_SPAN, context),
+            grid=self.parameterAsInt(parameters, self.GRID, context),
+            levels=self.parameterAsInt(parameters, self.HEIGHT_LEVELS, context),
+            regularisation=self.parameterAsDouble(parameters, self.REGULARISATION, context),
+            image=raster_file(self, parameters, self.IMAGE, context), files=files_in_use(self, parameters, context))
+        result = self.run_core(use_case.run, request, feedback)
+        return {**result.files, self.RMS_PX: result.figures["rms_px"], self.MAX_PX: result.figures["max_px"]}

@@ -4,10 +4,9 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFi
                        QgsWkbTypes)
 from qgis.PyQt.QtCore import QVariant
 
-from ...core.products.footprint import footprints
-from ..feedback import check_cancelled, core_call
-from ..inputs import add_dem_parameters, add_scene_parameters, dem_from_parameters, load_scene_for
-from ..outputs import STYLES, check_outputs, output_sink, style_output_on_load
+from ...core.runs import footprint as use_case
+from ..inputs import add_dem_parameters, add_scene_parameters
+from ..outputs import STYLES, files_in_use, output_sink, style_output_on_load
 from ..parameters import DEM, SCENE, tr
 from .base import PushbroomAlgorithm
 
@@ -17,6 +16,7 @@ class FootprintAlgorithm(PushbroomAlgorithm):
     NAME = "Scene footprint"
     GROUP, GROUP_ID = "Products", "products"
     SAMPLES, OUTPUT = "SAMPLES", "OUTPUT"
+    CORE_PARAMETERS = {"scene": SCENE, "dem": DEM}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
@@ -33,10 +33,9 @@ class FootprintAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        check_outputs(self, parameters, context)
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
-        surface = dem_from_parameters(self, parameters, context, scene, feedback)
-        samples = self.parameterAsInt(parameters, self.SAMPLES, context)
+        result = self.run_core(use_case.run, use_case.FootprintRequest(
+            self.parameterAsFile(parameters, SCENE, context), self.terrain(parameters, context),
+            self.parameterAsInt(parameters, self.SAMPLES, context), files_in_use(self, parameters, context)), feedback)
         fields = QgsFields()
         fields.append(QgsField("camera", QVariant.String))
         fields.append(QgsField("cols", QVariant.Int))
@@ -44,18 +43,10 @@ class FootprintAlgorithm(PushbroomAlgorithm):
         fields.append(QgsField("area_km2", QVariant.Double))
         with output_sink(self, parameters, context, self.OUTPUT, fields, QgsWkbTypes.Polygon,
                          QgsCoordinateReferenceSystem("EPSG:4326")) as (sink, dest):
-            n = len(scene.cameras)
-            for k in range(n):
-                check_cancelled(feedback)
-                feedback.setProgressText(f"camera {scene.cameras[k].name}")
-                (fp,) = core_call(footprints, scene, surface, cameras=[k], samples_per_edge=samples)
-                if fp.note:
-                    feedback.pushWarning(f"{DEM}: {fp.note}")
+            for fp in result.figures["footprints"]:
                 out = QgsFeature(fields)
-                ring = QgsLineString(fp.lon.tolist(), fp.lat.tolist())
-                out.setGeometry(QgsGeometry(QgsPolygon(ring)))
+                out.setGeometry(QgsGeometry(QgsPolygon(QgsLineString(fp.lon.tolist(), fp.lat.tolist()))))
                 out.setAttributes([fp.camera, fp.cols, fp.rows, float(fp.area_km2)])
                 sink.add(out)
-                feedback.setProgress(100.0 * (k + 1) / n)
         style_output_on_load(context, dest, STYLES / "footprint.qml")
         return {self.OUTPUT: dest}

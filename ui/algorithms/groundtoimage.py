@@ -1,17 +1,15 @@
-"""pushbroom:groundtoimage — image coordinates (col, row) of ground points in a scene."""
+"""pushbroom:groundtoimage — image coordinates (col, row) of ground points in a scene
+(:mod:`core.runs.groundtoimage`)."""
 import numpy as np
 from qgis.core import (QgsFeature, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
                        QgsProcessingParameterBoolean, QgsProcessingParameterFeatureSink,
                        QgsProcessingParameterFeatureSource, QgsProcessingUtils)
 from qgis.PyQt.QtCore import QVariant
 
-from ...core.geodesy import geodetic_to_ecef
-from ...core.observations.tables import point_heights
-from ..feedback import check_cancelled, core_call
-from ..inputs import (add_dem_parameters, add_scene_parameters, dem_from_parameters, lonlat_of, nonfinite_message,
-                      require_points, scene_camera_and_features, z_datum_of_crs)
-from ..outputs import STYLES, check_outputs, output_sink, style_output_on_load
-from ..parameters import Z_DATUM, enum_value, tr, z_datum
+from ...core.runs import groundtoimage as use_case
+from ..inputs import add_dem_parameters, add_scene_parameters, layer_crs, require_points, source_and_features
+from ..outputs import STYLES, files_in_use, output_sink, style_output_on_load
+from ..parameters import CAMERA, DEM, SCENE, Z_DATUM, enum_value, tr, z_datum
 from .base import PushbroomAlgorithm
 
 
@@ -19,6 +17,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
     ID = "groundtoimage"
     NAME = "Ground to image"
     INPUT, USE_Z, Z_DATUM, OUTPUT = "INPUT", "USE_Z", Z_DATUM, "OUTPUT"
+    CORE_PARAMETERS = {"scene": SCENE, "camera": CAMERA, "dem": DEM, use_case.POINTS: INPUT, use_case.Z_DATUM: Z_DATUM}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self)
@@ -38,40 +37,34 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         self.addParameter(out)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        check_outputs(self, parameters, context)
-        scene, camera, source, features = scene_camera_and_features(self, parameters, context, self.INPUT, feedback)
+        source, features = source_and_features(self, parameters, context, self.INPUT)
         require_points(self.INPUT, source)
-        lon, lat, h = self._ground(parameters, context, source, features, scene, feedback)
-        check_cancelled(feedback)
-        feedback.setProgressText(f"projecting {len(features)} points into camera {scene.cameras[camera].name}")
-        col, row = core_call(scene.ground_to_image, geodetic_to_ecef(lon, lat, h), camera)
-        cam = scene.cameras[camera]
-        inside = cam.in_image(col, row)
-
+        crs = source.sourceCrs()
+        x, y, z = self._coordinates(features)
+        result = self.run_core(use_case.run, use_case.GroundToImageRequest(
+            self.parameterAsFile(parameters, SCENE, context), x, y, z, np.array([f.id() for f in features], np.int64),
+            layer_crs(self.INPUT, crs), crs.authid(), self.parameterAsBool(parameters, self.USE_Z, context),
+            enum_value(self, parameters, self.Z_DATUM, context), self.terrain(parameters, context),
+            self.parameterAsString(parameters, CAMERA, context), files_in_use(self, parameters, context)), feedback)
+        col, row, inside = (result.figures[k] for k in ("col", "row", "inside"))
         new = QgsFields()
         for name in ("col", "row"):
             new.append(QgsField(name, QVariant.Double))
         new.append(QgsField("in_image", QVariant.Int))
         fields = QgsProcessingUtils.combineFields(source.fields(), new)
-        with output_sink(self, parameters, context, self.OUTPUT, fields, source.wkbType(),
-                         source.sourceCrs()) as (sink, dest):
+        with output_sink(self, parameters, context, self.OUTPUT, fields, source.wkbType(), crs) as (sink, dest):
             for i, f in enumerate(features):
                 out = QgsFeature(fields)
                 out.setGeometry(f.geometry())
                 out.setAttributes(f.attributes() + [_number(col[i]), _number(row[i]), int(inside[i])])
                 sink.add(out)
-        if (~inside).any():
-            feedback.pushWarning(f"{int((~inside).sum())} of {len(features)} points fall outside the image of "
-                                 f"camera {cam.name} ({cam.cols} x {cam.rows} px); they are kept with in_image = 0")
-        feedback.setProgress(100)
         style_output_on_load(context, dest, STYLES / "image_points.qml")
         return {self.OUTPUT: dest}
 
-    def _ground(self, parameters, context, source, features, scene, feedback):
-        """(lon, lat, ellipsoidal height) of the features' points, checked for NaN and coverage."""
-        n = len(features)
-        ids = np.array([f.id() for f in features], dtype=np.int64)
-        xyz = np.full((n, 3), np.nan)
+    def _coordinates(self, features) -> tuple:
+        """x, y, z (n,) of the features' points in the layer's CRS (NaN: no geometry or no Z); a
+        feature of several points is refused."""
+        xyz = np.full((len(features), 3), np.nan)
         for i, f in enumerate(features):
             g = f.geometry()
             if g.isNull() or g.isEmpty():
@@ -81,23 +74,7 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
                                              f"'Multipart to singleparts' first")
             p = g.vertexAt(0)
             xyz[i] = p.x(), p.y(), p.z()
-        bad = ~np.all(np.isfinite(xyz[:, :2]), axis=1)
-        if bad.any():
-            raise QgsProcessingException(nonfinite_message(self.INPUT, "point coordinates", ids, bad))
-        lon, lat = lonlat_of(self.INPUT, source.sourceCrs(), xyz[:, 0], xyz[:, 1])
-        use_z = self.parameterAsBool(parameters, self.USE_Z, context) & np.isfinite(xyz[:, 2])
-        datum = None
-        if use_z.any():
-            datum = enum_value(self, parameters, self.Z_DATUM, context) or z_datum_of_crs(source.sourceCrs())
-            if datum is None:
-                raise QgsProcessingException(f"{self.Z_DATUM}: {int(use_z.sum())} points have Z values and the "
-                                             f"layer's CRS ({source.sourceCrs().authid()}) does not say what they "
-                                             "are measured from: give Z_DATUM=geoid or Z_DATUM=ellipsoid (or "
-                                             "USE_Z=false to take heights from the DEM or HEIGHT)")
-        h = core_call(point_heights, lon, lat, np.where(use_z, xyz[:, 2], np.nan), datum,
-                      lambda: dem_from_parameters(self, parameters, context, scene, feedback), ids, self.INPUT,
-                      f"uncheck {self.USE_Z} to take heights from the DEM or HEIGHT")
-        return lon, lat, h
+        return xyz[:, 0], xyz[:, 1], xyz[:, 2]
 
 
 def _number(v: float):

@@ -3,26 +3,16 @@ model and a DEM: a tiled, compressed GeoTIFF with overviews; or every camera (an
 of a strip) in one run, into a folder."""
 from __future__ import annotations
 
-from pathlib import Path
-
-import numpy as np
-from pyproj import CRS, Transformer
+from pyproj import CRS
 from pyproj.exceptions import CRSError
-from qgis.core import (QgsCoordinateReferenceSystem, QgsGeometry, QgsPointXY,
-                       QgsProcessingException, QgsProcessingOutputMultipleLayers, QgsProcessingParameterBoolean,
-                       QgsProcessingParameterCrs, QgsProcessingParameterExtent,
-                       QgsProcessingParameterFolderDestination,
-                       QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
-                       QgsProcessingParameterString, QgsProcessingUtils, QgsRectangle)
+from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingException, QgsProcessingOutputMultipleLayers,
+                       QgsProcessingParameterBoolean, QgsProcessingParameterCrs, QgsProcessingParameterExtent,
+                       QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
+                       QgsProcessingParameterRasterDestination, QgsProcessingParameterString, QgsProcessingUtils)
 
-from ...core.dem import ConstantHeight
-from ...core.products.ortho import (check_images, default_grid, gap_sentence, orthorectify, orthorectify_products,
-                                    scene_utm_crs, strip_products)
-from ...core.products.footprint import footprints
-from ..feedback import core_call, feedback_callbacks, processing_errors
-from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, camera_images_for, dem_from_parameters,
-                      load_scene_for, raster_file)
-from ..outputs import check_outputs
+from ...core.runs import orthorectify as use_case
+from ..inputs import add_dem_parameters, add_scene_parameters, raster_file, raster_files
+from ..outputs import files_in_use
 from ..parameters import CAMERA, DEM, INPUTS, RESAMPLING, SCENE, RasterInput, camera_images, enum_value, resampling, tr
 from .base import PushbroomAlgorithm
 
@@ -35,7 +25,9 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         "INPUT", "CRS", "RESOLUTION", RESAMPLING, "NODATA", "EXTENT", "OUTPUT"
     ALL_CAMERAS, INPUTS, ORTHO_FOLDER, ORTHOIMAGES, SCHEDULER = \
         "ALL_CAMERAS", INPUTS, "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER"
-    CORE_PARAMETERS = {"resolution": RESOLUTION}
+    CORE_PARAMETERS = {"resolution": RESOLUTION, "scene": SCENE, "camera": CAMERA, "dem": DEM, "extent": EXTENT,
+                       use_case.IMAGE: INPUT, use_case.IMAGES: INPUTS, use_case.OUTPUT: OUTPUT,
+                       use_case.ORTHO_FOLDER: ORTHO_FOLDER}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         self.add_parameter(RasterInput(self.INPUT, tr("Raw image"), optional=True),
@@ -77,124 +69,36 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         self.show_only(self.INPUT, "ALL_CAMERAS", "INPUTS", "SCENE", "CAMERA", "DEM", "HEIGHT", self.CRS_PARAM)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        if self.parameterAsBool(parameters, self.ALL_CAMERAS, context):
-            return self._all_cameras(parameters, context, feedback)
-        output = (self.output_path(parameters, context, self.OUTPUT, "orthoimage.tif")
-                  or QgsProcessingUtils.generateTempFilename("orthoimage.tif"))
-        if Path(output).suffix.lower() not in (".tif", ".tiff"):
-            raise QgsProcessingException(f"{self.OUTPUT}: the orthoimage is written as GeoTIFF; use a .tif file "
-                                         f"(got {output})")
-        check_outputs(self, parameters, context, {self.OUTPUT: [output]})
-        image = raster_file(self, parameters, self.INPUT, context)
-        if not image:
-            raise QgsProcessingException(f"{self.INPUT}: no raw image given (or set {self.ALL_CAMERAS} with "
-                                         f"{self.INPUTS} for every camera)")
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
-        camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
-        with processing_errors(f"{self.INPUT}: "):
-            check_images(scene, {camera: image})
-        surface = dem_from_parameters(self, parameters, context, scene, feedback)
-        crs = self._crs(parameters, context)
-        extent = None
-        if parameters.get(self.EXTENT):
-            crs = crs or core_call(scene_utm_crs, scene, camera, surface)  # the extent needs its CRS first
-            rect = self.parameterAsExtent(parameters, self.EXTENT, context,
-                                          QgsCoordinateReferenceSystem(crs.to_wkt()))
-            extent = (rect.xMinimum(), rect.yMinimum(), rect.xMaximum(), rect.yMaximum())
-            self._check_extent(scene, camera, surface, crs, extent, feedback)
-        resolution = self.parameterAsDouble(parameters, self.RESOLUTION, context) or None
-        feedback.setProgressText("planning the output grid")
-        with self.core_errors():
-            grid = default_grid(scene, camera, surface, crs, resolution, extent)
-        feedback.pushInfo(f"orthoimage {grid.cols} x {grid.rows} px at {grid.resolution:.3f} m in "
-                          f"{grid.crs.to_string()}")
-        progress, is_cancelled = feedback_callbacks(feedback)
-        figures = core_call(orthorectify, scene, image, surface, output, camera, grid,
-                            is_cancelled=is_cancelled, progress=progress, **self._options(parameters, context))
-        self._report(feedback, figures, surface)
-        return {self.OUTPUT: output}
+        every = self.parameterAsBool(parameters, self.ALL_CAMERAS, context)
+        result = self.run_core(use_case.run, use_case.OrthoRequest(
+            self.parameterAsFile(parameters, SCENE, context), self._output(parameters, context, every),
+            self.terrain(parameters, context), raster_file(self, parameters, self.INPUT, context),
+            self.parameterAsString(parameters, CAMERA, context),
+            tuple(raster_files(self, parameters, INPUTS, context)) if every else None, self._crs(parameters, context),
+            self.parameterAsDouble(parameters, self.RESOLUTION, context) or None, self._extent(parameters, context),
+            enum_value(self, parameters, self.RESAMPLING_PARAM, context),
+            self.parameterAsDouble(parameters, self.NODATA, context),
+            self.parameterAsString(parameters, self.SCHEDULER, context).strip() or None,
+            files_in_use(self, parameters, context)), feedback)
+        return result.files
 
-    def _options(self, parameters, context) -> dict:
-        """Resampling, nodata and scheduler for core.ortho.orthorectify."""
-        return {"resampling": enum_value(self, parameters, self.RESAMPLING_PARAM, context),
-                "nodata": self.parameterAsDouble(parameters, self.NODATA, context),
-                "scheduler": self.parameterAsString(parameters, self.SCHEDULER, context).strip() or None}
-
-    def _report(self, feedback, figures: dict, surface, name: str = "") -> None:
-        feedback.pushInfo(f"{name}written in {figures['seconds']:.1f} s; {figures['mapping']}")
-        if figures["dem_gap_pixels"]:
-            feedback.pushWarning(f"{DEM}: {name}{gap_sentence(surface, figures)}")
-
-    def _all_cameras(self, parameters, context, feedback) -> dict:
-        """Every camera (and scene of a strip) of SCENE from INPUTS into ORTHO_FOLDER."""
+    def _output(self, parameters, context, every: bool) -> str:
+        """The orthoimage's file (a temporary one when not given), or with ALL_CAMERAS the folder."""
+        if not every:
+            return (self.output_path(parameters, context, self.OUTPUT, "orthoimage.tif")
+                    or QgsProcessingUtils.generateTempFilename("orthoimage.tif"))
         folder = self.parameterAsString(parameters, self.ORTHO_FOLDER, context)
-        if not folder or folder == "TEMPORARY_OUTPUT":
-            folder = QgsProcessingUtils.tempFolder()
-        if Path(folder).is_file():
-            raise QgsProcessingException(f"{self.ORTHO_FOLDER}: {folder} is a file, not a folder; give a folder for "
-                                         "the orthoimages (created when its parent exists)")
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
-        images = camera_images_for(self, parameters, context, scene)
-        products = strip_products(scene, list(images))
-        made = not Path(folder).exists() and Path(folder).parent.is_dir()
-        if made:
-            Path(folder).mkdir()
-        try:
-            return self._write_products(parameters, context, feedback, scene, images, products, Path(folder))
-        except BaseException:
-            if made and not any(Path(folder).iterdir()):
-                Path(folder).rmdir()
-            raise
+        return QgsProcessingUtils.tempFolder() if not folder or folder == "TEMPORARY_OUTPUT" else folder
 
-    def _write_products(self, parameters, context, feedback, scene, images, products, folder: Path) -> dict:
-        outputs = [folder / p.name for p in products]
-        check_outputs(self, parameters, context, {self.ORTHO_FOLDER: outputs})
-        with processing_errors(f"{self.INPUTS}: "):
-            check_images(scene, images)
-        for k, image in images.items():
-            feedback.pushInfo(f"camera {scene.cameras[k].name}: {image}")
-        surface = dem_from_parameters(self, parameters, context)
-        crs = self._crs(parameters, context)
-        resolution = self.parameterAsDouble(parameters, self.RESOLUTION, context) or None
-        grids = []
-        feedback.setProgressText("planning the output grids")
-        for product in products:
-            extent = None
-            if parameters.get(self.EXTENT):
-                crs = crs or core_call(scene_utm_crs, scene, product.camera, surface)
-                rect = self.parameterAsExtent(parameters, self.EXTENT, context,
-                                              QgsCoordinateReferenceSystem(crs.to_wkt()))
-                extent = (rect.xMinimum(), rect.yMinimum(), rect.xMaximum(), rect.yMaximum())
-                self._check_extent(scene, product.camera, surface, crs, extent, feedback)
-            with self.core_errors():
-                grids.append(default_grid(scene, product.camera, surface, crs, resolution, extent, product.rows))
-            g = grids[-1]
-            feedback.pushInfo(f"{product.name}: {g.cols} x {g.rows} px at {g.resolution:.3f} m in "
-                              f"{g.crs.to_string()}")
-        progress, is_cancelled = feedback_callbacks(feedback)
-        figures = core_call(orthorectify_products, scene, images, surface, folder, products, grids,
-                            progress=progress, is_cancelled=is_cancelled, **self._options(parameters, context))
-        for product, fig in zip(products, figures):
-            self._report(feedback, fig, surface, f"{product.name}: ")
-        return {self.ORTHO_FOLDER: str(folder), self.ORTHOIMAGES: [str(p) for p in outputs]}
+    def _extent(self, parameters, context):
+        """EXTENT in a CRS, as QGIS converts it (None: not given)."""
+        if not parameters.get(self.EXTENT):
+            return None
 
-    def _check_extent(self, scene, camera: int, surface, crs: CRS, extent: tuple, feedback) -> None:
-        """Refuse an EXTENT that misses the image's footprint (traced at the terrain's mean
-        height), warn with the share of it outside."""
-        box = QgsGeometry.fromRect(QgsRectangle(*extent))
-        if not box.area() > 0:
-            raise QgsProcessingException(f"{self.EXTENT}: the extent {extent} is empty")
-        flat = ConstantHeight(float(np.mean(surface.height_range)))
-        (outline,) = core_call(footprints, scene, flat, cameras=[camera], samples_per_edge=32)
-        x, y = Transformer.from_crs(CRS.from_epsg(4326), crs, always_xy=True).transform(outline.lon, outline.lat)
-        footprint = QgsGeometry.fromPolygonXY([[QgsPointXY(float(a), float(b)) for a, b in zip(x, y)]])
-        share = footprint.intersection(box).area() / box.area()
-        if share <= 0:
-            raise QgsProcessingException(f"{self.EXTENT}: the extent does not overlap the image's footprint "
-                                         f"({footprint.boundingBox().toString(0)} in {crs.to_string()})")
-        if share < 0.999:
-            feedback.pushWarning(f"{self.EXTENT}: {100 * (1 - share):.1f} % of the extent lies outside the image's "
-                                 f"footprint; those pixels are nodata")
+        def extent_in(crs: CRS) -> tuple:
+            rect = self.parameterAsExtent(parameters, self.EXTENT, context, QgsCoordinateReferenceSystem(crs.to_wkt()))
+            return rect.xMinimum(), rect.yMinimum(), rect.xMaximum(), rect.yMaximum()
+        return extent_in
 
     def _crs(self, parameters, context) -> CRS | None:
         """The output CRS as pyproj's, or None for the default (UTM); geographic CRSs refused."""

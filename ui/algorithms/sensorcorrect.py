@@ -1,21 +1,14 @@
 """pushbroom:sensorcorrect — a raw multi-CCD image resampled onto one straight, distortion-free
 virtual detector line: a seamless image with its own scene model and an RPC exact to hundredths
-of a pixel."""
+of a pixel (:mod:`core.runs.sensorcorrect`)."""
 from __future__ import annotations
 
-from pathlib import Path
+from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputNumber, QgsProcessingOutputRasterLayer,
+                       QgsProcessingParameterRasterDestination)
 
-from qgis.core import (QgsProcessingException, QgsProcessingOutputFile, QgsProcessingOutputNumber,
-                       QgsProcessingOutputRasterLayer, QgsProcessingParameterRasterDestination)
-
-from ...core.files import Output
-from ...core.model.sensor import SceneModel
-from ...core.products import rpcfit
-from ...core.products.sensorcorrect import output_files, sensor_correct
-from ..feedback import core_call, core_log_to, feedback_callbacks
-from ..inputs import (add_dem_parameters, add_scene_parameters, camera_for, dem_from_parameters, load_scene_for,
-                      raster_file)
-from ..outputs import check_outputs
+from ...core.runs import sensorcorrect as use_case
+from ..inputs import add_dem_parameters, add_scene_parameters, raster_file
+from ..outputs import files_in_use
 from ..parameters import (CAMERA, DEM, OUTPUT_SCENE, RESAMPLING, SCENE, RasterInput, enum_value, output_scene,
                           resampling, tr)
 from .base import PushbroomAlgorithm
@@ -26,7 +19,9 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
     NAME = "Sensor-corrected image (virtual linear array)"
     GROUP, GROUP_ID = "Products", "products"
     INPUT, OUTPUT = "INPUT", "OUTPUT"
-    RPC, REPORT, IMAGE_WITH_RPC, RMS_PX, MAX_PX = "RPC", "REPORT", "IMAGE_WITH_RPC", "RMS_PX", "MAX_PX"
+    RPC, REPORT, IMAGE_WITH_RPC = use_case.RPC, use_case.REPORT, use_case.IMAGE_WITH_RPC
+    RMS_PX, MAX_PX = "RMS_PX", "MAX_PX"
+    CORE_PARAMETERS = {"scene": SCENE, "camera": CAMERA, "dem": DEM, use_case.IMAGE: INPUT, use_case.OUTPUT: OUTPUT}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         self.add_parameter(RasterInput(self.INPUT, tr("Raw image (one camera)")),
@@ -47,41 +42,12 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputNumber(self.MAX_PX, tr("RPC check maximum error (px)")))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        output = Path(self.output_path(parameters, context, self.OUTPUT, "sensor_corrected.tif"))
-        if output.suffix.lower() not in (".tif", ".tiff"):
-            raise QgsProcessingException(f"{self.OUTPUT}: the sensor-corrected image is written as GeoTIFF; use a "
-                                         f".tif file (got {output})")
-        scene_out = Path(self.output_path(parameters, context, OUTPUT_SCENE, "sensor_corrected_scene.json"))
-        derived = output_files(output)
-        check_outputs(self, parameters, context, {
-            self.OUTPUT: [output, Output(derived["rpc"], "its RPC"), Output(derived["report"], "its RPC report"),
-                          Output(derived["vrt"], "its VRT with the RPC")],
-            OUTPUT_SCENE: [scene_out]})
-        image = raster_file(self, parameters, self.INPUT, context)
-        if not image:
-            raise QgsProcessingException(f"{self.INPUT}: no raw image given")
-        scene_path = self.parameterAsFile(parameters, SCENE, context)
-        scene = load_scene_for(SCENE, scene_path, feedback)
-        if not isinstance(scene, SceneModel):
-            raise QgsProcessingException(f"{SCENE}: {scene_path} is an RPC scene: it has no physical camera whose "
-                                         "chips could be resampled onto a straight line, and its image already has "
-                                         "one smooth RPC. Sensor correction needs a rigorous model (scene JSON of a "
-                                         "rigorous scene, DIMAP or Maxar metadata)")
-        camera = camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))
-        surface = dem_from_parameters(self, parameters, context)
-        progress, is_cancelled = feedback_callbacks(feedback)
-        with core_log_to(feedback, rpcfit.__name__):
-            figures = core_call(sensor_correct, scene, camera, image, surface, output, scene_out,
-                                enum_value(self, parameters, RESAMPLING, context),
-                                info={"source_scene": str(scene_path), "source_image": image},
-                                progress=progress, is_cancelled=is_cancelled)
-        feedback.pushInfo(f"sensor-corrected image {figures['cols']} x {figures['rows']} px written in "
-                          f"{figures['seconds']:.1f} s; {figures['mapping']}")
-        if figures.get("holes"):
-            feedback.pushWarning(f"{DEM}: {figures['holes']}")
-        feedback.pushInfo(f"RPC fitted to the virtual camera over heights {figures['height_range'][0]:.0f} to "
-                          f"{figures['height_range'][1]:.0f} m: independent check RMS {figures['rpc_check_rms_px']:.4f}"
-                          f" px, max {figures['rpc_check_max_px']:.4f} px")
-        return {self.OUTPUT: str(output), OUTPUT_SCENE: str(scene_out), self.RPC: figures["rpc"],
-                self.REPORT: figures["report"], self.IMAGE_WITH_RPC: figures["vrt"],
-                self.RMS_PX: figures["rpc_check_rms_px"], self.MAX_PX: figures["rpc_check_max_px"]}
+        request = use_case.SensorCorrectRequest(
+            self.parameterAsFile(parameters, SCENE, context), raster_file(self, parameters, self.INPUT, context),
+            self.output_path(parameters, context, self.OUTPUT, "sensor_corrected.tif"),
+            self.output_path(parameters, context, OUTPUT_SCENE, "sensor_corrected_scene.json"),
+            self.terrain(parameters, context), self.parameterAsString(parameters, CAMERA, context),
+            enum_value(self, parameters, RESAMPLING, context), files_in_use(self, parameters, context))
+        result = self.run_core(use_case.run, request, feedback)
+        return {**result.files, self.RMS_PX: result.figures["rpc_check_rms_px"],
+                self.MAX_PX: result.figures["rpc_check_max_px"]}
