@@ -10,7 +10,6 @@ from typing import Callable
 from ..errors import InputError
 from ..files import Output
 from ..log import LogLine
-from ..model.sensor import SceneModel
 from ..products import rpcfit
 from ..products.sensorcorrect import output_files, sensor_correct
 from .base import DEM, SCENE, FilesInUse, RunResult, Terrain, camera_of, logged, scene_from, surface_from
@@ -51,7 +50,7 @@ def run(request: SensorCorrectRequest, progress: Callable[[float, str | None], N
     if not request.image:
         raise InputError("no raw image given", parameter=IMAGE)
     scene, lines = scene_from(request.scene)
-    if not isinstance(scene, SceneModel):
+    if scene.rpc_images():  # an RPC scene (or a block holding one): no physical camera
         raise InputError(f"{request.scene} is an RPC scene: it has no physical camera whose chips could be resampled "
                          "onto a straight line, and its image already has one smooth RPC. Sensor correction needs a "
                          "rigorous model (scene JSON of a rigorous scene, DIMAP or Maxar metadata)", parameter=SCENE)
