@@ -70,7 +70,8 @@ def test_both_docks_in_the_qgis_desktop(plugin, gcp_block, tmp_path):  # noqa: F
     assert "the constant 0.0 m (geoid), no DEM chosen" in gcp["table"], gcp["table"]
     # a DEM that does not cover the point: named, no ground, nothing saved
     far = seen["far"]
-    assert "far" in far["message"] and "does not cover point(s) G2" in far["message"], far["message"]
+    assert "far/dem.tif gives no height for 1 of 1 points (1 off its extent): point(s) G2" in far["message"], \
+        far["message"]
     assert far["offered"] == ["far dem"] and not far["ground"] and not far["saved"]
     assert "G2 have no ground position" in far["save_message"]
     assert far["after_delete"] == ["G1"] and far["after_undo"] == ["G1", "G2"], far
