@@ -7,6 +7,7 @@ import pytest
 from osgeo import gdal
 from pyproj import CRS
 
+from pushbroom_adjust.core.log import LogLine
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.runs import orthorectify as use_case
 from pushbroom_adjust.core.runs.base import FilesInUse, Terrain
@@ -33,6 +34,7 @@ def test_one_camera_writes_the_orthoimage_the_figures_describe(cut, tmp_path):
     assert (ds.RasterXSize, ds.RasterYSize) == (f["cols"], f["rows"]) and f["resolution_m"] == 10.0
     assert ds.GetGeoTransform()[1] == 10.0 and CRS.from_wkt(ds.GetProjection()).to_string() == f["crs"] == "EPSG:32650"
     assert f["densification_error_px"] < 0.01 and f["dem_gap_pixels"] == 0
+    assert all(isinstance(line, LogLine) for line in result.lines)  # what the ui adapter pushes
     texts = [line.text for line in result.lines]
     assert texts[0] == f"orthoimage {f['cols']} x {f['rows']} px at 10.000 m in EPSG:32650"
     assert texts[1].startswith("written in ") and not any(line.warning for line in result.lines)
