@@ -85,16 +85,15 @@ class BlockProblem(Problem):
                              "chosen with RPC_CORRECTION", parameter="settings.interior")
         return chosen_correction(settings, n_control)
 
-    def set_up(self, table: GcpTable, control: np.ndarray, point: np.ndarray, n_points: int, ties: TieSetUp,
+    def set_up(self, table: GcpTable, control: np.ndarray, point: np.ndarray, ids: np.ndarray, ties: TieSetUp,
                lines):
         """The rigorous composite's problem over its own observations (first, in its order), then
         each RPC image's correction terms and observations (``image_slices``: each image's
         observations); the unknowns as one :class:`BlockParameters`. A block takes no lines."""
         scene, settings = self.scene, self.settings
-        ids = np.unique(table.id[control])
         camera = np.r_[camera_indices(scene, table.camera[control]), ties.camera].astype(np.int64)
         obs = RpcObservations(camera, np.zeros(camera.size, np.int64),
-                              np.r_[point, n_points + ties.point].astype(np.int64),
+                              np.r_[point, ids.size + ties.point].astype(np.int64),
                               np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows]].astype(float),
                               np.r_[table.col[control], ties.table.col[ties.rows]],
                               np.r_[table.row[control], ties.table.row[ties.rows]])

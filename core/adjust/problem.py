@@ -76,7 +76,7 @@ class Problem:
         self._set_up_ground(table, control[first], ties.ground, lines)
         self.ties = ties
         self.params, self.obs, self.is_tie, self.is_line, self.rows = \
-            self.set_up(table, control, point, ids.size, ties, lines)
+            self.set_up(table, control, point, ids, ties, lines)
         # where the current model images the observations (the last projection: the next one's
         # start) and the pixel map there; see :meth:`project`
         self.imaged, self.map = self.obs, None
@@ -93,12 +93,12 @@ class Problem:
         chosen for the user (None: the settings as given): a rigorous scene takes them as given."""
         return settings, None
 
-    def set_up(self, table: GcpTable, control: np.ndarray, point: np.ndarray, n_points: int, ties: TieSetUp,
+    def set_up(self, table: GcpTable, control: np.ndarray, point: np.ndarray, ids: np.ndarray, ties: TieSetUp,
                lines: LineSetUp):
         """(parameters, observations, is_tie (n,) bool, is_line (n,) bool, rows (n,)) of the rigorous
         scene: its trajectory and interior unknowns, and the image observations of the control rows
-        ``control`` of ``table`` (of control points ``point`` (c,), indices among the ``n_points``
-        control points), of the tie observations and of the line points, sorted by their parameter
+        ``control`` of ``table`` (of control points ``point`` (c,): indices into ``ids``, the control
+        points' sorted ids), of the tie observations and of the line points, sorted by their parameter
         columns. ``rows``: each observation's row in the GCP table, the tie table or the line points."""
         scene, settings = self.scene, self.settings
         # trajectory bases over each measured trajectory's time span (the scene's; a block scene's)
@@ -118,7 +118,7 @@ class Problem:
                                  np.r_[camera_indices(scene, table.camera[control]), ties.camera, lines.camera],
                                  np.r_[table.col[control], ties.table.col[ties.rows], lines.obs.col],
                                  np.r_[table.row[control], ties.table.row[ties.rows], lines.obs.row],
-                                 np.r_[point, n_points + ties.point, self.line_first + np.arange(len(lines))],
+                                 np.r_[point, ids.size + ties.point, self.line_first + np.arange(len(lines))],
                                  np.r_[table.sigma_px[control], ties.table.sigma_px[ties.rows], lines.obs.sigma_px])
         # Observations sorted by what decides their parameter columns, so that observations
         # sharing columns are contiguous whatever the free parameters: groups are slices.

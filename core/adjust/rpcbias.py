@@ -164,7 +164,7 @@ class RpcProblem(Problem):
                              "RPC_CORRECTION")
         return chosen_correction(settings, n_control)
 
-    def set_up(self, table, control, point, n_points, ties, lines):
+    def set_up(self, table, control, point, ids, ties, lines):
         """The RPC scene's correction terms and its control observations, in the table's order (an
         RPC scene alone takes neither tie points nor lines)."""
         self.image = RpcImage(self.scene, self.settings.rpc_correction)
