@@ -1,32 +1,31 @@
-"""What the docks that measure on raw images share, laid out as QGIS's Georeferencer: the form
-(collapsible, above), a row of buttons, the canvas tools (measure, pan, zoom, undo, delete), the
-dock's own canvas showing the raw image in the pixel frame (:mod:`.canvas`), a legend and the pixel
-under the cursor, then the dock's list or table; a splitter between them gives the canvas most of
-the dock. Ctrl+Z undoes and Delete deletes while the dock has the focus. Also one-shot picking on
-the main map canvas and releasing everything before QGIS exits.
+"""What the docks that measure on raw images share, laid out as QGIS's Georeferencer: the form above,
+a row of buttons, the canvas tools, the dock's own canvas of the raw image (:mod:`.canvas`), a legend
+and the pixel under the cursor, then the dock's list or table, in a splitter that gives the canvas
+most of the dock; picking on the main map canvas; releasing everything before QGIS exits.
 """
 from __future__ import annotations
 
-from qgis.core import QgsPointXY
+from qgis.core import QgsPointXY, QgsProcessingException
 from qgis.gui import QgsMapToolEmitPoint
 from qgis.PyQt.QtCore import Qt
 from qgis.PyQt.QtGui import QKeySequence
-from qgis.PyQt.QtWidgets import (QAction, QDockWidget, QFormLayout, QFrame, QHBoxLayout, QLabel, QPushButton,
-                                 QScrollArea, QSplitter, QVBoxLayout, QWidget)
+from qgis.PyQt.QtWidgets import (QAction, QComboBox, QDockWidget, QFormLayout, QFrame, QHBoxLayout, QLabel,
+                                 QPushButton, QScrollArea, QSplitter, QVBoxLayout, QWidget)
 
-from ..parameters import tr
+from ...core.errors import PushbroomError
+from ...core.runs.docks import form_heights
+from ..parameters import DATUMS, HEIGHT_SOURCES, tr
 from .canvas import CanvasTools, PixelCanvas, PixelTool, pixel_of, theme_icon
-from .form import HeightsRows
+from .form import DemBox, layer_path, spin_box
 from .markers import CanvasDrawing
 
 LINE_MARGIN_PX = 20.0  # image px shown around a line zoomed to
 
 
 class PixelCanvasDock(QDockWidget):
-    """The shared dock. Subclasses put their rows into ``self.form``, then call :meth:`build`; they
-    implement ``image_clicked(col, row, button)``, ``main_clicked(point)`` (a pick on the main
-    canvas, in its CRS), ``undo()``, ``delete_selected()`` and ``selected_pixels()`` (what 'zoom
-    to the selected one' frames: [(col, row)] px)."""
+    """The shared dock. Subclasses fill ``self.form``, then call :meth:`build`; they implement
+    ``image_clicked(col, row, button)``, ``main_clicked(point)`` (main canvas CRS), ``undo()``,
+    ``delete_selected()``, ``redraw()`` and ``selected_pixels()`` ([(col, row)] px to zoom to)."""
 
     def __init__(self, title: str, name: str, iface, hint: str, parent=None):
         super().__init__(title, parent)
@@ -43,7 +42,7 @@ class PixelCanvasDock(QDockWidget):
         self.pick_tool = QgsMapToolEmitPoint(iface.mapCanvas())
         self.pick_tool.canvasClicked.connect(self._picked)
         self.form = QFormLayout()
-        self.heights_rows: HeightsRows | None = None
+        self.dem_combo: DemBox | None = None
 
     # --- layout ---------------------------------------------------------------------------------
     def build(self, buttons, measure: tuple[str, str], legend: QWidget, below: QWidget) -> None:
@@ -59,7 +58,12 @@ class PixelCanvasDock(QDockWidget):
         column = QVBoxLayout(centre)
         column.setContentsMargins(0, 0, 0, 0)
         for row in buttons:
-            column.addLayout(self._button_row(row))
+            line = QHBoxLayout()
+            for attr, text, slot in row:
+                setattr(self, attr, QPushButton(text))
+                getattr(self, attr).clicked.connect(slot)
+                line.addWidget(getattr(self, attr))
+            column.addLayout(line)
         self.tools = CanvasTools(self.canvas, self.tool, *measure, self.zoom_to_selected)
         self.tools.addSeparator()
         self.undo_action = self._action("/mActionUndo.svg", tr("Undo the last change (Ctrl+Z)"), QKeySequence.Undo,
@@ -73,32 +77,20 @@ class PixelCanvasDock(QDockWidget):
         self.form_action.setCheckable(True)
         self.form_action.setChecked(True)
         self.form_action.toggled.connect(self.form_pane.setVisible)
-        column.addWidget(self.tools)
-        column.addWidget(self.canvas, 1)
-        column.addWidget(legend)
-        column.addWidget(self.pixel_label)
-        splitter = QSplitter(Qt.Vertical)
+        for widget, stretch in ((self.tools, 0), (self.canvas, 1), (legend, 0), (self.pixel_label, 0)):
+            column.addWidget(widget, stretch)
+        self.splitter = QSplitter(Qt.Vertical)
         for k, (widget, stretch) in enumerate(((self.form_pane, 0), (centre, 1), (below, 0))):
-            splitter.addWidget(widget)
-            splitter.setStretchFactor(k, stretch)
-        splitter.setCollapsible(1, False)
-        splitter.setSizes([250, 520, 140])
-        self.splitter = splitter
+            self.splitter.addWidget(widget)
+            self.splitter.setStretchFactor(k, stretch)
+        self.splitter.setCollapsible(1, False)
+        self.splitter.setSizes([250, 520, 140])
         body = QWidget()
         layout = QVBoxLayout(body)
-        layout.addWidget(splitter, 1)
+        layout.addWidget(self.splitter, 1)
         layout.addWidget(self.message_label)
         self.setWidget(body)
         self.setMinimumWidth(380)
-
-    def _button_row(self, row) -> QHBoxLayout:
-        buttons = QHBoxLayout()
-        for attr, text, slot in row:
-            button = QPushButton(text)
-            button.clicked.connect(slot)
-            setattr(self, attr, button)
-            buttons.addWidget(button)
-        return buttons
 
     def _action(self, icon: str, text: str, keys, slot) -> QAction:
         """A tool bar action with a shortcut that works while the focus is in the dock."""
@@ -111,26 +103,50 @@ class PixelCanvasDock(QDockWidget):
         return action
 
     def add_height_rows(self, tooltip: str, z_words: str, source: str) -> None:
-        """The heights rows (:class:`.form.HeightsRows`) in the form."""
-        self.heights_rows = rows = HeightsRows(self.form, tooltip, z_words, source)
-        self.height_combo, self.dem_combo, self.datum_combo, self.height_spin = (rows.source, rows.dem, rows.datum,
-                                                                                 rows.value)
+        """The rows 'Heights from' (z, dem, constant), 'DEM' (:class:`.form.DemBox`), 'Height datum'
+        and 'Constant height'; ``z_words``: what heights from 'z' are."""
+        self.z_words = z_words
+        self.height_combo, self.dem_combo, self.datum_combo = QComboBox(), DemBox(), QComboBox()
+        self.height_combo.addItems(HEIGHT_SOURCES)
+        self.height_combo.setCurrentText(source)
+        self.height_combo.setToolTip(tooltip)
+        self.datum_combo.addItems(DATUMS)
+        self.height_spin = spin_box(0.0, -500.0, 9000.0, " m", "")
+        for label, widget in ((tr("Heights from"), self.height_combo), (tr("DEM"), self.dem_combo),
+                              (tr("Height datum"), self.datum_combo), (tr("Constant height"), self.height_spin)):
+            self.form.addRow(label, widget)
 
     def heights(self):
         """(:class:`core.observations.tables.Heights`, where they come from in words)."""
-        return self.heights_rows.heights()
+        dem = self.dem_combo.currentLayer()
+        return form_heights(self.height_combo.currentText(), self.datum_combo.currentText(), self.height_spin.value(),
+                            layer_path(dem) if dem is not None else None, dem.name() if dem is not None else "",
+                            self.z_words)
 
     # --- messages and the view ------------------------------------------------------------------
     def tell(self, text: str) -> None:
         self.message_label.setText(text)
+
+    def attempt(self, call, redraw: bool = True) -> bool:
+        """Call ``call`` (a session's action): show the sentence it returns (if any) and redraw, or
+        show its refusal; whether it went through."""
+        try:
+            message = call()
+        except (PushbroomError, QgsProcessingException) as exc:
+            self.tell(str(exc))
+            return False
+        if isinstance(message, str) and message:
+            self.tell(message)
+        if redraw:
+            self.redraw()
+        return True
 
     def show_pixel(self, col: float, row: float) -> None:
         """Pixel coordinates under the cursor, in the dock's status line."""
         self.pixel_label.setText(tr("col {col:.1f}, row {row:.1f} px").format(col=col, row=row))
 
     def show_raster(self, path: str, name: str) -> bool:
-        """Show the raster at ``path`` (a display copy) alone on the dock's canvas, whole; False
-        (with a message) when QGIS cannot show it."""
+        """Show the raster at ``path`` (a display copy) alone, whole; False (said) when QGIS cannot."""
         if not self.canvas.show_raster(path, name):
             self.tell(tr("{path}: QGIS cannot show this raster").format(path=path))
             return False
@@ -172,11 +188,11 @@ class PixelCanvasDock(QDockWidget):
         super().closeEvent(event)
 
     def dispose(self) -> None:
-        """Release the canvas's layer and drawing while QGIS is alive (a render job or a raster
-        layer outliving QGIS's exit frees a raster pipe whose provider is gone: a crash), and stop
-        following the project. Safe to call twice."""
+        """Release the canvas's layer and drawing while QGIS is alive (a raster layer outliving QGIS's
+        exit frees a raster pipe whose provider is gone: a crash), and stop following the project.
+        Safe to call twice."""
         self.close()
         self.drawing.clear()
         self.canvas.dispose()
-        if self.heights_rows is not None:
-            self.heights_rows.dem.dispose()
+        if self.dem_combo is not None:
+            self.dem_combo.dispose()

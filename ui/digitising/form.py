@@ -1,19 +1,15 @@
-"""The docks' forms: where heights come from (the heights rows, with a DEM box that starts empty and
-offers only rasters that look like elevation, :func:`core.measure.sources.elevation_problem`),
-labelled spin boxes and the scene dialog's pieces.
-
-Heights are never guessed: with 'dem' chosen and no DEM in the box, the constant height is used
-and the words returned with the heights say so, for the message and the list.
+"""The docks' form pieces: a DEM box that starts empty and offers only rasters that look like
+elevation (:func:`core.measure.sources.elevation_problem`: a wrong DEM gives every point a wrong height
+without a word), labelled spin boxes and rows.
 """
 from __future__ import annotations
 
 from qgis.core import QgsMapLayerProxyModel, QgsProject, QgsRasterLayer
 from qgis.gui import QgsMapLayerComboBox
-from qgis.PyQt.QtWidgets import QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel, QWidget
+from qgis.PyQt.QtWidgets import QDoubleSpinBox, QHBoxLayout, QLabel, QWidget
 
 from ...core.measure.sources import elevation_problem
-from ...core.observations.tables import Heights
-from ..parameters import DATUMS, HEIGHT_SOURCES, tr
+from ..parameters import tr
 
 
 def layer_path(layer) -> str:
@@ -60,40 +56,6 @@ class DemBox(QgsMapLayerComboBox):
             QgsProject.instance().layersAdded.disconnect(self.refilter)
         except TypeError:  # disconnected already
             pass
-
-
-class HeightsRows:
-    """The rows 'Heights from' (z / dem / constant), 'DEM', 'Height datum', 'Constant height' of a
-    form. ``z_words``: what heights from 'z' are (the reference point's Z, the lines' Z)."""
-
-    def __init__(self, form: QFormLayout, tooltip: str, z_words: str, source: str):
-        self.z_words = z_words
-        self.source = QComboBox()
-        self.source.addItems(HEIGHT_SOURCES)
-        self.source.setCurrentText(source)
-        self.source.setToolTip(tooltip)
-        self.dem = DemBox()
-        self.datum = QComboBox()
-        self.datum.addItems(DATUMS)
-        self.value = QDoubleSpinBox()
-        self.value.setRange(-500.0, 9000.0)
-        self.value.setSuffix(" m")
-        form.addRow(tr("Heights from"), self.source)
-        form.addRow(tr("DEM"), self.dem)
-        form.addRow(tr("Height datum"), self.datum)
-        form.addRow(tr("Constant height"), self.value)
-
-    def heights(self) -> tuple[Heights, str]:
-        """The heights to use and, in words, where they come from: 'dem' without a DEM is the
-        constant, and the words say so."""
-        source, datum, value = self.source.currentText(), self.datum.currentText(), self.value.value()
-        layer = self.dem.currentLayer()
-        constant = tr("the constant {h:.1f} m ({datum})").format(h=value, datum=datum)
-        if source == "dem" and layer is None:
-            return Heights("constant", datum, None, value), constant + tr(", no DEM chosen")
-        words = {"z": self.z_words, "constant": constant,
-                 "dem": tr("the DEM {name}").format(name=layer.name() if layer is not None else "")}[source]
-        return Heights(source, datum, layer_path(layer) if layer is not None else None, value), words
 
 
 def spin_box(value: float, low: float, high: float, suffix: str, tooltip: str, decimals: int = 2) -> QDoubleSpinBox:

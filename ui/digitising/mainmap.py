@@ -1,6 +1,6 @@
-"""The GCP dock on QGIS's main map canvas: every point with a ground position marked there (hollow
-markers with their ids, the selected one highlighted) and the reference point nearest to a
-click. Ground positions are WGS84 lon, lat (deg); the canvas may be in any CRS."""
+"""The GCP dock on QGIS's main map canvas: the points with a ground marked there (the selected one
+highlighted) and the reference layer's points. Ground positions are WGS84 lon, lat (deg); the canvas
+may be in any CRS."""
 from __future__ import annotations
 
 import numpy as np
@@ -64,23 +64,17 @@ class MainMapMarkers:
             pass
 
 
-def nearest_reference(layer, click: QgsPointXY, crs: QgsCoordinateReferenceSystem):
-    """(lon, lat deg, z or None, distance in ``crs`` units) of the point of ``layer`` nearest to
-    ``click`` (in ``crs``, the main canvas's); None without points."""
+def reference_points(layer, crs: QgsCoordinateReferenceSystem) -> tuple[np.ndarray, np.ndarray]:
+    """((n, 2) x, y in ``crs``, the main canvas's; (n, 3) lon, lat deg, Z or NaN) of ``layer``'s points."""
     to_canvas = QgsCoordinateTransform(layer.crs(), crs, QgsProject.instance())
     to_wgs84 = QgsCoordinateTransform(layer.crs(), wgs84(), QgsProject.instance())
-    points = []
+    has_z = QgsWkbTypes.hasZ(layer.wkbType())
+    xy, lonlatz = [], []
     for feature in layer.getFeatures():
         geometry = QgsGeometry(feature.geometry())
         if not geometry.isEmpty():
             vertex = geometry.vertexAt(0)
-            there = to_canvas.transform(QgsPointXY(vertex.x(), vertex.y()))
-            points.append((there.x(), there.y(), vertex.x(), vertex.y(), vertex.z()))
-    if not points:
-        return None
-    xy = np.array(points)
-    distance = np.hypot(xy[:, 0] - click.x(), xy[:, 1] - click.y())
-    k = int(np.argmin(distance))
-    lonlat = to_wgs84.transform(QgsPointXY(xy[k, 2], xy[k, 3]))
-    has_z = QgsWkbTypes.hasZ(layer.wkbType()) and np.isfinite(xy[k, 4])
-    return lonlat.x(), lonlat.y(), float(xy[k, 4]) if has_z else None, float(distance[k])
+            there, lonlat = (t.transform(QgsPointXY(vertex.x(), vertex.y())) for t in (to_canvas, to_wgs84))
+            xy.append((there.x(), there.y()))
+            lonlatz.append((lonlat.x(), lonlat.y(), vertex.z() if has_z else np.nan))
+    return np.reshape(xy, (-1, 2)), np.reshape(lonlatz, (-1, 3))

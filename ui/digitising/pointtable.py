@@ -1,20 +1,14 @@
-"""The GCP dock's table of points, as the Georeferencer's GCP table: id, role, the images a point is
-measured in, its residual in the scene shown (after an adjustment: bundleadjust's adjusted GCP
-layer opened back), its height and where the height came from; sortable by any column; a click
-selects the point (the dock then zooms to it)."""
+"""The GCP dock's table of points, as the Georeferencer's GCP table (rows from
+:func:`core.runs.measuregcps.point_rows`): sortable by any column; a click selects the point."""
 from __future__ import annotations
-
-import math
-import re
 
 from qgis.PyQt.QtCore import Qt
 from qgis.PyQt.QtWidgets import QAbstractItemView, QHeaderView, QTableWidget, QTableWidgetItem
 
+from ...core.runs.measuregcps import point_rows
 from ..parameters import tr
 
 COLUMNS = ("Id", "Role", "Images", "Residual (px)", "h (m)", "Height from")
-
-
 SORT_KEY = Qt.UserRole + 1
 
 
@@ -55,23 +49,11 @@ class PointTable(QTableWidget):
         self.blockSignals(True)
         self.setSortingEnabled(False)
         self.setRowCount(len(points))
-        for row, point in enumerate(points):
-            seen = point.observation(scene, camera) if scene is not None else None
-            residual = math.hypot(*seen.residual) if seen is not None and seen.residual is not None else None
-            ground = point.ground
-            natural_id = re.sub(r"\d+", lambda m: m.group().zfill(12), point.id)  # G2 before G10
-            cells = (Cell(point.id, natural_id), Cell(point.role),
-                     Cell(len(point.observations), len(point.observations)),
-                     Cell(f"{residual:.2f}" if residual is not None else "",
-                          residual if residual is not None else -1.0),
-                     Cell(f"{ground.h:.1f}" if ground else "", ground.h if ground else -math.inf),
-                     Cell(ground.height_from if ground else tr("no ground yet")))
-            cells[0].setData(Qt.UserRole, row)
-            cells[0].setToolTip("\n".join(
-                f"{o.scene}/{o.camera}: col {o.col:.2f}, row {o.row:.2f} px"
-                + (tr(", residual {c:+.2f}, {r:+.2f} px").format(c=o.residual[0], r=o.residual[1])
-                   if o.residual is not None else "") for o in point.observations))
-            for column, item in enumerate(cells):
+        for row, (cells, tip) in enumerate(point_rows(points, scene, camera)):
+            items = [Cell(text, key) for text, key in cells]
+            items[0].setData(Qt.UserRole, row)
+            items[0].setToolTip(tip)
+            for column, item in enumerate(items):
                 self.setItem(row, column, item)
         self.setSortingEnabled(True)
         self.clearSelection()

@@ -1,0 +1,30 @@
+"""What the two measuring docks share, without their widgets: what the heights form means (where
+heights come from, and those words for the messages and the table) and the files a raw image opened
+in a dock reads, which a save must not replace.
+
+Heights are never guessed: 'dem' chosen with no DEM is the constant height, and the words say so.
+"""
+from __future__ import annotations
+
+from ..measure.sources import ImageSource
+from ..observations.tables import Heights
+
+
+def form_heights(source: str, datum: str, value: float, dem: str | None, dem_name: str,
+                 z_words: str) -> tuple[Heights, str]:
+    """(the heights, where they come from in words) of the form's choices: ``source`` ('z', 'dem',
+    'constant'), ``datum`` of the Z values, the DEM and the constant ``value`` (m); ``dem`` the DEM's
+    file (None: none chosen) called ``dem_name``; ``z_words``: what heights from 'z' are."""
+    constant = f"the constant {value:.1f} m ({datum})"
+    if source == "dem" and dem is None:
+        return Heights("constant", datum, None, value), constant + ", no DEM chosen"
+    words = {"z": z_words, "constant": constant, "dem": f"the DEM {dem_name}"}[source]
+    return Heights(source, datum, dem, value), words
+
+
+def files_read(label: str, opened: str, source: ImageSource) -> dict[str, list[str]]:
+    """{what: files} of one raw image opened in a dock, called ``label`` (``opened``: the file the
+    user chose, a scene file or a display copy): its scene file, display copies and raw image."""
+    displays = [str(source.display)] + [opened] * (opened not in (source.scene_path, str(source.image)))
+    return {f"{label} (scene file)": [source.scene_path], f"{label} (display copy)": displays,
+            f"{label} (raw image)": [str(source.image)]}
