@@ -30,12 +30,13 @@ GCP_LAYER = "GCP layer"  # how refusals of the save name its file
 NEAR_PX = 1.0  # image px: predictions this close to an earlier one share its marker's label
 
 
-def nearest_reference(name: str, xy: np.ndarray, lonlatz: np.ndarray, click: tuple[float, float],
-                      units_per_px: float, tolerance_px: float) -> tuple[float, float, float | None]:
+def nearest_reference(name: str, xy, lonlatz, click: tuple[float, float], units_per_px: float,
+                      tolerance_px: float) -> tuple[float, float, float | None]:
     """(lon, lat deg, z or None) of the point of the reference layer ``name`` nearest to ``click``:
-    ``xy`` (n, 2) its points and ``click`` in the map's units (``units_per_px`` per screen px),
+    ``xy`` (n, >=2) its points and ``click`` in the map's units (``units_per_px`` per screen px),
     ``lonlatz`` (n, 3) their lon, lat and Z (NaN: none). InputError without points, or none within
     ``tolerance_px`` screen px: the user meant the click itself, or another point."""
+    xy, lonlatz = np.reshape(xy, (len(xy), -1)), np.reshape(lonlatz, (-1, 3))
     if len(xy) == 0:
         raise InputError(f"The reference layer {name} holds no point")
     distance = np.hypot(xy[:, 0] - click[0], xy[:, 1] - click[1])
@@ -114,7 +115,7 @@ class GcpSession:
         done = self.editor.measure(view.scene_name, view.camera_name, col, row, (cam.cols, cam.rows))
         return (f"Point {self.editor.current().id} {done} in {view.label} at col {col:.2f}, row {row:.2f} px")
 
-    def set_ground(self, lon: float, lat: float, heights: Heights, words: str, z: float | None, source: str) -> str:
+    def set_ground(self, lon: float, lat: float, z: float | None, source: str, heights: Heights, words: str) -> str:
         """The selected point's ground at (lon, lat) deg from ``source`` ('canvas', 'reference'), its
         height as ``heights`` say (``words``: where from, in words; ``z``: the picked point's Z)."""
         ground = self.editor.set_ground_at(lon, lat, heights, z, source, words)

@@ -1,13 +1,7 @@
-"""The docks' own map canvas and its tools: the raw image in the pixel frame x = col, y = -row
-(a display copy, :mod:`core.measure.display`), the measuring tool that turns clicks into pixel
-positions, and the view tools a Georeferencer user expects (pan, zoom in and out, zoom to the
-image, zoom to the selected point or line) in a tool bar above the canvas.
-
-The canvas has no CRS, and neither have the layers it shows: a transform from the pixel frame to
-anything else cannot exist, and QGIS asks for one wherever a canvas has a CRS (the project's
-ellipsoid for distances, the CRS a project read gives every canvas, each layer's transform), then
-raises a red bar over the main window. Without a CRS every transform is the identity and nothing
-is asked; the display copy's geotransform alone puts pixel (col, row) at x = col, y = -row.
+"""The docks' own map canvas and its tools: the raw image in the pixel frame x = col, y = -row (a
+display copy, :mod:`core.measure.display`), the measuring tool, and the view tools of QGIS. The canvas
+and its layers have no CRS: a transform from the pixel frame cannot exist, and QGIS asks for one (then
+raises a red bar) wherever a canvas has a CRS; without one every transform is the identity.
 """
 from __future__ import annotations
 
@@ -27,6 +21,7 @@ def pixel_of(point: QgsPointXY) -> tuple[float, float]:
 
 
 def point_of(col: float, row: float) -> QgsPointXY:
+    """The point of the pixel frame at (col, row) px."""
     return QgsPointXY(col, -row)
 
 

@@ -6,11 +6,10 @@ is). The session and its rules are :mod:`core.runs.digitiselines`'; this module 
 from __future__ import annotations
 
 import numpy as np
-from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform, QgsGeometry, QgsMapLayerProxyModel,
-                       QgsProject, QgsWkbTypes)
+from qgis.core import QgsCoordinateReferenceSystem, QgsMapLayerProxyModel, QgsWkbTypes
 from qgis.gui import QgsFieldComboBox, QgsMapLayerComboBox
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtWidgets import QComboBox, QDialog, QFileDialog, QLabel, QListWidget
+from qgis.PyQt.QtWidgets import QComboBox, QLabel, QListWidget
 
 from ...core.errors import InputError, PushbroomError
 from ...core.measure.snapping import MODES as SNAP_MODES
@@ -22,8 +21,9 @@ from ..parameters import tr
 from .base import PixelCanvasDock
 from .canvas import point_of
 from .form import labelled_row, spin_box
+from .mainmap import layer_parts
 from .markers import legend
-from .opening import SceneDialog, cache_folder
+from .opening import ask_gpkg, ask_scene, cache_folder
 
 
 class DigitisingDock(PixelCanvasDock):
@@ -63,12 +63,12 @@ class DigitisingDock(PixelCanvasDock):
         form.addRow(tr("Snap to"), labelled_row(("", self.snap_mode_combo), (tr("band width"), self.snap_width_spin)))
         self.line_list = QListWidget()
         self.line_list.currentRowChanged.connect(self._list_selected)
-        self.build(((("image_button", tr("Open image…"), self._choose_image),
+        self.build(((("image_button", tr("Open image…"),
+                      lambda: ask_scene(self, tr("Open a raw image with its scene"), self.open_image)),
                      ("finish_button", tr("Finish"), self.finish_line),
                      ("pair_button", tr("Pair"), self.start_pairing)),
-                    (("snap_button", tr("Snap"), self.snap),
-                     ("predict_button", tr("Predict"), self.predict),
-                     ("save_button", tr("Save…"), self._choose_save))),
+                    (("snap_button", tr("Snap"), self.snap), ("predict_button", tr("Predict"), self.predict),
+                     ("save_button", tr("Save…"), lambda: ask_gpkg(self, tr("Save image lines"), self.save)))),
                    (tr("Digitise: left click adds a vertex, right click ends the line"), "/mActionCaptureLine.svg"),
                    legend((), (("line", tr("lines")), ("selected", tr("selected")), ("drawing", tr("being drawn")),
                                ("predicted", tr("ground lines predicted")))), self.line_list)
@@ -79,11 +79,6 @@ class DigitisingDock(PixelCanvasDock):
             self.add_vertex(col, row)
         else:
             self.finish_line()
-
-    def _choose_image(self) -> None:
-        dialog = SceneDialog(self, tr("Open a raw image with its scene"))
-        if dialog.exec_() == QDialog.Accepted:
-            self.open_image(*dialog.chosen())
 
     def open_image(self, path: str, image: str | None = None, camera: str | None = None) -> bool:
         """Show a raw image: a scene file with its raw ``image`` of ``camera`` (None: found beside it, its
@@ -141,18 +136,8 @@ class DigitisingDock(PixelCanvasDock):
         layer, field = self.ground_combo.currentLayer(), self.id_combo.currentField()
         if layer is None or not field:
             raise InputError(tr("choose a ground line layer and its line id field"))
-        transform = QgsCoordinateTransform(layer.crs(), crs, QgsProject.instance())
-        ids, parts = [], []
-        for feature in layer.getFeatures():
-            geometry = QgsGeometry(feature.geometry())
-            if geometry.isEmpty():
-                continue
-            geometry.transform(transform)
-            for part in geometry.constParts():
-                xyz = np.array([(p.x(), p.y(), p.z()) for p in part.vertices()], dtype=float)
-                parts.append(xyz if QgsWkbTypes.hasZ(layer.wkbType()) else xyz[:, :2])
-                ids.append(str(feature[field]))
-        return ids, parts
+        ids, parts = layer_parts(layer, crs, field)
+        return ids, parts if QgsWkbTypes.hasZ(layer.wkbType()) else [p[:, :2] for p in parts]
 
     def main_clicked(self, point) -> None:
         """Pair the selected image line with the ground line nearest to ``point`` (main canvas CRS)."""
@@ -165,11 +150,6 @@ class DigitisingDock(PixelCanvasDock):
                                                   *self.heights()))
 
     # --- saving and drawing ---------------------------------------------------------------------
-    def _choose_save(self) -> None:
-        path, _ = QFileDialog.getSaveFileName(self, tr("Save image lines"), "", "GeoPackage (*.gpkg)")
-        if path:
-            self.save(path)
-
     def save(self, path: str) -> bool:
         """Write the lines to layer ``image_lines`` of GeoPackage ``path``; False (said) when they cannot."""
         return self.attempt(lambda: self.session.save(path, block_scene_names), False)

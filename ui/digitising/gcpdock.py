@@ -8,7 +8,7 @@ from __future__ import annotations
 from qgis.core import QgsMapLayerProxyModel
 from qgis.gui import QgsMapLayerComboBox
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtWidgets import QComboBox, QDialog, QFileDialog, QLineEdit, QListWidget
+from qgis.PyQt.QtWidgets import QComboBox, QLineEdit, QListWidget
 
 from ...core.measure.sources import open_image_source
 from ...core.observations.gcps import ROLES
@@ -18,9 +18,9 @@ from ..parameters import tr
 from .base import PixelCanvasDock
 from .canvas import point_of
 from .form import labelled_row, layer_path, spin_box
-from .mainmap import MainMapMarkers, canvas_to_wgs84, reference_points
+from .mainmap import MainMapMarkers, canvas_to_wgs84, layer_parts, wgs84
 from .markers import legend
-from .opening import SceneDialog, cache_folder
+from .opening import ask_gpkg, ask_scene, cache_folder
 from .pointtable import PointTable
 
 SNAP_TARGETS = ("other scene", "reference orthoimage")
@@ -71,22 +71,18 @@ class GcpDock(PixelCanvasDock):
         self.ortho_combo = layer_box(QgsMapLayerProxyModel.RasterLayer)
         form.addRow(tr("Snap to"), labelled_row(("", self.snap_combo), (tr("orthoimage"), self.ortho_combo)))
         self.table = PointTable(self.select_point)
-        self.build(((("add_scene_button", tr("Add scene…"), self._choose_scene),
+        self.build(((("add_scene_button", tr("Add scene…"),
+                      lambda: ask_scene(self, tr("Add a scene of the block"), self.add_scene)),
                      ("new_button", tr("New point"), self.new_point),
-                     ("ground_button", tr("Ground"), self.start_ground),
-                     ("snap_button", tr("Snap"), self.snap)),
-                    (("open_button", tr("Open…"), self._choose_open),
-                     ("save_button", tr("Save…"), self._choose_save))),
+                     ("ground_button", tr("Ground"), self.start_ground), ("snap_button", tr("Snap"), self.snap)),
+                    (("open_button", tr("Open…"), lambda: ask_gpkg(
+                        self, tr("Open GCPs (saved here, or adjusted by bundleadjust)"), self.open_layer, False)),
+                     ("save_button", tr("Save…"), lambda: ask_gpkg(self, tr("Save GCPs"), self.save)))),
                    (tr("Measure: a click measures the selected point (a new one when none is)"),
                     "/mActionCapturePoint.svg"),
                    legend(("selected", "measured", "ground", "scene")), self.table)
 
     # --- the block's scenes ---------------------------------------------------------------------
-    def _choose_scene(self) -> None:
-        dialog = SceneDialog(self, tr("Add a scene of the block"))
-        if dialog.exec_() == QDialog.Accepted:
-            self.add_scene(*dialog.chosen())
-
     def add_scene(self, path: str, image: str | None = None, camera: str | None = None) -> bool:
         """Add a scene of the block (:meth:`core.runs.measuregcps.GcpSession.add`), named as the block's
         algorithms name it (ui.inputs.block_scene_names), and show it; False (said) when it cannot."""
@@ -123,19 +119,19 @@ class GcpDock(PixelCanvasDock):
                               "layer is chosen)"))
 
     def main_clicked(self, point) -> None:
-        """The selected point's ground at ``point`` (main canvas CRS), or at the nearest point of the
-        reference layer (within REFERENCE_TOLERANCE_PX of the click); its height as the form says."""
-        canvas, layer = self.iface.mapCanvas(), self.reference_combo.currentLayer()
-        at = canvas_to_wgs84(canvas, point)
+        """The selected point's ground at a click on the main map, its height as the form says."""
+        self.attempt(lambda: self.session.set_ground(*self.picked(point), *self.heights()))
 
-        def ground() -> str:
-            lon, lat, z = at.x(), at.y(), None
-            if layer is not None:
-                xy, lonlatz = reference_points(layer, canvas.mapSettings().destinationCrs())
-                lon, lat, z = nearest_reference(layer.name(), xy, lonlatz, (point.x(), point.y()),
-                                                canvas.mapUnitsPerPixel(), REFERENCE_TOLERANCE_PX)
-            return self.session.set_ground(lon, lat, *self.heights(), z, "canvas" if layer is None else "reference")
-        self.attempt(ground)
+    def picked(self, point) -> tuple:
+        """(lon, lat deg, z or None, source) of a click at ``point`` (main canvas CRS): the click itself,
+        or the nearest point of the reference layer (within REFERENCE_TOLERANCE_PX screen px)."""
+        canvas, layer = self.iface.mapCanvas(), self.reference_combo.currentLayer()
+        if layer is None:
+            at = canvas_to_wgs84(canvas, point)
+            return at.x(), at.y(), None, "canvas"
+        here, there = (layer_parts(layer, crs)[1] for crs in (canvas.mapSettings().destinationCrs(), wgs84()))
+        return (*nearest_reference(layer.name(), [p[0] for p in here], [p[0] for p in there], (point.x(), point.y()),
+                                   canvas.mapUnitsPerPixel(), REFERENCE_TOLERANCE_PX), "reference")
 
     def snap(self) -> None:
         """Snap the selected point's observation in the current scene (undoable)."""
@@ -162,21 +158,10 @@ class GcpDock(PixelCanvasDock):
         return self.session.selected_pixels()
 
     # --- files ----------------------------------------------------------------------------------
-    def _choose_save(self) -> None:
-        path, _ = QFileDialog.getSaveFileName(self, tr("Save GCPs"), "", "GeoPackage (*.gpkg)")
-        if path:
-            self.save(path)
-
     def save(self, path: str) -> bool:
         """Write the points to GeoPackage ``path``; False (said) when they cannot be saved."""
         dem = self.dem_combo.currentLayer()
         return self.attempt(lambda: self.session.save(path, layer_path(dem) if dem is not None else None), False)
-
-    def _choose_open(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, tr("Open GCPs (saved here, or adjusted by bundleadjust)"), "",
-                                              "GeoPackage (*.gpkg)")
-        if path:
-            self.open_layer(path)
 
     def open_layer(self, path: str) -> bool:
         """Continue from a saved or adjusted GCP layer; False (said) when it cannot be read."""

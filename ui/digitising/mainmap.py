@@ -64,17 +64,18 @@ class MainMapMarkers:
             pass
 
 
-def reference_points(layer, crs: QgsCoordinateReferenceSystem) -> tuple[np.ndarray, np.ndarray]:
-    """((n, 2) x, y in ``crs``, the main canvas's; (n, 3) lon, lat deg, Z or NaN) of ``layer``'s points."""
-    to_canvas = QgsCoordinateTransform(layer.crs(), crs, QgsProject.instance())
-    to_wgs84 = QgsCoordinateTransform(layer.crs(), wgs84(), QgsProject.instance())
+def layer_parts(layer, crs: QgsCoordinateReferenceSystem, field: str = "") -> tuple[list[str], list[np.ndarray]]:
+    """(the value of ``field`` ('' for none) of each part's feature, parts [(n, 3)]: x, y in ``crs``, z
+    (NaN without Z)) of ``layer``'s features."""
+    transform = QgsCoordinateTransform(layer.crs(), crs, QgsProject.instance())
     has_z = QgsWkbTypes.hasZ(layer.wkbType())
-    xy, lonlatz = [], []
+    ids, parts = [], []
     for feature in layer.getFeatures():
         geometry = QgsGeometry(feature.geometry())
-        if not geometry.isEmpty():
-            vertex = geometry.vertexAt(0)
-            there, lonlat = (t.transform(QgsPointXY(vertex.x(), vertex.y())) for t in (to_canvas, to_wgs84))
-            xy.append((there.x(), there.y()))
-            lonlatz.append((lonlat.x(), lonlat.y(), vertex.z() if has_z else np.nan))
-    return np.reshape(xy, (-1, 2)), np.reshape(lonlatz, (-1, 3))
+        if geometry.isEmpty():
+            continue
+        geometry.transform(transform)
+        for part in geometry.constParts():
+            parts.append(np.array([(p.x(), p.y(), p.z() if has_z else np.nan) for p in part.vertices()], dtype=float))
+            ids.append(str(feature[field]) if field else "")
+    return ids, parts

@@ -1,11 +1,9 @@
-"""What the docks draw on a canvas: hollow point markers with the point's id beside them, one
-style per source (measured, predicted from the ground, predicted from another scene), a legend
-of those styles, and line bands. Markers keep their screen size at any zoom and are hollow, so
-that at whole-image zoom a prediction does not hide the measurement under it.
-"""
+"""What the docks draw on a canvas: point markers labelled with the point's id, one style per source,
+line bands, and a legend of them. Markers keep their screen size at any zoom and are hollow, so that at
+whole-image zoom a prediction does not hide the measurement under it."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from qgis.core import QgsGeometry, QgsPointXY, QgsWkbTypes
 from qgis.gui import QgsMapCanvas, QgsMapCanvasItem, QgsRubberBand
@@ -27,9 +25,6 @@ class MarkerStyle:
     width: float
     dot: bool
     legend: str
-
-    def qcolor(self, alpha: int = 255) -> QColor:
-        return QColor(*self.colour, alpha)
 
 
 STYLES = {
@@ -66,10 +61,10 @@ def paint_marker(painter: QPainter, style: MarkerStyle, label: str = "", font: Q
     painter.setBrush(Qt.NoBrush)
     painter.setPen(QPen(QColor(255, 255, 255, 160), style.width + 2))
     painter.drawPath(outline)
-    painter.setPen(QPen(style.qcolor(), style.width))
+    painter.setPen(QPen(QColor(*style.colour), style.width))
     painter.drawPath(outline)
     if style.dot:
-        painter.setBrush(style.qcolor())
+        painter.setBrush(QColor(*style.colour))
         painter.drawEllipse(QPointF(0, 0), 1.2, 1.2)
     if label:
         text = QPainterPath()
@@ -78,7 +73,7 @@ def paint_marker(painter: QPainter, style: MarkerStyle, label: str = "", font: Q
         painter.setBrush(Qt.NoBrush)
         painter.drawPath(text)
         painter.setPen(Qt.NoPen)
-        painter.setBrush(style.qcolor())
+        painter.setBrush(QColor(*style.colour))
         painter.drawPath(text)
 
 
@@ -154,40 +149,32 @@ class CanvasDrawing:
 
 
 def legend(kinds, lines: tuple[str, ...] = ()) -> QWidget:
-    """A one-row legend: a swatch and a text per marker kind of STYLES (and line kind of
-    LINE_STYLES: ``lines`` as (kind, text) pairs)."""
+    """A one-row legend: a swatch and a text per marker kind of STYLES and per (kind, text) of
+    LINE_STYLES in ``lines``."""
     widget = QWidget()
     row = QHBoxLayout(widget)
     row.setContentsMargins(2, 0, 2, 0)
-    for kind in kinds:
-        style = STYLES[kind]
+    for kind, text in [(k, "") for k in kinds] + list(lines):
         pixmap = QPixmap(22, 22)
         pixmap.fill(Qt.transparent)
         painter = QPainter(pixmap)
-        painter.translate(11, 11)
-        paint_marker(painter, MarkerStyle(style.colour, style.shape, min(style.size, 16), style.width, style.dot, ""))
+        if text:
+            colour, _, _, dashed = LINE_STYLES[kind]
+            painter.setPen(QPen(QColor(*colour), 2, Qt.DashLine if dashed else Qt.SolidLine))
+            painter.drawLine(2, 16, 20, 6)
+        else:
+            painter.translate(11, 11)
+            paint_marker(painter, replace(STYLES[kind], size=min(STYLES[kind].size, 16)))
+            text = tr(STYLES[kind].legend)
         painter.end()
-        row.addWidget(swatch(pixmap, tr(style.legend)))
-    for kind, text in lines:
-        colour, _, _, dashed = LINE_STYLES[kind]
-        pixmap = QPixmap(22, 22)
-        pixmap.fill(Qt.transparent)
-        painter = QPainter(pixmap)
-        painter.setPen(QPen(QColor(*colour), 2, Qt.DashLine if dashed else Qt.SolidLine))
-        painter.drawLine(2, 16, 20, 6)
-        painter.end()
-        row.addWidget(swatch(pixmap, text))
+        swatch = QWidget()
+        pair = QHBoxLayout(swatch)
+        pair.setContentsMargins(0, 0, 6, 0)
+        pair.setSpacing(2)
+        icon = QLabel()
+        icon.setPixmap(pixmap)
+        pair.addWidget(icon)
+        pair.addWidget(QLabel(text))
+        row.addWidget(swatch)
     row.addStretch(1)
-    return widget
-
-
-def swatch(pixmap: QPixmap, text: str) -> QWidget:
-    widget = QWidget()
-    row = QHBoxLayout(widget)
-    row.setContentsMargins(0, 0, 6, 0)
-    row.setSpacing(2)
-    icon = QLabel()
-    icon.setPixmap(pixmap)
-    row.addWidget(icon)
-    row.addWidget(QLabel(text))
     return widget

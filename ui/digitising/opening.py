@@ -1,7 +1,6 @@
-"""Opening what users have in the docks: a dialog that takes a scene file (scene JSON, DIMAP, Maxar
-XML, an RPC file or image; or a display copy), proposes the raw image of its camera found beside it,
-and lets the camera be chosen; the display copy that shows the image is made in the plugin's cache
-folder (:func:`core.measure.sources.open_image_source`), never beside the user's files.
+"""The dialog that opens a scene in the docks: a scene file (or a display copy), the camera, and the
+raw image of that camera proposed from the scene file's folder. Display copies are made in the
+plugin's cache folder (:func:`core.measure.sources.open_image_source`), never beside the user's files.
 """
 from __future__ import annotations
 
@@ -9,7 +8,7 @@ from pathlib import Path
 
 from qgis.core import QgsApplication
 from qgis.gui import QgsFileWidget
-from qgis.PyQt.QtWidgets import QComboBox, QDialog, QDialogButtonBox, QFormLayout, QLabel
+from qgis.PyQt.QtWidgets import QComboBox, QDialog, QDialogButtonBox, QFileDialog, QFormLayout, QLabel
 
 from ...core.errors import PushbroomError
 from ...core.formats import load_scene
@@ -79,3 +78,18 @@ class SceneDialog(QDialog):
     def chosen(self) -> tuple[str, str | None, str | None]:
         """(scene file, raw image or None, camera name or None)."""
         return self.scene.filePath(), self.image.filePath() or None, self.camera.currentText() or None
+
+
+def ask_scene(parent, title: str, then) -> None:
+    """Ask for a scene, its camera and raw image; ``then(scene, image, camera)`` after OK."""
+    dialog = SceneDialog(parent, title)
+    if dialog.exec_() == QDialog.Accepted:
+        then(*dialog.chosen())
+
+
+def ask_gpkg(parent, title: str, then, save: bool = True) -> None:
+    """Ask for a GeoPackage to write (to read when not ``save``); ``then(path)`` when one is chosen."""
+    path, _ = (QFileDialog.getSaveFileName if save else QFileDialog.getOpenFileName)(parent, title, "",
+                                                                                      "GeoPackage (*.gpkg)")
+    if path:
+        then(path)
