@@ -36,9 +36,9 @@ def nearest_reference(name: str, xy, lonlatz, click: tuple[float, float], units_
     ``xy`` (n, >=2) its points and ``click`` in the map's units (``units_per_px`` per screen px),
     ``lonlatz`` (n, 3) their lon, lat and Z (NaN: none). InputError without points, or none within
     ``tolerance_px`` screen px: the user meant the click itself, or another point."""
-    xy, lonlatz = np.reshape(xy, (len(xy), -1)), np.reshape(lonlatz, (-1, 3))
     if len(xy) == 0:
         raise InputError(f"The reference layer {name} holds no point")
+    xy, lonlatz = np.asarray(xy, dtype=float), np.asarray(lonlatz, dtype=float)
     distance = np.hypot(xy[:, 0] - click[0], xy[:, 1] - click[1])
     k = int(np.argmin(distance))
     pixels = distance[k] / max(units_per_px, 1e-12)
