@@ -82,6 +82,20 @@ class LineSession:
         self.editor.pair_selected(ids[index])
         return f"Line {self.editor.selected + 1} paired with ground line {ids[index]}"
 
+    def bands(self) -> list[tuple[list, str]]:
+        """What the dock draws, in order: (vertices [(col, row)] px, kind) of the predicted runs
+        ('predicted'), the lines ('selected' or 'line') and the line being drawn ('drawing')."""
+        bands = [(run.tolist(), "predicted") for line in self.predicted for run in line.runs()]
+        bands += [(line.vertices, "selected" if i == self.editor.selected else "line")
+                  for i, line in enumerate(self.editor.lines)]
+        return bands + ([(self.editor.current, "drawing")] if self.editor.current else [])
+
+    def selected_pixels(self) -> list[tuple[float, float]]:
+        """The selected line's vertices (or those of the line being drawn): what the dock zooms to."""
+        if self.editor.selected is not None:
+            return list(self.editor.lines[self.editor.selected].vertices)
+        return list(self.editor.current)
+
     def rows(self) -> list[str]:
         """The list's rows: each line's number, ground line id and vertex count."""
         return [f"{i + 1}: {line.line_id or 'not paired'} ({len(line.vertices)} vertices)"

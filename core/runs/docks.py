@@ -1,12 +1,14 @@
 """What the two measuring docks share, without their widgets: what the heights form means (where
-heights come from, and those words for the messages and the table) and the files a raw image opened
-in a dock reads, which a save must not replace.
+heights come from, and those words for the messages and the table), the files a raw image opened in a
+dock reads (which a save must not replace), and what the scene dialog proposes.
 
 Heights are never guessed: 'dem' chosen with no DEM is the constant height, and the words say so.
 """
 from __future__ import annotations
 
-from ..measure.sources import ImageSource
+from ..errors import PushbroomError
+from ..formats import load_scene
+from ..measure.sources import ImageSource, raw_image_candidates
 from ..observations.tables import Heights
 
 
@@ -28,3 +30,22 @@ def files_read(label: str, opened: str, source: ImageSource) -> dict[str, list[s
     displays = [str(source.display)] + [opened] * (opened not in (source.scene_path, str(source.image)))
     return {f"{label} (scene file)": [source.scene_path], f"{label} (display copy)": displays,
             f"{label} (raw image)": [str(source.image)]}
+
+
+def scene_cameras(path: str) -> tuple[object | None, list[str], str]:
+    """(the scene file ``path`` read (None when it cannot be), its cameras' names, what to tell)."""
+    try:
+        scene = load_scene(path)
+    except (PushbroomError, OSError) as exc:
+        return None, [], str(exc)
+    return scene, [c.name for c in scene.cameras], f"{path}: {len(scene.cameras)} camera(s)"
+
+
+def proposed_image(scene, path: str, camera: str) -> tuple[str, str]:
+    """(the raw image of ``scene``'s ``camera`` found beside its file ``path`` ('' for none), what to
+    tell ('' for nothing): :func:`core.measure.sources.raw_image_candidates`)."""
+    cam = scene.cameras[scene.camera_index(camera)]
+    found = raw_image_candidates(path, cam.cols, cam.rows, cam.name, scene.info.get("image"))
+    if found:
+        return str(found[0]), ""
+    return "", f"No raster of {cam.cols} x {cam.rows} px (camera {cam.name}) beside the scene: choose its raw image"

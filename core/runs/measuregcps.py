@@ -205,6 +205,27 @@ class GcpSession:
                 found.append((seen.col, seen.row, "selected" if i == self.editor.selected else "measured", point.id))
         return found, problem
 
+    def shown(self) -> tuple[str | None, str | None]:
+        """(scene name, camera name) of the current view; (None, None) when none is shown."""
+        view = self.views[self.current] if self.current is not None else None
+        return (view.scene_name, view.camera_name) if view is not None else (None, None)
+
+    def selected_values(self) -> tuple | None:
+        """(id, role, sigma_xy, sigma_z m (None without a ground), sigma_px (None when not measured in the
+        current view)) of the selected point, for the form; None when none is selected."""
+        if self.editor.selected is None:
+            return None
+        point = self.editor.current()
+        seen = point.observation(*self.shown()) if self.current is not None else None
+        ground = point.ground
+        return (point.id, point.role, ground.sigma_xy if ground else None, ground.sigma_z if ground else None,
+                seen.sigma_px if seen else None)
+
+    def ground_marks(self) -> list[tuple[str, float, float, bool]]:
+        """(id, lon, lat deg, selected) of the points with a ground, the selected one last (on top)."""
+        return sorted(((p.id, p.ground.lon, p.ground.lat, i == self.editor.selected)
+                       for i, p in enumerate(self.editor.points) if p.ground is not None), key=lambda m: m[3])
+
     def selected_pixels(self) -> list[tuple[float, float]]:
         """The selected point in the current view: its measurement, else the mean of its predictions."""
         if self.editor.selected is None or self.current is None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 from qgis.core import QgsApplication, QgsCoordinateReferenceSystem, QgsPointXY, QgsProject, QgsRasterLayer, QgsRectangle
 from qgis.gui import QgsMapCanvas, QgsMapTool, QgsMapToolPan, QgsMapToolZoom
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtWidgets import QAction, QActionGroup, QLabel, QToolBar
+from qgis.PyQt.QtWidgets import QActionGroup, QLabel, QToolBar
 
 from ..parameters import tr
 
@@ -31,8 +31,7 @@ def theme_icon(name: str):
 
 
 class PixelTool(QgsMapTool):
-    """The measuring tool: a release of the left or right button calls ``on_click(col, row,
-    button)``."""
+    """The measuring tool: a release of the left or right button calls ``on_click(col, row, button)``."""
 
     def __init__(self, canvas: QgsMapCanvas, on_click):
         super().__init__(canvas)
@@ -77,18 +76,10 @@ class PixelCanvas(QgsMapCanvas):
             self.refresh()
 
     def zoom_to_pixel(self, col: float, row: float, half: float = ZOOM_TO_POINT_PX) -> None:
-        """Centre the view on (col, row) px, ``half`` px either side (or the current scale when
-        that is closer)."""
+        """Centre the view on (col, row) px, ``half`` px either side (or the current scale when closer)."""
         half = min(half, max(self.extent().width(), 1.0) / 2)
         self.setExtent(QgsRectangle(col - half, -row - half, col + half, -row + half))
         self.refresh()
-
-    def release(self) -> None:
-        """Show nothing and let go of the layer (its raster pipe must not outlive QGIS)."""
-        self.stopRendering()
-        self.setLayers([])
-        self.layer = None
-        self.hint.show()
 
     def _restore(self, *args) -> None:
         self.setDestinationCrs(QgsCoordinateReferenceSystem())
@@ -99,8 +90,12 @@ class PixelCanvas(QgsMapCanvas):
         self.hint.setGeometry(10, 10, max(self.width() - 20, 1), max(self.height() - 20, 1))
 
     def dispose(self) -> None:
-        """Release the layer and stop following the project (before the widget goes)."""
-        self.release()
+        """Show nothing, let go of the layer (its raster pipe must not outlive QGIS) and stop following
+        the project (before the widget goes)."""
+        self.stopRendering()
+        self.setLayers([])
+        self.layer = None
+        self.hint.show()
         try:
             QgsProject.instance().readProject.disconnect(self._restore)
         except TypeError:  # disconnected already (disposed twice)
@@ -108,37 +103,26 @@ class PixelCanvas(QgsMapCanvas):
 
 
 class CanvasTools(QToolBar):
-    """The tool bar above a :class:`PixelCanvas`: ``measure`` (the dock's own tool: ``tool``,
-    checked first), pan, zoom in, zoom out (one of them active at a time, as in QGIS), zoom to
-    the image and zoom to the selection (``zoom_selected()``, the dock's)."""
+    """The tool bar above a :class:`PixelCanvas`: the dock's own ``tool`` (checked first), pan, zoom in
+    and zoom out (one active at a time, as in QGIS), zoom to the image and ``zoom_selected``."""
 
     def __init__(self, canvas: PixelCanvas, tool: QgsMapTool, measure_text: str, measure_icon: str, zoom_selected):
         super().__init__()
         self.setIconSize(self.iconSize() * 0.8)
-        self.canvas = canvas
         group = QActionGroup(self)
-        self.tools = {}
-        for key, icon, text, map_tool in (
-                ("measure", measure_icon, measure_text, tool),
-                ("pan", "/mActionPan.svg", tr("Pan (or drag with the middle button)"), QgsMapToolPan(canvas)),
-                ("zoom_in", "/mActionZoomIn.svg", tr("Zoom in (or the mouse wheel)"), QgsMapToolZoom(canvas, False)),
-                ("zoom_out", "/mActionZoomOut.svg", tr("Zoom out"), QgsMapToolZoom(canvas, True))):
-            action = QAction(theme_icon(icon), text, self)
+        for icon, text, map_tool in (
+                (measure_icon, measure_text, tool),
+                ("/mActionPan.svg", tr("Pan (or drag with the middle button)"), QgsMapToolPan(canvas)),
+                ("/mActionZoomIn.svg", tr("Zoom in (or the mouse wheel)"), QgsMapToolZoom(canvas, False)),
+                ("/mActionZoomOut.svg", tr("Zoom out"), QgsMapToolZoom(canvas, True))):
+            action = self.addAction(theme_icon(icon), text, lambda _=False, t=map_tool: canvas.setMapTool(t))
             action.setCheckable(True)
             group.addAction(action)
             map_tool.setAction(action)
-            action.triggered.connect(lambda _=False, t=map_tool: canvas.setMapTool(t))
-            self.addAction(action)
-            self.tools[key] = (action, map_tool)
+        group.actions()[0].setChecked(True)
+        canvas.setMapTool(tool)
         self.addSeparator()
         self.zoom_image = self.addAction(theme_icon("/mActionZoomFullExtent.svg"), tr("Zoom to the image"),
                                          canvas.zoom_to_image)
         self.zoom_selected = self.addAction(theme_icon("/mActionZoomToSelected.svg"), tr("Zoom to the selected one"),
                                             zoom_selected)
-        self.use("measure")
-
-    def use(self, key: str) -> None:
-        """Make tool ``key`` (measure, pan, zoom_in, zoom_out) the canvas's."""
-        action, map_tool = self.tools[key]
-        action.setChecked(True)
-        self.canvas.setMapTool(map_tool)

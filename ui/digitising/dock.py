@@ -20,10 +20,8 @@ from ..inputs import block_scene_names
 from ..parameters import tr
 from .base import PixelCanvasDock
 from .canvas import point_of
-from .form import labelled_row, spin_box
-from .mainmap import layer_parts
+from .form import ask_gpkg, ask_scene, cache_folder, labelled_row, layer_parts, spin_box
 from .markers import legend
-from .opening import ask_gpkg, ask_scene, cache_folder
 
 
 class DigitisingDock(PixelCanvasDock):
@@ -34,21 +32,12 @@ class DigitisingDock(PixelCanvasDock):
                          tr("Open image… to start: a scene file and its raw image"), parent)
         self.session = LineSession()
         self.editor = self.session.editor
-        self._build()
-
-    source = property(lambda self: self.session.source)
-    scene = property(lambda self: self.session.scene)
-    raw_image = property(lambda self: self.session.raw_image)
-    predicted = property(lambda self: self.session.predicted)
-
-    def _build(self) -> None:
         form = self.form
         self.scene_label = QLabel(tr("none"))
         self.scene_label.setWordWrap(True)
         form.addRow(tr("Scene"), self.scene_label)
-        self.ground_combo = QgsMapLayerComboBox()
+        self.ground_combo, self.id_combo = QgsMapLayerComboBox(), QgsFieldComboBox()
         self.ground_combo.setFilters(QgsMapLayerProxyModel.LineLayer)
-        self.id_combo = QgsFieldComboBox()
         self.ground_combo.layerChanged.connect(self.id_combo.setLayer)
         self.id_combo.setLayer(self.ground_combo.currentLayer())
         form.addRow(tr("Ground lines"), labelled_row(("", self.ground_combo), (tr("id field"), self.id_combo)))
@@ -73,6 +62,11 @@ class DigitisingDock(PixelCanvasDock):
                    legend((), (("line", tr("lines")), ("selected", tr("selected")), ("drawing", tr("being drawn")),
                                ("predicted", tr("ground lines predicted")))), self.line_list)
 
+    source = property(lambda self: self.session.source)
+    scene = property(lambda self: self.session.scene)
+    raw_image = property(lambda self: self.session.raw_image)
+    predicted = property(lambda self: self.session.predicted)
+
     def image_clicked(self, col: float, row: float, button) -> None:
         """Left click adds a vertex, right click finishes the line."""
         if button == Qt.LeftButton:
@@ -94,7 +88,6 @@ class DigitisingDock(PixelCanvasDock):
         self.scene_label.setText(self.session.scene_words())
         return True
 
-    # --- digitising -----------------------------------------------------------------------------
     def add_vertex(self, col: float, row: float) -> None:
         self.attempt(lambda: self.editor.add_vertex(col, row))
 
@@ -118,12 +111,8 @@ class DigitisingDock(PixelCanvasDock):
             self.redraw()
 
     def selected_pixels(self) -> list[tuple[float, float]]:
-        """The selected line's vertices (or those of the line being drawn)."""
-        if self.editor.selected is not None:
-            return list(self.editor.lines[self.editor.selected].vertices)
-        return list(self.editor.current)
+        return self.session.selected_pixels()
 
-    # --- ground lines ---------------------------------------------------------------------------
     def start_pairing(self) -> None:
         """Next click on the main map canvas picks the selected line's ground line."""
         if self.editor.selected is None:
@@ -149,7 +138,6 @@ class DigitisingDock(PixelCanvasDock):
         self.attempt(lambda: self.session.predict(lambda: self.ground_parts(QgsCoordinateReferenceSystem("EPSG:4326")),
                                                   *self.heights()))
 
-    # --- saving and drawing ---------------------------------------------------------------------
     def save(self, path: str) -> bool:
         """Write the lines to layer ``image_lines`` of GeoPackage ``path``; False (said) when they cannot."""
         return self.attempt(lambda: self.session.save(path, block_scene_names), False)
@@ -157,14 +145,8 @@ class DigitisingDock(PixelCanvasDock):
     def redraw(self) -> None:
         """Bands and the list from the session."""
         self.drawing.clear()
-        for line in self.predicted:
-            for run in line.runs():
-                self.drawing.polyline([point_of(c, r) for c, r in run.tolist()], "predicted")
-        for i, line in enumerate(self.editor.lines):
-            self.drawing.polyline([point_of(c, r) for c, r in line.vertices],
-                                  "selected" if i == self.editor.selected else "line")
-        if self.editor.current:
-            self.drawing.polyline([point_of(c, r) for c, r in self.editor.current], "drawing")
+        for vertices, kind in self.session.bands():
+            self.drawing.polyline([point_of(c, r) for c, r in vertices], kind)
         self.line_list.blockSignals(True)
         self.line_list.clear()
         self.line_list.addItems(self.session.rows())

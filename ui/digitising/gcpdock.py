@@ -1,30 +1,29 @@
-"""The dock 'Measure GCPs on the raw images': the scenes of a block, the current one's raw image on
-the dock's canvas; clicks measure the selected point there, a click on the main map (or the nearest
-reference point) gives its ground; its predictions drawn; Snap, Undo, Save and Open. The session and
-its rules are :mod:`core.runs.measuregcps`'; this module turns events into its calls and draws it.
+"""The dock 'Measure GCPs on the raw images': the scenes of a block, the current one's raw image on the
+dock's canvas, a click measures the selected point there and a click on the main map (or the nearest
+reference point) gives its ground; its predictions drawn; Snap, Undo, Save, Open; the table of points.
+The session and its rules are :mod:`core.runs.measuregcps`'; this module wires its events.
 """
 from __future__ import annotations
 
-from qgis.core import QgsMapLayerProxyModel
-from qgis.gui import QgsMapLayerComboBox
+from qgis.core import QgsCoordinateTransform, QgsMapLayerProxyModel, QgsProject
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtWidgets import QComboBox, QLineEdit, QListWidget
+from qgis.PyQt.QtWidgets import (QAbstractItemView, QComboBox, QHeaderView, QLineEdit, QListWidget, QTableWidget,
+                                 QTableWidgetItem)
 
 from ...core.measure.sources import open_image_source
 from ...core.observations.gcps import ROLES
-from ...core.runs.measuregcps import GcpSession, nearest_reference
+from ...core.runs.measuregcps import GcpSession, nearest_reference, point_rows
 from ..inputs import block_scene_names
 from ..parameters import tr
 from .base import PixelCanvasDock
 from .canvas import point_of
-from .form import labelled_row, layer_path, spin_box
-from .mainmap import MainMapMarkers, canvas_to_wgs84, layer_parts, wgs84
-from .markers import legend
-from .opening import ask_gpkg, ask_scene, cache_folder
-from .pointtable import PointTable
+from .form import ask_gpkg, ask_scene, cache_folder, labelled_row, layer_box, layer_parts, layer_path, spin_box, wgs84
+from .markers import MainMapMarkers, legend
 
 SNAP_TARGETS = ("other scene", "reference orthoimage")
 REFERENCE_TOLERANCE_PX = 20  # screen px: a click farther from every reference point takes none of them
+COLUMNS = ("Id", "Role", "Images", "Residual (px)", "h (m)", "Height from")
+SORT_KEY = Qt.UserRole + 1
 
 
 class GcpDock(PixelCanvasDock):
@@ -36,19 +35,13 @@ class GcpDock(PixelCanvasDock):
         self.session = GcpSession()
         self.editor = self.session.editor
         self.main_markers = MainMapMarkers(iface.mapCanvas())
-        self._build()
-
-    predictions = property(lambda self: self.session.predictions)
-
-    def _build(self) -> None:
         form = self.form
         self.scene_list = QListWidget()
         self.scene_list.setMaximumHeight(80)
         self.scene_list.currentRowChanged.connect(self.show_scene)
         form.addRow(tr("Scenes"), self.scene_list)
-        self.id_edit = QLineEdit()
+        self.id_edit, self.role_combo = QLineEdit(), QComboBox()
         self.id_edit.editingFinished.connect(lambda: self.attempt(lambda: self.session.rename(self.id_edit.text())))
-        self.role_combo = QComboBox()
         self.role_combo.addItems(ROLES)
         self.role_combo.activated.connect(lambda _: self.attempt(lambda: self.editor.edit(
             role=self.role_combo.currentText())))
@@ -66,14 +59,13 @@ class GcpDock(PixelCanvasDock):
         self.add_height_rows(tr("Heights of the ground positions: z = the reference point's Z, dem = the DEM below "
                                 "(the constant when none is chosen), constant = the height below; also the surface "
                                 "observations are projected on"), tr("the reference point's Z"), "dem")
-        self.snap_combo = QComboBox()
+        self.snap_combo, self.ortho_combo = QComboBox(), layer_box(QgsMapLayerProxyModel.RasterLayer)
         self.snap_combo.addItems(SNAP_TARGETS)
-        self.ortho_combo = layer_box(QgsMapLayerProxyModel.RasterLayer)
         form.addRow(tr("Snap to"), labelled_row(("", self.snap_combo), (tr("orthoimage"), self.ortho_combo)))
         self.table = PointTable(self.select_point)
         self.build(((("add_scene_button", tr("Add scene…"),
                       lambda: ask_scene(self, tr("Add a scene of the block"), self.add_scene)),
-                     ("new_button", tr("New point"), self.new_point),
+                     ("new_button", tr("New point"), lambda: self.attempt(self.session.new_point)),
                      ("ground_button", tr("Ground"), self.start_ground), ("snap_button", tr("Snap"), self.snap)),
                     (("open_button", tr("Open…"), lambda: ask_gpkg(
                         self, tr("Open GCPs (saved here, or adjusted by bundleadjust)"), self.open_layer, False)),
@@ -82,7 +74,8 @@ class GcpDock(PixelCanvasDock):
                     "/mActionCapturePoint.svg"),
                    legend(("selected", "measured", "ground", "scene")), self.table)
 
-    # --- the block's scenes ---------------------------------------------------------------------
+    predictions = property(lambda self: self.session.predictions)
+
     def add_scene(self, path: str, image: str | None = None, camera: str | None = None) -> bool:
         """Add a scene of the block (:meth:`core.runs.measuregcps.GcpSession.add`), named as the block's
         algorithms name it (ui.inputs.block_scene_names), and show it; False (said) when it cannot."""
@@ -102,9 +95,6 @@ class GcpDock(PixelCanvasDock):
             self.redraw()
 
     # --- measuring ------------------------------------------------------------------------------
-    def new_point(self) -> None:
-        self.attempt(self.session.new_point)
-
     def image_clicked(self, col: float, row: float, button) -> None:
         """Left click measures the selected point in the current scene (a new point when none is)."""
         if button == Qt.LeftButton:
@@ -126,10 +116,11 @@ class GcpDock(PixelCanvasDock):
         """(lon, lat deg, z or None, source) of a click at ``point`` (main canvas CRS): the click itself,
         or the nearest point of the reference layer (within REFERENCE_TOLERANCE_PX screen px)."""
         canvas, layer = self.iface.mapCanvas(), self.reference_combo.currentLayer()
+        crs = canvas.mapSettings().destinationCrs()
         if layer is None:
-            at = canvas_to_wgs84(canvas, point)
+            at = QgsCoordinateTransform(crs, wgs84(), QgsProject.instance()).transform(point)
             return at.x(), at.y(), None, "canvas"
-        here, there = (layer_parts(layer, crs)[1] for crs in (canvas.mapSettings().destinationCrs(), wgs84()))
+        here, there = (layer_parts(layer, to)[1] for to in (crs, wgs84()))
         return (*nearest_reference(layer.name(), [p[0] for p in here], [p[0] for p in there], (point.x(), point.y()),
                                    canvas.mapUnitsPerPixel(), REFERENCE_TOLERANCE_PX), "reference")
 
@@ -147,17 +138,16 @@ class GcpDock(PixelCanvasDock):
 
     def select_point(self, index: int | None) -> None:
         """Select point ``index`` (of the editor's list), draw it and zoom to it."""
-        if index is not None and not 0 <= index < len(self.editor.points):
-            return
-        self.editor.select(index)
-        self.redraw()
-        if self.selected_pixels():
-            self.zoom_to_selected()
+        if index is None or 0 <= index < len(self.editor.points):
+            self.editor.select(index)
+            self.redraw()
+            if self.selected_pixels():
+                self.zoom_to_selected()
 
     def selected_pixels(self) -> list[tuple[float, float]]:
         return self.session.selected_pixels()
 
-    # --- files ----------------------------------------------------------------------------------
+    # --- files and drawing ------------------------------------------------------------------------
     def save(self, path: str) -> bool:
         """Write the points to GeoPackage ``path``; False (said) when they cannot be saved."""
         dem = self.dem_combo.currentLayer()
@@ -167,30 +157,23 @@ class GcpDock(PixelCanvasDock):
         """Continue from a saved or adjusted GCP layer; False (said) when it cannot be read."""
         return self.attempt(lambda: self.session.open_layer(path))
 
-    # --- drawing ----------------------------------------------------------------------------------
     def redraw(self) -> None:
-        """Markers (the image's, the main map's), predictions and the table from the session."""
+        """Markers (the image's, the main map's), the table and the form from the session."""
         self.drawing.clear()
         markers, problem = self.session.markers(self.heights()[0])
         if problem:
             self.tell(problem)
         for col, row, kind, label in markers:
             self.drawing.marker(point_of(col, row), kind, label)
-        self.main_markers.show(self.editor.points, self.editor.selected)
-        view = self.session.views[self.session.current] if self.session.current is not None else None
-        self.table.fill(self.editor.points, self.editor.selected, view.scene_name if view else None,
-                        view.camera_name if view else None)
-        if self.editor.selected is None:
-            return
-        point = self.editor.current()
-        self.id_edit.setText(point.id)
-        self.role_combo.setCurrentText(point.role)
-        if point.ground is not None:
-            self.sigma_xy_spin.setValue(point.ground.sigma_xy)
-            self.sigma_z_spin.setValue(point.ground.sigma_z)
-        seen = point.observation(view.scene_name, view.camera_name) if view is not None else None
-        if seen is not None:
-            self.sigma_px_spin.setValue(seen.sigma_px)
+        self.main_markers.show(self.session.ground_marks())
+        self.table.fill(self.editor.points, self.editor.selected, *self.session.shown())
+        values = self.session.selected_values()
+        if values is not None:
+            self.id_edit.setText(values[0])
+            self.role_combo.setCurrentText(values[1])
+            for spin, value in zip((self.sigma_xy_spin, self.sigma_z_spin, self.sigma_px_spin), values[2:]):
+                if value is not None:
+                    spin.setValue(value)
 
     def closeEvent(self, event):  # noqa: N802 (Qt API name)
         self.main_markers.hide()  # back when the dock is shown again
@@ -198,7 +181,7 @@ class GcpDock(PixelCanvasDock):
 
     def showEvent(self, event):  # noqa: N802 (Qt API name)
         super().showEvent(event)
-        self.main_markers.show(self.editor.points, self.editor.selected)
+        self.main_markers.show(self.session.ground_marks())
 
     def dispose(self) -> None:
         """Also take the markers off the main map canvas."""
@@ -206,10 +189,55 @@ class GcpDock(PixelCanvasDock):
         super().dispose()
 
 
-def layer_box(filters) -> QgsMapLayerComboBox:
-    """A layer box of ``filters`` that starts empty."""
-    box = QgsMapLayerComboBox()
-    box.setFilters(filters)
-    box.setAllowEmptyLayer(True)
-    box.setLayer(None)
-    return box
+class Cell(QTableWidgetItem):
+    """A read-only cell showing ``text`` that sorts by ``key`` (numbers as numbers), else by its text."""
+
+    def __init__(self, text: str, key=None):
+        super().__init__(text)
+        self.setData(SORT_KEY, key)
+        self.setFlags(self.flags() & ~Qt.ItemIsEditable)
+
+    def __lt__(self, other):
+        mine, theirs = self.data(SORT_KEY), other.data(SORT_KEY)
+        return mine < theirs if mine is not None and theirs is not None else self.text() < other.text()
+
+
+class PointTable(QTableWidget):
+    """The table of points, as the Georeferencer's GCP table (:func:`core.runs.measuregcps.point_rows`),
+    sortable by any column; ``on_select(index)`` gets the editor's index of a clicked point."""
+
+    def __init__(self, on_select):
+        super().__init__(0, len(COLUMNS))
+        self.setHorizontalHeaderLabels([tr(c) for c in COLUMNS])
+        self.setSelectionBehavior(QAbstractItemView.SelectRows)
+        self.setSelectionMode(QAbstractItemView.SingleSelection)
+        self.verticalHeader().hide()
+        self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
+        self.horizontalHeader().setStretchLastSection(True)
+        self.setSortingEnabled(True)
+        self.sortByColumn(0, Qt.AscendingOrder)
+        self.on_select = on_select
+        self.itemSelectionChanged.connect(self._selected)  # keys move the selection too
+        self.clicked.connect(self._selected)  # a click on the selected row zooms to it again
+
+    def fill(self, points, selected: int | None, scene: str | None, camera: str | None) -> None:
+        """One row per point, its index in ``points`` kept with the row; residuals in ``scene``'s ``camera``."""
+        self.blockSignals(True)
+        self.setSortingEnabled(False)
+        self.setRowCount(len(points))
+        for row, (cells, tip) in enumerate(point_rows(points, scene, camera)):
+            for column, (text, key) in enumerate(cells):
+                self.setItem(row, column, Cell(text, key))
+            self.item(row, 0).setData(Qt.UserRole, row)
+            self.item(row, 0).setToolTip(tip)
+        self.setSortingEnabled(True)
+        self.clearSelection()
+        for row in range(self.rowCount()):
+            if selected is not None and self.item(row, 0).data(Qt.UserRole) == selected:
+                self.selectRow(row)
+        self.blockSignals(False)
+
+    def _selected(self, *args) -> None:
+        rows = self.selectionModel().selectedRows()
+        if rows:
+            self.on_select(self.item(rows[0].row(), 0).data(Qt.UserRole))

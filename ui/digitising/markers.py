@@ -1,11 +1,11 @@
-"""What the docks draw on a canvas: point markers labelled with the point's id, one style per source,
-line bands, and a legend of them. Markers keep their screen size at any zoom and are hollow, so that at
-whole-image zoom a prediction does not hide the measurement under it."""
+"""What the docks draw: point markers labelled with the point's id, one style per source, line bands, a
+legend of them, and the GCPs on the main map (in its CRS, whichever). Markers keep their screen size and
+are hollow, so that at whole-image zoom a prediction does not hide the measurement under it."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from qgis.core import QgsGeometry, QgsPointXY, QgsWkbTypes
+from qgis.core import QgsCoordinateTransform, QgsGeometry, QgsPointXY, QgsProject, QgsWkbTypes
 from qgis.gui import QgsMapCanvas, QgsMapCanvasItem, QgsRubberBand
 from qgis.PyQt import sip
 from qgis.PyQt.QtCore import QPointF, QRectF, Qt
@@ -13,12 +13,13 @@ from qgis.PyQt.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPainterPath
 from qgis.PyQt.QtWidgets import QHBoxLayout, QLabel, QWidget
 
 from ..parameters import tr
+from .form import wgs84
 
 
 @dataclass(frozen=True)
 class MarkerStyle:
-    """A marker: its colour (r, g, b), shape (circle, square, diamond), size and pen width
-    (screen px), whether a dot marks the exact position, and its legend text."""
+    """A marker: colour (r, g, b), shape (circle, square, diamond), size and pen width (screen px),
+    whether a dot marks the exact position, legend text."""
     colour: tuple[int, int, int]
     shape: str
     size: float
@@ -106,17 +107,6 @@ class PointMarker(QgsMapCanvasItem):
         self.setPos(self.toCanvasCoordinates(self.point))
 
 
-def remove_item(item) -> None:
-    """Take a canvas item off whatever scene holds it and delete it (nothing when it is gone with
-    its canvas already)."""
-    if sip.isdeleted(item):
-        return
-    scene = item.scene()
-    if scene is not None:
-        scene.removeItem(item)
-    sip.delete(item)
-
-
 class CanvasDrawing:
     """The markers and bands a dock keeps on one canvas, replaced together."""
 
@@ -125,8 +115,11 @@ class CanvasDrawing:
         self.items = []
 
     def clear(self) -> None:
-        for item in self.items:
-            remove_item(item)
+        """Take every item off the scene that holds it and delete it (unless gone with its canvas)."""
+        for item in (i for i in self.items if not sip.isdeleted(i)):
+            if item.scene() is not None:
+                item.scene().removeItem(item)
+            sip.delete(item)
         self.items = []
 
     def marker(self, point: QgsPointXY, kind: str, label: str = "") -> PointMarker:
@@ -178,3 +171,38 @@ def legend(kinds, lines: tuple[str, ...] = ()) -> QWidget:
         row.addWidget(swatch)
     row.addStretch(1)
     return widget
+
+
+class MainMapMarkers:
+    """The GCPs' markers on the main map canvas, redrawn when its CRS changes; ``selected``: the
+    selected point's marker."""
+
+    def __init__(self, canvas):
+        self.canvas, self.drawing, self.shown, self.selected = canvas, CanvasDrawing(canvas), [], None
+        canvas.destinationCrsChanged.connect(self._draw)
+
+    def show(self, marks: list[tuple[str, float, float, bool]]) -> None:
+        """Mark (id, lon, lat deg, selected) of :meth:`core.runs.measuregcps.GcpSession.ground_marks`."""
+        self.shown = marks
+        self._draw()
+
+    def _draw(self) -> None:
+        self.hide()
+        to_canvas = QgsCoordinateTransform(wgs84(), self.canvas.mapSettings().destinationCrs(), QgsProject.instance())
+        for point_id, lon, lat, selected in self.shown:
+            item = self.drawing.marker(to_canvas.transform(QgsPointXY(lon, lat)), "selected" if selected else
+                                       "measured", point_id)
+            self.selected = item if selected else self.selected
+
+    def hide(self) -> None:
+        """Take the markers off the map until the next :meth:`show` (the dock closed)."""
+        self.drawing.clear()
+        self.selected = None
+
+    def dispose(self) -> None:
+        self.shown = []
+        self.hide()
+        try:
+            self.canvas.destinationCrsChanged.disconnect(self._draw)
+        except TypeError:  # disconnected already
+            pass
