@@ -49,3 +49,11 @@ def proposed_image(scene, path: str, camera: str) -> tuple[str, str]:
     if found:
         return str(found[0]), ""
     return "", f"No raster of {cam.cols} x {cam.rows} px (camera {cam.name}) beside the scene: choose its raw image"
+
+
+def frame(pixels: list[tuple[float, float]], margin: float) -> tuple[float, float, float]:
+    """(col, row, half) px: the square centred on ``pixels`` [(col, row)] that shows them all with
+    ``margin`` px around them."""
+    cols, rows = [p[0] for p in pixels], [p[1] for p in pixels]
+    half = max(max(cols) - min(cols), max(rows) - min(rows)) / 2 + margin
+    return (max(cols) + min(cols)) / 2, (max(rows) + min(rows)) / 2, half

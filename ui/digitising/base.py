@@ -1,60 +1,50 @@
-"""What the docks that measure on raw images share, laid out as QGIS's Georeferencer: the form above,
-a row of buttons, the canvas tools, the dock's own canvas of the raw image (:mod:`.canvas`), a legend
-and the pixel under the cursor, then the dock's list or table, in a splitter that gives the canvas
-most of the dock; picking on the main map canvas; releasing everything before QGIS exits.
-"""
+"""What the docks share, laid out as QGIS's Georeferencer (form, buttons, canvas tools, the canvas of the
+raw image, legend, list; the canvas gets most of the dock), picking on the main map, releasing everything
+before QGIS exits."""
 from __future__ import annotations
 
 from qgis.core import QgsPointXY, QgsProcessingException
 from qgis.gui import QgsMapToolEmitPoint
 from qgis.PyQt.QtCore import Qt
 from qgis.PyQt.QtGui import QKeySequence
-from qgis.PyQt.QtWidgets import (QAction, QComboBox, QDockWidget, QFormLayout, QFrame, QHBoxLayout, QLabel,
+from qgis.PyQt.QtWidgets import (QAction, QDockWidget, QFormLayout, QFrame, QHBoxLayout, QLabel,
                                  QPushButton, QScrollArea, QSplitter, QVBoxLayout, QWidget)
 
 from ...core.errors import PushbroomError
-from ...core.runs.docks import form_heights
+from ...core.runs.docks import form_heights, frame
 from ..parameters import DATUMS, HEIGHT_SOURCES, tr
 from .canvas import CanvasTools, PixelCanvas, PixelTool, pixel_of, theme_icon
-from .form import DemBox, layer_path, spin_box
+from .form import DemBox, combo, layer_path, spin_box
 from .markers import CanvasDrawing
 
 LINE_MARGIN_PX = 20.0  # image px shown around a line zoomed to
 
 
 class PixelCanvasDock(QDockWidget):
-    """The shared dock. Subclasses fill ``self.form``, then call :meth:`build`; they implement
-    ``image_clicked(col, row, button)``, ``main_clicked(point)`` (main canvas CRS), ``undo()``,
-    ``delete_selected()``, ``redraw()`` and ``selected_pixels()`` ([(col, row)] px to zoom to)."""
+    """The shared dock. Subclasses hold a ``session`` (undo, delete, selected_pixels), fill ``self.form``,
+    call :meth:`build` and implement ``image_clicked(col, row, button)``, ``main_clicked(point)`` (main
+    canvas CRS) and ``redraw()``."""
 
     def __init__(self, title: str, name: str, iface, hint: str, parent=None):
         super().__init__(title, parent)
         self.setObjectName(name)
-        self.iface = iface
-        self.canvas = PixelCanvas(hint)
-        self.drawing = CanvasDrawing(self.canvas)
-        self.tool = PixelTool(self.canvas, self.image_clicked)
+        self.iface, self.canvas, self.form, self.dem_combo = iface, PixelCanvas(hint), QFormLayout(), None
+        self.drawing, self.tool = CanvasDrawing(self.canvas), PixelTool(self.canvas, self.image_clicked)
         self.canvas.xyCoordinates.connect(lambda at: self.show_pixel(*pixel_of(at)))  # whatever the tool
         self.pixel_label, self.message_label = QLabel(" "), QLabel()
         self.message_label.setWordWrap(True)
         self.message_label.setTextInteractionFlags(Qt.TextSelectableByMouse)
-        self.previous_main_tool = None
-        self.pick_tool = QgsMapToolEmitPoint(iface.mapCanvas())
+        self.previous_main_tool, self.pick_tool = None, QgsMapToolEmitPoint(iface.mapCanvas())
         self.pick_tool.canvasClicked.connect(self._picked)
-        self.form = QFormLayout()
-        self.dem_combo: DemBox | None = None
 
-    # --- layout ---------------------------------------------------------------------------------
     def build(self, buttons, measure: tuple[str, str], legend: QWidget, below: QWidget) -> None:
         """Lay the dock out. ``buttons``: rows of (attribute, text, slot), each button kept as
         ``self.<attribute>``; ``measure``: the measuring tool's (tool tip, theme icon)."""
-        form_box = QWidget()
+        form_box, self.form_pane, centre = QWidget(), QScrollArea(), QWidget()
         form_box.setLayout(self.form)
-        self.form_pane = QScrollArea()
         self.form_pane.setWidget(form_box)
         self.form_pane.setWidgetResizable(True)
         self.form_pane.setFrameShape(QFrame.NoFrame)
-        centre = QWidget()
         column = QVBoxLayout(centre)
         column.setContentsMargins(0, 0, 0, 0)
         for row in buttons:
@@ -70,8 +60,8 @@ class PixelCanvasDock(QDockWidget):
                                         self.undo)
         self.delete_action = self._action("/mActionDeleteSelected.svg", tr("Delete the selected one (Delete)"),
                                           QKeySequence.Delete, self.delete_selected)
-        self.undo_button = self.tools.widgetForAction(self.undo_action)
-        self.delete_button = self.tools.widgetForAction(self.delete_action)
+        self.undo_button, self.delete_button = (self.tools.widgetForAction(a) for a in (self.undo_action,
+                                                                                          self.delete_action))
         self.tools.addSeparator()
         self.form_action = self.tools.addAction(theme_icon("/mActionOptions.svg"), tr("Show or hide the settings"))
         self.form_action.setCheckable(True)
@@ -105,13 +95,8 @@ class PixelCanvasDock(QDockWidget):
     def add_height_rows(self, tooltip: str, z_words: str, source: str) -> None:
         """The rows 'Heights from' (z, dem, constant), 'DEM' (:class:`.form.DemBox`), 'Height datum'
         and 'Constant height'; ``z_words``: what heights from 'z' are."""
-        self.z_words = z_words
-        self.height_combo, self.dem_combo, self.datum_combo = QComboBox(), DemBox(), QComboBox()
-        self.height_combo.addItems(HEIGHT_SOURCES)
-        self.height_combo.setCurrentText(source)
-        self.height_combo.setToolTip(tooltip)
-        self.datum_combo.addItems(DATUMS)
-        self.height_spin = spin_box(0.0, -500.0, 9000.0, " m", "")
+        self.z_words, self.dem_combo, self.datum_combo = z_words, DemBox(), combo(DATUMS)
+        self.height_combo, self.height_spin = combo(HEIGHT_SOURCES, tooltip, source), spin_box(0, -500, 9000, " m", "")
         for label, widget in ((tr("Heights from"), self.height_combo), (tr("DEM"), self.dem_combo),
                               (tr("Height datum"), self.datum_combo), (tr("Constant height"), self.height_spin)):
             self.form.addRow(label, widget)
@@ -123,7 +108,6 @@ class PixelCanvasDock(QDockWidget):
                             layer_path(dem) if dem is not None else None, dem.name() if dem is not None else "",
                             self.z_words)
 
-    # --- messages and the view ------------------------------------------------------------------
     def tell(self, text: str) -> None:
         self.message_label.setText(text)
 
@@ -152,6 +136,15 @@ class PixelCanvasDock(QDockWidget):
             return False
         return True
 
+    def undo(self) -> None:
+        self.attempt(self.session.undo)
+
+    def delete_selected(self) -> None:
+        self.attempt(self.session.delete)
+
+    def selected_pixels(self) -> list[tuple[float, float]]:
+        return self.session.selected_pixels()
+
     def zoom_to_selected(self) -> None:
         """Frame what is selected (a point: at ZOOM_TO_POINT_PX either side; a line: its vertices)."""
         pixels = self.selected_pixels()
@@ -160,13 +153,13 @@ class PixelCanvasDock(QDockWidget):
         elif len(pixels) == 1:
             self.canvas.zoom_to_pixel(*pixels[0])
         else:
-            cols, rows = [p[0] for p in pixels], [p[1] for p in pixels]
-            half = max(max(cols) - min(cols), max(rows) - min(rows)) / 2 + LINE_MARGIN_PX
-            self.canvas.zoom_to_pixel((max(cols) + min(cols)) / 2, (max(rows) + min(rows)) / 2, half)
+            self.canvas.zoom_to_pixel(*frame(pixels, LINE_MARGIN_PX))
 
-    # --- picking on the main map canvas ---------------------------------------------------------
-    def start_picking(self, message: str) -> None:
-        """The next click on the main map canvas goes to ``main_clicked``."""
+    def start_picking(self, message: str, refusal: str) -> None:
+        """The next click on the main map canvas goes to ``main_clicked`` (``refusal`` is said instead when
+        nothing is selected)."""
+        if self.editor.selected is None:
+            return self.tell(refusal)
         main = self.iface.mapCanvas()
         if main.mapTool() is not self.pick_tool:
             self.previous_main_tool = main.mapTool()
@@ -188,9 +181,8 @@ class PixelCanvasDock(QDockWidget):
         super().closeEvent(event)
 
     def dispose(self) -> None:
-        """Release the canvas's layer and drawing while QGIS is alive (a raster layer outliving QGIS's
-        exit frees a raster pipe whose provider is gone: a crash), and stop following the project.
-        Safe to call twice."""
+        """Release the canvas's layer and drawing while QGIS is alive (a raster layer outliving QGIS's exit
+        frees a raster pipe whose provider is gone: a crash); safe twice."""
         self.close()
         self.drawing.clear()
         self.canvas.dispose()

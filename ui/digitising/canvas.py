@@ -1,8 +1,6 @@
-"""The docks' own map canvas and its tools: the raw image in the pixel frame x = col, y = -row (a
-display copy, :mod:`core.measure.display`), the measuring tool, and the view tools of QGIS. The canvas
-and its layers have no CRS: a transform from the pixel frame cannot exist, and QGIS asks for one (then
-raises a red bar) wherever a canvas has a CRS; without one every transform is the identity.
-"""
+"""The docks' canvas in the pixel frame x = col, y = -row (a display copy) and
+its tools. It and its layers have no CRS: QGIS asks for a transform from the pixel frame, which
+cannot exist, wherever a canvas has one (then a red bar); without one every transform is the identity."""
 from __future__ import annotations
 
 from qgis.core import QgsApplication, QgsCoordinateReferenceSystem, QgsPointXY, QgsProject, QgsRasterLayer, QgsRectangle

@@ -1,15 +1,13 @@
-"""The dock 'Digitise control lines on the raw image': the raw image on the dock's canvas, image lines
-digitised by clicks, paired with ground lines picked on the main map, the ground lines predicted into
-the image, Snap and Save to an ``image_lines`` layer naming its scene (so that it serves a block as it
-is). The session and its rules are :mod:`core.runs.digitiselines`'; this module wires the events.
-"""
+"""The dock 'Digitise control lines on the raw image': image lines clicked on the raw image, paired with
+ground lines picked on the main map, ground lines predicted, Snap and Save. Its session and rules are
+:mod:`core.runs.digitiselines`'; this module wires the events."""
 from __future__ import annotations
 
 import numpy as np
 from qgis.core import QgsCoordinateReferenceSystem, QgsMapLayerProxyModel, QgsWkbTypes
 from qgis.gui import QgsFieldComboBox, QgsMapLayerComboBox
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtWidgets import QComboBox, QLabel, QListWidget
+from qgis.PyQt.QtWidgets import QLabel, QListWidget
 
 from ...core.errors import InputError, PushbroomError
 from ...core.measure.snapping import MODES as SNAP_MODES
@@ -20,7 +18,7 @@ from ..inputs import block_scene_names
 from ..parameters import tr
 from .base import PixelCanvasDock
 from .canvas import point_of
-from .form import ask_gpkg, ask_scene, cache_folder, labelled_row, layer_parts, spin_box
+from .form import ask_gpkg, ask_scene, cache_folder, combo, labelled_row, layer_parts, spin_box
 from .markers import legend
 
 
@@ -44,10 +42,8 @@ class DigitisingDock(PixelCanvasDock):
         self.add_height_rows(tr("Heights of the ground lines for the prediction: z = the lines' Z values, dem = the "
                                 "DEM below (the constant when none is chosen), constant = the height below"),
                              tr("the lines' Z"), "z")
-        self.snap_mode_combo = QComboBox()
-        self.snap_mode_combo.addItems(SNAP_MODES)
-        self.snap_mode_combo.setToolTip(tr("Snap moves the selected line's vertices across it to the centre of a "
-                                           "bright band (a road) or to the strongest edge"))
+        self.snap_mode_combo = combo(SNAP_MODES, tr("Snap moves the selected line's vertices across it to the centre "
+                                                    "of a bright band (a road) or to the strongest edge"))
         self.snap_width_spin = spin_box(SnapSettings().width, 0.5, 19.5, " px", tr("the band's width"))
         form.addRow(tr("Snap to"), labelled_row(("", self.snap_mode_combo), (tr("band width"), self.snap_width_spin)))
         self.line_list = QListWidget()
@@ -55,7 +51,9 @@ class DigitisingDock(PixelCanvasDock):
         self.build(((("image_button", tr("Open image…"),
                       lambda: ask_scene(self, tr("Open a raw image with its scene"), self.open_image)),
                      ("finish_button", tr("Finish"), self.finish_line),
-                     ("pair_button", tr("Pair"), self.start_pairing)),
+                     ("pair_button", tr("Pair"), lambda: self.start_picking(
+                         tr("Click the matching ground line on the map"),
+                         tr("Select an image line first (in the list), then press Pair")))),
                     (("snap_button", tr("Snap"), self.snap), ("predict_button", tr("Predict"), self.predict),
                      ("save_button", tr("Save…"), lambda: ask_gpkg(self, tr("Save image lines"), self.save)))),
                    (tr("Digitise: left click adds a vertex, right click ends the line"), "/mActionCaptureLine.svg"),
@@ -94,31 +92,15 @@ class DigitisingDock(PixelCanvasDock):
     def finish_line(self) -> None:
         self.attempt(self.session.finish)
 
-    def undo(self) -> None:
-        self.attempt(self.session.undo)
-
     def snap(self) -> None:
         """Snap the selected line to the raw image's feature across it (undoable)."""
         self.attempt(lambda: self.session.snap(SnapSettings(mode=self.snap_mode_combo.currentText(),
                                                             width=self.snap_width_spin.value())))
 
-    def delete_selected(self) -> None:
-        self.attempt(self.session.delete)
-
     def _list_selected(self, row: int) -> None:
         if 0 <= row < len(self.editor.lines) and self.editor.selected != row:
             self.editor.select(row)
             self.redraw()
-
-    def selected_pixels(self) -> list[tuple[float, float]]:
-        return self.session.selected_pixels()
-
-    def start_pairing(self) -> None:
-        """Next click on the main map canvas picks the selected line's ground line."""
-        if self.editor.selected is None:
-            self.tell(tr("Select an image line first (in the list), then press Pair"))
-            return
-        self.start_picking(tr("Click the matching ground line on the map"))
 
     def ground_parts(self, crs: QgsCoordinateReferenceSystem) -> tuple[list[str], list[np.ndarray]]:
         """(ids, parts [(n, 2|3)]) of the chosen ground layer's lines, x, y in ``crs`` (z kept)."""

@@ -1,8 +1,6 @@
 """The docks' forms and dialogs: a DEM box offering only rasters that look like elevation (a wrong DEM
-gives every point a wrong height without a word), the scene dialog (its camera's raw image proposed
-from the scene's folder; display copies made in the plugin's cache, never beside the user's files),
-small widgets, and the layers' files and parts.
-"""
+gives every point a wrong height without a word), the scene dialog, small widgets, the layers' files
+and parts. Display copies live in the plugin's cache, never beside the user's files."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -102,6 +100,15 @@ def layer_box(filters) -> QgsMapLayerComboBox:
     box.setFilters(filters)
     box.setAllowEmptyLayer(True)
     box.setLayer(None)
+    return box
+
+
+def combo(items, tooltip: str = "", current: str = "") -> QComboBox:
+    """A box of ``items`` showing ``current`` (the first when '')."""
+    box = QComboBox()
+    box.addItems(items)
+    box.setToolTip(tooltip)
+    box.setCurrentText(current or items[0])
     return box
 
 

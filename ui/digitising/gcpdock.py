@@ -1,13 +1,11 @@
-"""The dock 'Measure GCPs on the raw images': the scenes of a block, the current one's raw image on the
-dock's canvas, a click measures the selected point there and a click on the main map (or the nearest
-reference point) gives its ground; its predictions drawn; Snap, Undo, Save, Open; the table of points.
-The session and its rules are :mod:`core.runs.measuregcps`'; this module wires its events.
-"""
+"""The dock 'Measure GCPs on the raw images': clicks on the raw images of a block measure a point, one
+on the main map gives its ground; predictions, Snap, Undo, Save, Open, the table of points. Its session
+and rules are :mod:`core.runs.measuregcps`'; this module wires the events."""
 from __future__ import annotations
 
 from qgis.core import QgsCoordinateTransform, QgsMapLayerProxyModel, QgsProject
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtWidgets import (QAbstractItemView, QComboBox, QHeaderView, QLineEdit, QListWidget, QTableWidget,
+from qgis.PyQt.QtWidgets import (QAbstractItemView, QHeaderView, QLineEdit, QListWidget, QTableWidget,
                                  QTableWidgetItem)
 
 from ...core.measure.sources import open_image_source
@@ -17,7 +15,8 @@ from ..inputs import block_scene_names
 from ..parameters import tr
 from .base import PixelCanvasDock
 from .canvas import point_of
-from .form import ask_gpkg, ask_scene, cache_folder, labelled_row, layer_box, layer_parts, layer_path, spin_box, wgs84
+from .form import (ask_gpkg, ask_scene, cache_folder, combo, labelled_row, layer_box, layer_parts, layer_path,
+                   spin_box, wgs84)
 from .markers import MainMapMarkers, legend
 
 SNAP_TARGETS = ("other scene", "reference orthoimage")
@@ -40,9 +39,8 @@ class GcpDock(PixelCanvasDock):
         self.scene_list.setMaximumHeight(80)
         self.scene_list.currentRowChanged.connect(self.show_scene)
         form.addRow(tr("Scenes"), self.scene_list)
-        self.id_edit, self.role_combo = QLineEdit(), QComboBox()
+        self.id_edit, self.role_combo = QLineEdit(), combo(ROLES)
         self.id_edit.editingFinished.connect(lambda: self.attempt(lambda: self.session.rename(self.id_edit.text())))
-        self.role_combo.addItems(ROLES)
         self.role_combo.activated.connect(lambda _: self.attempt(lambda: self.editor.edit(
             role=self.role_combo.currentText())))
         form.addRow(tr("Point"), labelled_row((tr("id"), self.id_edit), (tr("role"), self.role_combo)))
@@ -59,14 +57,16 @@ class GcpDock(PixelCanvasDock):
         self.add_height_rows(tr("Heights of the ground positions: z = the reference point's Z, dem = the DEM below "
                                 "(the constant when none is chosen), constant = the height below; also the surface "
                                 "observations are projected on"), tr("the reference point's Z"), "dem")
-        self.snap_combo, self.ortho_combo = QComboBox(), layer_box(QgsMapLayerProxyModel.RasterLayer)
-        self.snap_combo.addItems(SNAP_TARGETS)
+        self.snap_combo, self.ortho_combo = combo(SNAP_TARGETS), layer_box(QgsMapLayerProxyModel.RasterLayer)
         form.addRow(tr("Snap to"), labelled_row(("", self.snap_combo), (tr("orthoimage"), self.ortho_combo)))
         self.table = PointTable(self.select_point)
         self.build(((("add_scene_button", tr("Add scene…"),
                       lambda: ask_scene(self, tr("Add a scene of the block"), self.add_scene)),
                      ("new_button", tr("New point"), lambda: self.attempt(self.session.new_point)),
-                     ("ground_button", tr("Ground"), self.start_ground), ("snap_button", tr("Snap"), self.snap)),
+                     ("ground_button", tr("Ground"), lambda: self.start_picking(
+                         tr("Click the point on the map (the nearest reference point is taken when a reference layer "
+                            "is chosen)"), tr("Select a point first (in the table), then press Ground"))),
+                     ("snap_button", tr("Snap"), self.snap)),
                     (("open_button", tr("Open…"), lambda: ask_gpkg(
                         self, tr("Open GCPs (saved here, or adjusted by bundleadjust)"), self.open_layer, False)),
                      ("save_button", tr("Save…"), lambda: ask_gpkg(self, tr("Save GCPs"), self.save)))),
@@ -100,14 +100,6 @@ class GcpDock(PixelCanvasDock):
         if button == Qt.LeftButton:
             self.attempt(lambda: self.session.measure(col, row))
 
-    def start_ground(self) -> None:
-        """The next click on the main map canvas gives the selected point's ground."""
-        if self.editor.selected is None:
-            self.tell(tr("Select a point first (in the table), then press Ground"))
-            return
-        self.start_picking(tr("Click the point on the map (the nearest reference point is taken when a reference "
-                              "layer is chosen)"))
-
     def main_clicked(self, point) -> None:
         """The selected point's ground at a click on the main map, its height as the form says."""
         self.attempt(lambda: self.session.set_ground(*self.picked(point), *self.heights()))
@@ -130,12 +122,6 @@ class GcpDock(PixelCanvasDock):
         self.attempt(lambda: self.session.snap(self.heights()[0], self.snap_combo.currentText() == SNAP_TARGETS[1],
                                                (layer_path(ortho), ortho.name()) if ortho is not None else None))
 
-    def undo(self) -> None:
-        self.attempt(self.session.undo)
-
-    def delete_selected(self) -> None:
-        self.attempt(self.session.delete)
-
     def select_point(self, index: int | None) -> None:
         """Select point ``index`` (of the editor's list), draw it and zoom to it."""
         if index is None or 0 <= index < len(self.editor.points):
@@ -144,10 +130,6 @@ class GcpDock(PixelCanvasDock):
             if self.selected_pixels():
                 self.zoom_to_selected()
 
-    def selected_pixels(self) -> list[tuple[float, float]]:
-        return self.session.selected_pixels()
-
-    # --- files and drawing ------------------------------------------------------------------------
     def save(self, path: str) -> bool:
         """Write the points to GeoPackage ``path``; False (said) when they cannot be saved."""
         dem = self.dem_combo.currentLayer()

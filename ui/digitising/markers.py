@@ -42,47 +42,30 @@ LINE_STYLES = {  # (colour, alpha, width px, dashed): thin and half transparent,
 }
 
 
-def shape_path(shape: str, size: float) -> QPainterPath:
-    """The outline of a marker ``shape`` of ``size`` px, centred on (0, 0)."""
-    r = size / 2
-    path = QPainterPath()
-    if shape == "square":
-        path.addRect(QRectF(-r * 0.8, -r * 0.8, 1.6 * r, 1.6 * r))
-    elif shape == "diamond":
-        path.addPolygon(QPolygonF([QPointF(0, -r), QPointF(r, 0), QPointF(0, r), QPointF(-r, 0), QPointF(0, -r)]))
-    else:
-        path.addEllipse(QPointF(0, 0), r, r)
-    return path
-
-
 def paint_marker(painter: QPainter, style: MarkerStyle, label: str = "", font: QFont | None = None) -> None:
     """Draw a marker of ``style`` at the painter's origin, ``label`` beside it (white halo)."""
     painter.setRenderHint(QPainter.Antialiasing)
-    outline = shape_path(style.shape, style.size)
+    r, colour, outline = style.size / 2, QColor(*style.colour), QPainterPath()
+    if style.shape == "square":
+        outline.addRect(QRectF(-r * 0.8, -r * 0.8, 1.6 * r, 1.6 * r))
+    elif style.shape == "diamond":
+        outline.addPolygon(QPolygonF([QPointF(0, -r), QPointF(r, 0), QPointF(0, r), QPointF(-r, 0), QPointF(0, -r)]))
+    else:
+        outline.addEllipse(QPointF(0, 0), r, r)
     painter.setBrush(Qt.NoBrush)
-    painter.setPen(QPen(QColor(255, 255, 255, 160), style.width + 2))
-    painter.drawPath(outline)
-    painter.setPen(QPen(QColor(*style.colour), style.width))
-    painter.drawPath(outline)
+    for pen in (QPen(QColor(255, 255, 255, 160), style.width + 2), QPen(colour, style.width)):
+        painter.setPen(pen)
+        painter.drawPath(outline)
     if style.dot:
-        painter.setBrush(QColor(*style.colour))
+        painter.setBrush(colour)
         painter.drawEllipse(QPointF(0, 0), 1.2, 1.2)
     if label:
         text = QPainterPath()
-        text.addText(QPointF(style.size / 2 + 2, -style.size / 2), font or label_font(), label)
-        painter.setPen(QPen(QColor(255, 255, 255, 220), 3))
-        painter.setBrush(Qt.NoBrush)
-        painter.drawPath(text)
-        painter.setPen(Qt.NoPen)
-        painter.setBrush(QColor(*style.colour))
-        painter.drawPath(text)
-
-
-def label_font() -> QFont:
-    font = QFont()
-    font.setPointSizeF(8.5)
-    font.setBold(True)
-    return font
+        text.addText(QPointF(style.size / 2 + 2, -style.size / 2), font, label)
+        for pen, brush in ((QPen(QColor(255, 255, 255, 220), 3), Qt.NoBrush), (Qt.NoPen, colour)):
+            painter.setPen(pen)
+            painter.setBrush(brush)
+            painter.drawPath(text)
 
 
 class PointMarker(QgsMapCanvasItem):
@@ -90,7 +73,9 @@ class PointMarker(QgsMapCanvasItem):
 
     def __init__(self, canvas: QgsMapCanvas, point: QgsPointXY, style: MarkerStyle, label: str = ""):
         super().__init__(canvas)
-        self.point, self.style, self.label, self.font = point, style, label, label_font()
+        self.point, self.style, self.label, self.font = point, style, label, QFont()
+        self.font.setPointSizeF(8.5)
+        self.font.setBold(True)
         width = QFontMetricsF(self.font).horizontalAdvance(label) if label else 0.0
         r = style.size / 2 + style.width + 2
         self.bounds = QRectF(-r, -r - 14, 2 * r + width + 6, 2 * r + 16)
@@ -111,8 +96,7 @@ class CanvasDrawing:
     """The markers and bands a dock keeps on one canvas, replaced together."""
 
     def __init__(self, canvas: QgsMapCanvas):
-        self.canvas = canvas
-        self.items = []
+        self.canvas, self.items = canvas, []
 
     def clear(self) -> None:
         """Take every item off the scene that holds it and delete it (unless gone with its canvas)."""
