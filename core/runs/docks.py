@@ -11,6 +11,8 @@ from ..formats import load_scene
 from ..measure.sources import ImageSource, raw_image_candidates
 from ..observations.tables import Heights
 
+LINE_MARGIN_PX = 20.0  # image px shown around a line zoomed to
+
 
 def form_heights(source: str, datum: str, value: float, dem: str | None, dem_name: str,
                  z_words: str) -> tuple[Heights, str]:
@@ -51,9 +53,9 @@ def proposed_image(scene, path: str, camera: str) -> tuple[str, str]:
     return "", f"No raster of {cam.cols} x {cam.rows} px (camera {cam.name}) beside the scene: choose its raw image"
 
 
-def frame(pixels: list[tuple[float, float]], margin: float) -> tuple[float, float, float]:
-    """(col, row, half) px: the square centred on ``pixels`` [(col, row)] that shows them all with
-    ``margin`` px around them."""
+def frame(pixels: list[tuple[float, float]], margin: float = LINE_MARGIN_PX) -> tuple[float, float, float]:
+    """(col, row, half) px: the square centred on ``pixels`` [(col, row)] (a line's vertices) that shows
+    them all with ``margin`` px around them."""
     cols, rows = [p[0] for p in pixels], [p[1] for p in pixels]
     half = max(max(cols) - min(cols), max(rows) - min(rows)) / 2 + margin
     return (max(cols) + min(cols)) / 2, (max(rows) + min(rows)) / 2, half

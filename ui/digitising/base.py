@@ -1,6 +1,5 @@
-"""What the docks share, laid out as QGIS's Georeferencer (form, buttons, canvas tools, the canvas of the
-raw image, legend, list; the canvas gets most of the dock), picking on the main map, releasing everything
-before QGIS exits."""
+"""What the docks share: the layout of QGIS's Georeferencer (form, buttons, tools, the canvas of the raw
+image, legend, list), picking on the main map, releasing everything before QGIS exits."""
 from __future__ import annotations
 
 from qgis.core import QgsPointXY, QgsProcessingException
@@ -10,36 +9,29 @@ from qgis.PyQt.QtGui import QKeySequence
 from qgis.PyQt.QtWidgets import (QAction, QDockWidget, QFormLayout, QFrame, QHBoxLayout, QLabel,
                                  QPushButton, QScrollArea, QSplitter, QVBoxLayout, QWidget)
 
-from ...core.errors import PushbroomError
+from ...core.errors import InputError, PushbroomError
 from ...core.runs.docks import form_heights, frame
 from ..parameters import DATUMS, HEIGHT_SOURCES, tr
 from .canvas import CanvasTools, PixelCanvas, PixelTool, pixel_of, theme_icon
 from .form import DemBox, combo, layer_path, spin_box
 from .markers import CanvasDrawing
 
-LINE_MARGIN_PX = 20.0  # image px shown around a line zoomed to
-
-
 class PixelCanvasDock(QDockWidget):
-    """The shared dock. Subclasses hold a ``session`` (undo, delete, selected_pixels), fill ``self.form``,
-    call :meth:`build` and implement ``image_clicked(col, row, button)``, ``main_clicked(point)`` (main
-    canvas CRS) and ``redraw()``."""
+    """Subclasses hold a ``session`` and an ``editor``, fill ``self.form``, call :meth:`build` and implement
+    ``image_clicked(col, row, button)``, ``main_clicked(point)`` (main canvas CRS) and ``redraw()``."""
 
     def __init__(self, title: str, name: str, iface, hint: str, parent=None):
-        super().__init__(title, parent)
-        self.setObjectName(name)
+        super().__init__(title, parent, objectName=name, minimumWidth=380)
         self.iface, self.canvas, self.form, self.dem_combo = iface, PixelCanvas(hint), QFormLayout(), None
         self.drawing, self.tool = CanvasDrawing(self.canvas), PixelTool(self.canvas, self.image_clicked)
         self.canvas.xyCoordinates.connect(lambda at: self.show_pixel(*pixel_of(at)))  # whatever the tool
-        self.pixel_label, self.message_label = QLabel(" "), QLabel()
-        self.message_label.setWordWrap(True)
-        self.message_label.setTextInteractionFlags(Qt.TextSelectableByMouse)
+        self.pixel_label = QLabel(" ")
+        self.message_label = QLabel(wordWrap=True, textInteractionFlags=Qt.TextSelectableByMouse)
         self.previous_main_tool, self.pick_tool = None, QgsMapToolEmitPoint(iface.mapCanvas())
         self.pick_tool.canvasClicked.connect(self._picked)
 
     def build(self, buttons, measure: tuple[str, str], legend: QWidget, below: QWidget) -> None:
-        """Lay the dock out. ``buttons``: rows of (attribute, text, slot), each button kept as
-        ``self.<attribute>``; ``measure``: the measuring tool's (tool tip, theme icon)."""
+        """Lay out ``buttons``: rows of (``self.<attribute>``, text, slot); ``measure``: (tool tip, icon)."""
         form_box, self.form_pane, centre = QWidget(), QScrollArea(), QWidget()
         form_box.setLayout(self.form)
         self.form_pane.setWidget(form_box)
@@ -50,8 +42,7 @@ class PixelCanvasDock(QDockWidget):
         for row in buttons:
             line = QHBoxLayout()
             for attr, text, slot in row:
-                setattr(self, attr, QPushButton(text))
-                getattr(self, attr).clicked.connect(slot)
+                setattr(self, attr, QPushButton(text, clicked=slot))
                 line.addWidget(getattr(self, attr))
             column.addLayout(line)
         self.tools = CanvasTools(self.canvas, self.tool, *measure, self.zoom_to_selected)
@@ -63,10 +54,9 @@ class PixelCanvasDock(QDockWidget):
         self.undo_button, self.delete_button = (self.tools.widgetForAction(a) for a in (self.undo_action,
                                                                                           self.delete_action))
         self.tools.addSeparator()
-        self.form_action = self.tools.addAction(theme_icon("/mActionOptions.svg"), tr("Show or hide the settings"))
-        self.form_action.setCheckable(True)
-        self.form_action.setChecked(True)
-        self.form_action.toggled.connect(self.form_pane.setVisible)
+        self.form_action = QAction(theme_icon("/mActionOptions.svg"), tr("Show or hide the settings"), self.tools,
+                                   checkable=True, checked=True, toggled=self.form_pane.setVisible)
+        self.tools.addAction(self.form_action)
         for widget, stretch in ((self.tools, 0), (self.canvas, 1), (legend, 0), (self.pixel_label, 0)):
             column.addWidget(widget, stretch)
         self.splitter = QSplitter(Qt.Vertical)
@@ -80,21 +70,17 @@ class PixelCanvasDock(QDockWidget):
         layout.addWidget(self.splitter, 1)
         layout.addWidget(self.message_label)
         self.setWidget(body)
-        self.setMinimumWidth(380)
 
     def _action(self, icon: str, text: str, keys, slot) -> QAction:
         """A tool bar action with a shortcut that works while the focus is in the dock."""
-        action = QAction(theme_icon(icon), text, self)
+        action = QAction(theme_icon(icon), text, self, shortcutContext=Qt.WidgetWithChildrenShortcut, triggered=slot)
         action.setShortcut(keys)
-        action.setShortcutContext(Qt.WidgetWithChildrenShortcut)
-        action.triggered.connect(slot)
         self.tools.addAction(action)
         self.addAction(action)
         return action
 
     def add_height_rows(self, tooltip: str, z_words: str, source: str) -> None:
-        """The rows 'Heights from' (z, dem, constant), 'DEM' (:class:`.form.DemBox`), 'Height datum'
-        and 'Constant height'; ``z_words``: what heights from 'z' are."""
+        """Heights from z, dem or constant (``source``), DEM, datum, constant; ``z_words``: what 'z' is."""
         self.z_words, self.dem_combo, self.datum_combo = z_words, DemBox(), combo(DATUMS)
         self.height_combo, self.height_spin = combo(HEIGHT_SOURCES, tooltip, source), spin_box(0, -500, 9000, " m", "")
         for label, widget in ((tr("Heights from"), self.height_combo), (tr("DEM"), self.dem_combo),
@@ -112,8 +98,7 @@ class PixelCanvasDock(QDockWidget):
         self.message_label.setText(text)
 
     def attempt(self, call, redraw: bool = True) -> bool:
-        """Call ``call`` (a session's action): show the sentence it returns (if any) and redraw, or
-        show its refusal; whether it went through."""
+        """Call ``call``: show the sentence it returns and redraw, or show its refusal; whether it went."""
         try:
             message = call()
         except (PushbroomError, QgsProcessingException) as exc:
@@ -129,12 +114,10 @@ class PixelCanvasDock(QDockWidget):
         """Pixel coordinates under the cursor, in the dock's status line."""
         self.pixel_label.setText(tr("col {col:.1f}, row {row:.1f} px").format(col=col, row=row))
 
-    def show_raster(self, path: str, name: str) -> bool:
-        """Show the raster at ``path`` (a display copy) alone, whole; False (said) when QGIS cannot."""
+    def show_raster(self, path: str, name: str) -> None:
+        """Show the raster at ``path`` (a display copy) alone, whole; InputError when QGIS cannot."""
         if not self.canvas.show_raster(path, name):
-            self.tell(tr("{path}: QGIS cannot show this raster").format(path=path))
-            return False
-        return True
+            raise InputError(tr("{path}: QGIS cannot show this raster").format(path=path))
 
     def undo(self) -> None:
         self.attempt(self.session.undo)
@@ -153,11 +136,10 @@ class PixelCanvasDock(QDockWidget):
         elif len(pixels) == 1:
             self.canvas.zoom_to_pixel(*pixels[0])
         else:
-            self.canvas.zoom_to_pixel(*frame(pixels, LINE_MARGIN_PX))
+            self.canvas.zoom_to_pixel(*frame(pixels))
 
     def start_picking(self, message: str, refusal: str) -> None:
-        """The next click on the main map canvas goes to ``main_clicked`` (``refusal`` is said instead when
-        nothing is selected)."""
+        """The main map's next click goes to ``main_clicked`` (``refusal`` said if nothing is selected)."""
         if self.editor.selected is None:
             return self.tell(refusal)
         main = self.iface.mapCanvas()
@@ -181,8 +163,7 @@ class PixelCanvasDock(QDockWidget):
         super().closeEvent(event)
 
     def dispose(self) -> None:
-        """Release the canvas's layer and drawing while QGIS is alive (a raster layer outliving QGIS's exit
-        frees a raster pipe whose provider is gone: a crash); safe twice."""
+        """Release all while QGIS is alive (a raster pipe outliving its provider: a crash); safe twice."""
         self.close()
         self.drawing.clear()
         self.canvas.dispose()

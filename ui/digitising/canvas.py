@@ -1,7 +1,9 @@
-"""The docks' canvas in the pixel frame x = col, y = -row (a display copy) and
-its tools. It and its layers have no CRS: QGIS asks for a transform from the pixel frame, which
-cannot exist, wherever a canvas has one (then a red bar); without one every transform is the identity."""
+"""The docks' canvas in the pixel frame x = col, y = -row, and its tools. It and its layers have no CRS:
+QGIS asks for a transform from the pixel frame, which cannot exist, wherever a canvas has one (a red
+bar); without one every transform is the identity."""
 from __future__ import annotations
+
+from contextlib import suppress
 
 from qgis.core import QgsApplication, QgsCoordinateReferenceSystem, QgsPointXY, QgsProject, QgsRasterLayer, QgsRectangle
 from qgis.gui import QgsMapCanvas, QgsMapTool, QgsMapToolPan, QgsMapToolZoom
@@ -42,18 +44,14 @@ class PixelTool(QgsMapTool):
 
 
 class PixelCanvas(QgsMapCanvas):
-    """A map canvas showing one raster in the pixel frame, without a CRS (see the module), with
-    ``hint`` written over it while it shows nothing. A project read gives every canvas the
-    project's CRS and extent: this one takes its own back."""
+    """One raster, no CRS (a project read gives every canvas one: taken back), ``hint`` while empty."""
 
     def __init__(self, hint: str):
         super().__init__()
         self.setCanvasColor(Qt.white)
         self.layer: QgsRasterLayer | None = None
-        self.hint = QLabel(hint, self)
-        self.hint.setAlignment(Qt.AlignCenter)
-        self.hint.setWordWrap(True)
-        self.hint.setStyleSheet("color: #444; font-size: 15px; background: transparent")
+        self.hint = QLabel(hint, self, alignment=Qt.AlignCenter, wordWrap=True,
+                           styleSheet="color: #444; font-size: 15px; background: transparent")
         QgsProject.instance().readProject.connect(self._restore)
 
     def show_raster(self, path: str, name: str) -> bool:
@@ -88,21 +86,17 @@ class PixelCanvas(QgsMapCanvas):
         self.hint.setGeometry(10, 10, max(self.width() - 20, 1), max(self.height() - 20, 1))
 
     def dispose(self) -> None:
-        """Show nothing, let go of the layer (its raster pipe must not outlive QGIS) and stop following
-        the project (before the widget goes)."""
+        """Let go of the layer (its raster pipe must not outlive QGIS) and stop following the project."""
         self.stopRendering()
         self.setLayers([])
         self.layer = None
         self.hint.show()
-        try:
+        with suppress(TypeError):  # disconnected already (disposed twice)
             QgsProject.instance().readProject.disconnect(self._restore)
-        except TypeError:  # disconnected already (disposed twice)
-            pass
 
 
 class CanvasTools(QToolBar):
-    """The tool bar above a :class:`PixelCanvas`: the dock's own ``tool`` (checked first), pan, zoom in
-    and zoom out (one active at a time, as in QGIS), zoom to the image and ``zoom_selected``."""
+    """The dock's ``tool`` (checked first), pan, zoom in, out (one active, as in QGIS), to all, to selected."""
 
     def __init__(self, canvas: PixelCanvas, tool: QgsMapTool, measure_text: str, measure_icon: str, zoom_selected):
         super().__init__()

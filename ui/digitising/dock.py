@@ -1,6 +1,5 @@
-"""The dock 'Digitise control lines on the raw image': image lines clicked on the raw image, paired with
-ground lines picked on the main map, ground lines predicted, Snap and Save. Its session and rules are
-:mod:`core.runs.digitiselines`'; this module wires the events."""
+"""The dock 'Digitise control lines on the raw image': lines clicked on it, paired with ground lines on the
+map, predicted, snapped, saved. The session and its rules: :mod:`core.runs.digitiselines`."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,7 +8,7 @@ from qgis.gui import QgsFieldComboBox, QgsMapLayerComboBox
 from qgis.PyQt.QtCore import Qt
 from qgis.PyQt.QtWidgets import QLabel, QListWidget
 
-from ...core.errors import InputError, PushbroomError
+from ...core.errors import InputError
 from ...core.measure.snapping import MODES as SNAP_MODES
 from ...core.measure.snapping import SnapSettings
 from ...core.measure.sources import open_image_source
@@ -31,8 +30,7 @@ class DigitisingDock(PixelCanvasDock):
         self.session = LineSession()
         self.editor = self.session.editor
         form = self.form
-        self.scene_label = QLabel(tr("none"))
-        self.scene_label.setWordWrap(True)
+        self.scene_label = QLabel(tr("none"), wordWrap=True)
         form.addRow(tr("Scene"), self.scene_label)
         self.ground_combo, self.id_combo = QgsMapLayerComboBox(), QgsFieldComboBox()
         self.ground_combo.setFilters(QgsMapLayerProxyModel.LineLayer)
@@ -46,8 +44,7 @@ class DigitisingDock(PixelCanvasDock):
                                                     "of a bright band (a road) or to the strongest edge"))
         self.snap_width_spin = spin_box(SnapSettings().width, 0.5, 19.5, " px", tr("the band's width"))
         form.addRow(tr("Snap to"), labelled_row(("", self.snap_mode_combo), (tr("band width"), self.snap_width_spin)))
-        self.line_list = QListWidget()
-        self.line_list.currentRowChanged.connect(self._list_selected)
+        self.line_list = QListWidget(currentRowChanged=self._list_selected)
         self.build(((("image_button", tr("Open image…"),
                       lambda: ask_scene(self, tr("Open a raw image with its scene"), self.open_image)),
                      ("finish_button", tr("Finish"), self.finish_line),
@@ -73,18 +70,14 @@ class DigitisingDock(PixelCanvasDock):
             self.finish_line()
 
     def open_image(self, path: str, image: str | None = None, camera: str | None = None) -> bool:
-        """Show a raw image: a scene file with its raw ``image`` of ``camera`` (None: found beside it, its
-        first camera), a display copy, or a raster alone (no prediction); False (said) when it cannot."""
-        try:
+        """Show a scene's raw image, a display copy or a raster alone; False (said) when it cannot."""
+        def show() -> str:
             source = open_image_source(path, cache_folder(), image, camera, require_scene=False)
-        except PushbroomError as exc:
-            self.tell(str(exc))
-            return False
-        if not self.show_raster(str(source.display), tr("Raw image")):
-            return False
-        self.attempt(lambda: self.session.open(str(path), source))
+            self.show_raster(str(source.display), tr("Raw image"))
+            return self.session.open(str(path), source)
+        opened = self.attempt(show)
         self.scene_label.setText(self.session.scene_words())
-        return True
+        return opened
 
     def add_vertex(self, col: float, row: float) -> None:
         self.attempt(lambda: self.editor.add_vertex(col, row))

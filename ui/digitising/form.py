@@ -3,6 +3,7 @@ gives every point a wrong height without a word), the scene dialog, small widget
 and parts. Display copies live in the plugin's cache, never beside the user's files."""
 from __future__ import annotations
 
+from contextlib import suppress
 from pathlib import Path
 
 import numpy as np
@@ -37,8 +38,7 @@ def layer_path(layer) -> str:
 
 
 def layer_parts(layer, crs: QgsCoordinateReferenceSystem, field: str = "") -> tuple[list[str], list[np.ndarray]]:
-    """(the value of ``field`` ('' for none) of each part's feature, parts [(n, 3)]: x, y in ``crs``, z
-    (NaN without Z)) of ``layer``'s features."""
+    """(each part's ``field`` value ('' for none), parts [(n, 3)] x, y in ``crs``, z or NaN) of ``layer``."""
     transform = QgsCoordinateTransform(layer.crs(), crs, QgsProject.instance())
     has_z = QgsWkbTypes.hasZ(layer.wkbType())
     ids, parts = [], []
@@ -63,8 +63,7 @@ def not_elevation(layer) -> str:
 
 
 class DemBox(QgsMapLayerComboBox):
-    """A raster layer box that starts empty and offers only the project's rasters that look like
-    elevation; its tool tip names the others and why they are left out."""
+    """Starts empty, offers only the project's rasters that look like elevation, says why not the others."""
 
     def __init__(self):
         super().__init__()
@@ -78,9 +77,7 @@ class DemBox(QgsMapLayerComboBox):
     def refilter(self, *args) -> None:
         """Leave out the project's rasters that are no DEM (called as layers are added)."""
         layers = [lyr for lyr in QgsProject.instance().mapLayers().values() if isinstance(lyr, QgsRasterLayer)]
-        for layer in layers:
-            if layer.id() not in self.problems:
-                self.problems[layer.id()] = not_elevation(layer)
+        self.problems.update({lyr.id(): not_elevation(lyr) for lyr in layers if lyr.id() not in self.problems})
         left_out = [lyr for lyr in layers if self.problems[lyr.id()]]
         self.setExceptedLayerList(left_out)
         notes = "".join(f"\n- {lyr.name()}: {self.problems[lyr.id()]}" for lyr in left_out)
@@ -88,10 +85,8 @@ class DemBox(QgsMapLayerComboBox):
                            "height below.") + (tr("\nNot offered:") + notes if notes else ""))
 
     def dispose(self) -> None:
-        try:
+        with suppress(TypeError):  # disconnected already
             QgsProject.instance().layersAdded.disconnect(self.refilter)
-        except TypeError:  # disconnected already
-            pass
 
 
 def layer_box(filters) -> QgsMapLayerComboBox:
@@ -105,20 +100,16 @@ def layer_box(filters) -> QgsMapLayerComboBox:
 
 def combo(items, tooltip: str = "", current: str = "") -> QComboBox:
     """A box of ``items`` showing ``current`` (the first when '')."""
-    box = QComboBox()
+    box = QComboBox(toolTip=tooltip)
     box.addItems(items)
-    box.setToolTip(tooltip)
     box.setCurrentText(current or items[0])
     return box
 
 
 def spin_box(value: float, low: float, high: float, suffix: str, tooltip: str) -> QDoubleSpinBox:
-    spin = QDoubleSpinBox()
+    spin = QDoubleSpinBox(suffix=suffix, toolTip=tooltip)
     spin.setRange(low, high)
-    spin.setDecimals(2)
     spin.setValue(value)
-    spin.setSuffix(suffix)
-    spin.setToolTip(tooltip)
     return spin
 
 
@@ -135,30 +126,26 @@ def labelled_row(*pairs) -> QWidget:
 
 
 class SceneDialog(QDialog):
-    """Scene file, camera and raw image (proposed from the scene file's folder); ``chosen()`` gives
-    (scene, image, camera name) after OK."""
+    """Scene file, camera, raw image (proposed from the scene file's folder): ``chosen()`` after OK."""
 
     def __init__(self, parent, title: str):
         super().__init__(parent)
         self.setWindowTitle(title)
         self.setMinimumWidth(520)
         form = QFormLayout(self)
-        self.scene, self.image, self.camera = QgsFileWidget(), QgsFileWidget(), QComboBox()
+        self.scene, self.image, self.camera, self.loaded = QgsFileWidget(), QgsFileWidget(), QComboBox(), None
         self.scene.setFilter(SCENE_FILTER)
         self.scene.fileChanged.connect(self._scene_changed)
         self.image.setFilter(IMAGE_FILTER)
         self.camera.currentTextChanged.connect(self._propose_image)
         self.note = QLabel(tr("The scene: scene JSON, DIMAP, Maxar XML, an RPC file or an image with RPC metadata "
-                              "(or a display copy). The raw image of its camera is proposed from its folder."))
-        self.note.setWordWrap(True)
+                              "(or a display copy). The raw image of its camera is proposed from its folder."),
+                           wordWrap=True)
         form.addRow(self.note)
         for label, widget in ((tr("Scene"), self.scene), (tr("Camera"), self.camera), (tr("Raw image"), self.image)):
             form.addRow(label, widget)
-        buttons = QDialogButtonBox(QDialogButtonBox.Ok | QDialogButtonBox.Cancel)
-        buttons.accepted.connect(self.accept)
-        buttons.rejected.connect(self.reject)
-        form.addRow(buttons)
-        self.loaded = None
+        form.addRow(QDialogButtonBox(QDialogButtonBox.Ok | QDialogButtonBox.Cancel, accepted=self.accept,
+                                     rejected=self.reject))
 
     def _scene_changed(self, path: str) -> None:
         self.camera.clear()

@@ -1,6 +1,5 @@
-"""The dock 'Measure GCPs on the raw images': clicks on the raw images of a block measure a point, one
-on the main map gives its ground; predictions, Snap, Undo, Save, Open, the table of points. Its session
-and rules are :mod:`core.runs.measuregcps`'; this module wires the events."""
+"""The dock 'Measure GCPs on the raw images': points clicked on the raw images of a block, their ground on
+the map; predictions, Snap, Save, Open, the table. The session and its rules: :mod:`core.runs.measuregcps`."""
 from __future__ import annotations
 
 from qgis.core import QgsCoordinateTransform, QgsMapLayerProxyModel, QgsProject
@@ -35,9 +34,7 @@ class GcpDock(PixelCanvasDock):
         self.editor = self.session.editor
         self.main_markers = MainMapMarkers(iface.mapCanvas())
         form = self.form
-        self.scene_list = QListWidget()
-        self.scene_list.setMaximumHeight(80)
-        self.scene_list.currentRowChanged.connect(self.show_scene)
+        self.scene_list = QListWidget(maximumHeight=80, currentRowChanged=self.show_scene)
         form.addRow(tr("Scenes"), self.scene_list)
         self.id_edit, self.role_combo = QLineEdit(), combo(ROLES)
         self.id_edit.editingFinished.connect(lambda: self.attempt(lambda: self.session.rename(self.id_edit.text())))
@@ -77,8 +74,7 @@ class GcpDock(PixelCanvasDock):
     predictions = property(lambda self: self.session.predictions)
 
     def add_scene(self, path: str, image: str | None = None, camera: str | None = None) -> bool:
-        """Add a scene of the block (:meth:`core.runs.measuregcps.GcpSession.add`), named as the block's
-        algorithms name it (ui.inputs.block_scene_names), and show it; False (said) when it cannot."""
+        """Add a scene named as the block's algorithms name it, and show it; False (said) when it cannot."""
         if not self.attempt(lambda: self.session.add(str(path), open_image_source(path, cache_folder(), image, camera),
                                                      block_scene_names), redraw=False):
             return False
@@ -88,13 +84,12 @@ class GcpDock(PixelCanvasDock):
 
     def show_scene(self, index: int) -> None:
         """Show the image of the block's scene ``index`` (its display copy)."""
-        views = self.session.views
-        if 0 <= index < len(views) and self.show_raster(str(self.session.sources[index][1].display),
-                                                        views[index].label):
-            self.session.current = index
-            self.redraw()
+        def show() -> None:
+            self.show_raster(str(self.session.sources[index][1].display), self.session.views[index].label)
+            self.session.show(index)
+        if 0 <= index < len(self.session.views):
+            self.attempt(show)
 
-    # --- measuring ------------------------------------------------------------------------------
     def image_clicked(self, col: float, row: float, button) -> None:
         """Left click measures the selected point in the current scene (a new point when none is)."""
         if button == Qt.LeftButton:
@@ -105,8 +100,7 @@ class GcpDock(PixelCanvasDock):
         self.attempt(lambda: self.session.set_ground(*self.picked(point), *self.heights()))
 
     def picked(self, point) -> tuple:
-        """(lon, lat deg, z or None, source) of a click at ``point`` (main canvas CRS): the click itself,
-        or the nearest point of the reference layer (within REFERENCE_TOLERANCE_PX screen px)."""
+        """(lon, lat, z, source) of a click at ``point``: it, or the nearest reference point near it."""
         canvas, layer = self.iface.mapCanvas(), self.reference_combo.currentLayer()
         crs = canvas.mapSettings().destinationCrs()
         if layer is None:
@@ -185,14 +179,12 @@ class Cell(QTableWidgetItem):
 
 
 class PointTable(QTableWidget):
-    """The table of points, as the Georeferencer's GCP table (:func:`core.runs.measuregcps.point_rows`),
-    sortable by any column; ``on_select(index)`` gets the editor's index of a clicked point."""
+    """The points as the Georeferencer's GCP table, sortable; ``on_select(index)`` on a click."""
 
     def __init__(self, on_select):
-        super().__init__(0, len(COLUMNS))
+        super().__init__(0, len(COLUMNS), selectionBehavior=QAbstractItemView.SelectRows,
+                         selectionMode=QAbstractItemView.SingleSelection)
         self.setHorizontalHeaderLabels([tr(c) for c in COLUMNS])
-        self.setSelectionBehavior(QAbstractItemView.SelectRows)
-        self.setSelectionMode(QAbstractItemView.SingleSelection)
         self.verticalHeader().hide()
         self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
         self.horizontalHeader().setStretchLastSection(True)

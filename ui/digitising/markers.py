@@ -1,8 +1,8 @@
-"""What the docks draw: point markers labelled with the point's id, one style per source, line bands, a
-legend of them, and the GCPs on the main map (in its CRS, whichever). Markers keep their screen size and
-are hollow, so that at whole-image zoom a prediction does not hide the measurement under it."""
+"""What the docks draw: labelled point markers, line bands, their legend, the GCPs on the main map. Markers
+keep their screen size and are hollow: at whole-image zoom a prediction does not hide the measurement."""
 from __future__ import annotations
 
+from contextlib import suppress
 from dataclasses import dataclass, replace
 
 from qgis.core import QgsCoordinateTransform, QgsGeometry, QgsPointXY, QgsProject, QgsWkbTypes
@@ -18,8 +18,7 @@ from .form import wgs84
 
 @dataclass(frozen=True)
 class MarkerStyle:
-    """A marker: colour (r, g, b), shape (circle, square, diamond), size and pen width (screen px),
-    whether a dot marks the exact position, legend text."""
+    """Colour (r, g, b), shape (circle, square, diamond), size and pen width (screen px), a dot at the spot?"""
     colour: tuple[int, int, int]
     shape: str
     size: float
@@ -112,7 +111,7 @@ class CanvasDrawing:
         self.items.append(item)
         return item
 
-    def polyline(self, points: list[QgsPointXY], kind: str) -> QgsRubberBand:
+    def polyline(self, points: list[QgsPointXY], kind: str) -> None:
         """A band through ``points`` (map coordinates) in LINE_STYLES[kind]."""
         colour, alpha, width, dashed = LINE_STYLES[kind]
         band = QgsRubberBand(self.canvas, QgsWkbTypes.LineGeometry)
@@ -122,12 +121,10 @@ class CanvasDrawing:
             band.setLineStyle(Qt.DashLine)
         band.setToGeometry(QgsGeometry.fromPolylineXY(points), None)
         self.items.append(band)
-        return band
 
 
 def legend(kinds, lines: tuple[str, ...] = ()) -> QWidget:
-    """A one-row legend: a swatch and a text per marker kind of STYLES and per (kind, text) of
-    LINE_STYLES in ``lines``."""
+    """A row of swatches and texts: of STYLES' ``kinds``, of LINE_STYLES' (kind, text) ``lines``."""
     widget = QWidget()
     row = QHBoxLayout(widget)
     row.setContentsMargins(2, 0, 2, 0)
@@ -148,9 +145,7 @@ def legend(kinds, lines: tuple[str, ...] = ()) -> QWidget:
         pair = QHBoxLayout(swatch)
         pair.setContentsMargins(0, 0, 6, 0)
         pair.setSpacing(2)
-        icon = QLabel()
-        icon.setPixmap(pixmap)
-        pair.addWidget(icon)
+        pair.addWidget(QLabel(pixmap=pixmap))
         pair.addWidget(QLabel(text))
         row.addWidget(swatch)
     row.addStretch(1)
@@ -158,19 +153,15 @@ def legend(kinds, lines: tuple[str, ...] = ()) -> QWidget:
 
 
 class MainMapMarkers:
-    """The GCPs' markers on the main map canvas, redrawn when its CRS changes; ``selected``: the
-    selected point's marker."""
+    """The GCPs' markers on the main map, redrawn when its CRS changes; ``selected``: the selected one's."""
 
     def __init__(self, canvas):
         self.canvas, self.drawing, self.shown, self.selected = canvas, CanvasDrawing(canvas), [], None
-        canvas.destinationCrsChanged.connect(self._draw)
+        canvas.destinationCrsChanged.connect(self.show)
 
-    def show(self, marks: list[tuple[str, float, float, bool]]) -> None:
-        """Mark (id, lon, lat deg, selected) of :meth:`core.runs.measuregcps.GcpSession.ground_marks`."""
-        self.shown = marks
-        self._draw()
-
-    def _draw(self) -> None:
+    def show(self, marks: list[tuple[str, float, float, bool]] | None = None) -> None:
+        """Mark (id, lon, lat deg, selected) ``marks`` (GcpSession.ground_marks; None: the last ones)."""
+        self.shown = self.shown if marks is None else marks
         self.hide()
         to_canvas = QgsCoordinateTransform(wgs84(), self.canvas.mapSettings().destinationCrs(), QgsProject.instance())
         for point_id, lon, lat, selected in self.shown:
@@ -186,7 +177,5 @@ class MainMapMarkers:
     def dispose(self) -> None:
         self.shown = []
         self.hide()
-        try:
-            self.canvas.destinationCrsChanged.disconnect(self._draw)
-        except TypeError:  # disconnected already
-            pass
+        with suppress(TypeError):  # disconnected already
+            self.canvas.destinationCrsChanged.disconnect(self.show)
