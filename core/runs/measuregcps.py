@@ -96,12 +96,6 @@ class GcpSession:
         self.sources.append((opened, source))
         return view
 
-    def show(self, index: int) -> None:
-        """Make view ``index`` the current one (the dock shows its image)."""
-        if not 0 <= index < len(self.views):
-            raise InputError(f"there is no scene {index + 1} in the block (there are {len(self.views)})")
-        self.current = index
-
     def view(self) -> View:
         if self.current is None:
             raise InputError("add a scene of the block first (Add scene…)")

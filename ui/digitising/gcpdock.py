@@ -86,7 +86,7 @@ class GcpDock(PixelCanvasDock):
         """Show the image of the block's scene ``index`` (its display copy)."""
         def show() -> None:
             self.show_raster(str(self.session.sources[index][1].display), self.session.views[index].label)
-            self.session.show(index)
+            self.session.current = index
         if 0 <= index < len(self.session.views):
             self.attempt(show)
 

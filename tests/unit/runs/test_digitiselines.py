@@ -34,6 +34,7 @@ def test_a_ground_line_predicted_by_the_true_model_passes_through_the_true_pixel
     ground = np.array([true_ground(gcp_block, a), true_ground(gcp_block, b)])
     said = session.predict(lambda: (["L1"], [ground]), Heights("z", "ellipsoid"), "the lines' Z")
     assert said == "1 of 1 ground lines predicted into the image, heights from the lines' Z"
+    assert [kind for _, kind in session.bands()] == ["predicted"]
     run = session.predicted[0].runs()[0]
     assert len(run) > 2  # densified: a straight ground segment is not straight in a pushbroom image
     assert np.hypot(*(run[0] - true_pixel(gcp_block, a, "nad"))) < 0.01
@@ -57,6 +58,11 @@ def test_lines_are_paired_with_the_nearest_ground_line_and_saved_with_their_scen
     parts = [np.array([[0.0, 0.0], [10.0, 0.0]]), np.array([[0.0, 5.0], [10.0, 5.0]])]
     assert session.pair(["A", "B"], parts, 4.0, 3.0) == "Line 2 paired with ground line B"   # 2 from B, 3 from A
     assert session.rows() == ["1: not paired (2 vertices)", "2: B (2 vertices)"]
+    session.editor.add_vertex(90.0, 91.0)
+    assert session.bands() == [([(10.0, 20.0), (30.0, 40.0)], "line"), ([(50.0, 60.0), (70.0, 65.0)], "selected"),
+                               ([(90.0, 91.0)], "drawing")]
+    assert session.selected_pixels() == [(50.0, 60.0), (70.0, 65.0)]
+    session.undo()
     with pytest.raises(InputError, match="image line\\(s\\) 1 are not paired"):
         session.save(str(tmp_path / "lines.gpkg"), lambda paths: ["scene7"])
     assert not (tmp_path / "lines.gpkg").exists()

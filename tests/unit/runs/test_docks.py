@@ -1,10 +1,14 @@
 """What both docks share (core.runs.docks): the heights form's choices as heights and words (never a
-guessed DEM: 'dem' without one is the constant, said), and the files a raw image opened reads."""
+guessed DEM: 'dem' without one is the constant, said), the files a raw image opened reads, the square a
+zoom frames, and what the scene dialog proposes (on the rendered block of tests/support/gcpblock.py)."""
+import shutil
 from pathlib import Path
 
-from pushbroom_adjust.core.observations.tables import Heights
-from pushbroom_adjust.core.runs.docks import files_read, form_heights
 from pushbroom_adjust.core.measure.sources import ImageSource
+from pushbroom_adjust.core.observations.tables import Heights
+from pushbroom_adjust.core.runs.docks import (LINE_MARGIN_PX, files_read, form_heights, frame, proposed_image,
+                                              scene_cameras)
+from tests.support.gcpblock import gcp_block  # noqa: F401 (the fixture)
 
 
 def test_the_form_heights_and_their_words():
@@ -24,3 +28,24 @@ def test_the_files_a_raw_image_reads():
         "nad/NAD (raw image)": ["/s/raw.tif"]}
     opened_copy = files_read("nad/NAD", "/mine/display.vrt", source)
     assert opened_copy["nad/NAD (display copy)"] == ["/cache/abc.vrt", "/mine/display.vrt"]
+
+
+def test_the_square_a_zoom_frames():
+    """A line from (100, 50) to (160, 70) px: centred at (130, 60), half its longer side (30) plus the margin."""
+    assert frame([(100.0, 50.0), (160.0, 70.0), (120.0, 55.0)], 20.0) == (130.0, 60.0, 50.0)
+    assert frame([(100.0, 50.0), (100.0, 90.0)]) == (100.0, 70.0, 20.0 + LINE_MARGIN_PX)
+
+
+def test_the_scene_dialog_proposes_the_raw_image_of_the_camera(gcp_block, tmp_path):  # noqa: F811
+    """The block's nad scene file names its raw image beside it (500 x 500 px): proposed; a copy of the
+    scene file alone in a folder: none, and the note says what to choose; a file that is no scene: said."""
+    member = gcp_block["result"].members["nad"]
+    scene, cameras, note = scene_cameras(str(member["onboard_scene"]))
+    assert cameras == ["NAD"] and note.endswith(": 1 camera(s)")
+    assert proposed_image(scene, str(member["onboard_scene"]), "NAD") == (str(member["images"]["NAD"]), "")
+    alone = tmp_path / "scene.json"
+    shutil.copy(member["onboard_scene"], alone)
+    assert proposed_image(scene, str(alone), "NAD") == (
+        "", "No raster of 500 x 500 px (camera NAD) beside the scene: choose its raw image")
+    (tmp_path / "notes.json").write_text("not a scene")
+    assert scene_cameras(str(tmp_path / "notes.json"))[:2] == (None, [])

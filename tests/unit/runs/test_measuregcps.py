@@ -77,6 +77,15 @@ def test_measuring_and_the_ground_say_what_they_did(gcp_block, tmp_path):  # noq
     session.edit_sigmas(0.4, 0.8, 0.25)
     table = session.editor.table()
     assert (table.sigma_xy[0], table.sigma_z[0], table.sigma_px[0]) == (0.4, 0.8, 0.25)
+    assert session.shown() == ("nad", "NAD") and session.selected_values() == ("G1", "control", 0.4, 0.8, 0.25)
+    session.current = 1                                            # not measured in fwd: no image sigma there
+    assert session.selected_values()[4] is None
+    session.editor.new_point("G9")
+    assert session.selected_values() == ("G9", "control", None, None, None)
+    assert session.ground_marks() == [("G1", lon, lat, False)]     # the points with a ground, the selected last
+    session.editor.select(0)
+    assert session.ground_marks() == [("G1", lon, lat, True)]
+    session.undo()
     session.rename("P7")
     assert session.editor.ids() == ["P7"] and session.undo() == "Undone: edit"
     assert session.delete() == "Point deleted (Ctrl+Z brings it back)" and session.delete().startswith("Select a point")
