@@ -23,11 +23,20 @@ from ..measure.sources import ImageSource
 from ..measure.tiematching import View
 from ..observations.gcps import read_gpkg, write_gpkg
 from ..observations.tables import Heights
-from .base import FilesInUse
+from .base import FilesInUse, Terrain, surface_from
 from .docks import files_read
 
 GCP_LAYER = "GCP layer"  # how refusals of the save name its file
 NEAR_PX = 1.0  # image px: predictions this close to an earlier one share its marker's label
+
+
+def terrain_of(heights: Heights, view: View):
+    """The surface rays are met with: a DEM read and checked as the use cases read one
+    (:func:`core.runs.base.surface_from`: implausible heights refused), else the constant of
+    :func:`core.measure.gcpmeasure.surface_for` (in its datum at the centre of ``view``'s image)."""
+    if heights.source == "dem" and isinstance(heights.dem, (str, Path)):
+        return surface_from(Terrain(str(heights.dem), heights.datum))[0]
+    return surface_for(heights, view)
 
 
 def nearest_reference(name: str, xy, lonlatz, click: tuple[float, float], units_per_px: float,
@@ -127,7 +136,7 @@ class GcpSession:
         orthoimage ``reference`` (file, name) when ``to_reference``, else to the other scene whose image
         matches it best (the highest correlation: another date, a cloud or a shadow can spoil one)."""
         view, point = self.view(), self.editor.current()
-        surface = surface_for(heights, view)
+        surface = terrain_of(heights, view)
         if to_reference:
             if reference is None:
                 raise InputError("choose the reference orthoimage layer to snap to")
@@ -190,7 +199,7 @@ class GcpSession:
             point = self.editor.current()
             try:
                 self.predictions = predict(point, view, {v.scene_name: v for v in self.views},
-                                           surface_for(heights, view))
+                                           terrain_of(heights, view))
             except PushbroomError as exc:
                 problem = str(exc)
             shown = [p for p in self.predictions if np.isfinite(p.col) and np.isfinite(p.row)]

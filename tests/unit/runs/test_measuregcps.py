@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from osgeo import gdal
 
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.files import OutputError
@@ -119,6 +120,23 @@ def test_predictions_through_the_true_models_meet_the_truth_and_share_their_labe
     # a DEM that cannot be had is the problem to show, and the measured points are still drawn
     markers, problem = session.markers(Heights("dem", "geoid", None))
     assert "no DEM was given" in problem and [m[2] for m in markers] == ["measured"]
+
+
+def test_a_dem_of_heights_no_terrain_has_is_refused_as_the_use_cases_refuse_it(gcp_block, tmp_path):  # noqa: F811
+    """The block's DEM with 20 km added (a DEM in the wrong unit, or of another quantity): named, as
+    pushbroom:groundtoimage names it (core.runs.base.surface_from), not met by rays in silence."""
+    ds = gdal.Translate(str(tmp_path / "high.tif"), str(gcp_block["result"].dem))
+    band = ds.GetRasterBand(1)
+    band.WriteArray(band.ReadAsArray() + 20000.0)
+    ds = None
+    views = [View(n, gcp_block["true"][n], 0, Path(gcp_block["result"].members[n]["images"]["NAD"])) for n in NAMES]
+    session = GcpSession(views=views, current=1)
+    measure(session, gcp_block, gcp_block["inside"][0])
+    markers, problem = session.markers(Heights("dem", "geoid", str(tmp_path / "high.tif")))
+    assert problem.startswith("DEM: ") and "high.tif" in problem, problem
+    assert [m[2] for m in markers] == ["selected"]
+    with pytest.raises(InputError, match="high.tif"):
+        session.snap(Heights("dem", "geoid", str(tmp_path / "high.tif")), False)
 
 
 def test_snap_to_the_other_scene_puts_the_click_back_on_the_truth(gcp_block, tmp_path):  # noqa: F811
