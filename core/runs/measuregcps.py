@@ -30,15 +30,6 @@ GCP_LAYER = "GCP layer"  # how refusals of the save name its file
 NEAR_PX = 1.0  # image px: predictions this close to an earlier one share its marker's label
 
 
-def terrain_of(heights: Heights, view: View):
-    """The surface rays are met with: a DEM read and checked as the use cases read one
-    (:func:`core.runs.base.surface_from`: implausible heights refused), else the constant of
-    :func:`core.measure.gcpmeasure.surface_for` (in its datum at the centre of ``view``'s image)."""
-    if heights.source == "dem" and isinstance(heights.dem, (str, Path)):
-        return surface_from(Terrain(str(heights.dem), heights.datum))[0]
-    return surface_for(heights, view)
-
-
 def nearest_reference(name: str, xy, lonlatz, click: tuple[float, float], units_per_px: float,
                       tolerance_px: float) -> tuple[float, float, float | None]:
     """(lon, lat deg, z or None) of the point of the reference layer ``name`` nearest to ``click``:
@@ -83,13 +74,14 @@ def point_rows(points, scene: str | None, camera: str | None) -> list[tuple[list
 @dataclass
 class GcpSession:
     """The block's ``views`` (in the order added), the (file opened, source) of each, the index of
-    the one ``current``ly shown (None: none), the ``editor`` and the ``predictions`` of the selected
-    point in the current view (:meth:`markers` makes them)."""
+    the one ``current``ly shown (None: none), the ``editor``, the ``predictions`` of the selected
+    point in the current view (:meth:`markers` makes them) and the last DEM read ((file, datum), Dem)."""
     editor: PointEditor = field(default_factory=PointEditor)
     views: list[View] = field(default_factory=list)
     sources: list[tuple[str, ImageSource]] = field(default_factory=list)
     current: int | None = None
     predictions: list[Prediction] = field(default_factory=list)
+    dem_read: tuple = ((), None)
 
     # --- the block's scenes -----------------------------------------------------------------------
     def add(self, opened: str, source: ImageSource, names: Callable[[list[str]], list[str]]) -> View:
@@ -104,6 +96,18 @@ class GcpSession:
         self.views.append(view)
         self.sources.append((opened, source))
         return view
+
+    def surface(self, heights: Heights, view: View):
+        """The surface rays are met with: a DEM read and checked as the use cases read one
+        (:func:`core.runs.base.surface_from`: heights no terrain has are refused), kept for the next
+        call (the dock asks at every redraw); else the constant of
+        :func:`core.measure.gcpmeasure.surface_for` (in its datum at the centre of ``view``'s image)."""
+        if heights.source != "dem" or not isinstance(heights.dem, (str, Path)):
+            return surface_for(heights, view)
+        key = (str(heights.dem), heights.datum)
+        if self.dem_read[0] != key:
+            self.dem_read = (key, surface_from(Terrain(*key))[0])
+        return self.dem_read[1]
 
     def view(self) -> View:
         if self.current is None:
@@ -136,7 +140,7 @@ class GcpSession:
         orthoimage ``reference`` (file, name) when ``to_reference``, else to the other scene whose image
         matches it best (the highest correlation: another date, a cloud or a shadow can spoil one)."""
         view, point = self.view(), self.editor.current()
-        surface = terrain_of(heights, view)
+        surface = self.surface(heights, view)
         if to_reference:
             if reference is None:
                 raise InputError("choose the reference orthoimage layer to snap to")
@@ -199,7 +203,7 @@ class GcpSession:
             point = self.editor.current()
             try:
                 self.predictions = predict(point, view, {v.scene_name: v for v in self.views},
-                                           terrain_of(heights, view))
+                                           self.surface(heights, view))
             except PushbroomError as exc:
                 problem = str(exc)
             shown = [p for p in self.predictions if np.isfinite(p.col) and np.isfinite(p.row)]

@@ -104,8 +104,9 @@ def test_predictions_through_the_true_models_meet_the_truth_and_share_their_labe
         measure(session, gcp_block, point_id)
     session.editor.select(0)
     session.current = 1
-    markers, problem = session.markers(Heights("dem", "geoid", gcp_block["result"].dem))
-    assert problem == ""
+    dem = Heights("dem", "geoid", str(gcp_block["result"].dem))
+    markers, problem = session.markers(dem)
+    assert problem == "" and session.surface(dem, views[1]) is session.surface(dem, views[1])  # read once
     truth = true_pixel(gcp_block, ids[0], "fwd")
     predicted = [m for m in markers if m[2] in ("ground", "scene")]
     assert [m[2] for m in predicted] == ["ground", "scene"]
