@@ -16,6 +16,7 @@ from .canvas import CanvasTools, PixelCanvas, PixelTool, pixel_of, theme_icon
 from .form import DemBox, combo, layer_path, spin_box
 from .markers import CanvasDrawing
 
+
 class PixelCanvasDock(QDockWidget):
     """Subclasses hold a ``session`` and an ``editor``, fill ``self.form``, call :meth:`build` and implement
     ``image_clicked(col, row, button)``, ``main_clicked(point)`` (main canvas CRS) and ``redraw()``."""
@@ -51,8 +52,8 @@ class PixelCanvasDock(QDockWidget):
                                         self.undo)
         self.delete_action = self._action("/mActionDeleteSelected.svg", tr("Delete the selected one (Delete)"),
                                           QKeySequence.Delete, self.delete_selected)
-        self.undo_button, self.delete_button = (self.tools.widgetForAction(a) for a in (self.undo_action,
-                                                                                          self.delete_action))
+        self.undo_button = self.tools.widgetForAction(self.undo_action)
+        self.delete_button = self.tools.widgetForAction(self.delete_action)
         self.tools.addSeparator()
         self.form_action = QAction(theme_icon("/mActionOptions.svg"), tr("Show or hide the settings"), self.tools,
                                    checkable=True, checked=True, toggled=self.form_pane.setVisible)
@@ -125,12 +126,9 @@ class PixelCanvasDock(QDockWidget):
     def delete_selected(self) -> None:
         self.attempt(self.session.delete)
 
-    def selected_pixels(self) -> list[tuple[float, float]]:
-        return self.session.selected_pixels()
-
     def zoom_to_selected(self) -> None:
         """Frame what is selected (a point: at ZOOM_TO_POINT_PX either side; a line: its vertices)."""
-        pixels = self.selected_pixels()
+        pixels = self.session.selected_pixels()
         if not pixels:
             self.tell(tr("Nothing selected to zoom to"))
         elif len(pixels) == 1:
@@ -141,7 +139,8 @@ class PixelCanvasDock(QDockWidget):
     def start_picking(self, message: str, refusal: str) -> None:
         """The main map's next click goes to ``main_clicked`` (``refusal`` said if nothing is selected)."""
         if self.editor.selected is None:
-            return self.tell(refusal)
+            self.tell(refusal)
+            return
         main = self.iface.mapCanvas()
         if main.mapTool() is not self.pick_tool:
             self.previous_main_tool = main.mapTool()

@@ -121,7 +121,7 @@ class GcpDock(PixelCanvasDock):
         if index is None or 0 <= index < len(self.editor.points):
             self.editor.select(index)
             self.redraw()
-            if self.selected_pixels():
+            if self.session.selected_pixels():
                 self.zoom_to_selected()
 
     def save(self, path: str) -> bool:
