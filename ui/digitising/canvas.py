@@ -1,20 +1,14 @@
-"""The docks' own map canvas and its tools: the raw image in the pixel frame x = col, y = -row
-(a display copy, :mod:`core.measure.display`), the measuring tool that turns clicks into pixel
-positions, and the view tools a Georeferencer user expects (pan, zoom in and out, zoom to the
-image, zoom to the selected point or line) in a tool bar above the canvas.
-
-The canvas has no CRS, and neither have the layers it shows: a transform from the pixel frame to
-anything else cannot exist, and QGIS asks for one wherever a canvas has a CRS (the project's
-ellipsoid for distances, the CRS a project read gives every canvas, each layer's transform), then
-raises a red bar over the main window. Without a CRS every transform is the identity and nothing
-is asked; the display copy's geotransform alone puts pixel (col, row) at x = col, y = -row.
-"""
+"""The docks' canvas in the pixel frame x = col, y = -row, and its tools. It and its layers have no CRS:
+QGIS asks for a transform from the pixel frame, which cannot exist, wherever a canvas has one (a red
+bar); without one every transform is the identity."""
 from __future__ import annotations
+
+from contextlib import suppress
 
 from qgis.core import QgsApplication, QgsCoordinateReferenceSystem, QgsPointXY, QgsProject, QgsRasterLayer, QgsRectangle
 from qgis.gui import QgsMapCanvas, QgsMapTool, QgsMapToolPan, QgsMapToolZoom
 from qgis.PyQt.QtCore import Qt
-from qgis.PyQt.QtWidgets import QAction, QActionGroup, QLabel, QToolBar
+from qgis.PyQt.QtWidgets import QActionGroup, QLabel, QToolBar
 
 from ..parameters import tr
 
@@ -27,6 +21,7 @@ def pixel_of(point: QgsPointXY) -> tuple[float, float]:
 
 
 def point_of(col: float, row: float) -> QgsPointXY:
+    """The point of the pixel frame at (col, row) px."""
     return QgsPointXY(col, -row)
 
 
@@ -36,8 +31,7 @@ def theme_icon(name: str):
 
 
 class PixelTool(QgsMapTool):
-    """The measuring tool: a release of the left or right button calls ``on_click(col, row,
-    button)``."""
+    """The measuring tool: a release of the left or right button calls ``on_click(col, row, button)``."""
 
     def __init__(self, canvas: QgsMapCanvas, on_click):
         super().__init__(canvas)
@@ -50,18 +44,14 @@ class PixelTool(QgsMapTool):
 
 
 class PixelCanvas(QgsMapCanvas):
-    """A map canvas showing one raster in the pixel frame, without a CRS (see the module), with
-    ``hint`` written over it while it shows nothing. A project read gives every canvas the
-    project's CRS and extent: this one takes its own back."""
+    """One raster, no CRS (a project read gives every canvas one: taken back), ``hint`` while empty."""
 
     def __init__(self, hint: str):
         super().__init__()
         self.setCanvasColor(Qt.white)
         self.layer: QgsRasterLayer | None = None
-        self.hint = QLabel(hint, self)
-        self.hint.setAlignment(Qt.AlignCenter)
-        self.hint.setWordWrap(True)
-        self.hint.setStyleSheet("color: #444; font-size: 15px; background: transparent")
+        self.hint = QLabel(hint, self, alignment=Qt.AlignCenter, wordWrap=True,
+                           styleSheet="color: #444; font-size: 15px; background: transparent")
         QgsProject.instance().readProject.connect(self._restore)
 
     def show_raster(self, path: str, name: str) -> bool:
@@ -82,18 +72,10 @@ class PixelCanvas(QgsMapCanvas):
             self.refresh()
 
     def zoom_to_pixel(self, col: float, row: float, half: float = ZOOM_TO_POINT_PX) -> None:
-        """Centre the view on (col, row) px, ``half`` px either side (or the current scale when
-        that is closer)."""
+        """Centre the view on (col, row) px, ``half`` px either side (or the current scale when closer)."""
         half = min(half, max(self.extent().width(), 1.0) / 2)
         self.setExtent(QgsRectangle(col - half, -row - half, col + half, -row + half))
         self.refresh()
-
-    def release(self) -> None:
-        """Show nothing and let go of the layer (its raster pipe must not outlive QGIS)."""
-        self.stopRendering()
-        self.setLayers([])
-        self.layer = None
-        self.hint.show()
 
     def _restore(self, *args) -> None:
         self.setDestinationCrs(QgsCoordinateReferenceSystem())
@@ -104,46 +86,35 @@ class PixelCanvas(QgsMapCanvas):
         self.hint.setGeometry(10, 10, max(self.width() - 20, 1), max(self.height() - 20, 1))
 
     def dispose(self) -> None:
-        """Release the layer and stop following the project (before the widget goes)."""
-        self.release()
-        try:
+        """Let go of the layer (its raster pipe must not outlive QGIS) and stop following the project."""
+        self.stopRendering()
+        self.setLayers([])
+        self.layer = None
+        self.hint.show()
+        with suppress(TypeError):  # disconnected already (disposed twice)
             QgsProject.instance().readProject.disconnect(self._restore)
-        except TypeError:  # disconnected already (disposed twice)
-            pass
 
 
 class CanvasTools(QToolBar):
-    """The tool bar above a :class:`PixelCanvas`: ``measure`` (the dock's own tool: ``tool``,
-    checked first), pan, zoom in, zoom out (one of them active at a time, as in QGIS), zoom to
-    the image and zoom to the selection (``zoom_selected()``, the dock's)."""
+    """The dock's ``tool`` (checked first), pan, zoom in, out (one active, as in QGIS), to all, to selected."""
 
     def __init__(self, canvas: PixelCanvas, tool: QgsMapTool, measure_text: str, measure_icon: str, zoom_selected):
         super().__init__()
         self.setIconSize(self.iconSize() * 0.8)
-        self.canvas = canvas
         group = QActionGroup(self)
-        self.tools = {}
-        for key, icon, text, map_tool in (
-                ("measure", measure_icon, measure_text, tool),
-                ("pan", "/mActionPan.svg", tr("Pan (or drag with the middle button)"), QgsMapToolPan(canvas)),
-                ("zoom_in", "/mActionZoomIn.svg", tr("Zoom in (or the mouse wheel)"), QgsMapToolZoom(canvas, False)),
-                ("zoom_out", "/mActionZoomOut.svg", tr("Zoom out"), QgsMapToolZoom(canvas, True))):
-            action = QAction(theme_icon(icon), text, self)
+        for icon, text, map_tool in (
+                (measure_icon, measure_text, tool),
+                ("/mActionPan.svg", tr("Pan (or drag with the middle button)"), QgsMapToolPan(canvas)),
+                ("/mActionZoomIn.svg", tr("Zoom in (or the mouse wheel)"), QgsMapToolZoom(canvas, False)),
+                ("/mActionZoomOut.svg", tr("Zoom out"), QgsMapToolZoom(canvas, True))):
+            action = self.addAction(theme_icon(icon), text, lambda _=False, t=map_tool: canvas.setMapTool(t))
             action.setCheckable(True)
             group.addAction(action)
             map_tool.setAction(action)
-            action.triggered.connect(lambda _=False, t=map_tool: canvas.setMapTool(t))
-            self.addAction(action)
-            self.tools[key] = (action, map_tool)
+        group.actions()[0].setChecked(True)
+        canvas.setMapTool(tool)
         self.addSeparator()
         self.zoom_image = self.addAction(theme_icon("/mActionZoomFullExtent.svg"), tr("Zoom to the image"),
                                          canvas.zoom_to_image)
         self.zoom_selected = self.addAction(theme_icon("/mActionZoomToSelected.svg"), tr("Zoom to the selected one"),
                                             zoom_selected)
-        self.use("measure")
-
-    def use(self, key: str) -> None:
-        """Make tool ``key`` (measure, pan, zoom_in, zoom_out) the canvas's."""
-        action, map_tool = self.tools[key]
-        action.setChecked(True)
-        self.canvas.setMapTool(map_tool)

@@ -1,13 +1,11 @@
-"""What the docks draw on a canvas: hollow point markers with the point's id beside them, one
-style per source (measured, predicted from the ground, predicted from another scene), a legend
-of those styles, and line bands. Markers keep their screen size at any zoom and are hollow, so
-that at whole-image zoom a prediction does not hide the measurement under it.
-"""
+"""What the docks draw: labelled point markers, line bands, their legend, the GCPs on the main map. Markers
+keep their screen size and are hollow: at whole-image zoom a prediction does not hide the measurement."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from contextlib import suppress
+from dataclasses import dataclass, replace
 
-from qgis.core import QgsGeometry, QgsPointXY, QgsWkbTypes
+from qgis.core import QgsCoordinateTransform, QgsGeometry, QgsPointXY, QgsProject, QgsWkbTypes
 from qgis.gui import QgsMapCanvas, QgsMapCanvasItem, QgsRubberBand
 from qgis.PyQt import sip
 from qgis.PyQt.QtCore import QPointF, QRectF, Qt
@@ -15,21 +13,18 @@ from qgis.PyQt.QtGui import QColor, QFont, QFontMetricsF, QPainter, QPainterPath
 from qgis.PyQt.QtWidgets import QHBoxLayout, QLabel, QWidget
 
 from ..parameters import tr
+from .form import wgs84
 
 
 @dataclass(frozen=True)
 class MarkerStyle:
-    """A marker: its colour (r, g, b), shape (circle, square, diamond), size and pen width
-    (screen px), whether a dot marks the exact position, and its legend text."""
+    """Colour (r, g, b), shape (circle, square, diamond), size and pen width (screen px), a dot at the spot?"""
     colour: tuple[int, int, int]
     shape: str
     size: float
     width: float
     dot: bool
     legend: str
-
-    def qcolor(self, alpha: int = 255) -> QColor:
-        return QColor(*self.colour, alpha)
 
 
 STYLES = {
@@ -46,47 +41,30 @@ LINE_STYLES = {  # (colour, alpha, width px, dashed): thin and half transparent,
 }
 
 
-def shape_path(shape: str, size: float) -> QPainterPath:
-    """The outline of a marker ``shape`` of ``size`` px, centred on (0, 0)."""
-    r = size / 2
-    path = QPainterPath()
-    if shape == "square":
-        path.addRect(QRectF(-r * 0.8, -r * 0.8, 1.6 * r, 1.6 * r))
-    elif shape == "diamond":
-        path.addPolygon(QPolygonF([QPointF(0, -r), QPointF(r, 0), QPointF(0, r), QPointF(-r, 0), QPointF(0, -r)]))
-    else:
-        path.addEllipse(QPointF(0, 0), r, r)
-    return path
-
-
 def paint_marker(painter: QPainter, style: MarkerStyle, label: str = "", font: QFont | None = None) -> None:
     """Draw a marker of ``style`` at the painter's origin, ``label`` beside it (white halo)."""
     painter.setRenderHint(QPainter.Antialiasing)
-    outline = shape_path(style.shape, style.size)
+    r, colour, outline = style.size / 2, QColor(*style.colour), QPainterPath()
+    if style.shape == "square":
+        outline.addRect(QRectF(-r * 0.8, -r * 0.8, 1.6 * r, 1.6 * r))
+    elif style.shape == "diamond":
+        outline.addPolygon(QPolygonF([QPointF(0, -r), QPointF(r, 0), QPointF(0, r), QPointF(-r, 0), QPointF(0, -r)]))
+    else:
+        outline.addEllipse(QPointF(0, 0), r, r)
     painter.setBrush(Qt.NoBrush)
-    painter.setPen(QPen(QColor(255, 255, 255, 160), style.width + 2))
-    painter.drawPath(outline)
-    painter.setPen(QPen(style.qcolor(), style.width))
-    painter.drawPath(outline)
+    for pen in (QPen(QColor(255, 255, 255, 160), style.width + 2), QPen(colour, style.width)):
+        painter.setPen(pen)
+        painter.drawPath(outline)
     if style.dot:
-        painter.setBrush(style.qcolor())
+        painter.setBrush(colour)
         painter.drawEllipse(QPointF(0, 0), 1.2, 1.2)
     if label:
         text = QPainterPath()
-        text.addText(QPointF(style.size / 2 + 2, -style.size / 2), font or label_font(), label)
-        painter.setPen(QPen(QColor(255, 255, 255, 220), 3))
-        painter.setBrush(Qt.NoBrush)
-        painter.drawPath(text)
-        painter.setPen(Qt.NoPen)
-        painter.setBrush(style.qcolor())
-        painter.drawPath(text)
-
-
-def label_font() -> QFont:
-    font = QFont()
-    font.setPointSizeF(8.5)
-    font.setBold(True)
-    return font
+        text.addText(QPointF(style.size / 2 + 2, -style.size / 2), font, label)
+        for pen, brush in ((QPen(QColor(255, 255, 255, 220), 3), Qt.NoBrush), (Qt.NoPen, colour)):
+            painter.setPen(pen)
+            painter.setBrush(brush)
+            painter.drawPath(text)
 
 
 class PointMarker(QgsMapCanvasItem):
@@ -94,7 +72,9 @@ class PointMarker(QgsMapCanvasItem):
 
     def __init__(self, canvas: QgsMapCanvas, point: QgsPointXY, style: MarkerStyle, label: str = ""):
         super().__init__(canvas)
-        self.point, self.style, self.label, self.font = point, style, label, label_font()
+        self.point, self.style, self.label, self.font = point, style, label, QFont()
+        self.font.setPointSizeF(8.5)
+        self.font.setBold(True)
         width = QFontMetricsF(self.font).horizontalAdvance(label) if label else 0.0
         r = style.size / 2 + style.width + 2
         self.bounds = QRectF(-r, -r - 14, 2 * r + width + 6, 2 * r + 16)
@@ -111,27 +91,18 @@ class PointMarker(QgsMapCanvasItem):
         self.setPos(self.toCanvasCoordinates(self.point))
 
 
-def remove_item(item) -> None:
-    """Take a canvas item off whatever scene holds it and delete it (nothing when it is gone with
-    its canvas already)."""
-    if sip.isdeleted(item):
-        return
-    scene = item.scene()
-    if scene is not None:
-        scene.removeItem(item)
-    sip.delete(item)
-
-
 class CanvasDrawing:
     """The markers and bands a dock keeps on one canvas, replaced together."""
 
     def __init__(self, canvas: QgsMapCanvas):
-        self.canvas = canvas
-        self.items = []
+        self.canvas, self.items = canvas, []
 
     def clear(self) -> None:
-        for item in self.items:
-            remove_item(item)
+        """Take every item off the scene that holds it and delete it (unless gone with its canvas)."""
+        for item in (i for i in self.items if not sip.isdeleted(i)):
+            if item.scene() is not None:
+                item.scene().removeItem(item)
+            sip.delete(item)
         self.items = []
 
     def marker(self, point: QgsPointXY, kind: str, label: str = "") -> PointMarker:
@@ -140,7 +111,7 @@ class CanvasDrawing:
         self.items.append(item)
         return item
 
-    def polyline(self, points: list[QgsPointXY], kind: str) -> QgsRubberBand:
+    def polyline(self, points: list[QgsPointXY], kind: str) -> None:
         """A band through ``points`` (map coordinates) in LINE_STYLES[kind]."""
         colour, alpha, width, dashed = LINE_STYLES[kind]
         band = QgsRubberBand(self.canvas, QgsWkbTypes.LineGeometry)
@@ -150,44 +121,61 @@ class CanvasDrawing:
             band.setLineStyle(Qt.DashLine)
         band.setToGeometry(QgsGeometry.fromPolylineXY(points), None)
         self.items.append(band)
-        return band
 
 
 def legend(kinds, lines: tuple[str, ...] = ()) -> QWidget:
-    """A one-row legend: a swatch and a text per marker kind of STYLES (and line kind of
-    LINE_STYLES: ``lines`` as (kind, text) pairs)."""
+    """A row of swatches and texts: of STYLES' ``kinds``, of LINE_STYLES' (kind, text) ``lines``."""
     widget = QWidget()
     row = QHBoxLayout(widget)
     row.setContentsMargins(2, 0, 2, 0)
-    for kind in kinds:
-        style = STYLES[kind]
+    for kind, text in [(k, "") for k in kinds] + list(lines):
         pixmap = QPixmap(22, 22)
         pixmap.fill(Qt.transparent)
         painter = QPainter(pixmap)
-        painter.translate(11, 11)
-        paint_marker(painter, MarkerStyle(style.colour, style.shape, min(style.size, 16), style.width, style.dot, ""))
+        if text:
+            colour, _, _, dashed = LINE_STYLES[kind]
+            painter.setPen(QPen(QColor(*colour), 2, Qt.DashLine if dashed else Qt.SolidLine))
+            painter.drawLine(2, 16, 20, 6)
+        else:
+            painter.translate(11, 11)
+            paint_marker(painter, replace(STYLES[kind], size=min(STYLES[kind].size, 16)))
+            text = tr(STYLES[kind].legend)
         painter.end()
-        row.addWidget(swatch(pixmap, tr(style.legend)))
-    for kind, text in lines:
-        colour, _, _, dashed = LINE_STYLES[kind]
-        pixmap = QPixmap(22, 22)
-        pixmap.fill(Qt.transparent)
-        painter = QPainter(pixmap)
-        painter.setPen(QPen(QColor(*colour), 2, Qt.DashLine if dashed else Qt.SolidLine))
-        painter.drawLine(2, 16, 20, 6)
-        painter.end()
-        row.addWidget(swatch(pixmap, text))
+        swatch = QWidget()
+        pair = QHBoxLayout(swatch)
+        pair.setContentsMargins(0, 0, 6, 0)
+        pair.setSpacing(2)
+        pair.addWidget(QLabel(pixmap=pixmap))
+        pair.addWidget(QLabel(text))
+        row.addWidget(swatch)
     row.addStretch(1)
     return widget
 
 
-def swatch(pixmap: QPixmap, text: str) -> QWidget:
-    widget = QWidget()
-    row = QHBoxLayout(widget)
-    row.setContentsMargins(0, 0, 6, 0)
-    row.setSpacing(2)
-    icon = QLabel()
-    icon.setPixmap(pixmap)
-    row.addWidget(icon)
-    row.addWidget(QLabel(text))
-    return widget
+class MainMapMarkers:
+    """The GCPs' markers on the main map, redrawn when its CRS changes; ``selected``: the selected one's."""
+
+    def __init__(self, canvas):
+        self.canvas, self.drawing, self.shown, self.selected = canvas, CanvasDrawing(canvas), [], None
+        canvas.destinationCrsChanged.connect(self.show)
+
+    def show(self, marks: list[tuple[str, float, float, bool]] | None = None) -> None:
+        """Mark (id, lon, lat deg, selected) ``marks`` (GcpSession.ground_marks; None: the last ones)."""
+        self.shown = self.shown if marks is None else marks
+        self.hide()
+        to_canvas = QgsCoordinateTransform(wgs84(), self.canvas.mapSettings().destinationCrs(), QgsProject.instance())
+        for point_id, lon, lat, selected in self.shown:
+            item = self.drawing.marker(to_canvas.transform(QgsPointXY(lon, lat)), "selected" if selected else
+                                       "measured", point_id)
+            self.selected = item if selected else self.selected
+
+    def hide(self) -> None:
+        """Take the markers off the map until the next :meth:`show` (the dock closed)."""
+        self.drawing.clear()
+        self.selected = None
+
+    def dispose(self) -> None:
+        self.shown = []
+        self.hide()
+        with suppress(TypeError):  # disconnected already
+            self.canvas.destinationCrsChanged.disconnect(self.show)
