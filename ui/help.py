@@ -1,20 +1,6 @@
-"""The algorithms' help, read from the docs (shipped in the plugin zip), never written in the code:
-
-- the dialog's short help is the summary of docs/algorithms/<id>.md (the text between its title and its
-  first section) rendered to the simple HTML the Processing dialog shows, the inputs it shows and the
-  outputs, and a link to the page;
-- each parameter's help (its tooltip, ``qgis_process help``) is its entry in the page's ``## Parameters``
-  section, as plain text. The parameters many algorithms share are written once, in docs/parameters.md;
-  a page's entry whose name links there takes that text, followed by the entry's own if it has any.
-
-An entry is one list item (continued on lines indented by two spaces), an enumeration's values a list
-under it::
-
-    - **Points per image edge** (`SAMPLES`): How many intervals ...
-    - **Scene** ([`SCENE`](../parameters.md#scenes-and-cameras))
-    - **Heights from** (`HEIGHT_SOURCE`): Where the GCP heights come from.
-      - `z`: the points' Z values
-"""
+"""The algorithms' help, read from the docs (shipped in the plugin zip): the dialog's short help from the
+summary of docs/algorithms/<id>.md, each parameter's help from its entry in the page's section Parameters
+or in docs/parameters.md (the format: that page's introduction)."""
 from __future__ import annotations
 
 import html
@@ -33,8 +19,8 @@ _BOLD = re.compile(r"\*\*(.+?)\*\*")
 _CODE = re.compile(r"`([^`]+)`")
 _ITALIC = re.compile(r"(?<![*\w])\*([^*\s][^*]*?)\*(?![*\w])")
 _NAME = r"[A-Z][A-Z0-9_]*"
-_ENTRY = re.compile(rf"- \*\*(?P<label>.+?)\*\* \((?:`(?P<name>{_NAME})`|\[`(?P<shared>{_NAME})`\]\([^)\s]*parameters\.md"
-                    rf"[^)\s]*\))\)(?::\s*(?P<text>.*))?$", re.S)
+_ENTRY = re.compile(rf"- \*\*(?P<label>.+?)\*\* \((?:`(?P<name>{_NAME})`"
+                    rf"|\[`(?P<shared>{_NAME})`\]\([^)\s]*parameters\.md[^)\s]*\))\)(?::\s*(?P<text>.*))?$", re.S)
 _VALUE = re.compile(r"- `(?P<value>[a-z][a-z0-9_]*)`: (?P<meaning>.+)$", re.S)
 
 

@@ -1,5 +1,5 @@
 """PushbroomAlgorithm, the base of every algorithm of the provider: id, name, group, icon and help
-from class attributes, parameters with their help texts from the docs, output paths, the check of
+from class attributes, parameters with their help from the docs, output paths, the check of
 enumeration values, and the adapter around core calls (a core error becomes a
 QgsProcessingException naming the algorithm's parameter at fault)."""
 from __future__ import annotations
@@ -66,7 +66,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
             parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
         self.addParameter(parameter)
 
-    def addParameter(self, definition, createOutput=True):  # noqa: N802,N803 (QGIS API names)
+    def addParameter(self, definition, createOutput=True):  # noqa: N802 (QGIS API names)
         """QGIS's addParameter with the parameter's help from the docs: its entry on the algorithm's page,
         else a help the code still gives, else its entry in docs/parameters.md."""
         name = definition.name()
@@ -96,7 +96,8 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
     def shortHelpString(self):  # noqa: N802
         inputs = [d for d in self.parameterDefinitions() if not d.isDestination()]
-        shown = [(d.description(), d.name()) for d in inputs if not d.flags() & QgsProcessingParameterDefinition.FlagAdvanced]
+        advanced = QgsProcessingParameterDefinition.FlagAdvanced
+        shown = [(d.description(), d.name()) for d in inputs if not d.flags() & advanced]
         outputs = [(d.description(), d.name()) for d in self.parameterDefinitions() if d.isDestination()]
         return short_help(self.ID, tr, shown, len(inputs) - len(shown), outputs)
 
