@@ -113,7 +113,7 @@ def test_a_malformed_entry_is_refused_naming_its_page(helps, tmp_path):
                     "## Method\n\n- not an entry\n")
     scene, mode = helps.page_entries(page)
     assert (scene.name, scene.shared, scene.text) == ("SCENE", True, "Here only one.")
-    assert helps.resolved(scene).text.endswith("(docs/rpc-scenes.md). Here only one.")
+    assert helps.help_text(helps.resolved(scene)).endswith("(docs/rpc-scenes.md). Here only one.")
     assert mode.values == (("a", "first line"), ("b", "second"))
     assert helps.help_text(mode) == ("How. Values, by name (e.g. MODE=a; option numbers are refused): a: first line; "
                                      "b: second.")
