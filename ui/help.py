@@ -144,9 +144,9 @@ def shared_help(name: str, translate=str) -> str:
     return help_text(entry, translate) if entry else ""
 
 
-def inline_html(text: str, folder: Path) -> str:
-    """One paragraph's Markdown (bold, italic, code, links) as HTML; a relative link becomes a file URL
-    under ``folder`` (the page's folder)."""
+def inline_html(text: str, page: Path) -> str:
+    """One paragraph's Markdown (bold, italic, code, links) of ``page`` as HTML; a relative link becomes
+    a file URL (an anchor alone: in ``page``)."""
     out = html.escape(text, quote=False)
     out = _BOLD.sub(r"<b>\1</b>", out)
     out = _CODE.sub(r"<code>\1</code>", out)
@@ -155,24 +155,24 @@ def inline_html(text: str, folder: Path) -> str:
     def link(match: re.Match) -> str:
         target = match.group(2)
         if not re.match(r"[a-z]+:", target):
-            page, _, anchor = target.partition("#")
-            target = (folder / page).resolve().as_uri() + (f"#{anchor}" if anchor else "")
+            path, _, anchor = target.partition("#")
+            target = (page.parent / path if path else page).resolve().as_uri() + (f"#{anchor}" if anchor else "")
         return f'<a href="{target}">{match.group(1)}</a>'
 
     return _LINK.sub(link, out)
 
 
-def markdown_html(text: str, folder: Path) -> str:
+def markdown_html(text: str, page: Path) -> str:
     """Paragraphs and '- ' lists of simple Markdown as HTML (<p>, <ul><li>)."""
     blocks = []
     for block in re.split(r"\n\s*\n", text.strip()):
         lines = block.splitlines()
         if lines and all(line.startswith(("- ", "  ")) for line in lines):
             items = re.split(r"\n- ", "\n" + block.strip())[1:]
-            blocks.append("<ul>" + "".join(f"<li>{inline_html(' '.join(i.split()), folder)}</li>"
+            blocks.append("<ul>" + "".join(f"<li>{inline_html(' '.join(i.split()), page)}</li>"
                                              for i in items) + "</ul>")
         else:
-            blocks.append(f"<p>{inline_html(' '.join(block.split()), folder)}</p>")
+            blocks.append(f"<p>{inline_html(' '.join(block.split()), page)}</p>")
     return "".join(blocks)
 
 
@@ -194,4 +194,4 @@ def short_help(algorithm_id: str, translate=str, shown=(), hidden: int = 0, outp
     listed = f"<p>{inputs}.</p>" + (f"<p><b>{translate('Outputs')}:</b> {named_list(outputs)}.</p>" if outputs else "")
     link = (f'<p><a href="{page.as_uri()}">{translate("Full documentation")}</a>: docs/algorithms/{page.name} '
             f'({translate("every parameter in its section Parameters")})</p>')
-    return markdown_html(translate(summary_markdown(page)), page.parent) + listed + link
+    return markdown_html(translate(summary_markdown(page)), page) + listed + link

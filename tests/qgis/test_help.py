@@ -5,7 +5,7 @@ import importlib
 import re
 
 import pytest
-from qgis.core import QgsProcessingModelAlgorithm, QgsProcessingParameterEnum
+from qgis.core import QgsProcessingModelAlgorithm, QgsProcessingParameterDefinition, QgsProcessingParameterEnum
 
 from tests.support.paths import PLUGIN, REPO
 
@@ -137,3 +137,15 @@ def test_qgis_process_help_prints_the_page_entries(qgis_process, provider):
     for definition in alg.parameterDefinitions():
         assert definition.help() in " ".join(done.stdout.split()), definition.name()
     assert "How many intervals each edge of the image is divided into" in done.stdout
+
+
+def test_the_dialog_help_lists_inputs_and_outputs_and_links_anchors_into_its_page(provider):
+    alg = provider.algorithm("bundleadjust")
+    page = (REPO / "docs" / "algorithms" / "bundleadjust.md").resolve()
+    text = alg.shortHelpString()
+    assert f'<a href="{page.as_uri()}#parameters-in-detail">Parameters in detail</a>' in text
+    advanced = [d for d in alg.parameterDefinitions() if not d.isDestination()
+                and d.flags() & QgsProcessingParameterDefinition.FlagAdvanced]
+    assert f"(<code>INTERIOR</code>); {len(advanced)} more under <i>Advanced parameters</i>." in text
+    assert len(advanced) > 15
+    assert "<p><b>Outputs:</b> <b>Output scene</b> (<code>OUTPUT_SCENE</code>)," in text
