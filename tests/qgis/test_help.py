@@ -38,6 +38,11 @@ def test_every_page_documents_every_parameter_and_output_in_order_and_nothing_el
         assert names == _documented(alg), f"{alg.name()}.md: entries {names}, algorithm {_documented(alg)}"
         empty = [e.name for e in map(helps.resolved, entries) if len(e.text) < 20]
         assert empty == [], f"{alg.name()}.md: entries without a text: {empty}"
+    # an asterisk or an angle bracket outside a code span would be read as emphasis or HTML on GitHub
+    for entry in [*helps.vocabulary().values(), *(e for a in _algorithms(provider)
+                                                 for e in helps.page_entries(helps.help_page(a.name())))]:
+        prose = re.sub(r"`[^`]*`", "", " ".join([entry.text, *(m for _, m in entry.values)]))
+        assert not re.search(r"\*|<\w", prose), (entry.name, prose)
 
 
 def test_the_help_qgis_shows_is_the_page_entry(provider, helps, plugin):
