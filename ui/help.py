@@ -95,8 +95,9 @@ def page_entries(page: Path) -> tuple[Entry, ...]:
     return tuple(entry_of(item, page) for item in section_items(lines, whole=page == VOCABULARY_PAGE))
 
 
+@lru_cache(maxsize=None)
 def vocabulary() -> dict[str, Entry]:
-    """docs/parameters.md: the shared parameters by name."""
+    """docs/parameters.md: the shared parameters by name (one dict, not to be changed)."""
     return {entry.name: entry for entry in page_entries(VOCABULARY_PAGE)}
 
 
@@ -136,6 +137,12 @@ def help_text(entry: Entry, translate=str) -> str:
 def parameter_help(algorithm_id: str, translate=str) -> dict[str, str]:
     """{NAME: help text} of every parameter and output the page of ``algorithm_id`` documents."""
     return {e.name: help_text(resolved(e), translate) for e in page_entries(help_page(algorithm_id))}
+
+
+def documented_help(algorithm_id: str, name: str, translate=str) -> str:
+    """The help of parameter ``name`` from the page of ``algorithm_id`` ('' when it has no entry there)."""
+    entry = next((e for e in page_entries(help_page(algorithm_id)) if e.name == name), None)
+    return help_text(resolved(entry), translate) if entry else ""
 
 
 def shared_help(name: str, translate=str) -> str:

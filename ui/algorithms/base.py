@@ -11,7 +11,7 @@ from qgis.PyQt.QtGui import QIcon
 from ...core.runs.base import Terrain
 from .. import RESOURCES
 from ..feedback import feedback_callbacks, processing_errors, push_lines
-from ..help import help_page, parameter_help, shared_help, short_help
+from ..help import documented_help, help_page, shared_help, short_help
 from ..inputs import is_raster_input, raster_file, raster_refusal
 from ..parameters import DEM, DEM_DATUM, HEIGHT, enum_refusal, enum_value, tr
 
@@ -70,8 +70,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         """QGIS's addParameter with the parameter's help from the docs: its entry on the algorithm's page,
         else a help the code still gives, else its entry in docs/parameters.md."""
         name = definition.name()
-        documented = parameter_help(self.ID, tr).get(name) or (definition.help() or shared_help(name, tr))
-        definition.setHelp(documented)
+        definition.setHelp(documented_help(self.ID, name, tr) or definition.help() or shared_help(name, tr))
         return super().addParameter(definition, createOutput)
 
     def show_only(self, *names: str) -> None:
