@@ -101,8 +101,9 @@ def test_the_shared_entries_are_used_and_linked_to_their_sections(provider, help
                 assert f"(`{name}`)" in body, (page.name, name, anchor)
 
 
-def test_the_help_says_what_the_code_checks(provider):
+def test_the_help_says_what_the_code_checks(provider, helps):
     presets = importlib.import_module(f"{PLUGIN}.simulation.presets")
+    assert dict(helps.vocabulary()["PRESET"].values) == {n: p.description for n, p in presets.PRESETS.items()}
     for alg_id in ("simulatescene", "simulateblock"):
         assert f"({presets.MIN_CUT} or more;" in provider.algorithm(alg_id).parameterDefinition("IMAGE_SIZE").help()
 
