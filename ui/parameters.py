@@ -1,14 +1,15 @@
 """The plugin's parameter vocabulary: one definition per concept, shared by every algorithm.
 
 A concept (the scene, its camera, the DEM and its datum, heights, check points, image
-coordinate fields, the enumerations) has one parameter name, one description, one help
-text, one default and, for enumerations, the same named values in the same order wherever
-it appears. tests/qgis/test_vocabulary.py holds every algorithm of the provider to that.
+coordinate fields, the enumerations) has one parameter name, one description, one default
+and, for enumerations, the same named values in the same order wherever it appears; its help
+is written once, in docs/parameters.md (ui.help). tests/qgis/test_vocabulary.py holds every
+algorithm of the provider to that.
 
 Enumerations use static strings: scripts, graphical models and qgis_process pass the value
 names (``DEM_DATUM=geoid``), never option numbers. QGIS 3.22 shows the names themselves in
 the toolbox's drop-down lists (it has no separate labels for static-string values), so the
-names are short words and every help text says what each name means.
+names are short words and every help text (the docs' entry) says what each name means.
 
 User-visible texts go through :func:`tr` (one translation context for the whole plugin).
 """
@@ -60,17 +61,16 @@ def tr(text: str) -> str:
 
 
 # --- enumerations -------------------------------------------------------------------------
-def enum_parameter(name: str, description: str, meanings: dict[str, str], default: str | None,
-                   help_text: str, optional: bool = False) -> QgsProcessingParameterEnum:
-    """An enumeration of named values (static strings); its help ends with what each name means."""
-    if default is not None and default not in meanings:
-        raise ValueError(f"{name}: default {default!r} is not one of {list(meanings)}")
-    parameter = QgsProcessingParameterEnum(name, description, options=list(meanings), defaultValue=default,
+def enum_parameter(name: str, description: str, values, default: str | None, help_text: str = "",
+                   optional: bool = False) -> QgsProcessingParameterEnum:
+    """An enumeration of named values (static strings) ``values``, in the order the drop-down lists them
+    (a dict: its keys). Its help, with what each name means, is its entry in the docs
+    (ui.algorithms.base.PushbroomAlgorithm.addParameter); ``help_text`` only where no page has one."""
+    if default is not None and default not in values:
+        raise ValueError(f"{name}: default {default!r} is not one of {list(values)}")
+    parameter = QgsProcessingParameterEnum(name, description, options=list(values), defaultValue=default,
                                            optional=optional, usesStaticStrings=True)
-    values = "; ".join(f"<b>{value}</b>: {meaning}" for value, meaning in meanings.items())
-    example = f"{name}={default or next(iter(meanings))}"
-    parameter.setHelp(f"{help_text} " + tr("Values, by name (e.g. {example}; option numbers are refused)").format(
-        example=example) + f": {values}.")
+    parameter.setHelp(help_text)
     return parameter
 
 
@@ -109,176 +109,84 @@ def enum_value(alg, parameters: dict, name: str, context) -> str | None:
     return definition.defaultValue() if _empty(value) else value
 
 
-def datum_meanings(what: str) -> dict[str, str]:
-    return {"geoid": tr("the EGM96 geoid, mean sea level") + f" ({what})",
-            "ellipsoid": tr("the WGS84 ellipsoid (GNSS heights, EPSG:4979 layers such as the output of "
-                            "'Image to ground')")}
-
-
 def dem_datum() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        DEM_DATUM, tr("DEM height datum"),
-        datum_meanings(tr("SRTM, Copernicus DEM, most national DEMs")), "geoid",
-        tr("What the DEM's heights are measured from. Geoid heights are converted to ellipsoidal heights "
-           "with PROJ's EGM96 grid."))
+    return enum_parameter(DEM_DATUM, tr("DEM height datum"), DATUMS, "geoid")
 
 
 def z_datum() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        Z_DATUM, tr("Datum of the Z values"),
-        datum_meanings(tr("levelled surveys, heights read from maps")), None,
-        tr("What the points' Z values (point Z or Z_FIELD) are measured from (they differ by up to 106 m). "
-           "Empty: what the points' CRS says (EPSG:4979: ellipsoid; EGM96 heights: geoid), else the run asks "
-           "for it. Geoid heights are converted with PROJ's EGM96 grid."), optional=True)
+    return enum_parameter(Z_DATUM, tr("Datum of the Z values"), DATUMS, None, optional=True)
 
 
 def height_source() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        HEIGHT_SOURCE, tr("Heights from"),
-        {"z": tr("the points' Z values (Z_FIELD, or the layer's point Z), in Z_DATUM"),
-         "dem": tr("the DEM (in DEM_DATUM) sampled at each point"),
-         "constant": tr("the constant ellipsoidal HEIGHT")}, "z",
-        tr("Where the GCP heights come from. QGIS .points files hold no heights."))
+    return enum_parameter(HEIGHT_SOURCE, tr("Heights from"), HEIGHT_SOURCES, "z")
 
 
 def trajectory_model(name: str, what: str) -> QgsProcessingParameterEnum:
-    """POSITION_MODEL or ATTITUDE_MODEL: the same values, default and help (``what``: position/attitude)."""
-    block = name.split("_")[0]
-    return enum_parameter(
-        name, tr("{what} correction model").format(what=what.capitalize()),
-        {"polynomial": tr("one polynomial of order {block}_ORDER over the strip (systematic-error "
-                          "compensation, Zheng et al. 2015; order 2 without pseudo-observations is the quadratic "
-                          "model of Tommaselli & Marcato Junior 2012)").format(block=block),
-         "lagrange": tr("orientation images every {block}_INTERVAL seconds with 4-point Lagrange interpolation "
-                        "(Zheng et al. 2015)").format(block=block),
-         "spline": tr("quadratic pieces between knots every {block}_INTERVAL seconds, continuous in value and "
-                      "slope (Zhang et al. 2015)").format(block=block)},
-        "polynomial", tr("How the {what} correction varies in time.").format(what=what))
+    """POSITION_MODEL or ATTITUDE_MODEL (``what``: position/attitude)."""
+    return enum_parameter(name, tr("{what} correction model").format(what=what.capitalize()), TRAJECTORY_MODELS,
+                          "polynomial")
 
 
 def ground_mode() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        GROUND, tr("GCP ground coordinates"),
-        {"weighted": tr("unknowns with the GCPs' sigma_xy/sigma_z as pseudo-observations (matched or "
-                        "map-derived points)"),
-         "fixed": tr("taken as exact (surveyed points)")}, "weighted",
-        tr("How the adjustment treats the ground coordinates of the control points."))
+    return enum_parameter(GROUND, tr("GCP ground coordinates"), GROUND_MODES, "weighted")
 
 
 def robust_method() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        ROBUST, tr("Gross error detection"),
-        {"none": tr("no detection"),
-         "selection": tr("selection weights: observations whose normalised residual exceeds the critical value "
-                         "are down-weighted (Li Deren's posterior-variance weights)"),
-         "snooping": tr("data snooping: they are removed from the solution in batches (Baarda)")}, "selection",
-        tr("How gross errors are found. Either way the flagged points stay in the output layer with "
-           "flagged = 1."))
+    return enum_parameter(ROBUST, tr("Gross error detection"), ROBUST_METHODS, "selection")
 
 
 def rpc_correction() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        RPC_CORRECTION, tr("RPC scenes: image-space correction"),
-        {"auto": tr("shift for a block with fewer than 3 control points (tie points alone), drift otherwise; "
-                    "the log says which"),
-         "shift": tr("a shift of columns and rows (2 parameters per image)"),
-         "drift": tr("a shift and a drift along the rows, i.e. with time (4 parameters)"),
-         "affine": tr("an affine correction of columns and rows (6 parameters)")}, "auto",
-        tr("For RPC scenes (SCENE or the RPC products of SCENES): the bias compensation adjusted to the control "
-           "(Grodecki & Dial 2003); ignored for rigorous scenes. Tie points alone do not determine the height "
-           "tilt drift and affine let in (78 to 190 m over 5 km on simulated tri-stereos): hence auto."))
+    return enum_parameter(RPC_CORRECTION, tr("RPC scenes: image-space correction"),
+                          ("auto", "shift", "drift", "affine"), "auto")
 
 
 def camera_trajectory() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        CAMERA_TRAJECTORY, tr("Trajectory correction of several cameras"),
-        {"shared": tr("one correction for all cameras of the platform; free the installation angles of all "
-                      "but the reference camera in INTERIOR to let each camera's mounting differ (Zhang et al. "
-                      "2024, Plans B-D by the attitude order 0, 1, 2)"),
-         "per_camera": tr("a correction of its own for each camera, each with the onboard pseudo-observations "
-                          "(Zhang et al. 2024, Plan A; installation angles are then absorbed and must stay "
-                          "fixed)")}, "shared",
-        tr("How the position and attitude corrections are shared among the cameras of a multi-camera scene "
-           "(three-line cameras). A single-camera scene has one correction either way."))
+    return enum_parameter(CAMERA_TRAJECTORY, tr("Trajectory correction of several cameras"),
+                          ("shared", "per_camera"), "shared")
 
 
 def on_singular() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        ON_SINGULAR, tr("Non-determinable parameters"),
-        {"fix": tr("fix one of each set (the middle CCD's, if involved) at its input value and continue"),
-         "stop": tr("stop with their names")}, "fix",
-        tr("What to do when the GCPs cannot separate some parameters (e.g. all three CBERS CCDs' shifts and "
-           "the attitude)."))
+    return enum_parameter(ON_SINGULAR, tr("Non-determinable parameters"), ON_SINGULAR_ACTIONS, "fix")
 
 
 def interior_selection() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        INTERIOR_SELECTION, tr("Interior parameter selection"),
-        {"significant": tr("interior parameters the control cannot support (not significant, correlated, or "
-                           "without information) are fixed at 0 and the block re-solved; weighted ones are kept, "
-                           "held by their priors; self-calibration is kept only if an F-test favours it (docs "
-                           "page)"),
-         "keep": tr("estimate every INTERIOR parameter as given (with few GCPs a free set can overfit)")},
-        "significant",
-        tr("What to do with interior parameters the control at hand cannot support; the report lists the removed "
-           "ones with the reason, the ones held by their priors with the reason, and the kept ones."))
+    return enum_parameter(INTERIOR_SELECTION, tr("Interior parameter selection"), ("significant", "keep"),
+                          "significant")
 
 
 def resampling() -> QgsProcessingParameterEnum:
-    return enum_parameter(
-        RESAMPLING, tr("Resampling"),
-        {"nearest": tr("nearest neighbour"), "bilinear": tr("bilinear"), "cubic": tr("cubic spline")},
-        "bilinear", tr("How raw pixel values are interpolated."))
+    return enum_parameter(RESAMPLING, tr("Resampling"), RESAMPLINGS, "bilinear")
 
 
 def preset() -> QgsProcessingParameterEnum:
-    return enum_parameter(PRESET, tr("Sensor preset"), {n: PRESETS[n].description for n in PRESET_NAMES},
-                          DEFAULT_PRESET, tr("The simulated sensor and orbit."))
+    return enum_parameter(PRESET, tr("Sensor preset"), PRESET_NAMES, DEFAULT_PRESET)
 
 
-# --- shared plain parameters --------------------------------------------------------------
+# --- shared plain parameters (their help: docs/parameters.md) ------------------------------
 def scene(optional: bool = False) -> QgsProcessingParameterFile:
     """SCENE; optional in the algorithms that take a block's SCENES instead, its label then saying that
     one of the two is needed (QGIS marks both '[optional]')."""
     label = tr("Scene (or give Scenes of the block)") if optional else tr("Scene (metadata, RPC or scene JSON)")
-    parameter = QgsProcessingParameterFile(SCENE, label, extension="",
-                                           fileFilter="Scene files (*.json *.xml *.XML *.txt *.TXT *.rpb *.RPB *.tif "
-                                                      "*.ntf *.jp2);;All files (*)", optional=optional)
-    parameter.setHelp(tr("The sensor model of the scene: a scene JSON (of the simulator or an adjustment), vendor "
-                         "metadata (DIMAP v2 DIM_*.XML, Maxar *.XML), or an RPC alone: an image with RPC metadata, "
-                         "<name>_RPC.TXT, <name>.RPB or DIMAP RPC_*.XML (docs/rpc-scenes.md).")
-                      + (" " + tr("Give SCENE or SCENES: one of them.") if optional else ""))
-    return parameter
+    return QgsProcessingParameterFile(SCENE, label, extension="",
+                                      fileFilter="Scene files (*.json *.xml *.XML *.txt *.TXT *.rpb *.RPB *.tif "
+                                                 "*.ntf *.jp2);;All files (*)", optional=optional)
 
 
 def scenes() -> QgsProcessingParameterMultipleLayers:
     """SCENES: the scene files of a block (matchtiepoints, importgcps, bundleadjust), the alternative to SCENE."""
-    parameter = QgsProcessingParameterMultipleLayers(SCENES, tr("Scenes of the block (or give one Scene)"),
-                                                     QgsProcessing.TypeFile, optional=True)
-    parameter.setHelp(tr("Several scenes as one block, any files the plugin reads as a scene. A scene's name is its "
-                         "file's stem (without _RPC), or its folder's for onboard_scene.json, true_scene.json, "
-                         "adjusted_scene.json; observations name their scene in a field 'scene'. Give SCENE or "
-                         "SCENES: one of them."))
-    return parameter
+    return QgsProcessingParameterMultipleLayers(SCENES, tr("Scenes of the block (or give one Scene)"),
+                                                QgsProcessing.TypeFile, optional=True)
 
 
 def output_scene(optional: bool = False) -> QgsProcessingParameterFileDestination:
     """OUTPUT_SCENE; optional in the algorithms that take a block's SCENES instead of SCENE (a block
     writes its scenes elsewhere); a run of one scene then writes it to a temporary file."""
-    parameter = QgsProcessingParameterFileDestination(OUTPUT_SCENE, tr("Output scene"),
-                                                      fileFilter="Scene JSON (*.json)", optional=optional)
-    parameter.setHelp(tr("Scene JSON of the sensor model this algorithm makes (the adjusted scene, or the virtual "
-                         "camera of a sensor-corrected image; the algorithm's help says which); every algorithm "
-                         "accepts it as SCENE."))
-    return parameter
+    return QgsProcessingParameterFileDestination(OUTPUT_SCENE, tr("Output scene"), fileFilter="Scene JSON (*.json)",
+                                                 optional=optional)
 
 
 def camera() -> QgsProcessingParameterString:
-    parameter = QgsProcessingParameterString(CAMERA, tr("Camera (name or index)"), optional=True, defaultValue="")
-    parameter.setHelp(tr("For scenes with several cameras (three-line and multi-CCD sensors): the camera's name "
-                         "(e.g. NAD, FWD, BWD) or its 0-based index. Empty: the first camera; when importing "
-                         "GCPs, each point's CAMERA_FIELD value (or the scene's only camera)."))
-    return parameter
+    return QgsProcessingParameterString(CAMERA, tr("Camera (name or index)"), optional=True, defaultValue="")
 
 
 def value_given(value) -> bool:
@@ -326,79 +234,42 @@ def _cloned(parameter, copy):
 
 
 def dem() -> RasterInput:
-    parameter = RasterInput(DEM, tr("Digital elevation model"), optional=True)
-    parameter.setHelp(tr("Raster of terrain heights in metres (datum: DEM_DATUM), in any CRS, covering the whole "
-                         "area the algorithm works on. Leave empty to use the constant HEIGHT instead."))
-    return parameter
+    return RasterInput(DEM, tr("Digital elevation model"), optional=True)
 
 
 def height() -> QgsProcessingParameterNumber:
-    parameter = QgsProcessingParameterNumber(HEIGHT, tr("Constant ellipsoidal height (m) instead of a DEM"),
-                                             type=QgsProcessingParameterNumber.Double, defaultValue=0.0)
-    parameter.setHelp(tr("Height in metres above the WGS84 ellipsoid of a flat terrain, used when no DEM is given "
-                         "(or HEIGHT_SOURCE is constant). Ellipsoidal height = sea-level height + geoid "
-                         "undulation (-106 m to +85 m over the Earth)."))
-    return parameter
+    return QgsProcessingParameterNumber(HEIGHT, tr("Constant ellipsoidal height (m) instead of a DEM"),
+                                        type=QgsProcessingParameterNumber.Double, defaultValue=0.0)
 
 
 def camera_images() -> RasterInputs:
     """INPUTS: one raw image per camera of a scene (orthorectify ALL_CAMERAS, matchtiepoints)."""
-    parameter = RasterInputs(INPUTS, tr("Raw images, one per camera"), optional=True)
-    parameter.setHelp(tr("One raw image per camera of the scene, in the scene's camera order (the log shows which "
-                         "image goes to which camera); each must have its camera's size. Used by orthorectify "
-                         "with ALL_CAMERAS."))
-    return parameter
+    return RasterInputs(INPUTS, tr("Raw images, one per camera"), optional=True)
 
 
 def matching_parameters() -> list[QgsProcessingParameterNumber]:
     """The image matching settings (core.matching.MatchSettings): SPACING, N_POINTS, WINDOW,
     MIN_CORRELATION, SEARCH_RANGE, FINE_RADIUS."""
     number = QgsProcessingParameterNumber
-    out = []
-    for name, label, kind, default, lo, hi, help_text in (
-            (SPACING, tr("Grid spacing (px)"), number.Double, 200.0, 8.0, 1e5,
-             tr("Distance in raw image pixels between the grid points matched (used when N_POINTS is 0).")),
-            (N_POINTS, tr("Number of points (0: use the spacing)"), number.Integer, 0, 0, 10_000_000,
-             tr("About this many grid points, evenly spread over the image; 0: SPACING decides.")),
-            (WINDOW, tr("Matching window (px)"), number.Integer, 31, 9, 257,
-             tr("Side of the square window correlated and fitted by least squares, in raw image pixels (odd). "
-                "Larger: more texture per window (sand, fields), slower. 31 suits 0.5 m Pleiades and 2-5 m "
-                "images alike.")),
-            (MIN_CORRELATION, tr("Quality threshold (correlation)"), number.Double, 0.6, 0.05, 0.99,
-             tr("Matches whose correlation peak is below this value are rejected (clouds, water, changed "
-                "land cover). The second-to-first peak ratio must also be below 0.85.")),
-            (SEARCH_RANGE, tr("Search range (m)"), number.Double, 1000.0, 10.0, 50_000.0,
-             tr("Largest onboard position error looked for, in metres on the ground (for tie points: between "
-                "the images). Searched on a coarse copy first, so a large range costs little; one beyond the "
-                "image is clipped to it (the log says so). If no consistent match is found, try twice the "
-                "expected error.")),
-            (FINE_RADIUS, tr("Fine search radius (px)"), number.Integer, 8, 2, 64,
-             tr("How far, in raw image pixels, each window is searched around the offset the coarse levels "
-                "predict (a clear peak within 3 px is taken first). Larger: follows relief the DEM lacks, but "
-                "meets more repeated texture; smaller: faster."))):
-        parameter = number(name, label, kind, default, minValue=lo, maxValue=hi)
-        parameter.setHelp(help_text)
-        out.append(parameter)
-    return out
+    return [number(name, label, kind, default, minValue=lo, maxValue=hi) for name, label, kind, default, lo, hi in (
+        (SPACING, tr("Grid spacing (px)"), number.Double, 200.0, 8.0, 1e5),
+        (N_POINTS, tr("Number of points (0: use the spacing)"), number.Integer, 0, 0, 10_000_000),
+        (WINDOW, tr("Matching window (px)"), number.Integer, 31, 9, 257),
+        (MIN_CORRELATION, tr("Quality threshold (correlation)"), number.Double, 0.6, 0.05, 0.99),
+        (SEARCH_RANGE, tr("Search range (m)"), number.Double, 1000.0, 10.0, 50_000.0),
+        (FINE_RADIUS, tr("Fine search radius (px)"), number.Integer, 8, 2, 64))]
 
 
 def check_fraction() -> QgsProcessingParameterNumber:
-    parameter = QgsProcessingParameterNumber(CHECK_FRACTION, tr("Share of points made check points"),
-                                             QgsProcessingParameterNumber.Double, 0.0, minValue=0.0, maxValue=1.0)
-    parameter.setHelp(tr("0 to 1: this share of the points gets the role 'check'. Check points are never used "
-                         "in an adjustment; they measure its accuracy."))
-    return parameter
+    return QgsProcessingParameterNumber(CHECK_FRACTION, tr("Share of points made check points"),
+                                        QgsProcessingParameterNumber.Double, 0.0, minValue=0.0, maxValue=1.0)
 
 
 def image_field(name: str) -> QgsProcessingParameterString:
     """COL_FIELD or ROW_FIELD: the name of a table's field (CSV column) holding image coordinates."""
-    axis, default, edge = ("column", "col", "left") if name == COL_FIELD else ("row", "row", "top")
-    parameter = QgsProcessingParameterString(name, tr("Image {axis} field").format(axis=axis), optional=True,
-                                             defaultValue=default)
-    parameter.setHelp(tr("Name of the field (CSV column) holding the image {axis} in pixels, GDAL convention "
-                         "(0 = {edge} edge of the image). Default: '{default}'.").format(axis=axis, edge=edge,
-                                                                                         default=default))
-    return parameter
+    axis, default = ("column", "col") if name == COL_FIELD else ("row", "row")
+    return QgsProcessingParameterString(name, tr("Image {axis} field").format(axis=axis), optional=True,
+                                        defaultValue=default)
 
 
 ID_FIELD, CAMERA_FIELD, SCENE_FIELD, SIGMA_PX = "ID_FIELD", "CAMERA_FIELD", "SCENE_FIELD", "SIGMA_PX"
@@ -407,55 +278,33 @@ SIGMA_FIELDS = {"sigma_px": "SIGMA_PX_FIELD", "sigma_xy": "SIGMA_XY_FIELD", "sig
 
 def id_field() -> QgsProcessingParameterString:
     """ID_FIELD of the point imports: rows with one id are one ground point."""
-    parameter = QgsProcessingParameterString(ID_FIELD, tr("Point id field"), optional=True, defaultValue="")
-    parameter.setHelp(tr("Point id; rows with the same id are one ground point seen in several cameras. Empty: "
-                         "the column/field 'id' when the input has one, else the line number (CSV) or feature id "
-                         "(layer), every row a point of its own (tie points need ids: an error)."))
-    return parameter
+    return QgsProcessingParameterString(ID_FIELD, tr("Point id field"), optional=True, defaultValue="")
 
 
 def camera_field() -> QgsProcessingParameterString:
     """CAMERA_FIELD of the point imports."""
-    parameter = QgsProcessingParameterString(CAMERA_FIELD, tr("Camera field"), optional=True, defaultValue="")
-    parameter.setHelp(tr("Camera name (or 0-based index) of each row, for scenes with several cameras (e.g. "
-                         "CAMERA_FIELD=camera). Empty: the column/field 'camera' when the input has one, else the "
-                         "scene's only camera. A CAMERA parameter, where the algorithm has one, overrides it."))
-    return parameter
+    return QgsProcessingParameterString(CAMERA_FIELD, tr("Camera field"), optional=True, defaultValue="")
 
 
 def scene_field() -> QgsProcessingParameterString:
     """SCENE_FIELD of the point imports: the product of a block each row was measured in."""
-    parameter = QgsProcessingParameterString(SCENE_FIELD, tr("Scene field"), optional=True, defaultValue="")
-    parameter.setHelp(tr("Name of the scene each row was measured in, for the scenes of a block (SCENES of "
-                         "pushbroom:bundleadjust: the scene file's stem, or its folder's name for the layout "
-                         "pushbroom:simulateblock writes), or of a strip (kept for reference). Empty: the "
-                         "column/field 'scene' when the input has one, else none."))
-    return parameter
+    return QgsProcessingParameterString(SCENE_FIELD, tr("Scene field"), optional=True, defaultValue="")
 
 
 def sigma_px() -> QgsProcessingParameterNumber:
     """SIGMA_PX: the image measurement sigma of imported points."""
-    parameter = QgsProcessingParameterNumber(SIGMA_PX, tr("Image measurement sigma (px)"),
-                                             QgsProcessingParameterNumber.Double, DEFAULT_SIGMA_PX, minValue=0.0)
-    parameter.setHelp(tr("A-priori standard deviation of the measured col/row, in pixels."))
-    return parameter
+    return QgsProcessingParameterNumber(SIGMA_PX, tr("Image measurement sigma (px)"),
+                                        QgsProcessingParameterNumber.Double, DEFAULT_SIGMA_PX, minValue=0.0)
 
 
 def sigma_field(key: str) -> QgsProcessingParameterString:
     """SIGMA_PX_FIELD, SIGMA_XY_FIELD or SIGMA_Z_FIELD (``key`` sigma_px, sigma_xy, sigma_z): per-point sigmas."""
     what, unit = {"sigma_px": ("image measurement sigma", "px"), "sigma_xy": ("ground planimetric sigma", "m"),
                   "sigma_z": ("ground height sigma", "m")}[key]
-    parameter = QgsProcessingParameterString(SIGMA_FIELDS[key], tr("Per-point {} field ({})").format(what, unit),
-                                             optional=True, defaultValue="")
-    parameter.setHelp(tr("Field (CSV column or layer field) holding each point's {0} in {1}, so that surveyed "
-                         "and map-digitised points can be mixed; an empty cell takes {2}. Values must be > 0. "
-                         "Empty: every point takes {2}.").format(what, unit, key.replace("sigma_", "SIGMA_").upper()))
-    return parameter
+    return QgsProcessingParameterString(SIGMA_FIELDS[key], tr("Per-point {} field ({})").format(what, unit),
+                                        optional=True, defaultValue="")
 
 
 def image_lines() -> QgsProcessingParameterVectorLayer:
     """IMAGE_LINES: image lines digitised on a raw image (pixel frame)."""
-    parameter = QgsProcessingParameterVectorLayer("IMAGE_LINES", tr("Image lines"), [QgsProcessing.TypeVectorLine])
-    parameter.setHelp(tr("The image lines digitised on the raw image (layer image_lines of 'Prepare digitising'): "
-                         "x = column, y = -row, fields line_id, camera, sigma_px (M values: per-vertex sigmas)."))
-    return parameter
+    return QgsProcessingParameterVectorLayer("IMAGE_LINES", tr("Image lines"), [QgsProcessing.TypeVectorLine])

@@ -211,6 +211,9 @@ def test_installed_zip_enables_and_runs_in_a_fresh_profile(installed, tmp_path):
     helped = run("help", "pushbroom:bundleadjust")
     assert helped.returncode == 0 and page.is_file(), helped.stderr
     assert f'<a href="{page.as_uri()}">' in helped.stdout and "Self-calibrating bundle adjustment" in helped.stdout
+    # and each parameter's help is its entry there, or in docs/parameters.md for a shared one (issue 29)
+    assert "Comma-separated names, 'name=sigma' for a weighted one" in helped.stdout  # INTERIOR, its page
+    assert "The sensor model of the scene: a scene JSON" in helped.stdout  # SCENE, docs/parameters.md
     sim = run_json(run, "pushbroom:simulatescene", SEED=3, N_GCPS=12, OUTPUT_FOLDER=tmp_path / "sim")
     out = tmp_path / "footprint.gpkg"
     run_json(run, "pushbroom:footprint", SCENE=sim["TRUE_SCENE"], DEM=sim["DEM"], DEM_DATUM="geoid", SAMPLES=16,

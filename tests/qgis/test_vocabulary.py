@@ -1,7 +1,7 @@
 """One parameter vocabulary across every algorithm of the provider (issue 15).
 
-A parameter name is one concept: wherever it appears it has the same type, description, help,
-default and, for enumerations, the same named values in the same order. Enumerations take
+A parameter name is one concept: wherever it appears it has the same type, description, help
+(docs/parameters.md; a page may add a sentence for its algorithm), default and, for enumerations, the same named values in the same order. Enumerations take
 value names (static strings), never option numbers; enumerations of the same values list them
 in the same order under any name (the DEM_DATUM/Z_DATUM mismatch of issue 15 was geoid,
 ellipsoid against ellipsoid, geoid). vocabulary_problems() is shown failing on deliberately
@@ -37,13 +37,19 @@ def _signature(definition) -> dict:
 
 
 def _one_scene_words(signature: dict, definition) -> dict:
-    """The description and help SCENE has where there is no SCENES, when ``definition`` has exactly the
-    words of the shared definition with SCENES (ui.parameters.scene(optional=True)); else unchanged."""
+    """The description SCENE has where there is no SCENES, when ``definition`` has exactly the
+    label of the shared definition with SCENES (ui.parameters.scene(optional=True)); else unchanged."""
     vocabulary = importlib.import_module(f"{PLUGIN}.ui.parameters")
-    with_scenes, alone = vocabulary.scene(optional=True), vocabulary.scene()
-    if (definition.description(), definition.help()) != (with_scenes.description(), with_scenes.help()):
+    if definition.description() != vocabulary.scene(optional=True).description():
         return {}
-    return {"description": alone.description(), "help": alone.help()}
+    return {"description": vocabulary.scene().description()}
+
+
+def _added_to(alg) -> set[str]:
+    """The shared parameters to whose help the algorithm's page adds a sentence (its entry links to
+    docs/parameters.md and has a text of its own): their help differs there by design."""
+    help_module = importlib.import_module(f"{PLUGIN}.ui.help")
+    return {e.name for e in help_module.page_entries(help_module.help_page(alg.name())) if e.shared and e.text}
 
 
 def _enumeration_problems(where: str, definition, seen: dict) -> list[str]:
@@ -67,6 +73,7 @@ def vocabulary_problems(algorithms) -> list[str]:
     ordered = sorted(algorithms, key=lambda a: isinstance(a, QgsProcessingModelAlgorithm))  # models last
     for alg in ordered:
         model = isinstance(alg, QgsProcessingModelAlgorithm)
+        added = set() if model else _added_to(alg)
         for definition in alg.parameterDefinitions():
             name, where = definition.name(), f"{alg.id()} {definition.name()}"
             if isinstance(definition, QgsProcessingParameterEnum):
@@ -74,10 +81,12 @@ def vocabulary_problems(algorithms) -> list[str]:
             if name in GENERIC:
                 continue
             signature = _signature(definition)
+            if name in added:  # compared as the shared help it adds to
+                signature["help"] = importlib.import_module(f"{PLUGIN}.ui.help").shared_help(name)
             if name in ("SCENE", "OUTPUT_SCENE") and alg.parameterDefinition("SCENES") is not None:
                 # optional where a block's SCENES may replace it (a block writes its scenes elsewhere), and only there
                 signature["flags"] = int(signature["flags"]) & ~int(QgsProcessingParameterDefinition.FlagOptional)
-                if name == "SCENE":  # there its label and help say that SCENE or SCENES is needed (issue 30)
+                if name == "SCENE":  # there its label and help (the page's addition) say that SCENE or SCENES is needed
                     signature.update(_one_scene_words(signature, definition))
             if name not in first:
                 if not model:
@@ -231,7 +240,7 @@ def test_qgis_process_help_lists_the_value_names(provider, qgis_process):
             section = done.stdout.split(f"\n{d.name()}: ", 1)[1].split("Acceptable values", 1)[0]
             assert "option numbers are refused" in section, (alg.id(), d.name())
             for k, value in enumerate(d.options()):
-                assert f"- {k}: {value}\n" in section and f"<b>{value}</b>: " in section, (alg.id(), value)
+                assert f"- {k}: {value}\n" in section and f" {value}: " in section, (alg.id(), value)
             checked += 1
     assert checked == 30  # every enumeration of every algorithm (DEM_DATUM in ten of them)
 

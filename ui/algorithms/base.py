@@ -1,5 +1,5 @@
 """PushbroomAlgorithm, the base of every algorithm of the provider: id, name, group, icon and help
-from class attributes, parameters with their help texts, output paths, the check of
+from class attributes, parameters with their help from the docs, output paths, the check of
 enumeration values, and the adapter around core calls (a core error becomes a
 QgsProcessingException naming the algorithm's parameter at fault)."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ from qgis.PyQt.QtGui import QIcon
 from ...core.runs.base import Terrain
 from .. import RESOURCES
 from ..feedback import feedback_callbacks, processing_errors, push_lines
-from ..help import help_page, short_help
+from ..help import documented_help, help_page, shared_help, short_help
 from ..inputs import is_raster_input, raster_file, raster_refusal
 from ..parameters import DEM, DEM_DATUM, HEIGHT, enum_refusal, enum_value, tr
 
@@ -19,8 +19,10 @@ from ..parameters import DEM, DEM_DATUM, HEIGHT, enum_refusal, enum_value, tr
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
     """Base of the plugin's algorithms: id, name and group from class attributes, help from the docs.
 
-    shortHelpString() is the summary of docs/algorithms/<ID>.md with a link to it (helpUrl); each
-    parameter's help is its setHelp text (the dialog's tooltip, qgis_process help's argument list).
+    shortHelpString() is the summary of docs/algorithms/<ID>.md, the inputs the dialog shows and the
+    outputs, with a link to the page (helpUrl). Each parameter's help (the dialog's tooltip, qgis_process
+    help's argument list) is its entry in the page's section Parameters, set as it is added
+    (:meth:`addParameter`; ui.help reads the pages).
     NAME and GROUP are English and shown through tr(); GROUP_ID never changes with the language.
     Enumeration values are checked before a run (checkParameterValues): an unknown name or an
     option number is refused with the parameter's value names.
@@ -56,13 +58,20 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return type(self)()
 
     def add_parameter(self, parameter, help_text: str | None = None, advanced: bool = False) -> None:
-        """Add a parameter with its help text (shown in the toolbox and qgis_process help); None keeps
-        the help a shared definition of ui.parameters brings."""
+        """Add a parameter, optionally advanced (a ``help_text`` is used only where the docs page has
+        no entry for it: see :meth:`addParameter`)."""
         if help_text is not None:
             parameter.setHelp(help_text)
         if advanced:
             parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
         self.addParameter(parameter)
+
+    def addParameter(self, definition, createOutput=True):  # noqa: N802 (QGIS API names)
+        """QGIS's addParameter with the parameter's help from the docs: its entry on the algorithm's page,
+        else a help the code still gives, else its entry in docs/parameters.md."""
+        name = definition.name()
+        definition.setHelp(documented_help(self.ID, name, tr) or definition.help() or shared_help(name, tr))
+        return super().addParameter(definition, createOutput)
 
     def show_only(self, *names: str) -> None:
         """Flag every input parameter but ``names`` advanced: the dialog shows ``names`` and the outputs,
@@ -85,7 +94,11 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return path or QgsProcessingUtils.generateTempFilename(temporary_name)
 
     def shortHelpString(self):  # noqa: N802
-        return short_help(self.ID, tr)
+        inputs = [d for d in self.parameterDefinitions() if not d.isDestination()]
+        advanced = QgsProcessingParameterDefinition.FlagAdvanced
+        shown = [(d.description(), d.name()) for d in inputs if not d.flags() & advanced]
+        outputs = [(d.description(), d.name()) for d in self.parameterDefinitions() if d.isDestination()]
+        return short_help(self.ID, tr, shown, len(inputs) - len(shown), outputs)
 
     def helpUrl(self):  # noqa: N802
         return help_page(self.ID).as_uri()

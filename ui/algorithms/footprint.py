@@ -21,16 +21,11 @@ class FootprintAlgorithm(PushbroomAlgorithm):
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
         add_dem_parameters(self)
-        samples = QgsProcessingParameterNumber(self.SAMPLES, tr("Points per image edge"),
-                                               QgsProcessingParameterNumber.Integer, 256, minValue=4,
-                                               maxValue=100000)
-        samples.setHelp(tr("How many intervals each edge of the image is divided into; 256 keeps the outline "
-                           "within centimetres of the true border for usual scenes."))
-        self.addParameter(samples)
-        out = QgsProcessingParameterFeatureSink(self.OUTPUT, tr("Footprints"), QgsProcessing.TypeVectorPolygon)
-        out.setHelp(tr("Polygons (EPSG:4326), one per camera, with fields camera, cols, rows and area_km2 "
-                       "(geodesic area on the WGS84 ellipsoid)."))
-        self.addParameter(out)
+        self.addParameter(QgsProcessingParameterNumber(self.SAMPLES, tr("Points per image edge"),
+                                                       QgsProcessingParameterNumber.Integer, 256, minValue=4,
+                                                       maxValue=100000))
+        self.addParameter(QgsProcessingParameterFeatureSink(self.OUTPUT, tr("Footprints"),
+                                                            QgsProcessing.TypeVectorPolygon))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         result = self.run_core(use_case.run, use_case.FootprintRequest(

@@ -21,20 +21,14 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self)
-        source = QgsProcessingParameterFeatureSource(self.INPUT, tr("Ground points"), [QgsProcessing.TypeVectorPoint])
-        source.setHelp(tr("Point layer in any CRS. Heights come from the points' Z values (see USE_Z), "
-                          "else from the DEM, else from the constant HEIGHT."))
-        self.addParameter(source)
-        use_z = QgsProcessingParameterBoolean(self.USE_Z, tr("Use the points' Z values as heights"),
-                                              defaultValue=True)
-        use_z.setHelp(tr("When checked, points that have a Z value use it as their height (in Z_DATUM, which must "
-                         "then be given); points without Z fall back to the DEM or HEIGHT."))
-        self.addParameter(use_z)
+        self.addParameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("Ground points"),
+                                                              [QgsProcessing.TypeVectorPoint]))
+        self.addParameter(QgsProcessingParameterBoolean(self.USE_Z, tr("Use the points' Z values as heights"),
+                                                        defaultValue=True))
         self.addParameter(z_datum())
         add_dem_parameters(self)
-        out = QgsProcessingParameterFeatureSink(self.OUTPUT, tr("Image points"), QgsProcessing.TypeVectorPoint)
-        out.setHelp(tr("The input features with all their attributes plus col, row (float pixels) and in_image."))
-        self.addParameter(out)
+        self.addParameter(QgsProcessingParameterFeatureSink(self.OUTPUT, tr("Image points"),
+                                                            QgsProcessing.TypeVectorPoint))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         source, features = source_and_features(self, parameters, context, self.INPUT)

@@ -25,18 +25,13 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self)
-        source = QgsProcessingParameterFeatureSource(self.INPUT, tr("Image points (table or layer)"),
-                                                     [QgsProcessing.TypeVector])
-        source.setHelp(tr("Any table or layer (CSV, GeoPackage, ...) with numeric column and row fields; its "
-                          "geometry, if any, is ignored."))
-        self.addParameter(source)
+        self.addParameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("Image points (table or layer)"),
+                                                              [QgsProcessing.TypeVector]))
         for name in (self.COL_FIELD, self.ROW_FIELD):
             self.addParameter(image_field(name))
         add_dem_parameters(self)
-        out = QgsProcessingParameterFeatureSink(self.OUTPUT, tr("Ground points"), QgsProcessing.TypeVectorPoint)
-        out.setHelp(tr("Points in EPSG:4979 with the input attributes plus lon, lat (degrees) and h_ellipsoid "
-                       "(m)."))
-        self.addParameter(out)
+        self.addParameter(QgsProcessingParameterFeatureSink(self.OUTPUT, tr("Ground points"),
+                                                            QgsProcessing.TypeVectorPoint))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         source, features = source_and_features(self, parameters, context, self.INPUT)

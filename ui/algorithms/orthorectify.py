@@ -30,41 +30,25 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                        use_case.ORTHO_FOLDER: ORTHO_FOLDER}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(RasterInput(self.INPUT, tr("Raw image"), optional=True),
-                  tr("The scene's raw image (any GDAL format, any number of bands and data type), of the size the "
-                  "scene's camera images, without georeferencing. Required unless ALL_CAMERAS."))
-        self.add_parameter(QgsProcessingParameterBoolean(self.ALL_CAMERAS, tr("Every camera of the scene"), False,
-                                                         optional=True),
-                  tr("Orthorectify every camera of the scene (and every scene of a strip) in one run, from INPUTS "
-                     "into ORTHO_FOLDER; CAMERA, INPUT and OUTPUT are then not used."))
+        self.addParameter(RasterInput(self.INPUT, tr("Raw image"), optional=True))
+        self.addParameter(QgsProcessingParameterBoolean(self.ALL_CAMERAS, tr("Every camera of the scene"), False,
+                                                        optional=True))
         self.addParameter(camera_images())
         add_scene_parameters(self)
         add_dem_parameters(self)
-        self.add_parameter(QgsProcessingParameterCrs(self.CRS_PARAM, tr("Output CRS"), optional=True),
-                  tr("Projected CRS of the orthoimage. Empty: the WGS84 UTM zone of the scene's centre."))
-        self.add_parameter(QgsProcessingParameterNumber(self.RESOLUTION, tr("Pixel size (m)"),
-                                                        QgsProcessingParameterNumber.Double, optional=True,
-                                                        minValue=0.0),
-                  tr("Output pixel size in the CRS's units (metres). Empty or 0: the ground sample distance at the "
-                     "image centre."))
+        self.addParameter(QgsProcessingParameterCrs(self.CRS_PARAM, tr("Output CRS"), optional=True))
+        self.addParameter(QgsProcessingParameterNumber(self.RESOLUTION, tr("Pixel size (m)"),
+                                                       QgsProcessingParameterNumber.Double, optional=True,
+                                                       minValue=0.0))
         self.addParameter(resampling())
-        self.add_parameter(QgsProcessingParameterNumber(self.NODATA, tr("Nodata value"),
-                                                        QgsProcessingParameterNumber.Double, 0.0),
-                           tr("Value of output pixels the image does not cover (and nodata in the GeoTIFF)."))
-        self.add_parameter(QgsProcessingParameterExtent(self.EXTENT, tr("Extent"), optional=True),
-                  tr("Part of the scene to produce (any CRS). Empty: the whole footprint of the image on the DEM."),
-                  advanced=True)
-        self.add_parameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Orthoimage"), optional=True),
-                  tr("GeoTIFF (tiled 512 x 512, DEFLATE, overviews, nodata set). Not used with ALL_CAMERAS."))
-        self.add_parameter(QgsProcessingParameterFolderDestination(self.ORTHO_FOLDER, tr("Folder of the orthoimages"),
-                                                                   optional=True),
-                  tr("With ALL_CAMERAS: the folder (created when its parent exists) the orthoimages are written "
-                     "to, ortho_<CAMERA>.tif or, for a strip, ortho_<CAMERA>_s<k>.tif; files of those names there "
-                     "are replaced."))
+        self.addParameter(QgsProcessingParameterNumber(self.NODATA, tr("Nodata value"),
+                                                       QgsProcessingParameterNumber.Double, 0.0))
+        self.add_parameter(QgsProcessingParameterExtent(self.EXTENT, tr("Extent"), optional=True), advanced=True)
+        self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Orthoimage"), optional=True))
+        self.addParameter(QgsProcessingParameterFolderDestination(self.ORTHO_FOLDER, tr("Folder of the orthoimages"),
+                                                                  optional=True))
         self.add_parameter(QgsProcessingParameterString(self.SCHEDULER, tr("Dask scheduler address"), optional=True),
-                  tr("Empty (default): the tiles run on this machine's cores. An address such as tcp://host:8786: "
-                     "on that Dask distributed cluster, whose workers import this plugin and reach the files at "
-                     "the same paths; the output is the same bytes (docs page)."), advanced=True)
+                           advanced=True)
         self.addOutput(QgsProcessingOutputMultipleLayers(self.ORTHOIMAGES, tr("Orthoimages (ALL_CAMERAS)")))
         self.show_only(self.INPUT, "ALL_CAMERAS", "INPUTS", "SCENE", "CAMERA", "DEM", "HEIGHT", self.CRS_PARAM)
 

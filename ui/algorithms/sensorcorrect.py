@@ -24,15 +24,11 @@ class SensorCorrectAlgorithm(PushbroomAlgorithm):
     CORE_PARAMETERS = {"scene": SCENE, "camera": CAMERA, "dem": DEM, use_case.IMAGE: INPUT, use_case.OUTPUT: OUTPUT}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(RasterInput(self.INPUT, tr("Raw image (one camera)")),
-                           tr("The raw image of the camera CAMERA of SCENE (any GDAL format, any bands and data "
-                              "type), of the size that camera images."))
+        self.addParameter(RasterInput(self.INPUT, tr("Raw image (one camera)")))
         add_scene_parameters(self)
         add_dem_parameters(self)
         self.addParameter(resampling())
-        self.add_parameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Sensor-corrected image")),
-                           tr("GeoTIFF (.tif) of the sensor-corrected image; <name>_RPC.TXT, its report "
-                              "<name>_RPC.TXT.json and <name>.vrt are written beside it."))
+        self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Sensor-corrected image")))
         self.addParameter(output_scene())
         self.addOutput(QgsProcessingOutputFile(self.RPC, tr("RPC of the sensor-corrected image (_RPC.TXT)")))
         self.addOutput(QgsProcessingOutputFile(self.REPORT, tr("RPC fit report (JSON)")))
