@@ -14,13 +14,15 @@ User-visible texts go through :func:`tr` (one translation context for the whole 
 """
 from __future__ import annotations
 
-from qgis.core import (NULL, QgsProcessing, QgsProcessingException, QgsProcessingParameterDefinition,
-                       QgsProcessingParameterEnum, QgsProcessingParameterFile,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterMultipleLayers,
+from qgis.core import (NULL, QgsProcessing, QgsProcessingException, QgsProcessingParameterBoolean,
+                       QgsProcessingParameterDefinition, QgsProcessingParameterEnum, QgsProcessingParameterFile,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterFolderDestination,
+                       QgsProcessingParameterMatrix, QgsProcessingParameterMultipleLayers,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
-                       QgsProcessingParameterVectorLayer, QgsProperty)
+                       QgsProcessingParameterVectorDestination, QgsProcessingParameterVectorLayer, QgsProperty)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
+from ..core.adjust.scenesigmas import HEADERS as SIGMA_HEADERS
 from ..core.observations.gcps import DEFAULT_SIGMA_PX
 from ..core.products.resampling import RESAMPLING as CORE_RESAMPLING
 from ..simulation.presets import PRESETS
@@ -459,3 +461,108 @@ def image_lines() -> QgsProcessingParameterVectorLayer:
     parameter.setHelp(tr("The image lines digitised on the raw image (layer image_lines of 'Prepare digitising'): "
                          "x = column, y = -row, fields line_id, camera, sigma_px (M values: per-vertex sigmas)."))
     return parameter
+
+
+# --- a block adjustment's own parameters (bundleadjust with SCENES) ------------------------
+SCENE_SIGMAS, BLOCK_FOLDER, WRITE_RPCS = "SCENE_SIGMAS", "OUTPUT_FOLDER", "WRITE_RPCS"
+
+
+def scene_sigmas() -> QgsProcessingParameterMatrix:
+    """SCENE_SIGMAS: each block scene's own sigmas, a matrix of any number of rows (read by
+    :func:`core.adjust.scenesigmas.read_scene_sigmas`); optional."""
+    parameter = QgsProcessingParameterMatrix(SCENE_SIGMAS, tr("Per-scene onboard / vendor sigmas (block)"),
+                                             numberRows=0, hasFixedNumberRows=False, headers=list(SIGMA_HEADERS),
+                                             optional=True)
+    parameter.setHelp(tr("Optional, with SCENES: each scene's own onboard or vendor accuracy. One row per scene: "
+                         "scene (as SCENES names it), position_sigma_m, attitude_sigma_arcsec, rpc_sigma_px; an "
+                         "empty cell keeps the global value, which must be given. qgis_process: "
+                         "SCENE_SIGMAS=old,,60, (docs page)."))
+    return parameter
+
+
+def block_folder() -> QgsProcessingParameterFolderDestination:
+    """OUTPUT_FOLDER of a block adjustment (its files: :mod:`core.runs.blockadjust`)."""
+    parameter = QgsProcessingParameterFolderDestination(BLOCK_FOLDER, tr("Block output folder"), optional=True)
+    parameter.setHelp(tr("With SCENES: the folder (created if missing) the block's outputs go to, every file or "
+                         "none: <name>_adjusted.json per scene, block_report.html/.json, adjusted_gcps.gpkg, "
+                         "adjusted_tie_points.gpkg, line_residuals.gpkg (docs page). Files of these names are "
+                         "replaced. Empty: a temporary folder."))
+    return parameter
+
+
+def write_rpcs() -> QgsProcessingParameterBoolean:
+    """WRITE_RPCS: a refined RPC of each image of a block; optional, so that graphical models saved
+    before it need no value for it."""
+    parameter = QgsProcessingParameterBoolean(WRITE_RPCS, tr("Refined RPC of each image (block)"),
+                                              defaultValue=False, optional=True)
+    parameter.setHelp(tr("With SCENES: also write into OUTPUT_FOLDER an RPC00B fitted to each adjusted rigorous "
+                         "scene, <name>_RPC.TXT (<name>_<CAMERA>_RPC.TXT for several cameras) with its fit check "
+                         "(.json), and an RPC product's refined RPC; copy it beside the image as <image>_RPC.TXT."))
+    parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+    return parameter
+
+
+def trajectory_parameters(block: str, what: str, order: int, sigma: float | None, unit: str, sigma_help: str,
+                          sigma_range: tuple[float, float]) -> list:
+    """bundleadjust's parameters of the trajectory correction ``block`` ('POSITION', 'ATTITUDE'): its
+    model, polynomial order, knot interval and onboard sigma (default ``sigma``, plausible from
+    ``sigma_range`` (low, high) in ``unit``)."""
+    title, number = tr(what).capitalize(), QgsProcessingParameterNumber
+    order_p = number(f"{block}_ORDER", tr("{what} polynomial order").format(what=title), number.Integer, order,
+                     minValue=0, maxValue=2)
+    order_p.setHelp(tr("0: bias, 1: bias and drift, 2: also a quadratic term (polynomial model only)."))
+    interval = number(f"{block}_INTERVAL", tr("{what} knot interval (s)").format(what=title), number.Double, 20.0,
+                      minValue=0.01)
+    interval.setHelp(tr("Seconds between orientation images or knots (lagrange and spline models). Shorter intervals "
+                        "follow faster motion but let position and attitude trade off (Zheng et al. 2015, Fig. 7-11)."))
+    low, high = sigma_range
+    onboard = number(f"{block}_SIGMA", tr("Onboard {what} sigma ({unit})").format(what=tr(what), unit=unit),
+                     number.Double, sigma, optional=True, minValue=0.0, maxValue=high)
+    onboard.setHelp(tr(sigma_help) + " " + tr("Otherwise from {low:g} to {high:g} {unit}.").format(low=low, high=high,
+                                                                                                unit=unit))
+    return [trajectory_model(f"{block}_MODEL", tr(what)), order_p, interval, onboard]
+
+
+def matrix_texts(alg, parameters, name: str, context) -> tuple[str, ...]:
+    """The values of matrix parameter ``name`` as stripped texts, row by row (() when not given: a NULL,
+    an empty text or list); a whole number's text without '.0' (a scene named '2021' read back as 2021.0)."""
+    if name not in parameters:
+        return ()
+    values = [int(v) if isinstance(v, float) and v.is_integer() else v
+              for v in alg.parameterAsMatrix(parameters, name, context)]
+    texts = tuple("" if v is None or v == NULL else str(v).strip() for v in values)
+    return texts if any(texts) else ()
+
+
+def adjustment_outputs() -> list:
+    """bundleadjust's outputs of one scene after OUTPUT_SCENE, in order: the report, the adjusted GCP
+    layer, the residual vectors, the adjusted tie points, the refined RPC and the line residuals."""
+    report = QgsProcessingParameterFileDestination("OUTPUT_REPORT", tr("Report (HTML)"), fileFilter="HTML (*.html)",
+                                                   optional=True)
+    report.setHelp(tr("Optional. A report to read: accuracy before/after, decisions, parameters, plots. The same "
+                      "figures as JSON go beside it (same name, .json)."))
+    rpc = QgsProcessingParameterFileDestination("OUTPUT_RPC", tr("Refined RPC (RPC scenes)"),
+                                                fileFilter="RPC text (*_RPC.TXT)", optional=True)
+    rpc.setHelp(tr("Optional, for a SCENE given by its RPC: the RPC with the adjusted correction in it, as "
+                   "<image>_RPC.TXT, which GDAL and QGIS read for <image>.tif beside it (a correction mixing rows "
+                   "and columns refitted, about 1e-5 px)."))
+    layers = []
+    for name, label, kind, text in (
+            ("OUTPUT_GCPS", "Adjusted GCPs", QgsProcessing.TypeVectorPoint, "Optional. GeoPackage of the input points "
+             "with the adjusted residuals (res_col, res_row, res_px, res_m), normalised residuals w_col/w_row, "
+             "redundancy, weight and flagged (1 = gross error)."),
+            ("OUTPUT_RESIDUALS", "Residual vectors", QgsProcessing.TypeVectorLine, "Optional. GeoPackage of lines "
+             "from each GCP along its ground residual, exaggerated RESIDUAL_SCALE times (res_m holds the true "
+             "length)."),
+            ("OUTPUT_TIE_POINTS", "Adjusted tie points", QgsProcessing.TypeVectorPoint, "Optional, with TIE_POINTS. "
+             "Point layer (EPSG:4979), one feature per tie observation at its point's adjusted ground position: id, "
+             "camera, col, row, res_col, res_row, res_px (px), w_col, w_row, weight, flagged (1 = gross error)."),
+            ("OUTPUT_LINE_RESIDUALS", "Line residuals", QgsProcessing.TypeVectorPoint, "GeoPackage with layer "
+             "line_points (each image-line point at its adjusted ground, its image residual and across-line offset "
+             "in m) and ground_lines (per line RMS and max across-line offset, flagged = 1 for lines named wrong).")):
+        layer = QgsProcessingParameterVectorDestination(name, tr(label), kind, optional=True,
+                                                        createByDefault=name != "OUTPUT_LINE_RESIDUALS")
+        layer.setSupportsNonFileBasedOutput(False)
+        layer.setHelp(tr(text))
+        layers.append(layer)
+    return [report, *layers[:3], rpc, layers[3]]
