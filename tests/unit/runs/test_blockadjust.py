@@ -71,10 +71,11 @@ def test_the_block_written_is_the_core_s_and_near_the_truth(block, tmp_path):
     assert 0.7 < report["block"]["sigma0"] < 1.3 and report["block"]["tie_rmse_px"] < 0.5
     assert json.loads((folder / "block_report.json").read_text())["block"]["sigma0"] == pytest.approx(
         report["block"]["sigma0"])
-    # the written scenes against the truth (49 check ground points): Measured, onboard 22-24 px
+    # the written scenes against the truth (49 check ground points): Measured, onboard 22.5, 23.3, 24.2 px,
+    # adjusted 0.12, 0.10, 0.13 px; sigma0 0.95, tie RMS 0.33 px
     for name, path in zip(("S1", "S2", "S3"), scenes):
         onboard, adjusted = sim.check_px(name, sim.onboard[name]), sim.check_px(name, load_scene(path))
-        assert onboard > 10.0 and adjusted < 0.25 * onboard, (name, onboard, adjusted)
+        assert onboard > 20.0 and adjusted < 0.25, (name, onboard, adjusted)
     texts = [line.text for line in result.lines]
     assert [t for t in texts if t.startswith("scene S")][:3] == [f"scene {n}: {p}" for n, p in block["files"].items()]
 

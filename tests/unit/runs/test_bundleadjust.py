@@ -70,11 +70,11 @@ def test_the_adjusted_scene_written_is_the_core_s_and_near_the_truth(scene, tmp_
     report = result.figures["report"]
     assert report["sigma0"] == direct.report["sigma0"] and 0.7 < report["sigma0"] < 1.3
     assert json.loads((tmp_path / "report.json").read_text())["sigma0"] == pytest.approx(report["sigma0"])
-    # the written scene against the truth: Measured, lattice RMS 0.07 px after, 34 px onboard
+    # the written scene against the truth: Measured, lattice RMS 19.9 px onboard, 0.21 px adjusted; sigma0 0.87
     true = load_scene(scene["sim"].true_scene)
     before, after = lattice_px(true, load_scene(scene["sim"].onboard_scene)), lattice_px(true, load_scene(outputs[
         "OUTPUT_SCENE"]))
-    assert before > 10.0 and after < 0.5, (before, after)
+    assert before > 15.0 and after < 0.4, (before, after)
     texts = [line.text for line in result.lines]
     n_ties = len(tiepoints.read_csv(scene["ties"]))
     assert f"{n_ties} tie observations from {scene['ties']}" in texts
