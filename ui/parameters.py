@@ -467,39 +467,42 @@ def image_lines() -> QgsProcessingParameterVectorLayer:
 SCENE_SIGMAS, BLOCK_FOLDER, WRITE_RPCS = "SCENE_SIGMAS", "OUTPUT_FOLDER", "WRITE_RPCS"
 
 
+def helped(parameter, text: str, advanced: bool = False):
+    """``parameter`` with its help ``text`` (and flagged advanced)."""
+    parameter.setHelp(text)
+    if advanced:
+        parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+    return parameter
+
+
 def scene_sigmas() -> QgsProcessingParameterMatrix:
     """SCENE_SIGMAS: each block scene's own sigmas, a matrix of any number of rows (read by
     :func:`core.adjust.scenesigmas.read_scene_sigmas`); optional."""
-    parameter = QgsProcessingParameterMatrix(SCENE_SIGMAS, tr("Per-scene onboard / vendor sigmas (block)"),
-                                             numberRows=0, hasFixedNumberRows=False, headers=list(SIGMA_HEADERS),
-                                             optional=True)
-    parameter.setHelp(tr("Optional, with SCENES: each scene's own onboard or vendor accuracy. One row per scene: "
-                         "scene (as SCENES names it), position_sigma_m, attitude_sigma_arcsec, rpc_sigma_px; an "
-                         "empty cell keeps the global value, which must be given. qgis_process: "
-                         "SCENE_SIGMAS=old,,60, (docs page)."))
-    return parameter
+    return helped(QgsProcessingParameterMatrix(SCENE_SIGMAS, tr("Per-scene onboard / vendor sigmas (block)"),
+                                               numberRows=0, hasFixedNumberRows=False, headers=list(SIGMA_HEADERS),
+                                               optional=True),
+                  tr("Optional, with SCENES: each scene's own onboard or vendor accuracy. One row per scene: scene (as "
+                     "SCENES names it), position_sigma_m, attitude_sigma_arcsec, rpc_sigma_px; an empty cell keeps "
+                     "the global value, which must be given. qgis_process: SCENE_SIGMAS=old,,60, (docs page)."))
 
 
 def block_folder() -> QgsProcessingParameterFolderDestination:
     """OUTPUT_FOLDER of a block adjustment (its files: :mod:`core.runs.blockadjust`)."""
-    parameter = QgsProcessingParameterFolderDestination(BLOCK_FOLDER, tr("Block output folder"), optional=True)
-    parameter.setHelp(tr("With SCENES: the folder (created if missing) the block's outputs go to, every file or "
-                         "none: <name>_adjusted.json per scene, block_report.html/.json, adjusted_gcps.gpkg, "
-                         "adjusted_tie_points.gpkg, line_residuals.gpkg (docs page). Files of these names are "
-                         "replaced. Empty: a temporary folder."))
-    return parameter
+    return helped(QgsProcessingParameterFolderDestination(BLOCK_FOLDER, tr("Block output folder"), optional=True),
+                  tr("With SCENES: the folder (created if missing) the block's outputs go to, every file or none: "
+                     "<name>_adjusted.json per scene, block_report.html/.json, adjusted_gcps.gpkg, "
+                     "adjusted_tie_points.gpkg, line_residuals.gpkg (docs page). Files of these names are replaced. "
+                     "Empty: a temporary folder."))
 
 
 def write_rpcs() -> QgsProcessingParameterBoolean:
     """WRITE_RPCS: a refined RPC of each image of a block; optional, so that graphical models saved
     before it need no value for it."""
-    parameter = QgsProcessingParameterBoolean(WRITE_RPCS, tr("Refined RPC of each image (block)"),
-                                              defaultValue=False, optional=True)
-    parameter.setHelp(tr("With SCENES: also write into OUTPUT_FOLDER an RPC00B fitted to each adjusted rigorous "
-                         "scene, <name>_RPC.TXT (<name>_<CAMERA>_RPC.TXT for several cameras) with its fit check "
-                         "(.json), and an RPC product's refined RPC; copy it beside the image as <image>_RPC.TXT."))
-    parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-    return parameter
+    return helped(QgsProcessingParameterBoolean(WRITE_RPCS, tr("Refined RPC of each image (block)"),
+                                                defaultValue=False, optional=True),
+                  tr("With SCENES: also write into OUTPUT_FOLDER an RPC00B fitted to each adjusted rigorous scene, "
+                     "<name>_RPC.TXT (<name>_<CAMERA>_RPC.TXT for several cameras) with its fit check (.json), and "
+                     "an RPC product's refined RPC; copy it beside the image as <image>_RPC.TXT."), advanced=True)
 
 
 def trajectory_parameters(block: str, what: str, order: int, sigma: float | None, unit: str, sigma_help: str,
@@ -508,19 +511,19 @@ def trajectory_parameters(block: str, what: str, order: int, sigma: float | None
     model, polynomial order, knot interval and onboard sigma (default ``sigma``, plausible from
     ``sigma_range`` (low, high) in ``unit``)."""
     title, number = tr(what).capitalize(), QgsProcessingParameterNumber
-    order_p = number(f"{block}_ORDER", tr("{what} polynomial order").format(what=title), number.Integer, order,
-                     minValue=0, maxValue=2)
-    order_p.setHelp(tr("0: bias, 1: bias and drift, 2: also a quadratic term (polynomial model only)."))
-    interval = number(f"{block}_INTERVAL", tr("{what} knot interval (s)").format(what=title), number.Double, 20.0,
-                      minValue=0.01)
-    interval.setHelp(tr("Seconds between orientation images or knots (lagrange and spline models). Shorter intervals "
-                        "follow faster motion but let position and attitude trade off (Zheng et al. 2015, Fig. 7-11)."))
     low, high = sigma_range
-    onboard = number(f"{block}_SIGMA", tr("Onboard {what} sigma ({unit})").format(what=tr(what), unit=unit),
-                     number.Double, sigma, optional=True, minValue=0.0, maxValue=high)
-    onboard.setHelp(tr(sigma_help) + " " + tr("Otherwise from {low:g} to {high:g} {unit}.").format(low=low, high=high,
-                                                                                                unit=unit))
-    return [trajectory_model(f"{block}_MODEL", tr(what)), order_p, interval, onboard]
+    return [trajectory_model(f"{block}_MODEL", tr(what)),
+            helped(number(f"{block}_ORDER", tr("{what} polynomial order").format(what=title), number.Integer, order,
+                          minValue=0, maxValue=2),
+                   tr("0: bias, 1: bias and drift, 2: also a quadratic term (polynomial model only).")),
+            helped(number(f"{block}_INTERVAL", tr("{what} knot interval (s)").format(what=title), number.Double, 20.0,
+                          minValue=0.01),
+                   tr("Seconds between orientation images or knots (lagrange and spline models). Shorter intervals "
+                      "follow faster motion but let position and attitude trade off (Zheng et al. 2015, Fig. 7-11).")),
+            helped(number(f"{block}_SIGMA", tr("Onboard {what} sigma ({unit})").format(what=tr(what), unit=unit),
+                          number.Double, sigma, optional=True, minValue=0.0, maxValue=high),
+                   tr(sigma_help) + " " + tr("Otherwise from {low:g} to {high:g} {unit}.").format(low=low, high=high,
+                                                                                               unit=unit))]
 
 
 def matrix_texts(alg, parameters, name: str, context) -> tuple[str, ...]:
@@ -537,15 +540,15 @@ def matrix_texts(alg, parameters, name: str, context) -> tuple[str, ...]:
 def adjustment_outputs() -> list:
     """bundleadjust's outputs of one scene after OUTPUT_SCENE, in order: the report, the adjusted GCP
     layer, the residual vectors, the adjusted tie points, the refined RPC and the line residuals."""
-    report = QgsProcessingParameterFileDestination("OUTPUT_REPORT", tr("Report (HTML)"), fileFilter="HTML (*.html)",
-                                                   optional=True)
-    report.setHelp(tr("Optional. A report to read: accuracy before/after, decisions, parameters, plots. The same "
-                      "figures as JSON go beside it (same name, .json)."))
-    rpc = QgsProcessingParameterFileDestination("OUTPUT_RPC", tr("Refined RPC (RPC scenes)"),
-                                                fileFilter="RPC text (*_RPC.TXT)", optional=True)
-    rpc.setHelp(tr("Optional, for a SCENE given by its RPC: the RPC with the adjusted correction in it, as "
-                   "<image>_RPC.TXT, which GDAL and QGIS read for <image>.tif beside it (a correction mixing rows "
-                   "and columns refitted, about 1e-5 px)."))
+    report = helped(QgsProcessingParameterFileDestination("OUTPUT_REPORT", tr("Report (HTML)"),
+                                                          fileFilter="HTML (*.html)", optional=True),
+                    tr("Optional. A report to read: accuracy before/after, decisions, parameters, plots. The same "
+                       "figures as JSON go beside it (same name, .json)."))
+    rpc = helped(QgsProcessingParameterFileDestination("OUTPUT_RPC", tr("Refined RPC (RPC scenes)"),
+                                                       fileFilter="RPC text (*_RPC.TXT)", optional=True),
+                 tr("Optional, for a SCENE given by its RPC: the RPC with the adjusted correction in it, as "
+                    "<image>_RPC.TXT, which GDAL and QGIS read for <image>.tif beside it (a correction mixing rows "
+                    "and columns refitted, about 1e-5 px)."))
     layers = []
     for name, label, kind, text in (
             ("OUTPUT_GCPS", "Adjusted GCPs", QgsProcessing.TypeVectorPoint, "Optional. GeoPackage of the input points "
@@ -563,6 +566,5 @@ def adjustment_outputs() -> list:
         layer = QgsProcessingParameterVectorDestination(name, tr(label), kind, optional=True,
                                                         createByDefault=name != "OUTPUT_LINE_RESIDUALS")
         layer.setSupportsNonFileBasedOutput(False)
-        layer.setHelp(tr(text))
-        layers.append(layer)
+        layers.append(helped(layer, tr(text)))
     return [report, *layers[:3], rpc, layers[3]]
