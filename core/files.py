@@ -146,6 +146,26 @@ def check_folder_destination(folder, parameter: str = "") -> None:
         raise OutputError(f"{prefix}cannot write into {folder}: folder {existing} is not writable")
 
 
+@contextmanager
+def new_folder(folder: Path):
+    """Create ``folder`` (and missing parents) for the ``with`` block; remove the ones it created,
+    if still empty, when the block raises."""
+    created = [p for p in (folder, *folder.parents) if not p.exists()]
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create the folder {folder}: {exc.strerror or exc}") from None
+    try:
+        yield
+    except BaseException:
+        for p in created:  # deepest first
+            try:
+                p.rmdir()
+            except OSError:
+                break
+        raise
+
+
 def check_outputs(inputs: Mapping[str, Iterable], outputs: Mapping[str, Sequence]) -> None:
     """Refuse, before any work, outputs that would replace an input or each other, and
     destinations that cannot be written.

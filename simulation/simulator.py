@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import json
 import logging
-from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -46,7 +45,7 @@ import numpy as np
 
 from ..core.dem import Dem
 from ..core.errors import Cancelled, InputError
-from ..core.files import OutputError, atomic_outputs, check_folder_destination, write_text
+from ..core.files import OutputError, atomic_outputs, check_folder_destination, new_folder, write_text
 from ..core.formats.scene_json import save_scene
 from .geometry import EPOCH, build_scenes, scene_bounds
 from .measurements import GCP_COLUMNS, TIE_COLUMNS, GcpSettings, gcp_columns, tie_columns, write_csv
@@ -112,26 +111,6 @@ def simulate(preset: "str | Preset", folder, seed: int = 0, n_scenes: int = 1, n
     check_folder(folder, output_names(spec, settings, render) + ([LINES_FILE, POINTS_FILE] if roads.n_lines else []))
     with new_folder(folder):
         return _simulate(spec, folder, seed, int(n_scenes), render, errors, settings, report, cancelled, roads)
-
-
-@contextmanager
-def new_folder(folder: Path):
-    """Create ``folder`` (and missing parents) for the ``with`` block; remove the ones it created,
-    if still empty, when the block raises."""
-    created = [p for p in (folder, *folder.parents) if not p.exists()]
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot create the folder {folder}: {exc.strerror or exc}") from None
-    try:
-        yield
-    except BaseException:
-        for p in created:  # deepest first
-            try:
-                p.rmdir()
-            except OSError:
-                break
-        raise
 
 
 def _simulate(spec: Preset, folder: Path, seed: int, n_scenes: int, render: bool, errors: ErrorSettings,

@@ -15,13 +15,15 @@ User-visible texts go through :func:`tr` (one translation context for the whole 
 """
 from __future__ import annotations
 
-from qgis.core import (NULL, QgsProcessing, QgsProcessingException, QgsProcessingParameterDefinition,
-                       QgsProcessingParameterEnum, QgsProcessingParameterFile,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterMultipleLayers,
+from qgis.core import (NULL, QgsProcessing, QgsProcessingException, QgsProcessingParameterBoolean,
+                       QgsProcessingParameterDefinition, QgsProcessingParameterEnum, QgsProcessingParameterFile,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterFolderDestination,
+                       QgsProcessingParameterMatrix, QgsProcessingParameterMultipleLayers,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterLayer, QgsProcessingParameterString,
-                       QgsProcessingParameterVectorLayer, QgsProperty)
+                       QgsProcessingParameterVectorDestination, QgsProcessingParameterVectorLayer, QgsProperty)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
+from ..core.adjust.scenesigmas import HEADERS as SIGMA_HEADERS
 from ..core.observations.gcps import DEFAULT_SIGMA_PX
 from ..core.products.resampling import RESAMPLING as CORE_RESAMPLING
 from ..simulation.presets import PRESETS
@@ -308,3 +310,73 @@ def sigma_field(key: str) -> QgsProcessingParameterString:
 def image_lines() -> QgsProcessingParameterVectorLayer:
     """IMAGE_LINES: image lines digitised on a raw image (pixel frame)."""
     return QgsProcessingParameterVectorLayer("IMAGE_LINES", tr("Image lines"), [QgsProcessing.TypeVectorLine])
+
+
+# --- a block adjustment's own parameters (bundleadjust with SCENES) ------------------------
+# Their help, as every parameter's, is in docs/algorithms/bundleadjust.md (ui.help).
+SCENE_SIGMAS, BLOCK_FOLDER, WRITE_RPCS = "SCENE_SIGMAS", "OUTPUT_FOLDER", "WRITE_RPCS"
+UNITS = {"POSITION": "m", "ATTITUDE": "arcsec"}  # of the onboard sigmas
+
+
+def scene_sigmas() -> QgsProcessingParameterMatrix:
+    """SCENE_SIGMAS: each block scene's own sigmas, a matrix of any number of rows (read by
+    :func:`core.adjust.scenesigmas.read_scene_sigmas`); optional."""
+    return QgsProcessingParameterMatrix(SCENE_SIGMAS, tr("Per-scene onboard / vendor sigmas (block)"), numberRows=0,
+                                        hasFixedNumberRows=False, headers=list(SIGMA_HEADERS), optional=True)
+
+
+def block_folder() -> QgsProcessingParameterFolderDestination:
+    """OUTPUT_FOLDER of a block adjustment (its files: :mod:`core.runs.blockadjust`)."""
+    return QgsProcessingParameterFolderDestination(BLOCK_FOLDER, tr("Block output folder"), optional=True)
+
+
+def write_rpcs() -> QgsProcessingParameterBoolean:
+    """WRITE_RPCS: a refined RPC of each image of a block; advanced, and optional so that graphical
+    models saved before it need no value for it."""
+    parameter = QgsProcessingParameterBoolean(WRITE_RPCS, tr("Refined RPC of each image (block)"), defaultValue=False,
+                                              optional=True)
+    parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+    return parameter
+
+
+def trajectory_parameters(block: str, what: str, order: int, sigma: float | None, high: float) -> list:
+    """bundleadjust's parameters of the trajectory correction ``block`` ('POSITION', 'ATTITUDE'): its
+    model, polynomial order, knot interval and onboard sigma (default ``sigma``, at most ``high``)."""
+    title, number = tr(what).capitalize(), QgsProcessingParameterNumber
+    return [trajectory_model(f"{block}_MODEL", tr(what)),
+            number(f"{block}_ORDER", tr("{what} polynomial order").format(what=title), number.Integer, order,
+                   minValue=0, maxValue=2),
+            number(f"{block}_INTERVAL", tr("{what} knot interval (s)").format(what=title), number.Double, 20.0,
+                   minValue=0.01),
+            number(f"{block}_SIGMA", tr("Onboard {what} sigma ({unit})").format(what=tr(what), unit=UNITS[block]),
+                   number.Double, sigma, optional=True, minValue=0.0, maxValue=high)]
+
+
+def matrix_texts(alg, parameters, name: str, context) -> tuple[str, ...]:
+    """The values of matrix parameter ``name`` as stripped texts, row by row (() when not given: a NULL,
+    an empty text or list); a whole number's text without '.0' (a scene named '2021' read back as 2021.0)."""
+    if name not in parameters:
+        return ()
+    values = [int(v) if isinstance(v, float) and v.is_integer() else v
+              for v in alg.parameterAsMatrix(parameters, name, context)]
+    texts = tuple("" if v is None or v == NULL else str(v).strip() for v in values)
+    return texts if any(texts) else ()
+
+
+def adjustment_outputs() -> list:
+    """bundleadjust's outputs of one scene after OUTPUT_SCENE, in order: the report, the adjusted GCP
+    layer, the residual vectors, the adjusted tie points, the refined RPC and the line residuals."""
+    report = QgsProcessingParameterFileDestination("OUTPUT_REPORT", tr("Report (HTML)"), fileFilter="HTML (*.html)",
+                                                   optional=True)
+    rpc = QgsProcessingParameterFileDestination("OUTPUT_RPC", tr("Refined RPC (RPC scenes)"),
+                                                fileFilter="RPC text (*_RPC.TXT)", optional=True)
+    layers = []
+    for name, label, kind in (("OUTPUT_GCPS", "Adjusted GCPs", QgsProcessing.TypeVectorPoint),
+                              ("OUTPUT_RESIDUALS", "Residual vectors", QgsProcessing.TypeVectorLine),
+                              ("OUTPUT_TIE_POINTS", "Adjusted tie points", QgsProcessing.TypeVectorPoint),
+                              ("OUTPUT_LINE_RESIDUALS", "Line residuals", QgsProcessing.TypeVectorPoint)):
+        layer = QgsProcessingParameterVectorDestination(name, tr(label), kind, optional=True,
+                                                        createByDefault=name != "OUTPUT_LINE_RESIDUALS")
+        layer.setSupportsNonFileBasedOutput(False)
+        layers.append(layer)
+    return [report, *layers[:3], rpc, layers[3]]

@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field, replace
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -178,9 +178,16 @@ def block_lines(scenes: dict[str, SceneModel | RpcScene], lines: ControlLines) -
     return ControlLines(lines.ground, replace(image, camera=cameras.astype(str), scene=scene_of))
 
 
+class BlockInputs(NamedTuple):
+    """A block's observations checked against its scenes (:func:`block_inputs`)."""
+    composite: SceneModel | MixedBlock
+    gcps: GcpTable
+    ties: TieTable | None
+    lines: ControlLines | None
+
+
 def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None, ties: TieTable | None,
-                 lines: ControlLines | None = None
-                 ) -> tuple[SceneModel | MixedBlock, GcpTable, TieTable | None, ControlLines | None]:
+                 lines: ControlLines | None = None) -> BlockInputs:
     """(the composite scene: a :class:`MixedBlock` when the block holds RPC scenes, the GCP table,
     the tie table, the control lines (:func:`block_lines`; None without image lines)) with cameras
     named as in the composite; InputError for a scene listed twice, observations naming a scene
@@ -207,7 +214,7 @@ def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
         raise InputError(f"scene(s) {', '.join(map(repr, alone))} have no control point or tie point measured in "
                          "them (nor a control line): nothing ties them to the block; measure tie points, GCPs or "
                          "lines there, or leave them out", parameter="scenes")
-    return composite, gcps, ties, lines
+    return BlockInputs(composite, gcps, ties, lines)
 
 
 def adjust_block(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None, ties: TieTable | None,
@@ -220,7 +227,16 @@ def adjust_block(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
     settings.scene_sigmas: :mod:`core.adjust.scenesigmas`)."""
     settings = settings or AdjustmentSettings()
     check_scene_sigmas(scenes, settings)
-    composite, gcps, ties, lines = block_inputs(scenes, gcps, ties, lines)
+    return adjust_checked_block(scenes, block_inputs(scenes, gcps, ties, lines), settings, progress, is_cancelled)
+
+
+def adjust_checked_block(scenes: dict[str, SceneModel | RpcScene], inputs: BlockInputs,
+                         settings: AdjustmentSettings, progress: Callable[[float, str | None], None] | None = None,
+                         is_cancelled: Callable[[], bool] | None = None) -> BlockResult:
+    """:func:`adjust_block` of inputs already checked: ``settings`` by
+    :func:`core.adjust.scenesigmas.check_scene_sigmas` for ``scenes``, the observations by
+    :func:`block_inputs` (its result ``inputs``), for a caller that checks them before its own work."""
+    composite, gcps, ties, lines = inputs
     log.info("adjusting a block of %d scenes (%s): %d GCP, %d tie observations and %d image lines", len(scenes),
              ", ".join(scenes), len(gcps), 0 if ties is None else len(ties), 0 if lines is None else len(lines.image))
     convergence = None

@@ -78,9 +78,19 @@ def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | No
     (report["datum"] says how it is held); with lines too (report["lines"]["directions"] says
     whether they determine both horizontal directions)."""
     settings = settings or AdjustmentSettings()
+    return adjust_checked(scene, check_inputs(scene, table, settings, ties, lines), settings, progress, is_cancelled,
+                          ties, lines)
+
+
+def adjust_checked(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
+                   progress: Callable[[float, str | None], None] | None = None,
+                   is_cancelled: Callable[[], bool] | None = None, ties: TieTable | None = None,
+                   lines: ControlLines | None = None) -> AdjustmentResult:
+    """:func:`adjust` of inputs :func:`core.adjust.checks.check_inputs` has checked (``table``: the
+    table it returned), for a caller that checks them before its own work (outputs planned, files
+    read), so that nothing is checked twice."""
     progress = progress or (lambda fraction, message=None: None)
     is_cancelled = is_cancelled or (lambda: False)
-    table = check_inputs(scene, table, settings, ties, lines)
     held = block_datum(table, settings, ties, lines, scene)
     progress(0.02, "setting up the observations")
     tie_set = set_up_ties(scene, ties) if ties is not None and len(ties) else TieSetUp.empty()

@@ -11,12 +11,62 @@ prior) stays one factor on the stated sigmas of all scenes, as without overrides
 """
 from __future__ import annotations
 
+import math
+
 from ..errors import InputError
 from ..model.block import SEPARATOR
 from ..rotations import ARCSEC
 from .settings import PARAMETERS, AdjustmentSettings
 
 RIGOROUS_SIGMAS = ("position_sigma", "attitude_sigma")  # an RPC product has no onboard trajectory
+# SCENE_SIGMAS as given: rows of a scene name and its sigmas in the units of POSITION_SIGMA, ATTITUDE_SIGMA and
+# RPC_SIGMA; per value column the core's sigma and the factor from the column's unit to the core's (m, rad, px)
+HEADERS = ("scene", "position_sigma_m", "attitude_sigma_arcsec", "rpc_sigma_px")
+COLUMNS = (("position_sigma", 1.0), ("attitude_sigma", ARCSEC), ("rpc_sigma", 1.0))
+
+
+def read_scene_sigmas(values, names: list[str]) -> dict[str, dict[str, float]]:
+    """{scene: {core sigma: value in the core's unit (m, rad, px)}} of SCENE_SIGMAS ``values`` (texts,
+    row by row under HEADERS, '' for an empty cell) for the block's scene ``names``. InputError
+    (parameter settings.scene_sigmas) naming the row and what was expected for: values that are not
+    whole rows, a row without a scene, a scene not in the block or given twice, a value that is not a
+    positive number, a row without any value. (Bounds and the block's kinds of scene:
+    :meth:`AdjustmentSettings.validate`, :func:`check_scene_sigmas`.)"""
+    values, width = list(values), len(HEADERS)
+    if len(values) % width:
+        raise InputError(f"SCENE_SIGMAS: {len(values)} values are not whole rows; expected rows of {width} values "
+                         f"({', '.join(HEADERS)}), an empty value where the global one is kept",
+                         parameter="settings.scene_sigmas")
+    out: dict[str, dict[str, float]] = {}
+    for r in range(len(values) // width):
+        scene, *cells = values[r * width:(r + 1) * width]
+        where = f"SCENE_SIGMAS: row {r + 1}"
+        if scene not in names:
+            got = f"scene {scene!r} is not in SCENES" if scene else "no scene is named"
+            raise InputError(f"{where}: {got}; expected one of the block's scenes ({', '.join(names)}: the file's "
+                             "stem, or the folder's for onboard_scene.json)", parameter="settings.scene_sigmas")
+        if scene in out:
+            raise InputError(f"{where}: scene {scene!r} is given twice; expected one row per scene",
+                             parameter="settings.scene_sigmas")
+        own = {key: _positive(cell, f"{where} ({scene}): {header}") * factor
+               for header, (key, factor), cell in zip(HEADERS[1:], COLUMNS, cells) if cell}
+        if not own:
+            raise InputError(f"{where} ({scene}): no value; expected at least one of {', '.join(HEADERS[1:])}",
+                             parameter="settings.scene_sigmas")
+        out[scene] = own
+    return out
+
+
+def _positive(cell: str, what: str) -> float:
+    """The number of a SCENE_SIGMAS cell; InputError starting with ``what`` unless it is positive and finite."""
+    try:
+        value = float(cell)
+    except ValueError:
+        value = math.nan
+    if not value > 0 or math.isinf(value):
+        raise InputError(f"{what} {cell!r} is not a positive number; expected a positive number or an empty cell "
+                         "(the global value)", parameter="settings.scene_sigmas")
+    return value
 
 
 def check_scene_sigmas(scenes: dict, settings: AdjustmentSettings) -> None:

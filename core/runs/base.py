@@ -98,17 +98,18 @@ def logged(logger_name: str, lines: list):
         logger.setLevel(previous)
 
 
-def scene_from(path: str) -> tuple:
+def scene_from(path: str, parameter: str = SCENE) -> tuple:
     """(scene, log lines) of a scene file (any format :func:`core.formats.load_scene` reads); errors
-    concern SCENE. The lines: the reader's warnings (what it assumed about the file) and the check of
-    a vendor product against its own RPC (:mod:`core.formats.vendorcheck`)."""
+    and lines concern ``parameter`` (SCENE; a block's 'scenes'). The lines: the reader's warnings (what
+    it assumed about the file) and the check of a vendor product against its own RPC
+    (:mod:`core.formats.vendorcheck`)."""
     if not path:
-        raise InputError("no scene file given", parameter=SCENE)
-    with concerning(SCENE):
+        raise InputError("no scene file given", parameter=parameter)
+    with concerning(parameter):
         scene = load_scene(path)
-    lines = [LogLine(warning, True, SCENE) for warning in scene.info.get("warnings", [])]
+    lines = [LogLine(warning, True, parameter) for warning in scene.info.get("warnings", [])]
     if "rpc_check" in scene.info and scene.info.get("source") == str(path):
-        lines.append(LogLine(scene.info["rpc_check"]["summary"], False, SCENE))
+        lines.append(LogLine(scene.info["rpc_check"]["summary"], False, parameter))
     return scene, lines
 
 

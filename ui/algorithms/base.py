@@ -4,6 +4,8 @@ enumeration values, and the adapter around core calls (a core error becomes a
 QgsProcessingException naming the algorithm's parameter at fault)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 from qgis.core import (QgsProcessingAlgorithm, QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
                        QgsProcessingParameterFileDestination, QgsProcessingUtils)
 from qgis.PyQt.QtGui import QIcon
@@ -92,6 +94,16 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         if not path and definition.flags() & QgsProcessingParameterDefinition.FlagOptional:
             return ""
         return path or QgsProcessingUtils.generateTempFilename(temporary_name)
+
+    def user_destination(self, parameters, context, name: str) -> str:
+        """The file output ``name`` was given by the user; '' when not given or temporary (the
+        dialog's '[Save to temporary file]', a graphical model's file for an output nobody takes)."""
+        if parameters.get(name) in (None, ""):
+            return ""
+        path = self.parameterAsFileOutput(parameters, name, context) if self.parameterDefinition(name).type() == \
+            "fileDestination" else self.parameterAsOutputLayer(parameters, name, context)
+        temporary = Path(QgsProcessingUtils.tempFolder()).resolve()
+        return "" if not path or temporary in Path(path).resolve().parents else path
 
     def shortHelpString(self):  # noqa: N802
         inputs = [d for d in self.parameterDefinitions() if not d.isDestination()]

@@ -1,402 +1,170 @@
-"""pushbroom:bundleadjust — self-calibrating bundle adjustment of a scene from its GCP layer
-and tie points: the adjusted scene JSON, JSON and HTML reports, the GCP and tie-point layers
-with residuals and flags, and residual vectors."""
+"""pushbroom:bundleadjust — self-calibrating bundle adjustment of a scene (or, with SCENES, a block of
+scenes) from its GCPs, tie points and control lines (:mod:`core.runs.bundleadjust`): the adjusted scene
+JSON, JSON and HTML reports, the GCP and tie-point layers with residuals and flags, residual vectors."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
-
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutputFile,
-                       QgsProcessingParameterBoolean,
-                       QgsProcessingParameterFileDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
-                       QgsProcessingParameterVectorLayer, QgsProcessingUtils)
+                       QgsProcessingOutputMultipleLayers, QgsProcessingParameterBoolean,
+                       QgsProcessingParameterNumber,
+                       QgsProcessingParameterString, QgsProcessingParameterVectorLayer, QgsProcessingUtils)
 
-from ...core.adjust import AdjustmentSettings, adjust
-from ...core.adjust.checks import check_inputs
-from ...core.adjust.linepoints import ControlLines
-from ...core.adjust.outputs import (ground_residuals, write_adjusted_gcps, write_adjusted_tie_points,
-                                    write_line_residuals, write_residual_vectors)
-from ...core.adjust.parameters import ParameterSet
-from ...core.adjust.report import log_lines, write_report_json
-from ...core.adjust.report_html import write_report_html
-from ...core.adjust.settings import ONBOARD_SIGMAS
-from ...core.errors import PushbroomError
-from ...core.files import Output, atomic_outputs
-from ...core.formats.rpcfiles import write_rpc
-from ...core.formats.scene_json import save_scene
-from ...core.model.rpcscene import RpcScene
-from ...core.model.timebasis import TimeBasis
-from ...core.observations import gcps, tiepoints
-from ...core.observations.lines import read_ground_lines, read_image_lines
-from ...core.products.rpcfit import refined_rpc
+from ...core.adjust.settings import ONBOARD_SIGMAS, AdjustmentSettings
+from ...core.observations import tiepoints
 from ...core.rotations import ARCSEC
-from ..blockadjust import (ADJUSTED_SCENES, OUTPUT_FOLDER, WRITE_RPCS, add_block_parameters, read_tie_layer,
-                          run_block, user_destination)
-from ..blockmatch import block_given, one_scene_file
-from ..feedback import check_cancelled, core_call, core_log_to, feedback_callbacks, processing_errors
-from ..inputs import add_scene_parameters, load_scene_for, ogr_source, split_ogr_source
-from ..outputs import STYLES, check_outputs, style_output_on_load
-from ..scenesigmas import SCENE_SIGMAS, refuse_for_one_scene, scene_sigmas_parameter
-from ..parameters import (ATTITUDE_MODEL, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR, POSITION_MODEL,
-                          ROBUST, RPC_CORRECTION, SCENE, SCENES, camera_trajectory, enum_value, ground_mode,
-                          interior_selection, on_singular, output_scene, robust_method, rpc_correction, tr,
-                          trajectory_model)
+from ...core.runs import adjustinputs as names, bundleadjust as use_case
+from ..blockmatch import block_given, one_scene_file, scene_files
+from ..inputs import add_scene_parameters, attribute_floats, attribute_texts, block_scene_names, ogr_source, \
+    split_ogr_source
+from ..outputs import STYLES, files_in_use, style_output_on_load
+from ..parameters import (ATTITUDE_MODEL, BLOCK_FOLDER, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR,
+                          POSITION_MODEL, ROBUST, RPC_CORRECTION, SCENE, SCENE_SIGMAS, SCENES, WRITE_RPCS,
+                          adjustment_outputs, block_folder, camera_trajectory, enum_value, ground_mode,
+                          interior_selection, matrix_texts, on_singular, output_scene, robust_method, rpc_correction,
+                          scene_sigmas, tr, trajectory_parameters, write_rpcs)
 from .base import PushbroomAlgorithm
+
+Number = QgsProcessingParameterNumber
+STYLED = {names.OUTPUT_GCPS: "adjusted_gcps.qml", names.OUTPUT_RESIDUALS: "residual_vectors.qml",
+          names.OUTPUT_TIE_POINTS: "adjusted_tie_points.qml", names.OUTPUT_LINE_RESIDUALS: "control_lines.qml"}
 
 
 class BundleAdjustAlgorithm(PushbroomAlgorithm):
     ID = "bundleadjust"
     NAME = "Bundle adjustment"
     GROUP, GROUP_ID = "Adjustment", "adjustment"
-    GCPS, TIE_POINTS, OUTPUT_TIE_POINTS = "GCPS", "TIE_POINTS", "OUTPUT_TIE_POINTS"
-    POSITION_MODEL, POSITION_ORDER, POSITION_INTERVAL, POSITION_SIGMA = \
-        POSITION_MODEL, "POSITION_ORDER", "POSITION_INTERVAL", "POSITION_SIGMA"
-    ATTITUDE_MODEL, ATTITUDE_ORDER, ATTITUDE_INTERVAL, ATTITUDE_SIGMA = \
-        ATTITUDE_MODEL, "ATTITUDE_ORDER", "ATTITUDE_INTERVAL", "ATTITUDE_SIGMA"
-    INTERIOR, GROUND, ROBUST, ALPHA, ON_SINGULAR, RESIDUAL_SCALE = \
-        "INTERIOR", GROUND, ROBUST, "ALPHA", ON_SINGULAR, "RESIDUAL_SCALE"
-    VARIANCE_COMPONENTS, MAX_ROBUST_PASSES = "VARIANCE_COMPONENTS", "MAX_ROBUST_PASSES"
-    OUTPUT_SCENE, OUTPUT_REPORT, OUTPUT_GCPS, OUTPUT_RESIDUALS = \
-        "OUTPUT_SCENE", "OUTPUT_REPORT", "OUTPUT_GCPS", "OUTPUT_RESIDUALS"
-    OUTPUT_REPORT_JSON = "OUTPUT_REPORT_JSON"
-    RPC_CORRECTION, RPC_SIGMA, OUTPUT_RPC = RPC_CORRECTION, "RPC_SIGMA", "OUTPUT_RPC"
-    SCENE_SIGMAS = SCENE_SIGMAS
-    CAMERA_TRAJECTORY = CAMERA_TRAJECTORY
-    LINES, OUTPUT_LINE_RESIDUALS = "LINES", "OUTPUT_LINE_RESIDUALS"
+    GCPS, TIE_POINTS, LINES, INTERIOR, ALPHA, RPC_SIGMA, RESIDUAL_SCALE = \
+        "GCPS", "TIE_POINTS", "LINES", "INTERIOR", "ALPHA", "RPC_SIGMA", "RESIDUAL_SCALE"
+    VARIANCE_COMPONENTS, MAX_ROBUST_PASSES, OUTPUT_REPORT_JSON = \
+        "VARIANCE_COMPONENTS", "MAX_ROBUST_PASSES", names.OUTPUT_REPORT_JSON
     SCENE_OR_SCENES = ("adjust one scene (its cameras, or the scenes of one strip)",
                        "adjust several scenes together as a block, each observation naming its scene")
     # The inputs core errors name (core.errors.InputError.parameter) -> this algorithm's parameters.
     CORE_PARAMETERS = {
-        "gcps": GCPS, "ties": TIE_POINTS, "lines": LINES, "scene": SCENE,
-        "settings.position_model": POSITION_MODEL, "settings.position_order": POSITION_ORDER,
-        "settings.position_interval": POSITION_INTERVAL, "settings.position_sigma": POSITION_SIGMA,
-        "settings.attitude_model": ATTITUDE_MODEL, "settings.attitude_order": ATTITUDE_ORDER,
-        "settings.attitude_interval": ATTITUDE_INTERVAL, "settings.attitude_sigma": ATTITUDE_SIGMA,
-        "settings.camera_trajectory": CAMERA_TRAJECTORY, "settings.interior": INTERIOR,
+        names.GCPS: GCPS, names.TIES: TIE_POINTS, names.LINES: LINES, "scene": SCENE, names.SCENES: SCENES,
+        **{f"settings.{key}_{part}": f"{key.upper()}_{part.upper()}" for key in ("position", "attitude")
+           for part in ("model", "order", "interval", "sigma")},
+        "settings.camera_trajectory": CAMERA_TRAJECTORY, names.INTERIOR: INTERIOR,
         "settings.interior_selection": INTERIOR_SELECTION, "settings.ground": GROUND, "settings.robust": ROBUST,
         "settings.alpha": ALPHA, "settings.variance_components": VARIANCE_COMPONENTS,
         "settings.max_robust_iterations": MAX_ROBUST_PASSES, "settings.on_singular": ON_SINGULAR,
-        "settings.rpc_correction": RPC_CORRECTION, "settings.rpc_sigma": RPC_SIGMA, "scenes": SCENES,
-        "settings.scene_sigmas": SCENE_SIGMAS}
-    OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES = OUTPUT_FOLDER, WRITE_RPCS, ADJUSTED_SCENES
+        "settings.rpc_correction": RPC_CORRECTION, "settings.rpc_sigma": RPC_SIGMA, names.SCENE_SIGMAS: SCENE_SIGMAS,
+        **{name: name for name in (*names.ONE_SCENE_SUFFIXES, BLOCK_FOLDER, WRITE_RPCS)}}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         # The order of work: the observations, the model, the control, the robust settings, the outputs.
+        # Every parameter's help is in docs/algorithms/bundleadjust.md (ui.help).
         add_scene_parameters(self, with_camera=False, or_scenes=True)
-        self.add_parameter(QgsProcessingParameterVectorLayer(self.GCPS, tr("Ground control points (GeoPackage)"),
-                                                    [QgsProcessing.TypeVectorPoint], optional=True),
-                  tr("The GCP layer of 'Import ground control points' or 'Match GCPs' (GeoPackage); a point "
-                     "seen in several cameras (or scenes) is one id in several rows. With SCENES its field "
-                     "'scene' names each row's scene. May be left out when TIE_POINTS are given."))
-        self.add_parameter(QgsProcessingParameterVectorLayer(self.TIE_POINTS, tr("Tie points"),
-                                                             [QgsProcessing.TypeVector], optional=True),
-                           tr("Optional. The layer of 'Import tie points' or 'Match tie points', or any table with "
-                              "the fields id, camera, col, row (optional sigma_px, scene). With them 0, 1 or 2 "
-                              "GCPs suffice when the onboard sigmas hold the rest of the datum (docs page)."))
-        self.add_parameter(QgsProcessingParameterVectorLayer(self.LINES, tr("Control lines (GeoPackage)"),
-                                                             [QgsProcessing.TypeVectorLine], optional=True),
-                           tr("Optional. The control lines of 'Import control lines': ground lines and the image "
-                              "lines paired to them (Tommaselli & Marcato Junior 2012); with SCENES the image "
-                              "lines' field 'scene' names their scene. Rigorous scenes only, not RPC products."))
-        self.add_parameter(QgsProcessingParameterString(self.INTERIOR, tr("Interior parameters to estimate"),
-                                                        optional=True, defaultValue=""),
-                           tr("Comma-separated names, 'name=sigma' for a weighted one (px, arcsec or SI units), "
-                              "wildcards * and ?; 'default': the usual set with priors. E.g. 'HRC-1.*, HRC-3.*, "
-                              "HRC.f=1px' (CBERS-02B). Empty: trajectory only. The names: docs page, section "
-                              "Interior parameters."))
-        for block, what, default_order, default_sigma, unit, sigma_help in (
-                ("POSITION", tr("position"), 1, 100.0, "m", tr(
-                    "Accuracy of the onboard orbit (GPS), metres per axis, as pseudo-observations of the position "
-                    "corrections at the knots. Empty (or 0): none, only the control fixes the position.")),
-                ("ATTITUDE", tr("attitude"), 2, None, "arcsec", tr(
-                    "Accuracy of the onboard attitude (star trackers), arcseconds per axis, as pseudo-observations "
-                    "of the attitude corrections. Empty (or 0): none."))):
-            self.addParameter(trajectory_model(f"{block}_MODEL", what))
-            title = what.capitalize()
-            self.add_parameter(QgsProcessingParameterNumber(
-                f"{block}_ORDER", tr("{what} polynomial order").format(what=title),
-                QgsProcessingParameterNumber.Integer, default_order, minValue=0, maxValue=2),
-                tr("0: bias, 1: bias and drift, 2: also a quadratic term (polynomial model only)."))
-            self.add_parameter(QgsProcessingParameterNumber(
-                f"{block}_INTERVAL", tr("{what} knot interval (s)").format(what=title),
-                QgsProcessingParameterNumber.Double, 20.0, minValue=0.01),
-                tr("Seconds between orientation images or knots (lagrange and spline models). Shorter intervals "
-                   "follow faster motion but let position and attitude trade off (Zheng et al. 2015, Fig. 7-11)."))
-            low, high, _ = ONBOARD_SIGMAS[f"{block.lower()}_sigma"]
-            low, high = (low / ARCSEC, high / ARCSEC) if unit == "arcsec" else (low, high)
-            self.add_parameter(QgsProcessingParameterNumber(
-                f"{block}_SIGMA", tr("Onboard {what} sigma ({unit})").format(what=what, unit=unit),
-                QgsProcessingParameterNumber.Double, default_sigma, optional=True, minValue=0.0, maxValue=high),
-                sigma_help + " " + tr("Otherwise from {low:g} to {high:g} {unit}.").format(low=low, high=high,
-                                                                                         unit=unit))
+        for name, label, kind in ((self.GCPS, "Ground control points (GeoPackage)", QgsProcessing.TypeVectorPoint),
+                                  (self.TIE_POINTS, "Tie points", QgsProcessing.TypeVector),
+                                  (self.LINES, "Control lines (GeoPackage)", QgsProcessing.TypeVectorLine)):
+            self.addParameter(QgsProcessingParameterVectorLayer(name, tr(label), [kind], optional=True))
+        self.addParameter(QgsProcessingParameterString(self.INTERIOR, tr("Interior parameters to estimate"),
+                                                       optional=True, defaultValue=""))
+        for block, what, order, sigma, scale in (("POSITION", "position", 1, 100.0, 1.0),
+                                                 ("ATTITUDE", "attitude", 2, None, ARCSEC)):
+            high = ONBOARD_SIGMAS[f"{block.lower()}_sigma"][1] / scale
+            for parameter in trajectory_parameters(block, what, order, sigma, high):
+                self.addParameter(parameter)
         self.add_parameter(interior_selection())
         self.addParameter(camera_trajectory())
         self.addParameter(rpc_correction())
-        self.add_parameter(QgsProcessingParameterNumber(self.RPC_SIGMA, tr("RPC scenes: stated accuracy (px)"),
-                                                        QgsProcessingParameterNumber.Double, None, optional=True,
-                                                        minValue=0.0, maxValue=1e5),
-                           tr("The vendor's stated accuracy of RPC images in pixels (e.g. 10 px for Pleiades), "
-                              "pseudo-observations of 0 on each term of RPC_CORRECTION. Needed by a block of RPC "
-                              "images tied without GCPs. Empty (or 0): none."))
-        self.addParameter(scene_sigmas_parameter())
-        self.addParameter(ground_mode())
-        self.addParameter(robust_method())
-        self.add_parameter(QgsProcessingParameterNumber(self.ALPHA, tr("Significance of the outlier test"),
-                                               QgsProcessingParameterNumber.Double, 0.001, minValue=1e-9, maxValue=0.2),
-                  tr("Probability of flagging a good observation (0.001: |w| > 3.29)."))
-        self.add_parameter(QgsProcessingParameterBoolean(self.VARIANCE_COMPONENTS, tr("Estimate variance components"),
-                                                         defaultValue=True),
-                  tr("Estimate a factor on the stated sigmas per observation group from the residuals and use it "
-                     "before the outlier test (Förstner 1979), so that flags and check figures do not depend on "
-                     "guessed sigmas. Off: the stated sigmas are trusted."))
-        self.add_parameter(QgsProcessingParameterNumber(self.MAX_ROBUST_PASSES, tr("Robust passes at most"),
-                                                        QgsProcessingParameterNumber.Integer, 12, minValue=1,
-                                                        maxValue=100),
-                  tr("Passes of gross error detection and variance component estimation; a run that needs more "
-                     "says so (the flags may then be incomplete)."))
+        self.addParameter(Number(self.RPC_SIGMA, tr("RPC scenes: stated accuracy (px)"), Number.Double, None,
+                                 optional=True, minValue=0.0, maxValue=1e5))
+        for parameter in (scene_sigmas(), ground_mode(), robust_method()):
+            self.addParameter(parameter)
+        self.addParameter(Number(self.ALPHA, tr("Significance of the outlier test"), Number.Double, 0.001,
+                                 minValue=1e-9, maxValue=0.2))
+        self.addParameter(QgsProcessingParameterBoolean(self.VARIANCE_COMPONENTS, tr("Estimate variance components"),
+                                                        defaultValue=True))
+        self.addParameter(Number(self.MAX_ROBUST_PASSES, tr("Robust passes at most"), Number.Integer, 12, minValue=1,
+                                 maxValue=100))
         self.addParameter(on_singular())
-        # the adjusted scene: corrections, parameters with sigmas, settings; optional (SCENES writes OUTPUT_FOLDER)
-        self.addParameter(output_scene(optional=True))
-        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_REPORT, tr("Report (HTML)"),
-                                                        fileFilter="HTML (*.html)", optional=True),
-                  tr("Optional. A report to read: accuracy before/after, decisions, parameters, plots. The same "
-                     "figures as JSON go beside it (same name, .json)."))
-        gcp_out = QgsProcessingParameterVectorDestination(self.OUTPUT_GCPS, tr("Adjusted GCPs"),
-                                                          QgsProcessing.TypeVectorPoint, optional=True)
-        gcp_out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(gcp_out, tr("Optional. GeoPackage of the input points with the adjusted residuals "
-                  "(res_col, res_row, res_px, res_m), normalised residuals w_col/w_row, redundancy, weight and "
-                  "flagged (1 = gross error)."))
-        vec_out = QgsProcessingParameterVectorDestination(self.OUTPUT_RESIDUALS, tr("Residual vectors"),
-                                                          QgsProcessing.TypeVectorLine, optional=True)
-        vec_out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(vec_out, tr("Optional. GeoPackage of lines from each GCP along its ground residual, "
-                  "exaggerated RESIDUAL_SCALE times (res_m holds the true length)."))
-        self._add_tie_output()
-        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_RPC, tr("Refined RPC (RPC scenes)"),
-                                                                 fileFilter="RPC text (*_RPC.TXT)", optional=True),
-                           tr("Optional, for a SCENE given by its RPC: the RPC with the adjusted correction in it, "
-                              "as <image>_RPC.TXT, which GDAL and QGIS read for <image>.tif beside it (a correction "
-                              "mixing rows and columns refitted, about 1e-5 px)."))
+        self.addParameter(output_scene(optional=True))  # optional: SCENES writes OUTPUT_FOLDER
+        for parameter in adjustment_outputs():
+            self.addParameter(parameter)
         self.addOutput(QgsProcessingOutputFile(self.OUTPUT_REPORT_JSON, tr("Report (JSON)")))
-        self._add_line_output()
-        self.add_parameter(QgsProcessingParameterNumber(self.RESIDUAL_SCALE, tr("Residual vector exaggeration"),
-                                               QgsProcessingParameterNumber.Double, 1000.0, minValue=1.0,
-                                               maxValue=1e6),
-                  tr("Factor by which the ground residual vectors are drawn longer than they are."))
-        add_block_parameters(self)
+        self.addParameter(Number(self.RESIDUAL_SCALE, tr("Residual vector exaggeration"), Number.Double, 1000.0,
+                                 minValue=1.0, maxValue=1e6))
+        for parameter in (block_folder(), write_rpcs()):
+            self.addParameter(parameter)
+        self.addOutput(QgsProcessingOutputMultipleLayers(names.ADJUSTED_SCENES, tr("Adjusted scenes of the block "
+                                                                                  "(scene JSON, SCENES order)")))
         self.show_only(SCENE, SCENES, self.GCPS, self.TIE_POINTS, self.LINES, self.INTERIOR)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        if block_given(self, parameters, context):
-            return run_block(self, parameters, context, feedback)
-        scene_path = one_scene_file(self, parameters, context)
-        refuse_for_one_scene(self, parameters, context)
-        for name in (self.OUTPUT_FOLDER, self.WRITE_RPCS):
-            if (user_destination(self, parameters, context, name) if name == self.OUTPUT_FOLDER else
-                    self.parameterAsBoolean(parameters, name, context)):
-                raise QgsProcessingException(f"{name}: for a block of scenes ({SCENES}) only; the outputs of one "
-                                             f"{SCENE} are OUTPUT_SCENE, OUTPUT_REPORT..., its refined RPC OUTPUT_RPC "
-                                             "(RPC scenes) or pushbroom:exportrpc")
-        outputs = {name: self._destination(parameters, context, name, suffix) for name, suffix in (
-            (self.OUTPUT_SCENE, ".json"), (self.OUTPUT_REPORT, ".html"), (self.OUTPUT_GCPS, ".gpkg"),
-            (self.OUTPUT_RESIDUALS, ".gpkg"), (self.OUTPUT_TIE_POINTS, ".gpkg"), (self.OUTPUT_RPC, ".txt"),
-            (self.OUTPUT_LINE_RESIDUALS, ".gpkg"))}  # '' for the optional ones not asked for
-        outputs[self.OUTPUT_SCENE] = outputs[self.OUTPUT_SCENE] or QgsProcessingUtils.generateTempFilename(
-            "output_scene.json")  # optional only for a block: one scene's adjusted model is always written
-        report_html = outputs[self.OUTPUT_REPORT]
-        report_json = str(Path(report_html).with_suffix(".json")) if report_html else ""
-        check_outputs(self, parameters, context, {**{name: [path] for name, path in outputs.items()},
-                                                  self.OUTPUT_REPORT: [report_html, Output(report_json,
-                                                                                           "its JSON report")]})
-        scene = load_scene_for(SCENE, scene_path, feedback)
-        if outputs[self.OUTPUT_RPC] and not isinstance(scene, RpcScene):
-            raise QgsProcessingException(f"{self.OUTPUT_RPC}: only for a SCENE given by its RPC; the RPC of an "
-                                         "adjusted rigorous scene is written by 'Export RPC' (pushbroom:exportrpc)")
-        ties = self._ties(parameters, context, scene, scene_path, feedback)
-        table, gcp_path, gcp_layer = self.gcp_table(parameters, context, ties is not None)
-        self._check_tie_outputs(outputs, ties, gcp_path)
-        settings = self.adjustment_settings(parameters, context)
-        scale = self.parameterAsDouble(parameters, self.RESIDUAL_SCALE, context)
-        lines = self._lines(parameters, context)
-        # The core's checks (settings, GCPs, tie points, lines, datum) before the (long) solution starts;
-        # what the core does not place is about the GCPs.
-        with self.core_errors(self.GCPS):
-            check_inputs(scene, table, settings, ties, lines)
-        self.check_interior(scene, settings.interior)
-        if gcp_path:
-            feedback.pushInfo(f"{len(table)} points from {gcp_path}: {int((table.role == 'control').sum())} "
-                              f"control, {int((table.role == 'check').sum())} check")
-        progress, is_cancelled = feedback_callbacks(feedback)
-        with self.core_errors():
-            result = adjust(scene, table, settings, progress, is_cancelled, ties=ties, lines=lines)
-        check_cancelled(feedback)
-        feedback.setProgressText("writing the outputs")
-        en = core_call(ground_residuals, result.scene, table, result.points["camera"])
-        with processing_errors(), atomic_outputs() as files:  # every output or none
-            with processing_errors(f"{self.OUTPUT_SCENE}: "):
-                save_scene(result.scene, outputs[self.OUTPUT_SCENE], files)
-            if outputs[self.OUTPUT_RPC]:
-                with processing_errors(f"{self.OUTPUT_RPC}: "):
-                    rpc, how = refined_rpc(result.scene)
-                    write_rpc(rpc, outputs[self.OUTPUT_RPC], files=files)
-                feedback.pushInfo(f"refined RPC ({how}) written to {outputs[self.OUTPUT_RPC]}")
-            if report_html:
-                with processing_errors(f"{self.OUTPUT_REPORT}: "):
-                    write_report_json(result.report, report_json, files)
-                    write_report_html(result.report, result.points, report_html,
-                                      title=f"Bundle adjustment of {Path(scene_path).name}", files=files)
-            if outputs[self.OUTPUT_GCPS]:
-                with processing_errors(f"{self.OUTPUT_GCPS}: "):
-                    write_adjusted_gcps(table, result.points, outputs[self.OUTPUT_GCPS], en=en,
-                                        scene_path=outputs[self.OUTPUT_SCENE], source=gcp_path,
-                                        source_layer=gcp_layer, files=files)
-            if outputs[self.OUTPUT_LINE_RESIDUALS]:
-                self._write_line_residuals(lines, result, outputs[self.OUTPUT_LINE_RESIDUALS], files)
-            if outputs[self.OUTPUT_RESIDUALS]:
-                with processing_errors(f"{self.OUTPUT_RESIDUALS}: "):
-                    write_residual_vectors(result.scene, table, result.points, outputs[self.OUTPUT_RESIDUALS],
-                                           scale, en=en, files=files)
-            if outputs[self.OUTPUT_TIE_POINTS]:
-                with processing_errors(f"{self.OUTPUT_TIE_POINTS}: "):
-                    write_adjusted_tie_points(result.tie_points, outputs[self.OUTPUT_TIE_POINTS],
-                                              scene_path=outputs[self.OUTPUT_SCENE], files=files)
-        style_output_on_load(context, outputs[self.OUTPUT_GCPS], STYLES / "adjusted_gcps.qml")
-        style_output_on_load(context, outputs[self.OUTPUT_RESIDUALS], STYLES / "residual_vectors.qml")
-        style_output_on_load(context, outputs[self.OUTPUT_TIE_POINTS], STYLES / "adjusted_tie_points.qml")
-        style_output_on_load(context, outputs[self.OUTPUT_LINE_RESIDUALS], STYLES / "control_lines.qml")
-        self.push_core_lines(feedback, log_lines(result.report, None if ties is None else len(ties)))
-        feedback.setProgress(100)
-        return {**{name: path or None for name, path in outputs.items()}, self.OUTPUT_REPORT_JSON: report_json or None}
+        block = block_given(self, parameters, context)
+        paths = scene_files(self, parameters, context) if block else []
+        ties, tie_rows = self._ties(parameters, context)
+        lines = self.parameterAsVectorLayer(parameters, self.LINES, context)
+        number = lambda name: self.parameterAsDouble(parameters, name, context)  # noqa: E731
+        result = self.run_core(use_case.run, names.AdjustRequest(
+            "" if block else one_scene_file(self, parameters, context),
+            dict(zip(block_scene_names(paths), paths)) if block else None, self._layer(parameters, context, self.GCPS),
+            ties, tie_rows, ogr_source(self.LINES, lines, "control lines")[0] if lines is not None else "",
+            self.adjustment_settings(parameters, context), matrix_texts(self, parameters, SCENE_SIGMAS, context),
+            self._outputs(parameters, context, block),
+            (self.parameterAsFileOutput(parameters, BLOCK_FOLDER, context)
+             or QgsProcessingUtils.generateTempFilename("block_adjustment")) if block else
+            self.user_destination(parameters, context, BLOCK_FOLDER),
+            self.parameterAsBoolean(parameters, WRITE_RPCS, context), number(self.RESIDUAL_SCALE),
+            files_in_use(self, parameters, context)), feedback)
+        for name, style in STYLED.items():
+            style_output_on_load(context, result.files[name] or "", STYLES / style)
+        return result.files
 
-    # --- control lines ---------------------------------------------------------------------
-    def _add_line_output(self) -> None:
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT_LINE_RESIDUALS, tr("Line residuals"),
-                                                      QgsProcessing.TypeVectorPoint, optional=True,
-                                                      createByDefault=False)
-        out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(out, tr("GeoPackage with layer line_points (each image-line point at its adjusted "
-                                   "ground, its image residual and across-line offset in m) and ground_lines (per "
-                                   "line RMS and max across-line offset, flagged = 1 for lines named wrong)."))
+    def _layer(self, parameters, context, name: str) -> names.LayerFile | None:
+        layer = self.parameterAsVectorLayer(parameters, name, context)
+        return None if layer is None else names.LayerFile(*split_ogr_source(layer.source()), layer.source())
 
-    def _lines(self, parameters, context):
-        """ControlLines of the LINES GeoPackage (None without)."""
-        layer = self.parameterAsVectorLayer(parameters, self.LINES, context)
-        if layer is None:
-            return None
-        path, _ = ogr_source(self.LINES, layer, "control lines")
-        with processing_errors(f"{self.LINES}: "):
-            return ControlLines(read_ground_lines(path), read_image_lines(path))
-
-    def _write_line_residuals(self, lines, result, path: str, files) -> None:
-        if lines is None:
-            raise QgsProcessingException(f"{self.OUTPUT_LINE_RESIDUALS}: no LINES given")
-        with processing_errors(f"{self.OUTPUT_LINE_RESIDUALS}: "):
-            write_line_residuals(path, lines, result.lines, result.report["lines"], files)
-
-    # --- parameters -------------------------------------------------------------------------
-    def gcp_table(self, parameters, context, with_ties: bool = False) -> tuple[gcps.GcpTable, str, str | None]:
-        """The GCP table, the GeoPackage's path and its layer name (None: the first layer); with
-        tie points and no GCP layer, an empty table and path ''."""
-        layer = self.parameterAsVectorLayer(parameters, self.GCPS, context)
-        if layer is None and with_ties:
-            none = np.zeros(0)
-            return gcps.GcpTable(*(np.zeros(0, str),) * 3, *(none,) * 8), "", None
-        if layer is None:
-            raise QgsProcessingException(f"{self.GCPS}: no GCP layer given (it may be left out only with "
-                                         f"{self.TIE_POINTS})")
-        path, name = split_ogr_source(layer.source())
-        source = layer.source()
-        if layer.providerType() != "ogr" or not path.lower().endswith(".gpkg"):
-            raise QgsProcessingException(f"{self.GCPS}: {source} is not a GeoPackage; write the GCPs with 'Import "
-                                         "ground control points' (pushbroom:importgcps) first")
-        with processing_errors(f"{self.GCPS}: "):
-            return gcps.read_gpkg(path, name), path, name
-
-    # --- tie points ---------------------------------------------------------------------------
-    def _add_tie_output(self) -> None:
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT_TIE_POINTS, tr("Adjusted tie points"),
-                                                      QgsProcessing.TypeVectorPoint, optional=True)
-        out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(out, tr("Optional, with TIE_POINTS. Point layer (EPSG:4979), one feature per tie "
-                                   "observation at its point's adjusted ground position: id, camera, col, row, "
-                                   "res_col, res_row, res_px (px), w_col, w_row, weight, flagged (1 = gross error)."))
-
-    def _ties(self, parameters, context, scene, scene_path: str, feedback) -> tiepoints.TieTable | None:
-        """The observations of TIE_POINTS (None when not given): a file layer read by
-        core.tiepoints.read_gpkg, any other layer from its features. A layer whose scene
-        metadata names another scene file gets a warning."""
+    def _ties(self, parameters, context) -> tuple:
+        """(TIE_POINTS's layer file, or its rows read from the features of a layer without a file)."""
         if parameters.get(self.TIE_POINTS) in (None, ""):
-            return None
+            return None, None
         layer = self.parameterAsVectorLayer(parameters, self.TIE_POINTS, context)
         if layer is None:
             raise QgsProcessingException(f"{self.TIE_POINTS}: {parameters[self.TIE_POINTS]} is not a vector layer "
                                          "or table; give the layer written by 'Import tie points'")
-        if isinstance(scene, RpcScene):
-            raise QgsProcessingException(f"{self.TIE_POINTS}: tie points need a rigorous (physical) scene model with "
-                                         "several cameras; this SCENE is given by its RPC (one image)")
-        with processing_errors(f"{self.TIE_POINTS}: "):
-            table = read_tie_layer(layer)
-        made_for = table.scene_path
-        if made_for and Path(made_for).resolve() != Path(scene_path).resolve():
-            feedback.pushWarning(f"{self.TIE_POINTS}: the layer was checked against the scene {made_for}, not "
-                                 f"SCENE {scene_path}; its cameras and image positions must be this scene's")
-        feedback.pushInfo(f"{len(table)} tie observations from {layer.source()}")
-        # the checks of 'Import tie points' against this scene (cameras, duplicates, image, spread)
-        with core_log_to(feedback, tiepoints.__name__), processing_errors(f"{self.TIE_POINTS}: "):
-            return tiepoints.check_against_scene(table, scene, scene_path, source=layer.source())
+        if layer.providerType() == "ogr":
+            return self._layer(parameters, context, self.TIE_POINTS), None
+        fields = layer.fields().names()
+        missing = [f for f in ("id", "camera", "col", "row") if f not in fields]
+        if missing:
+            raise QgsProcessingException(f"{self.TIE_POINTS}: {layer.source()} lacks tie-point field(s) "
+                                         f"{', '.join(missing)} (fields: {', '.join(fields)})")
+        features = list(layer.getFeatures())
+        column = {f: [feature[f] for feature in features] if f in fields else None
+                  for f in ("id", "camera", "col", "row", "sigma_px", "scene")}
+        sigma = attribute_floats(column["sigma_px"] or [None] * len(features))
+        with self.core_errors(self.TIE_POINTS):
+            return names.LayerFile("", None, layer.source()), tiepoints.build_table(
+                attribute_texts(column["id"]), attribute_texts(column["camera"]), attribute_floats(column["col"]),
+                attribute_floats(column["row"]), scene=attribute_texts(column["scene"]), source=layer.source(),
+                sigma_px=np.where(np.isfinite(sigma), sigma, tiepoints.DEFAULT_SIGMA_PX))
 
-    def _check_tie_outputs(self, outputs: dict, ties, gcp_path: str) -> None:
-        """Outputs that need an input that was not given."""
-        if outputs[self.OUTPUT_TIE_POINTS] and ties is None:
-            raise QgsProcessingException(f"{self.OUTPUT_TIE_POINTS}: the adjusted tie points need {self.TIE_POINTS}")
-        for name in (self.OUTPUT_GCPS, self.OUTPUT_RESIDUALS):
-            if outputs[name] and not gcp_path:
-                raise QgsProcessingException(f"{name}: there are no GCPs to write (no {self.GCPS} given)")
-
-    def check_interior(self, scene, interior: str) -> None:
-        """INTERIOR's names and sigmas against a rigorous scene's parameters; the error lists the
-        scene's cameras and CCD chips, whose names the patterns use. (The core refuses INTERIOR for
-        an RPC scene.)"""
-        if isinstance(scene, RpcScene):
-            return
-        t_min, t_max = scene.time_span()
-        basis = TimeBasis.covering("polynomial", t_min, t_max, 0)
-        try:
-            ParameterSet(scene, basis, basis, interior)
-        except PushbroomError as exc:
-            names = "; ".join(f"camera {c.name} with chips " + ", ".join(ch.name or f"{c.name}-{k + 1}"
-                                                                       for k, ch in enumerate(c.chips))
-                              for c in scene.cameras)
-            raise QgsProcessingException(f"{self.INTERIOR}: {exc}. This scene has {names}.") from None
+    def _outputs(self, parameters, context, block: bool) -> dict:
+        """One scene's outputs ('' not asked; OUTPUT_SCENE a temporary file then); with SCENES those
+        the user gave (a temporary file is not given)."""
+        if block:
+            return {name: self.user_destination(parameters, context, name) for name in names.ONE_SCENE_SUFFIXES}
+        out = {name: self.output_path(parameters, context, name, name.lower() + suffix)
+               for name, suffix in names.ONE_SCENE_SUFFIXES.items()}
+        scene = names.OUTPUT_SCENE  # optional only for a block: one scene's adjusted model is always written
+        return {**out, scene: out[scene] or QgsProcessingUtils.generateTempFilename("output_scene.json")}
 
     def adjustment_settings(self, parameters, context) -> AdjustmentSettings:
         number = lambda name: self.parameterAsDouble(parameters, name, context)  # noqa: E731
-        position_sigma, attitude_sigma = number(self.POSITION_SIGMA), number(self.ATTITUDE_SIGMA)
+        values = {key: enum_value(self, parameters, name, context) for key, name in (
+            ("position_model", POSITION_MODEL), ("attitude_model", ATTITUDE_MODEL), ("ground", GROUND),
+            ("camera_trajectory", CAMERA_TRAJECTORY), ("interior_selection", INTERIOR_SELECTION), ("robust", ROBUST),
+            ("on_singular", ON_SINGULAR), ("rpc_correction", RPC_CORRECTION))}
+        values.update({key: self.parameterAsInt(parameters, name, context) for key, name in (
+            ("position_order", "POSITION_ORDER"), ("attitude_order", "ATTITUDE_ORDER"),
+            ("max_robust_iterations", self.MAX_ROBUST_PASSES))})
         return AdjustmentSettings(
-            position_model=enum_value(self, parameters, self.POSITION_MODEL, context),
-            position_order=self.parameterAsInt(parameters, self.POSITION_ORDER, context),
-            position_interval=number(self.POSITION_INTERVAL),
-            attitude_model=enum_value(self, parameters, self.ATTITUDE_MODEL, context),
-            attitude_order=self.parameterAsInt(parameters, self.ATTITUDE_ORDER, context),
-            attitude_interval=number(self.ATTITUDE_INTERVAL),
-            position_sigma=position_sigma or None, attitude_sigma=attitude_sigma * ARCSEC or None,
-            camera_trajectory=enum_value(self, parameters, self.CAMERA_TRAJECTORY, context),
-            interior=self.parameterAsString(parameters, self.INTERIOR, context),
-            interior_selection=enum_value(self, parameters, INTERIOR_SELECTION, context),
-            ground=enum_value(self, parameters, self.GROUND, context),
-            robust=enum_value(self, parameters, self.ROBUST, context),
-            alpha=number(self.ALPHA),
+            **values, position_interval=number("POSITION_INTERVAL"), attitude_interval=number("ATTITUDE_INTERVAL"),
+            position_sigma=number("POSITION_SIGMA") or None, attitude_sigma=number("ATTITUDE_SIGMA") * ARCSEC or None,
+            interior=self.parameterAsString(parameters, self.INTERIOR, context), alpha=number(self.ALPHA),
             variance_components=self.parameterAsBoolean(parameters, self.VARIANCE_COMPONENTS, context),
-            max_robust_iterations=self.parameterAsInt(parameters, self.MAX_ROBUST_PASSES, context),
-            on_singular=enum_value(self, parameters, self.ON_SINGULAR, context),
-            rpc_correction=enum_value(self, parameters, self.RPC_CORRECTION, context),
             rpc_sigma=number(self.RPC_SIGMA) or None)
-
-    def _destination(self, parameters, context, name: str, suffix: str) -> str:
-        path = self.output_path(parameters, context, name, name.lower() + suffix)
-        if path and Path(path).suffix.lower() != suffix:
-            raise QgsProcessingException(f"{name}: expected a {suffix} file (got {path})")
-        return path
