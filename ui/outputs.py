@@ -15,7 +15,6 @@ from qgis.core import (QgsDataSourceUri, QgsProcessing, QgsFeatureSink, QgsProce
                        QgsProcessingParameterFolderDestination, QgsProperty)
 
 from ..core.files import atomic_output, write_failure
-from ..core.observations import tiepoints
 from ..core.runs.base import FilesInUse
 from ..core.vector_io import feature_count
 from . import RESOURCES
@@ -81,17 +80,6 @@ def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None
     parameter given is checked with the file its value names."""
     with processing_errors():
         files_in_use(alg, parameters, context).check(dict(outputs or {}))
-
-
-def geopackage_output(alg, parameters, context, name: str, temporary_name: str, what: str) -> str:
-    """The file of vector output ``name``, a GeoPackage (``what``: what it holds, plural, for
-    the message: 'GCP layers', 'control lines'), checked against the inputs
-    (:func:`check_outputs`) before any work."""
-    dest = alg.output_path(parameters, context, name, temporary_name)
-    if Path(dest).suffix.lower() != ".gpkg":
-        raise QgsProcessingException(f"{name}: {what} are written as GeoPackage; choose a .gpkg file (got {dest})")
-    check_outputs(alg, parameters, context, {name: [dest]})
-    return dest
 
 
 # --- feature sinks: every feature or nothing ---------------------------------------------------
@@ -178,34 +166,3 @@ def style_output_on_load(context, layer_id: str, qml_path: str | Path) -> None:
     post = _StyleOnLoad(str(qml_path))
     _post_processors[layer_id] = post
     context.layerToLoadOnCompletionDetails(layer_id).setPostProcessor(post)
-
-
-# --- layers two algorithms write ---------------------------------------------------------------
-def write_tie_layer(table: tiepoints.TieTable, name: str, dest: str, context, feedback,
-                    by_scene: bool = False) -> dict:
-    """Write the checked tie-point table to output ``name`` (file ``dest``), say what it holds,
-    style it on load; the algorithm's results (importtiepoints and matchtiepoints). ``by_scene``:
-    cameras named '<scene>/<camera>' in the log (a block of scenes)."""
-    with processing_errors(f"{name}: "):
-        tiepoints.write_gpkg(table, dest)
-    _report_tie_table(table, feedback, by_scene)
-    style_output_on_load(context, dest, STYLES / "tie_points.qml")
-    feedback.setProgress(100)
-    return {name: dest}
-
-
-def _report_tie_table(table: tiepoints.TieTable, feedback, by_scene: bool = False) -> None:
-    """Points and observations per camera, points seen in one camera, a-priori residuals."""
-    s = tiepoints.summary(table, by_scene)
-    seen = "image" if by_scene else "camera"
-    histogram = ", ".join(f"{points} in {rays} {seen}{'s' if rays != 1 else ''}"
-                          for rays, points in sorted(s["cameras_per_point"].items()))
-    feedback.pushInfo(f"{s['points']} tie points, {s['observations']} observations ("
-                      + ", ".join(f"{k}: {v}" for k, v in s["cameras"].items()) + f"); points seen {histogram}")
-    if s["single"]:
-        feedback.pushWarning(f"{s['single']} point(s) seen in one camera only: kept in the layer (rays = 1, "
-                             "empty geometry) but left out of the adjustment")
-    if s["rms_px"] == s["rms_px"]:  # not NaN: some point was intersected
-        feedback.pushInfo(f"a-priori intersection residuals (onboard model, {s['points'] - s['single']} "
-                          f"intersected points): RMS {s['rms_px']:.2f} px; {s['suspect']} point(s) likely "
-                          "mismatched")
