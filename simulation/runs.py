@@ -35,8 +35,8 @@ class SimulateSceneRequest:
     n_scenes: int = 1
     render: bool = False
     errors: dict = field(default_factory=dict)
-    gcps: GcpSettings = GcpSettings()
-    roads: RoadSettings = RoadSettings()
+    gcps: GcpSettings = field(default_factory=GcpSettings)
+    roads: RoadSettings = field(default_factory=RoadSettings)
     image_size: int = 0
 
 
