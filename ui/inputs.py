@@ -42,10 +42,9 @@ def add_scene_parameters(alg, with_camera: bool = True, or_scenes: bool = False)
 
 
 def load_scene_for(parameter_name: str, path: str, feedback=None):
-    """Load any supported scene file given by parameter ``parameter_name`` (SCENE or SCENES) with
-    :func:`core.runs.scenes.read_scene`: an error's message names the parameter ("SCENE: /x/y.xml: no
-    such file"), the reader's log lines (its warnings, the check of a vendor product against its RPC)
-    go to ``feedback``, naming it too."""
+    """The scene file parameter ``parameter_name`` (SCENE or SCENES) gives, read by
+    :func:`core.runs.scenes.read_scene`; its errors ("SCENE: /x/y.xml: no such file") and its log
+    lines (to ``feedback``) name the parameter."""
     concerns = scenes.SCENES if parameter_name == vocabulary.SCENES else "scene"
     with processing_errors(f"{parameter_name}: "):
         scene, lines = scenes.read_scene(path, concerns)
@@ -204,10 +203,9 @@ def require_points(parameter_name: str, source) -> None:
 
 
 def field_values(alg, parameters, context, source, features) -> Callable[[str, bool], list | None]:
-    """column(param, required, conventional=None): the values of ``features`` in the field of
-    ``source`` that string parameter ``param`` names; when the parameter is empty, the field named
-    ``conventional`` if the layer has one (core.observations.tables.present), else None (not
-    required) or an error. Errors name the parameter (and list the layer's fields)."""
+    """column(param, required, conventional=None): the values of ``features`` in the field string
+    parameter ``param`` names, else in the field ``conventional`` when the layer has one, else None
+    (or, ``required``, an error). Errors name the parameter and list the layer's fields."""
     names = source.fields().names()
 
     def column(param: str, required: bool, conventional: str | None = None):

@@ -1,9 +1,6 @@
-"""Destinations, sinks and styles of outputs: nothing lost, nothing partial.
-
-Outputs are checked before any work (none may replace an input or another output, each must
-be writable), written completely or not at all, checked to hold what was written, and styled
-when Processing loads them into the project.
-"""
+"""Destinations, sinks and styles of outputs: nothing lost, nothing partial. Outputs are checked
+before any work (none replaces an input or another output), written completely or not at all,
+checked to hold what was written, and styled when Processing loads them."""
 from __future__ import annotations
 
 from contextlib import contextmanager
@@ -73,11 +70,9 @@ def files_in_use(alg, parameters, context) -> FilesInUse:
 
 
 def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None:
-    """Before any work: refuse outputs that would replace an input or each other (derived files
-    included) and destinations that cannot be written, naming both parameters
-    (:func:`core.files.check_outputs`). ``outputs``: {parameter: [its file, Output(derived file,
-    label)...]} for outputs whose paths the algorithm resolved itself; every other destination
-    parameter given is checked with the file its value names."""
+    """Before any work: refuse outputs that would replace an input or each other, or cannot be
+    written, naming both parameters (:meth:`core.runs.base.FilesInUse.check`); ``outputs``:
+    {parameter: [its file, Output...]} the algorithm resolved itself, besides the destinations given."""
     with processing_errors():
         files_in_use(alg, parameters, context).check(dict(outputs or {}))
 
@@ -101,11 +96,10 @@ class CheckedSink:
 
 @contextmanager
 def output_sink(alg, parameters, context, name: str, fields, wkb_type, crs):
-    """(CheckedSink, destination) of feature sink parameter ``name``, written completely or not
-    at all: a file destination is written under a temporary name in its folder
-    (:func:`core.files.atomic_output`), checked to hold every feature once closed, and renamed
-    over the destination when the block ends normally; nothing is left when it raises. Memory
-    layers and tables added to a database are written in place."""
+    """(CheckedSink, destination) of feature sink parameter ``name``, all or nothing: a file is
+    written under a temporary name (:func:`core.files.atomic_output`), checked to hold every
+    feature, and renamed over the destination at the block's normal end (memory layers and
+    database tables: in place)."""
     final = alg.parameterAsOutputLayer(parameters, name, context)  # registers it for loading, if asked
     path = destination_file(final) if not final.startswith("ogr:") else ""
     if not path:
