@@ -9,13 +9,12 @@ from typing import Callable
 import numpy as np
 
 from .. import observations
-from ..errors import Cancelled
 from ..log import LogLine
 from ..observations import gcps
 from ..observations.blockscenes import check_against_block
 from ..observations.tables import per_point_sigmas
 from .base import FilesInUse, RunResult, logged, scene_from
-from .layers import OUTPUT, PointHeights, check_gpkg, gcp_lines, heights_of, write_gcps
+from .layers import OUTPUT, PointHeights, check_cancelled, check_gpkg, gcp_lines, heights_of, write_gcps
 from .scenes import block_from
 
 # The inputs errors and log lines name, beside core.runs.base's and core.runs.scenes': the rows' scene
@@ -77,7 +76,7 @@ def run(request: ImportGcpsRequest, progress: Callable[[float, str | None], None
         block, lines = block_from(request.scenes)
         with logged(observations.__name__, lines):  # gcps, tables (cameras)
             table = _read(request, list(block.files))
-            _check_cancelled(is_cancelled)
+            check_cancelled(is_cancelled)
             report(0.5, f"checking {len(table)} rows against the scene each names")
             table = check_against_block(table, block.scenes, block.files, request.camera, request.check_fraction)
     else:
@@ -85,18 +84,13 @@ def run(request: ImportGcpsRequest, progress: Callable[[float, str | None], None
         with logged(observations.__name__, lines):
             table = _read(request)
             lines += _several_scenes(table)
-            _check_cancelled(is_cancelled)
+            check_cancelled(is_cancelled)
             report(0.5, f"checking {len(table)} points against {request.scene}")
             table = gcps.check_against_scene(table, scene, request.scene, request.camera, request.check_fraction)
     write_gcps(table, request.output)
     lines += gcp_lines(table)
     report(1.0)
     return RunResult({OUTPUT: request.output}, gcps.summary(table), lines)
-
-
-def _check_cancelled(is_cancelled) -> None:
-    if is_cancelled is not None and is_cancelled():
-        raise Cancelled("cancelled by the user")
 
 
 def _several_scenes(table: gcps.GcpTable) -> list[LogLine]:

@@ -10,11 +10,11 @@ from typing import Callable
 import numpy as np
 
 from ..adjust.linepoints import ControlLines, check_against_scene
-from ..errors import Cancelled, InputError
+from ..errors import InputError
 from ..log import LogLine
 from ..observations import lines as core_lines
 from .base import FilesInUse, RunResult, concerning, scene_from
-from .layers import OUTPUT, PointHeights, check_gpkg, heights_of
+from .layers import OUTPUT, PointHeights, check_cancelled, check_gpkg, heights_of
 
 # The inputs errors name, beside core.runs.base's: the ground lines' layer and the image lines' layer.
 GROUND_LINES, IMAGE_LINES = "ground_lines", "image_lines"
@@ -49,8 +49,7 @@ def run(request: ImportLinesRequest, progress: Callable[[float, str | None], Non
     check_gpkg(request.output, "control lines", request.files)
     scene, lines = scene_from(request.scene)
     control = _read(request)
-    if is_cancelled is not None and is_cancelled():
-        raise Cancelled("cancelled by the user")
+    check_cancelled(is_cancelled)
     report(0.4)
     points, table, outside = check_against_scene(scene, control)
     ids, ground = table["line_id"].tolist(), control.ground

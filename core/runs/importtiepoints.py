@@ -6,11 +6,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable
 
-from ..errors import Cancelled
 from ..observations import tiepoints
 from ..observations.tables import per_point_sigmas
 from .base import FilesInUse, RunResult, logged, scene_from
-from .layers import OUTPUT, check_gpkg, write_ties
+from .layers import OUTPUT, check_cancelled, check_gpkg, write_ties
 
 
 @dataclass(frozen=True)
@@ -51,8 +50,7 @@ def run(request: ImportTiesRequest, progress: Callable[[float, str | None], None
     report(0.1)
     with logged(tiepoints.__name__, lines):
         table = _read(request)
-        if is_cancelled is not None and is_cancelled():
-            raise Cancelled("cancelled by the user")
+        check_cancelled(is_cancelled)
         report(0.3, f"checking and intersecting {len(table)} observations against {request.scene}")
         table = tiepoints.check_against_scene(table, scene, request.scene)
     report(0.8)

@@ -10,7 +10,7 @@ import numpy as np
 from pyproj import CRS
 from pyproj.exceptions import CRSError
 
-from ..errors import InputError
+from ..errors import Cancelled, InputError
 from ..log import LogLine
 from ..observations import gcps, tiepoints
 from ..observations.tables import Heights
@@ -60,6 +60,12 @@ def _crs_datum(crs: str | None) -> str | None:
         return z_datum_of(CRS.from_user_input(crs))
     except CRSError:
         return None
+
+
+def check_cancelled(is_cancelled) -> None:
+    """Stop between steps when ``is_cancelled`` (a callable, or None) says the user cancelled."""
+    if is_cancelled is not None and is_cancelled():
+        raise Cancelled("cancelled by the user")
 
 
 def check_gpkg(path: str, what: str, files: FilesInUse) -> None:

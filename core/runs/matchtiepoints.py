@@ -14,7 +14,7 @@ from typing import Callable
 import numpy as np
 
 from .. import measure
-from ..errors import Cancelled, InputError
+from ..errors import InputError
 from ..log import LogLine
 from ..measure.tiematching import View, match_block_tiepoints, match_tiepoints
 from ..model.rpcscene import size_note
@@ -22,7 +22,7 @@ from ..observations import tiepoints
 from ..products.ortho import check_images
 from ..rasters import check_input_raster
 from .base import IMAGES, FilesInUse, RunResult, Terrain, camera_images, concerning, logged, scene_from, surface_from
-from .layers import OUTPUT, check_gpkg, write_ties
+from .layers import OUTPUT, check_cancelled, check_gpkg, write_ties
 from .matchgcps import match_settings
 from .scenes import SCENES, block_from
 
@@ -61,11 +61,6 @@ def run(request: MatchTiesRequest, progress: Callable[[float, str | None], None]
     return RunResult({OUTPUT: request.output}, tiepoints.summary(table, bool(request.scenes)), lines)
 
 
-def _check_cancelled(is_cancelled) -> None:
-    if is_cancelled is not None and is_cancelled():
-        raise Cancelled("cancelled by the user")
-
-
 def _match_scene(request: MatchTiesRequest, report, is_cancelled) -> tuple:
     """(table, lines) of the tie points between the cameras of one scene, checked and intersected."""
     scene, lines = scene_from(request.scene)
@@ -83,7 +78,7 @@ def _match_scene(request: MatchTiesRequest, report, is_cancelled) -> tuple:
     with logged(measure.__name__, lines):
         table, rejected = match_tiepoints(scene, images, surface, settings, 0,
                                           lambda f, m=None: report(0.85 * f, m), is_cancelled)
-    _check_cancelled(is_cancelled)
+    check_cancelled(is_cancelled)
     base = scene.cameras[0].name
     for name, counts in rejected.items():
         lines.append(_pair_line(base, name, int((table.camera == name).sum()), counts))
@@ -92,7 +87,7 @@ def _match_scene(request: MatchTiesRequest, report, is_cancelled) -> tuple:
     report(0.85, f"checking and intersecting {len(table)} observations")
     with logged(tiepoints.__name__, lines):
         table = tiepoints.check_against_scene(table, scene, request.scene, "matched tie points")
-    _check_cancelled(is_cancelled)
+    check_cancelled(is_cancelled)
     return table, lines
 
 
@@ -113,7 +108,7 @@ def _match_block(request: MatchTiesRequest, report, is_cancelled) -> tuple:
     with logged(measure.__name__, lines):
         table, rejected = match_block_tiepoints(views, surface, settings, 0,
                                                 lambda f, m=None: report(0.9 * f, m), is_cancelled)
-    _check_cancelled(is_cancelled)
+    check_cancelled(is_cancelled)
     for view in views[1:]:
         matched = int(np.sum((table.scene == view.scene_name) & (table.camera == view.camera_name)))
         lines.append(_pair_line(views[0].label, view.label, matched, rejected[view.label]))
