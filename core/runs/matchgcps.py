@@ -63,6 +63,8 @@ def run(request: MatchGcpsRequest, progress: Callable[[float, str | None], None]
     table = gcps.check_against_scene(result.table, scene, request.scene, None, request.check_fraction)
     write_gcps(table, request.output, {"quality": result.quality, "peak_ratio": result.peak_ratio})
     figures = {**gcps.summary(table), "matched": len(result.table), "grid_points": result.grid_points}
+    if progress is not None:
+        progress(1.0, None)
     return RunResult({OUTPUT: request.output}, figures, lines + matching_lines(result))
 
 
