@@ -17,16 +17,17 @@ from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProce
                        QgsWkbTypes)
 
 from ..core.errors import PushbroomError
-from ..core.formats import load_scene
-from ..core.formats.rpcfiles import image_name
-from ..core.measure.matching import MatchSettings
-from ..core.observations.tables import Heights, present
+from ..core.observations.tables import present
 from ..core.rasters import check_input_raster
-from ..core.runs.base import camera_images, surface_from, z_datum_of
-from ..core.validation import check_terrain_height
+from ..core.runs import scenes
+from ..core.runs.layers import PointHeights
 from . import parameters as vocabulary
-from .feedback import core_call, error_message, processing_errors
-from .parameters import DEM, DEM_DATUM, HEIGHT, HEIGHT_SOURCE, Z_DATUM, enum_value
+from .feedback import error_message, processing_errors, push_lines
+from .parameters import DEM, HEIGHT_SOURCE, Z_DATUM, enum_value
+
+# The core's names of the scene, camera and DEM inputs (InputError.parameter) -> the shared parameters
+SCENE_PARAMETERS = {"scene": vocabulary.SCENE, scenes.SCENES: vocabulary.SCENES, "camera": vocabulary.CAMERA,
+                    "dem": DEM}
 
 
 # --- scenes and cameras ------------------------------------------------------------------------
@@ -41,32 +42,15 @@ def add_scene_parameters(alg, with_camera: bool = True, or_scenes: bool = False)
 
 
 def load_scene_for(parameter_name: str, path: str, feedback=None):
-    """Load any supported scene file (core.formats.load_scene) given by a parameter.
-
-    The error message names the parameter, e.g. "SCENE: /x/y.xml: no such file". The reader's
-    warnings (``scene.info["warnings"]``: what it assumed about the file) go to ``feedback``, and so
-    does the check of a vendor product read from its metadata against the vendor's RPC
-    (``scene.info["rpc_check"]``, :mod:`core.formats.vendorcheck`).
-    """
-    if not path:
-        raise QgsProcessingException(f"{parameter_name}: no scene file given")
+    """The scene file parameter ``parameter_name`` (SCENE or SCENES) gives, read by
+    :func:`core.runs.scenes.read_scene`; its errors ("SCENE: /x/y.xml: no such file") and its log
+    lines (to ``feedback``) name the parameter."""
+    concerns = scenes.SCENES if parameter_name == vocabulary.SCENES else "scene"
     with processing_errors(f"{parameter_name}: "):
-        scene = load_scene(path)
+        scene, lines = scenes.read_scene(path, concerns)
     if feedback is not None:
-        for warning in scene.info.get("warnings", []):
-            feedback.pushWarning(f"{parameter_name}: {warning}")
-        if "rpc_check" in scene.info and scene.info.get("source") == str(path):
-            feedback.pushInfo(f"{parameter_name}: {scene.info['rpc_check']['summary']}")
+        push_lines(feedback, lines, {concerns: parameter_name})
     return scene
-
-
-def camera_for(parameter_name: str, scene, text: str | None) -> int:
-    """Camera index of a scene from a parameter holding a camera name or index ('' = first)."""
-    text = (text or "").strip()
-    if not text:
-        return 0
-    with processing_errors(f"{parameter_name}: "):
-        return scene.camera_index(int(text) if text.isdigit() else text)
 
 
 def source_and_features(alg, parameters, context, input_name: str = "INPUT") -> tuple:
@@ -77,31 +61,19 @@ def source_and_features(alg, parameters, context, input_name: str = "INPUT") -> 
     return source, source_features(input_name, source)
 
 
-# Scene JSON files a block's folder layout names by their folder (pushbroom:simulateblock, bundleadjust)
-FOLDER_NAMED_SCENES = ("onboard_scene.json", "true_scene.json", "adjusted_scene.json")
-
-
 def block_scene_names(paths) -> list[str]:
-    """The name of each scene file of a block (SCENES): its file's stem (less the suffix of an RPC
-    sidecar, <name>_RPC.TXT: the image's name; a file named _RPC.TXT alone takes its folder's
-    name: :func:`core.formats.rpcfiles.image_name`), or its folder's name for the scene JSON files
-    of FOLDER_NAMED_SCENES (the layout pushbroom:simulateblock writes).
-    QgsProcessingException naming both files when two scenes get one name (or one file is
-    listed twice)."""
-    names, first = [], {}
-    for path in map(Path, paths):
-        name = path.parent.name if path.name.lower() in FOLDER_NAMED_SCENES else image_name(path)
-        if name in first:
-            other = first[name]
-            if other.resolve() == path.resolve():
-                raise QgsProcessingException(f"{vocabulary.SCENES}: {path} is listed twice; give each scene once")
-            raise QgsProcessingException(f"{vocabulary.SCENES}: {other} and {path} are both named {name!r} (a scene's "
-                                         "name is its file's stem, or its folder's for "
-                                         f"{' / '.join(FOLDER_NAMED_SCENES)}); rename one so that observations "
-                                         "can name their scene")
-        first[name] = path
-        names.append(name)
-    return names
+    """The name of each scene file of a block (SCENES): :func:`core.runs.scenes.block_scene_names`,
+    its refusal (two scenes of one name) naming SCENES."""
+    with processing_errors(f"{vocabulary.SCENES}: "):
+        return scenes.block_scene_names(paths)
+
+
+def crs_text(crs: QgsCoordinateReferenceSystem) -> str | None:
+    """A CRS string pyproj reads (the authority id, else WKT); None for an invalid CRS."""
+    if not crs.isValid():
+        return None
+    return crs.authid() if crs.authid().upper().startswith("EPSG:") else \
+        crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
 
 
 # --- the files behind layers -------------------------------------------------------------------
@@ -230,23 +202,10 @@ def require_points(parameter_name: str, source) -> None:
                                      "needed")
 
 
-def z_datum_of_crs(crs) -> str | None:
-    """What the Z values of a layer in QgsCoordinateReferenceSystem ``crs`` are measured from, when
-    the CRS says it: 'ellipsoid' for a 3D geographic CRS (EPSG:4979, the output of 'Image to
-    ground'), 'geoid' for a compound CRS with EGM96 heights (EPSG:4326+5773); else None."""
-    if not crs.isValid():
-        return None
-    try:
-        return z_datum_of(CRS.from_wkt(crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)))
-    except CRSError:
-        return None
-
-
 def field_values(alg, parameters, context, source, features) -> Callable[[str, bool], list | None]:
-    """column(param, required, conventional=None): the values of ``features`` in the field of
-    ``source`` that string parameter ``param`` names; when the parameter is empty, the field named
-    ``conventional`` if the layer has one (core.observations.tables.present), else None (not
-    required) or an error. Errors name the parameter (and list the layer's fields)."""
+    """column(param, required, conventional=None): the values of ``features`` in the field string
+    parameter ``param`` names, else in the field ``conventional`` when the layer has one, else None
+    (or, ``required``, an error). Errors name the parameter and list the layer's fields."""
     names = source.fields().names()
 
     def column(param: str, required: bool, conventional: str | None = None):
@@ -285,58 +244,19 @@ def add_dem_parameters(alg) -> None:
         alg.addParameter(p)
 
 
-def dem_from_parameters(alg, parameters, context, scene=None, feedback=None):
-    """core.dem.Dem of the DEM parameter, or core.dem.ConstantHeight(HEIGHT) without one
-    (:func:`core.runs.base.surface_from`); with an RPC ``scene``, heights partly outside the RPC's
-    height range are a warning to ``feedback``."""
-    with processing_errors():
-        surface, lines = surface_from(alg.terrain(parameters, context), scene)
-    if feedback is not None:
-        for line in lines:
-            feedback.pushWarning(line.text)
-    return surface
+def point_heights(alg, parameters, context) -> PointHeights:
+    """Where imported points take their heights (:class:`core.runs.layers.PointHeights`): HEIGHT_SOURCE,
+    Z_DATUM (None: what the points' CRS says) and the terrain of the DEM parameters."""
+    return PointHeights(enum_value(alg, parameters, HEIGHT_SOURCE, context),
+                        enum_value(alg, parameters, Z_DATUM, context) or None, alg.terrain(parameters, context))
 
 
-def heights_from_parameters(alg, parameters, context, crs) -> Heights:
-    """Where the heights of imported points come from (HEIGHT_SOURCE: their Z values, the DEM or
-    the constant HEIGHT); Z_DATUM, when not given, from the points' QgsCoordinateReferenceSystem
-    ``crs`` if it says."""
-    kind = enum_value(alg, parameters, HEIGHT_SOURCE, context)
-    if kind == "constant":
-        value = alg.parameterAsDouble(parameters, HEIGHT, context)
-        return Heights("constant", "ellipsoid", value=core_call(check_terrain_height, value, HEIGHT))
-    if kind == "dem":
-        dem = dem_from_parameters(alg, parameters, context)
-        if not hasattr(dem, "path"):
-            raise QgsProcessingException("HEIGHT_SOURCE is dem but no DEM was given")
-        return Heights("dem", enum_value(alg, parameters, DEM_DATUM, context), dem=dem)
-    datum = enum_value(alg, parameters, Z_DATUM, context) or z_datum_of_crs(crs)
-    if datum is None:
-        raise QgsProcessingException(f"{Z_DATUM}: HEIGHT_SOURCE is z and the points' CRS ({crs.authid()}) "
-                                     "does not say what the Z values are measured from: give Z_DATUM=geoid or "
-                                     f"Z_DATUM=ellipsoid ({DEM_DATUM} is the DEM's datum only)")
-    return Heights("z", datum)
-
-
-# --- raw images and matching settings ----------------------------------------------------------
-def camera_images_for(alg, parameters, context, scene) -> dict[int, str]:
-    """{camera index: file} of INPUTS, one raw image per camera of ``scene`` in its camera order;
-    QgsProcessingException naming the cameras when the count differs or a layer is not a file
-    (:func:`core.runs.base.camera_images`)."""
-    with processing_errors(f"{vocabulary.INPUTS}: "):
-        return camera_images(scene, raster_files(alg, parameters, vocabulary.INPUTS, context))
-
-
-def matching_settings(alg, parameters, context, **fixed) -> MatchSettings:
-    """core.measure.matching.MatchSettings of the matching parameters
-    (ui.parameters.matching_parameters), checked; ``fixed``: other MatchSettings fields."""
-    with processing_errors():
-        settings = MatchSettings(spacing=alg.parameterAsDouble(parameters, vocabulary.SPACING, context),
-                                 count=alg.parameterAsInt(parameters, vocabulary.N_POINTS, context),
-                                 window=alg.parameterAsInt(parameters, vocabulary.WINDOW, context),
-                                 min_correlation=alg.parameterAsDouble(parameters, vocabulary.MIN_CORRELATION,
-                                                                       context),
-                                 search=alg.parameterAsDouble(parameters, vocabulary.SEARCH_RANGE, context),
-                                 fine_radius=alg.parameterAsInt(parameters, vocabulary.FINE_RADIUS, context), **fixed)
-        settings.validate()
-    return settings
+def matching_settings(alg, parameters, context) -> dict:
+    """The values of the matching parameters (ui.parameters.matching_parameters) by
+    :class:`core.measure.matching.MatchSettings` field, which the use case checks."""
+    return {"spacing": alg.parameterAsDouble(parameters, vocabulary.SPACING, context),
+            "count": alg.parameterAsInt(parameters, vocabulary.N_POINTS, context),
+            "window": alg.parameterAsInt(parameters, vocabulary.WINDOW, context),
+            "min_correlation": alg.parameterAsDouble(parameters, vocabulary.MIN_CORRELATION, context),
+            "search": alg.parameterAsDouble(parameters, vocabulary.SEARCH_RANGE, context),
+            "fine_radius": alg.parameterAsInt(parameters, vocabulary.FINE_RADIUS, context)}

@@ -1,9 +1,6 @@
-"""Destinations, sinks and styles of outputs: nothing lost, nothing partial.
-
-Outputs are checked before any work (none may replace an input or another output, each must
-be writable), written completely or not at all, checked to hold what was written, and styled
-when Processing loads them into the project.
-"""
+"""Destinations, sinks and styles of outputs: nothing lost, nothing partial. Outputs are checked
+before any work (none replaces an input or another output), written completely or not at all,
+checked to hold what was written, and styled when Processing loads them."""
 from __future__ import annotations
 
 from contextlib import contextmanager
@@ -15,7 +12,6 @@ from qgis.core import (QgsDataSourceUri, QgsProcessing, QgsFeatureSink, QgsProce
                        QgsProcessingParameterFolderDestination, QgsProperty)
 
 from ..core.files import atomic_output, write_failure
-from ..core.observations import tiepoints
 from ..core.runs.base import FilesInUse
 from ..core.vector_io import feature_count
 from . import RESOURCES
@@ -74,24 +70,11 @@ def files_in_use(alg, parameters, context) -> FilesInUse:
 
 
 def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None:
-    """Before any work: refuse outputs that would replace an input or each other (derived files
-    included) and destinations that cannot be written, naming both parameters
-    (:func:`core.files.check_outputs`). ``outputs``: {parameter: [its file, Output(derived file,
-    label)...]} for outputs whose paths the algorithm resolved itself; every other destination
-    parameter given is checked with the file its value names."""
+    """Before any work: refuse outputs that would replace an input or each other, or cannot be
+    written, naming both parameters (:meth:`core.runs.base.FilesInUse.check`); ``outputs``:
+    {parameter: [its file, Output...]} the algorithm resolved itself, besides the destinations given."""
     with processing_errors():
         files_in_use(alg, parameters, context).check(dict(outputs or {}))
-
-
-def geopackage_output(alg, parameters, context, name: str, temporary_name: str, what: str) -> str:
-    """The file of vector output ``name``, a GeoPackage (``what``: what it holds, plural, for
-    the message: 'GCP layers', 'control lines'), checked against the inputs
-    (:func:`check_outputs`) before any work."""
-    dest = alg.output_path(parameters, context, name, temporary_name)
-    if Path(dest).suffix.lower() != ".gpkg":
-        raise QgsProcessingException(f"{name}: {what} are written as GeoPackage; choose a .gpkg file (got {dest})")
-    check_outputs(alg, parameters, context, {name: [dest]})
-    return dest
 
 
 # --- feature sinks: every feature or nothing ---------------------------------------------------
@@ -113,11 +96,10 @@ class CheckedSink:
 
 @contextmanager
 def output_sink(alg, parameters, context, name: str, fields, wkb_type, crs):
-    """(CheckedSink, destination) of feature sink parameter ``name``, written completely or not
-    at all: a file destination is written under a temporary name in its folder
-    (:func:`core.files.atomic_output`), checked to hold every feature once closed, and renamed
-    over the destination when the block ends normally; nothing is left when it raises. Memory
-    layers and tables added to a database are written in place."""
+    """(CheckedSink, destination) of feature sink parameter ``name``, all or nothing: a file is
+    written under a temporary name (:func:`core.files.atomic_output`), checked to hold every
+    feature, and renamed over the destination at the block's normal end (memory layers and
+    database tables: in place)."""
     final = alg.parameterAsOutputLayer(parameters, name, context)  # registers it for loading, if asked
     path = destination_file(final) if not final.startswith("ogr:") else ""
     if not path:
@@ -178,34 +160,3 @@ def style_output_on_load(context, layer_id: str, qml_path: str | Path) -> None:
     post = _StyleOnLoad(str(qml_path))
     _post_processors[layer_id] = post
     context.layerToLoadOnCompletionDetails(layer_id).setPostProcessor(post)
-
-
-# --- layers two algorithms write ---------------------------------------------------------------
-def write_tie_layer(table: tiepoints.TieTable, name: str, dest: str, context, feedback,
-                    by_scene: bool = False) -> dict:
-    """Write the checked tie-point table to output ``name`` (file ``dest``), say what it holds,
-    style it on load; the algorithm's results (importtiepoints and matchtiepoints). ``by_scene``:
-    cameras named '<scene>/<camera>' in the log (a block of scenes)."""
-    with processing_errors(f"{name}: "):
-        tiepoints.write_gpkg(table, dest)
-    _report_tie_table(table, feedback, by_scene)
-    style_output_on_load(context, dest, STYLES / "tie_points.qml")
-    feedback.setProgress(100)
-    return {name: dest}
-
-
-def _report_tie_table(table: tiepoints.TieTable, feedback, by_scene: bool = False) -> None:
-    """Points and observations per camera, points seen in one camera, a-priori residuals."""
-    s = tiepoints.summary(table, by_scene)
-    seen = "image" if by_scene else "camera"
-    histogram = ", ".join(f"{points} in {rays} {seen}{'s' if rays != 1 else ''}"
-                          for rays, points in sorted(s["cameras_per_point"].items()))
-    feedback.pushInfo(f"{s['points']} tie points, {s['observations']} observations ("
-                      + ", ".join(f"{k}: {v}" for k, v in s["cameras"].items()) + f"); points seen {histogram}")
-    if s["single"]:
-        feedback.pushWarning(f"{s['single']} point(s) seen in one camera only: kept in the layer (rays = 1, "
-                             "empty geometry) but left out of the adjustment")
-    if s["rms_px"] == s["rms_px"]:  # not NaN: some point was intersected
-        feedback.pushInfo(f"a-priori intersection residuals (onboard model, {s['points'] - s['single']} "
-                          f"intersected points): RMS {s['rms_px']:.2f} px; {s['suspect']} point(s) likely "
-                          "mismatched")

@@ -1,22 +1,19 @@
 """pushbroom:importgcps — ground control points from CSV, QGIS .points or a point layer,
 checked against a scene and written as the GeoPackage GCP layer the adjustment reads."""
 import numpy as np
-from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessing, QgsProcessingException,
+from qgis.core import (QgsProcessing, QgsProcessingException,
                        QgsProcessingParameterCrs, QgsProcessingParameterFeatureSource,
                        QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterString,
                        QgsProcessingParameterVectorDestination, QgsWkbTypes)
 
-from ...core import observations
 from ...core.observations import gcps
-from ...core.observations.blockscenes import check_against_block
-from ...core.observations.tables import per_point_sigmas
-from ..blockmatch import block_given, one_scene_file, scene_files
-from ..feedback import check_cancelled, core_call, core_log_to, processing_errors
-from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts, block_scene_names,
-                      field_values, heights_from_parameters, load_scene_for, require_points, source_features)
-from ..outputs import STYLES, geopackage_output, style_output_on_load
-from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD, SCENE,
-                          SCENE_FIELD, SCENES, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction,
+from ...core.runs import importgcps as use_case
+from ..blockmatch import scene_or_block
+from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts, crs_text,
+                      SCENE_PARAMETERS, field_values, point_heights, require_points, source_features)
+from ..outputs import STYLES, files_in_use, style_output_on_load
+from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD,
+                          SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction,
                           height_source, id_field, image_field, scene_field, sigma_field, sigma_px, tr, z_datum)
 from .base import PushbroomAlgorithm
 
@@ -33,7 +30,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
     SIGMA_PX, SIGMA_XY, SIGMA_Z, OUTPUT = SIGMA_PX, "SIGMA_XY", "SIGMA_Z", "OUTPUT"
     SIGMA_FIELDS = SIGMA_FIELDS
     # The inputs core errors name (core.errors.InputError.parameter) -> this algorithm's parameters.
-    CORE_PARAMETERS = {"gcps.scene": SCENE_FIELD, "gcps.camera": CAMERA_FIELD}
+    CORE_PARAMETERS = {use_case.SCENE_COLUMN: SCENE_FIELD, use_case.CAMERA_COLUMN: CAMERA_FIELD, **SCENE_PARAMETERS}
     SCENE_OR_SCENES = ("check every point against one scene",
                        f"check each row against the scene of the block it names ({SCENE_FIELD})")
 
@@ -93,124 +90,56 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         self.show_only("SCENE", "SCENES", "INPUT_FILE", "INPUT", "GROUND_CRS", "HEIGHT_SOURCE", "DEM", "HEIGHT")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = geopackage_output(self, parameters, context, self.OUTPUT, "gcps.gpkg", "GCP layers")
-        camera_name = self.parameterAsString(parameters, self.CAMERA, context).strip() or None
-        fraction = self.parameterAsDouble(parameters, self.CHECK_FRACTION, context)
-        if block_given(self, parameters, context):
-            paths = dict(zip(block_scene_names(scene_files(self, parameters, context)),
-                             scene_files(self, parameters, context)))
-            scenes = {name: load_scene_for(SCENES, path, feedback) for name, path in paths.items()}
-            with core_log_to(feedback, observations.__name__):  # gcps, tables (cameras)
-                table = self._read(parameters, context, block=list(paths))
-                check_cancelled(feedback)
-                feedback.setProgressText(f"checking {len(table)} rows against the scene each names")
-                with self.core_errors():
-                    table = check_against_block(table, scenes, paths, camera_name, fraction)
-        else:
-            scene_path = one_scene_file(self, parameters, context)
-            scene = load_scene_for(SCENE, scene_path, feedback)
-            with core_log_to(feedback, observations.__name__):  # gcps, tables (cameras)
-                table = self._one_scene(self._read(parameters, context), feedback)
-                check_cancelled(feedback)
-                feedback.setProgressText(f"checking {len(table)} points against {scene_path}")
-                table = core_call(gcps.check_against_scene, table, scene, scene_path, camera_name, fraction)
-        with processing_errors(f"{self.OUTPUT}: "):
-            gcps.write_gpkg(table, dest)
-        self._report(table, feedback)
-        style_output_on_load(context, dest, STYLES / "gcps.qml")
-        feedback.setProgress(100)
-        return {self.OUTPUT: dest}
-
-    # --- reading --------------------------------------------------------------------------
-    def _one_scene(self, table: gcps.GcpTable, feedback) -> gcps.GcpTable:
-        """The table of a single SCENE; rows naming several scenes (the members of a strip, or the
-        products of a block) are all checked against SCENE, which the log says."""
-        named = sorted(set(table.block_scene) - {""})
-        if len(named) > 1:
-            feedback.pushWarning(f"{self.SCENE_FIELD}: the rows name {len(named)} scenes ({', '.join(named)}): all "
-                                 f"are checked against {SCENE}, as the members of one strip; the products of a "
-                                 f"block are checked each against its own scene with {SCENES}")
-        return table
-
-    def _read(self, parameters, context, block: list[str] | None = None) -> gcps.GcpTable:
-        """The table of INPUT_FILE or INPUT; ``block``: the names of SCENES, which every row's scene
-        must be one of (checked before anything else about the rows)."""
+        scene, scenes = scene_or_block(self, parameters, context)
         path = self.parameterAsFile(parameters, self.INPUT_FILE, context)
         source = self.parameterAsSource(parameters, self.INPUT, context)
         if bool(path) == (source is not None):
             raise QgsProcessingException(f"give either {self.INPUT_FILE} (CSV or .points) or {self.INPUT} "
                                          f"(point layer), not {'both' if path else 'neither'}")
-        features = source_features(self.INPUT, source) if source is not None else []  # an empty one said first
-        crs_of_points = source.sourceCrs() if source is not None else \
-            self.parameterAsCrs(parameters, self.GROUND_CRS, context)
-        heights = heights_from_parameters(self, parameters, context, crs_of_points)
-        sigmas = {f"sigma_{k}": self.parameterAsDouble(parameters, name, context)
-                  for k, name in (("px", self.SIGMA_PX), ("xy", self.SIGMA_XY), ("z", self.SIGMA_Z))}
-        crs = _crs_text(self.parameterAsCrs(parameters, self.GROUND_CRS, context))
-        if source is not None:
-            return self._from_layer(parameters, context, source, features, heights, sigmas, block)
-        if path.lower().endswith(".points"):
-            given = [name for name in (*self.SIGMA_FIELDS.values(), self.SCENE_FIELD)
-                     if self.parameterAsString(parameters, name, context)]
-            if given:
-                raise QgsProcessingException(f"{given[0]}: QGIS .points files have no such field (no per-point "
-                                             "sigma, no scene); leave it empty or import a CSV")
-            return core_call(gcps.read_points_file, path, heights, crs, **sigmas)
         text = {name: self.parameterAsString(parameters, name, context).strip() or None
-                for name in (self.ID_FIELD, self.COL_FIELD, self.ROW_FIELD, self.X_FIELD, self.Y_FIELD,
-                             self.Z_FIELD, self.ROLE_FIELD, self.CAMERA_FIELD)}
-        fields = {k: self.parameterAsString(parameters, name, context).strip() or None
-                  for k, name in self.SIGMA_FIELDS.items()}
-        mapping = gcps.CsvMapping(col=text[self.COL_FIELD], row=text[self.ROW_FIELD], x=text[self.X_FIELD],
-                                  y=text[self.Y_FIELD], id=text[self.ID_FIELD], z=text[self.Z_FIELD],
-                                  role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD],
-                                  scene=self.parameterAsString(parameters, self.SCENE_FIELD, context).strip() or None,
-                                  **fields)
-        with self.core_errors():
-            return gcps.read_csv(path, mapping, crs, heights, block, **sigmas)
+                for name in (self.ID_FIELD, self.COL_FIELD, self.ROW_FIELD, self.X_FIELD, self.Y_FIELD, self.Z_FIELD,
+                             self.ROLE_FIELD, self.CAMERA_FIELD, self.SCENE_FIELD, *self.SIGMA_FIELDS.values())}
+        given = [name for name in (*self.SIGMA_FIELDS.values(), self.SCENE_FIELD) if text[name]]
+        if path.lower().endswith(".points") and given:
+            raise QgsProcessingException(f"{given[0]}: QGIS .points files have no such field (no per-point "
+                                         "sigma, no scene); leave it empty or import a CSV")
+        columns = self._columns(parameters, context, source) if source is not None else None
+        crs = source.sourceCrs() if source is not None else self.parameterAsCrs(parameters, self.GROUND_CRS, context)
+        result = self.run_core(use_case.run, use_case.ImportGcpsRequest(
+            self.output_path(parameters, context, self.OUTPUT, "gcps.gpkg"),
+            scene, scenes, path,
+            gcps.CsvMapping(col=text[self.COL_FIELD], row=text[self.ROW_FIELD], x=text[self.X_FIELD],
+                            y=text[self.Y_FIELD], id=text[self.ID_FIELD], z=text[self.Z_FIELD],
+                            role=text[self.ROLE_FIELD], camera=text[self.CAMERA_FIELD], scene=text[self.SCENE_FIELD],
+                            **{k: text[name] for k, name in self.SIGMA_FIELDS.items()}),
+            columns, crs_text(crs), crs.authid(), point_heights(self, parameters, context),
+            {f"sigma_{k}": self.parameterAsDouble(parameters, name, context)
+             for k, name in (("px", self.SIGMA_PX), ("xy", self.SIGMA_XY), ("z", self.SIGMA_Z))},
+            self.parameterAsString(parameters, self.CAMERA, context).strip() or None,
+            self.parameterAsDouble(parameters, self.CHECK_FRACTION, context),
+            files_in_use(self, parameters, context)), feedback)
+        style_output_on_load(context, result.files[self.OUTPUT], STYLES / "gcps.qml")
+        return result.files
 
-    def _from_layer(self, parameters, context, source, features, heights, sigmas, block) -> gcps.GcpTable:
-        """Arrays of the layer's features -> core.gcps.build_table (which checks them)."""
+    def _columns(self, parameters, context, source) -> use_case.GcpColumns:
+        """The GCP columns of the INPUT layer's features (fields as the *_FIELD parameters name them)."""
+        features = source_features(self.INPUT, source)  # an empty layer said first
         require_points(self.INPUT, source)
         column = field_values(self, parameters, context, source, features)
         xyz = np.array([_point_xyz(f) for f in features], dtype=float)
-        ids = column(self.ID_FIELD, False, "id") or [f.id() for f in features]
-        for key, name in self.SIGMA_FIELDS.items():
-            values = column(name, False)
-            if values is not None:
-                sigmas[key] = core_call(per_point_sigmas, attribute_texts(values), sigmas[key],
-                                        self.parameterAsString(parameters, name, context).strip(),
-                                        [str(i) for i in ids], f"{self.INPUT} layer", key)
         z = column(self.Z_FIELD, False)
         if z is None and QgsWkbTypes.hasZ(source.wkbType()):
             z = xyz[:, 2]
-        with self.core_errors():
-            return gcps.build_table([str(i) for i in ids], attribute_floats(column(self.COL_FIELD, True)),
-                                    attribute_floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
-                                    crs=_crs_text(source.sourceCrs()), heights=heights,
-                                    z=None if z is None else attribute_floats(z),
-                                    role=attribute_texts(column(self.ROLE_FIELD, False, "role")),
-                                    camera=attribute_texts(column(self.CAMERA_FIELD, False, "camera")),
-                                    scene=attribute_texts(column(self.SCENE_FIELD, False, "scene")), block=block,
-                                    source=f"{self.INPUT} layer", **sigmas)
-
-    # --- report ---------------------------------------------------------------------------
-    @staticmethod
-    def _report(table: gcps.GcpTable, feedback) -> None:
-        s = gcps.summary(table)
-        feedback.pushInfo(f"{s['points']} points: {s['control']} control, {s['check']} check, "
-                          f"{s['outside']} outside the image")
-        if np.isfinite(s["median_px"]):
-            feedback.pushInfo(f"a-priori residuals (points inside the image): median {s['median_px']:.2f} px "
-                              f"({s['median_m']:.2f} m), max {s['max_px']:.2f} px ({s['max_m']:.2f} m)")
-
-
-def _crs_text(crs: QgsCoordinateReferenceSystem) -> str | None:
-    """A CRS string pyproj reads (the authority id, else WKT); None for an invalid CRS."""
-    if not crs.isValid():
-        return None
-    return crs.authid() if crs.authid().upper().startswith("EPSG:") else \
-        crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
+        sigmas = {key: (attribute_texts(values), self.parameterAsString(parameters, name, context).strip())
+                  for key, name in self.SIGMA_FIELDS.items() if (values := column(name, False)) is not None}
+        texts = {name: attribute_texts(column(name, False, conventional))
+                 for name, conventional in ((self.ROLE_FIELD, "role"), (self.CAMERA_FIELD, "camera"),
+                                            (self.SCENE_FIELD, "scene"))}
+        return use_case.GcpColumns(column(self.ID_FIELD, False, "id") or [f.id() for f in features],
+                                   attribute_floats(column(self.COL_FIELD, True)),
+                                   attribute_floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
+                                   None if z is None else attribute_floats(z), *texts.values(), sigmas,
+                                   f"{self.INPUT} layer")
 
 
 def _point_xyz(feature) -> tuple[float, float, float]:

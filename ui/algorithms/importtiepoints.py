@@ -5,11 +5,10 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
                        QgsProcessingParameterFile, QgsProcessingParameterVectorDestination)
 
 from ...core.observations import tiepoints
-from ...core.observations.tables import per_point_sigmas
-from ..feedback import check_cancelled, core_call, core_log_to
-from ..inputs import (add_scene_parameters, attribute_floats, attribute_texts, field_values, load_scene_for,
+from ...core.runs import importtiepoints as use_case
+from ..inputs import (SCENE_PARAMETERS, add_scene_parameters, attribute_floats, attribute_texts, field_values,
                       source_features)
-from ..outputs import geopackage_output, write_tie_layer
+from ..outputs import STYLES, files_in_use, style_output_on_load
 from ..parameters import (CAMERA_FIELD, COL_FIELD, ID_FIELD, ROW_FIELD, SCENE, SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX,
                           camera_field, id_field, image_field, scene_field, sigma_field, sigma_px, tr)
 from .base import PushbroomAlgorithm
@@ -22,6 +21,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
     INPUT_FILE, INPUT, OUTPUT = "INPUT_FILE", "INPUT", "OUTPUT"
     ID_FIELD, CAMERA_FIELD, COL_FIELD, ROW_FIELD = ID_FIELD, CAMERA_FIELD, COL_FIELD, ROW_FIELD
     SCENE_FIELD, SIGMA_PX, SIGMA_PX_FIELD = SCENE_FIELD, SIGMA_PX, SIGMA_FIELDS["sigma_px"]
+    CORE_PARAMETERS = SCENE_PARAMETERS
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
@@ -48,29 +48,11 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         self.show_only("SCENE", "INPUT_FILE", "INPUT", "SIGMA_PX")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = geopackage_output(self, parameters, context, self.OUTPUT, "tie_points.gpkg", "tie-point layers")
-        scene_path = self.parameterAsFile(parameters, SCENE, context)
-        scene = load_scene_for(SCENE, scene_path, feedback)
-        feedback.setProgress(10)
-        with core_log_to(feedback, tiepoints.__name__):
-            table = self._read(parameters, context)
-            check_cancelled(feedback)
-            feedback.setProgressText(f"checking and intersecting {len(table)} observations against {scene_path}")
-            feedback.setProgress(30)
-            table = core_call(tiepoints.check_against_scene, table, scene, scene_path)
-        check_cancelled(feedback)
-        feedback.setProgress(80)
-        return write_tie_layer(table, self.OUTPUT, dest, context, feedback)
-
-    def _read(self, parameters, context) -> tiepoints.TieTable:
         path = self.parameterAsFile(parameters, self.INPUT_FILE, context)
         source = self.parameterAsSource(parameters, self.INPUT, context)
         if bool(path) == (source is not None):
             raise QgsProcessingException(f"give either {self.INPUT_FILE} (CSV) or {self.INPUT} (layer or table), "
                                          f"not {'both' if path else 'neither'}")
-        sigma = self.parameterAsDouble(parameters, self.SIGMA_PX, context)
-        if source is not None:
-            return self._from_layer(parameters, context, source, sigma)
         text = {name: self.parameterAsString(parameters, name, context).strip() or None
                 for name in (self.ID_FIELD, self.CAMERA_FIELD, self.COL_FIELD, self.ROW_FIELD, self.SCENE_FIELD,
                              self.SIGMA_PX_FIELD)}
@@ -78,19 +60,24 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         mapping = tiepoints.CsvMapping(id=text[self.ID_FIELD] or "id", camera=text[self.CAMERA_FIELD],
                                        col=text[self.COL_FIELD] or "col", row=text[self.ROW_FIELD] or "row",
                                        scene=text[self.SCENE_FIELD], sigma_px=text[self.SIGMA_PX_FIELD])
-        return core_call(tiepoints.read_csv, path, mapping, sigma)
+        result = self.run_core(use_case.run, use_case.ImportTiesRequest(
+            self.output_path(parameters, context, self.OUTPUT, "tie_points.gpkg"),
+            self.parameterAsFile(parameters, SCENE, context), path, mapping,
+            self._columns(parameters, context, source, text[self.SIGMA_PX_FIELD]) if source is not None else None,
+            self.parameterAsDouble(parameters, self.SIGMA_PX, context), files_in_use(self, parameters, context)),
+            feedback)
+        style_output_on_load(context, result.files[self.OUTPUT], STYLES / "tie_points.qml")
+        return result.files
 
-    def _from_layer(self, parameters, context, source, sigma: float) -> tiepoints.TieTable:
-        """Arrays of the layer's features -> core.tiepoints.build_table (which checks them)."""
+    def _columns(self, parameters, context, source, sigma_field: str | None) -> use_case.TieColumns:
+        """The observations of the INPUT layer's features (fields as the *_FIELD parameters name them)."""
         features = source_features(self.INPUT, source)
         column = field_values(self, parameters, context, source, features)
         ids = attribute_texts(column(self.ID_FIELD, True, "id"))
-        what = f"{self.INPUT} layer"
         sigmas = column(self.SIGMA_PX_FIELD, False)
-        if sigmas is not None:
-            sigma = core_call(per_point_sigmas, attribute_texts(sigmas), sigma,
-                              self.parameterAsString(parameters, self.SIGMA_PX_FIELD, context).strip(), ids, what,
-                              "sigma_px")
-        return core_call(tiepoints.build_table, ids, attribute_texts(column(self.CAMERA_FIELD, False, "camera")),
-                         attribute_floats(column(self.COL_FIELD, True)), attribute_floats(column(self.ROW_FIELD, True)),
-                         scene=attribute_texts(column(self.SCENE_FIELD, False, "scene")), sigma_px=sigma, source=what)
+        return use_case.TieColumns(ids, attribute_texts(column(self.CAMERA_FIELD, False, "camera")),
+                                   attribute_floats(column(self.COL_FIELD, True)),
+                                   attribute_floats(column(self.ROW_FIELD, True)),
+                                   attribute_texts(column(self.SCENE_FIELD, False, "scene")),
+                                   None if sigmas is None else (attribute_texts(sigmas), sigma_field or ""),
+                                   f"{self.INPUT} layer")

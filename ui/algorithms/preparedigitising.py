@@ -1,12 +1,10 @@
 """pushbroom:preparedigitising — display copy of a raw image and an empty image-line layer."""
 from qgis.core import QgsProcessingContext, QgsProcessingParameterFileDestination
 
-from ...core.measure.display import check_image_size, write_display_vrt, write_empty_lines
-from ...core.files import atomic_outputs
 from ...core.observations.lines import IMAGE_LAYER
-from ..feedback import processing_errors
-from ..inputs import add_scene_parameters, camera_for, load_scene_for, raster_file
-from ..outputs import check_outputs
+from ...core.runs import preparedigitising as use_case
+from ..inputs import SCENE_PARAMETERS, add_scene_parameters, raster_file
+from ..outputs import files_in_use
 from ..parameters import CAMERA, SCENE, RasterInput, tr
 from .base import PushbroomAlgorithm
 
@@ -16,6 +14,7 @@ class PrepareDigitisingAlgorithm(PushbroomAlgorithm):
     NAME = "Prepare digitising control lines"
     GROUP, GROUP_ID = "Control", "control"
     INPUT, OUTPUT, OUTPUT_LINES = "INPUT", "OUTPUT", "OUTPUT_LINES"
+    CORE_PARAMETERS = {**SCENE_PARAMETERS, use_case.IMAGE: INPUT}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         self.add_parameter(RasterInput(self.INPUT, tr("Raw image")),
@@ -33,22 +32,16 @@ class PrepareDigitisingAlgorithm(PushbroomAlgorithm):
                               "sigma_px), to digitise in with QGIS's own tools. Optional."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        check_outputs(self, parameters, context)
-        scene = load_scene_for(SCENE, self.parameterAsFile(parameters, SCENE, context), feedback)
-        camera = scene.cameras[camera_for(CAMERA, scene, self.parameterAsString(parameters, CAMERA, context))]
-        image = raster_file(self, parameters, self.INPUT, context)
-        output = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
-        lines = self.parameterAsFileOutput(parameters, self.OUTPUT_LINES, context)
-        with processing_errors(f"{self.INPUT}: "):
-            check_image_size(image, camera)
-        with processing_errors(), atomic_outputs() as files:
-            write_display_vrt(image, output, self.parameterAsFile(parameters, SCENE, context), camera.name, files)
-            if lines:
-                write_empty_lines(lines, files)
-        details = QgsProcessingContext.LayerDetails(tr("Display copy ({camera})").format(camera=camera.name),
+        result = self.run_core(use_case.run, use_case.PrepareRequest(
+            self.parameterAsFile(parameters, SCENE, context), raster_file(self, parameters, self.INPUT, context),
+            self.parameterAsFileOutput(parameters, self.OUTPUT, context),
+            self.parameterAsFileOutput(parameters, self.OUTPUT_LINES, context),
+            self.parameterAsString(parameters, CAMERA, context), files_in_use(self, parameters, context)), feedback)
+        output, lines, camera = result.files[self.OUTPUT], result.files[self.OUTPUT_LINES], result.figures["camera"]
+        details = QgsProcessingContext.LayerDetails(tr("Display copy ({camera})").format(camera=camera),
                                                     context.project(), self.OUTPUT)
         context.addLayerToLoadOnCompletion(output, details)
         if lines:
             context.addLayerToLoadOnCompletion(f"{lines}|layername={IMAGE_LAYER}", QgsProcessingContext.LayerDetails(
-                tr("Image lines ({camera})").format(camera=camera.name), context.project(), self.OUTPUT_LINES))
+                tr("Image lines ({camera})").format(camera=camera), context.project(), self.OUTPUT_LINES))
         return {self.OUTPUT: output, self.OUTPUT_LINES: lines or None}

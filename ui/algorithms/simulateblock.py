@@ -3,10 +3,8 @@ a stereo pair, two dates, neighbouring strips, an RPC product of another date) w
 from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputMultipleLayers,
                        QgsProcessingOutputRasterLayer)
 
-from ...simulation.block import simulate_block
-from ...simulation.layouts import LAYOUT_MEANINGS, layout_members
-from ...simulation.presets import PRESETS, cut_preset
-from ..feedback import core_call, feedback_callbacks, processing_errors
+from ...simulation import runs as use_case
+from ...simulation.layouts import LAYOUT_MEANINGS
 from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_parameter, enum_value, preset, tr
 from ..simparameters import (IMAGE_NOISE, IMAGE_SIZE, N_GCPS, N_TIE_POINTS, RENDER, SEED, image_noise, image_size,
                              n_gcps, n_tie_points, output_folder, render, seed)
@@ -20,6 +18,7 @@ class SimulateBlockAlgorithm(PushbroomAlgorithm):
     LAYOUT, SEED, N_GCPS, N_TIE_POINTS, IMAGE_NOISE, RENDER, IMAGE_SIZE = \
         "LAYOUT", SEED, N_GCPS, N_TIE_POINTS, IMAGE_NOISE, RENDER, IMAGE_SIZE
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
+    CORE_PARAMETERS = {use_case.IMAGE_SIZE: IMAGE_SIZE}
     SCENES, TRUE_SCENES, IMAGES, GCPS, TIE_POINTS, DEM, REFERENCE, MANIFEST = \
         "SCENES", "TRUE_SCENES", "IMAGES", "GCPS", "TIE_POINTS", "DEM", "REFERENCE", "MANIFEST"
 
@@ -43,30 +42,12 @@ class SimulateBlockAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputFile(self.MANIFEST, tr("Block settings and drawn errors (JSON)")))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        spec = PRESETS[enum_value(self, parameters, PRESET, context)]
-        size = self.parameterAsInt(parameters, self.IMAGE_SIZE, context)
-        if size:
-            with processing_errors(f"{self.IMAGE_SIZE}: "):
-                spec = cut_preset(spec, size, size)
-        members = layout_members(enum_value(self, parameters, self.LAYOUT, context), spec)
-        progress, is_cancelled = feedback_callbacks(feedback)
-        folder = self.parameterAsFileOutput(parameters, self.OUTPUT_FOLDER, context)
-        result = core_call(simulate_block, members, folder, seed=self.parameterAsInt(parameters, self.SEED, context),
-                           n_gcps=self.parameterAsInt(parameters, self.N_GCPS, context),
-                           n_tie_points=self.parameterAsInt(parameters, self.N_TIE_POINTS, context),
-                           image_noise=self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
-                           render=self.parameterAsBool(parameters, self.RENDER, context),
-                           check_fraction=self.parameterAsDouble(parameters, CHECK_FRACTION, context),
-                           progress=progress, is_cancelled=is_cancelled)
-        scenes, images = [], []
-        for name, files in result.members.items():
-            product = next(iter(files["rpc"].values())) if files.get("rpc") else files["onboard_scene"]
-            scenes.append(str(product))
-            images += [str(p) for p in files["images"].values()]
-            feedback.pushInfo(f"scene {name}: {product}" + (f", image {', '.join(map(str, files['images'].values()))}"
-                                                             if files["images"] else ""))
-        return {self.OUTPUT_FOLDER: folder, self.SCENES: scenes,
-                self.TRUE_SCENES: [str(f["true_scene"]) for f in result.members.values()], self.IMAGES: images,
-                self.GCPS: str(result.gcps), self.TIE_POINTS: str(result.tie_points) if result.tie_points else None,
-                self.DEM: str(result.dem), self.REFERENCE: str(result.reference) if result.reference else None,
-                self.MANIFEST: str(result.manifest)}
+        return self.run_core(use_case.run_block, use_case.SimulateBlockRequest(
+            self.parameterAsFileOutput(parameters, self.OUTPUT_FOLDER, context),
+            enum_value(self, parameters, PRESET, context), enum_value(self, parameters, self.LAYOUT, context),
+            self.parameterAsInt(parameters, self.SEED, context), self.parameterAsInt(parameters, self.N_GCPS, context),
+            self.parameterAsInt(parameters, self.N_TIE_POINTS, context),
+            self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
+            self.parameterAsBool(parameters, self.RENDER, context),
+            self.parameterAsDouble(parameters, CHECK_FRACTION, context),
+            self.parameterAsInt(parameters, self.IMAGE_SIZE, context)), feedback).files

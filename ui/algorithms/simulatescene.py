@@ -4,11 +4,9 @@ from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputMultipleLayer
                        QgsProcessingOutputRasterLayer,
                        QgsProcessingParameterNumber)
 
-from ...simulation.roads import LINES_FILE, POINTS_FILE, RoadSettings
-from ...simulation.presets import PRESETS, cut_preset
+from ...simulation import runs as use_case
 from ...simulation.measurements import GcpSettings
-from ...simulation.simulator import check_folder, output_names, simulate
-from ..feedback import core_call, feedback_callbacks, processing_errors
+from ...simulation.roads import RoadSettings
 from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_value, preset, tr
 from ..simparameters import (IMAGE_NOISE, IMAGE_SIZE, N_GCPS, N_TIE_POINTS, RENDER, SEED, image_noise, image_size,
                              n_gcps, n_tie_points, output_folder, render, seed)
@@ -93,6 +91,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
     N_LINES, WRONG_LINE_FRACTION, LINES = "N_LINES", "WRONG_LINE_FRACTION", "LINES"
     IMAGE_SIZE, IMAGES = IMAGE_SIZE, "IMAGES"
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
+    CORE_PARAMETERS = {use_case.IMAGE_SIZE: IMAGE_SIZE, use_case.FOLDER: OUTPUT_FOLDER}
     ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM = "ONBOARD_SCENE", "TRUE_SCENE", "GCPS", "DEM"
     TIE_POINTS, MANIFEST, IMAGE, REFERENCE = "TIE_POINTS", "MANIFEST", "IMAGE", "REFERENCE"
 
@@ -146,42 +145,21 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
         self.addOutput(QgsProcessingOutputRasterLayer(self.REFERENCE, tr("Reference orthoimage, when rendered")))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        preset = enum_value(self, parameters, self.PRESET, context)
-        folder = self.parameterAsFileOutput(parameters, self.OUTPUT_FOLDER, context)
         errors = {field: self.parameterAsDouble(parameters, name, context) * factor
                   for name, field, _, factor, _ in ERROR_PARAMETERS if parameters.get(name) not in (None, "")}
         measurements = {field: (self.parameterAsInt if kind == "i" else self.parameterAsDouble)(parameters, name,
                                                                                               context)
                         for name, field, _, kind, *_ in MEASUREMENT_PARAMETERS}
-        measurements["n_tie_points"] = self.parameterAsInt(parameters, N_TIE_POINTS, context)
-        measurements["check_fraction"] = self.parameterAsDouble(parameters, CHECK_FRACTION, context)
         settings = GcpSettings(n_gcps=self.parameterAsInt(parameters, self.N_GCPS, context),
                                image_noise=self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
+                               n_tie_points=self.parameterAsInt(parameters, N_TIE_POINTS, context),
+                               check_fraction=self.parameterAsDouble(parameters, CHECK_FRACTION, context),
                                **measurements)
         roads = RoadSettings(n_lines=self.parameterAsInt(parameters, self.N_LINES, context),
                              wrong_fraction=self.parameterAsDouble(parameters, self.WRONG_LINE_FRACTION, context))
-        size = self.parameterAsInt(parameters, self.IMAGE_SIZE, context)
-        if size:
-            with processing_errors(f"{self.IMAGE_SIZE}: "):
-                preset = cut_preset(PRESETS[preset], size, size)
-        with processing_errors(f"{self.OUTPUT_FOLDER}: "):  # before any work: a user's files there are kept
-            check_folder(folder, output_names(preset if size else PRESETS[preset], settings,
-                                              self.parameterAsBool(parameters, self.RENDER, context))
-                         + ([LINES_FILE, POINTS_FILE] if roads.n_lines else []))
-        progress, is_cancelled = feedback_callbacks(feedback)
-        result = core_call(simulate, preset, folder,
-                           seed=self.parameterAsInt(parameters, self.SEED, context),
-                           n_scenes=self.parameterAsInt(parameters, self.N_SCENES, context),
-                           render=self.parameterAsBool(parameters, self.RENDER, context),
-                           errors=errors, gcp_settings=settings, road_settings=roads, progress=progress,
-                           is_cancelled=is_cancelled)
-        feedback.pushInfo(f"simulated {getattr(preset, 'name', preset)} into {folder}: " + ", ".join(
-            p.name for p in (result.onboard_scene, result.true_scene, result.gcps, result.dem,
-                             result.tie_points, result.lines, *result.images.values()) if p is not None))
-        return {self.OUTPUT_FOLDER: folder, self.ONBOARD_SCENE: str(result.onboard_scene),
-                self.TRUE_SCENE: str(result.true_scene), self.GCPS: str(result.gcps), self.DEM: str(result.dem),
-                self.TIE_POINTS: str(result.tie_points) if result.tie_points else None,
-                self.LINES: str(result.lines) if result.lines else None, self.MANIFEST: str(result.manifest),
-                self.IMAGE: str(next(iter(result.images.values()))) if result.images else None,
-                self.IMAGES: [str(path) for path in result.images.values()],
-                self.REFERENCE: str(result.reference) if result.reference else None}
+        return self.run_core(use_case.run_scene, use_case.SimulateSceneRequest(
+            self.parameterAsFileOutput(parameters, self.OUTPUT_FOLDER, context),
+            enum_value(self, parameters, self.PRESET, context), self.parameterAsInt(parameters, self.SEED, context),
+            self.parameterAsInt(parameters, self.N_SCENES, context),
+            self.parameterAsBool(parameters, self.RENDER, context), errors, settings, roads,
+            self.parameterAsInt(parameters, self.IMAGE_SIZE, context)), feedback).files

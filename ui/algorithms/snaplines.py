@@ -1,13 +1,11 @@
 """pushbroom:snaplines — image lines digitised on a raw image refined to the road's centre or an
 edge with sub-pixel profiles across them (core.snapping)."""
-import numpy as np
 from qgis.core import QgsProcessing, QgsProcessingParameterNumber, QgsProcessingParameterVectorDestination
 
-from ...core.observations import lines as core_lines
-from ...core.measure.snapping import SnapSettings, kept_reasons, snap_lines
-from ..feedback import processing_errors
+from ...core.measure.snapping import SnapSettings
+from ...core.runs import snaplines as use_case
 from ..inputs import ogr_source, raster_file
-from ..outputs import geopackage_output
+from ..outputs import files_in_use
 from ..parameters import RasterInput, enum_parameter, enum_value, image_lines, tr
 from .base import PushbroomAlgorithm
 
@@ -20,6 +18,8 @@ class SnapLinesAlgorithm(PushbroomAlgorithm):
     GROUP, GROUP_ID = "Control", "control"
     INPUT, IMAGE_LINES, OUTPUT, MODE, POLARITY = "INPUT", "IMAGE_LINES", "OUTPUT", "MODE", "POLARITY"
     WIDTH, SEARCH, REACH, MAX_SIGMA = "WIDTH", "SEARCH", "REACH", "MAX_SIGMA"
+    CORE_PARAMETERS = {use_case.IMAGE: INPUT, use_case.IMAGE_LINES: IMAGE_LINES,
+                       use_case.SETTINGS: f"{WIDTH}, {SEARCH}, {REACH}, {MAX_SIGMA}"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         self.add_parameter(RasterInput(self.INPUT, tr("Raw image")),
@@ -56,30 +56,15 @@ class SnapLinesAlgorithm(PushbroomAlgorithm):
                                    "refined (field refined); 'Import control lines' reads it as IMAGE_LINES."))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        dest = geopackage_output(self, parameters, context, self.OUTPUT, "snapped_lines.gpkg", "snapped lines")
-        image = raster_file(self, parameters, self.INPUT, context)
-        path, name = ogr_source(self.IMAGE_LINES, self.parameterAsVectorLayer(parameters, self.IMAGE_LINES, context),
-                                "image line layer")
+        lines = ogr_source(self.IMAGE_LINES, self.parameterAsVectorLayer(parameters, self.IMAGE_LINES, context),
+                           "image line layer")
         settings = SnapSettings(mode=enum_value(self, parameters, self.MODE, context),
                                 polarity=1 if enum_value(self, parameters, self.POLARITY, context) == "bright" else -1,
                                 width=self.parameterAsDouble(parameters, self.WIDTH, context),
                                 search=self.parameterAsDouble(parameters, self.SEARCH, context),
                                 reach=self.parameterAsDouble(parameters, self.REACH, context),
                                 max_sigma=self.parameterAsDouble(parameters, self.MAX_SIGMA, context))
-        with processing_errors(f"{self.WIDTH}, {self.SEARCH}, {self.REACH}, {self.MAX_SIGMA}: "):
-            settings.validate()
-        with processing_errors(f"{self.IMAGE_LINES}: "):
-            lines = core_lines.read_image_lines(path, name)
-        with processing_errors(f"{self.INPUT}: "):
-            result = snap_lines(image, lines, settings)
-        part = lines.vertex_part()
-        refined = np.bincount(part, weights=result.refined, minlength=len(lines)).astype(int).tolist()
-        with processing_errors(f"{self.OUTPUT}: "):
-            core_lines.write_gpkg(dest, image=result.lines, extra_image={"refined": refined})
-        n, moved = int(result.refined.sum()), result.moved[result.refined]
-        feedback.pushInfo(f"{n} of {result.refined.size} vertices refined ({settings.mode}; median move "
-                          f"{np.median(moved) if n else 0:.2f} px, median sigma "
-                          f"{np.median(result.lines.sigma_px[result.refined]) if n else 0:.2f} px)")
-        for reason, count in kept_reasons(result, settings).items():
-            feedback.pushWarning(f"{count} vertices kept their position: {reason}")
-        return {self.OUTPUT: dest}
+        return self.run_core(use_case.run, use_case.SnapRequest(
+            self.output_path(parameters, context, self.OUTPUT, "snapped_lines.gpkg"),
+            raster_file(self, parameters, self.INPUT, context), lines, settings,
+            files_in_use(self, parameters, context)), feedback).files
