@@ -63,16 +63,15 @@ def tr(text: str) -> str:
 
 
 # --- enumerations -------------------------------------------------------------------------
-def enum_parameter(name: str, description: str, values, default: str | None, help_text: str = "",
+def enum_parameter(name: str, description: str, values, default: str | None,
                    optional: bool = False) -> QgsProcessingParameterEnum:
     """An enumeration of named values (static strings) ``values``, in the order the drop-down lists them
     (a dict: its keys). Its help, with what each name means, is its entry in the docs
-    (ui.algorithms.base.PushbroomAlgorithm.addParameter); ``help_text`` only where no page has one."""
+    (ui.algorithms.base.PushbroomAlgorithm.addParameter)."""
     if default is not None and default not in values:
         raise ValueError(f"{name}: default {default!r} is not one of {list(values)}")
     parameter = QgsProcessingParameterEnum(name, description, options=list(values), defaultValue=default,
                                            optional=optional, usesStaticStrings=True)
-    parameter.setHelp(help_text)
     return parameter
 
 

@@ -59,20 +59,17 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     def createInstance(self):  # noqa: N802
         return type(self)()
 
-    def add_parameter(self, parameter, help_text: str | None = None, advanced: bool = False) -> None:
-        """Add a parameter, optionally advanced (a ``help_text`` is used only where the docs page has
-        no entry for it: see :meth:`addParameter`)."""
-        if help_text is not None:
-            parameter.setHelp(help_text)
+    def add_parameter(self, parameter, advanced: bool = False) -> None:
+        """Add a parameter (its help from the docs: :meth:`addParameter`), flagged advanced if asked."""
         if advanced:
             parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
         self.addParameter(parameter)
 
     def addParameter(self, definition, createOutput=True):  # noqa: N802 (QGIS API names)
         """QGIS's addParameter with the parameter's help from the docs: its entry on the algorithm's page,
-        else a help the code still gives, else its entry in docs/parameters.md."""
+        else its entry in docs/parameters.md (tests/qgis/test_help.py: every parameter has one)."""
         name = definition.name()
-        definition.setHelp(documented_help(self.ID, name, tr) or definition.help() or shared_help(name, tr))
+        definition.setHelp(documented_help(self.ID, name, tr) or shared_help(name, tr))
         return super().addParameter(definition, createOutput)
 
     def show_only(self, *names: str) -> None:

@@ -67,7 +67,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             high = ONBOARD_SIGMAS[f"{block.lower()}_sigma"][1] / scale
             for parameter in trajectory_parameters(block, what, order, sigma, high):
                 self.addParameter(parameter)
-        self.add_parameter(interior_selection())
+        self.addParameter(interior_selection())
         self.addParameter(camera_trajectory())
         self.addParameter(rpc_correction())
         self.addParameter(Number(self.RPC_SIGMA, tr("RPC scenes: stated accuracy (px)"), Number.Double, None,

@@ -37,56 +37,37 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False, or_scenes=True)
         self.addParameter(camera())
-        self.add_parameter(QgsProcessingParameterFile(self.INPUT_FILE, tr("GCP file (CSV or QGIS .points)"),
-                                                      optional=True,
-                                                      fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"),
-                  tr("Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas with ; "
-                     "TAB |), or a QGIS Georeferencer .points file. The columns id, role and camera are read by "
-                     "these names unless ID_FIELD, ROLE_FIELD or CAMERA_FIELD name others. Give this or INPUT."))
-        self.add_parameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("GCP point layer"),
-                                                               [QgsProcessing.TypeVectorPoint], optional=True),
-                  tr("Point layer whose geometry is the ground position (its own CRS) and whose fields hold the "
-                     "image position (COL_FIELD, ROW_FIELD). Give this or INPUT_FILE, not both."))
+        self.addParameter(QgsProcessingParameterFile(self.INPUT_FILE, tr("GCP file (CSV or QGIS .points)"),
+                                                     optional=True,
+                                                     fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"))
+        self.addParameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("GCP point layer"),
+                                                              [QgsProcessing.TypeVectorPoint], optional=True))
         self.addParameter(id_field())
         self.addParameter(image_field(self.COL_FIELD))
         self.addParameter(image_field(self.ROW_FIELD))
-        fields = ((self.X_FIELD, tr("Ground X / longitude field (CSV)"), "lon",
-                   tr("Easting or longitude in GROUND_CRS.")),
-                  (self.Y_FIELD, tr("Ground Y / latitude field (CSV)"), "lat",
-                   tr("Northing or latitude in GROUND_CRS.")),
-                  (self.Z_FIELD, tr("Height field"), "", tr("Height in metres (datum: Z_DATUM), used when "
-                   "HEIGHT_SOURCE is z. Empty: the layer's point Z.")),
-                  (self.ROLE_FIELD, tr("Role field"), "", tr("Values control/gcp or check/cp/checkpoint (empty cell "
-                   "= control). Empty: the column/field 'role' when the input has one, else all points are control "
-                   "points (see CHECK_FRACTION).")))
-        for name, label, default, help_text in fields:
-            self.add_parameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default),
-                               help_text)
+        for name, label, default in ((self.X_FIELD, tr("Ground X / longitude field (CSV)"), "lon"),
+                                     (self.Y_FIELD, tr("Ground Y / latitude field (CSV)"), "lat"),
+                                     (self.Z_FIELD, tr("Height field"), ""), (self.ROLE_FIELD, tr("Role field"), "")):
+            self.addParameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default))
         self.addParameter(camera_field())
         self.addParameter(scene_field())
-        self.add_parameter(QgsProcessingParameterCrs(self.GROUND_CRS, tr("Ground CRS (CSV and .points)"), optional=True,
-                                            defaultValue="EPSG:4326"),
-                  tr("CRS of the ground coordinates in a CSV, or of a .points file without a '#CRS:' line (the "
-                     "file's own line wins). A layer brings its own CRS."))
+        self.addParameter(QgsProcessingParameterCrs(self.GROUND_CRS, tr("Ground CRS (CSV and .points)"), optional=True,
+                                                    defaultValue="EPSG:4326"))
         self.addParameter(height_source())
         self.addParameter(z_datum())
         add_dem_parameters(self)
         self.addParameter(check_fraction())
         self.addParameter(sigma_px())
-        for name, label, default, help_text in (
-                (self.SIGMA_XY, tr("Ground planimetric sigma (m)"), gcps.DEFAULT_SIGMA_XY,
-                 tr("A-priori standard deviation of the ground east/north coordinates, in metres.")),
-                (self.SIGMA_Z, tr("Ground height sigma (m)"), gcps.DEFAULT_SIGMA_Z,
-                 tr("A-priori standard deviation of the ground height, in metres."))):
-            self.add_parameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
-                                                   minValue=0.0), help_text)
+        for name, label, default in ((self.SIGMA_XY, tr("Ground planimetric sigma (m)"), gcps.DEFAULT_SIGMA_XY),
+                                     (self.SIGMA_Z, tr("Ground height sigma (m)"), gcps.DEFAULT_SIGMA_Z)):
+            self.addParameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
+                                                           minValue=0.0))
         for key in self.SIGMA_FIELDS:
             self.addParameter(sigma_field(key))
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Ground control points"),
                                                       QgsProcessing.TypeVectorPoint)
         out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(out, tr("GeoPackage (.gpkg) point layer of the checked GCPs, styled so points with a "
-                  "large a-priori residual (relative to the median) and points outside the image stand out."))
+        self.addParameter(out)
         self.show_only("SCENE", "SCENES", "INPUT_FILE", "INPUT", "GROUND_CRS", "HEIGHT_SOURCE", "DEM", "HEIGHT")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

@@ -24,28 +24,23 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
-        self.add_parameter(QgsProcessingParameterVectorLayer(self.INPUT, tr("Ground lines"),
-                                                             [QgsProcessing.TypeVectorLine]),
-                           tr("Any line layer (LineString or MultiLineString, 2D or 3D) in any CRS: roads, canals, "
-                              "field boundaries. Heights as HEIGHT_SOURCE says."))
-        self.add_parameter(QgsProcessingParameterString(self.ID_FIELD, tr("Ground line id field"), optional=True,
-                                                        defaultValue="line_id"),
-                           tr("Field with each ground line's id (what image lines pair to). Empty: feature ids."))
+        self.addParameter(QgsProcessingParameterVectorLayer(self.INPUT, tr("Ground lines"),
+                                                            [QgsProcessing.TypeVectorLine]))
+        self.addParameter(QgsProcessingParameterString(self.ID_FIELD, tr("Ground line id field"), optional=True,
+                                                       defaultValue="line_id"))
         self.addParameter(image_lines())
-        self.add_parameter(QgsProcessingParameterString(self.IMAGE_ID_FIELD, tr("Image line id field"),
-                                                        defaultValue="line_id"),
-                           tr("Field of the image lines naming the ground line each shows."))
+        self.addParameter(QgsProcessingParameterString(self.IMAGE_ID_FIELD, tr("Image line id field"),
+                                                       defaultValue="line_id"))
         self.addParameter(height_source())
         self.addParameter(z_datum())
         add_dem_parameters(self)
         for name, label, default in ((self.SIGMA_ACROSS, tr("Sigma across the line (m)"), 2.0),
                                      (self.SIGMA_H, tr("Sigma in height (m)"), 3.0)):
-            self.add_parameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double,
-                                                            default, minValue=1e-6, maxValue=1e4),
-                               tr("Used where the layer has no sigma_across / sigma_h field value."))
+            self.addParameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double,
+                                                           default, minValue=1e-6, maxValue=1e4))
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Control lines"), QgsProcessing.TypeVectorLine)
         out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(out, tr("GeoPackage (.gpkg) with the layers ground_lines and image_lines."))
+        self.addParameter(out)
         self.show_only("SCENE", "INPUT", "IMAGE_LINES", "HEIGHT_SOURCE", "DEM", "HEIGHT", "SIGMA_ACROSS", "SIGMA_H")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

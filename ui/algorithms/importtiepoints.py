@@ -25,15 +25,10 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False)
-        self.add_parameter(QgsProcessingParameterFile(self.INPUT_FILE, tr("Tie-point file (CSV)"), optional=True,
-                                                      fileFilter="Tie-point files (*.csv *.txt);;All files (*)"),
-                           tr("Delimited text with a header row (delimiter , ; TAB or | detected; decimal commas "
-                              "with ; TAB |), one row per point and camera. The columns id, camera, col and row are "
-                              "read by these names unless the *_FIELD parameters name others. Give this or INPUT."))
-        self.add_parameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("Tie-point layer or table"),
-                                                               [QgsProcessing.TypeVector], optional=True),
-                           tr("A layer or table whose fields hold the observations (its geometry, if any, is "
-                              "ignored). Give this or INPUT_FILE, not both."))
+        self.addParameter(QgsProcessingParameterFile(self.INPUT_FILE, tr("Tie-point file (CSV)"), optional=True,
+                                                     fileFilter="Tie-point files (*.csv *.txt);;All files (*)"))
+        self.addParameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("Tie-point layer or table"),
+                                                              [QgsProcessing.TypeVector], optional=True))
         self.addParameter(id_field())
         self.addParameter(camera_field())
         self.addParameter(image_field(self.COL_FIELD))
@@ -43,8 +38,7 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
         self.addParameter(sigma_field("sigma_px"))
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Tie points"), QgsProcessing.TypeVectorPoint)
         out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(out, tr("GeoPackage (.gpkg) point layer of the checked observations, styled by the number "
-                                   "of cameras seeing each point, with likely mismatches standing out."))
+        self.addParameter(out)
         self.show_only("SCENE", "INPUT_FILE", "INPUT", "SIGMA_PX")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

@@ -17,12 +17,9 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
     CORE_PARAMETERS = {**SCENE_PARAMETERS, use_case.IMAGE: INPUT, use_case.REFERENCE: REFERENCE}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(RasterInput(self.INPUT, tr("Raw image")),
-                           tr("The scene's raw image (first band matched), of the size the scene's camera images."))
+        self.addParameter(RasterInput(self.INPUT, tr("Raw image")))
         add_scene_parameters(self)
-        self.add_parameter(RasterInput(self.REFERENCE, tr("Reference orthoimage")),
-                           tr("A north-up orthoimage of the scene's ground in a projected or geographic CRS, any GSD "
-                              "(first band matched; its nodata value is honoured). It must overlap the scene."))
+        self.addParameter(RasterInput(self.REFERENCE, tr("Reference orthoimage")))
         add_dem_parameters(self)
         for parameter in matching_parameters():
             self.addParameter(parameter)
@@ -30,8 +27,7 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Matched ground control points"),
                                                       QgsProcessing.TypeVectorPoint)
         out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(out, tr("GeoPackage (.gpkg) point layer of the matched GCPs in EPSG:4979 with the fields "
-                                   "of pushbroom:importgcps plus quality and peak_ratio."))
+        self.addParameter(out)
         self.show_only("INPUT", "SCENE", "CAMERA", "REFERENCE", "DEM", "HEIGHT", "SEARCH_RANGE", "CHECK_FRACTION")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

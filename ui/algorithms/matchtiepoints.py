@@ -29,9 +29,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
         out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Matched tie points"),
                                                       QgsProcessing.TypeVectorPoint)
         out.setSupportsNonFileBasedOutput(False)
-        self.add_parameter(out, tr("GeoPackage (.gpkg) point layer 'tie_points' in EPSG:4979, one feature per "
-                                   "observation, with the fields of pushbroom:importtiepoints, styled by the "
-                                   "number of cameras seeing each point."))
+        self.addParameter(out)
         self.show_only("SCENE", "SCENES", "INPUTS", "DEM", "HEIGHT", "SPACING", "SEARCH_RANGE")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

@@ -17,19 +17,12 @@ class PrepareDigitisingAlgorithm(PushbroomAlgorithm):
     CORE_PARAMETERS = {**SCENE_PARAMETERS, use_case.IMAGE: INPUT}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
-        self.add_parameter(RasterInput(self.INPUT, tr("Raw image")),
-                           tr("The raw (unrectified) image of the scene's camera CAMERA, with the camera's number "
-                              "of columns and rows."))
+        self.addParameter(RasterInput(self.INPUT, tr("Raw image")))
         add_scene_parameters(self)
-        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT, tr("Display copy"),
-                                                                 fileFilter="Virtual raster (*.vrt)"),
-                           tr("VRT (.vrt) showing the raw image in the pixel frame, without its RPC and GCPs; it "
-                              "names SCENE and CAMERA for the digitising dock."))
-        self.add_parameter(QgsProcessingParameterFileDestination(self.OUTPUT_LINES, tr("Empty image-line layer"),
-                                                                 fileFilter="GeoPackage (*.gpkg)", optional=True),
-                           tr("GeoPackage with an empty layer 'image_lines' (LineString M, x = column, y = -row, "
-                              "M = a vertex's sigma in px; fields line_id (the ground line's id), camera, "
-                              "sigma_px), to digitise in with QGIS's own tools. Optional."))
+        self.addParameter(QgsProcessingParameterFileDestination(self.OUTPUT, tr("Display copy"),
+                                                                fileFilter="Virtual raster (*.vrt)"))
+        self.addParameter(QgsProcessingParameterFileDestination(self.OUTPUT_LINES, tr("Empty image-line layer"),
+                                                                fileFilter="GeoPackage (*.gpkg)", optional=True))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         result = self.run_core(use_case.run, use_case.PrepareRequest(

@@ -24,8 +24,7 @@ class SimulateBlockAlgorithm(PushbroomAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         self.addParameter(preset())
-        self.addParameter(enum_parameter(self.LAYOUT, tr("Block"), LAYOUT_MEANINGS, "tristereo",
-                                         tr("Which scenes the block holds.")))
+        self.addParameter(enum_parameter(self.LAYOUT, tr("Block"), LAYOUT_MEANINGS, "tristereo"))
         for parameter in (seed(), n_gcps(), n_tie_points(), image_noise(), render(), image_size()):
             self.addParameter(parameter)
         self.add_parameter(check_fraction(), advanced=True)

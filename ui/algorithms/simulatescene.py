@@ -15,51 +15,29 @@ from .base import PushbroomAlgorithm
 MICRO = 1e-6
 
 # Error magnitudes the user may override: (parameter, simulation.presets.ErrorSettings field,
-# label, factor from the parameter's unit to the core's SI unit, help). Each is at most ERROR_LIMITS
+# label, factor from the parameter's unit to the core's SI unit). Each is at most ERROR_LIMITS
 # in the parameter's unit: far beyond any onboard error (100 km of position, 0.1 rad of attitude),
 # so that a typing error is refused instead of simulating a scene whose rays miss the Earth.
 ERROR_PARAMETERS = (
-    ("POSITION_BIAS", "position_bias", "Position bias (m)", 1.0, "Bias of the onboard ephemeris per ECEF axis."),
-    ("POSITION_DRIFT", "position_drift", "Position drift (m/s)", 1.0,
-     "Linear drift of the onboard ephemeris per axis."),
-    ("POSITION_QUADRATIC", "position_quadratic", "Position 2nd-order term (m/s²)", 1.0,
-     "Quadratic term of the onboard ephemeris error per axis."),
-    ("ATTITUDE_BIAS", "attitude_bias", "Attitude bias (µrad)", MICRO,
-     "Bias of the onboard attitude per body axis (roll, pitch, yaw); 1 µrad is 0.78 m on the ground from 778 km."),
-    ("ATTITUDE_DRIFT", "attitude_drift", "Attitude drift (µrad/s)", MICRO, "Linear attitude drift per body axis."),
-    ("ATTITUDE_QUADRATIC", "attitude_quadratic", "Attitude 2nd-order term (µrad/s²)", MICRO,
-     "Quadratic term of the attitude error per body axis."),
-    ("CCD_SHIFT", "ccd_shift", "CCD shift (px)", 1.0,
-     "Shift of every CCD chip but the middle one, along and across track, in detector pitches."),
-    ("CCD_ROTATION", "ccd_rotation", "CCD rotation (µrad)", MICRO,
-     "In-plane rotation of every CCD chip but the middle one, about its first detector (1000 µrad turns a "
-     "4096-px chip's far end by 4 px)."),
-    ("FOCAL_ERROR", "focal", "Focal length error at the array end (px)", 1.0,
-     "Error of the laboratory focal length of each camera, given as the displacement it causes at the end of "
-     "the detector line (in earlier versions this parameter was in µm)."),
-    ("DISTORTION", "radial_k1", "Radial distortion k1 at the array end (px)", 1.0,
-     "Radial lens distortion (k1), given as the displacement it causes at the end of the detector line."),
-    ("PRINCIPAL_POINT_X_ERROR", "principal_point_x", "Principal point error along track (px)", 1.0,
-     "Shift of each camera's principal point along track (dxp of Zhang et al. 2015)."),
-    ("PRINCIPAL_POINT_Y_ERROR", "principal_point_y", "Principal point error across track (px)", 1.0,
-     "Shift of each camera's principal point across track (dyp of Zhang et al. 2015)."),
-    ("RADIAL_K2_ERROR", "radial_k2", "Radial distortion k2 at the array end (px)", 1.0,
-     "Second radial lens distortion term (k2), given as the displacement it causes at the end of the detector "
-     "line."),
-    ("DECENTRING_P1_ERROR", "decentring_p1", "Decentring distortion p1 at the array end (px)", 1.0,
-     "Decentring lens distortion p1: an along-track bow of the detector line's image, given at its end."),
-    ("DECENTRING_P2_ERROR", "decentring_p2", "Decentring distortion p2 at the array end (px)", 1.0,
-     "Decentring lens distortion p2: a quadratic across-track displacement, given at the end of the line."),
-    ("AFFINITY_B1_ERROR", "affinity_b1", "Affinity b1 (px at the array half-length)", 1.0,
-     "Along-track scale b1 (b1·x): a detector line through the principal point does not see it; given as the "
-     "displacement at an along-track distance of half the array's length."),
-    ("AFFINITY_B2_ERROR", "affinity_b2", "Affinity b2 at the array end (px)", 1.0,
-     "Along-track shear b2 (b2·y, an in-plane rotation of the line), given at the end of the line."),
-    ("AFFINITY_B3_ERROR", "affinity_b3", "Affinity b3 at the array end (px)", 1.0,
-     "Across-track scale b3 (b3·y, pixel size), given at the end of the line."),
-    ("INSTALLATION", "installation", "Installation angle error (µrad)", MICRO,
-     "Error of each camera's mounting angles relative to the reference (nadir) camera, per axis "
-     "(three-line presets)."),
+    ("POSITION_BIAS", "position_bias", "Position bias (m)", 1.0),
+    ("POSITION_DRIFT", "position_drift", "Position drift (m/s)", 1.0),
+    ("POSITION_QUADRATIC", "position_quadratic", "Position 2nd-order term (m/s²)", 1.0),
+    ("ATTITUDE_BIAS", "attitude_bias", "Attitude bias (µrad)", MICRO),
+    ("ATTITUDE_DRIFT", "attitude_drift", "Attitude drift (µrad/s)", MICRO),
+    ("ATTITUDE_QUADRATIC", "attitude_quadratic", "Attitude 2nd-order term (µrad/s²)", MICRO),
+    ("CCD_SHIFT", "ccd_shift", "CCD shift (px)", 1.0),
+    ("CCD_ROTATION", "ccd_rotation", "CCD rotation (µrad)", MICRO),
+    ("FOCAL_ERROR", "focal", "Focal length error at the array end (px)", 1.0),
+    ("DISTORTION", "radial_k1", "Radial distortion k1 at the array end (px)", 1.0),
+    ("PRINCIPAL_POINT_X_ERROR", "principal_point_x", "Principal point error along track (px)", 1.0),
+    ("PRINCIPAL_POINT_Y_ERROR", "principal_point_y", "Principal point error across track (px)", 1.0),
+    ("RADIAL_K2_ERROR", "radial_k2", "Radial distortion k2 at the array end (px)", 1.0),
+    ("DECENTRING_P1_ERROR", "decentring_p1", "Decentring distortion p1 at the array end (px)", 1.0),
+    ("DECENTRING_P2_ERROR", "decentring_p2", "Decentring distortion p2 at the array end (px)", 1.0),
+    ("AFFINITY_B1_ERROR", "affinity_b1", "Affinity b1 (px at the array half-length)", 1.0),
+    ("AFFINITY_B2_ERROR", "affinity_b2", "Affinity b2 at the array end (px)", 1.0),
+    ("AFFINITY_B3_ERROR", "affinity_b3", "Affinity b3 at the array end (px)", 1.0),
+    ("INSTALLATION", "installation", "Installation angle error (µrad)", MICRO),
 )
 
 ERROR_LIMITS = {"POSITION_BIAS": 1e5, "POSITION_DRIFT": 1e3, "POSITION_QUADRATIC": 1e2, "ATTITUDE_BIAS": 1e5,
@@ -67,19 +45,14 @@ ERROR_LIMITS = {"POSITION_BIAS": 1e5, "POSITION_DRIFT": 1e3, "POSITION_QUADRATIC
                 "INSTALLATION": 1e5}
 LENS_LIMIT = 1e3  # px at the array end: every lens and focal-plane term
 
-# Measurement settings: (parameter, simulation.measurements.GcpSettings field, label, type, default, min, max, help);
+# Measurement settings: (parameter, simulation.measurements.GcpSettings field, label, type, default, min, max);
 # CHECK_FRACTION (field check_fraction) is the shared definition of ui.parameters.
 MEASUREMENT_PARAMETERS = (
-    ("GROUND_NOISE_XY", "ground_noise_xy", "Ground planimetric noise (m)", "d", 0.0, 0.0, 1000.0,
-     "Standard deviation of the error added to the GCPs' east and north coordinates (the matched points "
-     "of Zheng et al. 2015: about 3 m)."),
-    ("GROUND_NOISE_Z", "ground_noise_z", "Ground height noise (m)", "d", 0.0, 0.0, 1000.0,
-     "Standard deviation of the error added to the GCP heights (Zheng et al. 2015: about 10 m)."),
-    ("GROSS_FRACTION", "gross_fraction", "Share of gross errors", "d", 0.0, 0.0, 1.0,
-     "0 to 1: this share of the image measurements is displaced by a gross error (flagged gross = 1 in the "
-     "CSV)."),
-    ("GROSS_MIN", "gross_min", "Smallest gross error (px)", "d", 5.0, 0.0, 1e5, "Lower bound of the gross errors."),
-    ("GROSS_MAX", "gross_max", "Largest gross error (px)", "d", 100.0, 0.0, 1e5, "Upper bound of the gross errors."),
+    ("GROUND_NOISE_XY", "ground_noise_xy", "Ground planimetric noise (m)", "d", 0.0, 0.0, 1000.0),
+    ("GROUND_NOISE_Z", "ground_noise_z", "Ground height noise (m)", "d", 0.0, 0.0, 1000.0),
+    ("GROSS_FRACTION", "gross_fraction", "Share of gross errors", "d", 0.0, 0.0, 1.0),
+    ("GROSS_MIN", "gross_min", "Smallest gross error (px)", "d", 5.0, 0.0, 1e5),
+    ("GROSS_MAX", "gross_max", "Largest gross error (px)", "d", 100.0, 0.0, 1e5),
 )
 
 
@@ -98,35 +71,25 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         n_scenes = QgsProcessingParameterNumber(self.N_SCENES, tr("Number of scenes along the strip"),
                                                 QgsProcessingParameterNumber.Integer, 1, minValue=1, maxValue=200)
-        n_scenes.setHelp(tr("How many consecutive scenes of one orbit strip to simulate. The strip is one image per "
-                            "camera (scenes × rows per scene) sharing one trajectory and its errors, as the scenes "
-                            "of one pass do."))
         n_lines = QgsProcessingParameterNumber(self.N_LINES, tr("Number of roads (control lines)"),
                                                QgsProcessingParameterNumber.Integer, 0, minValue=0, maxValue=10000)
-        n_lines.setHelp(tr("How many roads (straight and curved, 2-6 km, on the terrain) to simulate as control "
-                           "lines: written to lines.gpkg (layers ground_lines, image_lines, image_clicks) and "
-                           "line_points.csv; drawn into the raw images with RENDER. 0: none."))
         folder = output_folder()
         for p in (preset(), seed(), n_scenes, n_gcps(), image_noise(), render(), n_lines):
             self.addParameter(p)
         self.add_parameter(check_fraction(), advanced=True)
         self.add_parameter(QgsProcessingParameterNumber(self.WRONG_LINE_FRACTION, tr("Share of wrong map lines"),
                                                         QgsProcessingParameterNumber.Double, 0.0, minValue=0.0,
-                                                        maxValue=1.0),
-                           tr("0 to 1: this share of the simulated road map is wrong, shifted as a whole or turned "
-                              "about one of its points so that it ends 20-200 m off (fields kind and shift_m of "
-                              "ground_lines; truth, not read by the adjustment)."), advanced=True)
+                                                        maxValue=1.0), advanced=True)
         self.addParameter(image_size())
         self.add_parameter(n_tie_points(), advanced=True)
-        for name, _, label, kind, default, lo, hi, help_text in MEASUREMENT_PARAMETERS:
+        for name, _, label, kind, default, lo, hi in MEASUREMENT_PARAMETERS:
             kind = QgsProcessingParameterNumber.Integer if kind == "i" else QgsProcessingParameterNumber.Double
             self.add_parameter(QgsProcessingParameterNumber(name, tr(label), kind, default, minValue=lo, maxValue=hi),
-                               tr(help_text), advanced=True)
-        for name, _, label, _, help_text in ERROR_PARAMETERS:
+                               advanced=True)
+        for name, _, label, _ in ERROR_PARAMETERS:
             self.add_parameter(QgsProcessingParameterNumber(name, tr(label), QgsProcessingParameterNumber.Double,
                                                             optional=True, minValue=0.0,
                                                             maxValue=ERROR_LIMITS.get(name, LENS_LIMIT)),
-                               tr(help_text) + " " + tr("Empty: the preset's value (see simulation.json)."),
                                advanced=True)
         self.addParameter(folder)
         self.addOutput(QgsProcessingOutputFile(self.ONBOARD_SCENE, tr("Onboard scene model (scene JSON)")))
@@ -146,7 +109,7 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         errors = {field: self.parameterAsDouble(parameters, name, context) * factor
-                  for name, field, _, factor, _ in ERROR_PARAMETERS if parameters.get(name) not in (None, "")}
+                  for name, field, _, factor in ERROR_PARAMETERS if parameters.get(name) not in (None, "")}
         measurements = {field: (self.parameterAsInt if kind == "i" else self.parameterAsDouble)(parameters, name,
                                                                                               context)
                         for name, field, _, kind, *_ in MEASUREMENT_PARAMETERS}
