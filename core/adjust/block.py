@@ -29,7 +29,7 @@ above, so tie points join RPC images with each other and with rigorous scenes. E
 scene is written as a single RPC scene's adjustment is (scene JSON; a refined RPC by
 :func:`core.products.rpcfit.refined_rpcs` of :attr:`BlockResult.scenes`).
 
-Observations name their scene: ``GcpTable.block_scene``, ``TieTable.scene`` and
+Observations name their scene: ``GcpTable.scene``, ``TieTable.scene`` and
 ``ImageLines.scene`` (a block of one scene may leave them empty). Cameras are resolved within the
 scene (a single-camera scene's and an RPC scene's empty camera is its camera).
 
@@ -199,8 +199,8 @@ def block_inputs(scenes: dict[str, SceneModel | RpcScene], gcps: GcpTable | None
     if gcps is None:
         none = np.zeros(0)
         gcps = GcpTable(none.astype(str), "control", none.astype(str), *(none,) * 8)
-    gcp_scene = _scene_column(gcps.block_scene, gcps.id, scenes, "gcps")
-    gcps = replace(_block_cameras(gcps, gcp_scene, scenes), block_scene=gcp_scene)
+    gcp_scene = _scene_column(gcps.scene, gcps.id, scenes, "gcps")
+    gcps = replace(_block_cameras(gcps, gcp_scene, scenes), scene=gcp_scene)
     tie_scene = np.zeros(0, str)
     if ties is not None and len(ties):
         tie_scene = _scene_column(ties.scene, ties.id, scenes, "ties")

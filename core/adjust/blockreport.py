@@ -150,7 +150,7 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
         before = np.stack([out.tie_points["res_col_before"], out.tie_points["res_row_before"]], axis=1)
     per_scene = {}
     for name in scenes:
-        g, t = gcps.block_scene == name, (ties.scene == name) if tie_res is not None else None
+        g, t = gcps.scene == name, (ties.scene == name) if tie_res is not None else None
         entry = {"cameras": [c.name for c in scenes[name].cameras],
                  "control": {"observations": int((g & control).sum()),
                              "rmse_px": _rms_px(pts["res_col"][g & control], pts["res_row"][g & control])},

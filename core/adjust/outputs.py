@@ -79,8 +79,8 @@ def write_adjusted_gcps(table: GcpTable, points: dict, path, scene: SceneModel |
     extra["flagged"] = np.asarray(points["flagged"]).astype(int)
     if source is not None:
         extra.update({k: v for k, v in _other_fields(source, source_layer, n).items() if k not in extra})
-    write_gpkg(replace(table, camera=cameras, residuals=res, scene=scene_path or table.scene), path, extra=extra,
-               files=files)
+    write_gpkg(replace(table, camera=cameras, residuals=res, scene_path=scene_path or table.scene_path), path,
+               extra=extra, files=files)
 
 
 TIE_FIELDS = ("id", "camera", "col", "row", "res_col", "res_row", "res_px", "w_col", "w_row", "weight", "flagged")

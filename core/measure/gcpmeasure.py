@@ -236,7 +236,7 @@ class PointEditor:
 
     # --- the GCP table ------------------------------------------------------------------------
     def table(self) -> GcpTable:
-        """Every observation of every point as a GcpTable row naming its scene (block_scene).
+        """Every observation of every point as a GcpTable row naming its scene.
         InputError naming the points without a ground or without an observation."""
         if not self.points:
             raise InputError("no point to save: measure at least one")
@@ -252,7 +252,7 @@ class PointEditor:
                                                                                  "sigma_z")}
         return GcpTable(np.array([p.id for p, _ in rows]), np.array([p.role for p, _ in rows]), column["camera"],
                         column["col"], column["row"], ground["lon"], ground["lat"], ground["h"], column["sigma_px"],
-                        ground["sigma_xy"], ground["sigma_z"], block_scene=column["scene"])
+                        ground["sigma_xy"], ground["sigma_z"], scene=column["scene"])
 
     def load(self, table: GcpTable, scenes: list[str], source: str = "the GCP layer", height_from: str = "") -> None:
         """Continue from a saved table (replacing the points held; undo history cleared), with
@@ -261,10 +261,10 @@ class PointEditor:
         block of one scene); rows of one id must share their ground; ``height_from`` says where their
         heights came from (default: ``source``, the name errors give the layer). InputError naming the
         scenes or ids otherwise (nothing changed)."""
-        block_scene = table.block_scene.copy()
+        scene = table.scene.copy()
         if len(scenes) == 1:
-            block_scene[block_scene == ""] = scenes[0]
-        unknown = sorted(set(block_scene.tolist()) - set(scenes))
+            scene[scene == ""] = scenes[0]
+        unknown = sorted(set(scene.tolist()) - set(scenes))
         if unknown:
             names = ", ".join(repr(s) for s in unknown)
             raise InputError(f"{source} names scene(s) {names} that are not in the block ({', '.join(scenes) or 'none'}"
@@ -285,11 +285,11 @@ class PointEditor:
         by_id = {p.id: p for p in points}
         for k in range(len(table)):
             point = by_id[str(table.id[k])]
-            if point.observation(block_scene[k], str(table.camera[k])) is not None:
-                raise InputError(f"{source}: point {table.id[k]} is measured twice in {block_scene[k]} "
+            if point.observation(scene[k], str(table.camera[k])) is not None:
+                raise InputError(f"{source}: point {table.id[k]} is measured twice in {scene[k]} "
                                  f"({table.camera[k]})")
             point.observations.append(Observation(
-                str(block_scene[k]), str(table.camera[k]), float(table.col[k]), float(table.row[k]),
+                str(scene[k]), str(table.camera[k]), float(table.col[k]), float(table.row[k]),
                 float(table.sigma_px[k]), (float(residual.col[k]), float(residual.row[k])) if known[k] else None))
         self.points, self.selected, self.history = points, None, []
 

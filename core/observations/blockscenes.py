@@ -1,6 +1,6 @@
 """Observations of a block of scenes (stereo, tri-stereo, multi-date products adjusted together,
 :mod:`core.adjust.block`): every row names the product it was measured in
-(``GcpTable.block_scene``, ``TieTable.scene``). GCPs are checked against that product's model
+(``GcpTable.scene``, ``TieTable.scene``). GCPs are checked against that product's model
 alone (:func:`check_against_block`); :func:`scene_groups` tells which scenes the points join.
 
 Frames and units as in :mod:`core.observations.gcps` (GDAL image px, WGS84 degrees, ellipsoidal m).
@@ -49,7 +49,7 @@ def check_against_block(table: GcpTable, scenes: dict[str, SceneModel], paths: d
     naming the scene for a camera it lacks (parameter 'gcps.camera'; rows of an RPC product take its
     one image's camera, :func:`rpc_product_cameras`), and the errors of
     :func:`core.observations.tables.scene_of_rows` (parameter 'gcps.scene')."""
-    scene_of = scene_of_rows(table.block_scene, table.id, scenes, parameter="gcps.scene")
+    scene_of = scene_of_rows(table.scene, table.id, scenes, parameter="gcps.scene")
     table, renamed = rpc_product_cameras(table, scene_of, scenes)
     for name in renamed:
         log.info("scene %s is an RPC product of one image: its rows are measurements in that image (camera %s)",
@@ -71,7 +71,7 @@ def check_against_block(table: GcpTable, scenes: dict[str, SceneModel], paths: d
         for k in res:
             res[k][rows] = getattr(part.residuals, k)
         inside[rows] = part.residuals.inside
-    checked = replace(table, camera=cameras.astype(str), block_scene=scene_of, scene="",
+    checked = replace(table, camera=cameras.astype(str), scene=scene_of, scene_path="",
                       residuals=Residuals(res["col"], res["row"], res["px"], res["m"], inside))
     return assign_check_points(checked, check_fraction)
 

@@ -82,8 +82,8 @@ class GcpTable:
     id (str), role ('control' | 'check'), camera (camera name; '' = not yet assigned, see
     :func:`core.observations.tables.resolve_cameras`), col, row (GDAL px), lon, lat (WGS84
     deg), h (ellipsoidal m), sigma_px (px), sigma_xy, sigma_z (m). One ground point measured in several cameras is
-    several rows with the same id. ``residuals`` and ``scene`` (the scene file they were
-    computed against) are set by :func:`apriori_residuals`. ``block_scene`` (n,) str: in a block
+    several rows with the same id. ``residuals`` and ``scene_path`` (the scene file they were
+    computed against) are set by :func:`apriori_residuals`. ``scene`` (n,) str: in a block
     of scenes (:mod:`core.adjust.block`) the name of the scene each row was measured in ('' when
     not stated; None: all '').
     """
@@ -99,8 +99,8 @@ class GcpTable:
     sigma_xy: np.ndarray
     sigma_z: np.ndarray
     residuals: Residuals | None = None
-    scene: str = ""
-    block_scene: np.ndarray | None = None
+    scene_path: str = ""
+    scene: np.ndarray | None = None
     ARRAYS = ("id", "role", "camera", "col", "row", "lon", "lat", "h", "sigma_px", "sigma_xy", "sigma_z")
 
     def __post_init__(self):
@@ -109,7 +109,7 @@ class GcpTable:
             kind = str if name in ("id", "role", "camera") else float
             value = np.broadcast_to(np.asarray(getattr(self, name), dtype=kind), (n,)).copy()
             setattr(self, name, value)
-        self.block_scene = np.broadcast_to(np.asarray("" if self.block_scene is None else self.block_scene,
+        self.scene = np.broadcast_to(np.asarray("" if self.scene is None else self.scene,
                                                       dtype=str), (n,)).copy()
         bad = sorted(set(self.role) - set(ROLES))
         if bad:
@@ -122,7 +122,7 @@ class GcpTable:
         """The points where ``mask`` (boolean or index array) selects."""
         arrays = {name: getattr(self, name)[mask] for name in self.ARRAYS}
         res = None if self.residuals is None else self.residuals.select(mask)
-        return GcpTable(**arrays, residuals=res, scene=self.scene, block_scene=self.block_scene[mask])
+        return GcpTable(**arrays, residuals=res, scene_path=self.scene_path, scene=self.scene[mask])
 
     def ecef(self) -> np.ndarray:
         """Ground points as ECEF metres (n, 3)."""
@@ -163,7 +163,7 @@ def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None
     WKT or PROJ string; x is easting/longitude). z: heights for ``heights.source == 'z'``.
     role: per-point role words (control/gcp/check/cp/checkpoint, case-insensitive; empty =
     control), default all control. camera: per-point camera names, default '' (unassigned).
-    scene: per-point names of the block's product each row was measured in (``block_scene``),
+    scene: per-point names of the block's product each row was measured in (``scene``),
     default none. block: the scene names of the block the rows belong to (a sequence), when they are
     read for one: every row's scene is checked to be one of them first
     (:func:`core.observations.tables.scene_of_rows`, parameter 'gcps.scene'), before the pairs are.
@@ -193,7 +193,7 @@ def build_table(ids, col, row, x, y, *, crs, heights: Heights, z=None, role=None
     lon, lat = to_lonlat(x, y, crs, ids, source)
     h = ellipsoidal_heights(lon, lat, heights, z, ids, source)
     table = GcpTable(ids, _roles(role, ids, source), camera, col, row, lon, lat, h, sigma_px, sigma_xy, sigma_z,
-                     block_scene=scene)
+                     scene=scene)
     _require_plausible(table, source)
     return table
 
@@ -378,7 +378,7 @@ def apriori_residuals(table: GcpTable, scene, scene_path: str = "") -> GcpTable:
     if (~inside).any():
         log.warning("%d point(s) outside the image (measured or predicted), kept with inside = 0: %s",
                     (~inside).sum(), listed(table.id[~inside]))
-    return replace(table, residuals=res, scene=str(scene_path))
+    return replace(table, residuals=res, scene_path=str(scene_path))
 
 
 def summary(table: GcpTable) -> dict:
@@ -419,12 +419,12 @@ def write_gpkg(table: GcpTable, path, layer: str = GPKG_LAYER, extra: dict | Non
     the ``extra`` columns {name: (n,) array}. Missing values are NULL. The scene file the
     residuals were computed against is the layer metadata item PUSHBROOM_SCENE.
     """
-    block_scene = {"scene": table.block_scene} if (table.block_scene != "").any() else {}
-    columns = {**_gpkg_columns(table), **block_scene, **(extra or {})}
+    named = {"scene": table.scene} if (table.scene != "").any() else {}
+    columns = {**_gpkg_columns(table), **named, **(extra or {})}
     points = (f"POINT Z ({lo!r} {la!r} {h!r})" for lo, la, h in zip(table.lon.tolist(), table.lat.tolist(),
                                                                        table.h.tolist()))
     write_layer(path, layer, wgs84_3d(), ogr.wkbPoint25D, columns, points,
-                {SCENE_METADATA_KEY: table.scene} if table.scene else None, files)
+                {SCENE_METADATA_KEY: table.scene_path} if table.scene_path else None, files)
 
 
 def _gpkg_columns(table: GcpTable) -> dict:
@@ -443,7 +443,7 @@ def read_gpkg(path, layer: str | None = None) -> GcpTable:
     Ground positions come from the geometry (transformed to EPSG:4979 if the layer has another
     CRS); h from the geometry's Z (the 'h' field when the geometry has no Z). Residuals are
     restored when every point has them; an optional text field ``scene`` gives each row's
-    ``block_scene`` (the product of a block it was measured in; NULL: '').
+    ``scene`` (the product of a block it was measured in; NULL: '').
     """
     path = Path(path)
     ds, lyr = open_layer(path, layer)
@@ -477,8 +477,8 @@ def read_gpkg(path, layer: str | None = None) -> GcpTable:
     table = GcpTable(ids, np.array([v or "control" for v in cols["role"]]),
                      np.array([v or "" for v in cols["camera"]]), num["col"], num["row"], lon, lat, h,
                      *(nullable_floats(cols[k], _DEFAULT_SIGMAS[k]) for k in ("sigma_px", "sigma_xy", "sigma_z")),
-                     scene=lyr.GetMetadataItem(SCENE_METADATA_KEY) or "",
-                     block_scene=np.array([str(v).strip() if v is not None else "" for v in cols["scene"]]))
+                     scene_path=lyr.GetMetadataItem(SCENE_METADATA_KEY) or "",
+                     scene=np.array([str(v).strip() if v is not None else "" for v in cols["scene"]]))
     _require_plausible(table, str(path))
     if np.isfinite(num["inside"]).all():
         table.residuals = Residuals(num["res_col"], num["res_row"], num["res_px"], num["res_m"], num["inside"] != 0)

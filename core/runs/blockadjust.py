@@ -135,7 +135,7 @@ def _observations(request: AdjustRequest, scenes: dict, with_lines: bool, lines:
                              f"({', '.join(scenes)}) every GCP row names the scene it was measured in: import the "
                              "GCPs with SCENES (pushbroom:importgcps, SCENE_FIELD)", parameter=GCPS)
     table = read_gcps(layer, ties is not None or with_lines)
-    for name, rows, scene_of in ((GCPS, table, table.block_scene), (TIES, ties, None if ties is None else ties.scene)):
+    for name, rows, scene_of in ((GCPS, table, table.scene), (TIES, ties, None if ties is None else ties.scene)):
         if rows is not None and len(rows):
             with concerning(name):
                 scene_of_rows(scene_of, rows.id, scenes)

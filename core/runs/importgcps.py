@@ -96,7 +96,7 @@ def run(request: ImportGcpsRequest, progress: Callable[[float, str | None], None
 def _several_scenes(table: gcps.GcpTable) -> list[LogLine]:
     """A warning when the rows of a single scene's table name several scenes (the members of a strip,
     or the products of a block): all are checked against the one scene."""
-    named = sorted(set(table.block_scene) - {""})
+    named = sorted(set(table.scene) - {""})
     if len(named) < 2:
         return []
     return [LogLine(f"the rows name {len(named)} scenes ({', '.join(named)}): all are checked against SCENE, as the "

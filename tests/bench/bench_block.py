@@ -105,7 +105,7 @@ def read_inputs(folder: Path) -> tuple[list[str], dict, GcpTable, TieTable, dict
     g = read_columns(folder / "gcps.csv")
     f = {k: g[k].astype(float) for k in ("col", "row", "lon", "lat", "h")}
     gcps = GcpTable(g["id"], g["role"], g["camera"], f["col"], f["row"], f["lon"], f["lat"], f["h"], NOISE, GROUND,
-                    GROUND, block_scene=g["scene"])
+                    GROUND, scene=g["scene"])
     t = read_columns(folder / "tie_points.csv", ("id", "camera", "col", "row", "scene"))
     ties = TieTable(t["id"], t["camera"], t["col"].astype(float), t["row"].astype(float), NOISE, t["scene"])
     return names, onboard, gcps, ties, g

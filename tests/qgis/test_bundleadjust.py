@@ -270,4 +270,4 @@ def test_bundleadjust_from_the_command_line(qgis_process, chain, tmp_path):
     print(f"qgis_process, orientation images every 2 s: check-point RMSE {rmse:.3f} px")
     assert rmse < 1.5
     assert load_scene(results["OUTPUT_SCENE"]).platform.correction.position.kind == "lagrange"
-    assert read_gpkg(results["OUTPUT_GCPS"]).scene == str(tmp_path / "s.json")
+    assert read_gpkg(results["OUTPUT_GCPS"]).scene_path == str(tmp_path / "s.json")

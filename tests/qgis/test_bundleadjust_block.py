@@ -44,11 +44,11 @@ def test_the_simulators_block_gcps_import_as_they_are(block, gcp_layer):
     lines = Path(block["GCPS"]).read_text().splitlines()
     header = lines[0].split(",")
     rows = [dict(zip(header, line.split(","))) for line in lines[1:]]
-    assert sorted(zip(table.id, table.block_scene)) == sorted((r["id"], r["scene"]) for r in rows)
+    assert sorted(zip(table.id, table.scene)) == sorted((r["id"], r["scene"]) for r in rows)
     ids, scenes_seen = np.unique(table.id, return_counts=True)
     assert scenes_seen.max() == 3 and set(table.camera) == {"NAD"}
     for name, path in zip(NAMES, block["SCENES"]):
-        mine = table.select(table.block_scene == name)
+        mine = table.select(table.scene == name)
         col, row = load_scene(path).ground_to_image(mine.ecef(), 0)
         ok = np.isfinite(col)
         assert ok.sum() >= 5 and np.allclose(mine.residuals.col[ok], (col - mine.col)[ok], atol=1e-6), name
@@ -141,7 +141,7 @@ def test_the_block_layers_and_rpcs(block, adjusted):
     assert min(r[5] for r in rows) > 15.0  # two of nadir, +18 and -18 degrees
     assert np.sqrt(np.mean(np.array([r[6] for r in rows]) ** 2)) < 0.6
     table = gcp_io.read_gpkg(folder / "adjusted_gcps.gpkg")
-    assert set(table.block_scene) == set(NAMES) and set(table.camera) == {"NAD"}
+    assert set(table.scene) == set(NAMES) and set(table.camera) == {"NAD"}
     for name in NAMES:
         rpc = folder / f"{name}_RPC.TXT"
         assert rpc.is_file() and json.loads(Path(f"{rpc}.json").read_text())["check"]["rms_px"] < 0.01
@@ -223,8 +223,8 @@ def bad_inputs(block, gcp_layer, tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("bad")
     table = gcp_io.read_gpkg(gcp_layer)
     no_field, foreign = folder / "no_scene.gpkg", folder / "foreign.gpkg"
-    gcp_io.write_gpkg(replace(table, block_scene=None), no_field)
-    gcp_io.write_gpkg(replace(table, block_scene=np.where(table.block_scene == "bwd", "date9", table.block_scene)),
+    gcp_io.write_gpkg(replace(table, scene=None), no_field)
+    gcp_io.write_gpkg(replace(table, scene=np.where(table.scene == "bwd", "date9", table.scene)),
                       foreign)
     lines = Path(block["TIE_POINTS"]).read_text().splitlines()
     header, rows = lines[0], lines[1:]

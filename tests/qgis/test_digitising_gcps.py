@@ -105,11 +105,11 @@ def test_dock_measures_snaps_saves_reopens_and_the_block_adjusts(plugin, gcp_blo
     again = dock_for(gcp_block, qgis_iface)
     assert again.open_layer(path), again.message_label.text()
     back = again.editor.table()
-    for field in ("id", "role", "camera", "block_scene"):
+    for field in ("id", "role", "camera", "scene"):
         assert getattr(back, field).tolist() == getattr(saved, field).tolist()
     for field in ("col", "row", "lon", "lat", "h", "sigma_px", "sigma_xy", "sigma_z"):
         np.testing.assert_allclose(getattr(back, field), getattr(saved, field), rtol=0, atol=1e-9)
-    assert sorted(set(back.block_scene)) == ["fwd", "nad"] and len(back) == 2 * len(control)
+    assert sorted(set(back.scene)) == ["fwd", "nad"] and len(back) == 2 * len(control)
 
     # adjust the block to the saved layer: check points against the truth
     result = adjust_block(gcp_block["onboard"], read_gpkg(path), None,

@@ -49,11 +49,11 @@ def test_import_simulated_gcps_csv(simulated, core, tmp_path, fields):
     assert layer.crs().authid() == "EPSG:4979"
     table = core["gcps"].read_gpkg(out)
     by_id = {r["id"]: r for r in rows}
-    assert table.block_scene.tolist() == [by_id[i]["scene"] for i in table.id]
+    assert table.scene.tolist() == [by_id[i]["scene"] for i in table.id]
     assert [by_id[i]["role"] for i in table.id] == table.role.tolist() and "check" in table.role
     assert np.allclose(table.col, [float(by_id[i]["col"]) for i in table.id], atol=1e-9)
     assert np.allclose(table.h, [float(by_id[i]["h"]) for i in table.id], atol=1e-6)
-    assert (table.sigma_px == 0.3).all() and table.scene == simulated["ONBOARD_SCENE"]
+    assert (table.sigma_px == 0.3).all() and table.scene_path == simulated["ONBOARD_SCENE"]
     # a-priori residuals: the onboard model's projection minus the measured position
     scene = core["formats"].load_scene(simulated["ONBOARD_SCENE"])
     for cam in np.unique(table.camera):

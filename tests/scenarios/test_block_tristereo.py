@@ -72,12 +72,12 @@ class TriStereo:
         if role == "check":
             self.check_ground = ground[point]
         return GcpTable(np.char.add(prefix, point.astype(str)), role, np.full(point.size, "NAD"), c, r, lon, lat, h,
-                        NOISE, 0.1, 0.2, block_scene=scene)
+                        NOISE, 0.1, 0.2, scene=scene)
 
     def table(self, *parts: GcpTable) -> GcpTable:
         names = ("id", "role", "camera", "col", "row", "lon", "lat", "h", "sigma_px", "sigma_xy", "sigma_z")
         return GcpTable(*(np.concatenate([np.broadcast_to(getattr(t, k), len(t)) for t in parts]) for k in names),
-                        block_scene=np.concatenate([t.block_scene for t in parts]))
+                        scene=np.concatenate([t.scene for t in parts]))
 
 
 @pytest.fixture(scope="module")
@@ -105,7 +105,7 @@ def test_ties_only_tristereo_fits_its_matched_ties_and_names_its_datum(tri):
     assert block["tie_rmse_before_px"] > 5.0 and block["tie_rmse_px"] <= 0.05, block
     assert out.report["datum"].startswith("datum held by the onboard pseudo-observations")
     for name, entry in out.report["scenes"].items():
-        mine = tri.check.block_scene == name
+        mine = tri.check.scene == name
         onboard = tri.onboard[name].ground_to_image(tri.check_ground[mine], 0)
         before = np.sqrt(np.mean((onboard[0] - tri.check.col[mine]) ** 2 + (onboard[1] - tri.check.row[mine]) ** 2))
         assert entry["check_points"]["rmse_px"] < before, (name, entry["check_points"], before)

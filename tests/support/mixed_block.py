@@ -128,7 +128,7 @@ class MixedBlock:
         role = np.where(g["point"] < self.control[control].shape[0], "control", "check")
         order = np.argsort(role == "check", kind="stable")
         gcps = GcpTable(np.char.add("G", g["point"].astype(str)), role, g["camera"], g["col"], g["row"], lon, lat,
-                        h, NOISE, 0.1, 0.2, block_scene=g["scene"]).select(order)
+                        h, NOISE, 0.1, 0.2, scene=g["scene"]).select(order)
         truth = {k: g[k][order] for k in ("true_col", "true_row")}
         return ties, gcps, truth
 
@@ -142,5 +142,5 @@ def _kinds(point: np.ndarray, label: np.ndarray) -> np.ndarray:
 def floor_px(gcps: GcpTable, truth: dict, scene: str) -> float:
     """The check observations' noise floor in ``scene`` (px): the RMS length of their measured
     minus true image positions, i.e. their residuals through the true models."""
-    m = (gcps.role == "check") & (gcps.block_scene == scene)
+    m = (gcps.role == "check") & (gcps.scene == scene)
     return float(np.sqrt(np.mean((gcps.col[m] - truth["true_col"][m]) ** 2 + (gcps.row[m] - truth["true_row"][m]) ** 2)))

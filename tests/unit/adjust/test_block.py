@@ -36,7 +36,7 @@ class Block(SimulatedBlock):
         m = self.measure(self.gcp_ground)
         lon, lat, h = ecef_to_geodetic(self.gcp_ground[m["point"]])
         self.gcps = GcpTable(np.char.add("G", m["point"].astype(str)), "control", m["camera"], m["col"], m["row"],
-                             lon, lat, h, NOISE, 0.1, 0.2, block_scene=m["scene"])
+                             lon, lat, h, NOISE, 0.1, 0.2, scene=m["scene"])
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +100,7 @@ def test_gcps_block_against_each_scene_alone(block):
     block_px, alone_px = {}, {}
     for name in block.onboard:
         block_px[name] = block.check_px(name, out.scenes[name])
-        own = adjust(block.onboard[name], block.gcps.select(block.gcps.block_scene == name), SETTINGS,
+        own = adjust(block.onboard[name], block.gcps.select(block.gcps.scene == name), SETTINGS,
                      ties=block.ties.select(block.ties.scene == name))
         alone_px[name] = block.check_px(name, own.scene)
         assert block_px[name] < 0.5, (name, block_px[name])
@@ -113,8 +113,8 @@ def test_gcps_block_against_each_scene_alone(block):
     assert np.sqrt(np.mean(np.sum((ground - truth) ** 2, axis=1))) < 5.0
 
     g = block.gcps
-    split = ((g.block_scene == "S1") & np.isin(g.id, ["G0", "G3"])) | \
-        ((g.block_scene == "S2") & np.isin(g.id, ["G1", "G2"]))
+    split = ((g.scene == "S1") & np.isin(g.id, ["G0", "G3"])) | \
+        ((g.scene == "S2") & np.isin(g.id, ["G1", "G2"]))
     out = adjust_block(block.onboard, g.select(split), block.ties, SETTINGS)
     s3_block = block.check_px("S3", out.scenes["S3"])
     s3_alone = block.check_px("S3", adjust(block.onboard["S3"], g.select(np.zeros(len(g), bool)), SETTINGS,
@@ -152,8 +152,8 @@ def test_bad_block_input_is_named(block, shared_data):
         adjust_block(block.onboard, None, replace(ties, scene=np.where(ties.scene == "S3", "S9", ties.scene)),
                      SETTINGS)
     with pytest.raises(InputError, match="S7"):
-        adjust_block(block.onboard, replace(gcps, block_scene=np.where(gcps.block_scene == "S1", "S7",
-                                                                       gcps.block_scene)), ties, SETTINGS)
+        adjust_block(block.onboard, replace(gcps, scene=np.where(gcps.scene == "S1", "S7",
+                                                                       gcps.scene)), ties, SETTINGS)
     with pytest.raises(InputError, match="'B'.*'A'.*listed twice"):
         adjust_block({"A": block.onboard["S1"], "B": block.onboard["S1"]}, None, ties, SETTINGS)
     lonely = (ties.id != "T5") | (ties.scene == "S2")  # T5 kept in S2 only

@@ -108,7 +108,7 @@ def test_mixed_ties_only_block_is_held_by_the_onboard_sigmas(block, mixed):
 
 def _vendor_check_px(block, gcps, truth) -> float:
     """RMS (px) of R's check observations through the vendor RPC."""
-    m = (gcps.role == "check") & (gcps.block_scene == "R")
+    m = (gcps.role == "check") & (gcps.scene == "R")
     col, row = block.onboard["R"].ground_to_image(gcps.select(m).ecef())
     return float(np.sqrt(np.mean((col - gcps.col[m]) ** 2 + (row - gcps.row[m]) ** 2)))
 

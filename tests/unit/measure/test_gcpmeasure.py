@@ -75,13 +75,13 @@ def test_table_round_trips_one_id_in_two_scenes_through_the_geopackage(gcp_block
     editor.set_ground(Ground(*true_ground(gcp_block, "G3"), sigma_xy=0.5, sigma_z=2.0, source="reference"))
     editor.edit(sigma_px=("fwd", "NAD", 0.2))
     table = editor.table()
-    assert table.id.tolist() == ["G1", "G1", "G3"] and table.block_scene.tolist() == ["nad", "fwd", "fwd"]
+    assert table.id.tolist() == ["G1", "G1", "G3"] and table.scene.tolist() == ["nad", "fwd", "fwd"]
     write_gpkg(table, tmp_path / "gcps.gpkg")
     back = read_gpkg(tmp_path / "gcps.gpkg")
     reopened = PointEditor()
     reopened.load(back, list(NAMES))
     again = reopened.table()
-    for field in ("id", "role", "camera", "block_scene"):
+    for field in ("id", "role", "camera", "scene"):
         assert getattr(again, field).tolist() == getattr(table, field).tolist()
     for field in ("col", "row", "lon", "lat", "h", "sigma_px", "sigma_xy", "sigma_z"):
         np.testing.assert_allclose(getattr(again, field), getattr(table, field), rtol=0, atol=1e-9)

@@ -232,9 +232,9 @@ def test_apriori_residuals_equal_the_known_roll_offset_and_outside_points_are_ma
     assert res.m == pytest.approx(np.abs(expected) * IFOV * 622e3, rel=0.01)
     # predicted beyond the right edge (998 + 5 > 1000), measured left of the image, below the last row
     assert out.id[~res.inside].tolist() == ["g5", "g6", "g7"]
-    assert out.scene == "onboard.json" and np.sum(out.role == "check") == 2
+    assert out.scene_path == "onboard.json" and np.sum(out.role == "check") == 2
     checks = out.select(out.role == "check")
-    assert len(checks) == 2 and checks.scene == "onboard.json"
+    assert len(checks) == 2 and checks.scene_path == "onboard.json"
     assert checks.residuals.col.tolist() == res.col[out.role == "check"].tolist()
     s = G.summary(out)
     assert (s["points"], s["control"], s["check"], s["outside"]) == (8, 6, 2, 3)
@@ -270,7 +270,7 @@ def test_gpkg_round_trip_fields_crs_and_scene(tmp_path):
     for name in table.ARRAYS:
         a, b = getattr(table, name), getattr(back, name)
         assert (a == b).all() if a.dtype.kind == "U" else np.allclose(a, b, rtol=0, atol=1e-12), name
-    assert back.scene == "/data/onboard.json" and back.role.tolist() == ["control", "check", "control"]
+    assert back.scene_path == "/data/onboard.json" and back.role.tolist() == ["control", "check", "control"]
     assert back.residuals.inside.tolist() == [True, True, False]
     assert np.allclose(back.residuals.col, table.residuals.col, atol=1e-12)
     plain = tmp_path / "plain.gpkg"
@@ -285,12 +285,12 @@ def test_gpkg_carries_the_block_scene_of_every_row(tmp_path):
     only when a row names one); rows without a name read back as ''."""
     table = G.build_table(["a", "a", "b"], [1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [3.0] * 3, [4.0] * 3,
                           crs="EPSG:4326", heights=_ellipsoid(), camera=["P", "MS", "P"])
-    assert (G.read_gpkg(_written(table, tmp_path / "none.gpkg")).block_scene == "").all()
-    named = replace(table, block_scene=np.array(["PHR_A", "PHR_B", ""]))
+    assert (G.read_gpkg(_written(table, tmp_path / "none.gpkg")).scene == "").all()
+    named = replace(table, scene=np.array(["PHR_A", "PHR_B", ""]))
     ds = ogr.Open(str(_written(named, tmp_path / "named.gpkg")))
     assert ds.GetLayer(0).GetLayerDefn().GetFieldIndex("scene") >= 0
     ds = None
-    assert G.read_gpkg(tmp_path / "named.gpkg").block_scene.tolist() == ["PHR_A", "PHR_B", ""]
+    assert G.read_gpkg(tmp_path / "named.gpkg").scene.tolist() == ["PHR_A", "PHR_B", ""]
 
 
 def test_one_point_in_camera_p_of_two_products_is_two_rows(tmp_path):
@@ -300,7 +300,7 @@ def test_one_point_in_camera_p_of_two_products_is_two_rows(tmp_path):
     path = tmp_path / "block.csv"
     path.write_text("id,camera,scene,col,row,lon,lat\nA,P,PHR_1,1,2,3,4\nA,P,PHR_2,5,6,3,4\nB,P,PHR_1,7,8,3.1,4\n")
     table = G.read_csv(path, G.CsvMapping(), "EPSG:4326", _ellipsoid())
-    assert table.block_scene.tolist() == ["PHR_1", "PHR_2", "PHR_1"] and table.id.tolist() == ["A", "A", "B"]
+    assert table.scene.tolist() == ["PHR_1", "PHR_2", "PHR_1"] and table.id.tolist() == ["A", "A", "B"]
     with pytest.raises(InputError, match=r"point id\(s\) A occur more than once for the same camera$"):
         G.read_csv(path, G.CsvMapping(scene=""), "EPSG:4326", _ellipsoid())  # '': no scene column
     path.write_text(path.read_text() + "A,P,PHR_1,9,9,3,4\n")

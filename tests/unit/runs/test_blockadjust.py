@@ -31,7 +31,7 @@ class Block(SimulatedBlock):
         m = self.measure(ground)
         lon, lat, h = ecef_to_geodetic(ground[m["point"]])
         self.gcps = G.GcpTable(np.char.add("G", m["point"].astype(str)), "control", m["camera"], m["col"], m["row"],
-                               lon, lat, h, NOISE, 0.1, 0.2, block_scene=m["scene"])
+                               lon, lat, h, NOISE, 0.1, 0.2, scene=m["scene"])
 
 
 @pytest.fixture(scope="module")
@@ -106,7 +106,7 @@ def test_refusals_name_their_input_and_leave_no_folder(block, tmp_path, fields, 
         path = tmp_path / "ties_s1s2.gpkg"
         tiepoints.write_gpkg(ties.select(ties.scene != "S3"), path)
         gcps = block["sim"].gcps
-        s3 = gcps.select(gcps.block_scene == "S3")
+        s3 = gcps.select(gcps.scene == "S3")
         gcp_path = tmp_path / "gcps_all.gpkg"
         G.write_gpkg(s3 if len(s3) else gcps, gcp_path)
         fields = {"ties": LayerFile(str(path)), "gcps": LayerFile(str(gcp_path))}

@@ -55,7 +55,7 @@ def test_a_block_checks_each_row_against_the_scene_it_names(th1, tmp_path):
         str(tmp_path / "block.gpkg"), scenes=tuple(map(str, files.values())), file=str(csv_path), crs="EPSG:4326",
         heights=PointHeights("z", "ellipsoid"), mapping=gcps.CsvMapping(z="h", scene="block"), check_fraction=0.2))
     table = gcps.read_gpkg(str(tmp_path / "block.gpkg"))
-    in_true = table.block_scene == "sim_true"
+    in_true = table.scene == "sim_true"
     assert in_true.sum() == len(rows) // 2 and np.nanmax(table.residuals.px[in_true]) < 1e-3
     assert np.nanmedian(table.residuals.px[~in_true]) > 1.0
     assert result.figures["check"] == round(0.2 * len(rows))
