@@ -18,9 +18,10 @@ from ..model.timebasis import TimeBasis
 from ..observations import gcps, tiepoints
 from ..observations.lines import read_ground_lines, read_image_lines
 from .base import FilesInUse, concerning
+from .scenes import SCENES  # noqa: F401 (one of the inputs the request names, with GCPS, TIES, LINES)
 
 # The inputs errors and log lines name (InputError.parameter, LogLine.parameter), beside core.runs.base's SCENE
-GCPS, TIES, LINES, SCENES = "gcps", "ties", "lines", "scenes"
+GCPS, TIES, LINES = "gcps", "ties", "lines"
 INTERIOR, SCENE_SIGMAS = "settings.interior", "settings.scene_sigmas"
 # The outputs, by the names of the algorithm's parameters (files of the result; the errors that concern them)
 OUTPUT_SCENE, OUTPUT_REPORT, OUTPUT_REPORT_JSON, OUTPUT_GCPS, OUTPUT_RESIDUALS = \

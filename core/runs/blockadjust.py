@@ -31,7 +31,8 @@ from ..products.rpcfit import fit_rpc, refined_rpcs
 from ..vector_io import layer_fields
 from .adjustinputs import (ADJUSTED_SCENES, GCPS, LINES, OUTPUT_FOLDER, OUTPUT_REPORT_JSON, SCENES, TIES,
                            AdjustRequest, check_cancel, check_interior, read_gcps, read_lines, read_ties)
-from .base import RunResult, concerning, scene_from
+from .base import RunResult, concerning
+from .scenes import read_block
 
 SCENE_SUFFIX = "_adjusted.json"  # <name>_adjusted.json: a scene's adjusted model in the folder
 REPORT, GCP_LAYER, TIE_LAYER = "block_report.html", "adjusted_gcps.gpkg", "adjusted_tie_points.gpkg"
@@ -98,11 +99,8 @@ def _scenes(files) -> tuple[dict, list]:
     scenes and RPC products alike."""
     if len(files) < 2:
         raise InputError(f"{len(files)} scene given; a block needs two or more (one scene: SCENE)", parameter=SCENES)
-    scenes, lines = {}, []
-    for name, path in files.items():
-        scenes[name], more = scene_from(path, SCENES)
-        lines += more
-    return scenes, lines
+    block, lines = read_block(files)
+    return block.scenes, lines
 
 
 def _lines(path: str, scenes: dict):

@@ -47,29 +47,22 @@ class Block:
 
 
 def block_from(paths: Sequence[str]) -> tuple[Block, list]:
-    """(the block of scene files ``paths``, log lines): every file read as :func:`core.runs.base.scene_from`
-    reads one, its errors and lines concerning SCENES."""
-    files = dict(zip(block_scene_names(paths), map(str, paths)))
+    """(the block of scene files ``paths``, each named by :func:`block_scene_names`, log lines):
+    :func:`read_block`."""
+    return read_block(dict(zip(block_scene_names(paths), map(str, paths))))
+
+
+def read_block(files: dict) -> tuple[Block, list]:
+    """(the block of scene files {name: file} ``files``, log lines): every file read as
+    :func:`core.runs.base.scene_from` reads one, its errors and lines concerning SCENES."""
     scenes, lines = {}, []
     for name, path in files.items():
-        scenes[name], more = member_scene(path)
+        scenes[name], more = scene_from(path, SCENES)
         lines += more
-    return Block(files, scenes), lines
-
-
-def member_scene(path: str) -> tuple:
-    """(scene, log lines) of one scene file of a block: :func:`core.runs.base.scene_from`, whose errors
-    and lines about SCENE concern SCENES instead."""
-    try:
-        scene, lines = scene_from(path)
-    except InputError as exc:
-        if exc.parameter != SCENE:
-            raise
-        raise InputError(str(exc), parameter=SCENES) from None
-    return scene, [line._replace(parameter=SCENES) if line.parameter == SCENE else line for line in lines]
+    return Block(dict(files), scenes), lines
 
 
 def read_scene(path: str, parameter: str = SCENE) -> tuple:
-    """(scene, log lines) of the scene file ``path`` an input ``parameter`` gives: SCENE
-    (:func:`core.runs.base.scene_from`) or SCENES (:func:`member_scene`)."""
-    return member_scene(path) if parameter == SCENES else scene_from(path)
+    """(scene, log lines) of the scene file ``path`` an input ``parameter`` gives (SCENE, or SCENES for
+    a member of a block): :func:`core.runs.base.scene_from`."""
+    return scene_from(path, parameter)
