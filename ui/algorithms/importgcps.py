@@ -1,10 +1,9 @@
 """pushbroom:importgcps — ground control points from CSV, QGIS .points or a point layer,
 checked against a scene and written as the GeoPackage GCP layer the adjustment reads."""
 import numpy as np
-from qgis.core import (QgsProcessing, QgsProcessingException,
-                       QgsProcessingParameterCrs, QgsProcessingParameterFeatureSource,
-                       QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterString,
-                       QgsProcessingParameterVectorDestination, QgsWkbTypes)
+from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterCrs,
+                       QgsProcessingParameterFeatureSource, QgsProcessingParameterFile, QgsProcessingParameterNumber,
+                       QgsProcessingParameterString, QgsWkbTypes)
 
 from ...core.observations import gcps
 from ...core.runs import importgcps as use_case
@@ -13,8 +12,8 @@ from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats
                       SCENE_PARAMETERS, field_values, point_heights, require_points, source_features)
 from ..outputs import STYLES, files_in_use, style_output_on_load
 from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD,
-                          SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction,
-                          height_source, id_field, image_field, scene_field, sigma_field, sigma_px, tr, z_datum)
+                          SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, check_fraction, file_layer,
+                          height_source, image_field, point_field, sigma_px, tr, z_datum)
 from .base import PushbroomAlgorithm
 
 
@@ -42,15 +41,15 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                                      fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"))
         self.addParameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("GCP point layer"),
                                                               [QgsProcessing.TypeVectorPoint], optional=True))
-        self.addParameter(id_field())
+        self.addParameter(point_field(ID_FIELD))
         self.addParameter(image_field(self.COL_FIELD))
         self.addParameter(image_field(self.ROW_FIELD))
         for name, label, default in ((self.X_FIELD, tr("Ground X / longitude field (CSV)"), "lon"),
                                      (self.Y_FIELD, tr("Ground Y / latitude field (CSV)"), "lat"),
                                      (self.Z_FIELD, tr("Height field"), ""), (self.ROLE_FIELD, tr("Role field"), "")):
             self.addParameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default))
-        self.addParameter(camera_field())
-        self.addParameter(scene_field())
+        self.addParameter(point_field(CAMERA_FIELD))
+        self.addParameter(point_field(SCENE_FIELD))
         self.addParameter(QgsProcessingParameterCrs(self.GROUND_CRS, tr("Ground CRS (CSV and .points)"), optional=True,
                                                     defaultValue="EPSG:4326"))
         self.addParameter(height_source())
@@ -62,12 +61,9 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                      (self.SIGMA_Z, tr("Ground height sigma (m)"), gcps.DEFAULT_SIGMA_Z)):
             self.addParameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
                                                            minValue=0.0))
-        for key in self.SIGMA_FIELDS:
-            self.addParameter(sigma_field(key))
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Ground control points"),
-                                                      QgsProcessing.TypeVectorPoint)
-        out.setSupportsNonFileBasedOutput(False)
-        self.addParameter(out)
+        for name in self.SIGMA_FIELDS.values():
+            self.addParameter(point_field(name))
+        self.addParameter(file_layer(self.OUTPUT, tr("Ground control points"), QgsProcessing.TypeVectorPoint))
         self.show_only("SCENE", "SCENES", "INPUT_FILE", "INPUT", "GROUND_CRS", "HEIGHT_SOURCE", "DEM", "HEIGHT")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
