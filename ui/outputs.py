@@ -96,10 +96,9 @@ class CheckedSink:
 
 @contextmanager
 def output_sink(alg, parameters, context, name: str, fields, wkb_type, crs):
-    """(CheckedSink, destination) of feature sink parameter ``name``, all or nothing: a file is
-    written under a temporary name (:func:`core.files.atomic_output`), checked to hold every
-    feature, and renamed over the destination at the block's normal end (memory layers and
-    database tables: in place)."""
+    """(CheckedSink, destination) of feature sink parameter ``name``, all or nothing: a file is written under
+    a temporary name (core.files.atomic_output), checked and renamed at the block's normal end (memory
+    layers and database tables: in place)."""
     final = alg.parameterAsOutputLayer(parameters, name, context)  # registers it for loading, if asked
     path = destination_file(final) if not final.startswith("ogr:") else ""
     if not path:

@@ -1,10 +1,6 @@
 """The plugin's parameter vocabulary: a concept has one name, description, default and (enumerations)
-value names in one order wherever it appears (tests/qgis/test_vocabulary.py); its help: docs/parameters.md.
-
-Enumerations use static strings: scripts, models and qgis_process pass value names (``DEM_DATUM=geoid``),
-never option numbers. QGIS 3.22 lists the names themselves (no labels), so they are short words.
-User-visible texts go through :func:`tr` (one translation context for the whole plugin).
-"""
+value names in one order wherever it appears (tests/qgis/test_vocabulary.py); help: docs/parameters.md.
+Enumerations take value names (``DEM_DATUM=geoid``), never option numbers."""
 from __future__ import annotations
 
 from qgis.core import (NULL, QgsProcessing, QgsProcessingException, QgsProcessingParameterBoolean,
@@ -50,14 +46,15 @@ DEFAULT_PRESET = "cbers02b_hrc"
 
 
 def tr(text: str) -> str:
-    """``text`` in the user's language, when a translation is installed (else unchanged)."""
+    """``text`` in the user's language, when a translation is installed (one context for the whole plugin)."""
     return QCoreApplication.translate(TR_CONTEXT, text)
 
 
 # --- enumerations -------------------------------------------------------------------------
 def enum_parameter(name: str, description: str, values, default: str | None,
                    optional: bool = False) -> QgsProcessingParameterEnum:
-    """An enumeration of the static strings ``values`` (a dict: its keys) in the drop-down's order."""
+    """An enumeration of the static strings ``values`` (a dict: its keys) in the drop-down's order; QGIS 3.22
+    shows the names themselves (no labels), so they are short words."""
     if default is not None and default not in values:
         raise ValueError(f"{name}: default {default!r} is not one of {list(values)}")
     return QgsProcessingParameterEnum(name, description, options=list(values), defaultValue=default,
@@ -184,10 +181,9 @@ def value_given(value) -> bool:
 
 
 class CheckedByGdal:
-    """A raster parameter whose check of a value never loads it as a QGIS layer: QGIS's check (run by the
-    toolbox, processing.run and qgis_process) would, and GDAL then writes the statistics QGIS computes
-    beside the file (<file>.aux.xml) or into it (a VRT). A value given is acceptable here; the algorithm
-    checks the file with GDAL, naming the parameter (ui.inputs.raster_refusal)."""
+    """A raster parameter not loaded as a QGIS layer to check a value (QGIS's check would, and GDAL then
+    writes the statistics QGIS computes beside the file or into a VRT): a value given is acceptable; the
+    algorithm checks the file with GDAL (ui.inputs.raster_refusal)."""
 
     def clone(self):
         copy = type(self)(self.name(), self.description())

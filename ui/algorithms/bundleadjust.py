@@ -1,8 +1,6 @@
 """pushbroom:bundleadjust — self-calibrating bundle adjustment of a scene (or, with SCENES, a block of
-scenes) from its GCPs, tie points and control lines (:mod:`core.runs.bundleadjust`): the adjusted scene
-JSON, JSON and HTML reports, the GCP and tie-point layers with residuals and flags, residual vectors."""
+scenes) from its GCPs, tie points and control lines: the parameters of :mod:`core.runs.bundleadjust`."""
 from __future__ import annotations
-
 
 import numpy as np
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutputFile,

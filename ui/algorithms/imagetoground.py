@@ -8,7 +8,7 @@ from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFi
 from qgis.PyQt.QtCore import QVariant
 
 from ...core.runs import imagetoground as use_case
-from ..inputs import add_dem_parameters, add_scene_parameters, source_and_features
+from ..inputs import add_dem_parameters, add_scene_parameters, attribute_floats, source_and_features
 from ..outputs import STYLES, files_in_use, output_sink, style_output_on_load
 from ..parameters import CAMERA, COL_FIELD, DEM, ROW_FIELD, SCENE, image_field, tr
 from .base import PushbroomAlgorithm
@@ -55,8 +55,8 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
                 raise QgsProcessingException(f"{param}: the input has no field {name!r} "
                                              f"(fields: {', '.join(source.fields().names())})")
             idx.append(i)
-        values = np.array([[_float(f.attribute(i)) for i in idx] for f in features]).reshape(-1, 2)
-        return tuple(names), values[:, 0], values[:, 1]
+        col, row = (attribute_floats([f.attribute(i) for f in features]) for i in idx)
+        return tuple(names), col, row
 
     def _write(self, parameters, context, source, features, lon, lat, h):
         new = QgsFields()
@@ -72,11 +72,3 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
                 sink.add(out)
         style_output_on_load(context, dest, STYLES / "ground_points.qml")
         return dest
-
-
-def _float(value) -> float:
-    """A numeric attribute as float; NaN for NULL or non-numeric values."""
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return float("nan")

@@ -1,6 +1,5 @@
 """pushbroom:importgcps — ground control points from CSV, QGIS .points or a point layer,
 checked against a scene and written as the GeoPackage GCP layer the adjustment reads."""
-import numpy as np
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterCrs,
                        QgsProcessingParameterFeatureSource, QgsProcessingParameterFile, QgsProcessingParameterNumber,
                        QgsProcessingParameterString, QgsWkbTypes)
@@ -9,7 +8,7 @@ from ...core.observations import gcps
 from ...core.runs import importgcps as use_case
 from ..blockmatch import scene_or_block
 from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts, crs_text,
-                      SCENE_PARAMETERS, field_values, point_heights, require_points, source_features)
+                      SCENE_PARAMETERS, field_values, point_heights, point_xyz, require_points, source_features)
 from ..outputs import STYLES, files_in_use, style_output_on_load
 from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD,
                           SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, check_fraction, file_layer,
@@ -103,7 +102,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         features = source_features(self.INPUT, source)  # an empty layer said first
         require_points(self.INPUT, source)
         column = field_values(self, parameters, context, source, features)
-        xyz = np.array([_point_xyz(f) for f in features], dtype=float)
+        xyz = point_xyz(features)
         z = column(self.Z_FIELD, False)
         if z is None and QgsWkbTypes.hasZ(source.wkbType()):
             z = xyz[:, 2]
@@ -117,12 +116,3 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                    attribute_floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
                                    None if z is None else attribute_floats(z), *texts.values(), sigmas,
                                    f"{self.INPUT} layer")
-
-
-def _point_xyz(feature) -> tuple[float, float, float]:
-    """(x, y, z) of a point feature; NaN for an empty geometry or a missing Z."""
-    g = feature.geometry()
-    if g.isNull() or g.isEmpty():
-        return np.nan, np.nan, np.nan
-    p = g.vertexAt(0)
-    return p.x(), p.y(), p.z()
