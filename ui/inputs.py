@@ -38,6 +38,21 @@ def add_scene_parameters(alg, with_camera: bool = True, or_scenes: bool = False)
         alg.addParameter(vocabulary.camera())
 
 
+def scene_or_block(alg, parameters, context) -> tuple[str, tuple[str, ...]]:
+    """(SCENE's file, ()) for one scene, ('', SCENES' files) for a block (QGIS 3.22 reads an empty SCENES as
+    ['']); refused naming both when both are given (saying what the algorithm does with each: its
+    SCENE_OR_SCENES) or neither."""
+    scene = alg.parameterAsFile(parameters, vocabulary.SCENE, context)
+    block = tuple(path for path in alg.parameterAsFileList(parameters, vocabulary.SCENES, context) if path)
+    if block and scene:
+        one, several = alg.SCENE_OR_SCENES
+        raise QgsProcessingException(f"SCENE and SCENES are both given: give SCENE to {one}, or SCENES to "
+                                     f"{several}, not both")
+    if not block and not scene:
+        raise QgsProcessingException("give SCENE (one scene) or SCENES (a block of scenes): neither is given")
+    return ("", block) if block else (scene, ())
+
+
 def source_and_features(alg, parameters, context, input_name: str = "INPUT") -> tuple:
     """(feature source, its features) of a feature source parameter; errors name the parameter."""
     source = alg.parameterAsSource(parameters, input_name, context)

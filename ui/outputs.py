@@ -6,10 +6,10 @@ from __future__ import annotations
 from contextlib import contextmanager
 from pathlib import Path
 
-from qgis.core import (QgsDataSourceUri, QgsProcessing, QgsFeatureSink, QgsProcessingException,
+from qgis.core import (QgsDataSourceUri, QgsFeatureSink, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
                        QgsProcessingLayerPostProcessorInterface, QgsProcessingOutputLayerDefinition,
                        QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterFolderDestination, QgsProperty)
+                       QgsProcessingParameterFolderDestination, QgsProcessingUtils, QgsProperty)
 
 from ..core.files import atomic_output, write_failure
 from ..core.runs.base import FilesInUse
@@ -78,6 +78,14 @@ def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None
 
 
 # --- feature sinks: every feature or nothing ---------------------------------------------------
+def output_fields(kinds: dict, before=None) -> QgsFields:
+    """The fields of an output: ``kinds`` ({name: QVariant type}) after the input's fields ``before``."""
+    fields = QgsFields()
+    for name, kind in kinds.items():
+        fields.append(QgsField(name, kind))
+    return fields if before is None else QgsProcessingUtils.combineFields(before, fields)
+
+
 class CheckedSink:
     """A feature sink whose failures are errors: a feature the sink does not take (a full disk,
     a format that cannot hold it) stops the algorithm with a message naming the output."""

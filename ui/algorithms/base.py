@@ -24,7 +24,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     # The inputs the core's errors and log lines name (InputError.parameter: 'gcps', 'settings.alpha'...) ->
     # this algorithm's parameters, which then start the message.
     CORE_PARAMETERS: dict[str, str] = {}
-    SCENE_OR_SCENES = ("work on one scene", "work on a block of scenes")  # for refusing both (ui.blockmatch)
+    SCENE_OR_SCENES = ("work on one scene", "work on a block of scenes")  # for refusing both (ui.inputs.scene_or_block)
 
     def name(self):
         return self.ID

@@ -1,15 +1,14 @@
 """pushbroom:groundtoimage — image coordinates (col, row) of ground points in a scene
 (:mod:`core.runs.groundtoimage`)."""
 import numpy as np
-from qgis.core import (QgsFeature, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterFeatureSink,
-                       QgsProcessingParameterFeatureSource, QgsProcessingUtils)
+from qgis.core import (QgsFeature, QgsProcessing, QgsProcessingException, QgsProcessingParameterBoolean,
+                       QgsProcessingParameterFeatureSink, QgsProcessingParameterFeatureSource)
 from qgis.PyQt.QtCore import QVariant
 
 from ...core.runs import groundtoimage as use_case
 from ..inputs import (add_dem_parameters, add_scene_parameters, layer_crs, point_xyz, require_points,
                       source_and_features)
-from ..outputs import STYLES, files_in_use, output_sink, style_output_on_load
+from ..outputs import STYLES, files_in_use, output_fields, output_sink, style_output_on_load
 from ..parameters import CAMERA, DEM, SCENE, Z_DATUM, enum_value, tr, z_datum
 from .base import PushbroomAlgorithm
 
@@ -42,11 +41,8 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
             enum_value(self, parameters, self.Z_DATUM, context), self.terrain(parameters, context),
             self.parameterAsString(parameters, CAMERA, context), files_in_use(self, parameters, context)), feedback)
         col, row, inside = (result.figures[k] for k in ("col", "row", "inside"))
-        new = QgsFields()
-        for name in ("col", "row"):
-            new.append(QgsField(name, QVariant.Double))
-        new.append(QgsField("in_image", QVariant.Int))
-        fields = QgsProcessingUtils.combineFields(source.fields(), new)
+        fields = output_fields({"col": QVariant.Double, "row": QVariant.Double, "in_image": QVariant.Int},
+                               source.fields())
         with output_sink(self, parameters, context, self.OUTPUT, fields, source.wkbType(), crs) as (sink, dest):
             for i, f in enumerate(features):
                 out = QgsFeature(fields)

@@ -6,9 +6,9 @@ from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParam
 
 from ...core.observations import gcps
 from ...core.runs import importgcps as use_case
-from ..blockmatch import scene_or_block
-from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts, crs_text,
-                      SCENE_PARAMETERS, field_values, point_heights, point_xyz, require_points, source_features)
+from ..inputs import (SCENE_PARAMETERS, add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts,
+                      crs_text, field_values, point_heights, point_xyz, require_points, scene_or_block,
+                      source_features)
 from ..outputs import STYLES, files_in_use, style_output_on_load
 from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD,
                           SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, check_fraction, file_layer,

@@ -4,8 +4,8 @@ automatically in a common ground geometry, written as the tie-point layer the ad
 from qgis.core import QgsProcessing
 
 from ...core.runs import matchtiepoints as use_case
-from ..blockmatch import scene_or_block
-from ..inputs import SCENE_PARAMETERS, add_dem_parameters, add_scene_parameters, matching_settings, raster_files
+from ..inputs import (SCENE_PARAMETERS, add_dem_parameters, add_scene_parameters, matching_settings, raster_files,
+                      scene_or_block)
 from ..outputs import STYLES, files_in_use, style_output_on_load
 from ..parameters import INPUTS, SCENES, camera_images, file_layer, matching_parameters, tr
 from .base import PushbroomAlgorithm
