@@ -1,8 +1,5 @@
-"""QGIS parameters and layers to core inputs: scene files and cameras, layers' files, CRSs and
-attributes, DEM parameters to core surfaces, heights of points, raw images and matching settings.
-
-Every refusal names the parameter at fault.
-"""
+"""QGIS parameters and layers to core inputs (scenes, layers' files, CRSs, attributes, rasters, heights,
+matching settings); every refusal names the parameter at fault."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -22,7 +19,7 @@ from ..core.rasters import check_input_raster
 from ..core.runs import scenes
 from ..core.runs.layers import PointHeights
 from . import parameters as vocabulary
-from .feedback import error_message, processing_errors, push_lines
+from .feedback import error_message, processing_errors
 from .parameters import DEM, HEIGHT_SOURCE, Z_DATUM, enum_value
 
 # The core's names of the scene, camera and DEM inputs (InputError.parameter) -> the shared parameters
@@ -41,16 +38,19 @@ def add_scene_parameters(alg, with_camera: bool = True, or_scenes: bool = False)
         alg.addParameter(vocabulary.camera())
 
 
-def load_scene_for(parameter_name: str, path: str, feedback=None):
-    """The scene file parameter ``parameter_name`` (SCENE or SCENES) gives, read by
-    :func:`core.runs.scenes.read_scene`; its errors ("SCENE: /x/y.xml: no such file") and its log
-    lines (to ``feedback``) name the parameter."""
-    concerns = scenes.SCENES if parameter_name == vocabulary.SCENES else "scene"
-    with processing_errors(f"{parameter_name}: "):
-        scene, lines = scenes.read_scene(path, concerns)
-    if feedback is not None:
-        push_lines(feedback, lines, {concerns: parameter_name})
-    return scene
+def scene_or_block(alg, parameters, context) -> tuple[str, tuple[str, ...]]:
+    """(SCENE's file, ()) for one scene, ('', SCENES' files) for a block (QGIS 3.22 reads an empty SCENES as
+    ['']); refused naming both when both are given (saying what the algorithm does with each: its
+    SCENE_OR_SCENES) or neither."""
+    scene = alg.parameterAsFile(parameters, vocabulary.SCENE, context)
+    block = tuple(path for path in alg.parameterAsFileList(parameters, vocabulary.SCENES, context) if path)
+    if block and scene:
+        one, several = alg.SCENE_OR_SCENES
+        raise QgsProcessingException(f"SCENE and SCENES are both given: give SCENE to {one}, or SCENES to "
+                                     f"{several}, not both")
+    if not block and not scene:
+        raise QgsProcessingException("give SCENE (one scene) or SCENES (a block of scenes): neither is given")
+    return ("", block) if block else (scene, ())
 
 
 def source_and_features(alg, parameters, context, input_name: str = "INPUT") -> tuple:
@@ -84,13 +84,7 @@ def layer_file(layer: QgsMapLayer | None) -> str:
     return QgsProviderRegistry.instance().decodeUri(layer.providerType(), layer.source()).get("path") or ""
 
 
-# --- raster inputs: read by GDAL, never loaded as QGIS layers ----------------------------------
-# Processing's parameterAsRasterLayer (like its check of parameter values, see ui.parameters.RasterInput)
-# loads a raster given by path as a QGIS layer; QGIS computes the statistics of a raster layer it
-# loads, and GDAL writes them beside the file (<file>.aux.xml) or into it (a VRT) when the layer is
-# dropped. So the plugin's raster parameters are resolved to files here instead: a layer already in
-# the project is looked up (none is loaded), a path is the file itself, which the core reads by
-# core.rasters.open_input_raster.
+# --- raster inputs: read by GDAL, never loaded as QGIS layers (why: ui.parameters.CheckedByGdal) ---
 def is_raster_input(definition) -> bool:
     """Whether a parameter definition takes rasters (a raster layer, or several)."""
     return isinstance(definition, QgsProcessingParameterRasterLayer) or (
@@ -108,9 +102,8 @@ def _given_values(value, context) -> list:
 
 
 def raster_files(alg, parameters, name: str, context) -> list[str]:
-    """The files of raster parameter ``name`` (one or several layers; [] when not given), without
-    loading any as a QGIS layer: a layer of the project (given as such, or by id or name) gives its
-    file ('' for one that is not a file: a memory or service layer), a path is the file."""
+    """The files of raster parameter ``name`` ([] when not given), none loaded as a QGIS layer: a layer of
+    the project (itself, its id or name) gives its file ('' when it has none), a path is the file."""
     value = parameters.get(name) if name in parameters else alg.parameterDefinition(name).defaultValue()
     files = []
     for item in _given_values(value, context):
@@ -133,9 +126,7 @@ RASTER_KINDS = {DEM: "a DEM: heights in metres on a map grid with a CRS, in any 
 
 
 def raster_refusal(alg, parameters, definition, context) -> str:
-    """Why the value of raster parameter ``definition`` cannot be read ('' when it can): a required
-    one not given, a layer that is not a file, a file GDAL does not open as a raster. Checked with
-    GDAL (core.rasters.check_input_raster), never by loading a QGIS layer."""
+    """Why the value of raster parameter ``definition`` cannot be read by GDAL ('' when it can)."""
     name = definition.name()
     files = raster_files(alg, parameters, name, context)
     if not files and not definition.flags() & QgsProcessingParameterDefinition.FlagOptional:
@@ -220,6 +211,17 @@ def field_values(alg, parameters, context, source, features) -> Callable[[str, b
         return [f[name] for f in features]
 
     return column
+
+
+def point_xyz(features) -> np.ndarray:
+    """(n, 3) x, y, z of point features in their layer's CRS (a multipoint's first); NaN: no geometry, no Z."""
+    xyz = np.full((len(features), 3), np.nan)
+    for i, f in enumerate(features):
+        g = f.geometry()
+        if not (g.isNull() or g.isEmpty()):
+            p = g.vertexAt(0)
+            xyz[i] = p.x(), p.y(), p.z()
+    return xyz
 
 
 def attribute_floats(values) -> np.ndarray:

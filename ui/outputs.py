@@ -6,10 +6,10 @@ from __future__ import annotations
 from contextlib import contextmanager
 from pathlib import Path
 
-from qgis.core import (QgsDataSourceUri, QgsProcessing, QgsFeatureSink, QgsProcessingException,
+from qgis.core import (QgsDataSourceUri, QgsFeatureSink, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
                        QgsProcessingLayerPostProcessorInterface, QgsProcessingOutputLayerDefinition,
                        QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterFolderDestination, QgsProperty)
+                       QgsProcessingParameterFolderDestination, QgsProcessingUtils, QgsProperty)
 
 from ..core.files import atomic_output, write_failure
 from ..core.runs.base import FilesInUse
@@ -78,6 +78,14 @@ def check_outputs(alg, parameters, context, outputs: dict | None = None) -> None
 
 
 # --- feature sinks: every feature or nothing ---------------------------------------------------
+def output_fields(kinds: dict, before=None) -> QgsFields:
+    """The fields of an output: ``kinds`` ({name: QVariant type}) after the input's fields ``before``."""
+    fields = QgsFields()
+    for name, kind in kinds.items():
+        fields.append(QgsField(name, kind))
+    return fields if before is None else QgsProcessingUtils.combineFields(before, fields)
+
+
 class CheckedSink:
     """A feature sink whose failures are errors: a feature the sink does not take (a full disk,
     a format that cannot hold it) stops the algorithm with a message naming the output."""
@@ -96,10 +104,9 @@ class CheckedSink:
 
 @contextmanager
 def output_sink(alg, parameters, context, name: str, fields, wkb_type, crs):
-    """(CheckedSink, destination) of feature sink parameter ``name``, all or nothing: a file is
-    written under a temporary name (:func:`core.files.atomic_output`), checked to hold every
-    feature, and renamed over the destination at the block's normal end (memory layers and
-    database tables: in place)."""
+    """(CheckedSink, destination) of feature sink parameter ``name``, all or nothing: a file is written under
+    a temporary name (core.files.atomic_output), checked and renamed at the block's normal end (memory
+    layers and database tables: in place)."""
     final = alg.parameterAsOutputLayer(parameters, name, context)  # registers it for loading, if asked
     path = destination_file(final) if not final.startswith("ogr:") else ""
     if not path:

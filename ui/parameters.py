@@ -1,18 +1,6 @@
-"""The plugin's parameter vocabulary: one definition per concept, shared by every algorithm.
-
-A concept (the scene, its camera, the DEM and its datum, heights, check points, image
-coordinate fields, the enumerations) has one parameter name, one description, one default
-and, for enumerations, the same named values in the same order wherever it appears; its help
-is written once, in docs/parameters.md (ui.help). tests/qgis/test_vocabulary.py holds every
-algorithm of the provider to that.
-
-Enumerations use static strings: scripts, graphical models and qgis_process pass the value
-names (``DEM_DATUM=geoid``), never option numbers. QGIS 3.22 shows the names themselves in
-the toolbox's drop-down lists (it has no separate labels for static-string values), so the
-names are short words and every help text (the docs' entry) says what each name means.
-
-User-visible texts go through :func:`tr` (one translation context for the whole plugin).
-"""
+"""The plugin's parameter vocabulary: a concept has one name, description, default and (enumerations)
+value names in one order wherever it appears (tests/qgis/test_vocabulary.py); help: docs/parameters.md.
+Enumerations take value names (``DEM_DATUM=geoid``), never option numbers."""
 from __future__ import annotations
 
 from qgis.core import (NULL, QgsProcessing, QgsProcessingException, QgsProcessingParameterBoolean,
@@ -58,21 +46,19 @@ DEFAULT_PRESET = "cbers02b_hrc"
 
 
 def tr(text: str) -> str:
-    """``text`` in the user's language, when a translation is installed (else unchanged)."""
+    """``text`` in the user's language, when a translation is installed (one context for the whole plugin)."""
     return QCoreApplication.translate(TR_CONTEXT, text)
 
 
 # --- enumerations -------------------------------------------------------------------------
 def enum_parameter(name: str, description: str, values, default: str | None,
                    optional: bool = False) -> QgsProcessingParameterEnum:
-    """An enumeration of named values (static strings) ``values``, in the order the drop-down lists them
-    (a dict: its keys). Its help, with what each name means, is its entry in the docs
-    (ui.algorithms.base.PushbroomAlgorithm.addParameter)."""
+    """An enumeration of the static strings ``values`` (a dict: its keys) in the drop-down's order; QGIS 3.22
+    shows the names themselves (no labels), so they are short words."""
     if default is not None and default not in values:
         raise ValueError(f"{name}: default {default!r} is not one of {list(values)}")
-    parameter = QgsProcessingParameterEnum(name, description, options=list(values), defaultValue=default,
-                                           optional=optional, usesStaticStrings=True)
-    return parameter
+    return QgsProcessingParameterEnum(name, description, options=list(values), defaultValue=default,
+                                      optional=optional, usesStaticStrings=True)
 
 
 def _empty(value) -> bool:
@@ -80,9 +66,7 @@ def _empty(value) -> bool:
 
 
 def enum_refusal(definition: QgsProcessingParameterEnum, value) -> str | None:
-    """Why ``value`` is not a value of enumeration ``definition`` (None when it is, or when it is
-    not given). Option numbers are refused, never read as positions: the same number meant
-    different values in different algorithms before the values had names."""
+    """Why ``value`` is not a value of enumeration ``definition`` (None when it is, or is not given)."""
     if _empty(value) or isinstance(value, QgsProperty) or (isinstance(value, str) and value in definition.options()):
         return None
     name, names = definition.name(), ", ".join(definition.options())
@@ -98,8 +82,7 @@ def enum_refusal(definition: QgsProcessingParameterEnum, value) -> str | None:
 
 
 def enum_value(alg, parameters: dict, name: str, context) -> str | None:
-    """The value name given for enumeration ``name`` (its default when not given; None when it
-    is optional and has none). Anything else stops the run with the value names."""
+    """The value name given for enumeration ``name``, else its default (None); else the run stops."""
     definition = alg.parameterDefinition(name)
     value = parameters.get(name)
     if isinstance(value, QgsProperty):  # data-defined in a model: its evaluated text
@@ -197,41 +180,32 @@ def value_given(value) -> bool:
     return value is not None and value != NULL and value != ""
 
 
-class RasterInput(QgsProcessingParameterRasterLayer):
-    """A raster layer parameter (the toolbox shows it as QGIS's own) whose check of a value never loads
-    the raster as a QGIS layer. QGIS's check, which the toolbox, processing.run and qgis_process run
-    before an algorithm, loads a raster given by path as a layer; QGIS computes the statistics of a
-    layer it loads, and GDAL writes them beside the file (<file>.aux.xml) or into it (a VRT) when the
-    layer is dropped. Here a value is acceptable when it is given (or the parameter is optional); the
-    algorithm checks the file itself with GDAL, naming the parameter (ui.inputs.raster_refusal)."""
+class CheckedByGdal:
+    """A raster parameter not loaded as a QGIS layer to check a value (QGIS's check would, and GDAL then
+    writes the statistics QGIS computes beside the file or into a VRT): a value given is acceptable; the
+    algorithm checks the file with GDAL (ui.inputs.raster_refusal)."""
 
     def clone(self):
-        return _cloned(self, RasterInput(self.name(), self.description(), self.defaultValue()))
+        copy = type(self)(self.name(), self.description())
+        copy.setDefaultValue(self.defaultValue())
+        copy.setFlags(self.flags())
+        copy.setHelp(self.help())
+        copy.setMetadata(self.metadata())
+        return copy
 
     def checkValueIsAcceptable(self, value, context=None):  # noqa: N802 (QGIS API name)
         return value_given(value) or bool(self.flags() & QgsProcessingParameterDefinition.FlagOptional)
 
 
-class RasterInputs(QgsProcessingParameterMultipleLayers):
-    """Several rasters (QGIS's multiple-layer parameter of rasters), checked as :class:`RasterInput` is."""
+class RasterInput(CheckedByGdal, QgsProcessingParameterRasterLayer):
+    """A raster layer parameter (the toolbox shows QGIS's own), checked by GDAL."""
+
+
+class RasterInputs(CheckedByGdal, QgsProcessingParameterMultipleLayers):
+    """Several rasters (QGIS's multiple-layer parameter of rasters), checked by GDAL."""
 
     def __init__(self, name: str, description: str, optional: bool = False):
         super().__init__(name, description, QgsProcessing.TypeRaster, optional=optional)
-
-    def clone(self):
-        return _cloned(self, RasterInputs(self.name(), self.description()))
-
-    def checkValueIsAcceptable(self, value, context=None):  # noqa: N802 (QGIS API name)
-        return value_given(value) or bool(self.flags() & QgsProcessingParameterDefinition.FlagOptional)
-
-
-def _cloned(parameter, copy):
-    """``copy`` (a new parameter of ``parameter``'s class, name and description) given its flags, help
-    and metadata."""
-    copy.setFlags(parameter.flags())
-    copy.setHelp(parameter.help())
-    copy.setMetadata(parameter.metadata())
-    return copy
 
 
 def dem() -> RasterInput:
@@ -277,33 +251,21 @@ ID_FIELD, CAMERA_FIELD, SCENE_FIELD, SIGMA_PX = "ID_FIELD", "CAMERA_FIELD", "SCE
 SIGMA_FIELDS = {"sigma_px": "SIGMA_PX_FIELD", "sigma_xy": "SIGMA_XY_FIELD", "sigma_z": "SIGMA_Z_FIELD"}
 
 
-def id_field() -> QgsProcessingParameterString:
-    """ID_FIELD of the point imports: rows with one id are one ground point."""
-    return QgsProcessingParameterString(ID_FIELD, tr("Point id field"), optional=True, defaultValue="")
+# The optional fields of the point imports, empty by default: name -> label.
+FIELD_LABELS = {ID_FIELD: "Point id field", CAMERA_FIELD: "Camera field", SCENE_FIELD: "Scene field",
+                "SIGMA_PX_FIELD": "Per-point image measurement sigma field (px)",
+                "SIGMA_XY_FIELD": "Per-point ground planimetric sigma field (m)",
+                "SIGMA_Z_FIELD": "Per-point ground height sigma field (m)"}
 
 
-def camera_field() -> QgsProcessingParameterString:
-    """CAMERA_FIELD of the point imports."""
-    return QgsProcessingParameterString(CAMERA_FIELD, tr("Camera field"), optional=True, defaultValue="")
-
-
-def scene_field() -> QgsProcessingParameterString:
-    """SCENE_FIELD of the point imports: the product of a block each row was measured in."""
-    return QgsProcessingParameterString(SCENE_FIELD, tr("Scene field"), optional=True, defaultValue="")
+def point_field(name: str) -> QgsProcessingParameterString:
+    """A field of the point imports (FIELD_LABELS: ID_FIELD, CAMERA_FIELD, SCENE_FIELD, SIGMA_*_FIELD)."""
+    return QgsProcessingParameterString(name, tr(FIELD_LABELS[name]), optional=True, defaultValue="")
 
 
 def sigma_px() -> QgsProcessingParameterNumber:
-    """SIGMA_PX: the image measurement sigma of imported points."""
     return QgsProcessingParameterNumber(SIGMA_PX, tr("Image measurement sigma (px)"),
                                         QgsProcessingParameterNumber.Double, DEFAULT_SIGMA_PX, minValue=0.0)
-
-
-def sigma_field(key: str) -> QgsProcessingParameterString:
-    """SIGMA_PX_FIELD, SIGMA_XY_FIELD or SIGMA_Z_FIELD (``key`` sigma_px, sigma_xy, sigma_z): per-point sigmas."""
-    what, unit = {"sigma_px": ("image measurement sigma", "px"), "sigma_xy": ("ground planimetric sigma", "m"),
-                  "sigma_z": ("ground height sigma", "m")}[key]
-    return QgsProcessingParameterString(SIGMA_FIELDS[key], tr("Per-point {} field ({})").format(what, unit),
-                                        optional=True, defaultValue="")
 
 
 def image_lines() -> QgsProcessingParameterVectorLayer:
@@ -311,15 +273,20 @@ def image_lines() -> QgsProcessingParameterVectorLayer:
     return QgsProcessingParameterVectorLayer("IMAGE_LINES", tr("Image lines"), [QgsProcessing.TypeVectorLine])
 
 
+def file_layer(name: str, label: str, kind, **options) -> QgsProcessingParameterVectorDestination:
+    """A vector output the core writes as a file (a GeoPackage): no memory layer, no database table."""
+    layer = QgsProcessingParameterVectorDestination(name, label, kind, **options)
+    layer.setSupportsNonFileBasedOutput(False)
+    return layer
+
+
 # --- a block adjustment's own parameters (bundleadjust with SCENES) ------------------------
-# Their help, as every parameter's, is in docs/algorithms/bundleadjust.md (ui.help).
 SCENE_SIGMAS, BLOCK_FOLDER, WRITE_RPCS = "SCENE_SIGMAS", "OUTPUT_FOLDER", "WRITE_RPCS"
 UNITS = {"POSITION": "m", "ATTITUDE": "arcsec"}  # of the onboard sigmas
 
 
 def scene_sigmas() -> QgsProcessingParameterMatrix:
-    """SCENE_SIGMAS: each block scene's own sigmas, a matrix of any number of rows (read by
-    :func:`core.adjust.scenesigmas.read_scene_sigmas`); optional."""
+    """SCENE_SIGMAS: each block scene's own sigmas, any number of rows (core.adjust.scenesigmas)."""
     return QgsProcessingParameterMatrix(SCENE_SIGMAS, tr("Per-scene onboard / vendor sigmas (block)"), numberRows=0,
                                         hasFixedNumberRows=False, headers=list(SIGMA_HEADERS), optional=True)
 
@@ -330,8 +297,7 @@ def block_folder() -> QgsProcessingParameterFolderDestination:
 
 
 def write_rpcs() -> QgsProcessingParameterBoolean:
-    """WRITE_RPCS: a refined RPC of each image of a block; advanced, and optional so that graphical
-    models saved before it need no value for it."""
+    """WRITE_RPCS; optional so that graphical models saved before it need no value for it."""
     parameter = QgsProcessingParameterBoolean(WRITE_RPCS, tr("Refined RPC of each image (block)"), defaultValue=False,
                                               optional=True)
     parameter.setFlags(parameter.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
@@ -369,13 +335,9 @@ def adjustment_outputs() -> list:
                                                    optional=True)
     rpc = QgsProcessingParameterFileDestination("OUTPUT_RPC", tr("Refined RPC (RPC scenes)"),
                                                 fileFilter="RPC text (*_RPC.TXT)", optional=True)
-    layers = []
-    for name, label, kind in (("OUTPUT_GCPS", "Adjusted GCPs", QgsProcessing.TypeVectorPoint),
-                              ("OUTPUT_RESIDUALS", "Residual vectors", QgsProcessing.TypeVectorLine),
-                              ("OUTPUT_TIE_POINTS", "Adjusted tie points", QgsProcessing.TypeVectorPoint),
-                              ("OUTPUT_LINE_RESIDUALS", "Line residuals", QgsProcessing.TypeVectorPoint)):
-        layer = QgsProcessingParameterVectorDestination(name, tr(label), kind, optional=True,
-                                                        createByDefault=name != "OUTPUT_LINE_RESIDUALS")
-        layer.setSupportsNonFileBasedOutput(False)
-        layers.append(layer)
+    layers = [file_layer(name, tr(label), kind, optional=True, createByDefault=name != "OUTPUT_LINE_RESIDUALS")
+              for name, label, kind in (("OUTPUT_GCPS", "Adjusted GCPs", QgsProcessing.TypeVectorPoint),
+                                        ("OUTPUT_RESIDUALS", "Residual vectors", QgsProcessing.TypeVectorLine),
+                                        ("OUTPUT_TIE_POINTS", "Adjusted tie points", QgsProcessing.TypeVectorPoint),
+                                        ("OUTPUT_LINE_RESIDUALS", "Line residuals", QgsProcessing.TypeVectorPoint))]
     return [report, *layers[:3], rpc, layers[3]]

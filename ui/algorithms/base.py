@@ -1,7 +1,4 @@
-"""PushbroomAlgorithm, the base of every algorithm of the provider: id, name, group, icon and help
-from class attributes, parameters with their help from the docs, output paths, the check of
-enumeration values, and the adapter around core calls (a core error becomes a
-QgsProcessingException naming the algorithm's parameter at fault)."""
+"""PushbroomAlgorithm, the base of the provider's algorithms and their adapter around the core."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -19,27 +16,15 @@ from ..parameters import DEM, DEM_DATUM, HEIGHT, enum_refusal, enum_value, tr
 
 
 class PushbroomAlgorithm(QgsProcessingAlgorithm):
-    """Base of the plugin's algorithms: id, name and group from class attributes, help from the docs.
-
-    shortHelpString() is the summary of docs/algorithms/<ID>.md, the inputs the dialog shows and the
-    outputs, with a link to the page (helpUrl). Each parameter's help (the dialog's tooltip, qgis_process
-    help's argument list) is its entry in the page's section Parameters, set as it is added
-    (:meth:`addParameter`; ui.help reads the pages).
-    NAME and GROUP are English and shown through tr(); GROUP_ID never changes with the language.
-    Enumeration values are checked before a run (checkParameterValues): an unknown name or an
-    option number is refused with the parameter's value names.
-
-    CORE_PARAMETERS maps the inputs the core's errors name (``InputError.parameter``, in
-    the core's terms: 'gcps', 'ties', 'settings.alpha'...) to this algorithm's parameters; an
-    error raised inside :meth:`core_errors` starts with the parameter's name, and so does a log
-    sentence about an input (:meth:`push_core_lines`).
-    """
+    """Id, name and group from class attributes (NAME and GROUP English, shown through tr()), help from
+    docs/algorithms/<ID>.md (ui.help)."""
     ID = ""
     NAME = ""
     GROUP, GROUP_ID = "Sensor model", "sensormodel"
+    # The inputs the core's errors and log lines name (InputError.parameter: 'gcps', 'settings.alpha'...) ->
+    # this algorithm's parameters, which then start the message.
     CORE_PARAMETERS: dict[str, str] = {}
-    SCENE_OR_SCENES = ("work on one scene", "work on a block of scenes")
-    """What the algorithm does with SCENE and with SCENES, for the refusal of both (ui.blockmatch.block_given)."""
+    SCENE_OR_SCENES = ("work on one scene", "work on a block of scenes")  # for refusing both (ui.inputs.scene_or_block)
 
     def name(self):
         return self.ID
@@ -66,8 +51,8 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         self.addParameter(parameter)
 
     def addParameter(self, definition, createOutput=True):  # noqa: N802 (QGIS API names)
-        """QGIS's addParameter with the parameter's help from the docs: its entry on the algorithm's page,
-        else its entry in docs/parameters.md (tests/qgis/test_help.py: every parameter has one)."""
+        """QGIS's addParameter, with the help of the parameter's entry on the algorithm's page, else in
+        docs/parameters.md."""
         name = definition.name()
         definition.setHelp(documented_help(self.ID, name, tr) or shared_help(name, tr))
         return super().addParameter(definition, createOutput)
@@ -113,10 +98,8 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
         return help_page(self.ID).as_uri()
 
     def checkParameterValues(self, parameters, context):  # noqa: N802
-        """Enumerations take value names only (see ui.parameters.enum_refusal); an empty text is
-        'not given', as the toolbox's '[Not selected]' is. Rasters are checked by GDAL, naming the
-        parameter, without being loaded as QGIS layers (ui.inputs.raster_refusal; ui.parameters.RasterInput
-        says why). The rest is QGIS's own check."""
+        """Enumerations take value names only ('' is not given, as '[Not selected]' is); rasters are checked
+        by GDAL (ui.parameters.CheckedByGdal); the rest by QGIS."""
         given = dict(parameters)
         for definition in self.parameterDefinitions():
             if isinstance(definition, QgsProcessingParameterEnum):
@@ -136,14 +119,12 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
 
     # --- the adapter around core calls ---------------------------------------------------------
     def core_errors(self, default: str = ""):
-        """Context manager: a core error raised inside becomes a QgsProcessingException that starts
-        with the parameter CORE_PARAMETERS gives for the input the error names, else with
-        ``default`` (a parameter name; '' for none)."""
+        """Context manager: a core error raised inside becomes a QgsProcessingException that starts with the
+        parameter CORE_PARAMETERS gives for its input, else with ``default`` (a parameter name, or '')."""
         return processing_errors(f"{default}: " if default else "", self.CORE_PARAMETERS)
 
     def push_core_lines(self, feedback, lines) -> None:
-        """The core's log sentences (:class:`core.log.LogLine`) to the Processing log, a
-        sentence about an input named by the parameter CORE_PARAMETERS gives for it."""
+        """The core's log lines to the Processing log, named by CORE_PARAMETERS (ui.feedback.push_lines)."""
         push_lines(feedback, lines, self.CORE_PARAMETERS)
 
     def run_core(self, run, request, feedback):

@@ -1,8 +1,6 @@
 """pushbroom:bundleadjust — self-calibrating bundle adjustment of a scene (or, with SCENES, a block of
-scenes) from its GCPs, tie points and control lines (:mod:`core.runs.bundleadjust`): the adjusted scene
-JSON, JSON and HTML reports, the GCP and tie-point layers with residuals and flags, residual vectors."""
+scenes) from its GCPs, tie points and control lines: the parameters of :mod:`core.runs.bundleadjust`."""
 from __future__ import annotations
-
 
 import numpy as np
 from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingOutputFile,
@@ -14,9 +12,8 @@ from ...core.adjust.settings import ONBOARD_SIGMAS, AdjustmentSettings
 from ...core.observations import tiepoints
 from ...core.rotations import ARCSEC
 from ...core.runs import adjustinputs as names, bundleadjust as use_case
-from ..blockmatch import block_given, one_scene_file, scene_files
-from ..inputs import add_scene_parameters, attribute_floats, attribute_texts, block_scene_names, ogr_source, \
-    split_ogr_source
+from ..inputs import (add_scene_parameters, attribute_floats, attribute_texts, block_scene_names, ogr_source,
+                      scene_or_block, split_ogr_source)
 from ..outputs import STYLES, files_in_use, style_output_on_load
 from ..parameters import (ATTITUDE_MODEL, BLOCK_FOLDER, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR,
                           POSITION_MODEL, ROBUST, RPC_CORRECTION, SCENE, SCENE_SIGMAS, SCENES, WRITE_RPCS,
@@ -94,14 +91,14 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.show_only(SCENE, SCENES, self.GCPS, self.TIE_POINTS, self.LINES, self.INTERIOR)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        block = block_given(self, parameters, context)
-        paths = scene_files(self, parameters, context) if block else []
+        scene, paths = scene_or_block(self, parameters, context)
+        block = bool(paths)
         ties, tie_rows = self._ties(parameters, context)
         lines = self.parameterAsVectorLayer(parameters, self.LINES, context)
         number = lambda name: self.parameterAsDouble(parameters, name, context)  # noqa: E731
         result = self.run_core(use_case.run, names.AdjustRequest(
-            "" if block else one_scene_file(self, parameters, context),
-            dict(zip(block_scene_names(paths), paths)) if block else None, self._layer(parameters, context, self.GCPS),
+            scene, dict(zip(block_scene_names(paths), paths)) if block else None,
+            self._layer(parameters, context, self.GCPS),
             ties, tie_rows, ogr_source(self.LINES, lines, "control lines")[0] if lines is not None else "",
             self.adjustment_settings(parameters, context), matrix_texts(self, parameters, SCENE_SIGMAS, context),
             self._outputs(parameters, context, block),

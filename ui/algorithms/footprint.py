@@ -1,12 +1,11 @@
 """pushbroom:footprint — ground outline of each camera's image, as polygons."""
-from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFields, QgsGeometry, QgsLineString,
-                       QgsPolygon, QgsProcessing, QgsProcessingParameterFeatureSink, QgsProcessingParameterNumber,
-                       QgsWkbTypes)
+from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsGeometry, QgsLineString, QgsPolygon,
+                       QgsProcessing, QgsProcessingParameterFeatureSink, QgsProcessingParameterNumber, QgsWkbTypes)
 from qgis.PyQt.QtCore import QVariant
 
 from ...core.runs import footprint as use_case
 from ..inputs import add_dem_parameters, add_scene_parameters
-from ..outputs import STYLES, files_in_use, output_sink, style_output_on_load
+from ..outputs import STYLES, files_in_use, output_fields, output_sink, style_output_on_load
 from ..parameters import DEM, SCENE, tr
 from .base import PushbroomAlgorithm
 
@@ -31,11 +30,8 @@ class FootprintAlgorithm(PushbroomAlgorithm):
         result = self.run_core(use_case.run, use_case.FootprintRequest(
             self.parameterAsFile(parameters, SCENE, context), self.terrain(parameters, context),
             self.parameterAsInt(parameters, self.SAMPLES, context), files_in_use(self, parameters, context)), feedback)
-        fields = QgsFields()
-        fields.append(QgsField("camera", QVariant.String))
-        fields.append(QgsField("cols", QVariant.Int))
-        fields.append(QgsField("rows", QVariant.Int))
-        fields.append(QgsField("area_km2", QVariant.Double))
+        fields = output_fields({"camera": QVariant.String, "cols": QVariant.Int, "rows": QVariant.Int,
+                                "area_km2": QVariant.Double})
         with output_sink(self, parameters, context, self.OUTPUT, fields, QgsWkbTypes.Polygon,
                          QgsCoordinateReferenceSystem("EPSG:4326")) as (sink, dest):
             for fp in result.figures["footprints"]:

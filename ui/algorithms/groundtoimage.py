@@ -1,14 +1,14 @@
 """pushbroom:groundtoimage — image coordinates (col, row) of ground points in a scene
 (:mod:`core.runs.groundtoimage`)."""
 import numpy as np
-from qgis.core import (QgsFeature, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterFeatureSink,
-                       QgsProcessingParameterFeatureSource, QgsProcessingUtils)
+from qgis.core import (QgsFeature, QgsProcessing, QgsProcessingException, QgsProcessingParameterBoolean,
+                       QgsProcessingParameterFeatureSink, QgsProcessingParameterFeatureSource)
 from qgis.PyQt.QtCore import QVariant
 
 from ...core.runs import groundtoimage as use_case
-from ..inputs import add_dem_parameters, add_scene_parameters, layer_crs, require_points, source_and_features
-from ..outputs import STYLES, files_in_use, output_sink, style_output_on_load
+from ..inputs import (add_dem_parameters, add_scene_parameters, layer_crs, point_xyz, require_points,
+                      source_and_features)
+from ..outputs import STYLES, files_in_use, output_fields, output_sink, style_output_on_load
 from ..parameters import CAMERA, DEM, SCENE, Z_DATUM, enum_value, tr, z_datum
 from .base import PushbroomAlgorithm
 
@@ -41,11 +41,8 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
             enum_value(self, parameters, self.Z_DATUM, context), self.terrain(parameters, context),
             self.parameterAsString(parameters, CAMERA, context), files_in_use(self, parameters, context)), feedback)
         col, row, inside = (result.figures[k] for k in ("col", "row", "inside"))
-        new = QgsFields()
-        for name in ("col", "row"):
-            new.append(QgsField(name, QVariant.Double))
-        new.append(QgsField("in_image", QVariant.Int))
-        fields = QgsProcessingUtils.combineFields(source.fields(), new)
+        fields = output_fields({"col": QVariant.Double, "row": QVariant.Double, "in_image": QVariant.Int},
+                               source.fields())
         with output_sink(self, parameters, context, self.OUTPUT, fields, source.wkbType(), crs) as (sink, dest):
             for i, f in enumerate(features):
                 out = QgsFeature(fields)
@@ -56,20 +53,13 @@ class GroundToImageAlgorithm(PushbroomAlgorithm):
         return {self.OUTPUT: dest}
 
     def _coordinates(self, features) -> tuple:
-        """x, y, z (n,) of the features' points in the layer's CRS (NaN: no geometry or no Z); a
-        feature of several points is refused."""
-        xyz = np.full((len(features), 3), np.nan)
-        for i, f in enumerate(features):
+        """x, y, z (n,) of the features' points (ui.inputs.point_xyz); a feature of several points is refused."""
+        for f in features:
             g = f.geometry()
-            if g.isNull() or g.isEmpty():
-                continue
-            if g.isMultipart() and g.constGet().numGeometries() != 1:
+            if not g.isEmpty() and g.isMultipart() and g.constGet().numGeometries() != 1:
                 raise QgsProcessingException(f"{self.INPUT}: feature {f.id()} holds several points; split it with "
                                              f"'Multipart to singleparts' first")
-            p = g.vertexAt(0)
-            xyz[i] = p.x(), p.y(), p.z()
-        return xyz[:, 0], xyz[:, 1], xyz[:, 2]
-
+        return tuple(point_xyz(features).T)
 
 def _number(v: float):
     """A float attribute, or NULL for NaN."""

@@ -1,15 +1,14 @@
 """pushbroom:imagetoground — ground points (lon, lat, ellipsoidal h) seen at image coordinates
 (:mod:`core.runs.imagetoground`)."""
 import numpy as np
-from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFields, QgsGeometry,
-                       QgsPoint, QgsProcessing, QgsProcessingException, QgsProcessingParameterFeatureSink,
-                       QgsProcessingParameterFeatureSource, QgsProcessingUtils,
+from qgis.core import (QgsCoordinateReferenceSystem, QgsFeature, QgsGeometry, QgsPoint, QgsProcessing,
+                       QgsProcessingException, QgsProcessingParameterFeatureSink, QgsProcessingParameterFeatureSource,
                        QgsWkbTypes)
 from qgis.PyQt.QtCore import QVariant
 
 from ...core.runs import imagetoground as use_case
-from ..inputs import add_dem_parameters, add_scene_parameters, source_and_features
-from ..outputs import STYLES, files_in_use, output_sink, style_output_on_load
+from ..inputs import add_dem_parameters, add_scene_parameters, attribute_floats, source_and_features
+from ..outputs import STYLES, files_in_use, output_fields, output_sink, style_output_on_load
 from ..parameters import CAMERA, COL_FIELD, DEM, ROW_FIELD, SCENE, image_field, tr
 from .base import PushbroomAlgorithm
 
@@ -55,14 +54,11 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
                 raise QgsProcessingException(f"{param}: the input has no field {name!r} "
                                              f"(fields: {', '.join(source.fields().names())})")
             idx.append(i)
-        values = np.array([[_float(f.attribute(i)) for i in idx] for f in features]).reshape(-1, 2)
-        return tuple(names), values[:, 0], values[:, 1]
+        col, row = (attribute_floats([f.attribute(i) for f in features]) for i in idx)
+        return tuple(names), col, row
 
     def _write(self, parameters, context, source, features, lon, lat, h):
-        new = QgsFields()
-        for name in ("lon", "lat", "h_ellipsoid"):
-            new.append(QgsField(name, QVariant.Double))
-        fields = QgsProcessingUtils.combineFields(source.fields(), new)
+        fields = output_fields(dict.fromkeys(("lon", "lat", "h_ellipsoid"), QVariant.Double), source.fields())
         with output_sink(self, parameters, context, self.OUTPUT, fields, QgsWkbTypes.PointZ,
                          QgsCoordinateReferenceSystem(OUTPUT_CRS)) as (sink, dest):
             for f, x, y, z in zip(features, lon, lat, h):
@@ -72,11 +68,3 @@ class ImageToGroundAlgorithm(PushbroomAlgorithm):
                 sink.add(out)
         style_output_on_load(context, dest, STYLES / "ground_points.qml")
         return dest
-
-
-def _float(value) -> float:
-    """A numeric attribute as float; NaN for NULL or non-numeric values."""
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return float("nan")

@@ -1,20 +1,18 @@
 """pushbroom:importgcps — ground control points from CSV, QGIS .points or a point layer,
 checked against a scene and written as the GeoPackage GCP layer the adjustment reads."""
-import numpy as np
-from qgis.core import (QgsProcessing, QgsProcessingException,
-                       QgsProcessingParameterCrs, QgsProcessingParameterFeatureSource,
-                       QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingParameterString,
-                       QgsProcessingParameterVectorDestination, QgsWkbTypes)
+from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterCrs,
+                       QgsProcessingParameterFeatureSource, QgsProcessingParameterFile, QgsProcessingParameterNumber,
+                       QgsProcessingParameterString, QgsWkbTypes)
 
 from ...core.observations import gcps
 from ...core.runs import importgcps as use_case
-from ..blockmatch import scene_or_block
-from ..inputs import (add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts, crs_text,
-                      SCENE_PARAMETERS, field_values, point_heights, require_points, source_features)
+from ..inputs import (SCENE_PARAMETERS, add_dem_parameters, add_scene_parameters, attribute_floats, attribute_texts,
+                      crs_text, field_values, point_heights, point_xyz, require_points, scene_or_block,
+                      source_features)
 from ..outputs import STYLES, files_in_use, style_output_on_load
 from ..parameters import (CAMERA, CAMERA_FIELD, CHECK_FRACTION, COL_FIELD, HEIGHT_SOURCE, ID_FIELD, ROW_FIELD,
-                          SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, camera_field, check_fraction,
-                          height_source, id_field, image_field, scene_field, sigma_field, sigma_px, tr, z_datum)
+                          SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX, Z_DATUM, camera, check_fraction, file_layer,
+                          height_source, image_field, point_field, sigma_px, tr, z_datum)
 from .base import PushbroomAlgorithm
 
 
@@ -42,15 +40,15 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                                      fileFilter="GCP files (*.csv *.txt *.points);;All files (*)"))
         self.addParameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("GCP point layer"),
                                                               [QgsProcessing.TypeVectorPoint], optional=True))
-        self.addParameter(id_field())
+        self.addParameter(point_field(ID_FIELD))
         self.addParameter(image_field(self.COL_FIELD))
         self.addParameter(image_field(self.ROW_FIELD))
         for name, label, default in ((self.X_FIELD, tr("Ground X / longitude field (CSV)"), "lon"),
                                      (self.Y_FIELD, tr("Ground Y / latitude field (CSV)"), "lat"),
                                      (self.Z_FIELD, tr("Height field"), ""), (self.ROLE_FIELD, tr("Role field"), "")):
             self.addParameter(QgsProcessingParameterString(name, label, optional=True, defaultValue=default))
-        self.addParameter(camera_field())
-        self.addParameter(scene_field())
+        self.addParameter(point_field(CAMERA_FIELD))
+        self.addParameter(point_field(SCENE_FIELD))
         self.addParameter(QgsProcessingParameterCrs(self.GROUND_CRS, tr("Ground CRS (CSV and .points)"), optional=True,
                                                     defaultValue="EPSG:4326"))
         self.addParameter(height_source())
@@ -62,12 +60,9 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                      (self.SIGMA_Z, tr("Ground height sigma (m)"), gcps.DEFAULT_SIGMA_Z)):
             self.addParameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double, default,
                                                            minValue=0.0))
-        for key in self.SIGMA_FIELDS:
-            self.addParameter(sigma_field(key))
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Ground control points"),
-                                                      QgsProcessing.TypeVectorPoint)
-        out.setSupportsNonFileBasedOutput(False)
-        self.addParameter(out)
+        for name in self.SIGMA_FIELDS.values():
+            self.addParameter(point_field(name))
+        self.addParameter(file_layer(self.OUTPUT, tr("Ground control points"), QgsProcessing.TypeVectorPoint))
         self.show_only("SCENE", "SCENES", "INPUT_FILE", "INPUT", "GROUND_CRS", "HEIGHT_SOURCE", "DEM", "HEIGHT")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
@@ -107,7 +102,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         features = source_features(self.INPUT, source)  # an empty layer said first
         require_points(self.INPUT, source)
         column = field_values(self, parameters, context, source, features)
-        xyz = np.array([_point_xyz(f) for f in features], dtype=float)
+        xyz = point_xyz(features)
         z = column(self.Z_FIELD, False)
         if z is None and QgsWkbTypes.hasZ(source.wkbType()):
             z = xyz[:, 2]
@@ -121,12 +116,3 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
                                    attribute_floats(column(self.ROW_FIELD, True)), xyz[:, 0], xyz[:, 1],
                                    None if z is None else attribute_floats(z), *texts.values(), sigmas,
                                    f"{self.INPUT} layer")
-
-
-def _point_xyz(feature) -> tuple[float, float, float]:
-    """(x, y, z) of a point feature; NaN for an empty geometry or a missing Z."""
-    g = feature.geometry()
-    if g.isNull() or g.isEmpty():
-        return np.nan, np.nan, np.nan
-    p = g.vertexAt(0)
-    return p.x(), p.y(), p.z()

@@ -1,14 +1,13 @@
 """pushbroom:importlines — control lines: ground lines from any line layer paired by id with the
 image lines digitised on the raw image, checked against a scene and written as the one
 GeoPackage the adjustment reads (bundleadjust LINES)."""
-from qgis.core import (QgsProcessing, QgsProcessingParameterNumber,
-                       QgsProcessingParameterString, QgsProcessingParameterVectorDestination,
+from qgis.core import (QgsProcessing, QgsProcessingParameterNumber, QgsProcessingParameterString,
                        QgsProcessingParameterVectorLayer)
 
 from ...core.runs import importlines as use_case
 from ..inputs import SCENE_PARAMETERS, add_dem_parameters, add_scene_parameters, crs_text, ogr_source, point_heights
 from ..outputs import STYLES, files_in_use, style_output_on_load
-from ..parameters import SCENE, height_source, image_lines, tr, z_datum
+from ..parameters import SCENE, file_layer, height_source, image_lines, tr, z_datum
 from .base import PushbroomAlgorithm
 
 
@@ -38,9 +37,7 @@ class ImportLinesAlgorithm(PushbroomAlgorithm):
                                      (self.SIGMA_H, tr("Sigma in height (m)"), 3.0)):
             self.addParameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double,
                                                            default, minValue=1e-6, maxValue=1e4))
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Control lines"), QgsProcessing.TypeVectorLine)
-        out.setSupportsNonFileBasedOutput(False)
-        self.addParameter(out)
+        self.addParameter(file_layer(self.OUTPUT, tr("Control lines"), QgsProcessing.TypeVectorLine))
         self.show_only("SCENE", "INPUT", "IMAGE_LINES", "HEIGHT_SOURCE", "DEM", "HEIGHT", "SIGMA_ACROSS", "SIGMA_H")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

@@ -1,8 +1,8 @@
 """pushbroom:importtiepoints — tie points (image observations of unknown ground points) from CSV
 or a layer, checked against a scene, intersected with its onboard model and written as the
 GeoPackage tie-point layer."""
-from qgis.core import (QgsProcessing, QgsProcessingException, QgsProcessingParameterFeatureSource,
-                       QgsProcessingParameterFile, QgsProcessingParameterVectorDestination)
+from qgis.core import QgsProcessing, QgsProcessingException, QgsProcessingParameterFeatureSource, \
+    QgsProcessingParameterFile
 
 from ...core.observations import tiepoints
 from ...core.runs import importtiepoints as use_case
@@ -10,7 +10,7 @@ from ..inputs import (SCENE_PARAMETERS, add_scene_parameters, attribute_floats, 
                       source_features)
 from ..outputs import STYLES, files_in_use, style_output_on_load
 from ..parameters import (CAMERA_FIELD, COL_FIELD, ID_FIELD, ROW_FIELD, SCENE, SCENE_FIELD, SIGMA_FIELDS, SIGMA_PX,
-                          camera_field, id_field, image_field, scene_field, sigma_field, sigma_px, tr)
+                          file_layer, image_field, point_field, sigma_px, tr)
 from .base import PushbroomAlgorithm
 
 
@@ -29,16 +29,11 @@ class ImportTiePointsAlgorithm(PushbroomAlgorithm):
                                                      fileFilter="Tie-point files (*.csv *.txt);;All files (*)"))
         self.addParameter(QgsProcessingParameterFeatureSource(self.INPUT, tr("Tie-point layer or table"),
                                                               [QgsProcessing.TypeVector], optional=True))
-        self.addParameter(id_field())
-        self.addParameter(camera_field())
-        self.addParameter(image_field(self.COL_FIELD))
-        self.addParameter(image_field(self.ROW_FIELD))
-        self.addParameter(scene_field())
-        self.addParameter(sigma_px())
-        self.addParameter(sigma_field("sigma_px"))
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Tie points"), QgsProcessing.TypeVectorPoint)
-        out.setSupportsNonFileBasedOutput(False)
-        self.addParameter(out)
+        for parameter in (point_field(ID_FIELD), point_field(CAMERA_FIELD), image_field(COL_FIELD),
+                          image_field(ROW_FIELD), point_field(SCENE_FIELD), sigma_px(),
+                          point_field(self.SIGMA_PX_FIELD),
+                          file_layer(self.OUTPUT, tr("Tie points"), QgsProcessing.TypeVectorPoint)):
+            self.addParameter(parameter)
         self.show_only("SCENE", "INPUT_FILE", "INPUT", "SIGMA_PX")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

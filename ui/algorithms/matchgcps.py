@@ -1,11 +1,11 @@
 """pushbroom:matchgcps — ground control points matched automatically between the raw image and
 a reference orthoimage through the scene model, written as the GCP layer the adjustment reads."""
-from qgis.core import QgsProcessing, QgsProcessingParameterVectorDestination
+from qgis.core import QgsProcessing
 
 from ...core.runs import matchgcps as use_case
 from ..inputs import SCENE_PARAMETERS, add_dem_parameters, add_scene_parameters, matching_settings, raster_file
 from ..outputs import STYLES, files_in_use, style_output_on_load
-from ..parameters import CAMERA, CHECK_FRACTION, SCENE, RasterInput, check_fraction, matching_parameters, tr
+from ..parameters import CAMERA, CHECK_FRACTION, SCENE, RasterInput, check_fraction, file_layer, matching_parameters, tr
 from .base import PushbroomAlgorithm
 
 
@@ -24,10 +24,7 @@ class MatchGcpsAlgorithm(PushbroomAlgorithm):
         for parameter in matching_parameters():
             self.addParameter(parameter)
         self.addParameter(check_fraction())
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Matched ground control points"),
-                                                      QgsProcessing.TypeVectorPoint)
-        out.setSupportsNonFileBasedOutput(False)
-        self.addParameter(out)
+        self.addParameter(file_layer(self.OUTPUT, tr("Matched ground control points"), QgsProcessing.TypeVectorPoint))
         self.show_only("INPUT", "SCENE", "CAMERA", "REFERENCE", "DEM", "HEIGHT", "SEARCH_RANGE", "CHECK_FRACTION")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

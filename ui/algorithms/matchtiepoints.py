@@ -1,13 +1,13 @@
 """pushbroom:matchtiepoints — tie points between the cameras of a three-line scene (or strip),
 or between the images of several scenes of a block (SCENES), matched
 automatically in a common ground geometry, written as the tie-point layer the adjustment reads."""
-from qgis.core import QgsProcessing, QgsProcessingParameterVectorDestination
+from qgis.core import QgsProcessing
 
 from ...core.runs import matchtiepoints as use_case
-from ..blockmatch import scene_or_block
-from ..inputs import SCENE_PARAMETERS, add_dem_parameters, add_scene_parameters, matching_settings, raster_files
+from ..inputs import (SCENE_PARAMETERS, add_dem_parameters, add_scene_parameters, matching_settings, raster_files,
+                      scene_or_block)
 from ..outputs import STYLES, files_in_use, style_output_on_load
-from ..parameters import INPUTS, SCENES, camera_images, matching_parameters, tr
+from ..parameters import INPUTS, SCENES, camera_images, file_layer, matching_parameters, tr
 from .base import PushbroomAlgorithm
 
 
@@ -26,10 +26,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
         add_dem_parameters(self)
         for parameter in matching_parameters():
             self.addParameter(parameter)
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Matched tie points"),
-                                                      QgsProcessing.TypeVectorPoint)
-        out.setSupportsNonFileBasedOutput(False)
-        self.addParameter(out)
+        self.addParameter(file_layer(self.OUTPUT, tr("Matched tie points"), QgsProcessing.TypeVectorPoint))
         self.show_only("SCENE", "SCENES", "INPUTS", "DEM", "HEIGHT", "SPACING", "SEARCH_RANGE")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802

@@ -4,14 +4,13 @@ of a strip) in one run, into a folder."""
 from __future__ import annotations
 
 from pyproj import CRS
-from pyproj.exceptions import CRSError
 from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingException, QgsProcessingOutputMultipleLayers,
                        QgsProcessingParameterBoolean, QgsProcessingParameterCrs, QgsProcessingParameterExtent,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
                        QgsProcessingParameterRasterDestination, QgsProcessingParameterString, QgsProcessingUtils)
 
 from ...core.runs import orthorectify as use_case
-from ..inputs import add_dem_parameters, add_scene_parameters, raster_file, raster_files
+from ..inputs import add_dem_parameters, add_scene_parameters, layer_crs, raster_file, raster_files
 from ..outputs import files_in_use
 from ..parameters import CAMERA, DEM, INPUTS, RESAMPLING, SCENE, RasterInput, camera_images, enum_value, resampling, tr
 from .base import PushbroomAlgorithm
@@ -91,10 +90,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             if parameters.get(self.CRS_PARAM):
                 raise QgsProcessingException(f"{self.CRS_PARAM}: unknown CRS {parameters.get(self.CRS_PARAM)!r}")
             return None
-        try:
-            crs = CRS.from_wkt(qcrs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED))
-        except CRSError as exc:
-            raise QgsProcessingException(f"{self.CRS_PARAM}: unknown CRS {qcrs.authid()} ({exc})") from None
+        crs = layer_crs(self.CRS_PARAM, qcrs)
         if not crs.is_projected:
             raise QgsProcessingException(f"{self.CRS_PARAM}: {qcrs.authid() or crs.name} is not a projected CRS; "
                                          "choose one in metres (e.g. the scene's UTM zone)")

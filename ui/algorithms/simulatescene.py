@@ -45,14 +45,14 @@ ERROR_LIMITS = {"POSITION_BIAS": 1e5, "POSITION_DRIFT": 1e3, "POSITION_QUADRATIC
                 "INSTALLATION": 1e5}
 LENS_LIMIT = 1e3  # px at the array end: every lens and focal-plane term
 
-# Measurement settings: (parameter, simulation.measurements.GcpSettings field, label, type, default, min, max);
-# CHECK_FRACTION (field check_fraction) is the shared definition of ui.parameters.
+# Measurement settings: (parameter, simulation.measurements.GcpSettings field, label, default, min, max), all
+# real numbers; CHECK_FRACTION (field check_fraction) is the shared definition of ui.parameters.
 MEASUREMENT_PARAMETERS = (
-    ("GROUND_NOISE_XY", "ground_noise_xy", "Ground planimetric noise (m)", "d", 0.0, 0.0, 1000.0),
-    ("GROUND_NOISE_Z", "ground_noise_z", "Ground height noise (m)", "d", 0.0, 0.0, 1000.0),
-    ("GROSS_FRACTION", "gross_fraction", "Share of gross errors", "d", 0.0, 0.0, 1.0),
-    ("GROSS_MIN", "gross_min", "Smallest gross error (px)", "d", 5.0, 0.0, 1e5),
-    ("GROSS_MAX", "gross_max", "Largest gross error (px)", "d", 100.0, 0.0, 1e5),
+    ("GROUND_NOISE_XY", "ground_noise_xy", "Ground planimetric noise (m)", 0.0, 0.0, 1000.0),
+    ("GROUND_NOISE_Z", "ground_noise_z", "Ground height noise (m)", 0.0, 0.0, 1000.0),
+    ("GROSS_FRACTION", "gross_fraction", "Share of gross errors", 0.0, 0.0, 1.0),
+    ("GROSS_MIN", "gross_min", "Smallest gross error (px)", 5.0, 0.0, 1e5),
+    ("GROSS_MAX", "gross_max", "Largest gross error (px)", 100.0, 0.0, 1e5),
 )
 
 
@@ -82,10 +82,9 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
                                                         maxValue=1.0), advanced=True)
         self.addParameter(image_size())
         self.add_parameter(n_tie_points(), advanced=True)
-        for name, _, label, kind, default, lo, hi in MEASUREMENT_PARAMETERS:
-            kind = QgsProcessingParameterNumber.Integer if kind == "i" else QgsProcessingParameterNumber.Double
-            self.add_parameter(QgsProcessingParameterNumber(name, tr(label), kind, default, minValue=lo, maxValue=hi),
-                               advanced=True)
+        for name, _, label, default, lo, hi in MEASUREMENT_PARAMETERS:
+            self.add_parameter(QgsProcessingParameterNumber(name, tr(label), QgsProcessingParameterNumber.Double,
+                                                            default, minValue=lo, maxValue=hi), advanced=True)
         for name, _, label, _ in ERROR_PARAMETERS:
             self.add_parameter(QgsProcessingParameterNumber(name, tr(label), QgsProcessingParameterNumber.Double,
                                                             optional=True, minValue=0.0,
@@ -110,9 +109,8 @@ class SimulateSceneAlgorithm(PushbroomAlgorithm):
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         errors = {field: self.parameterAsDouble(parameters, name, context) * factor
                   for name, field, _, factor in ERROR_PARAMETERS if parameters.get(name) not in (None, "")}
-        measurements = {field: (self.parameterAsInt if kind == "i" else self.parameterAsDouble)(parameters, name,
-                                                                                              context)
-                        for name, field, _, kind, *_ in MEASUREMENT_PARAMETERS}
+        measurements = {field: self.parameterAsDouble(parameters, name, context)
+                        for name, field, *_ in MEASUREMENT_PARAMETERS}
         settings = GcpSettings(n_gcps=self.parameterAsInt(parameters, self.N_GCPS, context),
                                image_noise=self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
                                n_tie_points=self.parameterAsInt(parameters, N_TIE_POINTS, context),

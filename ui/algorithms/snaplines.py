@@ -1,12 +1,12 @@
 """pushbroom:snaplines — image lines digitised on a raw image refined to the road's centre or an
 edge with sub-pixel profiles across them (core.snapping)."""
-from qgis.core import QgsProcessing, QgsProcessingParameterNumber, QgsProcessingParameterVectorDestination
+from qgis.core import QgsProcessing, QgsProcessingParameterNumber
 
 from ...core.measure.snapping import SnapSettings
 from ...core.runs import snaplines as use_case
 from ..inputs import ogr_source, raster_file
 from ..outputs import files_in_use
-from ..parameters import RasterInput, enum_parameter, enum_value, image_lines, tr
+from ..parameters import RasterInput, enum_parameter, enum_value, file_layer, image_lines, tr
 from .base import PushbroomAlgorithm
 
 DEFAULTS = SnapSettings()
@@ -39,10 +39,7 @@ class SnapLinesAlgorithm(PushbroomAlgorithm):
                 (self.MAX_SIGMA, tr("Largest accepted sigma (px)"), DEFAULTS.max_sigma, 0.11, 100.0, True)):
             self.add_parameter(QgsProcessingParameterNumber(name, label, QgsProcessingParameterNumber.Double,
                                                             default, minValue=lo, maxValue=hi), advanced=advanced)
-        out = QgsProcessingParameterVectorDestination(self.OUTPUT, tr("Snapped image lines"),
-                                                      QgsProcessing.TypeVectorLine)
-        out.setSupportsNonFileBasedOutput(False)
-        self.addParameter(out)
+        self.addParameter(file_layer(self.OUTPUT, tr("Snapped image lines"), QgsProcessing.TypeVectorLine))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         lines = ogr_source(self.IMAGE_LINES, self.parameterAsVectorLayer(parameters, self.IMAGE_LINES, context),
