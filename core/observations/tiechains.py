@@ -108,8 +108,7 @@ def _near_nodes(view: np.ndarray, col: np.ndarray, row: np.ndarray, n_views: int
 def _components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Component (n,) of each node of the graph of edges a-b, numbered in order of their first node."""
     _, labels = connected_components(coo_matrix((np.ones(a.size), (a, b)), shape=(n, n)), directed=False)
-    first = np.full(labels.max(initial=-1) + 1, n)
-    np.minimum.at(first, labels, np.arange(n))
+    _, first = np.unique(labels, return_index=True)       # each label's first node
     return np.argsort(np.argsort(first))[labels]
 
 
@@ -123,11 +122,12 @@ def _chained(views, view, col, row, sigma, chain, group, first_of_group, toleran
     def mean(values):
         return np.bincount(group, values, minlength=n_groups) / count
 
+    by_group = np.argsort(group, kind="stable")
+    starts = np.searchsorted(group[by_group], np.arange(n_groups))
+
     def extent(values):
-        hi, lo = np.full(n_groups, -np.inf), np.full(n_groups, np.inf)
-        np.maximum.at(hi, group, values)
-        np.minimum.at(lo, group, values)
-        return hi - lo
+        ordered = values[by_group]
+        return np.maximum.reduceat(ordered, starts) - np.minimum.reduceat(ordered, starts) if n_groups else ordered
 
     group_chain = chain[first_of_group]
     n_chains = int(chain.max(initial=-1)) + 1

@@ -162,6 +162,5 @@ def _components(n: int, pairs: np.ndarray) -> np.ndarray:
     """Connected components (n,) of the graph of ``pairs``, numbered by their first node."""
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     _, labels = connected_components(graph, directed=False)
-    first = np.full(labels.max(initial=-1) + 1, n)
-    np.minimum.at(first, labels, np.arange(n))
+    _, first = np.unique(labels, return_index=True)       # each label's first product
     return np.argsort(np.argsort(first))[labels]
