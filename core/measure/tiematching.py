@@ -27,7 +27,8 @@ from ..errors import InputError
 from ..model.sensor import SceneModel
 from ..observations.tiepoints import TieTable
 from ..rasters import open_input_raster
-from .matching import NO_DEM_HEIGHT, REASONS, MatchSettings, ground_sample_distance, match_grid, reason_text
+from .matching import (NO_DEM_HEIGHT, REASONS, GridMatch, MatchSettings, ground_sample_distance, match_grid,
+                       reason_text)
 from .reference import ImageReference
 from .surface import filled_surface
 
@@ -167,6 +168,18 @@ def log_match(pair: str, m, surface) -> None:
                  surface.missing(m.ground, "grid points"), surface.estimate, int(((m.reasons < 0) & m.in_hole).sum()))
 
 
+def match_in_view(base: View, other: View, surface, gsd: float, settings: MatchSettings,
+                  report: Callable[[float, str | None], None], cancelled: Callable[[], bool]) -> tuple[GridMatch, dict]:
+    """Match ``base``'s grid in ``other``'s image (resampled into base's geometry on ``surface``, a
+    FilledSurface under base's image, at ``gsd`` m). Returns the GridMatch and its rejected counts
+    {reason: grid points} (REASONS, 'outside the reference' named OUTSIDE_OTHER; the points the DEM
+    has no height under are matched at the estimated height, so not a reason here)."""
+    ref = ImageReference(other.scene, other.camera, other.image, gsd)
+    m = match_grid(base.scene, base.camera, base.image, ref, surface, gsd, settings, report, cancelled)
+    log_match(f"{base.label}-{other.label}", m, surface)
+    return m, {OUTSIDE_OTHER if r == REASONS[3] else r: c for r, c in m.rejected().items() if r != NO_DEM_HEIGHT}
+
+
 def match_views(views: list[View], dem, settings: MatchSettings, base: int,
                 progress: Callable[[float, str | None], None] | None = None,
                 is_cancelled: Callable[[], bool] | None = None) -> tuple[TieTable, dict]:
@@ -181,13 +194,9 @@ def match_views(views: list[View], dem, settings: MatchSettings, base: int,
     gsd = float(b.scene.info.get("gsd_m") or ground_sample_distance(b.scene, b.camera, surface))
     observations, rejected, outside = [], {}, []
     for n, v in enumerate(others):
-        ref = ImageReference(v.scene, v.camera, v.image, gsd)
-        m = match_grid(b.scene, b.camera, b.image, ref, surface, gsd, settings,
-                       lambda f, msg=None, n=n: report((n + f) / len(others), msg), cancelled)
+        m, counts = match_in_view(b, v, surface, gsd, settings,
+                                  lambda f, msg=None, n=n: report((n + f) / len(others), msg), cancelled)
         ok = m.reasons < 0
-        counts = {OUTSIDE_OTHER if r == REASONS[3] else r: c for r, c in m.rejected().items()
-                  if r != NO_DEM_HEIGHT}
-        log_match(f"{b.label}-{v.label}", m, surface)
         rejected[v.label] = counts
         if counts[OUTSIDE_OTHER] == m.col.size:
             outside.append(v.label)

@@ -1,0 +1,135 @@
+"""Tie points of a block on its overlap graph: every overlapping pair of images matched on its
+own, the pairs' ties chained into multi-image tie points.
+
+The pairs come from the images' footprints on the DEM through their onboard models
+(:func:`overlap_pairs`, :mod:`core.products.overlaps`); a block the overlaps do not connect is
+refused naming the images alone and the groups. Each pair (first, second), first the earlier
+view given, is matched like :func:`core.measure.tiematching.match_block_tiepoints` with two
+views: the first image's grid in the second image. Every pair with one first image shares that
+image's grid points, so a ground point seen by k images is chained through them
+(:func:`core.observations.tiechains.chain_pairs`) into one point of up to k observations.
+
+Each pair's counts are reported (:class:`PairReport`: grid points, matched, rejected by reason,
+refused in inconsistent chains), and the pairs with fewer than ``min_ties`` chained ties are named
+in the log. Pairs are matched one after the other here; each is a job of plain inputs, so that a
+later step can run them on local processes or a Dask cluster (as core.products.orthojobs).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+from typing import Callable
+
+import numpy as np
+
+from ..errors import InputError
+from ..observations.tiechains import CHAIN_TOLERANCE_PX, ChainResult, PairTies, chain_pairs
+from ..products.footprint import footprints
+from ..products.overlaps import Outline, OverlapGraph, overlap_graph, refuse_disconnected
+from .matching import MatchSettings, ground_sample_distance, reason_text
+from .surface import filled_surface
+from .tiematching import View, match_in_view, refuse_identical_images
+
+log = logging.getLogger(__name__)
+
+MIN_PAIR_TIES = 20            # chained ties below which a pair is named as weakly tied
+FOOTPRINT_SAMPLES = 32        # outline points per image edge for the overlap graph
+
+
+@dataclass(frozen=True)
+class PairReport:
+    """One pair's matching: the views' labels, the overlap of their footprints (km²), the first
+    image's grid points, how many matched, rejected {reason: count} (REASONS of
+    core.measure.matching), and refused_in_chains: matched ties dropped with an inconsistent chain."""
+    first: str
+    second: str
+    overlap_km2: float
+    grid_points: int
+    matched: int
+    rejected: dict
+    refused_in_chains: int = 0
+
+    @property
+    def chained(self) -> int:
+        """Ties of this pair in the chained tie points."""
+        return self.matched - self.refused_in_chains
+
+
+def overlap_pairs(views: list[View], dem, min_area_km2: float = 0.0) -> OverlapGraph:
+    """The overlap graph of ``views`` (named by their labels) from their footprints on ``dem``
+    through their models (FOOTPRINT_SAMPLES points per image edge); InputError from
+    :func:`core.products.overlaps.refuse_disconnected` when the overlaps do not connect them."""
+    outlines = []
+    for v in views:
+        f = footprints(v.scene, dem, cameras=[v.camera], samples_per_edge=FOOTPRINT_SAMPLES)[0]
+        outlines.append(Outline(v.label, f.lon, f.lat))
+    graph = overlap_graph(outlines, min_area_km2)
+    refuse_disconnected(graph)
+    return graph
+
+
+def match_pair(first: View, second: View, dem, settings: MatchSettings, overlap_km2: float = 0.0,
+               progress: Callable[[float, str | None], None] | None = None,
+               is_cancelled: Callable[[], bool] | None = None) -> tuple[PairTies, PairReport]:
+    """``first``'s grid matched in ``second``'s image (see the module docstring): the ties (each
+    with the match's sigma, px) and the pair's report."""
+    settings.validate()
+    refuse_identical_images(first, [second])
+    surface = filled_surface(first.scene, first.camera, dem)
+    gsd = float(first.scene.info.get("gsd_m") or ground_sample_distance(first.scene, first.camera, surface))
+    m, rejected = match_in_view(first, second, surface, gsd, settings,
+                                progress or (lambda fraction, message=None: None), is_cancelled or (lambda: False))
+    ok = m.reasons < 0
+    ties = PairTies((first.scene_name, first.camera_name), (second.scene_name, second.camera_name),
+                    m.col[ok], m.row[ok], m.out["ref_col"][ok], m.out["ref_row"][ok], m.out["sigma"][ok])
+    return ties, PairReport(first.label, second.label, float(overlap_km2), int(m.col.size), int(ok.sum()), rejected)
+
+
+def match_overlap_graph(views: list[View], graph: OverlapGraph, dem, settings: MatchSettings = MatchSettings(),
+                        min_ties: int = MIN_PAIR_TIES, tolerance_px: float = CHAIN_TOLERANCE_PX,
+                        progress: Callable[[float, str | None], None] | None = None,
+                        is_cancelled: Callable[[], bool] | None = None) -> tuple[ChainResult, list[PairReport]]:
+    """Match every pair of ``graph`` (over ``views``, in the graph's names order) and chain the
+    ties. Returns the chained tie points and each pair's report (refused_in_chains filled in).
+    InputError when ``graph`` does not name ``views``, or when no pair gives a tie, with every
+    pair's reasons."""
+    if list(graph.names) != [v.label for v in views]:
+        raise InputError("the overlap graph is not the given views'", parameter="scenes")
+    report = progress or (lambda fraction, message=None: None)
+    ties, reports = [], []
+    for n, ((a, b), area) in enumerate(zip(graph.pairs, graph.area_km2)):
+        t, r = match_pair(views[a], views[b], dem, settings, area,
+                          lambda f, msg=None, n=n: report((n + f) / len(graph.pairs), msg), is_cancelled)
+        ties.append(t)
+        reports.append(r)
+    if not any(len(t) for t in ties):
+        raise InputError("no tie point matched in any overlapping pair: "
+                         + "; ".join(f"{r.first}-{r.second}: {reason_text(r.rejected)}" for r in reports)
+                         + ". Lower the quality threshold, enlarge the window or the search range, or check that "
+                           "the images are the scenes'", parameter="scenes")
+    chained = chain_pairs(ties, tolerance_px)
+    reports = [replace(r, refused_in_chains=int(k)) for r, k in zip(reports, chained.refused_per_pair)]
+    log_pairs(reports, chained, min_ties)
+    return chained, reports
+
+
+def weak_pairs(reports: list[PairReport], min_ties: int = MIN_PAIR_TIES) -> list[PairReport]:
+    """The pairs with fewer than ``min_ties`` chained ties."""
+    return [r for r in reports if r.chained < min_ties]
+
+
+def log_pairs(reports: list[PairReport], chained: ChainResult, min_ties: int) -> None:
+    """The log's sentences on the pairs: how many matched and chained, the chains refused, and
+    the pairs with too few ties, named."""
+    matched = int(np.sum([r.matched for r in reports]))
+    rays = ", ".join(f"{c} in {k} images" for k, c in sorted(chained.points_by_rays.items()))
+    log.info("%d overlapping pairs matched: %d ties, chained into %d tie points (%s)", len(reports), matched,
+             len(set(chained.table.id)), rays or "none")
+    if chained.inconsistent_chains:
+        log.warning("%d chains refused: each held two positions in one image more than the tolerance apart "
+                    "(a mismatch in one of its pairs); their %d ties left out", chained.inconsistent_chains,
+                    int(chained.refused_per_pair.sum()))
+    weak = weak_pairs(reports, min_ties)
+    if weak:
+        log.warning("%d pair%s with fewer than %d ties: %s", len(weak), "s" * (len(weak) != 1), min_ties,
+                    "; ".join(f"{r.first}-{r.second} ({r.chained}: {reason_text(r.rejected)})" for r in weak))
