@@ -11,8 +11,9 @@ image's grid points, so a ground point seen by k images is chained through them
 
 Each pair's counts are reported (:class:`PairReport`: grid points, matched, rejected by reason,
 refused in inconsistent chains), and the pairs with fewer than ``min_ties`` chained ties are named
-in the log. Pairs are matched one after the other here; each is a job of plain inputs, so that a
-later step can run them on local processes or a Dask cluster (as core.products.orthojobs).
+in the log. Pairs are matched one after the other here; each is also a picklable job
+(:class:`PairJob`, :func:`run_pair_job`: the same matching, the DEM reopened by the worker), so
+that a later step can run them on local processes or a Dask cluster (as core.products.orthojobs).
 """
 from __future__ import annotations
 
@@ -22,9 +23,11 @@ from typing import Callable
 
 import numpy as np
 
+from ..dem import ConstantHeight, Dem
 from ..errors import InputError
 from ..observations.tiechains import CHAIN_TOLERANCE_PX, ChainResult, PairTies, chain_pairs
 from ..products.footprint import footprints
+from ..products.orthojobs import surface_description
 from ..products.overlaps import Outline, OverlapGraph, overlap_graph, refuse_disconnected
 from .matching import MatchSettings, ground_sample_distance, reason_text
 from .surface import filled_surface
@@ -111,6 +114,32 @@ def match_overlap_graph(views: list[View], graph: OverlapGraph, dem, settings: M
     reports = [replace(r, refused_in_chains=int(k)) for r, k in zip(reports, chained.refused_per_pair)]
     log_pairs(reports, chained, min_ties)
     return chained, reports
+
+
+@dataclass(frozen=True)
+class PairJob:
+    """One pair as a picklable job for another process or machine (this package importable, the
+    images and the DEM reachable at the same paths): the two views (their scene models pickle
+    whole), the terrain as :func:`core.products.orthojobs.surface_description`, the settings and
+    the pair's overlap (km²)."""
+    first: View
+    second: View
+    surface: dict
+    settings: MatchSettings
+    overlap_km2: float = 0.0
+
+
+def pair_jobs(views: list[View], graph: OverlapGraph, dem, settings: MatchSettings) -> list[PairJob]:
+    """The jobs of every pair of ``graph`` (over ``views``), in the graph's pair order."""
+    return [PairJob(views[a], views[b], surface_description(dem), settings, float(area))
+            for (a, b), area in zip(graph.pairs, graph.area_km2)]
+
+
+def run_pair_job(job: PairJob) -> tuple[PairTies, PairReport]:
+    """:func:`match_pair` of ``job``, the terrain reopened from its description."""
+    surface = (ConstantHeight(job.surface["height"]) if "height" in job.surface
+               else Dem(job.surface["dem"], datum=job.surface["datum"]))
+    return match_pair(job.first, job.second, surface, job.settings, job.overlap_km2)
 
 
 def weak_pairs(reports: list[PairReport], min_ties: int = MIN_PAIR_TIES) -> list[PairReport]:

@@ -2,6 +2,8 @@
 two neighbouring strips, whose outer scenes do not overlap each other (the star of
 match_block_tiepoints refuses it), its pairs found from the footprints, each pair matched, the
 ties chained into points of up to three images and checked against the true models."""
+import pickle
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,8 @@ from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.measure.matching import MatchSettings
-from pushbroom_adjust.core.measure.pairmatching import match_overlap_graph, overlap_pairs, weak_pairs
+from pushbroom_adjust.core.measure.pairmatching import (match_overlap_graph, match_pair, overlap_pairs, pair_jobs,
+                                                        run_pair_job, weak_pairs)
 from pushbroom_adjust.core.measure.tiematching import View, match_block_tiepoints
 from pushbroom_adjust.simulation.block import BlockMember, simulate_block
 from tests.unit.measure.test_tiematching import ONE
@@ -72,3 +75,15 @@ def test_every_pair_matched_and_chained_across_the_strips(block, graph):
         col, row = scene.ground_to_image(mean[mine], 0)
         error[mine] = np.hypot(col - t.col[mine], row - t.row[mine])
     assert np.median(error) < 0.03 and np.quantile(error, 0.95) < 0.06 and error.max() < 0.15
+
+
+def test_a_pair_run_as_a_pickled_job_gives_the_same_ties(block, graph):
+    """What another process or a Dask worker receives (the job pickled, the DEM reopened from its
+    path) matches the pair to the same bits as the run in this process."""
+    job = pair_jobs(block["views"], graph, block["dem"], SETTINGS)[3]
+    assert (job.first.label, job.second.label) == ("mid/NAD", "east/NAD")
+    here = match_pair(job.first, job.second, block["dem"], SETTINGS, job.overlap_km2)
+    there = run_pair_job(pickle.loads(pickle.dumps(job)))
+    assert there[1] == here[1] and there[1].matched > 100
+    for name in ("col_a", "row_a", "col_b", "row_b", "sigma_px"):
+        np.testing.assert_array_equal(getattr(there[0], name), getattr(here[0], name))
