@@ -28,7 +28,7 @@ from ..errors import InputError
 from ..observations.tiechains import CHAIN_TOLERANCE_PX, ChainResult, PairTies, chain_pairs
 from ..products.footprint import footprints
 from ..products.orthojobs import surface_description
-from ..products.overlaps import Outline, OverlapGraph, overlap_graph, refuse_disconnected
+from ..products.overlaps import Outline, OverlapGraph, disconnection, overlap_graph, refuse_disconnected, tied_graph
 from .matching import MatchSettings, ground_sample_distance, reason_text
 from .surface import filled_surface
 from .tiematching import View, match_in_view, refuse_identical_images
@@ -43,7 +43,9 @@ FOOTPRINT_SAMPLES = 32        # outline points per image edge for the overlap gr
 class PairReport:
     """One pair's matching: the views' labels, the overlap of their footprints (km²), the first
     image's grid points, how many matched, rejected {reason: count} (REASONS of
-    core.measure.matching), and refused_in_chains: matched ties dropped with an inconsistent chain."""
+    core.measure.matching), refused_in_chains: matched ties dropped with an inconsistent chain, and
+    failure: '' or why the pair could not be matched at all (the matcher's error: e.g. no consistent
+    offset between the two images within the search range)."""
     first: str
     second: str
     overlap_km2: float
@@ -51,6 +53,12 @@ class PairReport:
     matched: int
     rejected: dict
     refused_in_chains: int = 0
+    failure: str = ""
+
+    @property
+    def why(self) -> str:
+        """What kept grid points out, in words."""
+        return self.failure or reason_text(self.rejected)
 
     @property
     def chained(self) -> int:
@@ -75,13 +83,21 @@ def match_pair(first: View, second: View, dem, settings: MatchSettings, overlap_
                progress: Callable[[float, str | None], None] | None = None,
                is_cancelled: Callable[[], bool] | None = None) -> tuple[PairTies, PairReport]:
     """``first``'s grid matched in ``second``'s image (see the module docstring): the ties (each
-    with the match's sigma, px) and the pair's report."""
+    with the match's sigma, px) and the pair's report. A pair the matcher refuses (InputError)
+    gives no tie and says why in its report's ``failure``; the other pairs go on."""
     settings.validate()
     refuse_identical_images(first, [second])
     surface = filled_surface(first.scene, first.camera, dem)
     gsd = float(first.scene.info.get("gsd_m") or ground_sample_distance(first.scene, first.camera, surface))
-    m, rejected = match_in_view(first, second, surface, gsd, settings,
-                                progress or (lambda fraction, message=None: None), is_cancelled or (lambda: False))
+    try:
+        m, rejected = match_in_view(first, second, surface, gsd, settings,
+                                    progress or (lambda fraction, message=None: None),
+                                    is_cancelled or (lambda: False))
+    except InputError as exc:        # this pair fails, the block goes on: reported with the pair
+        nothing = np.empty(0)
+        return (PairTies((first.scene_name, first.camera_name), (second.scene_name, second.camera_name),
+                         nothing, nothing, nothing, nothing, nothing),
+                PairReport(first.label, second.label, float(overlap_km2), 0, 0, {}, failure=str(exc)))
     ok = m.reasons < 0
     ties = PairTies((first.scene_name, first.camera_name), (second.scene_name, second.camera_name),
                     m.col[ok], m.row[ok], m.out["ref_col"][ok], m.out["ref_row"][ok], m.out["sigma"][ok])
@@ -107,12 +123,16 @@ def match_overlap_graph(views: list[View], graph: OverlapGraph, dem, settings: M
         reports.append(r)
     if not any(len(t) for t in ties):
         raise InputError("no tie point matched in any overlapping pair: "
-                         + "; ".join(f"{r.first}-{r.second}: {reason_text(r.rejected)}" for r in reports)
+                         + "; ".join(f"{r.first}-{r.second}: {r.why}" for r in reports)
                          + ". Lower the quality threshold, enlarge the window or the search range, or check that "
                            "the images are the scenes'", parameter="scenes")
     chained = chain_pairs(ties, tolerance_px)
     reports = [replace(r, refused_in_chains=int(k)) for r, k in zip(reports, chained.refused_per_pair)]
     log_pairs(reports, chained, min_ties)
+    apart = disconnection(tied_graph(graph, np.array([r.chained > 0 for r in reports], bool)))
+    if apart:
+        log.warning("the ties do not connect the block although the footprints do: %s (their pairs gave no "
+                    "tie); the adjustment will refuse it until they are tied", apart)
     return chained, reports
 
 
@@ -161,4 +181,4 @@ def log_pairs(reports: list[PairReport], chained: ChainResult, min_ties: int) ->
     weak = weak_pairs(reports, min_ties)
     if weak:
         log.warning("%d pair%s with fewer than %d ties: %s", len(weak), "s" * (len(weak) != 1), min_ties,
-                    "; ".join(f"{r.first}-{r.second} ({r.chained}: {reason_text(r.rejected)})" for r in weak))
+                    "; ".join(f"{r.first}-{r.second} ({r.chained}: {r.why})" for r in weak))

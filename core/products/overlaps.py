@@ -119,23 +119,34 @@ def intersection_area_km2(a: ogr.Geometry, b: ogr.Geometry) -> float:
     return total / 1e6
 
 
-def refuse_disconnected(graph: OverlapGraph) -> None:
-    """InputError (parameter 'scenes') naming the products no pair ties to the rest and, when the
-    others fall in several groups, each group: a block adjusts as one only when its overlaps
-    connect every product (one alone would be adjusted on its own prior, silently)."""
+def disconnection(graph: OverlapGraph) -> str:
+    """'' when the pairs of ``graph`` connect every product, else a sentence naming the products in
+    no pair and, when the others fall in several groups, each group."""
     alone = graph.isolated
     groups = [g for g in graph.components() if len(g) > 1]
-    if not alone and len(groups) <= 1:
-        return
     words = []
     if alone:
         words.append(f"{', '.join(alone)} overlap{'s' * (len(alone) == 1)} no other product (other ground?)")
     if len(groups) > 1:
         words.append(f"the others fall in {len(groups)} groups that do not overlap each other: "
                      + "; ".join(f"({', '.join(g)})" for g in groups))
-    raise InputError("the block is not connected by overlaps: " + "; ".join(words)
-                     + ". Leave them out, adjust each group as its own block, or add the products between them",
-                     parameter="scenes")
+    return "; ".join(words)
+
+
+def refuse_disconnected(graph: OverlapGraph) -> None:
+    """InputError (parameter 'scenes') with :func:`disconnection`'s sentence when the overlaps do
+    not connect every product: a block adjusts as one only then (one alone would be adjusted on
+    its own prior, silently)."""
+    words = disconnection(graph)
+    if words:
+        raise InputError(f"the block is not connected by overlaps: {words}. Leave them out, adjust each group as "
+                         "its own block, or add the products between them", parameter="scenes")
+
+
+def tied_graph(graph: OverlapGraph, tied: np.ndarray) -> OverlapGraph:
+    """``graph`` with only the pairs where ``tied`` (p,) bool holds (e.g. the pairs that gave ties)."""
+    pairs = graph.pairs[tied]
+    return OverlapGraph(graph.names, pairs, graph.area_km2[tied], _components(len(graph.names), pairs))
 
 
 def _polygon(lon: np.ndarray, lat: np.ndarray) -> ogr.Geometry:

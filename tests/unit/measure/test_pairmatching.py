@@ -2,6 +2,7 @@
 two neighbouring strips, whose outer scenes do not overlap each other (the star of
 match_block_tiepoints refuses it), its pairs found from the footprints, each pair matched, the
 ties chained into points of up to three images and checked against the true models."""
+import logging
 import pickle
 
 import numpy as np
@@ -14,6 +15,7 @@ from pushbroom_adjust.core.measure.matching import MatchSettings
 from pushbroom_adjust.core.measure.pairmatching import (match_overlap_graph, match_pair, overlap_pairs, pair_jobs,
                                                         run_pair_job, weak_pairs)
 from pushbroom_adjust.core.measure.tiematching import View, match_block_tiepoints
+from pushbroom_adjust.core.products.overlaps import OverlapGraph, tied_graph
 from pushbroom_adjust.simulation.block import BlockMember, simulate_block
 from tests.unit.measure.test_tiematching import ONE
 
@@ -87,3 +89,30 @@ def test_a_pair_run_as_a_pickled_job_gives_the_same_ties(block, graph):
     assert there[1] == here[1] and there[1].matched > 100
     for name in ("col_a", "row_a", "col_b", "row_b", "sigma_px"):
         np.testing.assert_array_equal(getattr(there[0], name), getattr(here[0], name))
+
+
+def test_pairs_that_match_nothing_are_refused_with_their_reasons(block, graph, caplog):
+    """Correlation demanded beyond what any texture gives: the one pair kept says why it failed."""
+    only = tied_graph(graph, np.arange(len(graph.pairs)) == 0)
+    with pytest.raises(InputError, match=r"no tie point matched in any overlapping pair: west/NAD-mid/NAD: .*\d+ "
+                                         r"low correlation"):
+        match_overlap_graph(block["views"], only, block["dem"], MatchSettings(spacing=60, search=400.0, workers=1,
+                                                                             min_correlation=0.9999))
+
+
+def test_a_view_its_pairs_do_not_tie_is_named(block, graph, caplog):
+    """A graph claiming west and east overlap (they do not): the matcher finds no consistent offset
+    between them, the pair says so and gives no tie, the others go on, east is tied to nothing,
+    and the log names it."""
+    claimed = OverlapGraph(graph.names, np.array([[0, 1], [0, 3], [1, 2]]), np.array([4.0, 1.0, 16.0]),
+                           np.zeros(4, int))
+    with caplog.at_level(logging.WARNING, logger="pushbroom_adjust.core.measure.pairmatching"):
+        chained, reports = match_overlap_graph(block["views"], claimed, block["dem"],
+                                               MatchSettings(spacing=60, search=400.0, workers=1))
+    assert [r.chained > 0 for r in reports] == [True, False, True]
+    assert reports[1].failure.startswith("no consistent match between the image and reference")
+    assert reports[0].failure == reports[2].failure == ""
+    assert "east" not in set(chained.table.scene)
+    assert ("the ties do not connect the block although the footprints do: east/NAD overlaps no other product"
+            in caplog.text)
+    assert "1 pair with fewer than 20 ties: west/NAD-east/NAD (0:" in caplog.text

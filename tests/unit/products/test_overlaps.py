@@ -6,7 +6,8 @@ import pytest
 from pyproj import Geod
 
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.products.overlaps import Outline, overlap_graph, product_outline, refuse_disconnected
+from pushbroom_adjust.core.products.overlaps import (Outline, disconnection, overlap_graph, product_outline,
+                                                     refuse_disconnected, tied_graph)
 
 GEOD = Geod(ellps="WGS84")
 
@@ -57,6 +58,16 @@ def test_other_ground_and_disconnected_strips_are_named():
     joined = overlap_graph(strips[:4] + [box("bridge", 0.5, 1.5, 0.9, 2.1)])
     refuse_disconnected(joined)                                    # one block: nothing said
     assert len(joined.pairs) == 2 + 4 and joined.isolated == []
+
+
+def test_pairs_that_gave_no_ties_can_cut_a_connected_block():
+    graph = overlap_graph([box("a", 0.0, 1.0), box("b", 0.8, 1.8), box("c", 1.6, 2.6), box("d", 2.4, 3.4)])
+    assert graph.pair_names() == [("a", "b"), ("b", "c"), ("c", "d")] and disconnection(graph) == ""
+    cut = tied_graph(graph, np.array([True, False, True]))
+    assert cut.pair_names() == [("a", "b"), ("c", "d")]
+    np.testing.assert_allclose(cut.area_km2, graph.area_km2[[0, 2]])
+    assert disconnection(cut) == "the others fall in 2 groups that do not overlap each other: (a, b); (c, d)"
+    assert disconnection(tied_graph(graph, np.array([False, True, True]))) == "a overlaps no other product (other ground?)"
 
 
 def test_a_products_cameras_outline_it_as_one():
