@@ -24,11 +24,12 @@ from typing import Callable
 import numpy as np
 
 from ..dem import ConstantHeight, Dem
-from ..errors import InputError
+from ..errors import Cancelled, InputError
 from ..observations.tiechains import CHAIN_TOLERANCE_PX, ChainResult, PairTies, chain_pairs
 from ..products.footprint import footprints
-from ..products.orthojobs import surface_description
-from ..products.overlaps import Outline, OverlapGraph, disconnection, overlap_graph, refuse_disconnected, tied_graph
+from ..products.orthojobs import map_on_scheduler, surface_description
+from ..products.overlaps import (Outline, OverlapGraph, disconnection, overlap_graph, refuse_disconnected,
+                                tied_graph)
 from .matching import MatchSettings, ground_sample_distance, reason_text
 from .surface import filled_surface
 from .tiematching import View, match_in_view, refuse_identical_images
@@ -68,11 +69,15 @@ class PairReport:
 
 def overlap_pairs(views: list[View], dem, min_area_km2: float = 0.0) -> OverlapGraph:
     """The overlap graph of ``views`` (named by their labels) from their footprints on ``dem``
-    through their models (FOOTPRINT_SAMPLES points per image edge); InputError from
-    :func:`core.products.overlaps.refuse_disconnected` when the overlaps do not connect them."""
+    through their models (FOOTPRINT_SAMPLES points per image edge); InputError naming the scene
+    whose footprint the DEM does not cover, and from :func:`core.products.overlaps.refuse_disconnected`
+    when the overlaps do not connect the views."""
     outlines = []
     for v in views:
-        f = footprints(v.scene, dem, cameras=[v.camera], samples_per_edge=FOOTPRINT_SAMPLES)[0]
+        try:
+            f = footprints(v.scene, dem, cameras=[v.camera], samples_per_edge=FOOTPRINT_SAMPLES)[0]
+        except InputError as exc:
+            raise InputError(f"{v.scene_name}: {exc}", parameter="dem") from None
         outlines.append(Outline(v.label, f.lon, f.lat))
     graph = overlap_graph(outlines, min_area_km2)
     refuse_disconnected(graph)
@@ -106,21 +111,17 @@ def match_pair(first: View, second: View, dem, settings: MatchSettings, overlap_
 
 def match_overlap_graph(views: list[View], graph: OverlapGraph, dem, settings: MatchSettings = MatchSettings(),
                         min_ties: int = MIN_PAIR_TIES, tolerance_px: float = CHAIN_TOLERANCE_PX,
-                        progress: Callable[[float, str | None], None] | None = None,
+                        scheduler: str = "", progress: Callable[[float, str | None], None] | None = None,
                         is_cancelled: Callable[[], bool] | None = None) -> tuple[ChainResult, list[PairReport]]:
-    """Match every pair of ``graph`` (over ``views``, in the graph's names order) and chain the
-    ties. Returns the chained tie points and each pair's report (refused_in_chains filled in).
-    InputError when ``graph`` does not name ``views``, or when no pair gives a tie, with every
-    pair's reasons."""
+    """Match every pair of ``graph`` (over ``views``, in the graph's names order) as
+    :class:`PairJob` s, in this process or on the Dask scheduler at ``scheduler`` (an address,
+    e.g. tcp://host:8786; '' for this process), and chain the ties. Returns the chained tie points
+    and each pair's report (refused_in_chains filled in). InputError when ``graph`` does not name
+    ``views``, or when no pair gives a tie, with every pair's reasons."""
     if list(graph.names) != [v.label for v in views]:
         raise InputError("the overlap graph is not the given views'", parameter="scenes")
-    report = progress or (lambda fraction, message=None: None)
-    ties, reports = [], []
-    for n, ((a, b), area) in enumerate(zip(graph.pairs, graph.area_km2)):
-        t, r = match_pair(views[a], views[b], dem, settings, area,
-                          lambda f, msg=None, n=n: report((n + f) / len(graph.pairs), msg), is_cancelled)
-        ties.append(t)
-        reports.append(r)
+    results = run_pair_jobs(pair_jobs(views, graph, dem, settings), scheduler, progress, is_cancelled)
+    ties, reports = [t for t, _ in results], [r for _, r in results]
     if not any(len(t) for t in ties):
         raise InputError("no tie point matched in any overlapping pair: "
                          + "; ".join(f"{r.first}-{r.second}: {r.why}" for r in reports)
@@ -155,11 +156,29 @@ def pair_jobs(views: list[View], graph: OverlapGraph, dem, settings: MatchSettin
             for (a, b), area in zip(graph.pairs, graph.area_km2)]
 
 
-def run_pair_job(job: PairJob) -> tuple[PairTies, PairReport]:
+def run_pair_job(job: PairJob, progress: Callable[[float, str | None], None] | None = None,
+                 is_cancelled: Callable[[], bool] | None = None) -> tuple[PairTies, PairReport]:
     """:func:`match_pair` of ``job``, the terrain reopened from its description."""
     surface = (ConstantHeight(job.surface["height"]) if "height" in job.surface
                else Dem(job.surface["dem"], datum=job.surface["datum"]))
-    return match_pair(job.first, job.second, surface, job.settings, job.overlap_km2)
+    return match_pair(job.first, job.second, surface, job.settings, job.overlap_km2, progress, is_cancelled)
+
+
+def run_pair_jobs(jobs: list[PairJob], scheduler: str = "", progress: Callable[[float, str | None], None] | None = None,
+                  is_cancelled: Callable[[], bool] | None = None) -> list[tuple[PairTies, PairReport]]:
+    """The results of ``jobs`` in their order: one after the other in this process ('' scheduler;
+    each pair's matching uses the settings' threads), or on the Dask scheduler at ``scheduler``
+    (the same function on its workers: the same results). Cancelled when ``is_cancelled``."""
+    report = progress or (lambda fraction, message=None: None)
+    cancelled = is_cancelled or (lambda: False)
+    if not scheduler:
+        results = []
+        for n, job in enumerate(jobs):
+            if cancelled():
+                raise Cancelled("tie matching cancelled by the user")
+            results.append(run_pair_job(job, lambda f, msg=None, n=n: report((n + f) / len(jobs), msg), cancelled))
+        return results
+    return map_on_scheduler(scheduler, run_pair_job, jobs, lambda f: report(f, None), cancelled, "tie matching")
 
 
 def weak_pairs(reports: list[PairReport], min_ties: int = MIN_PAIR_TIES) -> list[PairReport]:

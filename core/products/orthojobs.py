@@ -116,23 +116,32 @@ def connect_scheduler(scheduler: str):
                          f"{SCHEDULER_TIMEOUT} s ({exc}); give its address, e.g. tcp://host:8786") from None
 
 
-def _run_jobs(scheduler: str, jobs: list[OrthoJob], report, cancelled) -> MappingFigures:
-    """Run ``jobs`` on the Dask scheduler (``report`` gets the share done); returns their
-    mapping figures merged."""
+def map_on_scheduler(scheduler: str, function: Callable, jobs: list, report: Callable[[float], None],
+                     cancelled: Callable[[], bool], what: str) -> list:
+    """``function(job)`` of each of ``jobs`` on the Dask scheduler at ``scheduler``, the results in
+    the jobs' order (``report`` gets the share done); Cancelled ('``what`` cancelled by the user')
+    when ``cancelled()``."""
     from distributed import as_completed
     client = connect_scheduler(scheduler)
     try:
-        futures = client.map(run_job, jobs, pure=False)
-        figures = MappingFigures()
-        for n, future in enumerate(as_completed(futures, loop=client.loop)):
+        futures = client.map(function, jobs, pure=False)
+        for n, _ in enumerate(as_completed(futures, loop=client.loop)):
             if cancelled():
                 client.cancel(futures)
-                raise Cancelled("orthorectification cancelled by the user")
-            figures = figures.merge(future.result())
+                raise Cancelled(f"{what} cancelled by the user")
             report((n + 1) / len(jobs))
-        return figures
+        return [future.result() for future in futures]
     finally:
         client.close()
+
+
+def _run_jobs(scheduler: str, jobs: list[OrthoJob], report, cancelled) -> MappingFigures:
+    """Run ``jobs`` on the Dask scheduler (``report`` gets the share done); returns their
+    mapping figures merged."""
+    figures = MappingFigures()
+    for tile in map_on_scheduler(scheduler, run_job, jobs, report, cancelled, "orthorectification"):
+        figures = figures.merge(tile)
+    return figures
 
 
 def _assemble(jobs: list[OrthoJob], out_bands, levels: list[int], folder: Path, report, cancelled) -> None:
