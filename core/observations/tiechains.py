@@ -95,12 +95,13 @@ def chain_pairs(pairs: list[PairTies], tolerance_px: float = CHAIN_TOLERANCE_PX)
 
 def _near_nodes(view: np.ndarray, col: np.ndarray, row: np.ndarray, n_views: int,
                 tolerance_px: float) -> tuple[np.ndarray, np.ndarray]:
-    """Node index pairs (e,) (e,) of one image closer than ``tolerance_px`` (px)."""
+    """Node index pairs (e,) (e,) of one image closer than ``tolerance_px`` (px); the nodes
+    sorted by image (``view`` ascending), so each image's are one slice."""
+    bounds = np.searchsorted(view, np.arange(n_views + 1))
     found = [np.empty((0, 2), int)]
-    for v in range(n_views):
-        mine = np.nonzero(view == v)[0]
-        close = cKDTree(np.column_stack([col[mine], row[mine]])).query_pairs(tolerance_px, output_type="ndarray")
-        found.append(mine[close.reshape(-1, 2)])
+    for start, end in zip(bounds[:-1], bounds[1:]):
+        tree = cKDTree(np.column_stack([col[start:end], row[start:end]]))
+        found.append(start + tree.query_pairs(tolerance_px, output_type="ndarray").reshape(-1, 2))
     both = np.concatenate(found)
     return both[:, 0], both[:, 1]
 
