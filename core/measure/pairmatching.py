@@ -132,8 +132,8 @@ def match_overlap_graph(views: list[View], graph: OverlapGraph, dem, settings: M
     log_pairs(reports, chained, min_ties)
     apart = disconnection(tied_graph(graph, np.array([r.chained > 0 for r in reports], bool)))
     if apart:
-        log.warning("the ties do not connect the block although the footprints do: %s (their pairs gave no "
-                    "tie); the adjustment will refuse it until they are tied", apart)
+        log.warning("the ties do not connect the block although the footprints do: %s (no tie of their pairs "
+                    "was kept); the adjustment will refuse it until they are tied", apart)
     return chained, reports
 
 
