@@ -21,6 +21,7 @@ TR_CONTEXT = "PushbroomAdjust"
 
 SCENE, SCENES, CAMERA = "SCENE", "SCENES", "CAMERA"
 DEM, DEM_DATUM, Z_DATUM, HEIGHT, HEIGHT_SOURCE = "DEM", "DEM_DATUM", "Z_DATUM", "HEIGHT", "HEIGHT_SOURCE"
+TIE_HEIGHT_SIGMA = "TIE_HEIGHT_SIGMA"
 CHECK_FRACTION, COL_FIELD, ROW_FIELD = "CHECK_FRACTION", "COL_FIELD", "ROW_FIELD"
 POSITION_MODEL, ATTITUDE_MODEL = "POSITION_MODEL", "ATTITUDE_MODEL"
 GROUND, ROBUST, ON_SINGULAR, RESAMPLING, PRESET = "GROUND", "ROBUST", "ON_SINGULAR", "RESAMPLING", "PRESET"
@@ -210,6 +211,13 @@ class RasterInputs(CheckedByGdal, QgsProcessingParameterMultipleLayers):
 
 def dem() -> RasterInput:
     return RasterInput(DEM, tr("Digital elevation model"), optional=True)
+
+
+def tie_height_sigma() -> QgsProcessingParameterNumber:
+    """TIE_HEIGHT_SIGMA: the stated accuracy (m) of the DEM that holds the tie points' heights."""
+    return QgsProcessingParameterNumber(TIE_HEIGHT_SIGMA, tr("Tie point heights: the DEM's stated accuracy (m)"),
+                                        QgsProcessingParameterNumber.Double, None, optional=True, minValue=0.0,
+                                        maxValue=1000.0)
 
 
 def height() -> QgsProcessingParameterNumber:
