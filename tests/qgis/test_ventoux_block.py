@@ -100,3 +100,5 @@ def test_the_srtm_window_holds_the_tie_heights_and_its_hole_is_counted(run, qgis
     assert abs(free["moved_m"]) < 0.5 and -8.0 < held["moved_m"] < -1.0       # measured 0.02 m, -3.9 m
     assert heights["misfit_rms_m"] < 3 * 5                                    # measured 8.7 m
     assert report["block"]["tie_rmse_px"] < 0.1                               # measured 0.056 px
+    page = (tmp_path / "block" / "block_report.html").read_text()
+    assert "14 tie points held to the reference DEM " in page and "the reference DEM holds" in page
