@@ -233,8 +233,8 @@ class Problem:
         self.ground_point[self.estimated] = np.arange(self.estimated.size)
 
     def counts(self) -> tuple[int, int]:
-        """(equations, unknowns): image rows, ground priors and pseudo-observations against the
-        free parameters and the ground unknowns."""
+        """(equations, unknowns): image rows, ground priors, the tie points' heights held to a reference
+        DEM (one row each) and pseudo-observations against the free parameters and the ground unknowns."""
         heights = self.tie_heights()
         n_eq = 2 * len(self.obs) + 3 * self.enu.shape[0] + 2 * len(self.lines) + \
             sum(p.B.shape[0] for p in self.pseudo() if p.group != HELD_GROUP) + \

@@ -3,7 +3,8 @@ and how the datum of a block with few or no GCPs is held.
 
 A tie point is a ground point of unknown position measured in two or more cameras (or
 scenes of a strip). It enters the adjustment as three ground unknowns without a prior
-(zero ground weight), eliminated per point like a weighted GCP (:mod:`core.adjust.normal`),
+(zero ground weight; with a reference DEM a prior on its height alone, :mod:`core.adjust.tieheights`),
+eliminated per point like a weighted GCP (:mod:`core.adjust.normal`),
 started from the forward intersection of its onboard rays (:mod:`core.intersection`).
 A point seen once carries no geometric information (its ray fixes no ground position), and a
 point whose a-priori intersection fails (NaN) has no start value: both are left out, named.
