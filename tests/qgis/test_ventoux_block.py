@@ -2,8 +2,9 @@
 products' offsets) through qgis_process as a user runs it: matchtiepoints with SCENES (the images themselves,
 GDAL reading their _RPC.TXT) on the SRTM window with NaN holes, then bundleadjust with SCENES and the ties alone;
 the adjusted scenes judged by the independent triangulation check of tests/support/independent_match.py (issue
-28, done-when 1), and again with the SRTM window as the reference DEM of the tie heights (issue 31). The input
-files (copied into a folder of their own) stay byte-identical.
+28, done-when 1), and again with the SRTM window as the reference DEM of the tie heights (issue 31; a DEM
+without TIE_HEIGHT_SIGMA, the sigma without a DEM and a DEM beside the block refused, naming the parameter).
+The input files (copied into a folder of their own) stay byte-identical.
 
 Measured (SPACING 56, so that check points 35 px from every tie remain; SEARCH_RANGE, WINDOW and FINE_RADIUS at
 their defaults, 1000 m clipped to the crop, 31 px, 8 px): the 14 grid points in the two crops' overlap all tied
@@ -20,11 +21,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from osgeo import gdal
 
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.observations import tiepoints
-from tests.support.hostile import assert_unchanged, snapshot
+from tests.support.hostile import assert_refused, assert_unchanged, snapshot
 from tests.support.independent_match import triangulation_check
 from tests.support.qgis_process import run_json
 
@@ -102,3 +104,21 @@ def test_the_srtm_window_holds_the_tie_heights_and_its_hole_is_counted(run, qgis
     assert report["block"]["tie_rmse_px"] < 0.1                               # measured 0.056 px
     page = (tmp_path / "block" / "block_report.html").read_text()
     assert "14 tie points held to the reference DEM " in page and "the reference DEM holds" in page
+
+
+def test_a_reference_dem_given_wrong_is_refused_naming_the_parameter(run, provider, tmp_path):
+    ties = str(tmp_path / "ties.gpkg")
+    tiepoints.write_gpkg(run["ties"], ties)
+    elsewhere = tmp_path / "elsewhere.tif"
+    ds = gdal.GetDriverByName("GTiff").CreateCopy(str(elsewhere), gdal.Open(str(run["inputs"] / "srtm_big_hole.tif")))
+    gt = list(ds.GetGeoTransform())
+    ds.SetGeoTransform([gt[0] + 3.0, *gt[1:]])
+    ds = None
+    given = {"SCENES": run["images"], "TIE_POINTS": ties, "RPC_SIGMA": 10, "OUTPUT_FOLDER": str(tmp_path / "out")}
+    dem = str(run["inputs"] / "srtm_big_hole.tif")
+    for extra, texts in (({"DEM": dem}, ("TIE_HEIGHT_SIGMA: a reference DEM", "needs its stated accuracy")),
+                         ({"TIE_HEIGHT_SIGMA": 5}, ("DEM: TIE_HEIGHT_SIGMA holds the tie points' heights",)),
+                         ({"DEM": str(elsewhere), "TIE_HEIGHT_SIGMA": 5},
+                          ("DEM: the reference DEM", "gives no height at any of the 14 tie points (14 off its extent"))):
+        message = assert_refused("pushbroom:bundleadjust", {**given, **extra}, *texts, watch=[run["inputs"]])
+        assert "settings." not in message and not (tmp_path / "out").exists()
