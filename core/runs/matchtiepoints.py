@@ -29,7 +29,7 @@ from ..rasters import check_input_raster
 from .base import IMAGES, FilesInUse, RunResult, Terrain, camera_images, concerning, logged, scene_from, surface_from
 from .layers import OUTPUT, check_cancelled, check_gpkg, write_ties
 from .matchgcps import match_settings
-from .region import image_beside
+from .region import block_images
 from .scenes import SCENES, block_from
 
 BLOCK_SKIPS = ("block of scenes: the checks against one scene (cameras, image bounds, onboard forward intersection, "
@@ -169,15 +169,14 @@ def block_views(paths: tuple[str, ...], images: tuple[str, ...]) -> tuple[list[V
     """(views, log lines, {scene name: its file}) of a block: the SCENES ``paths`` (product files,
     folders or list files: :func:`core.runs.region.expand_scenes`; two or more products) with
     ``images``, one raw image per scene in the same order, each given to the camera of its size
-    (:func:`image_camera`); no ``images``: each product's image found beside it
-    (:func:`core.runs.region.image_beside`)."""
+    (:func:`image_camera`); no ``images``, a folder or a list file of them:
+    :func:`core.runs.region.block_images`."""
     block, lines = block_from(paths)
     names = list(block.files)
     if len(names) < 2:
         raise InputError(f"{len(names)} scene given; tie points between scenes need two or more (the cameras of one "
                          "scene: SCENE)", parameter=SCENES)
-    if not images:
-        images = tuple(image_beside(name, block.scenes[name], block.files[name]) for name in names)
+    images = block_images(images, block)
     if len(images) != len(names):
         raise InputError(f"{len(images)} raw image(s) given for the {len(names)} scenes of SCENES "
                          f"({', '.join(names)}): give one image per scene, in that order", parameter=IMAGES)

@@ -57,14 +57,15 @@ def is_list_file(path: Path) -> bool:
     return not is_rpc_text(path, head)
 
 
-def listed_products(path: Path) -> list[str]:
-    """The product files a list file names, one per line (blank lines and lines starting with '#'
-    left out; a relative path is relative to the list's folder). InputError naming the file and
-    line for a line that names no file, or a list that is not text or names none."""
+def listed_products(path: Path, parameter: str = SCENES, what: str = "product") -> list[str]:
+    """The ``what`` files (products; raw images for the images) a list file names, one per line
+    (blank lines and lines starting with '#' left out; a relative path is relative to the list's
+    folder). InputError (``parameter``) naming the file and line for a line that names no file, or
+    a list that is not text or names none."""
     try:
         text = path.read_text(encoding="utf-8-sig")
     except (UnicodeDecodeError, OSError) as exc:
-        raise InputError(f"{path}: not a readable text list of products ({exc})", parameter=SCENES) from None
+        raise InputError(f"{path}: not a readable text list of {what}s ({exc})", parameter=parameter) from None
     files = []
     for number, line in enumerate(text.splitlines(), start=1):
         entry = line.strip()
@@ -72,12 +73,12 @@ def listed_products(path: Path) -> list[str]:
             continue
         file = path.parent / Path(entry).expanduser()
         if not file.is_file():
-            what = "a folder (list product files)" if file.is_dir() else "no such file"
-            raise InputError(f"{path}, line {number}: {entry!r} is {what}; each line names one product file, "
-                             "relative to the list's folder or absolute", parameter=SCENES)
+            wrong = f"a folder (list {what} files)" if file.is_dir() else "no such file"
+            raise InputError(f"{path}, line {number}: {entry!r} is {wrong}; each line names one {what} file, "
+                             "relative to the list's folder or absolute", parameter=parameter)
         files.append(str(file))
     if not files:
-        raise InputError(f"{path}: the list names no product (one product file per line)", parameter=SCENES)
+        raise InputError(f"{path}: the list names no {what} (one {what} file per line)", parameter=parameter)
     return files
 
 
@@ -132,22 +133,37 @@ def skipped_note(skipped: list[Path]) -> str:
     return f"; {len(skipped)} file(s) skipped, not a product the plugin reads: {named}{more}"
 
 
-def image_beside(name: str, scene, scene_file: str) -> str:
-    """The raw image of the product ``name`` (``scene`` read from ``scene_file``) found beside it:
-    the image its reader found (an RPC product's), else the one raster in its folder named
-    <name>.*, <name>_<camera>.* or image_<camera>.* (the simulator's) for one of its cameras.
-    InputError (images) naming the product and what was looked for when there is none, or several."""
+def block_images(given: Sequence[str], block) -> tuple[str, ...]:
+    """The raw image of each scene of ``block`` (a core.runs.scenes.Block), in its order, as the
+    images input gives them: one file per scene as given; nothing: each found beside its product
+    (:func:`image_beside`); one folder: each found there by its name (:func:`image_beside`); one
+    list file: one image per line (:func:`listed_products`)."""
+    if len(given) == 1 and Path(given[0]).is_dir():
+        return tuple(image_beside(n, block.scenes[n], block.files[n], Path(given[0])) for n in block.files)
+    if len(given) == 1 and is_list_file(Path(given[0])):
+        return tuple(listed_products(Path(given[0]), "images", "raw image"))
+    if not given:
+        return tuple(image_beside(n, block.scenes[n], block.files[n]) for n in block.files)
+    return tuple(given)
+
+
+def image_beside(name: str, scene, scene_file: str, folder: Path | None = None) -> str:
+    """The raw image of the product ``name`` (``scene`` read from ``scene_file``) found beside it
+    (or in ``folder``): the image its reader found (an RPC product's; not with ``folder``), else the
+    one raster in the folder named <name>.*, <name>_<camera>.* or image_<camera>.* (the
+    simulator's) for one of its cameras. InputError (images) naming the product and what was looked
+    for when there is none, or several."""
     known = (getattr(scene, "info", None) or {}).get("image")
-    if known:
+    if known and folder is None:
         return str(known)
-    folder = Path(scene_file).parent
+    folder = folder or Path(scene_file).parent
     stems = {name.upper()} | {s.upper() for c in scene.cameras for s in (f"{name}_{c.name}", f"image_{c.name}")}
     found = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.stem.upper() in stems)
     if len(found) != 1:
         cameras = "|".join(c.name for c in scene.cameras)
         looked = f"{name}, {name}_<{cameras}>, image_<{cameras}> with {', '.join(IMAGE_SUFFIXES)} in {folder}"
         what = "no raw image" if not found else f"{len(found)} raw images ({', '.join(p.name for p in found)})"
-        raise InputError(f"{what} found beside scene {name} (looked for {looked}); give INPUTS, one image per "
-                         "scene in the order of SCENES", parameter="images")
+        raise InputError(f"{what} found for scene {name} (looked for {looked}); give INPUTS, one image per "
+                         "scene in the order of SCENES, or a folder or list file of them", parameter="images")
     return str(found[0])
 

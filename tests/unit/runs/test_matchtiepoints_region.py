@@ -152,3 +152,23 @@ def test_a_product_the_ties_leave_apart_is_refused_naming_it(region, tmp_path):
                                          r"product .*s2/NAD-s3/NAD: .*s2fwd/NAD-s3/NAD: ") as refused:
         run(region, tmp_path / "t.gpkg", region["scenes"], images=tuple(images))
     assert refused.value.parameter == "scenes" and not (tmp_path / "t.gpkg").exists()
+
+
+def test_images_given_as_a_folder_or_a_list_file(region, tmp_path):
+    """INPUTS one folder (each scene's image found there by the scene's name) or one list file (one image
+    per line, relative to the list): the views take them; a scene without its image there is named."""
+    images = tmp_path / "images"
+    images.mkdir()
+    for name in ("s1", "s2", "s2fwd", "s3"):
+        (images / f"{name}.tif").symlink_to(region["folder"] / name / "image_NAD.tif")
+    views, _, _ = use_case.block_views((str(region["folder"]),), (str(images),))
+    assert [str(v.image) for v in views] == [str(images / f"{n}.tif") for n in ("s1", "s2", "s2fwd", "s3")]
+    listed = images / "images.txt"
+    listed.write_text("s3.tif\ns2fwd.tif\ns2.tif\ns1.tif\n")
+    views, _, _ = use_case.block_views(tuple(region["scenes"][::-1]), (str(listed),))
+    assert [(v.scene_name, v.image.name) for v in views] == [(n, f"{n}.tif") for n in ("s3", "s2fwd", "s2", "s1")]
+    (images / "s2.tif").unlink()
+    with pytest.raises(InputError, match=rf"^no raw image found for scene s2 \(looked for s2, s2_<NAD>, image_<NAD> "
+                                         rf"with .tif, .* in {images}\)") as refused:
+        use_case.block_views((str(region["folder"]),), (str(images),))
+    assert refused.value.parameter == "images"
