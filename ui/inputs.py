@@ -39,10 +39,9 @@ def add_scene_parameters(alg, with_camera: bool = True, or_scenes: bool = False)
 
 
 def scene_or_block(alg, parameters, context, feedback=None) -> tuple[str, tuple[str, ...]]:
-    """(SCENE's file, ()) for one scene, ('', SCENES' product files) for a block (QGIS 3.22 reads an empty
-    SCENES as ['']; a folder or a list file given in SCENES expanded into its products:
-    :func:`core.runs.region.expand_scenes`, what it found logged to ``feedback``); refused naming both
-    when both are given (saying what the algorithm does with each: its SCENE_OR_SCENES) or neither."""
+    """(SCENE's file, ()) for one scene, ('', SCENES' product files: folders and list files expanded by
+    core.runs.region, logged to ``feedback``) for a block; refused naming both when both are given
+    (saying what SCENE_OR_SCENES does with each) or neither."""
     scene = alg.parameterAsFile(parameters, vocabulary.SCENE, context)
     block = tuple(path for path in alg.parameterAsFileList(parameters, vocabulary.SCENES, context) if path)
     if block and scene:

@@ -1,6 +1,5 @@
-"""pushbroom:matchtiepoints — tie points between the cameras of a three-line scene (or strip),
-or between the images of several scenes of a block (SCENES: files, folders or list files; every
-overlapping pair matched, on this machine's cores or a Dask SCHEDULER), matched automatically in a
+"""pushbroom:matchtiepoints — tie points between the cameras of a three-line scene (or strip), or
+on the overlap graph of a block (SCENES; on this machine's cores or a Dask SCHEDULER), matched in a
 common ground geometry, written as the tie-point layer the adjustment reads."""
 from qgis.core import QgsProcessing
 
