@@ -138,8 +138,9 @@ def raster_refusal(alg, parameters, definition, context) -> str:
     if not files and not definition.flags() & QgsProcessingParameterDefinition.FlagOptional:
         return f"{name}: no raster given"
     for path in files:
-        if name == vocabulary.INPUTS and len(files) == 1 and (Path(path).is_dir() or region.is_list_file(Path(path))):
-            return ""    # a folder or list file of raw images (a block's), read by the core
+        if alg.IMAGE_FOLDERS and name == vocabulary.INPUTS and len(files) == 1 and \
+                (Path(path).is_dir() or region.is_list_file(Path(path))):
+            return ""    # a folder or list file of a block's raw images, read by the core
         try:
             check_input_raster(path)
         except PushbroomError as exc:

@@ -86,7 +86,8 @@ def products_in_folder(folder: Path) -> tuple[list[str], list[Path]]:
     """(the products in ``folder`` and its subfolders, folder by folder in name order; the files
     looked at and skipped as no product the plugin reads). In one folder a product is read once:
     an image is left out when its _RPC.TXT / .RPB is there, an RPC_<id>.XML when its DIM_<id>.XML
-    is, and a simulated member's true and adjusted scenes beside its onboard_scene.json.
+    is, a simulated member's true and adjusted scenes beside its onboard_scene.json, and that too
+    beside the RPC file of the folder's name (a simulated RPC product, named as the folder).
     InputError naming the folder and what was looked for when it holds none."""
     found, skipped = [], []
     for here, subfolders, names in os.walk(folder):
@@ -110,6 +111,8 @@ def candidates(folder: Path, names: list[str]) -> list[Path]:
     rpc_stems = {image_stem(n).upper() for n in names if n.upper().endswith(("_RPC.TXT", ".RPB"))}
     if ONBOARD_SCENE in names:
         names = [n for n in names if n not in NOT_PRODUCTS]
+    if folder.name.upper() in rpc_stems:     # a simulated RPC member: its RPC file is the product delivered
+        names = [n for n in names if n != ONBOARD_SCENE]
     out = []
     for name in names:
         up, suffix = name.upper(), Path(name).suffix.lower()

@@ -3,6 +3,7 @@ and qgis_process, on the block pushbroom:simulateblock writes (a TH-1 tri-stereo
 RPC product of another date): every match checked against the truth, the layer naming each
 observation's scene, the log per scene pair, and bad blocks refused naming the parameter."""
 import json
+from pathlib import Path
 from dataclasses import replace
 
 import numpy as np
@@ -179,3 +180,20 @@ def test_scenes_named_alike_are_refused_naming_both(block, tmp_path):
         processing.run("pushbroom:matchtiepoints", params(block, tmp_path / "t.gpkg",
                                                           SCENES=[block["SCENES"][0], str(copy)],
                                                           INPUTS=block["IMAGES"][:2]))
+
+
+def test_a_block_given_as_its_folder_with_a_list_of_its_images(block, tmp_path):
+    """SCENES the simulation's folder (its products in folder order: bwd, date2, fwd, nad; the true
+    scenes beside the onboard ones and dem.tif, block.json, the RPC fit report skipped), INPUTS one
+    list file of the images in that order: every scene tied, the log says what the folder held."""
+    folder = Path(block["SCENES"][0]).parent.parent
+    order = [NAMES.index(n) for n in ("bwd", "date2", "fwd", "nad")]
+    listed = tmp_path / "images.txt"
+    listed.write_text("\n".join(block["IMAGES"][k] for k in order))
+    log = RecordingFeedback()
+    out = processing.run("pushbroom:matchtiepoints", params(block, tmp_path / "ties.gpkg", SCENES=[str(folder)],
+                                                            INPUTS=[str(listed)]), feedback=log)
+    table = tiepoints.read_gpkg(out["OUTPUT"])
+    assert set(table.scene) == set(NAMES) and len(set(table.id)) > 600
+    assert any(x.startswith(f"SCENES folder {folder}: 4 product(s); ") and "skipped" in x for x in log.lines)
+    assert "6 overlapping pairs matched: " in "\n".join(log.lines)

@@ -19,6 +19,7 @@ class MatchTiePointsAlgorithm(PushbroomAlgorithm):
     CORE_PARAMETERS = {**SCENE_PARAMETERS, use_case.IMAGES: INPUTS, "base": SCENES}
     SCENE_OR_SCENES = ("match tie points between the cameras of one scene",
                        "match tie points between the images of several scenes")
+    IMAGE_FOLDERS = True
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         add_scene_parameters(self, with_camera=False, or_scenes=True)
