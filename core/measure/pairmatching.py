@@ -11,9 +11,10 @@ image's grid points, so a ground point seen by k images is chained through them
 
 Each pair's counts are reported (:class:`PairReport`: grid points, matched, rejected by reason,
 refused in inconsistent chains), and the pairs with fewer than ``min_ties`` chained ties are named
-in the log. Pairs are matched one after the other here; each is also a picklable job
-(:class:`PairJob`, :func:`run_pair_job`: the same matching, the DEM reopened by the worker), so
-that a later step can run them on local processes or a Dask cluster (as core.products.orthojobs).
+in the log. Each pair is a picklable job (:class:`PairJob`, :func:`run_pair_job`: the same
+matching, the DEM reopened by whoever runs it), run on this machine's threads or one after the
+other (:func:`run_pair_jobs`), or on a Dask cluster (core.products.orthojobs.map_on_scheduler),
+where the scenes travel as their files: the same ties to the bit whichever runs them.
 """
 from __future__ import annotations
 
