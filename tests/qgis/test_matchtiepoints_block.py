@@ -157,6 +157,8 @@ def small_image(tmp_path_factory) -> str:
     (lambda b, far, **_: {"SCENES": [b["SCENES"][0], far], "INPUTS": b["IMAGES"][:2], "DEM": None, "HEIGHT": 300},
      r"^SCENES: the block is not connected by overlaps: nad/NAD, far/NAD overlap no other product \(other ground\?\)"),
     (lambda b, **_: {"SCENES": b["SCENES"][:1], "INPUTS": b["IMAGES"][:1]}, r"^SCENES: 1 scene given; .* two or more"),
+    (lambda b, **_: {"SCHEDULER": "tcp://127.0.0.1:1"},
+     r"^SCHEDULER: (cannot reach the Dask scheduler at 'tcp://127.0.0.1:1'|.* needs Dask distributed)"),
     (lambda b, tlc, **_: {"SCENES": [b["SCENES"][0], tlc], "INPUTS": b["IMAGES"][:2]},
      r"^INPUTS: .*fwd/image_NAD.tif has the size of 2 cameras of scene tlc \(NAD 600 x 600, FWD 600 x 600, BWD "
      r"600 x 493\), so which camera it is cannot be told: give single-camera products in SCENES"),
