@@ -29,6 +29,7 @@ OUTPUT_SCENE = "OUTPUT_SCENE"
 RPC_CORRECTION = "RPC_CORRECTION"
 CAMERA_TRAJECTORY = "CAMERA_TRAJECTORY"
 INPUTS = "INPUTS"
+SCHEDULER = "SCHEDULER"
 SPACING, N_POINTS, WINDOW, MIN_CORRELATION, SEARCH_RANGE, FINE_RADIUS = \
     "SPACING", "N_POINTS", "WINDOW", "MIN_CORRELATION", "SEARCH_RANGE", "FINE_RADIUS"
 
@@ -168,6 +169,12 @@ def output_scene(optional: bool = False) -> QgsProcessingParameterFileDestinatio
     writes its scenes elsewhere); a run of one scene then writes it to a temporary file."""
     return QgsProcessingParameterFileDestination(OUTPUT_SCENE, tr("Output scene"), fileFilter="Scene JSON (*.json)",
                                                  optional=optional)
+
+
+def scheduler() -> QgsProcessingParameterString:
+    """SCHEDULER: the address of a Dask distributed scheduler; empty: this machine's cores (orthorectify,
+    matchtiepoints)."""
+    return QgsProcessingParameterString(SCHEDULER, tr("Dask scheduler address"), optional=True)
 
 
 def camera() -> QgsProcessingParameterString:

@@ -93,7 +93,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.show_only(SCENE, SCENES, self.GCPS, self.TIE_POINTS, self.LINES, self.INTERIOR)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        scene, paths = scene_or_block(self, parameters, context)
+        scene, paths = scene_or_block(self, parameters, context, feedback)
         block = bool(paths)
         ties, tie_rows = self._ties(parameters, context)
         lines = self.parameterAsVectorLayer(parameters, self.LINES, context)
