@@ -184,32 +184,32 @@ def _joined(parts: list[DrawnPoints]) -> DrawnPoints:
 
 def draw_points(scenes: list[RpcScene], near: list[np.ndarray], dem, per_product: int, min_rays: int,
                 rng: np.random.Generator, progress: Callable[[float], None],
-                points_per_product: int | None = None, strip: np.ndarray | None = None) -> DrawnPoints:
+                points_per_product: float | None = None, strip: np.ndarray | None = None) -> DrawnPoints:
     """Points seen by ``min_rays`` products or more, uniform over the region, with ``per_product``
     observations per product on average (or, with ``points_per_product``, that many points per
     product in all): candidates drawn until there are enough (at most MAX_PASSES draws), then a
     random subset kept. ``near``: :func:`neighbours`; ``dem``: heights (ellipsoidal m) at (lon, lat);
     ``strip`` (n_products,): only points seen by products of two strips or more (None: all)."""
     n = len(scenes)
-    if per_product == 0 or n == 0:
+    want = per_product if points_per_product is None else points_per_product
+    if want == 0 or n == 0:
         return DrawnPoints(*(np.zeros(0),) * 3, *(np.zeros(0, int),) * 2, *(np.zeros(0),) * 2, n)
     heights = tuple(scenes[0].height_range)
     box = boxes(scenes, heights)
     parts, draw, drawn_total = [], per_product, 0
-    want = points_per_product or per_product
     for k in range(MAX_PASSES):
         parts.append(_draw_pass(scenes, near, dem, box, draw, min_rays, rng,
                                 lambda f, k=k: progress((k + f) / MAX_PASSES), strip))
         drawn_total += draw
         drawn = _joined(parts)
-        have = drawn.n_points / n if points_per_product else drawn.n_observations / n
+        have = drawn.n_observations / n if points_per_product is None else drawn.n_points / n
         if have >= want:
             break
         # candidates per product still needed at the yield so far, 10 % spare
         yield_ = max(have / drawn_total, 1e-3)
         draw = int(min(math.ceil(1.1 * (want - have) / yield_), 20 * per_product))
     else:
-        what = "points" if points_per_product else "tie observations"
+        what = "tie observations" if points_per_product is None else "points"
         raise InputError(f"the products overlap too little for {want} {what} per product ({have:.0f} after "
                          f"{MAX_PASSES} draws)", parameter="ties_per_product")
     share = want / have

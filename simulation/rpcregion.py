@@ -23,13 +23,14 @@ ellipsoidal heights): each point projected through every true model whose image 
 footprints, those seen by two products or more kept, then thinned to ``ties_per_product`` tie
 observations per product on average; check points uniformly, seen by one product or more.
 
-Files in the folder: ``products/<name>_RPC.TXT`` (what the plugin reads as each product: its
-image size assumed from the RPC's line and sample range, as no image is beside it);
-``truth/<name>.json`` (the true RPC scene); ``dem.tif`` (EGM96 geoid heights); ``tie_points.csv``
-(columns of :data:`simulation.measurements.TIE_COLUMNS`: ``camera`` and ``scene`` the product's
-name); ``gcps.csv`` (check points, and with ``corner_gcps`` 4 control points near the region's
-corners; :data:`simulation.measurements.GCP_COLUMNS`); ``region.json`` (the layout, the settings, each
-product's strip, date, centre and true correction, the files).
+Files in the folder: ``products/<name>_RPC.TXT`` (what the plugin reads as each product: its image
+size assumed from the RPC's line and sample range, as no image is beside it); ``truth/<name>.json``
+(the true RPC scene); ``dem.tif`` (EGM96 geoid heights); ``tie_points.csv`` (columns of
+:data:`simulation.measurements.TIE_COLUMNS`: ``camera`` and ``scene`` the product's name);
+``gcps.csv`` (ground points with their true coordinates, a share of them check points, the others
+control; with ``corner_gcps`` the 4 nearest the region's corners control;
+:data:`simulation.measurements.GCP_COLUMNS`); ``region.json`` (the layout, the settings, each
+product's strip, date, files and true correction).
 
 Frames: (lon, lat) degrees, ellipsoidal heights (m), image coordinates GDAL (col, row) px.
 """
@@ -75,26 +76,38 @@ OBSERVATION_BYTES, CANDIDATE_BYTES = 450, 160
 @dataclass
 class RegionSettings:
     """What a region of RPC products holds. ties_per_product: tie observations per product on
-    average; checks_per_product: check points per product (each seen by one product or more);
-    corner_gcps: 4 control points, those nearest the region's corners; image_noise (px): of every
+    average; n_gcps: ground points with their true coordinates, uniform over the region, each seen
+    by one product or more (None: 4 per product); check_fraction: the share of them made check
+    points, drawn at random, the others control; corner_gcps: the 4 nearest the region's corners
+    control whatever the draw; image_noise (px): of every
     measurement; bias_m: (least, largest) shift of a vendor RPC (m); drift_m: the largest
     displacement of a product's last row by the drift (m, per axis). forward_ties: tie points
     seen only by consecutive products of one strip too (False: only points seen by two strips or
     more). Those products see them along the same rays (one pass, one line of detectors): their
     heights are undetermined by the ties (zero base), held only by a height reference."""
     ties_per_product: int = 2000
-    checks_per_product: int = 4
+    n_gcps: int | None = None
+    check_fraction: float = 1.0
     corner_gcps: bool = False
     image_noise: float = 0.3
     bias_m: tuple[float, float] = (5.0, 20.0)
     drift_m: float = 2.0
     forward_ties: bool = True
 
+    def gcps(self, n_products: int) -> int:
+        """The ground points with coordinates of a region of ``n_products``."""
+        return 4 * n_products if self.n_gcps is None else int(self.n_gcps)
+
     def validate(self) -> None:
-        for name in ("ties_per_product", "checks_per_product"):
+        for name in ("ties_per_product", "n_gcps"):
             value = getattr(self, name)
+            if value is None and name == "n_gcps":
+                continue
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise InputError(f"{name} must be a whole number >= 0 (got {value!r})", parameter=name)
+        if not (math.isfinite(self.check_fraction) and 0 <= self.check_fraction <= 1):
+            raise InputError(f"check_fraction must be between 0 and 1 (got {self.check_fraction!r})",
+                             parameter="check_fraction")
         if not (math.isfinite(self.image_noise) and 0 <= self.image_noise <= 10):
             raise InputError(f"image_noise must be 0 to 10 px (got {self.image_noise!r})", parameter="image_noise")
         lo, hi = self.bias_m
@@ -120,7 +133,7 @@ class RegionResult:
 def region_memory(layout: RegionLayout, settings: RegionSettings) -> float:
     """Bytes :func:`simulate_region` holds at its peak (see OBSERVATION_BYTES, CANDIDATE_BYTES): the
     observations, and the candidate points drawn for them (about three per observation kept)."""
-    observations = layout.n_products * (settings.ties_per_product + 3 * settings.checks_per_product)
+    observations = layout.n_products * settings.ties_per_product + 3 * settings.gcps(layout.n_products)
     return float(observations * (OBSERVATION_BYTES + 3 * CANDIDATE_BYTES))
 
 
@@ -253,21 +266,25 @@ def _simulate(layout: RegionLayout, folder: Path, spec: Preset, seed: int, setti
         ties = draw_points(list(truth.values()), near, dem, settings.ties_per_product, 2, rng,
                            lambda f: step(0.1 + 0.5 * f, None), strip=strips)
         step(0.6, f"{ties.n_points} tie points, {ties.n_observations} observations; drawing check points")
-        checks = draw_points(list(truth.values()), near, dem, 3 * settings.checks_per_product, 1, rng,
-                             lambda f: step(0.6 + 0.1 * f, None), points_per_product=settings.checks_per_product)
+        per = settings.gcps(len(names)) / len(names)
+        checks = draw_points(list(truth.values()), near, dem, max(int(math.ceil(3 * per)), 1), 1, rng,
+                             lambda f: step(0.6 + 0.1 * f, None), points_per_product=per)
         step(0.7, "writing the tie points")
         tie_data = ties.columns(names, settings.image_noise, rng, ids("T", ties.n_points))
         write_columns(files.path(folder / "tie_points.csv"), TIE_COLUMNS, tie_data)
         gcp_data = checks.columns(names, settings.image_noise, rng, ids("C", checks.n_points))
-        control = checks.corner_points(bounds) if settings.corner_gcps else np.zeros(0, int)
-        gcp_data.update(checks.gcp_fields(control, settings.image_noise))
+        control = np.zeros(checks.n_points, bool)
+        control[rng.choice(checks.n_points, int(round((1 - settings.check_fraction) * checks.n_points)), False)] = True
+        if settings.corner_gcps and checks.n_points:
+            control[checks.corner_points(bounds)] = True
+        gcp_data.update(checks.gcp_fields(np.nonzero(control)[0], settings.image_noise))
         write_columns(files.path(folder / "gcps.csv"), GCP_COLUMNS, gcp_data)
         step(0.85, f"writing {len(names)} RPC products and their truth")
         for name, rpc, scene in zip(names, rpcs, truth.values()):
             write_rpc(rpc, folder / "products" / f"{name}_RPC.TXT", files=files)
             save_scene(scene, folder / "truth" / f"{name}.json", files)
         manifest = _manifest(layout, spec, seed, settings, fit, heights, names, corrections, ties, checks,
-                             len(control))
+                             int(control.sum()))
         write_text(folder / MANIFEST, json.dumps(manifest, indent=1), files)
     step(1.0, "region simulation written")
     return RegionResult(folder, folder / MANIFEST, folder / "dem.tif", folder / "gcps.csv", folder / "tie_points.csv",
