@@ -7,7 +7,8 @@ import json
 
 import numpy as np
 import pytest
-from osgeo import ogr
+from osgeo import gdal, ogr
+from scipy.ndimage import map_coordinates
 
 from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import InputError
@@ -174,3 +175,24 @@ def test_bad_layouts_are_refused_naming_the_field(tmp_path, layout, field):
         simulate_region(layout, tmp_path / "r")
     assert info.value.parameter == field and field in str(info.value)
     assert not (tmp_path / "r").exists()
+
+
+def test_a_rendered_region_of_12_products_in_3_strips_images_one_ground(tmp_path):
+    """The region regionmatch matches: 3 strips x 4 TH-1 RPC products of 500 x 500 px, rendered (about
+    10 s); the images of two products agree at the true positions of the tie points they share."""
+    layout = RegionLayout(3, 4)
+    result = simulate_block(region_members(layout, TH1), tmp_path / "region", seed=3, n_gcps=10, n_tie_points=150,
+                            render=True)
+    assert list(result.members) == layout.names()
+    assert all(len(f["images"]) == 1 and len(f["rpc"]) == 1 for f in result.members.values())
+    ties = _read(result.tie_points)
+    images = {n: gdal.Open(str(next(iter(f["images"].values())))).ReadAsArray().astype(float)
+              for n, f in result.members.items()}
+    values = np.array([map_coordinates(images[s], [[float(r) - 0.5], [float(c) - 0.5]], order=1)[0]
+                       for s, c, r in zip(ties["scene"], ties["col_true"], ties["row_true"])])
+    ids = ties["id"]
+    pairs = [(values[ids == i][0], values[ids == i][1]) for i in np.unique(ids) if (ids == i).sum() >= 2]
+    a, b = np.array(pairs).T
+    assert len(pairs) >= 100 and np.corrcoef(a, b)[0, 1] > 0.95, (len(pairs), np.corrcoef(a, b)[0, 1])
+    strips_tied = {frozenset(n[:2] for n in ties["scene"][ids == i]) for i in np.unique(ids)}
+    assert frozenset({"s1", "s2"}) in strips_tied and frozenset({"s2", "s3"}) in strips_tied
