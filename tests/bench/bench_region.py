@@ -26,7 +26,8 @@ exponent) fits in the memory available now; otherwise the estimate is printed an
 
 Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_region.py
       [--sizes 100,300,1000] [--ties 2000] [--correction shift] [--rpc-sigma 10] [--out out/bench_region]
-      [--tie-height-sigma M (the DEM height constraint, once bundleadjust has it)] [--force]
+      [--drift-m 2] [--forward-ties] [--force]
+      [--tie-height-sigma M (the DEM height constraint, once bundleadjust has it)]
 The simulated regions are kept in --out and reused.
 """
 from __future__ import annotations
@@ -63,6 +64,7 @@ from tests.bench.bench_block import read_columns  # noqa: E402
 # strips x products per strip of each size (wider than long: strips of 51 km, products 44 km apart)
 LAYOUTS = {100: (10, 10), 300: (15, 20), 1000: (25, 40), 3000: (50, 60)}
 SIDE_LAP, FORWARD = 0.2, 0.15
+DRIFT_M = RegionSettings().drift_m   # m: the vendor drift's largest displacement of the last row, per axis
 log = logging.getLogger("bench_region")
 
 
@@ -151,7 +153,8 @@ def run_child(args, n: int) -> None:
 
 
 def region_folder(args, n: int) -> Path:
-    return Path(args.out) / f"region_{n}_{args.ties}{'_forward' if args.forward_ties else ''}"
+    drift = "" if args.drift_m == DRIFT_M else f"_drift{args.drift_m:g}"
+    return Path(args.out) / f"region_{n}_{args.ties}{'_forward' if args.forward_ties else ''}{drift}"
 
 
 def simulate(args, n: int) -> Path:
@@ -160,7 +163,8 @@ def simulate(args, n: int) -> Path:
         reset_peak()
         t0 = time.perf_counter()
         simulate_region(layout_of(n), folder, seed=31,
-                        settings=RegionSettings(ties_per_product=args.ties, forward_ties=args.forward_ties))
+                        settings=RegionSettings(ties_per_product=args.ties, forward_ties=args.forward_ties,
+                                                drift_m=args.drift_m))
         print(f"{n} products: simulated in {time.perf_counter() - t0:.1f} s, peak {peak_mb():.0f} MB "
               f"({layout_of(n).strips} strips x {layout_of(n).products_per_strip}; not timed below)", flush=True)
     return folder
@@ -180,6 +184,7 @@ def main() -> None:
     ap.add_argument("--forward-ties", action="store_true",
                     help="also tie points seen only by consecutive products of one strip (parallel rays: their "
                          "heights need --tie-height-sigma)")
+    ap.add_argument("--drift-m", type=float, default=DRIFT_M, help="the simulated vendor drift (m at the last row)")
     ap.add_argument("--out", default="out/bench_region")
     ap.add_argument("--force", action="store_true", help="run a size even when its memory estimate does not fit")
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
@@ -201,7 +206,7 @@ def main() -> None:
         simulate(args, n)
         child = [sys.executable, __file__, "--child", str(n), "--ties", str(args.ties), "--out", args.out,
                  "--correction", args.correction, "--rpc-sigma", str(args.rpc_sigma)]
-        child += ["--forward-ties"] if args.forward_ties else []
+        child += (["--forward-ties"] if args.forward_ties else []) + ["--drift-m", str(args.drift_m)]
         if args.tie_height_sigma is not None:
             child += ["--tie-height-sigma", str(args.tie_height_sigma)]
         done = subprocess.run(child, capture_output=True, text=True)
@@ -217,8 +222,8 @@ def main() -> None:
               f"{row['check_pairs']} pairs), absolute {row['absolute_m']:.2f} m RMS (vendor "
               f"{row['absolute_vendor_m']:.2f}; {row['check_observations']} check observations)", flush=True)
     for a, b in zip(rows, rows[1:]):
-        print(f"growth {a['n']} -> {b['n']} products: time n^{exponent(a, b, 'wall_s'):.2f}, "
-              f"memory n^{exponent(a, b, 'peak_mb'):.2f}")
+        print(f"growth {a['n']} -> {b['n']} products: time n^{exponent(a, b, 'wall_s'):.2f} wall, "
+              f"n^{exponent(a, b, 'cpu_s'):.2f} CPU, memory n^{exponent(a, b, 'peak_mb'):.2f}")
     load = os.getloadavg()
     print(f"load average (1, 5, 15 min): {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} cores")
 
