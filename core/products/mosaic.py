@@ -54,11 +54,16 @@ def mosaic_order(names: list[str], off_nadir: list[float], order: str = OFF_NADI
     """Indices into ``names`` from the bottom of the mosaic to its top (the VRT's source order):
     OFF_NADIR puts the least off-nadir on top (ties: the earlier name above), GIVEN the first
     name on top."""
-    if order not in MOSAIC_ORDERS:
-        raise InputError(f"unknown mosaic order {order!r}: one of {', '.join(MOSAIC_ORDERS)}", parameter="mosaic_order")
+    check_mosaic_order(order)
     if order == GIVEN:
         return list(range(len(names)))[::-1]
     return sorted(range(len(names)), key=lambda k: (-off_nadir[k], -k))
+
+
+def check_mosaic_order(order: str) -> None:
+    """InputError (mosaic_order) for an order not in MOSAIC_ORDERS."""
+    if order not in MOSAIC_ORDERS:
+        raise InputError(f"unknown mosaic order {order!r}: one of {', '.join(MOSAIC_ORDERS)}", parameter="mosaic_order")
 
 
 def block_grids(products: list[tuple], surface, crs=None, resolution: float | None = None) -> list[OrthoGrid]:

@@ -19,7 +19,7 @@ from ..files import atomic_outputs
 from ..log import LogLine
 from ..measure.mosaiccheck import MISREGISTERED_PX, check_mosaic, misregistered
 from ..products.footprint import footprints
-from ..products.mosaic import OFF_NADIR, block_grids, mosaic_order, off_nadir_deg, write_vrt
+from ..products.mosaic import OFF_NADIR, block_grids, check_mosaic_order, mosaic_order, off_nadir_deg, write_vrt
 from ..products.ortho import (check_images, default_grid, gap_sentence, orthorectify, orthorectify_each,
                               orthorectify_products, scene_utm_crs, strip_products)
 from .base import IMAGES, FilesInUse, RunResult, Terrain, camera_images, camera_of, concerning, scene_from, surface_from
@@ -151,6 +151,7 @@ def run_block(request: OrthoRequest, report, is_cancelled) -> RunResult:
     if len(request.scenes) < 2:
         raise InputError(f"{len(request.scenes)} scene given; a mosaic needs two or more (one scene: SCENE)",
                          parameter=SCENES)
+    check_mosaic_order(request.mosaic_order)
     if request.extent is not None:
         raise InputError("EXTENT is for one scene; a block's orthoimages each cover their own footprint",
                          parameter=EXTENT)
