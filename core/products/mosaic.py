@@ -29,7 +29,7 @@ gdal.UseExceptions()
 
 # MOSAIC_ORDER's values: the least off-nadir product on top, or the order products are given in
 # (the first on top)
-OFF_NADIR, GIVEN = "off-nadir", "given"
+OFF_NADIR, GIVEN = "off_nadir", "given"
 MOSAIC_ORDERS = (OFF_NADIR, GIVEN)
 RAY_SPAN_M = 1000.0  # height span (m) over which a product's line of sight is traced
 
