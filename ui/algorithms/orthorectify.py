@@ -56,8 +56,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                            advanced=True)
         self.addOutput(QgsProcessingOutputMultipleLayers(self.ORTHOIMAGES, tr("Orthoimages (ALL_CAMERAS, SCENES)")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.MOSAIC, tr("Mosaic (SCENES)")))
-        self.show_only(self.INPUT, "ALL_CAMERAS", "INPUTS", "SCENE", "SCENES", "CAMERA", "DEM", "HEIGHT",
-                       self.CRS_PARAM)
+        self.show_only(self.INPUT, "ALL_CAMERAS", "INPUTS", "SCENE", "SCENES", "CAMERA", "DEM", self.CRS_PARAM)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         scene, scenes = scene_or_block(self, parameters, context)
