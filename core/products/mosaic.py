@@ -21,7 +21,9 @@ import numpy as np
 from osgeo import gdal
 
 from ..errors import InputError
+from ..files import OutputError
 from ..geodesy import ecef_to_geodetic, up_vector
+from ..rasters import open_input_raster
 from .mapping import OrthoGrid
 from .ortho import default_grid, scene_utm_crs
 
@@ -74,8 +76,7 @@ def block_grids(products: list[tuple], surface, crs=None, resolution: float | No
     size): pixels of any two of them coincide."""
     crs = crs or scene_utm_crs(products[0][0], products[0][1], surface)
     size = resolution or max(default_grid(scene, camera, surface, crs).resolution for scene, camera in products)
-    grids = [default_grid(scene, camera, surface, crs, size) for scene, camera in products]
-    return grids
+    return [default_grid(scene, camera, surface, crs, size) for scene, camera in products]
 
 
 def write_vrt(path, sources: list, nodata: float | None) -> None:
@@ -85,8 +86,22 @@ def write_vrt(path, sources: list, nodata: float | None) -> None:
     options = gdal.BuildVRTOptions(srcNodata=nodata, VRTNodata=nodata, resolution="highest")
     vrt = gdal.BuildVRT(str(path), [str(s) for s in sources], options=options)
     if vrt is None:
-        raise InputError(f"cannot build the mosaic {path}: {gdal.GetLastErrorMsg()}")
+        raise OutputError(f"cannot build the mosaic {path}: {gdal.GetLastErrorMsg()}")
     vrt.FlushCache()
     vrt = None
     if not Path(path).is_file():
-        raise InputError(f"cannot write the mosaic {path}")
+        raise OutputError(f"cannot write the mosaic {path}")
+
+
+def check_mosaic_bands(images: dict) -> None:
+    """InputError (images) when the raw images ``images`` ({name: file}) differ in band count or
+    data type: a VRT takes its bands from the first source and would drop or convert the others."""
+    kinds = {}
+    for name, path in images.items():
+        ds = open_input_raster(path)
+        kinds[name] = (ds.RasterCount, gdal.GetDataTypeName(ds.GetRasterBand(1).DataType))
+    if len(set(kinds.values())) > 1:
+        listed = ", ".join(f"{name} {count} x {kind}" for name, (count, kind) in kinds.items())
+        raise InputError(f"the images differ in bands or data type ({listed}), and one mosaic needs one band count "
+                         "and data type: mosaic them in groups of one kind, or convert them first "
+                         "(gdal_translate -ot, -b)", parameter="images")

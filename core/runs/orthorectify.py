@@ -19,7 +19,8 @@ from ..files import atomic_outputs
 from ..log import LogLine
 from ..measure.mosaiccheck import MISREGISTERED_PX, check_mosaic, misregistered
 from ..products.footprint import footprints
-from ..products.mosaic import OFF_NADIR, block_grids, check_mosaic_order, mosaic_order, off_nadir_deg, write_vrt
+from ..products.mosaic import (OFF_NADIR, block_grids, check_mosaic_bands, check_mosaic_order, mosaic_order,
+                               off_nadir_deg, write_vrt)
 from ..products.ortho import (check_images, default_grid, gap_sentence, orthorectify, orthorectify_each,
                               orthorectify_products, scene_utm_crs, strip_products)
 from .base import IMAGES, FilesInUse, RunResult, Terrain, camera_images, camera_of, concerning, scene_from, surface_from
@@ -156,6 +157,7 @@ def run_block(request: OrthoRequest, report, is_cancelled) -> RunResult:
         raise InputError("EXTENT is for one scene; a block's orthoimages each cover their own footprint",
                          parameter=EXTENT)
     views, lines = block_views(request.scenes, request.images or ())
+    check_mosaic_bands({v.scene_name: v.image for v in views})
     folder = Path(request.output)
     if folder.is_file():
         raise InputError(f"{folder} is a file, not a folder; give a folder for the orthoimages and the mosaic "

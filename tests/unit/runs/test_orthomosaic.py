@@ -119,12 +119,21 @@ def test_the_mosaic_is_in_the_order_asked(block, true_run, onboard_run):
     assert np.count_nonzero(shown) > 0.5 * shown.size
 
 
+def two_bands(block) -> str:
+    """s1's image with its band twice."""
+    path = str(block / "s1_two_bands.tif")
+    gdal.Translate(path, str(block / "block" / "s1" / "image_NAD.tif"), bandList=[1, 1])
+    return path
+
+
 def test_refusals_and_cancels_write_nothing(block, tmp_path):
     one = request(block, tmp_path / "out")
     cases = [(request(block, tmp_path / "out", scenes=one.scenes[:1], images=one.images[:1]), "scenes", "a mosaic needs"),
              (request(block, tmp_path / "out", extent=lambda crs: (0, 0, 1, 1)), "extent", "EXTENT is for one scene"),
              (request(block, tmp_path / "out", images=one.images[:3]), "images", "3 raw image"),
-             (request(block, tmp_path / "out", mosaic_order="newest"), "mosaic_order", "unknown mosaic order")]
+             (request(block, tmp_path / "out", mosaic_order="newest"), "mosaic_order", "unknown mosaic order"),
+             (request(block, tmp_path / "out", images=(two_bands(block), *one.images[1:])), "images",
+              r"differ in bands or data type \(s1 2 x Byte, s2 1 x Byte")]
     for req, parameter, message in cases:
         with pytest.raises(InputError, match=message) as refused:
             use_case.run(req)
