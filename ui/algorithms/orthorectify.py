@@ -51,7 +51,8 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Orthoimage"), optional=True))
         self.addParameter(QgsProcessingParameterFolderDestination(self.ORTHO_FOLDER, tr("Folder of the orthoimages"),
                                                                   optional=True))
-        self.addParameter(enum_parameter(self.MOSAIC_ORDER, tr("Mosaic order (with SCENES)"), MOSAIC_ORDERS, OFF_NADIR))
+        self.addParameter(enum_parameter(self.MOSAIC_ORDER, tr("Mosaic order (with SCENES)"), MOSAIC_ORDERS, OFF_NADIR,
+                                         optional=True))
         self.add_parameter(QgsProcessingParameterString(self.SCHEDULER, tr("Dask scheduler address"), optional=True),
                            advanced=True)
         self.addOutput(QgsProcessingOutputMultipleLayers(self.ORTHOIMAGES, tr("Orthoimages (ALL_CAMERAS, SCENES)")))
