@@ -5,11 +5,13 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Callable
 
-from qgis.core import (QgsDataSourceUri, QgsFeatureSink, QgsField, QgsFields, QgsProcessing, QgsProcessingException,
-                       QgsProcessingLayerPostProcessorInterface, QgsProcessingOutputLayerDefinition,
-                       QgsProcessingParameterFile, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterFolderDestination, QgsProcessingUtils, QgsProperty)
+from qgis.core import (QgsContrastEnhancement, QgsDataSourceUri, QgsFeatureSink, QgsField, QgsFields, QgsProcessing,
+                       QgsProcessingContext, QgsProcessingException, QgsProcessingLayerPostProcessorInterface,
+                       QgsProcessingOutputLayerDefinition, QgsProcessingParameterFile,
+                       QgsProcessingParameterFileDestination, QgsProcessingParameterFolderDestination,
+                       QgsProcessingUtils, QgsProperty, QgsRasterMinMaxOrigin)
 
 from ..core.files import atomic_output, write_failure
 from ..core.runs.base import FilesInUse
@@ -144,15 +146,15 @@ def _check_written(name: str, path, expected: int, shown) -> None:
 
 # --- styles on load ----------------------------------------------------------------------------
 class _StyleOnLoad(QgsProcessingLayerPostProcessorInterface):
-    """Applies a QML style to an output layer when Processing loads it into the project."""
+    """Styles an output layer when Processing loads it into the project: ``style(layer)``."""
 
-    def __init__(self, qml_path: str):
+    def __init__(self, style: Callable):
         super().__init__()
-        self.qml_path = qml_path
+        self.style = style
 
     def postProcessLayer(self, layer, context, feedback):  # noqa: N802 (QGIS API name)
         if layer is not None:
-            layer.loadNamedStyle(self.qml_path)
+            self.style(layer)
             layer.triggerRepaint()
 
 
@@ -160,10 +162,23 @@ class _StyleOnLoad(QgsProcessingLayerPostProcessorInterface):
 _post_processors: dict[str, _StyleOnLoad] = {}
 
 
-def style_output_on_load(context, layer_id: str, qml_path: str | Path) -> None:
-    """Style output ``layer_id`` with ``qml_path`` if Processing will load it on completion."""
+def _style_on_load(context, layer_id: str, style: Callable) -> None:
+    """Style output ``layer_id`` with ``style(layer)`` if Processing will load it on completion."""
     if not context.willLoadLayerOnCompletion(layer_id):
         return
-    post = _StyleOnLoad(str(qml_path))
+    post = _StyleOnLoad(style)
     _post_processors[layer_id] = post
     context.layerToLoadOnCompletionDetails(layer_id).setPostProcessor(post)
+
+
+def style_output_on_load(context, layer_id: str, qml_path: str | Path) -> None:
+    """Style output ``layer_id`` with ``qml_path`` if Processing will load it on completion."""
+    _style_on_load(context, layer_id, lambda layer, qml=str(qml_path): layer.loadNamedStyle(qml))
+
+
+def load_raster_stretched(context, path: str, name: str, output: str) -> None:
+    """Load the raster ``path`` (output ``output``) as layer ``name`` when the run completes, its
+    contrast stretched between the 2 % and 98 % cumulative counts of each band."""
+    context.addLayerToLoadOnCompletion(path, QgsProcessingContext.LayerDetails(name, context.project(), output))
+    _style_on_load(context, path, lambda layer: layer.setContrastEnhancement(
+        QgsContrastEnhancement.StretchToMinimumMaximum, QgsRasterMinMaxOrigin.CumulativeCut))

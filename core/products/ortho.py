@@ -234,13 +234,19 @@ def orthorectify_products(scene: SceneModel, images: dict[int, str], surface, fo
     completely or not at all: every orthoimage, or none when one fails or the user cancels.
     ``images``: {camera index: raw image path}; ``options``: those of :func:`orthorectify`.
     Progress runs over the whole run (weighted by each grid's pixels)."""
+    items = [(scene, images[p.camera], Path(folder) / p.name, p.camera, p.rows) for p in products]
+    with atomic_outputs() as files:
+        return orthorectify_each(items, surface, grids, progress, files, **options)
+
+
+def orthorectify_each(items: list[tuple], surface, grids: list[OrthoGrid], progress: Callable[[float], None] | None,
+                      files: OutputSet, **options) -> list[dict]:
+    """:func:`orthorectify` of every item (scene, raw image path, output path, camera index, rows
+    (first, end) or None) on ``surface`` onto its grid, the outputs joining ``files`` (its owner commits them);
+    progress over the whole (weighted by each grid's pixels)."""
     report = progress or (lambda fraction: None)
     weights = np.array([g.cols * g.rows for g in grids], dtype=float)
     starts = np.concatenate([[0.0], np.cumsum(weights)]) / weights.sum()
-    figures = []
-    with atomic_outputs() as files:
-        for k, (product, grid) in enumerate(zip(products, grids)):
-            figures.append(orthorectify(scene, images[product.camera], surface, Path(folder) / product.name,
-                                        product.camera, grid, rows=product.rows, files=files, **options,
-                                        progress=lambda f, a=starts[k], b=starts[k + 1]: report(a + (b - a) * f)))
-    return figures
+    return [orthorectify(scene, image, surface, output, camera, grid, rows=rows, files=files, **options,
+                         progress=lambda f, a=starts[k], b=starts[k + 1]: report(a + (b - a) * f))
+            for k, ((scene, image, output, camera, rows), grid) in enumerate(zip(items, grids))]

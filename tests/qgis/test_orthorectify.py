@@ -6,14 +6,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 from osgeo import gdal
-from qgis.core import QgsProcessingException
+from qgis.core import QgsProcessingException, QgsProject, QgsRasterMinMaxOrigin
 
 import processing
 from pushbroom_adjust.core.formats.scene_json import save_scene
+from pushbroom_adjust.simulation.block import simulate_block
 from tests.support.ortho_compare import rendered_cameras, rendered_cut
 
 from tests.support.processing import RecordingFeedback
 from tests.support.qgis_process import run_json
+from tests.unit.measure.test_pairmatching import MEMBERS
 
 
 @pytest.fixture(scope="module")
@@ -135,3 +137,38 @@ def test_every_camera_from_the_command_line(qgis_process, three_line, tmp_path):
     results = json.loads(done.stdout)["results"]
     assert [Path(p).name for p in results["ORTHOIMAGES"]] == ["ortho_NAD.tif", "ortho_FWD.tif", "ortho_BWD.tif"]
     assert all(gdal.Open(p).GetGeoTransform()[1] == 40.0 for p in results["ORTHOIMAGES"])
+
+
+@pytest.fixture(scope="module")
+def block(tmp_path_factory):
+    """The rendered 2-strip block of four TH-1 cuts (tests/unit/measure/test_pairmatching.py)."""
+    folder = tmp_path_factory.mktemp("block")
+    simulate_block(MEMBERS, folder, seed=4, n_gcps=10, n_tie_points=20, render=True)
+    return folder
+
+
+def test_a_block_mosaic_is_loaded_stretched_and_its_overlaps_checked(provider, block, tmp_path):
+    """SCENES with the onboard models: four orthoimages, the mosaic loaded into the project with its
+    contrast stretched, and the log naming the five pairs that do not co-register."""
+    names = [m.name for m in MEMBERS]
+    params = {"SCENES": [str(block / n / "onboard_scene.json") for n in names],
+              "INPUTS": [str(block / n / "image_NAD.tif") for n in names], "DEM": str(block / "dem.tif"),
+              "DEM_DATUM": "geoid", "MOSAIC_ORDER": "given", "ORTHO_FOLDER": str(tmp_path / "mosaic")}
+    feedback = RecordingFeedback()
+    project = QgsProject.instance()
+    out = processing.runAndLoadResults("pushbroom:orthorectify", params, feedback=feedback)
+    assert out["MOSAIC"] == str(tmp_path / "mosaic" / "mosaic.vrt")
+    assert out["ORTHOIMAGES"] == [str(tmp_path / "mosaic" / f"ortho_{n}.tif") for n in names]
+    (layer,) = project.mapLayersByName("Mosaic")
+    assert layer.source() == out["MOSAIC"]
+    origin = layer.renderer().minMaxOrigin() if hasattr(layer.renderer(), "minMaxOrigin") else None
+    assert origin is not None and origin.limits() == QgsRasterMinMaxOrigin.CumulativeCut
+    assert any("5 of 5 overlapping pairs do not co-register" in line for line in feedback.warnings)
+    assert sum(" px RMS (median " in line for line in feedback.infos) == 5
+    project.removeMapLayer(layer)
+    with pytest.raises(QgsProcessingException, match="SCENE and SCENES are both given"):
+        processing.run("pushbroom:orthorectify", {**params, "SCENE": params["SCENES"][0]})
+    with pytest.raises(QgsProcessingException, match="MOSAIC_ORDER: 'newest' is not a value|MOSAIC_ORDER"):
+        processing.run("pushbroom:orthorectify", {**params, "MOSAIC_ORDER": "newest",
+                                                  "ORTHO_FOLDER": str(tmp_path / "other")})
+    assert not (tmp_path / "other").exists()

@@ -1,18 +1,22 @@
 """pushbroom:orthorectify — the raw image resampled onto a map grid with the rigorous scene
 model and a DEM: a tiled, compressed GeoTIFF with overviews; or every camera (and every scene
-of a strip) in one run, into a folder."""
+of a strip) in one run, into a folder; or a block's products (SCENES) on one grid with their mosaic."""
 from __future__ import annotations
 
 from pyproj import CRS
 from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingException, QgsProcessingOutputMultipleLayers,
+                       QgsProcessingOutputRasterLayer,
                        QgsProcessingParameterBoolean, QgsProcessingParameterCrs, QgsProcessingParameterExtent,
                        QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
                        QgsProcessingParameterRasterDestination, QgsProcessingParameterString, QgsProcessingUtils)
 
+from ...core.products.mosaic import MOSAIC_ORDERS, OFF_NADIR
 from ...core.runs import orthorectify as use_case
-from ..inputs import add_dem_parameters, add_scene_parameters, layer_crs, raster_file, raster_files
-from ..outputs import files_in_use
-from ..parameters import CAMERA, DEM, INPUTS, RESAMPLING, SCENE, RasterInput, camera_images, enum_value, resampling, tr
+from ...core.runs.scenes import SCENES as CORE_SCENES
+from ..inputs import add_dem_parameters, add_scene_parameters, layer_crs, raster_file, raster_files, scene_or_block
+from ..outputs import files_in_use, load_raster_stretched
+from ..parameters import (CAMERA, DEM, INPUTS, RESAMPLING, SCENE, SCENES, RasterInput, camera_images, enum_parameter,
+                          enum_value, resampling, tr)
 from .base import PushbroomAlgorithm
 
 
@@ -22,18 +26,19 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
     GROUP, GROUP_ID = "Products", "products"
     INPUT, CRS_PARAM, RESOLUTION, RESAMPLING_PARAM, NODATA, EXTENT, OUTPUT = \
         "INPUT", "CRS", "RESOLUTION", RESAMPLING, "NODATA", "EXTENT", "OUTPUT"
-    ALL_CAMERAS, INPUTS, ORTHO_FOLDER, ORTHOIMAGES, SCHEDULER = \
-        "ALL_CAMERAS", INPUTS, "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER"
+    ALL_CAMERAS, INPUTS, ORTHO_FOLDER, ORTHOIMAGES, SCHEDULER, MOSAIC_ORDER, MOSAIC = \
+        "ALL_CAMERAS", INPUTS, "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER", "MOSAIC_ORDER", "MOSAIC"
     CORE_PARAMETERS = {"resolution": RESOLUTION, "scene": SCENE, "camera": CAMERA, "dem": DEM, "extent": EXTENT,
                        use_case.IMAGE: INPUT, use_case.IMAGES: INPUTS, use_case.OUTPUT: OUTPUT,
-                       use_case.ORTHO_FOLDER: ORTHO_FOLDER}
+                       use_case.ORTHO_FOLDER: ORTHO_FOLDER, CORE_SCENES: SCENES, use_case.MOSAIC_ORDER: MOSAIC_ORDER}
+    SCENE_OR_SCENES = ("orthorectify one scene", "orthorectify a block's products into one mosaic")
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
         self.addParameter(RasterInput(self.INPUT, tr("Raw image"), optional=True))
         self.addParameter(QgsProcessingParameterBoolean(self.ALL_CAMERAS, tr("Every camera of the scene"), False,
                                                         optional=True))
         self.addParameter(camera_images())
-        add_scene_parameters(self)
+        add_scene_parameters(self, or_scenes=True)
         add_dem_parameters(self)
         self.addParameter(QgsProcessingParameterCrs(self.CRS_PARAM, tr("Output CRS"), optional=True))
         self.addParameter(QgsProcessingParameterNumber(self.RESOLUTION, tr("Pixel size (m)"),
@@ -46,15 +51,19 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, tr("Orthoimage"), optional=True))
         self.addParameter(QgsProcessingParameterFolderDestination(self.ORTHO_FOLDER, tr("Folder of the orthoimages"),
                                                                   optional=True))
+        self.addParameter(enum_parameter(self.MOSAIC_ORDER, tr("Mosaic order (with SCENES)"), MOSAIC_ORDERS, OFF_NADIR,
+                                         optional=True))
         self.add_parameter(QgsProcessingParameterString(self.SCHEDULER, tr("Dask scheduler address"), optional=True),
                            advanced=True)
-        self.addOutput(QgsProcessingOutputMultipleLayers(self.ORTHOIMAGES, tr("Orthoimages (ALL_CAMERAS)")))
-        self.show_only(self.INPUT, "ALL_CAMERAS", "INPUTS", "SCENE", "CAMERA", "DEM", "HEIGHT", self.CRS_PARAM)
+        self.addOutput(QgsProcessingOutputMultipleLayers(self.ORTHOIMAGES, tr("Orthoimages (ALL_CAMERAS, SCENES)")))
+        self.addOutput(QgsProcessingOutputRasterLayer(self.MOSAIC, tr("Mosaic (SCENES)")))
+        self.show_only(self.INPUT, "ALL_CAMERAS", "INPUTS", "SCENE", "SCENES", "CAMERA", "DEM", self.CRS_PARAM)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        every = self.parameterAsBool(parameters, self.ALL_CAMERAS, context)
+        scene, scenes = scene_or_block(self, parameters, context)
+        every = bool(scenes) or self.parameterAsBool(parameters, self.ALL_CAMERAS, context)
         result = self.run_core(use_case.run, use_case.OrthoRequest(
-            self.parameterAsFile(parameters, SCENE, context), self._output(parameters, context, every),
+            scene, self._output(parameters, context, every),
             self.terrain(parameters, context), raster_file(self, parameters, self.INPUT, context),
             self.parameterAsString(parameters, CAMERA, context),
             tuple(raster_files(self, parameters, INPUTS, context)) if every else None, self._crs(parameters, context),
@@ -62,11 +71,14 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
             enum_value(self, parameters, self.RESAMPLING_PARAM, context),
             self.parameterAsDouble(parameters, self.NODATA, context),
             self.parameterAsString(parameters, self.SCHEDULER, context).strip() or None,
-            files_in_use(self, parameters, context)), feedback)
+            files_in_use(self, parameters, context), scenes,
+            enum_value(self, parameters, self.MOSAIC_ORDER, context)), feedback)
+        if scenes:
+            load_raster_stretched(context, result.files[self.MOSAIC], tr("Mosaic"), self.MOSAIC)
         return result.files
 
     def _output(self, parameters, context, every: bool) -> str:
-        """The orthoimage's file (a temporary one when not given), or with ALL_CAMERAS the folder."""
+        """The orthoimage's file (a temporary one when not given), or with ALL_CAMERAS or SCENES the folder."""
         if not every:
             return (self.output_path(parameters, context, self.OUTPUT, "orthoimage.tif")
                     or QgsProcessingUtils.generateTempFilename("orthoimage.tif"))
