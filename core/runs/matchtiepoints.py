@@ -174,8 +174,8 @@ def block_views(paths: tuple[str, ...], images: tuple[str, ...]) -> tuple[list[V
     block, lines = block_from(paths)
     names = list(block.files)
     if len(names) < 2:
-        raise InputError(f"{len(names)} scene given; tie points between scenes need two or more (the cameras of one "
-                         "scene: SCENE)", parameter=SCENES)
+        raise InputError(f"{len(names)} scene given; a block needs two or more (the cameras of one scene: "
+                         "SCENE)", parameter=SCENES)
     images = block_images(images, block)
     if len(images) != len(names):
         raise InputError(f"{len(images)} raw image(s) given for the {len(names)} scenes of SCENES "

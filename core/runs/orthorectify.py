@@ -149,14 +149,11 @@ def run_block(request: OrthoRequest, report, is_cancelled) -> RunResult:
     figures of :func:`core.products.ortho.orthorectify`, off_nadir_deg: {scene: angle}, mosaic_order:
     the scenes from the mosaic's bottom to its top, coregistration: each pair's
     :class:`core.measure.mosaiccheck.PairCoregistration` as a dict}."""
-    if len(request.scenes) < 2:
-        raise InputError(f"{len(request.scenes)} scene given; a mosaic needs two or more (one scene: SCENE)",
-                         parameter=SCENES)
     check_mosaic_order(request.mosaic_order)
     if request.extent is not None:
         raise InputError("EXTENT is for one scene; a block's orthoimages each cover their own footprint",
                          parameter=EXTENT)
-    views, lines = block_views(request.scenes, request.images or ())
+    views, lines, _ = block_views(request.scenes, request.images or ())
     check_mosaic_bands({v.scene_name: v.image for v in views})
     folder = Path(request.output)
     if folder.is_file():

@@ -128,7 +128,7 @@ def two_bands(block) -> str:
 
 def test_refusals_and_cancels_write_nothing(block, tmp_path):
     one = request(block, tmp_path / "out")
-    cases = [(request(block, tmp_path / "out", scenes=one.scenes[:1], images=one.images[:1]), "scenes", "a mosaic needs"),
+    cases = [(request(block, tmp_path / "out", scenes=one.scenes[:1], images=one.images[:1]), "scenes", "1 scene given; a block needs two or more"),
              (request(block, tmp_path / "out", extent=lambda crs: (0, 0, 1, 1)), "extent", "EXTENT is for one scene"),
              (request(block, tmp_path / "out", images=one.images[:3]), "images", "3 raw image"),
              (request(block, tmp_path / "out", mosaic_order="newest"), "mosaic_order", "unknown mosaic order"),
