@@ -8,18 +8,16 @@ N + N' (MMD_AT_PLUS_A), symmetric mode and diagonal pivots (N is symmetric posit
 the Jacobi scaling of :class:`core.adjust.solver.ScaledSystem`, so no pivoting is needed).
 
 Cofactors Q = N^-1 are computed only on the block pattern of N (selected entries: each product's
-own block and its blocks with the products it shares points with, :func:`block_pattern`), by
-solves with the unit columns of a batch of unknowns, keeping the rows on that pattern: the
-redundancy numbers, the ground points' cofactors and the parameters' sigmas need no other entry.
-The full inverse is never formed.
+own block and its blocks with the products it shares points with, :func:`block_pattern`) by the
+Takahashi recurrences on the sparse factors (:func:`selected_inverse`): the redundancy numbers, the
+ground points' cofactors and the parameters' sigmas need no other entry. The full inverse is never
+formed.
 """
 from __future__ import annotations
 
 import numpy as np
-from scipy import sparse
+from scipy import linalg, sparse
 from scipy.sparse import linalg as splinalg
-
-SOLVE_COLUMNS = 256  # unit columns solved at once for the selected cofactors (u x 256 numbers)
 
 
 class NotPositiveDefinite(ValueError):
@@ -75,20 +73,74 @@ def block_pattern(N: sparse.spmatrix, layouts: list[np.ndarray]) -> sparse.csc_m
     return pattern
 
 
-def selected_cofactors(lu: splinalg.SuperLU, pattern: sparse.spmatrix) -> sparse.csc_matrix:
-    """Q = N^-1 on the nonzero pattern of ``pattern`` (u, u) (:func:`block_pattern`), N factorised as ``lu``:
-    solves with SOLVE_COLUMNS unit columns at a time, of which only the pattern's rows are kept."""
-    pat = sparse.csc_matrix(pattern)
-    pat.sort_indices()
-    n = pat.shape[0]
-    data = np.empty(pat.indices.size)
-    for start in range(0, n, SOLVE_COLUMNS):
-        stop = min(n, start + SOLVE_COLUMNS)
-        rhs = np.zeros((n, stop - start))
-        rhs[np.arange(start, stop), np.arange(stop - start)] = 1.0
-        x = lu.solve(rhs)
-        a, b = pat.indptr[start], pat.indptr[stop]
-        column = np.repeat(np.arange(stop - start), np.diff(pat.indptr[start:stop + 1]))
-        data[a:b] = x[pat.indices[a:b], column]
-    Q = sparse.csc_matrix((data, pat.indices.copy(), pat.indptr.copy()), shape=pat.shape)
-    return (0.5 * (Q + Q.T)).tocsc()  # the two triangles agree to rounding
+def on_pattern(N: sparse.spmatrix, pattern: sparse.spmatrix) -> sparse.csc_matrix:
+    """N with an entry stored at every position of ``pattern`` (zeros included), so that its factor's
+    structure holds the pattern (:func:`selected_inverse` reads the inverse there)."""
+    coo = sparse.coo_matrix(pattern)
+    values = np.asarray(sparse.csr_matrix(N)[coo.row, coo.col]).ravel()
+    return sparse.csc_matrix((values, (coo.row, coo.col)), shape=N.shape)
+
+
+def selected_inverse(lu: splinalg.SuperLU, pattern: sparse.spmatrix) -> sparse.csc_matrix:
+    """Q = N^-1 on the pattern of ``pattern`` (:func:`block_pattern`), from the factors ``lu`` of N
+    (:func:`factorise` of :func:`on_pattern`): the Takahashi recurrences (Takahashi, Fagan and Chen
+    1973; Erisman and Tinney 1975) on N's LDL' factorisation, supernode by supernode, which give the
+    inverse on the factor's structure (a superset of N's) without forming any other entry.
+
+    SuperLU in symmetric mode without pivoting factorises P N P' = L U with U = D L' (L unit lower).
+    For a supernode J of consecutive columns sharing the rows R below them:
+    Z_RJ = -Z_RR L_RJ L_JJ^-1 and Z_JJ = (L_JJ^-T D_J^-1 - Z_JR L_RJ) L_JJ^-1, Z = (P N P')^-1,
+    from the last supernode to the first."""
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        raise NotPositiveDefinite("the factorisation pivoted: the normal matrix is not positive definite")
+    L = sparse.csc_matrix(lu.L)
+    L.sort_indices()
+    keys, Z = _takahashi(L.indptr, L.indices, L.data, lu.U.diagonal())
+    n = L.shape[0]
+    position = lu.perm_c                                                         # row of N -> row of L
+    pat = sparse.coo_matrix(pattern)
+    i, j = position[pat.row], position[pat.col]
+    key = np.minimum(i, j) * n + np.maximum(i, j)
+    at = np.minimum(np.searchsorted(keys, key), keys.size - 1)
+    if not np.array_equal(keys[at], key):
+        raise ValueError("the pattern is not within the factor's structure (factorise on_pattern(N, pattern))")
+    return sparse.csc_matrix((Z[at], (pat.row, pat.col)), shape=pat.shape)
+
+
+def _supernodes(Lp: np.ndarray, Li: np.ndarray) -> np.ndarray:
+    """Bounds (k + 1,) of the runs of consecutive columns of L (CSC, rows sorted) whose rows below
+    the diagonal are the next column's rows: column j's are j + 1 and those of column j + 1."""
+    n = Lp.size - 1
+    same = [j + 1 for j in range(n - 1) if Lp[j + 1] - Lp[j] - 1 == Lp[j + 2] - Lp[j + 1]
+            and np.array_equal(Li[Lp[j] + 1:Lp[j + 1]], Li[Lp[j + 1]:Lp[j + 2]])]
+    return np.setdiff1d(np.arange(n + 1), same)
+
+
+def _takahashi(Lp: np.ndarray, Li: np.ndarray, Lx: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(keys, Z): the inverse of L D L' at each entry of L (CSC; key column * n + row, ascending)."""
+    n = Lp.size - 1
+    keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(Lp)) * n + Li
+    Z = np.zeros(Li.size)
+    bounds = _supernodes(Lp, Li)
+    for j0, j1 in zip(bounds[-2::-1], bounds[:0:-1]):
+        w = j1 - j0
+        R = Li[Lp[j1 - 1] + 1:Lp[j1]]                                           # rows below the supernode
+        LJJ, LRJ = np.zeros((w, w)), np.zeros((R.size, w))
+        for k, j in enumerate(range(j0, j1)):                                   # column j: rows j..j1-1, then R
+            column = Lx[Lp[j]:Lp[j + 1]]
+            LJJ[k:, k], LRJ[:, k] = column[:w - k], column[w - k:]
+        ZRJ = np.zeros((0, w))
+        if R.size:
+            lower = np.minimum.outer(R, R) * n + np.maximum.outer(R, R)
+            ZRR = Z[np.searchsorted(keys, lower)]
+            ZRJ = -_right_inverse(LJJ, ZRR @ LRJ)
+        ZJJ = _right_inverse(LJJ, _right_inverse(LJJ, np.diag(1.0 / d[j0:j1])).T - ZRJ.T @ LRJ)
+        ZJJ = 0.5 * (ZJJ + ZJJ.T)
+        for k, j in enumerate(range(j0, j1)):
+            Z[Lp[j]:Lp[j] + w - k], Z[Lp[j] + w - k:Lp[j + 1]] = ZJJ[k:, k], ZRJ[:, k]
+    return keys, Z
+
+
+def _right_inverse(LJJ: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """X L_JJ^-1 (L_JJ unit lower triangular)."""
+    return linalg.solve_triangular(LJJ, X.T, trans="T", lower=True, unit_diagonal=True).T

@@ -12,7 +12,7 @@ from ..errors import InputError
 from .linepoints import ACROSS_GROUP, HEIGHT_GROUP
 from .normal import Linearization, System, point_blocks
 from .problem import Problem
-from .sparsenormal import block_pattern, factorise, selected_cofactors
+from .sparsenormal import block_pattern, factorise, on_pattern, selected_inverse
 
 GROUND_GROUPS = ("ground_xy", "ground_z", ACROSS_GROUP, HEIGHT_GROUP)  # the groups of the ground points' priors
 BLOCK_NUMBERS = 5_000_000  # numbers in one batch of per-point blocks (40 MB)
@@ -106,7 +106,7 @@ def cofactors(system: System) -> np.ndarray | sparse.csr_matrix:
     """Q = N^-1 of the reduced normal equations: dense, the full inverse; sparse
     (:attr:`System.is_sparse`), only on N's block pattern (:func:`core.adjust.sparsenormal.block_pattern`:
     within a column group, and between two groups that share points: every entry the statistics
-    read; :func:`core.adjust.sparsenormal.selected_cofactors` of N scaled to a unit diagonal as the
+    read; :func:`core.adjust.sparsenormal.selected_inverse` of N scaled to a unit diagonal as the
     solver factorises it)."""
     if not system.is_sparse:
         n_unknowns = system.N.shape[0]
@@ -117,7 +117,7 @@ def cofactors(system: System) -> np.ndarray | sparse.csr_matrix:
     scale = sparse.diags(1.0 / d)
     scaled = (scale @ system.N @ scale).tocsc()
     pattern = block_pattern(scaled, system.layouts or [])
-    return (scale @ selected_cofactors(factorise(scaled), pattern) @ scale).tocsr()
+    return (scale @ selected_inverse(factorise(on_pattern(scaled, pattern)), pattern) @ scale).tocsr()
 
 
 def cofactor_block(Q: np.ndarray | sparse.spmatrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
