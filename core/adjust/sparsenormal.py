@@ -41,13 +41,16 @@ def factorise(N: sparse.spmatrix) -> splinalg.SuperLU:
 def inverse_diagonal_bound(N: sparse.spmatrix, layouts: list[np.ndarray]) -> np.ndarray:
     """(u,) lower bounds of the diagonal of N^-1: for any set B of unknowns, (N^-1)_BB >= (N_BB)^-1
     (the inverse of a principal block is the inverse's block less a positive semidefinite Schur
-    term), taken over each column group's unknowns ``layouts``; 1 / N_ii for unknowns in none."""
+    term), taken over each column group's unknowns ``layouts``; 1 / N_ii for unknowns in none.
+    The groups of one size are gathered and inverted at once."""
     out = 1.0 / N.diagonal()
     csr = sparse.csr_matrix(N)
-    for cols in layouts:
-        if cols.size:
-            block = csr[cols][:, cols].toarray()
-            out[cols] = np.diag(np.linalg.inv(block))
+    sizes = np.array([cols.size for cols in layouts])
+    for q in np.unique(sizes[sizes > 0]):
+        cols = np.stack([c for c in layouts if c.size == q])                       # (m, q)
+        rows, columns = np.broadcast_arrays(cols[:, :, None], cols[:, None, :])
+        blocks = np.asarray(csr[rows.ravel(), columns.ravel()]).reshape(-1, q, q)
+        out[cols] = np.diagonal(np.linalg.inv(blocks), axis1=1, axis2=2)
     return out
 
 
