@@ -34,13 +34,14 @@ class LineStatistics:
 
 @dataclass
 class Statistics:
-    """Posterior statistics at the solution: Q (cofactor matrix of the unknowns), sigma0, dof,
+    """Posterior statistics at the solution: Q (cofactor matrix of the unknowns; sparse, on the
+    products' blocks only, for a sparse system: :func:`cofactors`), sigma0, dof,
     per image row redundancy (n,2) and normalised residual w (n,2) (against the stated sigmas
     times their group's factor), the residuals v (n,2) px and p v^2 (n,2) with the current
     weights; per control point p e^2 (m,3) and redundancy (m,3) of its east, north, up ground
     coordinates (weighted ground; else (0,3)); per pseudo-observation group (sum of p v^2,
     redundancy, count); lines: the line points' constraint statistics (None without lines)."""
-    Q: np.ndarray
+    Q: np.ndarray | sparse.spmatrix
     sigma0: float
     dof: float
     redundancy: np.ndarray
