@@ -8,7 +8,8 @@ orbit, pointing, trajectory and interior errors, drawn from its own random strea
 t = 0 the middle of the member's imaging span. All members look at one ground centre, the first
 member's preset centre on the terrain: its pitch shifts along track, its roll across track, where
 its orbit passes (:func:`simulation.geometry.aim_pass_point`); ``orbit_offset_km`` then moves the
-whole acquisition across track (its strip and the ground it sees), for side-lapping strips. They
+whole acquisition across track (its strip and the ground it sees), for side-lapping strips, and
+``along_track_km`` along it, for the consecutive products of a strip (:mod:`simulation.region`). They
 share one terrain, one ground texture frame (a ground point looks alike in all of them, apart from
 each date's radiometry, :mod:`simulation.radiometry`) and one set of ground points
 (:mod:`simulation.blockpoints`).
@@ -46,12 +47,13 @@ from ..core.formats.rpcfiles import write_rpc
 from ..core.formats.scene_json import save_scene
 from ..core.products.rpcfit import dem_height_range, fit_rpc
 from .blockmembers import BlockMember, ResolvedMember, aim_member, check_members, member_files
-from .blockpoints import block_bounds, block_gcp_columns, block_tie_columns, place_block_points
+from .blockpoints import MAX_ROUNDS, POOL, block_bounds, block_gcp_columns, block_tie_columns, place_block_points
 from .geometry import build_scenes
 from .measurements import GCP_COLUMNS, TIE_COLUMNS, GcpSettings, write_csv
+from .memory import refuse_beyond_memory
 from .radiometry import Radiometry, draw_radiometry
 from .reference import REFERENCE_NAME, write_reference
-from .render import render_image
+from .render import TILE_ROWS, render_image
 from .simulator import check_folder, new_folder
 from .terrain import set_height_range, terrain_heights, write_dem
 from .texture import texture_frame, texture_plane
@@ -59,6 +61,10 @@ from .texture import texture_frame, texture_plane
 log = logging.getLogger(__name__)
 
 BLOCK_MANIFEST = "block.json"
+# Bytes held per image observation of a point (its columns as arrays, then as CSV text), per
+# candidate point and scene (the visibility test), per rendered pixel of a tile (a few float64
+# planes: ground, texture, radiometry) and per member (its scene models and figures).
+OBSERVATION_BYTES, CANDIDATE_BYTES, TILE_PIXEL_BYTES, MEMBER_BYTES = 400, 2, 100, 2e6
 
 
 @dataclass
@@ -79,7 +85,8 @@ def simulate_block(members: list[BlockMember], folder, seed: int = 0, n_gcps: in
                    gcp_settings: GcpSettings | None = None,
                    progress: Callable[[float, str | None], None] | None = None,
                    is_cancelled: Callable[[], bool] | None = None) -> BlockResult:
-    """Simulate a block of ``members`` (1 to 20 :class:`BlockMember`) into ``folder`` (created).
+    """Simulate a block of ``members`` (one or more :class:`BlockMember`; as many as this machine's
+    memory holds, :func:`check_block_memory`) into ``folder`` (created).
 
     n_gcps: ground points (control and, a share ``check_fraction`` of them, check points) seen by at
     least one member; n_tie_points: ground points seen by at least two; image_noise: standard
@@ -98,6 +105,7 @@ def simulate_block(members: list[BlockMember], folder, seed: int = 0, n_gcps: in
     settings.validate()
     if settings.n_tie_points and len(resolved) < 2:
         raise InputError("tie points need at least two members in the block", parameter="n_tie_points")
+    check_block_memory(resolved, settings, render)
     folder = Path(folder)
     check_folder(folder, output_names(resolved, settings, render), BLOCK_MANIFEST, block_files)
     report = progress or (lambda fraction, message=None: None)
@@ -107,6 +115,30 @@ def simulate_block(members: list[BlockMember], folder, seed: int = 0, n_gcps: in
         for m in resolved:
             folders.enter_context(new_folder(folder / m.name))
         return _simulate_block(resolved, folder, int(seed), settings, render, report, cancelled)
+
+
+def block_memory(members: list[ResolvedMember], settings: GcpSettings, render: bool) -> float:
+    """Bytes a block simulation holds at its peak, at most: every point observed in every camera of
+    every member (an upper bound: a point of a wide block is seen by a few), the candidate points'
+    visibility in every member, the members' models and, rendered, the largest image (its tiles
+    wait to be written) and the tiles being rendered."""
+    cameras = sum(len(m.spec.cameras) for m in members)
+    need = (settings.n_gcps + settings.n_tie_points) * cameras * OBSERVATION_BYTES
+    need += len(members) * (POOL * MAX_ROUNDS * CANDIDATE_BYTES + MEMBER_BYTES)
+    if render:
+        sizes = [(c.cols, m.spec.scene_rows) for m in members for c in m.spec.cameras]
+        need += max(cols * rows + 2 * TILE_ROWS * cols * TILE_PIXEL_BYTES for cols, rows in sizes)
+    return float(need)
+
+
+def check_block_memory(members: list[ResolvedMember], settings: GcpSettings, render: bool) -> None:
+    """InputError (parameter 'members') before any work when :func:`block_memory` exceeds what this
+    machine can give (:func:`simulation.memory.refuse_beyond_memory`)."""
+    points = settings.n_gcps + settings.n_tie_points
+    refuse_beyond_memory(block_memory(members, settings, render), "members",
+                         f"a block of {len(members)} members with {points} ground points"
+                         + (" rendered" if render else "") + f" (at most {OBSERVATION_BYTES} bytes per point and "
+                         "camera" + (", the largest image and its tiles" if render else "") + ")")
 
 
 def output_names(members: list[ResolvedMember], settings: GcpSettings, render: bool) -> list[str]:
@@ -252,6 +284,7 @@ def _manifest(members, seed, settings, centre, target_h, frame, radiometry, rpc_
         "centre": {"lon": centre[0], "lat": centre[1], "h_ellipsoid_m": target_h},
         "members": [{"name": m.name, "preset": m.spec.name, "description": m.spec.description,
                      "view_deg": {"pitch": m.view[0], "roll": m.view[1]}, "orbit_offset_km": m.orbit_offset_km,
+                     "along_track_km": m.along_track_km,
                      "date": m.date, "rpc": m.rpc, "epoch": m.epoch,
                      "pass_point": list(m.pointing.pass_point), "random_stream": [seed, 1, m.index],
                      "errors": asdict(m.errors), "truth": m.geo.truth,

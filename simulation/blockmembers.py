@@ -16,9 +16,9 @@ from .geometry import EPOCH, Pointing, SimulatedScenes, aim_pass_point, circular
 from .presets import PRESETS, ErrorSettings, Preset, resolve_errors
 from .texture import plane_to_lonlat, texture_plane
 
-MAX_MEMBERS = 20
 MAX_VIEW_DEG = 45.0            # platform pitch / roll: agile satellites point up to about 45 deg
 MAX_ORBIT_OFFSET_KM = 1000.0
+MAX_ALONG_TRACK_KM = 2000.0    # a strip of products along one pass: a few hundred km in practice
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,39}")  # safe as a folder name on every system
 EPOCH_FORMAT = "%Y-%m-%dT%H:%M:%S.%fZ"
 
@@ -28,17 +28,19 @@ class BlockMember:
     """One scene of a block.
 
     name: the member's folder and scene name (letters, digits, '_' and '-', up to 40; unique
-    regardless of case). preset: a name of :data:`simulation.presets.PRESETS` or a
-    :class:`Preset` (e.g. a :func:`simulation.presets.cut_preset` for tests); its centre is
-    replaced by the block's (the first member's). view: (pitch, roll) degrees of the whole platform
-    (:class:`simulation.geometry.Pointing`: pitch > 0 forward, roll > 0 to the left of the
-    track), at most 45 each; the member's orbit and imaging time are chosen so that its reference
-    camera's image centre still sees the block centre. orbit_offset_km: the acquisition moved
-    across track (km, > 0 to the right of the track): its strip and the ground it sees move with it
-    (side-lap). date: a label; members of one date share a radiometry, each later date (in order of
-    first appearance) draws its own; None is the first member's date. A date written YYYY-MM-DD
-    also dates the member's epoch. errors: the preset's :class:`ErrorSettings` (None), another, or
-    a dict overriding some fields. rpc: deliver the member as an RPC product (:mod:`simulation.block`).
+    regardless of case). preset: a name of :data:`simulation.presets.PRESETS` or a :class:`Preset`
+    (e.g. a :func:`simulation.presets.cut_preset` for tests); its centre is replaced by the block's
+    (the first member's). view: (pitch, roll) degrees of the whole platform
+    (:class:`simulation.geometry.Pointing`: pitch > 0 forward, roll > 0 to the left of the track),
+    at most 45 each; the member's orbit and imaging time are chosen so that its reference camera's
+    image centre still sees the block centre. orbit_offset_km: the acquisition moved across track
+    (km, > 0 to the right of the track): its strip and the ground it sees move with it (side-lap).
+    along_track_km: the ground it sees moved along the track (km, > 0 forward): the products of one
+    strip, imaged one after the other (forward overlap). date: a label; members of one date share a
+    radiometry, each later date (in order of first appearance) draws its own; None is the first
+    member's date. A date written YYYY-MM-DD also dates the member's epoch. errors: the preset's
+    :class:`ErrorSettings` (None), another, or a dict overriding some fields. rpc: deliver the
+    member as an RPC product (:mod:`simulation.block`).
     """
     name: str
     preset: "str | Preset"
@@ -47,6 +49,7 @@ class BlockMember:
     date: str | None = None
     errors: ErrorSettings | dict | None = None
     rpc: bool = False
+    along_track_km: float = 0.0
 
 
 @dataclass
@@ -61,6 +64,7 @@ class ResolvedMember:
     orbit_offset_km: float
     date: str | None
     rpc: bool
+    along_track_km: float = 0.0
     pointing: Pointing = field(default_factory=Pointing)
     epoch: str = EPOCH
     geo: SimulatedScenes | None = None
@@ -89,9 +93,6 @@ def check_members(members) -> list[ResolvedMember]:
         raise InputError(f"members must be a list of BlockMember (got {type(members).__name__})", parameter="members")
     if not members:
         raise InputError("members: a block needs at least one member (got an empty list)", parameter="members")
-    if len(members) > MAX_MEMBERS:
-        raise InputError(f"members: a block holds at most {MAX_MEMBERS} members (got {len(members)})",
-                         parameter="members")
     out: list[ResolvedMember] = []
     names: dict[str, int] = {}
     for i, m in enumerate(members):
@@ -117,6 +118,7 @@ def check_members(members) -> list[ResolvedMember]:
         view = (_number(pitch, f"{where}.view", MAX_VIEW_DEG, "the pitch"),
                 _number(roll, f"{where}.view", MAX_VIEW_DEG, "the roll"))
         offset = _number(m.orbit_offset_km, f"{where}.orbit_offset_km", MAX_ORBIT_OFFSET_KM, "the offset (km)")
+        along = _number(m.along_track_km, f"{where}.along_track_km", MAX_ALONG_TRACK_KM, "the offset (km)")
         date = _check_date(m.date, f"{where}.date")
         try:
             errors = resolve_errors(spec, m.errors)
@@ -126,7 +128,7 @@ def check_members(members) -> list[ResolvedMember]:
             raise InputError(f"{where}.rpc must be True or False (got {m.rpc!r})", parameter=f"{where}.rpc")
         centre = out[0].spec.centre if out else spec.centre
         out.append(ResolvedMember(i, m.name, replace(spec, centre=centre), errors, view, offset,
-                                  date if date is not None or not out else out[0].date, bool(m.rpc)))
+                                  date if date is not None or not out else out[0].date, bool(m.rpc), along))
     return out
 
 
@@ -169,14 +171,16 @@ def _track(spec: Preset, lon: float, lat: float) -> tuple[np.ndarray, float]:
 def aim_member(m: ResolvedMember, target: tuple[float, float, float]) -> None:
     """Set ``m.pointing`` and ``m.epoch``: the orbit passes where its pitched and rolled view sees
     ``target`` (lon, lat degrees, ellipsoidal height m) moved across track by the member's orbit
-    offset, at t = 0. The epoch is EPOCH (on the member's date) shifted by the time the platform
-    takes from passing abeam of the target to its pass point, so that the members of one pass are
-    dated in the order they image (forward first)."""
+    offset and along it by its along-track offset, at t = 0. The epoch is EPOCH (on the member's
+    date) shifted by the time the platform takes from passing abeam of the target (before its
+    along-track offset) to its pass point, so that the members of one pass are dated in the order
+    they image (forward-looking first, and a strip's products one after the other)."""
     lon, lat, h = target
     centre = (lon, lat)
     along, speed = _track(m.spec, lon, lat)
     right = np.array([along[1], -along[0]])  # the track turned clockwise: to its right
-    x, y = right * m.orbit_offset_km * 1e3
+    across = right * m.orbit_offset_km * 1e3
+    x, y = across + along * m.along_track_km * 1e3
     aim_lon, aim_lat = (float(v) for v in plane_to_lonlat(x, y, centre))
     pitch, roll = (math.radians(v) for v in m.view)
     try:
@@ -185,7 +189,7 @@ def aim_member(m: ResolvedMember, target: tuple[float, float, float]) -> None:
         raise InputError(f"members[{m.index}].view: {exc}", parameter=f"members[{m.index}].view") from None
     m.pointing = Pointing(pitch, roll, pass_point)
     px, py = texture_plane(*pass_point, centre)
-    m.epoch = member_epoch(m.date, float(np.array([px - x, py - y]) @ along) / speed)
+    m.epoch = member_epoch(m.date, float((np.array([px, py]) - across) @ along) / speed)
 
 
 def member_files(m: ResolvedMember, render: bool) -> dict:

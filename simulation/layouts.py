@@ -52,7 +52,13 @@ LAYOUT_MEANINGS = {
     "neighbouring_strips": f"two strips of neighbouring orbits with {SIDE_LAP:.0%} side-lap",
     "tristereo_and_other_date": "the tri-stereo and a scene of another date delivered as an RPC product "
                                    "(<name>_RPC.TXT beside its image)",
+    "region": "a region of RPC products over STRIPS strips of PRODUCTS_PER_STRIP products each, with SIDE_LAP and "
+              "FORWARD_OVERLAP (rendered with RENDER)",
+    "rpc_region": "a region of RPC products without images: TIES_PER_PRODUCT tie observations simulated directly "
+                  "(a thousand products in minutes)",
 }
+# Layouts of a region (simulation.region): simulation.runs builds them from the region's own parameters.
+REGION_LAYOUTS = ("region", "rpc_region")
 
 
 def layout_members(layout: str, spec: Preset) -> list[BlockMember]:

@@ -3,20 +3,25 @@ request in, a :class:`core.runs.base.RunResult` out): a scene, or a block of sce
 preset sensor into a folder, with known truth."""
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from typing import Callable
 
+from ..core.errors import InputError
 from ..core.log import LogLine
 from ..core.runs.base import RunResult, concerning
 from .block import simulate_block
 from .layouts import layout_members
 from .measurements import GcpSettings
 from .presets import PRESETS, cut_preset
+from .region import RegionLayout, region_members
 from .roads import LINES_FILE, POINTS_FILE, RoadSettings
+from .rpcregion import RegionSettings, simulate_region
 from .simulator import check_folder, output_names, simulate
 
 # The inputs errors name (InputError.parameter).
 IMAGE_SIZE, FOLDER = "image_size", "folder"
+N_TIE_POINTS, RENDER = "n_tie_points", "render"
 # The files of the results (the provider's output names).
 OUTPUT_FOLDER, ONBOARD_SCENE, TRUE_SCENE, GCPS, DEM = "OUTPUT_FOLDER", "ONBOARD_SCENE", "TRUE_SCENE", "GCPS", "DEM"
 TIE_POINTS, LINES, MANIFEST, IMAGE, IMAGES = "TIE_POINTS", "LINES", "MANIFEST", "IMAGE", "IMAGES"
@@ -43,7 +48,10 @@ class SimulateSceneRequest:
 @dataclass(frozen=True)
 class SimulateBlockRequest:
     """A block of layout ``layout`` (simulation.layouts) of preset ``preset`` (cut to ``image_size``
-    when > 0) simulated into ``folder``, with the arguments of :func:`simulation.block.simulate_block`."""
+    when > 0) simulated into ``folder``, with the arguments of :func:`simulation.block.simulate_block`.
+    The region layouts (simulation.layouts.REGION_LAYOUTS) take ``region`` (:class:`simulation.region.RegionLayout`);
+    'rpc_region' (:func:`simulation.rpcregion.simulate_region`, no images) also
+    ``ties_per_product`` instead of n_tie_points, and n_gcps (0: 4 per product)."""
     folder: str
     preset: str
     layout: str
@@ -54,6 +62,8 @@ class SimulateBlockRequest:
     render: bool = False
     check_fraction: float = 0.25
     image_size: int = 0
+    region: RegionLayout = field(default_factory=RegionLayout)
+    ties_per_product: int = 2000
 
 
 def _preset(name: str, size: int):
@@ -95,7 +105,11 @@ def run_block(request: SimulateBlockRequest, progress: Callable[[float, str | No
     """Simulate a block as ``request`` says; files {OUTPUT_FOLDER, SCENES (each scene's product: its
     onboard scene JSON, or an RPC product's RPC file), TRUE_SCENES, IMAGES, GCPS, TIE_POINTS, DEM,
     REFERENCE, MANIFEST}, a line per scene."""
-    members = layout_members(request.layout, _preset(request.preset, request.image_size))
+    if request.layout == "rpc_region":
+        return run_rpc_region(request, progress, is_cancelled)
+    spec = _preset(request.preset, request.image_size)
+    members = (region_members(request.region, spec) if request.layout == "region"
+               else layout_members(request.layout, spec))
     result = simulate_block(members, request.folder, seed=request.seed, n_gcps=request.n_gcps,
                             n_tie_points=request.n_tie_points, image_noise=request.image_noise,
                             render=request.render, check_fraction=request.check_fraction, progress=progress,
@@ -111,6 +125,31 @@ def run_block(request: SimulateBlockRequest, progress: Callable[[float, str | No
                       TRUE_SCENES: [str(f["true_scene"]) for f in result.members.values()], IMAGES: images,
                       GCPS: str(result.gcps), TIE_POINTS: _optional(result.tie_points), DEM: str(result.dem),
                       REFERENCE: _optional(result.reference), MANIFEST: str(result.manifest)}, {}, lines)
+
+
+def run_rpc_region(request: SimulateBlockRequest, progress=None, is_cancelled=None) -> RunResult:
+    """The 'rpc_region' layout: RPC products without images (:func:`simulation.rpcregion.simulate_region`);
+    the files of :func:`run_block` (SCENES the RPC files, TRUE_SCENES the true RPC scene JSONs, no
+    IMAGES nor REFERENCE), one line for the region."""
+    if request.render:
+        raise InputError("the layout rpc_region has no images (its tie observations are simulated directly); "
+                         "for a rendered region choose the layout region", parameter=RENDER)
+    if request.n_tie_points:
+        raise InputError("the layout rpc_region takes TIES_PER_PRODUCT (tie observations per product), not a "
+                         "number of tie points: leave N_TIE_POINTS at 0", parameter=N_TIE_POINTS)
+    settings = RegionSettings(ties_per_product=request.ties_per_product, n_gcps=request.n_gcps or None,
+                              check_fraction=request.check_fraction, image_noise=request.image_noise)
+    spec = _preset(request.preset, request.image_size)
+    result = simulate_region(request.region, request.folder, spec, request.seed, settings, progress, is_cancelled)
+    counts = json.loads(result.manifest.read_text())["points"]
+    line = LogLine(f"region of {len(result.products)} RPC products ({request.region.strips} strips x "
+                   f"{request.region.products_per_strip}) in {request.folder}: {counts['tie_points']} tie points, "
+                   f"{counts['tie_observations']} tie observations, {counts['check_points']} check and "
+                   f"{counts['control_points']} control points")
+    return RunResult({OUTPUT_FOLDER: request.folder, SCENES: [str(p) for p in result.products.values()],
+                      TRUE_SCENES: [str(p) for p in result.truth.values()], IMAGES: [], GCPS: str(result.gcps),
+                      TIE_POINTS: str(result.tie_points), DEM: str(result.dem), REFERENCE: None,
+                      MANIFEST: str(result.manifest)}, {}, [line])
 
 
 def _optional(path) -> str | None:

@@ -16,10 +16,10 @@ from qgis.core import (NULL, QgsCoordinateReferenceSystem, QgsMapLayer, QgsProce
 from ..core.errors import PushbroomError
 from ..core.observations.tables import present
 from ..core.rasters import check_input_raster
-from ..core.runs import scenes
+from ..core.runs import region, scenes
 from ..core.runs.layers import PointHeights
 from . import parameters as vocabulary
-from .feedback import error_message, processing_errors
+from .feedback import error_message, processing_errors, push_lines
 from .parameters import DEM, HEIGHT_SOURCE, Z_DATUM, enum_value
 
 # The core's names of the scene, camera and DEM inputs (InputError.parameter) -> the shared parameters
@@ -38,10 +38,10 @@ def add_scene_parameters(alg, with_camera: bool = True, or_scenes: bool = False)
         alg.addParameter(vocabulary.camera())
 
 
-def scene_or_block(alg, parameters, context) -> tuple[str, tuple[str, ...]]:
-    """(SCENE's file, ()) for one scene, ('', SCENES' files) for a block (QGIS 3.22 reads an empty SCENES as
-    ['']); refused naming both when both are given (saying what the algorithm does with each: its
-    SCENE_OR_SCENES) or neither."""
+def scene_or_block(alg, parameters, context, feedback=None) -> tuple[str, tuple[str, ...]]:
+    """(SCENE's file, ()) for one scene, ('', SCENES' product files: folders and list files expanded by
+    core.runs.region, logged to ``feedback``) for a block; refused naming both when both are given
+    (saying what SCENE_OR_SCENES does with each) or neither."""
     scene = alg.parameterAsFile(parameters, vocabulary.SCENE, context)
     block = tuple(path for path in alg.parameterAsFileList(parameters, vocabulary.SCENES, context) if path)
     if block and scene:
@@ -50,7 +50,13 @@ def scene_or_block(alg, parameters, context) -> tuple[str, tuple[str, ...]]:
                                      f"{several}, not both")
     if not block and not scene:
         raise QgsProcessingException("give SCENE (one scene) or SCENES (a block of scenes): neither is given")
-    return ("", block) if block else (scene, ())
+    if not block:
+        return scene, ()
+    with processing_errors(f"{vocabulary.SCENES}: "):
+        files, lines = region.expand_scenes(block)
+    if feedback is not None:
+        push_lines(feedback, lines)
+    return "", files
 
 
 def source_and_features(alg, parameters, context, input_name: str = "INPUT") -> tuple:
@@ -132,6 +138,9 @@ def raster_refusal(alg, parameters, definition, context) -> str:
     if not files and not definition.flags() & QgsProcessingParameterDefinition.FlagOptional:
         return f"{name}: no raster given"
     for path in files:
+        if alg.IMAGE_FOLDERS and name == vocabulary.INPUTS and len(files) == 1 and \
+                (Path(path).is_dir() or region.is_list_file(Path(path))):
+            return ""    # a folder or list file of a block's raw images, read by the core
         try:
             check_input_raster(path)
         except PushbroomError as exc:

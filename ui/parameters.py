@@ -21,6 +21,7 @@ TR_CONTEXT = "PushbroomAdjust"
 
 SCENE, SCENES, CAMERA = "SCENE", "SCENES", "CAMERA"
 DEM, DEM_DATUM, Z_DATUM, HEIGHT, HEIGHT_SOURCE = "DEM", "DEM_DATUM", "Z_DATUM", "HEIGHT", "HEIGHT_SOURCE"
+TIE_HEIGHT_SIGMA = "TIE_HEIGHT_SIGMA"
 CHECK_FRACTION, COL_FIELD, ROW_FIELD = "CHECK_FRACTION", "COL_FIELD", "ROW_FIELD"
 POSITION_MODEL, ATTITUDE_MODEL = "POSITION_MODEL", "ATTITUDE_MODEL"
 GROUND, ROBUST, ON_SINGULAR, RESAMPLING, PRESET = "GROUND", "ROBUST", "ON_SINGULAR", "RESAMPLING", "PRESET"
@@ -28,6 +29,7 @@ OUTPUT_SCENE = "OUTPUT_SCENE"
 RPC_CORRECTION = "RPC_CORRECTION"
 CAMERA_TRAJECTORY = "CAMERA_TRAJECTORY"
 INPUTS = "INPUTS"
+SCHEDULER = "SCHEDULER"
 SPACING, N_POINTS, WINDOW, MIN_CORRELATION, SEARCH_RANGE, FINE_RADIUS = \
     "SPACING", "N_POINTS", "WINDOW", "MIN_CORRELATION", "SEARCH_RANGE", "FINE_RADIUS"
 
@@ -169,6 +171,12 @@ def output_scene(optional: bool = False) -> QgsProcessingParameterFileDestinatio
                                                  optional=optional)
 
 
+def scheduler() -> QgsProcessingParameterString:
+    """SCHEDULER: the address of a Dask distributed scheduler; empty: this machine's cores (orthorectify,
+    matchtiepoints)."""
+    return QgsProcessingParameterString(SCHEDULER, tr("Dask scheduler address"), optional=True)
+
+
 def camera() -> QgsProcessingParameterString:
     return QgsProcessingParameterString(CAMERA, tr("Camera (name or index)"), optional=True, defaultValue="")
 
@@ -210,6 +218,13 @@ class RasterInputs(CheckedByGdal, QgsProcessingParameterMultipleLayers):
 
 def dem() -> RasterInput:
     return RasterInput(DEM, tr("Digital elevation model"), optional=True)
+
+
+def tie_height_sigma() -> QgsProcessingParameterNumber:
+    """TIE_HEIGHT_SIGMA: the stated accuracy (m) of the DEM that holds the tie points' heights."""
+    return QgsProcessingParameterNumber(TIE_HEIGHT_SIGMA, tr("Tie point heights: the DEM's stated accuracy (m)"),
+                                        QgsProcessingParameterNumber.Double, None, optional=True, minValue=0.0,
+                                        maxValue=1000.0)
 
 
 def height() -> QgsProcessingParameterNumber:

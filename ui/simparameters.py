@@ -8,6 +8,9 @@ from .parameters import tr
 
 SEED, N_GCPS, N_TIE_POINTS, IMAGE_NOISE, RENDER, IMAGE_SIZE, OUTPUT_FOLDER = \
     "SEED", "N_GCPS", "N_TIE_POINTS", "IMAGE_NOISE", "RENDER", "IMAGE_SIZE", "OUTPUT_FOLDER"
+# pushbroom:simulateblock's regions (LAYOUT region, rpc_region)
+STRIPS, PRODUCTS_PER_STRIP, SIDE_LAP, FORWARD_OVERLAP, TIES_PER_PRODUCT = \
+    "STRIPS", "PRODUCTS_PER_STRIP", "SIDE_LAP", "FORWARD_OVERLAP", "TIES_PER_PRODUCT"
 
 
 def _number(name: str, label: str, kind, default, low, high) -> QgsProcessingParameterNumber:
@@ -46,3 +49,16 @@ def image_size() -> QgsProcessingParameterNumber:
 
 def output_folder() -> QgsProcessingParameterFolderDestination:
     return QgsProcessingParameterFolderDestination(OUTPUT_FOLDER, tr("Output folder"))
+
+
+def region_parameters() -> list[QgsProcessingParameterNumber]:
+    """STRIPS, PRODUCTS_PER_STRIP, SIDE_LAP, FORWARD_OVERLAP, TIES_PER_PRODUCT (defaults of
+    simulation.region.RegionLayout and simulation.rpcregion.RegionSettings; limits of the layout's checks)."""
+    whole, share = QgsProcessingParameterNumber.Integer, QgsProcessingParameterNumber.Double
+    return [_number(STRIPS, tr("Region: strips"), whole, 3, 1, 1000),
+            _number(PRODUCTS_PER_STRIP, tr("Region: products per strip"), whole, 4, 1, 1000),
+            _number(SIDE_LAP, tr("Region: side-lap (share of a product's width)"), share, 0.2, 0.02, 0.6),
+            _number(FORWARD_OVERLAP, tr("Region: forward overlap (share of a product's length)"), share, 0.15, 0.02,
+                    0.6),
+            _number(TIES_PER_PRODUCT, tr("Region without images: tie observations per product"), whole, 2000, 0,
+                    1_000_000)]

@@ -108,7 +108,8 @@ def block_datum(table: GcpTable, settings: AdjustmentSettings, ties: TieTable | 
     images = len(scene.rpc_images())
     return datum(np.unique(table.id[table.role == "control"]).size,
                  settings.position_sigma if trajectories else None, settings.attitude_sigma if trajectories else None,
-                 *datum_lines(lines), rpc_images=images, rpc_sigma=settings.rpc_sigma if images else None)
+                 *datum_lines(lines), rpc_images=images, rpc_sigma=settings.rpc_sigma if images else None,
+                 tie_height_sigma=settings.tie_height_sigma)
 
 
 def _check_seen_by_scene(scene: SceneModel, control: GcpTable) -> None:

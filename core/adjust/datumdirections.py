@@ -24,7 +24,10 @@ of its amplitude) is tested at the final linearisation:
    dp' N_obs dp (the reduced normal matrix of the image observations, every ground point free to
    follow, control points held by their own priors) against the priors' dp' N_prior dp (every
    pseudo-observation: trajectory, RPC correction, weighted interior and the minimal prior). Below
-   LEFT times the priors' information, the direction is left to the priors.
+   LEFT times the priors' information, the direction is left to the priors. With a reference DEM
+   holding the tie points' heights (:mod:`core.adjust.tieheights`) its rows count among the
+   observations; a direction the image observations alone leave to the priors and the DEM's rows
+   hold is named as held by the reference DEM.
 
 For the directions left to the priors: the priors' sigma along each (jointly, from
 (D' N_prior D)^-1 of their dp, in metres of the move's amplitude and in px of the largest image
@@ -50,7 +53,7 @@ import numpy as np
 from scipy import sparse
 
 from ..geodesy import ecef_to_geodetic, enu_rotation
-from .normal import Linearization, System, assemble
+from .normal import GroundPrior, Linearization, System, assemble
 from .problem import Problem
 
 log = logging.getLogger(__name__)
@@ -159,6 +162,8 @@ def datum_directions(problem: Problem, lin: Linearization, system: System) -> li
         return []
     d = dp[followed]
     info_obs = _quadratic(d, assemble(lin, system.prior, n, problem.groups).N)
+    info_images = info_obs if problem.ties.heights is None else \
+        _quadratic(d, assemble(lin, _without_heights(problem, system.prior), n, problem.groups).N)
     cov = np.linalg.pinv(d @ n_prior @ d.T)  # (l, l) m^2: the priors' covariance of the directions followed
     sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     # px: the largest image displacement of one sigma along each (the others moving with it as the
@@ -174,10 +179,18 @@ def datum_directions(problem: Problem, lin: Linearization, system: System) -> li
                 "rotation about the vertical": f"at {extent['radius_m']:.0f} m from the tie points' centre",
                 "horizontal scale": f"at {extent['radius_m']:.0f} m from the tie points' centre"}
     return [{"direction": MOVES[k], "measure": measures.get(MOVES[k], ""),
-             "held_by": "priors" if info_obs[j] < LEFT * info_prior[k] else "ties",
+             "held_by": "priors" if info_obs[j] < LEFT * info_prior[k] else
+             "reference DEM" if info_images[j] < LEFT * info_prior[k] else "ties",
              "unfollowed_share": float(miss[k]), "prior_sigma_m": float(sigma[j]), "prior_sigma_px": float(px_sigma[j]),
              "ties_sigma_m": float(1.0 / np.sqrt(info_obs[j])) if info_obs[j] > 0 else None,
              "moved_m": float(moved[j]), "moved_px": float(moved[j] * px_metre[j])} for j, k in enumerate(followed)]
+
+
+def _without_heights(problem: Problem, prior: GroundPrior) -> GroundPrior:
+    """The ground prior ``prior`` without the tie points' height constraint (their rows zero)."""
+    weight = prior.weight.copy()
+    weight[problem.ground_point[problem.n_control:problem.line_first]] = 0.0
+    return GroundPrior(weight, prior.misfit)
 
 
 def _following(lin: Linearization, target: np.ndarray, n: int, obs_groups: list) -> np.ndarray:
@@ -229,7 +242,8 @@ def _figures(d: dict) -> str:
     """A direction's figures in words: what a metre is, the priors' sigma, the ties' where they hold
     it, and the move."""
     measure = f"{d['measure']}: " if d["measure"] else ""
-    ties = f", the ties' {d['ties_sigma_m']:.1f} m" if d["held_by"] == "ties" else ""
+    ties = {"ties": f", the ties' {d['ties_sigma_m']:.1f} m",
+            "reference DEM": f", the ties' and the reference DEM's {d['ties_sigma_m']:.1f} m"}.get(d["held_by"], "")
     return (f"{measure}the priors' sigma {d['prior_sigma_m']:.1f} m ({d['prior_sigma_px']:.1f} px){ties}; the tie "
             f"points moved {d['moved_m']:+.1f} m ({d['moved_px']:+.2f} px)")
 
@@ -240,16 +254,19 @@ def directions_sentence(directions: list[dict]) -> str:
     left = [f"the {d['direction']} ({_figures(d)})" for d in directions if d["held_by"] == "priors"]
     weak = [f"the {d['direction']} (through {100 * d['unfollowed_share']:.1f} % of its image displacement; "
             f"{_figures(d)})" for d in directions if d["held_by"] == "ties"]
+    dem = [f"the {d['direction']} ({_figures(d)})" for d in directions if d["held_by"] == "reference DEM"]
     parts = (["the ties leave to the priors " + ", ".join(left)] if left else []) + \
-        (["the ties determine only through what the corrections cannot follow " + ", ".join(weak)] if weak else [])
+        (["the ties determine only through what the corrections cannot follow " + ", ".join(weak)] if weak else []) + \
+        (["the reference DEM holds (the ties alone would leave them to the priors) " + ", ".join(dem)] if dem else [])
     return "; ".join(parts)
 
 
 def beyond_prior(directions: list[dict]) -> list[str]:
     """Warnings for the directions of :func:`datum_directions` the tie points moved along by more than
-    the priors' sigma: the priors allow less, and the observations hardly see that direction."""
+    the priors' sigma: the priors allow less, and the observations hardly see that direction (a
+    direction the reference DEM holds is no warning: the DEM moved them)."""
     return [f"the tie points moved {d['moved_m']:+.1f} m along the {d['direction']}"
             f"{' (' + d['measure'] + ')' if d['measure'] else ''}, more than the priors' sigma there "
             f"({d['prior_sigma_m']:.1f} m), which the tie points {'do not' if d['held_by'] == 'priors' else 'hardly'} "
             "determine: add control points (RPC products: or a correction the ties determine, RPC_CORRECTION=shift)"
-            for d in directions if abs(d["moved_m"]) > d["prior_sigma_m"]]
+            for d in directions if abs(d["moved_m"]) > d["prior_sigma_m"] and d["held_by"] != "reference DEM"]

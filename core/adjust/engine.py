@@ -37,6 +37,7 @@ from .results import AdjustmentResult, result_of
 from .rpcbias import RpcProblem
 from .selection import conventional_instead, interior_free, select_interior
 from .settings import AdjustmentSettings
+from .tieheights import reference_of
 from .ties import TieSetUp, set_up_ties
 
 log = logging.getLogger(__name__)
@@ -93,7 +94,11 @@ def adjust_checked(scene: SceneModel, table: GcpTable, settings: AdjustmentSetti
     is_cancelled = is_cancelled or (lambda: False)
     held = block_datum(table, settings, ties, lines, scene)
     progress(0.02, "setting up the observations")
-    tie_set = set_up_ties(scene, ties) if ties is not None and len(ties) else TieSetUp.empty()
+    if settings.tie_height_sigma is not None and (ties is None or not len(ties)):
+        raise InputError("TIE_HEIGHT_SIGMA holds the tie points' heights to the reference DEM: give TIE_POINTS",
+                         parameter="settings.tie_height_sigma")
+    tie_set = set_up_ties(scene, ties, reference_of(settings.dem, settings.dem_datum, settings.tie_height_sigma)) \
+        if ties is not None and len(ties) else TieSetUp.empty()
     problem = scene.answer(_ProblemOf(table, settings, tie_set, set_up_lines(scene, lines)))
     if problem.rpc_choice is not None:
         log.info("%s", problem.rpc_choice["sentence"])

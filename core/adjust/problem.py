@@ -13,9 +13,8 @@ from functools import cached_property
 
 import numpy as np
 
-from ..errors import ConvergenceError, InputError
+from ..errors import ConvergenceError
 from ..geodesy import enu_rotations, geodetic_to_ecef
-from ..model.sensor import SceneModel
 from ..model.timebasis import TimeBasis
 from ..observations.gcps import GcpTable
 from . import linepoints
@@ -25,6 +24,8 @@ from .normal import GroundPrior, Linearization, System, assemble, back_substitut
 from .parameters import ANGLES, CAMERA_TERMS, ParameterSet, trajectory_groups
 from .scenesigmas import camera_scene
 from .settings import AdjustmentSettings
+from .startvalues import start_from_existing_correction
+from .tieheights import TIE_HEIGHT_GROUP, HeightConstraint
 from .ties import TieSetUp, camera_indices
 
 
@@ -110,7 +111,7 @@ class Problem:
             [TimeBasis.covering(settings.attitude_model, *span, settings.attitude_order, settings.attitude_interval)
              for span in spans],
             settings.interior, per_camera=settings.camera_trajectory == "per_camera")
-        _start_from_existing_correction(scene, params)
+        start_from_existing_correction(scene, params)
         # GCP observations, then tie observations (their points after the GCPs'), then line points
         kind = np.repeat([0, 1, 2], [control.size, len(ties), len(lines)])
         self.imaging = Imaging(scene, params)
@@ -200,7 +201,8 @@ class Problem:
                     return None, unit
                 return float(np.median([self.correction_sigma(block, o)
                                         for o in range(len(self.params.bases[block]))])), unit
-        return {RPC_PRIOR_GROUP: (s.rpc_sigma, "px")}.get(group, (None, ""))
+        stated = {RPC_PRIOR_GROUP: (s.rpc_sigma, "px"), TIE_HEIGHT_GROUP: (s.tie_height_sigma, "m")}
+        return stated.get(group, (None, ""))
 
     # --- unknowns and their columns -------------------------------------------------------
     def _set_up_ground(self, table: GcpTable, sel: np.ndarray, tie_ground: np.ndarray | None = None,
@@ -231,10 +233,12 @@ class Problem:
         self.ground_point[self.estimated] = np.arange(self.estimated.size)
 
     def counts(self) -> tuple[int, int]:
-        """(equations, unknowns): image rows, ground priors and pseudo-observations against the
-        free parameters and the ground unknowns."""
+        """(equations, unknowns): image rows, ground priors, the tie points' heights held to a reference
+        DEM (one row each) and pseudo-observations against the free parameters and the ground unknowns."""
+        heights = self.tie_heights()
         n_eq = 2 * len(self.obs) + 3 * self.enu.shape[0] + 2 * len(self.lines) + \
-            sum(p.B.shape[0] for p in self.pseudo() if p.group != HELD_GROUP)
+            sum(p.B.shape[0] for p in self.pseudo() if p.group != HELD_GROUP) + \
+            (int(heights.on.sum()) if heights is not None else 0)
         return n_eq, int(self.params.free.size) + 3 * int(self.estimated.size)
 
     def structure(self) -> None:
@@ -323,18 +327,28 @@ class Problem:
 
     def ground_prior(self) -> GroundPrior | None:
         """The ground unknowns' prior: the weighted control points' stated weights, zero for tie
-        points, the rank-2 line constraints at the current ground for line points (the nearest
-        segment refreshed) (None without ground unknowns)."""
+        points or (a reference DEM) their rank-1 height constraint at the current ground
+        (:meth:`tie_heights`), the rank-2 line constraints at the current ground for line points (the
+        nearest segment refreshed) (None without ground unknowns)."""
         if self.estimated.size == 0:
             return None
         weight = np.concatenate([self.ground_weight, np.zeros((self.estimated.size - self.enu.shape[0], 3, 3))])
         misfit = (self.ground - self.ground0)[self.estimated]
+        heights = self.tie_heights()
+        if heights is not None:
+            ties = self.ground_point[self.n_control:self.line_first]
+            weight[ties], misfit[ties] = heights.weight, heights.misfit
         if len(self.lines):
             c = self.lines.constraints(self.line_ground(), self.scale, self.line_flagged)
             weight[-len(self.lines):], misfit[-len(self.lines):] = c.weight, c.misfit
             self.line_association = (self.line_ground().copy(), c.weight, c.misfit, dict(self.scale),
                                      self.line_flagged.copy())
         return GroundPrior(weight, misfit)
+
+    def tie_heights(self) -> HeightConstraint | None:
+        """The tie points' height constraint at their current ground (None: no reference DEM)."""
+        reference = self.ties.heights
+        return None if reference is None else reference.at(self.ground[self.n_control:self.line_first])
 
     def line_cost(self) -> float:
         """The line constraints' weighted squared misfits at the current ground. Within one
@@ -369,6 +383,8 @@ class Problem:
             c += float(np.einsum("mi,mij,mj->", e, self.ground_weight, e))
         if len(self.lines):
             c += self.line_cost()
+        if self.ties.heights is not None:
+            c += self.tie_heights().cost
         values = self.params.values()
         return c + sum(float(np.sum(p.weight * p.misfit(values) ** 2)) for p in self.pseudo())
 
@@ -470,30 +486,3 @@ class Pseudo:
         taken once by the caller for every pseudo-observation, not once per pseudo-observation)."""
         return self.B @ values[self.index]
 
-
-def _start_from_existing_correction(scene: SceneModel, params: ParameterSet) -> None:
-    """Re-adjusting an adjusted scene starts from its correction(s) when the models agree: a
-    shared correction starts every camera's of a per-camera run; corrections per camera
-    cannot start a shared one."""
-    platform = scene.platform
-    position, attitude = params.block_values("position"), params.block_values("attitude")
-    for o, cams in enumerate(params.owners):
-        starts = [platform.for_camera(scene.cameras[c].name).correction for c in cams]
-        if any(corr is not starts[0] for corr in starts):
-            own = [scene.cameras[c].name for c in cams]
-            raise InputError(f"the scene was adjusted with a trajectory correction per camera ({', '.join(own)}); "
-                             "adjust it again with one correction per camera, or adjust the original (onboard) "
-                             "scene", parameter="scene")
-        corr = starts[0]
-        if corr is None:
-            continue
-        if corr.position.to_dict() != params.bases["position"][o].to_dict() or \
-                corr.attitude.to_dict() != params.bases["attitude"][o].to_dict():
-            raise InputError("the scene was adjusted with another trajectory model; adjust the original (onboard) "
-                             "scene, or choose the same model and interval", parameter="scene")
-        position[params.owner_rows("position", o)] = corr.position_coefficients
-        attitude[params.owner_rows("attitude", o)] = corr.attitude_coefficients
-    values = params.values()
-    values[params.block_indices("position")] = position
-    values[params.block_indices("attitude")] = attitude
-    params.set_values(values)

@@ -76,7 +76,8 @@ def datum_sentence(rep: Mapping, article: str = "") -> str:
 
 def tie_point_lines(ties: dict) -> list[tuple[str, bool]]:
     """The tie-point figures of ``report["tie_points"]`` as (sentence, is_warning): points and
-    observations used, those left out and why, flagged observations, image residual RMS per camera."""
+    observations used, those left out and why, flagged observations, image residual RMS per camera,
+    and their heights held to a reference DEM (how many, how many left free off it, their fit)."""
     lines = [(f"tie points: {ties['points']} points, {ties['observations']} of {ties['input_observations']} "
               f"observations used; {ties['flagged']} observations flagged as gross errors", False)]
     for reason, left in ties.get("left_out", {}).items():
@@ -88,6 +89,9 @@ def tie_point_lines(ties: dict) -> list[tuple[str, bool]]:
                         for cam, r in ties["residuals_per_camera"].items() if r.get("count"))
         lines.append((f"tie residuals RMSE col / row {res['rmse_col']:.3f} / {res['rmse_row']:.3f} px "
                        f"(largest {res['max']:.2f} px, flagged left out); per camera: {per}", False))
+    heights = ties.get("heights")
+    if heights:  # held to a reference DEM (core.adjust.tieheights); points off it or on its holes are free
+        lines.append((heights["sentence"], bool(heights["off_dem"] + heights["on_holes"])))
     return lines
 
 

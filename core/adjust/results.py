@@ -190,6 +190,11 @@ def _tie_points(problem: Problem, st: Statistics, flagged: np.ndarray, good: np.
               "relative_accuracy": "image residuals of the tie observations (px, flagged ones left out) measure the "
                                    "block's relative accuracy; the tie points' adjusted ground positions carry the "
                                    "datum's error as well and are no absolute accuracy figure"}
+    heights = problem.tie_heights()
+    if heights is not None:  # held to a reference DEM (core.adjust.tieheights)
+        counts = heights.counts()
+        report["heights"] = {**counts, "dem": problem.ties.heights.surface.path,
+                             "sentence": problem.ties.heights.sentence(counts)}
     return report, out
 
 

@@ -107,6 +107,7 @@ from scipy import stats
 
 from .problem import RPC_PRIOR_GROUP, TIE_GROUP, Problem
 from .statistics import Statistics, line_group_sums
+from .tieheights import TIE_HEIGHT_GROUP
 
 log = logging.getLogger(__name__)
 
@@ -291,14 +292,15 @@ TRAJECTORY_PSEUDO_GROUPS = ("position pseudo-observations", "attitude pseudo-obs
 
 def datum_groups(problem: Problem) -> set[str]:
     """The onboard pseudo-observation groups (and the RPC images' prior) that alone hold the datum (no control point, no
-    control line: tie points fix the block's shape, nothing else where it lies). Their factors are
-    not estimated: their residuals measure only how far the ties pull the block from the onboard
-    data, so a factor from them would loosen the datum pass after pass (a block of 5 scenes with
-    2000 tie points: the position factor swung by 60-160 % per pass and the solution crept along
-    the loosened datum without converging)."""
+    control line: tie points fix the block's shape, nothing else where it lies), and the tie points'
+    heights above a reference DEM (:mod:`core.adjust.tieheights`), which hold the vertical datum at the
+    DEM's stated accuracy. Their factors are not estimated: their residuals measure only how far the
+    ties pull the block from the onboard data, so a factor from them would loosen the datum pass after
+    pass (a block of 5 scenes with 2000 tie points: the position factor swung by 60-160 % per pass and
+    the solution crept along the loosened datum without converging)."""
     if problem.n_control or len(problem.lines):
-        return set()
-    return {*TRAJECTORY_PSEUDO_GROUPS, RPC_PRIOR_GROUP}
+        return {TIE_HEIGHT_GROUP}
+    return {*TRAJECTORY_PSEUDO_GROUPS, RPC_PRIOR_GROUP, TIE_HEIGHT_GROUP}
 
 
 def rescale(problem: Problem, comps: dict, kappa: float, joint: list[tuple[str, ...]] = (),

@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from ..rotations import ARCSEC
+from .tieheights import TIE_HEIGHT_SIGMA_RANGE
 
 ROBUST = ("none", "selection", "snooping")
 # Plausible onboard sigmas (low, high, unit): from far better than any onboard GNSS / star tracker (0.1 mm,
@@ -22,7 +23,8 @@ RPC_CORRECTIONS = ("auto", "shift", "drift", "affine")  # auto: core.adjust.rpcb
 PARAMETERS = {"position_sigma": "POSITION_SIGMA", "attitude_sigma": "ATTITUDE_SIGMA", "rpc_sigma": "RPC_SIGMA",
               "scene_sigmas": "SCENE_SIGMAS", "ground": "GROUND", "robust": "ROBUST", "alpha": "ALPHA",
               "camera_trajectory": "CAMERA_TRAJECTORY", "on_singular": "ON_SINGULAR",
-              "rpc_correction": "RPC_CORRECTION", "interior_selection": "INTERIOR_SELECTION"}
+              "rpc_correction": "RPC_CORRECTION", "interior_selection": "INTERIOR_SELECTION", "dem": "DEM",
+              "dem_datum": "DEM_DATUM", "tie_height_sigma": "TIE_HEIGHT_SIGMA"}
 
 
 @dataclass
@@ -60,6 +62,9 @@ class AdjustmentSettings:
     scene's pseudo-observations or prior (a block mixes products of different accuracy); a key left
     out keeps the global value. Only where the global sigma is given (it decides how the datum is
     held), see :func:`core.adjust.scenesigmas.check_scene_sigmas`.
+    dem, dem_datum, tie_height_sigma (m): a reference DEM (file; its heights 'geoid' EGM96 or
+    'ellipsoid') that holds the tie points' heights at its stated accuracy tie_height_sigma
+    (:mod:`core.adjust.tieheights`); '' and None: none.
     """
     position_model: str = "polynomial"
     position_order: int = 1
@@ -82,6 +87,9 @@ class AdjustmentSettings:
     rpc_sigma: float | None = None
     interior_selection: str = "significant"
     scene_sigmas: dict[str, dict[str, float]] = field(default_factory=dict)
+    dem: str = ""
+    dem_datum: str = "geoid"
+    tie_height_sigma: float | None = None
 
     def sigma(self, name: str, scene: str = "") -> float | None:
         """The sigma ``name`` (one of SCENE_SIGMA_KEYS; m, rad or px) of block scene ``scene``: its
@@ -109,10 +117,30 @@ class AdjustmentSettings:
                              f"(got {self.rpc_correction!r})",
                              parameter="settings.rpc_correction")
         self._validate_scene_sigmas()
+        self._validate_reference()
         if self.interior_selection not in SELECTION:
             raise InputError(f"INTERIOR_SELECTION must be one of {', '.join(SELECTION)} "
                              f"(got {self.interior_selection!r})", parameter="settings.interior_selection")
 
+    def _validate_reference(self) -> None:
+        """DEM and TIE_HEIGHT_SIGMA go together; the sigma within TIE_HEIGHT_SIGMA_RANGE."""
+        low, high = TIE_HEIGHT_SIGMA_RANGE
+        if self.tie_height_sigma is not None and not self.dem:
+            raise InputError("TIE_HEIGHT_SIGMA holds the tie points' heights to a reference DEM: give the DEM",
+                             parameter="settings.dem")
+        if self.dem and self.tie_height_sigma is None:
+            raise InputError(f"a reference DEM ({self.dem}) needs its stated accuracy TIE_HEIGHT_SIGMA (m): e.g. "
+                             "about 5 m for Copernicus GLO-30 or SRTM on moderate relief",
+                             parameter="settings.tie_height_sigma")
+        value = self.tie_height_sigma
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float)) or
+                                  not low <= value <= high):
+            raise InputError(f"TIE_HEIGHT_SIGMA must be between {low:g} and {high:g} m (got "
+                             f"{self.tie_height_sigma!r}): the stated accuracy of the reference DEM's heights",
+                             parameter="settings.tie_height_sigma")
+        if self.dem_datum not in ("geoid", "ellipsoid"):
+            raise InputError(f"DEM_DATUM must be 'geoid' or 'ellipsoid' (got {self.dem_datum!r})",
+                             parameter="settings.dem_datum")
 
     def _validate_scene_sigmas(self) -> None:
         """scene_sigmas: a dict of scene name -> {key of SCENE_SIGMA_KEYS: number}, each within the

@@ -13,6 +13,7 @@ from .linepoints import ACROSS_GROUP, HEIGHT_GROUP
 from .normal import Linearization, System, point_blocks
 from .problem import Problem
 from .sparsenormal import block_pattern, factorise, on_pattern, selected_inverse
+from .tieheights import TIE_HEIGHT_GROUP
 
 GROUND_GROUPS = ("ground_xy", "ground_z", ACROSS_GROUP, HEIGHT_GROUP)  # the groups of the ground points' priors
 BLOCK_NUMBERS = 5_000_000  # numbers in one batch of per-point blocks (40 MB)
@@ -78,6 +79,7 @@ def statistics(problem: Problem, lin: Linearization, system: System) -> Statisti
     v = lin.r
     # the line points are the last ground unknowns
     lines = line_statistics(problem, qgg[qgg.shape[0] - len(problem.lines):]) if len(problem.lines) else None
+    heights = problem.tie_heights()
     ground_pvv, r_g = np.zeros((0, 3)), np.zeros((0, 3))
     if problem.weighted and problem.n_control:
         # the weighted control points are the first ground unknowns
@@ -94,6 +96,8 @@ def statistics(problem: Problem, lin: Linearization, system: System) -> Statisti
         hp = np.einsum("kq,qr,kr->k", p.B, cofactor_block(Q, cols, cols), p.B) * p.weight
         old = pseudo.get(p.group, (0.0, 0.0, 0))
         pseudo[p.group] = (old[0] + float(np.sum(p.weight * m * m)), old[1] + float(np.sum(1 - hp)), old[2] + m.size)
+    if heights is not None:  # the tie points' heights above the reference DEM (core.adjust.tieheights)
+        pseudo[TIE_HEIGHT_GROUP] = heights.sums(qgg[problem.ground_point[problem.n_control:problem.line_first]])
     total_rows, total_unknowns = problem.counts()
     dof = float(total_rows - total_unknowns)
     if dof <= 0:

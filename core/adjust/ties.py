@@ -3,7 +3,8 @@ and how the datum of a block with few or no GCPs is held.
 
 A tie point is a ground point of unknown position measured in two or more cameras (or
 scenes of a strip). It enters the adjustment as three ground unknowns without a prior
-(zero ground weight), eliminated per point like a weighted GCP (:mod:`core.adjust.normal`),
+(zero ground weight; with a reference DEM a prior on its height alone, :mod:`core.adjust.tieheights`),
+eliminated per point like a weighted GCP (:mod:`core.adjust.normal`),
 started from the forward intersection of its onboard rays (:mod:`core.intersection`).
 A point seen once carries no geometric information (its ray fixes no ground position), and a
 point whose a-priori intersection fails (NaN) has no start value: both are left out, named.
@@ -28,6 +29,7 @@ from ..observations.tiepoints import TieTable
 from ..observations.tables import listed
 from ..rotations import ARCSEC
 from .parameters import ParameterSet
+from .tieheights import TieHeights
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +49,8 @@ class TieSetUp:
     (forward intersection on the input scene); left_out: reason -> ids of the points left out
     (``single_ray``: seen by one camera; ``not_intersected``: a-priori intersection failed);
     before (n, 2) px: every input observation's residual (col, row) at that intersection,
-    through the input scene (NaN for points left out)."""
+    through the input scene (NaN for points left out); heights: the reference DEM that holds
+    their heights (:mod:`core.adjust.tieheights`; None: none)."""
     table: TieTable
     rows: np.ndarray
     camera: np.ndarray
@@ -56,6 +59,7 @@ class TieSetUp:
     ground: np.ndarray
     left_out: dict
     before: np.ndarray
+    heights: TieHeights | None = None
 
     @classmethod
     def empty(cls) -> "TieSetUp":
@@ -119,9 +123,10 @@ def check_ties(scene: SceneModel, ties: TieTable, gcp_ids: np.ndarray) -> None:
                          "ground position: give it another id, or measure it as a GCP", parameter="ties")
 
 
-def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
-    """The tie observations used and their points' start values (see the module docstring);
-    warns naming the points left out and why."""
+def set_up_ties(scene: SceneModel, ties: TieTable | None, heights: TieHeights | None = None) -> TieSetUp:
+    """The tie observations used and their points' start values (see the module docstring), their
+    heights held to the reference DEM ``heights`` (None: not); warns naming the points left out and
+    why."""
     if ties is None or len(ties) == 0:
         return TieSetUp.empty()
     ids, point = ties.points()
@@ -140,7 +145,9 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
     new_index = np.cumsum(keep) - 1
     rows = np.nonzero(keep[point])[0]
     out = TieSetUp(ties, rows, camera[rows], new_index[point[rows]], ids[keep], start.ground[keep], left_out,
-                   start.residuals)
+                   start.residuals, heights)
+    if heights is not None:
+        heights.check_covers(out.ground)
     span = out.span(scene)
     if span is not None and max(span) < BUNCHED:
         log.warning("the tie points cover only %.0f%% x %.0f%% of the %s image (one corner): they tie the block "
@@ -150,17 +157,19 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None) -> TieSetUp:
 
 
 RPC_PRIOR = "RPC correction priors"  # the datum source of settings.rpc_sigma
+REFERENCE_DEM = "reference DEM"  # the datum source of settings.tie_height_sigma (the tie points' heights)
 
 
 def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | None,
           n_lines: int = 0, lines_determined: bool = False, rpc_images: int = 0,
-          rpc_sigma: float | None = None) -> dict:
+          rpc_sigma: float | None = None, tie_height_sigma: float | None = None) -> dict:
     """How the datum (shift X/Y/Z, roll, pitch, yaw, scale) of a block with tie points is held,
     for ``n_control`` control points (at least 3 are checked for spread elsewhere), ``n_lines``
     control lines (``lines_determined``: their directions determine both horizontal directions,
     :func:`core.lines.direction_check`), the onboard pseudo-observations (sigmas None: none; a
     block of RPC images alone has none) and, for a block with ``rpc_images`` RPC images, the prior
-    on their corrections (``rpc_sigma``, px: the vendor's stated accuracy). Raises InputError
+    on their corrections (``rpc_sigma``, px: the vendor's stated accuracy) and a reference DEM holding
+    the tie points' heights (``tie_height_sigma``, m; :mod:`core.adjust.tieheights`). Raises InputError
     naming the components nothing holds and the setting that would.
 
     Control points: 3 or more well spread hold all; 2 all but the rotation about the line
@@ -173,7 +182,8 @@ def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | 
     (off that line), lines or the attitude. Onboard attitude holds the three rotations. The RPC
     images' prior holds all: a move of the whole block moves every image's ground, which their
     corrections would have to follow (tie points alone leave the common part of the images'
-    shifts, and with drift or affine terms their common rotation and scale, free)."""
+    shifts, and with drift or affine terms their common rotation and scale, free). A reference DEM
+    holds the height shift and the tilts (roll, pitch) of the tie points' heights."""
     held: dict[str, list[str]] = {c: [] for c in SHIFTS + ROTATIONS + SCALE}
     extra_missing = []
 
@@ -193,6 +203,8 @@ def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | 
         hold("onboard attitude", ROTATIONS)
     if rpc_images and rpc_sigma is not None:
         hold(RPC_PRIOR, SHIFTS + ROTATIONS + SCALE)
+    if tie_height_sigma is not None:
+        hold(REFERENCE_DEM, SHIFTS[2:] + ROTATIONS[:2])
     if n_control == 2 and position_sigma is None and attitude_sigma is None and not (n_lines and lines_determined) \
             and not (rpc_images and rpc_sigma is not None):
         extra_missing.append("rotation about the line through the 2 control points")
@@ -204,13 +216,16 @@ def datum(n_control: int, position_sigma: float | None, attitude_sigma: float | 
                                         ("control lines", "control lines" in sources),
                                         ("onboard pseudo-observations", any(s.startswith("onboard") for s in sources)),
                                         (f"{RPC_PRIOR} ({rpc_sigma} px, the RPC images' stated accuracy)",
-                                         RPC_PRIOR in sources))
+                                         RPC_PRIOR in sources),
+                                        (f"{REFERENCE_DEM} ({tie_height_sigma:g} m, TIE_HEIGHT_SIGMA)"
+                                         if tie_height_sigma is not None else "", REFERENCE_DEM in sources))
              if present]
     by = named[0] if len(named) == 1 else ", ".join(named[:-1]) + " and " + named[-1]
     out = {"held_by": by, "control_points": n_control, "control_lines": n_lines, "components": held}
     absolute = " and ".join(filter(None, (
         "the onboard orbit and attitude (the pseudo-observations' sigmas)" if position_sigma or attitude_sigma else "",
-        "the RPC images' stated accuracy (RPC_SIGMA)" if RPC_PRIOR in sources else "")))
+        "the RPC images' stated accuracy (RPC_SIGMA)" if RPC_PRIOR in sources else "",
+        "in height the reference DEM's (TIE_HEIGHT_SIGMA)" if REFERENCE_DEM in sources else "")))
     if not n_control and not n_lines:
         out["note"] = ("no control points: the tie points fix the block's relative geometry only; its absolute "
                        f"accuracy is that of {absolute}")

@@ -11,21 +11,27 @@ image's grid points, so a ground point seen by k images is chained through them
 
 Each pair's counts are reported (:class:`PairReport`: grid points, matched, rejected by reason,
 refused in inconsistent chains), and the pairs with fewer than ``min_ties`` chained ties are named
-in the log. Pairs are matched one after the other here; each is also a picklable job
-(:class:`PairJob`, :func:`run_pair_job`: the same matching, the DEM reopened by the worker), so
-that a later step can run them on local processes or a Dask cluster (as core.products.orthojobs).
+in the log. Each pair is a picklable job (:class:`PairJob`, :func:`run_pair_job`: the same
+matching, the DEM reopened by whoever runs it), run on this machine's threads or one after the
+other (:func:`run_pair_jobs`), or on a Dask cluster (core.products.orthojobs.map_on_scheduler),
+where the scenes travel as their files: the same ties to the bit whichever runs them.
 """
 from __future__ import annotations
 
 import logging
+import os
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, replace
+from functools import lru_cache
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from ..dem import ConstantHeight, Dem
 from ..errors import Cancelled, InputError
-from ..observations.tiechains import CHAIN_TOLERANCE_PX, ChainResult, PairTies, chain_pairs
+from ..formats import load_scene
+from ..observations.tiechains import ChainResult, PairTies, chain_pairs
 from ..products.footprint import footprints
 from ..products.orthojobs import map_on_scheduler, surface_description
 from ..products.overlaps import (Outline, OverlapGraph, disconnection, overlap_graph, refuse_disconnected,
@@ -38,6 +44,13 @@ log = logging.getLogger(__name__)
 
 MIN_PAIR_TIES = 20            # chained ties below which a pair is named as weakly tied
 FOOTPRINT_SAMPLES = 32        # outline points per image edge for the overlap graph
+# px: one image's observations of a chain closer than this are one. Every pair of one first image
+# shares its grid to the bit, the only positions of one ground point that meet; another image's
+# matched position falls near a grid point of a later pair by chance, and merging two ground points
+# 1 px apart (CHAIN_TOLERANCE_PX) averaged them: measured 0.48 px off the truth in the rendered
+# tri-stereo of tests/qgis/test_matchtiepoints_block.py. Below the matching's precision (~0.02 px
+# median) a chance meeting costs at most half of it.
+PAIR_CHAIN_TOLERANCE_PX = 0.05
 
 
 @dataclass(frozen=True)
@@ -110,17 +123,21 @@ def match_pair(first: View, second: View, dem, settings: MatchSettings, overlap_
 
 
 def match_overlap_graph(views: list[View], graph: OverlapGraph, dem, settings: MatchSettings = MatchSettings(),
-                        min_ties: int = MIN_PAIR_TIES, tolerance_px: float = CHAIN_TOLERANCE_PX,
+                        min_ties: int = MIN_PAIR_TIES, tolerance_px: float = PAIR_CHAIN_TOLERANCE_PX,
                         scheduler: str = "", progress: Callable[[float, str | None], None] | None = None,
-                        is_cancelled: Callable[[], bool] | None = None) -> tuple[ChainResult, list[PairReport]]:
+                        is_cancelled: Callable[[], bool] | None = None, processes: int = 0,
+                        scene_files: dict | None = None) -> tuple[ChainResult, list[PairReport]]:
     """Match every pair of ``graph`` (over ``views``, in the graph's names order) as
-    :class:`PairJob` s, in this process or on the Dask scheduler at ``scheduler`` (an address,
-    e.g. tcp://host:8786; '' for this process), and chain the ties. Returns the chained tie points
-    and each pair's report (refused_in_chains filled in). InputError when ``graph`` does not name
-    ``views``, or when no pair gives a tie, with every pair's reasons."""
+    :class:`PairJob` s, on ``processes`` local processes (:func:`run_pair_jobs`) or on the Dask
+    scheduler at ``scheduler`` (an address, e.g. tcp://host:8786; the views whose scene name
+    ``scene_files`` holds travel there as their files: :func:`pair_jobs`), and chain the ties.
+    Returns the chained tie points and each pair's report (refused_in_chains filled in).
+    InputError when ``graph`` does not name ``views``, or when no pair gives a tie, with every
+    pair's reasons."""
     if list(graph.names) != [v.label for v in views]:
         raise InputError("the overlap graph is not the given views'", parameter="scenes")
-    results = run_pair_jobs(pair_jobs(views, graph, dem, settings), scheduler, progress, is_cancelled)
+    jobs = pair_jobs(views, graph, dem, settings, scene_files if scheduler else None)
+    results = run_pair_jobs(jobs, scheduler, progress, is_cancelled, processes)
     ties, reports = [t for t, _ in results], [r for _, r in results]
     if not any(len(t) for t in ties):
         raise InputError("no tie point matched in any overlapping pair: "
@@ -138,47 +155,100 @@ def match_overlap_graph(views: list[View], graph: OverlapGraph, dem, settings: M
 
 
 @dataclass(frozen=True)
+class SceneFileView:
+    """A view as a job carries it to another process: its scene's file (read there, once per
+    process: :func:`scene_of_file`) instead of the scene model (megabytes per job)."""
+    scene_name: str
+    scene_file: str
+    camera: int
+    image: Path
+    label: str
+
+    def view(self) -> View:
+        return View(self.scene_name, scene_of_file(self.scene_file), self.camera, self.image)
+
+
+@lru_cache(maxsize=64)
+def scene_of_file(path: str):
+    """The scene of the file ``path`` (:func:`core.formats.load_scene`), read once per process."""
+    return load_scene(path)
+
+
+@dataclass(frozen=True)
 class PairJob:
     """One pair as a picklable job for another process or machine (this package importable, the
-    images and the DEM reachable at the same paths): the two views (their scene models pickle
-    whole), the terrain as :func:`core.products.orthojobs.surface_description`, the settings and
-    the pair's overlap (km²)."""
-    first: View
-    second: View
+    images, the scene files and the DEM reachable at the same paths): the two views (each a View,
+    its scene model pickling whole, or a :class:`SceneFileView`), the terrain as
+    :func:`core.products.orthojobs.surface_description`, the settings and the pair's overlap (km²)."""
+    first: View | SceneFileView
+    second: View | SceneFileView
     surface: dict
     settings: MatchSettings
     overlap_km2: float = 0.0
 
 
-def pair_jobs(views: list[View], graph: OverlapGraph, dem, settings: MatchSettings) -> list[PairJob]:
-    """The jobs of every pair of ``graph`` (over ``views``), in the graph's pair order."""
-    return [PairJob(views[a], views[b], surface_description(dem), settings, float(area))
+def pair_jobs(views: list[View], graph: OverlapGraph, dem, settings: MatchSettings,
+              scene_files: dict | None = None) -> list[PairJob]:
+    """The jobs of every pair of ``graph`` (over ``views``), in the graph's pair order; a view whose
+    scene name ``scene_files`` {scene name: the file its scene was read from, unchanged} holds
+    travels as that file (:class:`SceneFileView`)."""
+    files = scene_files or {}
+    light = [SceneFileView(v.scene_name, str(Path(files[v.scene_name]).absolute()), v.camera, v.image, v.label)
+             if v.scene_name in files else v for v in views]
+    return [PairJob(light[a], light[b], surface_description(dem), settings, float(area))
             for (a, b), area in zip(graph.pairs, graph.area_km2)]
 
 
 def run_pair_job(job: PairJob, progress: Callable[[float, str | None], None] | None = None,
                  is_cancelled: Callable[[], bool] | None = None) -> tuple[PairTies, PairReport]:
-    """:func:`match_pair` of ``job``, the terrain reopened from its description."""
+    """:func:`match_pair` of ``job``, the terrain reopened from its description (the scenes read
+    from their files for :class:`SceneFileView` s)."""
     surface = (ConstantHeight(job.surface["height"]) if "height" in job.surface
                else Dem(job.surface["dem"], datum=job.surface["datum"]))
-    return match_pair(job.first, job.second, surface, job.settings, job.overlap_km2, progress, is_cancelled)
+    first, second = (v.view() if isinstance(v, SceneFileView) else v for v in (job.first, job.second))
+    return match_pair(first, second, surface, job.settings, job.overlap_km2, progress, is_cancelled)
 
 
-def run_pair_jobs(jobs: list[PairJob], scheduler: str = "", progress: Callable[[float, str | None], None] | None = None,
-                  is_cancelled: Callable[[], bool] | None = None) -> list[tuple[PairTies, PairReport]]:
-    """The results of ``jobs`` in their order: one after the other in this process ('' scheduler;
-    each pair's matching uses the settings' threads), or on the Dask scheduler at ``scheduler``
-    (the same function on its workers: the same results). Cancelled when ``is_cancelled``."""
+def run_pair_jobs(jobs: list[PairJob], scheduler: str = "",
+                  progress: Callable[[float, str | None], None] | None = None,
+                  is_cancelled: Callable[[], bool] | None = None,
+                  processes: int = 0) -> list[tuple[PairTies, PairReport]]:
+    """The results of ``jobs`` in their order: on the Dask scheduler at ``scheduler`` (the same
+    function on its workers: the same results), else on ``processes`` threads of this process (0:
+    one per core; :func:`map_on_threads`), or with 1 one after the other (each pair's matching then
+    uses the settings' threads). Cancelled when ``is_cancelled``."""
     report = progress or (lambda fraction, message=None: None)
     cancelled = is_cancelled or (lambda: False)
-    if not scheduler:
-        results = []
-        for n, job in enumerate(jobs):
-            if cancelled():
-                raise Cancelled("tie matching cancelled by the user")
-            results.append(run_pair_job(job, lambda f, msg=None, n=n: report((n + f) / len(jobs), msg), cancelled))
-        return results
-    return map_on_scheduler(scheduler, run_pair_job, jobs, lambda f: report(f, None), cancelled, "tie matching")
+    if scheduler:
+        return map_on_scheduler(scheduler, run_pair_job, jobs, lambda f: report(f, None), cancelled, "tie matching")
+    processes = min(processes or os.cpu_count() or 1, len(jobs))
+    if processes > 1:
+        return map_on_threads(run_pair_job, [replace(j, settings=replace(j.settings, workers=1)) for j in jobs],
+                              processes, lambda f: report(f, None), cancelled)
+    results = []
+    for n, job in enumerate(jobs):
+        if cancelled():
+            raise Cancelled("tie matching cancelled by the user")
+        results.append(run_pair_job(job, lambda f, msg=None, n=n: report((n + f) / len(jobs), msg), cancelled))
+    return results
+
+
+def map_on_threads(function: Callable, jobs: list, threads: int, report: Callable[[float], None],
+                   cancelled: Callable[[], bool]) -> list:
+    """``function(job, None, cancelled)`` of each of ``jobs`` on ``threads`` threads, the results in
+    the jobs' order. Threads, not processes: the matching runs in numpy, scipy and GDAL, which
+    release the GIL, each job opens its own files (the DEM reopened from its description, the
+    images by the matcher), and a fork of a process holding GDAL's and BLAS's threads can deadlock
+    (measured: a fork pool hung at its first job); a spawned process would start QGIS again."""
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        futures = [pool.submit(function, job, None, cancelled) for job in jobs]
+        try:
+            for n, _ in enumerate(as_completed(futures)):
+                report((n + 1) / len(jobs))
+            return [f.result() for f in futures]
+        finally:
+            for f in futures:
+                f.cancel()
 
 
 def weak_pairs(reports: list[PairReport], min_ties: int = MIN_PAIR_TIES) -> list[PairReport]:

@@ -78,6 +78,22 @@ def match_block_tiepoints(views: list[View], dem, settings: MatchSettings = Matc
     and {'<scene>/<camera>': rejected counts by reason}. InputError naming the views for a view
     listed twice, an image given for two views, fewer than two scenes, or no match at all (and
     'do not overlap' when no grid point of the base image falls in another image)."""
+    refuse_shared_images(views)
+    if not 0 <= base < len(views):
+        raise InputError(f"the base image {base} is not one of the {len(views)} given", parameter="base")
+    filled = filled_surface(views[base].scene, views[base].camera, dem)    # a DSM's holes must not part the scenes
+    apart = [v.label for k, v in enumerate(views) if k != base and not overlapping(views[base], v, filled)]
+    if apart:
+        raise InputError(f"{', '.join(apart)} do{'es' * (len(apart) == 1)} not overlap {views[base].label}: no "
+                         f"point of its image, on the DEM through its onboard model, falls in "
+                         f"{'theirs' if len(apart) > 1 else 'its image'}; leave out scenes of other ground",
+                         parameter="scenes")
+    return match_views(views, dem, settings, base, progress, is_cancelled)
+
+
+def refuse_shared_images(views: list[View]) -> None:
+    """InputError naming the views for a view listed twice, an image file given for two views, or
+    fewer than two scenes: a block's views are images of two or more scenes, each its own."""
     labels = [v.label for v in views]
     twice = sorted({k for k in labels if labels.count(k) > 1})
     if twice:
@@ -90,16 +106,6 @@ def match_block_tiepoints(views: list[View], dem, settings: MatchSettings = Matc
                          "needs its own image", parameter="images")
     if len({v.scene_name for v in views}) < 2:
         raise InputError("tie points between scenes need images of at least two scenes", parameter="scenes")
-    if not 0 <= base < len(views):
-        raise InputError(f"the base image {base} is not one of the {len(views)} given", parameter="base")
-    filled = filled_surface(views[base].scene, views[base].camera, dem)    # a DSM's holes must not part the scenes
-    apart = [v.label for k, v in enumerate(views) if k != base and not overlapping(views[base], v, filled)]
-    if apart:
-        raise InputError(f"{', '.join(apart)} do{'es' * (len(apart) == 1)} not overlap {views[base].label}: no "
-                         f"point of its image, on the DEM through its onboard model, falls in "
-                         f"{'theirs' if len(apart) > 1 else 'its image'}; leave out scenes of other ground",
-                         parameter="scenes")
-    return match_views(views, dem, settings, base, progress, is_cancelled)
 
 
 OVERLAP_GRID = 7  # points per side of the base image tried for an overlap

@@ -13,6 +13,7 @@ import numpy as np
 from ..adjust.linepoints import ControlLines
 from ..adjust.parameters import ParameterSet
 from ..adjust.settings import AdjustmentSettings
+from ..dem import Dem
 from ..errors import Cancelled, InputError, PushbroomError
 from ..model.timebasis import TimeBasis
 from ..observations import gcps, tiepoints
@@ -22,7 +23,7 @@ from .scenes import SCENES  # noqa: F401 (one of the inputs the request names, w
 
 # The inputs errors and log lines name (InputError.parameter, LogLine.parameter), beside core.runs.base's SCENE
 GCPS, TIES, LINES = "gcps", "ties", "lines"
-INTERIOR, SCENE_SIGMAS = "settings.interior", "settings.scene_sigmas"
+INTERIOR, SCENE_SIGMAS, REFERENCE_DEM = "settings.interior", "settings.scene_sigmas", "settings.dem"
 # The outputs, by the names of the algorithm's parameters (files of the result; the errors that concern them)
 OUTPUT_SCENE, OUTPUT_REPORT, OUTPUT_REPORT_JSON, OUTPUT_GCPS, OUTPUT_RESIDUALS = \
     "OUTPUT_SCENE", "OUTPUT_REPORT", "OUTPUT_REPORT_JSON", "OUTPUT_GCPS", "OUTPUT_RESIDUALS"
@@ -113,6 +114,14 @@ def read_lines(path: str) -> ControlLines | None:
         return None
     with concerning(LINES):
         return ControlLines(read_ground_lines(path), read_image_lines(path))
+
+
+def check_reference_dem(settings: AdjustmentSettings) -> None:
+    """The reference DEM of TIE_HEIGHT_SIGMA (settings.dem) opened and its heights read (implausible
+    ones refused) before the solution starts; errors concern the DEM."""
+    if settings.dem:
+        with concerning(REFERENCE_DEM):
+            Dem(settings.dem, settings.dem_datum).height_range  # reads the DEM's overview
 
 
 def check_interior(scene, interior: str) -> None:

@@ -30,7 +30,8 @@ from ..observations.tables import scene_of_rows
 from ..products.rpcfit import fit_rpc, refined_rpcs
 from ..vector_io import layer_fields
 from .adjustinputs import (ADJUSTED_SCENES, GCPS, LINES, OUTPUT_FOLDER, OUTPUT_REPORT_JSON, SCENES, TIES,
-                           AdjustRequest, check_cancel, check_interior, read_gcps, read_lines, read_ties)
+                           AdjustRequest, check_cancel, check_interior, check_reference_dem, read_gcps, read_lines,
+                           read_ties)
 from .base import RunResult, concerning
 from .scenes import read_block
 
@@ -66,6 +67,7 @@ def run(request: AdjustRequest, progress: Callable[[float, str | None], None] | 
         checked = block_inputs(scenes, table, ties, control_lines)
     check_joined(scenes, checked.ties)
     check_interior(checked.composite, settings.interior)
+    check_reference_dem(settings)
     lines += [LogLine(f"scene {name}: {path}") for name, path in request.scenes.items()]
     with new_folder(folder):
         planned = planned_files(folder, scenes, request.write_rpcs, request.gcps is not None, ties is not None,

@@ -26,7 +26,7 @@ from . import blockadjust
 from .adjustinputs import (GCPS, ONE_SCENE_SUFFIXES, OUTPUT_FOLDER, OUTPUT_GCPS, OUTPUT_LINE_RESIDUALS, OUTPUT_REPORT,
                            OUTPUT_REPORT_JSON, OUTPUT_RESIDUALS, OUTPUT_RPC, OUTPUT_SCENE, OUTPUT_TIE_POINTS,
                            SCENE_SIGMAS, TIES, WRITE_RPCS, AdjustRequest, check_cancel, check_interior,
-                           check_needed_inputs, read_gcps, read_lines, read_ties)
+                           check_needed_inputs, check_reference_dem, read_gcps, read_lines, read_ties)
 from .base import RunResult, concerning, logged, scene_from
 
 __all__ = ["AdjustRequest", "run"]
@@ -55,6 +55,7 @@ def run(request: AdjustRequest, progress: Callable[[float, str | None], None] | 
     with concerning(GCPS):  # the core's checks before the (long) solution; what it does not place is the GCPs'
         checked = check_inputs(scene, table, settings, ties, control_lines)
     check_interior(scene, settings.interior)
+    check_reference_dem(settings)
     if request.gcps is not None:
         lines.append(LogLine(f"{len(table)} points from {request.gcps.path}: {int((table.role == 'control').sum())} "
                              f"control, {int((table.role == 'check').sum())} check"))

@@ -1,6 +1,8 @@
 """pushbroom:matchtiepoints as a use case: tie points matched between the cameras of a three-line
 scene (or strip), or between the raw images of the scenes of a block, in a common ground geometry
-(:mod:`core.measure.tiematching`), written as the tie-point layer the adjustment reads.
+(:mod:`core.measure.tiematching`), written as the tie-point layer the adjustment reads. A block is
+matched on its overlap graph (:mod:`core.measure.pairmatching`): every pair of images whose
+footprints overlap, the pairs' ties chained into multi-image points.
 
 A block's scenes are independent sensor models, so the checks and the forward intersection of
 :func:`core.observations.tiepoints.check_against_scene` (made against one scene) do not apply to a
@@ -16,14 +18,18 @@ import numpy as np
 from .. import measure
 from ..errors import InputError
 from ..log import LogLine
-from ..measure.tiematching import View, match_block_tiepoints, match_tiepoints
+from ..measure.pairmatching import MIN_PAIR_TIES, PairReport, match_overlap_graph, overlap_pairs, weak_pairs
+from ..measure.tiematching import View, match_tiepoints, refuse_shared_images
 from ..model.rpcscene import size_note
 from ..observations import tiepoints
+from ..observations.tiechains import ChainResult
+from ..products.overlaps import disconnection, tied_graph
 from ..products.ortho import check_images
 from ..rasters import check_input_raster
 from .base import IMAGES, FilesInUse, RunResult, Terrain, camera_images, concerning, logged, scene_from, surface_from
 from .layers import OUTPUT, check_cancelled, check_gpkg, write_ties
 from .matchgcps import match_settings
+from .region import block_images
 from .scenes import SCENES, block_from
 
 BLOCK_SKIPS = ("block of scenes: the checks against one scene (cameras, image bounds, onboard forward intersection, "
@@ -33,10 +39,13 @@ BLOCK_SKIPS = ("block of scenes: the checks against one scene (cameras, image bo
 
 @dataclass(frozen=True)
 class MatchTiesRequest:
-    """Tie points between the cameras of the scene file ``scene`` or, with ``scenes``, between the
-    images of the block's scenes; ``images``: one raw image per camera of the scene, in its camera
-    order, or per scene of the block, in its order. Heights from the terrain, matching settings
-    ``matching`` ({:class:`core.measure.matching.MatchSettings` field: value}); written to ``output``."""
+    """Tie points between the cameras of the scene file ``scene`` or, with ``scenes`` (product
+    files, folders or list files), between the images of the block's scenes on its overlap graph;
+    ``images``: one raw image per camera of the scene, in its camera order, or per scene of the
+    block, in its order (none: found beside each product). Heights from the terrain, matching
+    settings ``matching`` ({:class:`core.measure.matching.MatchSettings` field: value}); written to
+    ``output``. A block's pairs run on the Dask scheduler at ``scheduler`` (an address), else on
+    ``processes`` local processes (0: one per core; 1: one after the other in this process)."""
     output: str
     images: tuple[str, ...]
     scene: str = ""
@@ -44,6 +53,8 @@ class MatchTiesRequest:
     terrain: Terrain = Terrain()
     matching: dict = field(default_factory=dict)
     files: FilesInUse = field(default_factory=FilesInUse)
+    scheduler: str = ""
+    processes: int = 0
 
 
 def run(request: MatchTiesRequest, progress: Callable[[float, str | None], None] | None = None,
@@ -52,13 +63,14 @@ def run(request: MatchTiesRequest, progress: Callable[[float, str | None], None]
     (:func:`core.observations.tiepoints.summary`)."""
     report = progress or (lambda fraction, message=None: None)
     check_gpkg(request.output, "tie-point layers", request.files)
+    figures = {}
     if request.scenes:
-        table, lines = _match_block(request, report, is_cancelled)
+        table, lines, figures = _match_block(request, report, is_cancelled)
     else:
         table, lines = _match_scene(request, report, is_cancelled)
     lines += write_ties(table, request.output, by_scene=bool(request.scenes))
     report(1.0)
-    return RunResult({OUTPUT: request.output}, tiepoints.summary(table, bool(request.scenes)), lines)
+    return RunResult({OUTPUT: request.output}, {**tiepoints.summary(table, bool(request.scenes)), **figures}, lines)
 
 
 def _match_scene(request: MatchTiesRequest, report, is_cancelled) -> tuple:
@@ -99,35 +111,74 @@ def _pair_line(base: str, other: str, matched: int, rejected: dict) -> LogLine:
 
 
 def _match_block(request: MatchTiesRequest, report, is_cancelled) -> tuple:
-    """(table, lines) of the tie points between the first image of the block and every other (its
-    scene column naming each observation's scene), reported per scene pair."""
-    views, lines = block_views(request.scenes, request.images)
+    """(table, lines, figures) of the tie points of a block on its overlap graph
+    (:mod:`core.measure.pairmatching`): every overlapping pair of images matched, the ties chained
+    into multi-image points (the scene column naming each observation's scene), reported per pair.
+    InputError naming the products the footprints or the ties leave apart from the others."""
+    views, lines, files = block_views(request.scenes, request.images)
     surface, more = surface_from(request.terrain, views[0].scene)
     lines += more
     settings = match_settings(request.matching)
     with logged(measure.__name__, lines):
-        table, rejected = match_block_tiepoints(views, surface, settings, 0,
-                                                lambda f, m=None: report(0.9 * f, m), is_cancelled)
+        graph = overlap_pairs(views, surface)
+        report(0.05, f"{len(graph.pairs)} overlapping pairs of {len(views)} images")
+        chained, reports = match_overlap_graph(views, graph, surface, settings, scheduler=request.scheduler,
+                                               processes=request.processes, scene_files=files,
+                                               progress=lambda f, m=None: report(0.05 + 0.85 * f, m),
+                                               is_cancelled=is_cancelled)
     check_cancelled(is_cancelled)
-    for view in views[1:]:
-        matched = int(np.sum((table.scene == view.scene_name) & (table.camera == view.camera_name)))
-        lines.append(_pair_line(views[0].label, view.label, matched, rejected[view.label]))
+    lines += [_graph_pair_line(r) for r in reports]
+    apart = disconnection(tied_graph(graph, np.array([r.chained > 0 for r in reports], bool)))
+    if apart:
+        raise InputError(f"the tie points do not connect the block: {apart}; no tie of their pairs was kept "
+                         f"({'; '.join(f'{r.first}-{r.second}: {r.why}' for r in reports if not r.chained)}). "
+                         "A product the ties leave apart would be adjusted on its own: leave it out, or match "
+                         "with other settings (quality threshold, window, search range)", parameter=SCENES)
+    table = chained.table
     pairs = tiepoints.summary(table, by_scene=True)["pairs"]
     lines += [LogLine("tie points per scene pair: " + ", ".join(f"{k} {v}" for k, v in pairs.items())),
               LogLine(BLOCK_SKIPS)]
-    return table, lines
+    return table, lines, pair_figures(reports, chained)
 
 
-def block_views(paths: tuple[str, ...], images: tuple[str, ...]) -> tuple[list[View], list]:
-    """(views, log lines) of a block: the scene files ``paths`` (two or more) with ``images``, one raw
-    image per scene in the same order, each given to the camera of its size (:func:`image_camera`)."""
-    if len(paths) < 2:
-        raise InputError(f"{len(paths)} scene given; tie points between scenes need two or more (the cameras of one "
-                         "scene: SCENE)", parameter=SCENES)
+def _graph_pair_line(r: PairReport) -> LogLine:
+    """One pair of the overlap graph: its overlap, grid points matched, rejections by reason, ties
+    refused in inconsistent chains; or why it could not be matched (a warning)."""
+    if r.failure:
+        return LogLine(f"{r.first}-{r.second}: not matched ({r.failure}); overlap {r.overlap_km2:.2f} km2", True,
+                       SCENES)
+    chains = f"; {r.refused_in_chains} refused in inconsistent chains" if r.refused_in_chains else ""
+    line = _pair_line(r.first, r.second, r.matched, r.rejected)
+    return LogLine(f"{line.text}{chains}; overlap {r.overlap_km2:.2f} km2")
+
+
+def pair_figures(reports: list[PairReport], chained: ChainResult) -> dict:
+    """The run's figures on the overlap graph: per pair (overlap km², grid points, matched,
+    rejected by reason, refused in chains, chained, failure), the pairs with fewer than
+    MIN_PAIR_TIES chained ties, the chains refused and the points by number of images."""
+    return {"overlap_pairs": [{"pair": f"{r.first}-{r.second}", "overlap_km2": round(r.overlap_km2, 3),
+                               "grid_points": r.grid_points, "matched": r.matched, "rejected": dict(r.rejected),
+                               "refused_in_chains": r.refused_in_chains, "chained": r.chained,
+                               "failure": r.failure} for r in reports],
+            "weak_pairs": [f"{r.first}-{r.second}" for r in weak_pairs(reports, MIN_PAIR_TIES)],
+            "min_pair_ties": MIN_PAIR_TIES, "inconsistent_chains": chained.inconsistent_chains,
+            "points_by_rays": dict(chained.points_by_rays)}
+
+
+def block_views(paths: tuple[str, ...], images: tuple[str, ...]) -> tuple[list[View], list, dict]:
+    """(views, log lines, {scene name: its file}) of a block: the SCENES ``paths`` (product files,
+    folders or list files: :func:`core.runs.region.expand_scenes`; two or more products) with
+    ``images``, one raw image per scene in the same order, each given to the camera of its size
+    (:func:`image_camera`); no ``images``, a folder or a list file of them:
+    :func:`core.runs.region.block_images`."""
     block, lines = block_from(paths)
     names = list(block.files)
-    if len(images) != len(paths):
-        raise InputError(f"{len(images)} raw image(s) given for the {len(paths)} scenes of SCENES "
+    if len(names) < 2:
+        raise InputError(f"{len(names)} scene given; tie points between scenes need two or more (the cameras of one "
+                         "scene: SCENE)", parameter=SCENES)
+    images = block_images(images, block)
+    if len(images) != len(names):
+        raise InputError(f"{len(images)} raw image(s) given for the {len(names)} scenes of SCENES "
                          f"({', '.join(names)}): give one image per scene, in that order", parameter=IMAGES)
     views = []
     for name, image in zip(names, images):
@@ -140,7 +191,8 @@ def block_views(paths: tuple[str, ...], images: tuple[str, ...]) -> tuple[list[V
             check_images(scene, {camera: image})
         lines.append(LogLine(f"scene {name} ({block.files[name]}): camera {scene.cameras[camera].name}, image {image}"))
         views.append(View(name, scene, camera, Path(image)))
-    return views, lines
+    refuse_shared_images(views)
+    return views, lines, dict(block.files)
 
 
 def image_camera(name: str, scene, path: str, size: tuple[int, int]) -> int:

@@ -9,9 +9,7 @@ from typing import Sequence
 from ..errors import InputError
 from ..formats.rpcfiles import image_name
 from .base import SCENE, scene_from
-
-# The input a block's errors and log lines name (InputError.parameter, LogLine.parameter).
-SCENES = "scenes"
+from .region import SCENES, expand_scenes
 
 # Scene JSON files a block's folder layout names by their folder (simulation's block, bundle adjustment)
 FOLDER_NAMED_SCENES = ("onboard_scene.json", "true_scene.json", "adjusted_scene.json")
@@ -47,9 +45,12 @@ class Block:
 
 
 def block_from(paths: Sequence[str]) -> tuple[Block, list]:
-    """(the block of scene files ``paths``, each named by :func:`block_scene_names`, log lines):
+    """(the block of SCENES ``paths`` (product files, folders or list files:
+    :func:`core.runs.region.expand_scenes`), each named by :func:`block_scene_names`, log lines):
     :func:`read_block`."""
-    return read_block(dict(zip(block_scene_names(paths), map(str, paths))))
+    files, lines = expand_scenes(paths)
+    block, more = read_block(dict(zip(block_scene_names(files), files)))
+    return block, lines + more
 
 
 def read_block(files: dict) -> tuple[Block, list]:

@@ -57,3 +57,25 @@ def test_a_layout_not_among_the_names_is_refused(provider, tmp_path):
     with pytest.raises(QgsProcessingException, match="LAYOUT"):
         processing.run("pushbroom:simulateblock", {"LAYOUT": "quad-stereo", "OUTPUT_FOLDER": str(tmp_path / "x")})
     assert not (tmp_path / "x").exists()
+
+
+def test_a_region_without_images_from_processing(provider, tmp_path):
+    """LAYOUT rpc_region: 2 strips x 3 RPC products (TH-1 cut to 500 px), 200 tie observations each."""
+    import processing
+    out = processing.run("pushbroom:simulateblock", {
+        "PRESET": "th1_tlc", "LAYOUT": "rpc_region", "IMAGE_SIZE": 500, "STRIPS": 2, "PRODUCTS_PER_STRIP": 3,
+        "SIDE_LAP": 0.3, "FORWARD_OVERLAP": 0.2, "TIES_PER_PRODUCT": 200, "N_GCPS": 12, "N_TIE_POINTS": 0,
+        "OUTPUT_FOLDER": str(tmp_path / "region")})
+    assert [p.split("/")[-1] for p in out["SCENES"]] == [f"s{i}p{j}_RPC.TXT" for i in (1, 2) for j in (1, 2, 3)]
+    assert type(load_scene(out["SCENES"][0])).__name__ == "RpcScene" and not out["IMAGES"]
+    ties = read_rows(out["TIE_POINTS"])
+    assert abs(len(ties) / 6 - 200) < 3 and {r["scene"] for r in ties} == {f"s{i}p{j}" for i in (1, 2) for j in (1, 2, 3)}
+    assert len({r["id"] for r in read_rows(out["GCPS"])}) == 12
+
+
+def test_a_rendered_region_is_refused_without_images_naming_render(provider, tmp_path):
+    import processing
+    with pytest.raises(QgsProcessingException, match="RENDER"):
+        processing.run("pushbroom:simulateblock", {"PRESET": "th1_tlc", "LAYOUT": "rpc_region", "IMAGE_SIZE": 500,
+                                                   "RENDER": True, "OUTPUT_FOLDER": str(tmp_path / "x")})
+    assert not (tmp_path / "x").exists()

@@ -113,7 +113,7 @@ def test_shared_concepts_are_shared(provider):
     for alg in provider.algorithms():
         for definition in alg.parameterDefinitions():
             counts[definition.name()] = counts.get(definition.name(), 0) + 1
-    assert counts["DEM_DATUM"] == 10 and counts["HEIGHT"] == 10 and counts["SCENE"] == 14
+    assert counts["DEM_DATUM"] == 11 and counts["HEIGHT"] == 10 and counts["SCENE"] == 14
     assert counts["Z_DATUM"] == 3 and counts["CAMERA"] == 8 and counts["CHECK_FRACTION"] == 4
     assert counts["RESAMPLING"] == 2 and counts["OUTPUT_SCENE"] == 2
     assert counts["COL_FIELD"] == 3 and counts["ROW_FIELD"] == 3
@@ -242,7 +242,7 @@ def test_qgis_process_help_lists_the_value_names(provider, qgis_process):
             for k, value in enumerate(d.options()):
                 assert f"- {k}: {value}\n" in section and f" {value}: " in section, (alg.id(), value)
             checked += 1
-    assert checked == 30  # every enumeration of every algorithm (DEM_DATUM in ten of them)
+    assert checked == 31  # every enumeration of every algorithm (DEM_DATUM in eleven of them)
 
 
 def test_the_readme_demo_and_models_use_value_names():

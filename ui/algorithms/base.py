@@ -25,6 +25,7 @@ class PushbroomAlgorithm(QgsProcessingAlgorithm):
     # this algorithm's parameters, which then start the message.
     CORE_PARAMETERS: dict[str, str] = {}
     SCENE_OR_SCENES = ("work on one scene", "work on a block of scenes")  # for refusing both (ui.inputs.scene_or_block)
+    IMAGE_FOLDERS = False  # whether INPUTS may be one folder or list file of raw images (ui.inputs.raster_refusal)
 
     def name(self):
         return self.ID

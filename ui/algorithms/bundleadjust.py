@@ -13,13 +13,14 @@ from ...core.observations import tiepoints
 from ...core.rotations import ARCSEC
 from ...core.runs import adjustinputs as names, bundleadjust as use_case
 from ..inputs import (add_scene_parameters, attribute_floats, attribute_texts, block_scene_names, ogr_source,
-                      scene_or_block, split_ogr_source)
+                      raster_file, scene_or_block, split_ogr_source)
 from ..outputs import STYLES, files_in_use, style_output_on_load
-from ..parameters import (ATTITUDE_MODEL, BLOCK_FOLDER, CAMERA_TRAJECTORY, GROUND, INTERIOR_SELECTION, ON_SINGULAR,
-                          POSITION_MODEL, ROBUST, RPC_CORRECTION, SCENE, SCENE_SIGMAS, SCENES, WRITE_RPCS,
-                          adjustment_outputs, block_folder, camera_trajectory, enum_value, ground_mode,
-                          interior_selection, matrix_texts, on_singular, output_scene, robust_method, rpc_correction,
-                          scene_sigmas, tr, trajectory_parameters, write_rpcs)
+from ..parameters import (ATTITUDE_MODEL, BLOCK_FOLDER, CAMERA_TRAJECTORY, DEM, DEM_DATUM, GROUND, INTERIOR_SELECTION,
+                          ON_SINGULAR, POSITION_MODEL, ROBUST, RPC_CORRECTION, SCENE, SCENE_SIGMAS, SCENES,
+                          TIE_HEIGHT_SIGMA, WRITE_RPCS, adjustment_outputs, block_folder, camera_trajectory, dem,
+                          dem_datum, enum_value, ground_mode, interior_selection, matrix_texts, on_singular,
+                          output_scene, robust_method, rpc_correction, scene_sigmas, tie_height_sigma, tr,
+                          trajectory_parameters, write_rpcs)
 from .base import PushbroomAlgorithm
 
 Number = QgsProcessingParameterNumber
@@ -47,6 +48,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         "settings.alpha": ALPHA, "settings.variance_components": VARIANCE_COMPONENTS,
         "settings.max_robust_iterations": MAX_ROBUST_PASSES, "settings.on_singular": ON_SINGULAR,
         "settings.rpc_correction": RPC_CORRECTION, "settings.rpc_sigma": RPC_SIGMA, names.SCENE_SIGMAS: SCENE_SIGMAS,
+        "settings.dem": DEM, "settings.dem_datum": DEM_DATUM, "settings.tie_height_sigma": TIE_HEIGHT_SIGMA,
         **{name: name for name in (*names.ONE_SCENE_SUFFIXES, BLOCK_FOLDER, WRITE_RPCS)}}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS API name)
@@ -69,7 +71,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.addParameter(rpc_correction())
         self.addParameter(Number(self.RPC_SIGMA, tr("RPC scenes: stated accuracy (px)"), Number.Double, None,
                                  optional=True, minValue=0.0, maxValue=1e5))
-        for parameter in (scene_sigmas(), ground_mode(), robust_method()):
+        for parameter in (scene_sigmas(), dem(), dem_datum(), tie_height_sigma(), ground_mode(), robust_method()):
             self.addParameter(parameter)
         self.addParameter(Number(self.ALPHA, tr("Significance of the outlier test"), Number.Double, 0.001,
                                  minValue=1e-9, maxValue=0.2))
@@ -91,7 +93,7 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
         self.show_only(SCENE, SCENES, self.GCPS, self.TIE_POINTS, self.LINES, self.INTERIOR)
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        scene, paths = scene_or_block(self, parameters, context)
+        scene, paths = scene_or_block(self, parameters, context, feedback)
         block = bool(paths)
         ties, tie_rows = self._ties(parameters, context)
         lines = self.parameterAsVectorLayer(parameters, self.LINES, context)
@@ -164,4 +166,6 @@ class BundleAdjustAlgorithm(PushbroomAlgorithm):
             position_sigma=number("POSITION_SIGMA") or None, attitude_sigma=number("ATTITUDE_SIGMA") * ARCSEC or None,
             interior=self.parameterAsString(parameters, self.INTERIOR, context), alpha=number(self.ALPHA),
             variance_components=self.parameterAsBoolean(parameters, self.VARIANCE_COMPONENTS, context),
-            rpc_sigma=number(self.RPC_SIGMA) or None)
+            rpc_sigma=number(self.RPC_SIGMA) or None, dem=raster_file(self, parameters, DEM, context),
+            dem_datum=enum_value(self, parameters, DEM_DATUM, context),
+            tie_height_sigma=number(TIE_HEIGHT_SIGMA) or None)

@@ -66,7 +66,7 @@ class ImportGcpsAlgorithm(PushbroomAlgorithm):
         self.show_only("SCENE", "SCENES", "INPUT_FILE", "INPUT", "GROUND_CRS", "HEIGHT_SOURCE", "DEM", "HEIGHT")
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
-        scene, scenes = scene_or_block(self, parameters, context)
+        scene, scenes = scene_or_block(self, parameters, context, feedback)
         path = self.parameterAsFile(parameters, self.INPUT_FILE, context)
         source = self.parameterAsSource(parameters, self.INPUT, context)
         if bool(path) == (source is not None):

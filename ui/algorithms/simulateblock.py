@@ -1,13 +1,16 @@
 """pushbroom:simulateblock — a block of several independent scenes over one ground (tri-stereo,
-a stereo pair, two dates, neighbouring strips, an RPC product of another date) with known truth."""
+a stereo pair, two dates, neighbouring strips, an RPC product of another date) or a region of RPC
+products (rendered, or without images), with known truth."""
 from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputMultipleLayers,
                        QgsProcessingOutputRasterLayer)
 
 from ...simulation import runs as use_case
 from ...simulation.layouts import LAYOUT_MEANINGS
+from ...simulation.region import RegionLayout
 from ..parameters import CHECK_FRACTION, PRESET, check_fraction, enum_parameter, enum_value, preset, tr
-from ..simparameters import (IMAGE_NOISE, IMAGE_SIZE, N_GCPS, N_TIE_POINTS, RENDER, SEED, image_noise, image_size,
-                             n_gcps, n_tie_points, output_folder, render, seed)
+from ..simparameters import (FORWARD_OVERLAP, IMAGE_NOISE, IMAGE_SIZE, N_GCPS, N_TIE_POINTS, PRODUCTS_PER_STRIP,
+                             RENDER, SEED, SIDE_LAP, STRIPS, TIES_PER_PRODUCT, image_noise, image_size, n_gcps,
+                             n_tie_points, output_folder, region_parameters, render, seed)
 from .base import PushbroomAlgorithm
 
 
@@ -18,7 +21,10 @@ class SimulateBlockAlgorithm(PushbroomAlgorithm):
     LAYOUT, SEED, N_GCPS, N_TIE_POINTS, IMAGE_NOISE, RENDER, IMAGE_SIZE = \
         "LAYOUT", SEED, N_GCPS, N_TIE_POINTS, IMAGE_NOISE, RENDER, IMAGE_SIZE
     OUTPUT_FOLDER = "OUTPUT_FOLDER"
-    CORE_PARAMETERS = {use_case.IMAGE_SIZE: IMAGE_SIZE}
+    CORE_PARAMETERS = {use_case.IMAGE_SIZE: IMAGE_SIZE, use_case.N_TIE_POINTS: N_TIE_POINTS, use_case.RENDER: RENDER,
+                       "strips": STRIPS, "products_per_strip": PRODUCTS_PER_STRIP, "side_lap": SIDE_LAP,
+                       "forward_overlap": FORWARD_OVERLAP, "ties_per_product": TIES_PER_PRODUCT,
+                       "image_noise": IMAGE_NOISE, "check_fraction": CHECK_FRACTION}
     SCENES, TRUE_SCENES, IMAGES, GCPS, TIE_POINTS, DEM, REFERENCE, MANIFEST = \
         "SCENES", "TRUE_SCENES", "IMAGES", "GCPS", "TIE_POINTS", "DEM", "REFERENCE", "MANIFEST"
 
@@ -28,6 +34,8 @@ class SimulateBlockAlgorithm(PushbroomAlgorithm):
         for parameter in (seed(), n_gcps(), n_tie_points(), image_noise(), render(), image_size()):
             self.addParameter(parameter)
         self.add_parameter(check_fraction(), advanced=True)
+        for parameter in region_parameters():
+            self.add_parameter(parameter, advanced=True)
         folder = output_folder()
         self.addParameter(folder)
         self.addOutput(QgsProcessingOutputMultipleLayers(self.SCENES, tr("Onboard scene of each scene (scene JSON; "
@@ -49,4 +57,9 @@ class SimulateBlockAlgorithm(PushbroomAlgorithm):
             self.parameterAsDouble(parameters, self.IMAGE_NOISE, context),
             self.parameterAsBool(parameters, self.RENDER, context),
             self.parameterAsDouble(parameters, CHECK_FRACTION, context),
-            self.parameterAsInt(parameters, self.IMAGE_SIZE, context)), feedback).files
+            self.parameterAsInt(parameters, self.IMAGE_SIZE, context),
+            RegionLayout(self.parameterAsInt(parameters, STRIPS, context),
+                         self.parameterAsInt(parameters, PRODUCTS_PER_STRIP, context),
+                         self.parameterAsDouble(parameters, SIDE_LAP, context),
+                         self.parameterAsDouble(parameters, FORWARD_OVERLAP, context)),
+            self.parameterAsInt(parameters, TIES_PER_PRODUCT, context)), feedback).files

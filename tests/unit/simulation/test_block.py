@@ -266,7 +266,7 @@ def test_cancel_leaves_nothing(tmp_path):
 
 @pytest.mark.parametrize("members, field, message", [
     ([], "members", "at least one member"),
-    ([BlockMember(f"m{i}", ONE) for i in range(21)], "members", "at most 20"),
+    ([BlockMember("a", ONE, along_track_km=5000.0)], "members[0].along_track_km", "offset"),
     ([BlockMember("a", ONE), BlockMember("A", ONE)], "members[1].name", r"already the name of members\[0\]"),
     ([BlockMember("../up", ONE)], "members[0].name", "not safe as a folder name"),
     ([BlockMember("dem.tif", ONE)], "members[0].name", "not safe"),
