@@ -50,6 +50,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from scipy import sparse
 
 from ..geodesy import ecef_to_geodetic, enu_rotation
 from .normal import GroundPrior, Linearization, System, assemble
@@ -111,15 +112,24 @@ def _image_steps(lin: Linearization, dp: np.ndarray) -> np.ndarray:
     return np.stack([np.einsum("nkq,nq->nk", lin.values, np.where(used, d[cols], 0.0)) for d in dp])
 
 
-def prior_matrix(problem: Problem, size: int) -> np.ndarray:
+def prior_matrix(problem: Problem, size: int, sparse_form: bool = False) -> np.ndarray | sparse.csr_matrix:
     """(u, u) the normal matrix of every pseudo-observation of ``problem`` (its priors) over its u free
-    parameters."""
-    out = np.zeros((size, size))
+    parameters (sparse_form: a CSR matrix)."""
+    out = System(sparse.csr_matrix((size, size)) if sparse_form else np.zeros((size, size)),
+                 np.zeros(size), np.zeros((0, 3, 3)), np.zeros((0, 3)), 0.0)
+    blocks = []
     for p in problem.pseudo():
-        cols = problem.unknown[p.index]
         w = np.broadcast_to(p.weight, (p.B.shape[0],))
-        out[np.ix_(cols, cols)] += p.B.T @ (w[:, None] * p.B)
-    return out
+        blocks.append((problem.unknown[p.index], p.B.T @ (w[:, None] * p.B)))
+    out.add_blocks(blocks)
+    return out.N
+
+
+def _quadratic(d: np.ndarray, M: np.ndarray | sparse.spmatrix) -> np.ndarray:
+    """(c,) d_c' M d_c of the rows of d (c, u); M (u, u) dense or sparse."""
+    if sparse.issparse(M):
+        return np.sum(d * (M @ d.T).T, axis=1)
+    return np.einsum("cu,uv,cv->c", d, M, d)
 
 
 def datum_directions(problem: Problem, lin: Linearization, system: System) -> list[dict]:
@@ -145,15 +155,15 @@ def datum_directions(problem: Problem, lin: Linearization, system: System) -> li
     dp = _following(lin, target, n, problem.groups)
     miss = np.sqrt(np.einsum("nk,cnk->c", lin.p, (_image_steps(lin, dp) - target) ** 2)
                    / np.maximum(np.einsum("nk,cnk->c", lin.p, target ** 2), 1e-300))
-    n_prior = prior_matrix(problem, n)
-    info_prior = np.einsum("cu,uv,cv->c", dp, n_prior, dp)
+    n_prior = prior_matrix(problem, n, system.is_sparse)
+    info_prior = _quadratic(dp, n_prior)
     followed = np.nonzero((miss <= FOLLOWED) & (info_prior > 0))[0]
     if followed.size == 0:
         return []
     d = dp[followed]
-    info_obs = np.einsum("cu,uv,cv->c", d, assemble(lin, system.prior, n, problem.groups).N, d)
+    info_obs = _quadratic(d, assemble(lin, system.prior, n, problem.groups).N)
     info_images = info_obs if problem.ties.heights is None else \
-        np.einsum("cu,uv,cv->c", d, assemble(lin, _without_heights(problem, system.prior), n, problem.groups).N, d)
+        _quadratic(d, assemble(lin, _without_heights(problem, system.prior), n, problem.groups).N)
     cov = np.linalg.pinv(d @ n_prior @ d.T)  # (l, l) m^2: the priors' covariance of the directions followed
     sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     # px: the largest image displacement of one sigma along each (the others moving with it as the
@@ -187,11 +197,18 @@ def _following(lin: Linearization, target: np.ndarray, n: int, obs_groups: list)
     """(K, u) the parameter changes whose image displacements best fit ``target`` (K, n, 2) px at the
     observations (weighted least squares with their weights)."""
     plain = Linearization(lin.r, lin.p, lin.columns, lin.values, lin.jg, np.full(lin.point.size, -1))
-    fit = assemble(plain, None, n, obs_groups).N
+    fit = assemble(plain, None, n, obs_groups)
     ok = lin.columns >= 0
     rhs = np.stack([np.bincount(lin.columns[ok], weights=np.einsum("nkq,nk->nq", lin.values, lin.p * t)[ok],
                                 minlength=n) for t in target])
-    return np.linalg.lstsq(fit, rhs.T, rcond=None)[0].T
+    if not fit.is_sparse:
+        return np.linalg.lstsq(fit.N, rhs.T, rcond=None)[0].T
+    # without ground unknowns the column groups do not couple: N is block diagonal, one fit per group
+    out = np.zeros((target.shape[0], n))
+    csr = fit.N.tocsr()
+    for cols in fit.layouts:
+        out[:, cols] = np.linalg.lstsq(csr[cols][:, cols].toarray(), rhs[:, cols].T, rcond=None)[0].T
+    return out
 
 
 def _moved(problem: Problem, moves: np.ndarray, ties: np.ndarray) -> np.ndarray:

@@ -135,6 +135,21 @@ def _choose_to_fix(problem: Problem, members: list[str]) -> str | None:
     return interior[0] if interior else None
 
 
+def _sets(system: System, names: list[str], trajectory: np.ndarray, prefer: np.ndarray) -> list[list[str]]:
+    """:func:`non_determinable` of the whole normal matrix; of a sparse one (a region's,
+    :attr:`System.is_sparse`) of each column group's own block (a product, or a strip under one
+    trajectory): its parameters against each other with the other products held. A move of the
+    whole block that only the priors hold is no defect here (see the module docstring) and is not
+    looked for; :mod:`core.adjust.datumdirections` names it after the solution."""
+    if not system.is_sparse:
+        return non_determinable(system.N, names, trajectory, prefer)
+    csr = system.N.tocsr()
+    sets = []
+    for cols in system.layouts or []:
+        sets += non_determinable(csr[cols][:, cols].toarray(), [names[i] for i in cols], trajectory[cols], prefer[cols])
+    return sets
+
+
 def check_determinability(problem: Problem, system: System) -> list[dict]:
     """Find non-determinable parameter sets; fix one interior parameter of each (or stop with
     their names). Returns what was found and done, for the report."""
@@ -148,7 +163,7 @@ def check_determinability(problem: Problem, system: System) -> list[dict]:
         # share test would call it non-determinable and fix it at 0, discarding the prior.
         trajectory = np.array([problem.params.params[i].block in DATUM_BLOCKS
                                or problem.params.params[i].mode == "weighted" for i in free])
-        sets = non_determinable(system.N, names, trajectory, np.array([_reference_chip(problem, i) for i in free]))
+        sets = _sets(system, names, trajectory, np.array([_reference_chip(problem, i) for i in free]))
         if not sets:
             return found
         # Null directions of one eigenvalue (~rounding) come in any order: take the set whose

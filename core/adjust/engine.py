@@ -108,6 +108,11 @@ def adjust_checked(scene: SceneModel, table: GcpTable, settings: AdjustmentSetti
     trajectory_prior = hold_weak_trajectory(problem, problem.system()[1] if determinability else system)
     selection = None
     selecting = settings.interior_selection == "significant" and interior_free(problem).size > 0
+    if selecting and system.is_sparse:
+        log.warning("interior parameters are not selected by significance on a block of %d unknowns (the tests need "
+                    "the full covariance, %d^2 numbers): every free interior parameter is kept",
+                    system.N.shape[0], system.N.shape[0])
+        selecting = False
     try:
         est = estimate(problem, progress, is_cancelled)
     except NoDescentError as err:

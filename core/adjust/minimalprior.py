@@ -51,6 +51,11 @@ def hold_weak_trajectory(problem: Problem, system: System) -> dict | None:
     open_blocks = [b for b, sigma in (("position", s.position_sigma), ("attitude", s.attitude_sigma)) if sigma is None]
     if not open_blocks:
         return None
+    if system.is_sparse:
+        log.warning("the trajectory's position/attitude split without onboard sigmas is not tested on a block of %d "
+                    "unknowns (it needs the full covariance, %d^2 numbers): give POSITION_SIGMA and ATTITUDE_SIGMA "
+                    "(the onboard GNSS and attitude accuracy)", system.N.shape[0], system.N.shape[0])
+        return None
     free = params.free
     block = np.array([params.params[i].block for i in free])
     trajectory = np.isin(block, ("position", "attitude"))

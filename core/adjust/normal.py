@@ -26,6 +26,10 @@ from scipy import sparse
 from scipy.sparse import csgraph
 
 RIDGE = 1e-9  # share of a point's normal-matrix trace added to its diagonal (see assemble)
+# Above this many unknowns the reduced normal matrix is held sparse (scipy.sparse CSR): products
+# couple only through shared points, and a dense matrix costs n^2 memory and an n^3 factorisation.
+# Below it the dense matrix is faster (see docs/development.md, "The solver", for the figures).
+SPARSE_UNKNOWNS = 1500
 
 
 @dataclass
@@ -54,12 +58,54 @@ class System:
     """Reduced normal equations N dx = -b of the n_unknowns parameters, with what is needed
     to back-substitute the ground points (K (m,3,3), b_g (m,3)), the weighted squared residuals
     (cost) and the ground prior they were made with."""
-    N: np.ndarray
+    N: np.ndarray | sparse.csr_matrix
     b: np.ndarray
     K: np.ndarray
     bg: np.ndarray
     cost: float
     prior: GroundPrior | None = None
+    layouts: list[np.ndarray] | None = None
+
+    @property
+    def is_sparse(self) -> bool:
+        """Whether N is held sparse (above SPARSE_UNKNOWNS unknowns); then ``layouts`` holds the
+        unknowns of each column group (:func:`column_groups`: one product, or a strip under one
+        trajectory), whose diagonal blocks of N are full."""
+        return sparse.issparse(self.N)
+
+    def add_blocks(self, blocks: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        """Add symmetric blocks (cols (q,), block (q, q)) to N (pseudo-observations)."""
+        acc = _Accumulator(self.N.shape[0], self.is_sparse, None if self.is_sparse else self.N)
+        for cols, block in blocks:
+            acc.add(cols, cols, block)
+        if self.is_sparse:
+            self.N = (self.N + acc.matrix()).tocsr()
+
+
+class _Accumulator:
+    """Sums of blocks at (rows, cols) of an n x n matrix: added into a dense array in place, or
+    kept as coordinate lists and summed into a CSR matrix at the end (memory of the blocks only)."""
+
+    def __init__(self, n: int, sparse_form: bool, dense: np.ndarray | None = None):
+        self.n, self.sparse_form = n, sparse_form
+        self.dense = None if sparse_form else (np.zeros((n, n)) if dense is None else dense)
+        self.rows, self.cols, self.values = [], [], []
+
+    def add(self, rows: np.ndarray, cols: np.ndarray, block: np.ndarray) -> None:
+        if not self.sparse_form:
+            self.dense[np.ix_(rows, cols)] += block
+            return
+        self.rows.append(np.repeat(rows, cols.size))
+        self.cols.append(np.tile(cols, rows.size))
+        self.values.append(block.ravel())
+
+    def matrix(self) -> np.ndarray | sparse.csr_matrix:
+        if not self.sparse_form:
+            return self.dense
+        if not self.values:
+            return sparse.csr_matrix((self.n, self.n))
+        return sparse.coo_matrix((np.concatenate(self.values), (np.concatenate(self.rows), np.concatenate(self.cols))),
+                                 shape=(self.n, self.n)).tocsr()
 
 
 def groups(columns: np.ndarray) -> list[slice]:
@@ -76,7 +122,8 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
     """Reduced normal equations of the image observations (ground eliminated). ground_damping:
     Levenberg-Marquardt damping of the ground unknowns, lambda diag(N_gg) added to each point's
     block before it is eliminated (the parameters' own damping is the solver's)."""
-    N = np.zeros((n_unknowns, n_unknowns))
+    sparse_form = n_unknowns > SPARSE_UNKNOWNS
+    acc = _Accumulator(n_unknowns, sparse_form)
     b = np.zeros(n_unknowns)
     n_points = 0 if prior is None else prior.weight.shape[0]
     K = np.zeros((n_points, 3, 3))
@@ -129,10 +176,11 @@ def assemble(lin: Linearization, prior: GroundPrior | None, n_unknowns: int, obs
         block = scaled[idx]
         a = (block if keep.all() else block[:, :, keep]).reshape(-1, int(keep.sum()))
         c = cols[keep]
-        N[np.ix_(c, c)] += a.T @ a
+        acc.add(c, c, a.T @ a)
+    N = acc.matrix()
     if multi.any():
-        _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns)
-    return System(N, b, K, bg, cost, prior)
+        N = _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns)
+    return System(N, b, K, bg, cost, prior, column_groups(lin.columns)[1] if sparse_form else None)
 
 
 def inverse3(a: np.ndarray) -> np.ndarray:
@@ -260,38 +308,50 @@ def point_blocks(lin: Linearization, mask: np.ndarray) -> PointBlocks:
 
 def _crosses(groups: list[GroupBlocks]) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
     """(a, b, i, j) for every two groups a, b that share points: rows i of group a and j of
-    group b of the same points."""
-    n_points = max((int(g.point.max()) + 1 for g in groups), default=0)
-    row_of = []
-    for g in groups:
-        rows = np.full(n_points, -1, dtype=np.int64)
-        rows[g.point] = np.arange(g.point.size)
-        row_of.append(rows)
-    out = []
-    for a, ga in enumerate(groups):
-        for b in range(len(groups)):
-            j = row_of[b][ga.point]
-            i = np.nonzero(j >= 0)[0]
-            if i.size:
-                out.append((a, b, i, j[i]))
-    return out
+    group b of the same points, i ascending. Found from the points' own entries (every two rows
+    of one point, k^2 for a point in k groups, sorted by their two groups), so that the cost is
+    that of the points, not of the groups squared times the points."""
+    if not groups:
+        return []
+    group = np.concatenate([np.full(g.point.size, k, dtype=np.int64) for k, g in enumerate(groups)])
+    row = np.concatenate([np.arange(g.point.size, dtype=np.int64) for g in groups])
+    point = np.concatenate([g.point for g in groups])
+    order = np.lexsort((group, point))
+    group, row, point = group[order], row[order], point[order]
+    starts = np.r_[0, np.nonzero(np.diff(point))[0] + 1]
+    size = np.diff(np.r_[starts, point.size])                                     # groups of each point
+    per_entry = np.repeat(size, size)                                            # partners of each entry
+    first = np.repeat(np.arange(point.size), per_entry)
+    offset = np.arange(first.size) - np.repeat(np.cumsum(per_entry) - per_entry, per_entry)
+    second = np.repeat(np.repeat(starts, size), per_entry) + offset
+    key = group[first] * len(groups) + group[second]
+    by_key = np.argsort(key, kind="stable")                                      # stable: points stay ascending
+    key, first, second = key[by_key], first[by_key], second[by_key]
+    bounds = np.r_[0, np.nonzero(np.diff(key))[0] + 1, key.size]
+    return [(int(key[s] // len(groups)), int(key[s] % len(groups)), row[first[s:e]], row[second[s:e]])
+            for s, e in zip(bounds[:-1], bounds[1:])]
 
 
-def _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns) -> None:
+def _subtract_shared_points(N, b, lin, multi, K, bg, n_unknowns):
     """Schur complement of points observed several times: N -= sum of M_p' K_p M_p,
-    b -= sum of M_p' K_p b_g, with M_p their couplings (:func:`point_blocks`); one dense
-    product per two column groups."""
+    b -= sum of M_p' K_p b_g (b in place), with M_p their couplings (:func:`point_blocks`); one
+    dense product per two column groups that share points. Returns N (dense: changed in place)."""
     pb = point_blocks(lin, multi)
     KB = [K[g.point] @ g.B for g in pb.groups]                                   # (k,3,q) per group
-    S = np.zeros((n_unknowns, n_unknowns))
+    acc = _Accumulator(n_unknowns, sparse.issparse(N))
     for a, c, i, j in pb.crosses:
         ga, gc = pb.groups[a], pb.groups[c]
-        S[np.ix_(ga.columns, gc.columns)] += ga.B[i].reshape(-1, ga.columns.size).T @ \
-            KB[c][j].reshape(-1, gc.columns.size)                                # sum of B_a' K B_c
-    N -= 0.5 * (S + S.T)
+        acc.add(ga.columns, gc.columns, ga.B[i].reshape(-1, ga.columns.size).T @
+                KB[c][j].reshape(-1, gc.columns.size))                           # sum of B_a' K B_c
+    S = acc.matrix()
+    if sparse.issparse(N):
+        N = (N - 0.5 * (S + S.T)).tocsr()
+    else:
+        N -= 0.5 * (S + S.T)
     for g in pb.groups:
         kbg = np.einsum("kij,kj->ki", K[g.point], bg[g.point])                  # K_p b_g per point
         b[g.columns] -= np.einsum("kaq,ka->q", g.B, kbg)
+    return N
 
 
 def back_substitute(lin: Linearization, system: System, dx: np.ndarray) -> np.ndarray:

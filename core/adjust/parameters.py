@@ -376,11 +376,9 @@ class ParameterSet:
         bases, offsets = self.bases[block], self.offsets[block]
         if len(bases) == 1:
             return bases[0].window(t)
-        owner = self.owner_of[camera]
         first, weights = np.empty(t.size, dtype=np.int64), np.empty((t.size, bases[0].width))
-        for o, basis in enumerate(bases):
-            m = owner == o
-            f, weights[m] = basis.window(t[m])
+        for o, m in owner_slices(self.owner_of[camera], len(bases)):
+            f, weights[m] = bases[o].window(t[m])
             first[m] = f + offsets[o]
         return first, weights
 
@@ -392,8 +390,8 @@ class ParameterSet:
         bases, offsets = self.bases[block], self.offsets[block]
         owner = np.searchsorted(offsets, first, side="right") - 1
         out = np.empty((t.size, bases[0].width))
-        for o, basis in enumerate(bases):
-            m = owner == o
+        for o, m in owner_slices(owner, len(bases)):
+            basis = bases[o]
             if not rates and basis.kind == "polynomial":
                 out[m] = basis.window(t[m])[1]
                 continue
@@ -493,3 +491,10 @@ def _shift_look_angles(chip, cv: dict):
     ux[:2] += (cv["ux0"], cv["ux1"] / n)
     uy[:2] += (cv["uy0"], cv["uy1"] / n)
     return replace(chip, ux_poly=ux, uy_poly=uy)
+
+
+def owner_slices(owner: np.ndarray, n_owners: int) -> list[tuple[int, np.ndarray]]:
+    """(o, indices of the elements of ``owner`` (n,) equal to o) per owner present: one sort, no mask per owner."""
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(n_owners + 1))
+    return [(o, order[a:b]) for o, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])) if b > a]

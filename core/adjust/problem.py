@@ -385,7 +385,8 @@ class Problem:
             c += self.line_cost()
         if self.ties.heights is not None:
             c += self.tie_heights().cost
-        return c + sum(float(np.sum(p.weight * p.misfit(self.params) ** 2)) for p in self.pseudo())
+        values = self.params.values()
+        return c + sum(float(np.sum(p.weight * p.misfit(values) ** 2)) for p in self.pseudo())
 
     def correction_sigma(self, block: str, owner: int) -> float:
         """The stated sigma (m for 'position', rad for 'attitude') of trajectory correction
@@ -404,12 +405,13 @@ class Problem:
             if getattr(s, f"{block}_sigma") is None:  # none in any scene: the global value decides the datum
                 continue
             group = f"{block} pseudo-observations"
+            indices = self.params.block_indices(block)
             for o, basis in enumerate(self.params.bases[block]):  # per trajectory correction
                 sigma = self.correction_sigma(block, o)
                 times = basis.knot_times() if basis.kind != "polynomial" else \
                     basis.t0 + basis.scale * np.linspace(-1.0, 1.0, basis.size)
                 B = basis.matrix(times)  # (k, m)
-                rows = self.params.block_indices(block)[self.params.owner_rows(block, o)]
+                rows = indices[self.params.owner_rows(block, o)]
                 for a in range(3):
                     out.append(Pseudo(group, rows[:, a], B, 1.0 / (sigma * self.scale.get(group, 1.0)) ** 2))
         weighted = [i for i, p in enumerate(self.params.params) if p.mode == "weighted"]
@@ -425,13 +427,15 @@ class Problem:
         normal equations with the pseudo-observations (ground_damping: see :func:`assemble`)."""
         lin, prior = linearized or self.linearize()
         system = assemble(lin, prior, int(self.params.free.size), self.groups, ground_damping)
+        blocks, values = [], self.params.values()
         for p in self.pseudo():
             cols = self.unknown[p.index]
-            m = p.misfit(self.params)
+            m = p.misfit(values)
             w = np.broadcast_to(p.weight, m.shape)
-            system.N[np.ix_(cols, cols)] += p.B.T @ (w[:, None] * p.B)
+            blocks.append((cols, p.B.T @ (w[:, None] * p.B)))
             system.b += np.bincount(cols, weights=p.B.T @ (w * m), minlength=system.b.size)
             system.cost += float(np.sum(w * m * m))
+        system.add_blocks(blocks)
         return lin, system
 
     def model_cost(self, lin: Linearization, prior: GroundPrior | None, dx: np.ndarray, dg: np.ndarray) -> float:
@@ -445,8 +449,9 @@ class Problem:
         if prior is not None and dg.size:
             e = prior.misfit + dg
             cost += float(np.einsum("mi,mij,mj->", e, prior.weight, e))
+        values = self.params.values()
         for p in self.pseudo():
-            m = p.misfit(self.params) + p.B @ dx[self.unknown[p.index]]
+            m = p.misfit(values) + p.B @ dx[self.unknown[p.index]]
             cost += float(np.sum(p.weight * m * m))
         return cost
 
@@ -476,5 +481,8 @@ class Pseudo:
     B: np.ndarray
     weight: np.ndarray | float
 
-    def misfit(self, params: ParameterSet) -> np.ndarray:
-        return self.B @ params.values()[self.index]
+    def misfit(self, values: np.ndarray) -> np.ndarray:
+        """B @ x[index] of the parameters' values ``values`` (all of them, :meth:`ParameterSet.values`:
+        taken once by the caller for every pseudo-observation, not once per pseudo-observation)."""
+        return self.B @ values[self.index]
+

@@ -22,7 +22,7 @@ from .breakdown import breakdown
 from .robust import component_report, critical, sigma0_test, stated_sigma0
 from .report import datum_sentence
 from .report_types import AdjustmentReport, StageOutcomes
-from .statistics import Statistics, correlated_pairs
+from .statistics import Statistics, correlated_pairs, correlation
 from .parameters import ParameterSet, trajectory_groups
 from .ties import yaw_hold, yaw_sentence
 
@@ -66,9 +66,8 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
     params = problem.params
     free = params.free
     sigma = np.full(len(params.params), np.nan)
-    sigma[free] = st.sigma0 * np.sqrt(np.diag(st.Q))
-    d = np.sqrt(np.diag(st.Q))
-    corr_matrix = st.Q / np.outer(d, d)
+    sigma[free] = st.sigma0 * np.sqrt(st.Q.diagonal())
+    corr_matrix = correlation(st.Q)
     parameters = []
     for i, p in enumerate(params.params):
         parameters.append({"name": p.name, "block": p.block, "value": p.value, "sigma": None if np.isnan(sigma[i])

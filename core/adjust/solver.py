@@ -22,11 +22,12 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from scipy import linalg
+from scipy import linalg, sparse
 
 from ..errors import Cancelled, ConvergenceError, NoDescentError
 from .normal import Linearization, System, back_substitute
 from .problem import Problem
+from .sparsenormal import NotPositiveDefinite, factorise, inverse_diagonal_bound
 
 log = logging.getLogger(__name__)
 
@@ -77,8 +78,9 @@ def solve(problem: Problem, progress, is_cancelled, label: str = "") -> dict:
             # point's rays are nearly parallel) could refuse every step for good.
             damped = system if lam == 0.0 else problem.system((lin, system.prior), ground_damping=lam)[1]
             try:
-                dx, z, factor = ScaledSystem(damped).step(lam)
-            except linalg.LinAlgError:
+                scaled = ScaledSystem(damped)
+                dx, z, factor = scaled.step(lam)
+            except (linalg.LinAlgError, NotPositiveDefinite):
                 lam, nu = raised(lam, nu)
                 if lam > LAMBDA_MAX:
                     raise NoDescentError(_not_converged(history, "the normal matrix is not positive definite"))
@@ -90,8 +92,7 @@ def solve(problem: Problem, progress, is_cancelled, label: str = "") -> dict:
             # At the optimum already (rounding decides the cost, not the step), or the step is a
             # negligible share of every parameter's standard deviation (weakly determined
             # directions, where the cost is flat, would otherwise be crept along for ever).
-            relative = np.max(np.abs(z) / np.sqrt(np.diag(
-                linalg.cho_solve(factor, np.eye(z.size), check_finite=False))), initial=0.0)
+            relative = scaled.relative(z, factor, lam)
             negligible = change < STEP_TOLERANCE or relative < SIGMA_TOLERANCE
             if (negligible or predicted < DECREASE_TOLERANCE) and not rejected:
                 return {"iterations": history, "system": system, "linearization": lin}
@@ -153,22 +154,47 @@ def raised(lam: float, nu: float) -> tuple[float, float]:
 
 
 class ScaledSystem:
-    """The normal equations N dx = -b scaled to a unit diagonal (see the module docstring)."""
+    """The normal equations N dx = -b scaled to a unit diagonal (see the module docstring); a
+    sparse N (:attr:`core.adjust.normal.System.is_sparse`) stays sparse and is factorised by
+    :func:`core.adjust.sparsenormal.factorise`."""
 
     def __init__(self, system: System):
-        d = np.sqrt(np.diag(system.N).copy())
+        d = np.sqrt(system.N.diagonal().copy())
         d[~(d > 0)] = 1.0
         self.d, self.system = d, system
-        self.N = system.N / np.outer(d, d)
+        if system.is_sparse:
+            scale = sparse.diags(1.0 / d)
+            self.N = (scale @ system.N @ scale).tocsc()
+        else:
+            self.N = system.N / np.outer(d, d)
         self.b = system.b / d
 
-    def step(self, lam: float) -> tuple[np.ndarray, np.ndarray, tuple]:
-        """(dx, z = D dx, the Cholesky factor of N_s + lam I) of the step damped by lam."""
-        factor = linalg.cho_factor(self.N + lam * np.eye(self.b.size), check_finite=False)
-        z = -linalg.cho_solve(factor, self.b, check_finite=False)
+    def step(self, lam: float) -> tuple[np.ndarray, np.ndarray, object]:
+        """(dx, z = D dx, the factor of N_s + lam I: Cholesky, or SuperLU when sparse) of the step
+        damped by lam."""
+        if self.system.is_sparse:
+            factor = factorise(self.N + lam * sparse.identity(self.b.size, format="csc"))
+            z = -factor.solve(self.b)
+        else:
+            factor = linalg.cho_factor(self.N + lam * np.eye(self.b.size), check_finite=False)
+            z = -linalg.cho_solve(factor, self.b, check_finite=False)
         if not np.all(np.isfinite(z)):
             raise linalg.LinAlgError("the damped normal matrix is singular")
         return z / self.d, z, factor
+
+    def relative(self, z: np.ndarray, factor, lam: float) -> float:
+        """The largest share of a scaled step z of its parameter's standard deviation,
+        |z_i| / sqrt((N_s + lam I)^-1_ii). Dense: exact, from the full inverse. Sparse: an upper
+        bound from lower bounds of the inverse's diagonal (each column group's own block
+        inverted, :func:`core.adjust.sparsenormal.inverse_diagonal_bound`), so that a step is
+        called negligible only when the exact test would call it so too; a weakly determined
+        direction the bound misses still ends the iterations by DECREASE_TOLERANCE."""
+        if not self.system.is_sparse:
+            return float(np.max(np.abs(z) / np.sqrt(np.diag(
+                linalg.cho_solve(factor, np.eye(z.size), check_finite=False))), initial=0.0))
+        damped = self.N + lam * sparse.identity(self.b.size, format="csc")
+        return float(np.max(np.abs(z) / np.sqrt(inverse_diagonal_bound(damped, self.system.layouts or [])),
+                            initial=0.0))
 
 
 def _image_change(lin: Linearization, dx: np.ndarray) -> float:

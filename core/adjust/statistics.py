@@ -6,12 +6,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg
+from scipy import linalg, sparse
 
 from ..errors import InputError
 from .linepoints import ACROSS_GROUP, HEIGHT_GROUP
 from .normal import Linearization, System, point_blocks
 from .problem import Problem
+from .sparsenormal import block_pattern, factorise, on_pattern, selected_inverse
 from .tieheights import TIE_HEIGHT_GROUP
 
 GROUND_GROUPS = ("ground_xy", "ground_z", ACROSS_GROUP, HEIGHT_GROUP)  # the groups of the ground points' priors
@@ -34,13 +35,14 @@ class LineStatistics:
 
 @dataclass
 class Statistics:
-    """Posterior statistics at the solution: Q (cofactor matrix of the unknowns), sigma0, dof,
+    """Posterior statistics at the solution: Q (cofactor matrix of the unknowns; sparse, on the
+    products' blocks only, for a sparse system: :func:`cofactors`), sigma0, dof,
     per image row redundancy (n,2) and normalised residual w (n,2) (against the stated sigmas
     times their group's factor), the residuals v (n,2) px and p v^2 (n,2) with the current
     weights; per control point p e^2 (m,3) and redundancy (m,3) of its east, north, up ground
     coordinates (weighted ground; else (0,3)); per pseudo-observation group (sum of p v^2,
     redundancy, count); lines: the line points' constraint statistics (None without lines)."""
-    Q: np.ndarray
+    Q: np.ndarray | sparse.spmatrix
     sigma0: float
     dof: float
     redundancy: np.ndarray
@@ -56,8 +58,7 @@ class Statistics:
 def statistics(problem: Problem, lin: Linearization, system: System) -> Statistics:
     """Redundancy numbers (diagonal of the hat matrix, ground points included through their
     Schur complement), normalised residuals and variance components."""
-    n_unknowns = system.N.shape[0]
-    Q = linalg.cho_solve(linalg.cho_factor(system.N, check_finite=False), np.eye(n_unknowns), check_finite=False)
+    Q = cofactors(system)
     P = np.zeros((lin.r.shape[0], 2, 2))
     P[:, 0, 0], P[:, 1, 1] = lin.p[:, 0], lin.p[:, 1]
     weighted = lin.point >= 0
@@ -68,7 +69,7 @@ def statistics(problem: Problem, lin: Linearization, system: System) -> Statisti
             continue
         c = lin.columns[idx.start][keep]
         A = lin.values[idx][:, :, keep]
-        AQ = (A.reshape(-1, c.size) @ Q[np.ix_(c, c)]).reshape(A.shape)
+        AQ = (A.reshape(-1, c.size) @ cofactor_block(Q, c, c)).reshape(A.shape)
         G[idx] = np.einsum("nkq,nlq->nkl", AQ, A)
     h = np.einsum("nkk->nk", G)
     qgg = system.K
@@ -88,10 +89,11 @@ def statistics(problem: Problem, lin: Linearization, system: System) -> Statisti
         r_g = np.clip(1.0 - np.einsum("mij,mjk,mik->mi", problem.enu, qgg, problem.enu) * w_enu, 0.0, 1.0)
         ground_pvv = w_enu * e * e
     pseudo: dict[str, tuple[float, float, int]] = {}
+    values = problem.params.values()
     for p in problem.pseudo():
         cols = problem.unknown[p.index]
-        m = p.misfit(problem.params)
-        hp = np.einsum("kq,qr,kr->k", p.B, Q[np.ix_(cols, cols)], p.B) * p.weight
+        m = p.misfit(values)
+        hp = np.einsum("kq,qr,kr->k", p.B, cofactor_block(Q, cols, cols), p.B) * p.weight
         old = pseudo.get(p.group, (0.0, 0.0, 0))
         pseudo[p.group] = (old[0] + float(np.sum(p.weight * m * m)), old[1] + float(np.sum(1 - hp)), old[2] + m.size)
     if heights is not None:  # the tie points' heights above the reference DEM (core.adjust.tieheights)
@@ -103,6 +105,31 @@ def statistics(problem: Problem, lin: Linearization, system: System) -> Statisti
     sigma0 = math.sqrt(system.cost / dof)
     w = normalised(problem, v, redundancy)
     return Statistics(Q, sigma0, dof, redundancy, w, v, lin.p * v * v, ground_pvv, r_g, pseudo, lines)
+
+
+def cofactors(system: System) -> np.ndarray | sparse.csr_matrix:
+    """Q = N^-1 of the reduced normal equations: dense, the full inverse; sparse
+    (:attr:`System.is_sparse`), only on N's block pattern (:func:`core.adjust.sparsenormal.block_pattern`:
+    within a column group, and between two groups that share points: every entry the statistics
+    read; :func:`core.adjust.sparsenormal.selected_inverse` of N scaled to a unit diagonal as the
+    solver factorises it)."""
+    if not system.is_sparse:
+        n_unknowns = system.N.shape[0]
+        return linalg.cho_solve(linalg.cho_factor(system.N, check_finite=False), np.eye(n_unknowns),
+                                check_finite=False)
+    d = np.sqrt(system.N.diagonal())
+    d[~(d > 0)] = 1.0
+    scale = sparse.diags(1.0 / d)
+    scaled = (scale @ system.N @ scale).tocsc()
+    pattern = block_pattern(scaled, system.layouts or [])
+    return (scale @ selected_inverse(factorise(on_pattern(scaled, pattern)), pattern) @ scale).tocsr()
+
+
+def cofactor_block(Q: np.ndarray | sparse.spmatrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Q[rows][:, cols] as a dense array (Q dense, or sparse on N's pattern: see :func:`cofactors`)."""
+    if sparse.issparse(Q):
+        return Q[rows][:, cols].toarray()
+    return Q[np.ix_(rows, cols)]
 
 
 def _ground_leverage(lin: Linearization, system: System, Q: np.ndarray, G: np.ndarray,
@@ -121,7 +148,7 @@ def _ground_leverage(lin: Linearization, system: System, Q: np.ndarray, G: np.nd
     T = [np.zeros((g.point.size, g.columns.size, 3)) for g in pb.groups]         # (M Q)[:, layout]' per point
     for a, c, i, j in pb.crosses:  # in one cross each point appears once
         ga, gc = pb.groups[a], pb.groups[c]
-        qbt = np.matmul(Q[np.ix_(ga.columns, gc.columns)], gc.B[j].transpose(0, 2, 1))  # (k,q_a,3)
+        qbt = np.matmul(cofactor_block(Q, ga.columns, gc.columns), gc.B[j].transpose(0, 2, 1))  # (k,q_a,3)
         T[a][i] += qbt
         s[ga.point[i]] += np.matmul(ga.B[i], qbt)
     aqm = np.zeros((lin.r.shape[0], 2, 3))                                        # A Q M' per observation
@@ -238,12 +265,25 @@ def component_coupling(problem: Problem, lin: Linearization, system: System, red
     return labels, flat.reshape(g, g)
 
 
+def correlation(Q: np.ndarray | sparse.spmatrix) -> np.ndarray | sparse.csr_matrix:
+    """The correlation matrix of the cofactors Q (dense, or sparse on N's pattern)."""
+    d = np.sqrt(Q.diagonal())
+    if sparse.issparse(Q):
+        scale = sparse.diags(1.0 / d)
+        return (scale @ Q @ scale).tocsr()
+    return Q / np.outer(d, d)
+
+
 def correlated_pairs(corr: np.ndarray, params: list) -> list[dict]:
     """Pairs of unknowns worth a look: |r| > 0.9 where an interior parameter takes part, and
     |r| > 0.999 between trajectory terms (a split the control barely determines)."""
     trajectory = np.array([p.block in ("position", "attitude") for p in params])
-    a, b = np.triu_indices(len(params), 1)
-    r = corr[a, b]
+    if sparse.issparse(corr):  # only the entries on N's pattern: those of unknowns that share points
+        entries = sparse.triu(corr, 1).tocoo()
+        a, b, r = entries.row, entries.col, entries.data
+    else:
+        a, b = np.triu_indices(len(params), 1)
+        r = corr[a, b]
     both = trajectory[a] & trajectory[b]
     keep = np.nonzero(np.where(both, np.abs(r) > 0.999, np.abs(r) > 0.9))[0]
     keep = keep[np.argsort(-np.abs(r[keep]))][:50]

@@ -280,7 +280,7 @@ def yaw_hold(params: ParameterSet, covariance: np.ndarray, grid: int = 3) -> dic
     height = np.full(col.size, float(np.mean(scene.height_range)))
     base = params.values()
     free = params.free
-    step = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    step = np.sqrt(np.clip(covariance.diagonal(), 0.0, None))
 
     def ground(values: np.ndarray) -> np.ndarray:
         params.set_values(values)

@@ -64,7 +64,7 @@ def scipy_problem(problem: Problem):
         problem.ground = problem.ground0 + x[n_p:].reshape(m, 3)
         image = (problem.residuals() * sqrt_w).ravel()
         ground = np.einsum("mji,mj->mi", chol, problem.ground - problem.ground0).ravel()
-        prior = [np.sqrt(p.weight) * p.misfit(problem.params) for p in pseudo]
+        prior = [np.sqrt(p.weight) * p.misfit(problem.params.values()) for p in pseudo]
         return np.concatenate([image, ground, *prior])
 
     rows, cols = [], []
