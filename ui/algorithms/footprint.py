@@ -34,31 +34,24 @@ class FootprintAlgorithm(PushbroomAlgorithm):
             scene, self.terrain(parameters, context), self.parameterAsInt(parameters, self.SAMPLES, context),
             files_in_use(self, parameters, context), scenes), feedback)
         if scenes:
-            return self._write_products(parameters, context, result.figures["products"])
-        fields = output_fields({"camera": QVariant.String, "cols": QVariant.Int, "rows": QVariant.Int,
-                                "area_km2": QVariant.Double})
-        with output_sink(self, parameters, context, self.OUTPUT, fields, QgsWkbTypes.Polygon,
-                         QgsCoordinateReferenceSystem("EPSG:4326")) as (sink, dest):
-            for fp in result.figures["footprints"]:
-                out = QgsFeature(fields)
-                out.setGeometry(QgsGeometry(QgsPolygon(QgsLineString(fp.lon.tolist(), fp.lat.tolist()))))
-                out.setAttributes([fp.camera, fp.cols, fp.rows, float(fp.area_km2)])
-                sink.add(out)
-        style_output_on_load(context, dest, STYLES / "footprint.qml")
-        return {self.OUTPUT: dest}
+            fields = {"scene": QVariant.String, "file": QVariant.String, "cameras": QVariant.String,
+                      "area_km2": QVariant.Double, "overlaps": QVariant.Int, "overlapping": QVariant.String}
+            rows = [(p, [p.name, p.file, ",".join(p.cameras), float(p.area_km2), len(p.overlaps), ",".join(p.overlaps)])
+                    for p in result.figures["products"]]
+            return self._write(parameters, context, fields, rows, "product_footprint.qml")
+        fields = {"camera": QVariant.String, "cols": QVariant.Int, "rows": QVariant.Int, "area_km2": QVariant.Double}
+        rows = [(fp, [fp.camera, fp.cols, fp.rows, float(fp.area_km2)]) for fp in result.figures["footprints"]]
+        return self._write(parameters, context, fields, rows, "footprint.qml")
 
-    def _write_products(self, parameters, context, products) -> dict:
-        """One polygon per product of a block: its name, file, cameras, area and the products it overlaps."""
-        fields = output_fields({"scene": QVariant.String, "file": QVariant.String, "cameras": QVariant.String,
-                                "area_km2": QVariant.Double, "overlaps": QVariant.Int,
-                                "overlapping": QVariant.String})
+    def _write(self, parameters, context, types: dict, rows: list, style: str) -> dict:
+        """One polygon per (outline with .lon/.lat, attributes) of ``rows``, styled with ``style``."""
+        fields = output_fields(types)
         with output_sink(self, parameters, context, self.OUTPUT, fields, QgsWkbTypes.Polygon,
                          QgsCoordinateReferenceSystem("EPSG:4326")) as (sink, dest):
-            for p in products:
+            for outline, attributes in rows:
                 out = QgsFeature(fields)
-                out.setGeometry(QgsGeometry(QgsPolygon(QgsLineString(p.lon.tolist(), p.lat.tolist()))))
-                out.setAttributes([p.name, p.file, ",".join(p.cameras), float(p.area_km2), len(p.overlaps),
-                                   ",".join(p.overlaps)])
+                out.setGeometry(QgsGeometry(QgsPolygon(QgsLineString(outline.lon.tolist(), outline.lat.tolist()))))
+                out.setAttributes(attributes)
                 sink.add(out)
-        style_output_on_load(context, dest, STYLES / "product_footprint.qml")
+        style_output_on_load(context, dest, STYLES / style)
         return {self.OUTPUT: dest}

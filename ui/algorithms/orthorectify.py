@@ -5,18 +5,17 @@ from __future__ import annotations
 
 from pyproj import CRS
 from qgis.core import (QgsCoordinateReferenceSystem, QgsProcessingException, QgsProcessingOutputMultipleLayers,
-                       QgsProcessingOutputRasterLayer,
-                       QgsProcessingParameterBoolean, QgsProcessingParameterCrs, QgsProcessingParameterExtent,
-                       QgsProcessingParameterFolderDestination, QgsProcessingParameterNumber,
-                       QgsProcessingParameterRasterDestination, QgsProcessingParameterString, QgsProcessingUtils)
+                       QgsProcessingOutputRasterLayer, QgsProcessingParameterBoolean, QgsProcessingParameterCrs,
+                       QgsProcessingParameterExtent, QgsProcessingParameterFolderDestination,
+                       QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination, QgsProcessingUtils)
 
 from ...core.products.mosaic import MOSAIC_ORDERS, OFF_NADIR
 from ...core.runs import orthorectify as use_case
 from ...core.runs.scenes import SCENES as CORE_SCENES
 from ..inputs import add_dem_parameters, add_scene_parameters, layer_crs, raster_file, raster_files, scene_or_block
 from ..outputs import files_in_use, load_raster_stretched
-from ..parameters import (CAMERA, DEM, INPUTS, RESAMPLING, SCENE, SCENES, RasterInput, camera_images, enum_parameter,
-                          enum_value, resampling, tr)
+from ..parameters import (CAMERA, DEM, INPUTS, RESAMPLING, SCENE, SCENES, SCHEDULER, RasterInput, camera_images,
+                          enum_parameter, enum_value, resampling, scheduler, tr)
 from .base import PushbroomAlgorithm
 
 
@@ -27,7 +26,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
     INPUT, CRS_PARAM, RESOLUTION, RESAMPLING_PARAM, NODATA, EXTENT, OUTPUT = \
         "INPUT", "CRS", "RESOLUTION", RESAMPLING, "NODATA", "EXTENT", "OUTPUT"
     ALL_CAMERAS, INPUTS, ORTHO_FOLDER, ORTHOIMAGES, SCHEDULER, MOSAIC_ORDER, MOSAIC = \
-        "ALL_CAMERAS", INPUTS, "ORTHO_FOLDER", "ORTHOIMAGES", "SCHEDULER", "MOSAIC_ORDER", "MOSAIC"
+        "ALL_CAMERAS", INPUTS, "ORTHO_FOLDER", "ORTHOIMAGES", SCHEDULER, "MOSAIC_ORDER", "MOSAIC"
     CORE_PARAMETERS = {"resolution": RESOLUTION, "scene": SCENE, "camera": CAMERA, "dem": DEM, "extent": EXTENT,
                        use_case.IMAGE: INPUT, use_case.IMAGES: INPUTS, use_case.OUTPUT: OUTPUT,
                        use_case.ORTHO_FOLDER: ORTHO_FOLDER, CORE_SCENES: SCENES, use_case.MOSAIC_ORDER: MOSAIC_ORDER}
@@ -53,8 +52,7 @@ class OrthorectifyAlgorithm(PushbroomAlgorithm):
                                                                   optional=True))
         self.addParameter(enum_parameter(self.MOSAIC_ORDER, tr("Mosaic order (with SCENES)"), MOSAIC_ORDERS, OFF_NADIR,
                                          optional=True))
-        self.add_parameter(QgsProcessingParameterString(self.SCHEDULER, tr("Dask scheduler address"), optional=True),
-                           advanced=True)
+        self.add_parameter(scheduler(), advanced=True)
         self.addOutput(QgsProcessingOutputMultipleLayers(self.ORTHOIMAGES, tr("Orthoimages (ALL_CAMERAS, SCENES)")))
         self.addOutput(QgsProcessingOutputRasterLayer(self.MOSAIC, tr("Mosaic (SCENES)")))
         self.show_only(self.INPUT, "ALL_CAMERAS", "INPUTS", "SCENE", "SCENES", "CAMERA", "DEM", self.CRS_PARAM)
