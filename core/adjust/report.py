@@ -87,7 +87,7 @@ def tie_point_lines(ties: dict) -> list[tuple[str, bool]]:
     if weak.get("points"):
         named = ", ".join(weak["ids"][:10]) + (" ..." if weak["points"] > 10 else "")
         lines.append((f"tie points started from a height instead of an intersection: {weak['points']} whose rays "
-                      f"meet at less than {weak['min_convergence_deg']:g} degrees (seen along one line, e.g. by "
+                      f"meet at less than {weak['min_convergence_deg']:g}° (seen along one line, e.g. by "
                       f"consecutive products of one strip), on their first ray at {weak['height']}; "
                       + ("the reference DEM holds their heights" if weak.get("held_by_dem") else
                          "nothing holds their heights (their adjusted heights are undetermined; DEM with "

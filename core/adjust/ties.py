@@ -151,7 +151,7 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None, heights: TieHeights | 
     source = ""
     if start.weak.any():
         source = start_from_height(scene, ties, camera, point, start, heights)
-        log.warning("%d tie point(s) whose rays meet at less than %g degrees (seen along one line, e.g. by "
+        log.warning("%d tie point(s) whose rays meet at less than %g° (seen along one line, e.g. by "
                     "consecutive products of one strip) fix no height: they start on their first ray at %s: %s",
                     int(start.weak.sum()), np.degrees(MIN_CONVERGENCE), source, listed(ids[start.weak]))
     failed = ~single & ~np.all(np.isfinite(start.ground), axis=1)

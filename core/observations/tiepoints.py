@@ -179,7 +179,8 @@ def check_against_scene(table: TieTable, scene, scene_path: str = "", source: st
     duplicate observations (one id twice in one camera), observations outside their camera's
     image, all points in one image corner or on a line (the rule of
     :func:`core.validation.spread_problem`). Warnings (logged, the points kept): points seen
-    in one camera only (not intersected; the adjustment leaves them out) and points with an
+    in one camera only (not intersected; the adjustment leaves them out), points whose rays meet
+    at less than MIN_CONVERGENCE (not intersected; the adjustment starts them from a height) and points with an
     implausible a-priori residual (:func:`suspect_points`, likely mismatched).
     """
     if len(table) == 0:
@@ -212,7 +213,7 @@ def check_against_scene(table: TieTable, scene, scene_path: str = "", source: st
                     "adjustment leaves them out): %s", single.size, listed(single))
     weak = ids[found.weak]
     if weak.size:
-        log.warning("%d tie point(s) whose rays meet at less than %g degrees (seen along one line), kept in the layer "
+        log.warning("%d tie point(s) whose rays meet at less than %g° (seen along one line), kept in the layer "
                     "but not intersected (the adjustment starts them from a height): %s", weak.size,
                     np.degrees(MIN_CONVERGENCE), listed(weak))
     if not found.converged:

@@ -109,7 +109,7 @@ def test_with_a_reference_dem_the_adjustment_converges_and_holds_their_heights(r
     counted = report["tie_points"]["from_height"]
     assert counted["points"] == int(weak.sum()) and counted["held_by_dem"]
     sentence = [s for s, warn in tie_point_lines(report["tie_points"]) if "started from a height" in s]
-    assert len(sentence) == 1 and f"{int(weak.sum())} whose rays meet at less than 1 degrees" in sentence[0]
+    assert len(sentence) == 1 and f"{int(weak.sum())} whose rays meet at less than 1°" in sentence[0]
 
 
 def test_without_a_reference_they_stay_in_and_the_report_says_nothing_holds_their_heights(region):
@@ -119,3 +119,11 @@ def test_without_a_reference_they_stay_in_and_the_report_says_nothing_holds_thei
     assert report["tie_points"]["points"] == region["ids"].size
     sentence = [s for s, warn in tie_point_lines(report["tie_points"]) if "started from a height" in s]
     assert "nothing holds their heights" in sentence[0] and "median height" in sentence[0]
+
+
+def test_a_tie_layer_checked_against_the_block_names_them_and_gives_them_no_height(region, caplog):
+    scene, ties = block_ties(region)
+    checked = tiepoints.check_against_scene(ties, scene)
+    weak = np.isin(checked.id, region["ids"][region["one_strip"]])
+    assert np.isnan(checked.apriori.h[weak]).all() and np.isfinite(checked.apriori.h[~weak]).all()
+    assert f"{int(region['one_strip'].sum())} tie point(s) whose rays meet at less than 1°" in caplog.text
