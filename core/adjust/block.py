@@ -57,6 +57,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model.block import SEPARATOR, block_camera
+from ..model.intersection import MIN_CONVERGENCE
 from ..model.mixedblock import MixedBlock, compose_mixed, split_scenes
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel, rows_by
@@ -75,8 +76,9 @@ from .ties import camera_indices
 log = logging.getLogger(__name__)
 
 # deg: tie points whose onboard rays are all closer than this meet at a weakly determined height
-# (seen from one direction only, e.g. by the nadir cameras of scenes from one orbit)
-MIN_CONVERGENCE_DEG = 1.0
+# (seen from one direction only, e.g. by the nadir cameras of scenes from one orbit): the angle below
+# which the intersection does not fix a point's height (core.model.intersection.MIN_CONVERGENCE)
+MIN_CONVERGENCE_DEG = float(np.degrees(MIN_CONVERGENCE))
 
 
 @dataclass

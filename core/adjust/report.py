@@ -83,6 +83,16 @@ def tie_point_lines(ties: dict) -> list[tuple[str, bool]]:
     for reason, left in ties.get("left_out", {}).items():
         named = ", ".join(left["ids"][:10]) + (" ..." if left["points"] > 10 else "")
         lines.append((f"tie points left out: {left['points']} {LEFT_OUT_REASONS.get(reason, reason)}: {named}", True))
+    weak = ties.get("from_height", {})
+    if weak.get("points"):
+        named = ", ".join(weak["ids"][:10]) + (" ..." if weak["points"] > 10 else "")
+        lines.append((f"tie points started from a height instead of an intersection: {weak['points']} whose rays "
+                      f"meet at less than {weak['min_convergence_deg']:g}° (seen along one line, e.g. by "
+                      f"consecutive products of one strip), on their first ray at {weak['height']}; "
+                      + ("the reference DEM holds their heights" if weak.get("held_by_dem") else
+                         "nothing holds their heights (their adjusted heights are undetermined; DEM with "
+                         "TIE_HEIGHT_SIGMA holds them), their rays still tie the products")
+                      + f": {named}", True))
     res = ties["residuals"]
     if res.get("count"):
         per = "; ".join(f"{cam} {r['rmse_col']:.3f} / {r['rmse_row']:.3f} px ({r['count']})"

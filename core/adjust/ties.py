@@ -7,7 +7,13 @@ scenes of a strip). It enters the adjustment as three ground unknowns without a 
 eliminated per point like a weighted GCP (:mod:`core.adjust.normal`),
 started from the forward intersection of its onboard rays (:mod:`core.intersection`).
 A point seen once carries no geometric information (its ray fixes no ground position), and a
-point whose a-priori intersection fails (NaN) has no start value: both are left out, named.
+point whose a-priori intersection fails (NaN) has no start value: both are left out, named. A point
+whose rays meet at too small an angle to fix its height (:data:`core.model.intersection.MIN_CONVERGENCE`:
+consecutive products of one strip) stays in: its rays still tie the products across and along
+track. It starts on its first ray at a height: the reference DEM's where there is one, otherwise the
+median height of the intersected tie points (the scene's mean height without any); the report counts
+them (``from_height``) and the log names a few. Its height is then held by the reference DEM, or
+without one by the ridge of the point's near-singular ray block (:mod:`core.adjust.normal`).
 
 Datum (seed 001 with 1 GCP; seed 003 sec. 3.2 with 0 or 4 GCPs): tie points fix the shape of
 the block, not where it is. The seven datum components (shift X/Y/Z, three rotations, scale)
@@ -23,7 +29,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic, enu_rotation
-from ..model.intersection import intersect
+from ..model.intersection import MIN_CONVERGENCE, intersect
 from ..model.sensor import SceneModel
 from ..observations.tiepoints import TieTable
 from ..observations.tables import listed
@@ -38,6 +44,9 @@ ROTATIONS = ("roll (rotation about the flight line)", "pitch", "yaw")
 SCALE = ("scale",)
 YAW_TABLE_STEP = 0.5  # s: trajectory table step of the scenes yaw_hold differences
 EDGE = 2.0   # px: measurement noise may put a point at the image border this far outside
+# Passes of a weak point's start onto the reference DEM (each puts it on its ray at the DEM's height under
+# the last): a near-nadir ray's error shrinks by the slope times the tangent of its view angle per pass
+DEM_PASSES = 4
 BUNCHED = 0.1  # tie points within this share of the image in both directions are in one corner
 
 
@@ -50,7 +59,8 @@ class TieSetUp:
     (``single_ray``: seen by one camera; ``not_intersected``: a-priori intersection failed);
     before (n, 2) px: every input observation's residual (col, row) at that intersection,
     through the input scene (NaN for points left out); heights: the reference DEM that holds
-    their heights (:mod:`core.adjust.tieheights`; None: none)."""
+    their heights (:mod:`core.adjust.tieheights`; None: none); from_height: the ids of the points
+    started on their first ray at a height (near-parallel rays) and that height's source."""
     table: TieTable
     rows: np.ndarray
     camera: np.ndarray
@@ -60,6 +70,7 @@ class TieSetUp:
     left_out: dict
     before: np.ndarray
     heights: TieHeights | None = None
+    from_height: tuple = (np.zeros(0, str), "")
 
     @classmethod
     def empty(cls) -> "TieSetUp":
@@ -84,7 +95,11 @@ class TieSetUp:
         return {"points": int(self.ids.size), "observations": int(self.rows.size),
                 "input_observations": len(self.table),
                 "left_out": {reason: {"points": int(ids.size), "ids": [str(i) for i in ids[:1000]]}
-                             for reason, ids in self.left_out.items() if ids.size}}
+                             for reason, ids in self.left_out.items() if ids.size},
+                "from_height": {"points": int(self.from_height[0].size), "height": self.from_height[1],
+                                "held_by_dem": self.heights is not None,
+                                "min_convergence_deg": float(np.degrees(MIN_CONVERGENCE)),
+                                "ids": [str(i) for i in self.from_height[0][:1000]]}}
 
 
 def camera_indices(scene: SceneModel, names: np.ndarray) -> np.ndarray:
@@ -133,6 +148,12 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None, heights: TieHeights | 
     camera = camera_indices(scene, ties.camera)
     start = intersect(scene, camera, ties.col, ties.row, point, ids.size)
     single = start.rays < 2
+    source = ""
+    if start.weak.any():
+        source = start_from_height(scene, ties, camera, point, start, heights)
+        log.warning("%d tie point(s) whose rays meet at less than %g° (seen along one line, e.g. by "
+                    "consecutive products of one strip) fix no height: they start on their first ray at %s: %s",
+                    int(start.weak.sum()), np.degrees(MIN_CONVERGENCE), source, listed(ids[start.weak]))
     failed = ~single & ~np.all(np.isfinite(start.ground), axis=1)
     left_out = {"single_ray": ids[single], "not_intersected": ids[failed]}
     if single.any():
@@ -145,7 +166,7 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None, heights: TieHeights | 
     new_index = np.cumsum(keep) - 1
     rows = np.nonzero(keep[point])[0]
     out = TieSetUp(ties, rows, camera[rows], new_index[point[rows]], ids[keep], start.ground[keep], left_out,
-                   start.residuals, heights)
+                   start.residuals, heights, (ids[start.weak & keep], source))
     if heights is not None:
         heights.check_covers(out.ground)
     span = out.span(scene)
@@ -154,6 +175,46 @@ def set_up_ties(scene: SceneModel, ties: TieTable | None, heights: TieHeights | 
                     "there only; the rest follows the onboard trajectory and the GCPs", 100 * span[0], 100 * span[1],
                     scene.cameras[0].name)
     return out
+
+
+def start_from_height(scene: SceneModel, ties: TieTable, camera: np.ndarray, point: np.ndarray, start,
+                      heights: TieHeights | None) -> str:
+    """Put the weak points of the intersection ``start`` (:class:`core.model.intersection.Intersection`,
+    its ground changed in place) on their first observation's ray (``camera``, ``point`` (n,) per
+    observation of ``ties``) at a height: the reference DEM's (``heights``), otherwise, and where the
+    ray misses the DEM, the median ellipsoidal height of the intersected points, or the scene's mean
+    height without any. Returns where the height came from, in words."""
+    weak = np.nonzero(start.weak)[0]
+    _, first = np.unique(point, return_index=True)  # the first observation of each point (all points have one)
+    obs = first[weak]
+    fine = np.all(np.isfinite(start.ground), axis=1)
+    if fine.any():
+        h = float(np.median(ecef_to_geodetic(start.ground[fine])[2]))
+        source = f"the median height of the {int(fine.sum())} intersected tie points ({h:.1f} m)"
+    else:
+        h = float(np.mean(scene.height_range))
+        source = f"the scene's mean height ({h:.1f} m; no tie point is intersected)"
+    level = np.full(weak.size, h)
+    for _ in range(DEM_PASSES if heights is not None else 1):
+        ground = on_rays(scene, camera[obs], ties.col[obs], ties.row[obs], level)
+        if heights is not None:
+            lon, lat, _ = ecef_to_geodetic(ground)
+            below = heights.surface.height(lon, lat)
+            level = np.where(np.isfinite(below), below, level)
+    if heights is not None:
+        source = f"the reference DEM's height ({heights.surface.path}; off it, {source})"
+    start.ground[weak] = ground
+    return source
+
+
+def on_rays(scene: SceneModel, camera: np.ndarray, col: np.ndarray, row: np.ndarray, height: np.ndarray) -> np.ndarray:
+    """ECEF points (k,3) m on the rays of image points (col, row (k,) px in cameras ``camera`` (k,)) at
+    ellipsoidal heights ``height`` (k,) m."""
+    ground = np.full((col.size, 3), np.nan)
+    for c in np.unique(camera):
+        m = camera == c
+        ground[m] = scene.image_to_ground(col[m], row[m], height[m], int(c))
+    return ground
 
 
 RPC_PRIOR = "RPC correction priors"  # the datum source of settings.rpc_sigma

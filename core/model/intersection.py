@@ -13,6 +13,11 @@ intersected in two steps:
    projection instead of four (the chord method). The last residuals are the last projection
    moved by the last step through those derivatives (a step below TOLERANCE: exact to 1e-9 px).
 
+Points whose rays meet at less than MIN_CONVERGENCE (consecutive products of one strip see a point
+along one line of one pass) are not intersected (NaN, ``weak``): their meeting point is fixed along
+the rays by nothing but the models' errors (see MIN_CONVERGENCE); the adjustment starts them from a
+height (:func:`core.adjust.ties.set_up_ties`).
+
 Used for tie-point start values (onboard model) and for the 3D check figures (adjusted model).
 Arrays: n observations (camera index, col, row, point index), m points.
 """
@@ -28,6 +33,16 @@ from .sensor import SceneModel, rows_by
 STEP = 1.0               # m: finite-difference step of the image Jacobian
 ITERATIONS = 5           # Gauss-Newton passes; the start is metres off, each pass gains ~1e4
 TOLERANCE = 1e-4         # m: a step below this for every point ends the iteration
+# rad (1 degree): the smallest convergence angle of a point's rays that fixes its height. Rays a miss
+# distance d apart meet d / angle along them: the onboard or vendor errors (d of tens of metres) put a
+# point of rays 1 degree apart a kilometre along them, outside the height domain of the models, and
+# 1 px of image noise moves its height by sqrt(2) GSD / angle = 81 GSD (170 m at ZY-3's 2.1 m), worse
+# than any reference DEM or the scene's relief. Real stereo lies far above it: three-line cameras
+# (ZY-3 +-22 degrees), agile stereo pairs (over 8 degrees), neighbouring nadir strips (ZY-3 at 20 %
+# side-lap: 4.6 degrees; 60 %: 2.3); consecutive products of one strip lie far below it (one line of
+# one pass: their rays differ by the products' fits and biases only, 2e-4 rad measured on a simulated
+# ZY-3 region, tests/unit/adjust/test_weakrays.py).
+MIN_CONVERGENCE = np.radians(1.0)
 
 
 @dataclass
@@ -35,13 +50,17 @@ class Intersection:
     """ground (m,3) ECEF m (NaN where fewer than two rays); rays (m,) number of observations;
     residuals (n,2) px, predicted minus measured (col, row); condition (m,) m per px: the
     largest standard deviation of the point for 1 px image noise (large: near-parallel rays);
-    iterations: Gauss-Newton passes run; converged: whether the last step was below TOLERANCE."""
+    iterations: Gauss-Newton passes run; converged: whether the last step was below TOLERANCE;
+    convergence (m,) rad: the rays' effective convergence angle (NaN with fewer than two rays);
+    weak (m,) bool: two or more rays meeting at less than MIN_CONVERGENCE, not intersected."""
     ground: np.ndarray
     rays: np.ndarray
     residuals: np.ndarray
     condition: np.ndarray
     iterations: int
     converged: bool
+    convergence: np.ndarray
+    weak: np.ndarray
 
 
 def _sum_by_point(point: np.ndarray, values: np.ndarray, m: int) -> np.ndarray:
@@ -71,6 +90,19 @@ def _project(scene: SceneModel, camera, x, near) -> np.ndarray:
     return out
 
 
+def convergence_angle(A: np.ndarray, rays: np.ndarray) -> np.ndarray:
+    """Effective convergence angles (m,) rad of points' rays from their sums A (m,3,3) of
+    I - u u' over their ``rays`` (m,) unit directions u: 2 arcsin sqrt(lambda_min / rays), the angle
+    between two rays with the same smallest eigenvalue per ray (two rays: lambda_min = 1 - cos angle;
+    parallel rays: 0). NaN with fewer than two rays."""
+    out = np.full(rays.shape, np.nan)
+    two = rays >= 2
+    if two.any():
+        smallest = np.clip(np.linalg.eigvalsh(A[two])[:, 0], 0.0, None)
+        out[two] = 2.0 * np.arcsin(np.minimum(np.sqrt(smallest / rays[two]), 1.0))
+    return out
+
+
 def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None = None) -> Intersection:
     """Intersect the observations (camera (n,) index, col, row (n,) px) of points ``point``
     (n,) index in 0..n_points-1."""
@@ -85,7 +117,9 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     projector = np.eye(3)[None] - u[:, :, None] * u[:, None, :]          # (n,3,3)
     A = _sum_by_point(point, projector, m)
     b = _sum_by_point(point, np.einsum("nij,nj->ni", projector, origin), m)
-    ok = rays >= 2
+    convergence = convergence_angle(A, rays)
+    weak = (rays >= 2) & (convergence < MIN_CONVERGENCE)
+    ok = (rays >= 2) & ~weak
     ground = np.full((m, 3), np.nan)
     ground[ok] = np.linalg.solve(A[ok], b[ok][:, :, None])[:, :, 0]
     measured = np.stack([col, row], axis=1)
@@ -127,4 +161,4 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     if ok.any():
         with np.errstate(divide="ignore", invalid="ignore"):
             condition[ok] = np.sqrt(1.0 / np.linalg.eigvalsh(normal[ok])[:, 0])
-    return Intersection(ground, rays, residuals, condition, iterations, converged)
+    return Intersection(ground, rays, residuals, condition, iterations, converged, convergence, weak)

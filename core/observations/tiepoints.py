@@ -28,7 +28,7 @@ from osgeo import ogr
 from ..errors import InputError
 from ..files import OutputSet
 from ..geodesy import ecef_to_geodetic
-from ..model.intersection import intersect
+from ..model.intersection import MIN_CONVERGENCE, intersect
 from ..validation import MAX_IMAGE_COORDINATE, implausible_image_coordinates, per_point, spread_problem
 from ..vector_io import layer_to_wgs84_3d, open_layer, wgs84_3d, write_layer
 from .tables import (SCENE_METADATA_KEY, csv_column, listed, nullable_floats, parse_numbers, per_point_sigmas, present,
@@ -179,7 +179,8 @@ def check_against_scene(table: TieTable, scene, scene_path: str = "", source: st
     duplicate observations (one id twice in one camera), observations outside their camera's
     image, all points in one image corner or on a line (the rule of
     :func:`core.validation.spread_problem`). Warnings (logged, the points kept): points seen
-    in one camera only (not intersected; the adjustment leaves them out) and points with an
+    in one camera only (not intersected; the adjustment leaves them out), points whose rays meet
+    at less than MIN_CONVERGENCE (not intersected; the adjustment starts them from a height) and points with an
     implausible a-priori residual (:func:`suspect_points`, likely mismatched).
     """
     if len(table) == 0:
@@ -210,6 +211,11 @@ def check_against_scene(table: TieTable, scene, scene_path: str = "", source: st
     if single.size:
         log.warning("%d tie point(s) seen in one camera only, kept in the layer but not intersected (the "
                     "adjustment leaves them out): %s", single.size, listed(single))
+    weak = ids[found.weak]
+    if weak.size:
+        log.warning("%d tie point(s) whose rays meet at less than %g° (seen along one line), kept in the layer "
+                    "but not intersected (the adjustment starts them from a height): %s", weak.size,
+                    np.degrees(MIN_CONVERGENCE), listed(weak))
     if not found.converged:
         log.warning("the forward intersection did not converge in %d passes; the a-priori residuals are "
                     "approximate", found.iterations)

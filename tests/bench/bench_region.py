@@ -17,8 +17,9 @@ and memory between sizes (log ratio over log ratio of the products).
 Tie points seen only by consecutive products of one strip (the forward overlaps) are left out
 unless --forward-ties: those products see them along the same rays (one pass, one detector line),
 so their heights are undetermined without a height reference, and today's intersection of the
-tie points (core.model.intersection) sends one of them towards the Earth's centre and stops the
-run (measured on 100 products). With heightref's DEM constraint, run --forward-ties --tie-height-sigma.
+tie points started them on the rays' meeting point, towards the Earth's centre (the run stopped at
+100 products); they now start on their first ray at a height (core.adjust.ties.start_from_height) and
+the DEM holds their heights: run --forward-ties --tie-height-sigma.
 
 A size is run only when the peak memory extrapolated from the smaller sizes (at their growth
 exponent) fits in the memory available now; otherwise the estimate is printed and the size left out
@@ -27,13 +28,12 @@ exponent) fits in the memory available now; otherwise the estimate is printed an
 Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_region.py
       [--sizes 100,300,1000] [--ties 2000] [--correction shift] [--rpc-sigma 10] [--out out/bench_region]
       [--drift-m 2] [--forward-ties] [--force]
-      [--tie-height-sigma M (the DEM height constraint, once bundleadjust has it)]
+      [--tie-height-sigma M (the tie heights held to the region's DEM at M metres)]
 The simulated regions are kept in --out and reused.
 """
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import logging
 import math
@@ -75,22 +75,19 @@ def layout_of(n: int) -> RegionLayout:
 
 def settings_of(args) -> AdjustmentSettings:
     """The adjustment's settings: the RPC correction asked, the vendor accuracy as the prior, robust
-    selection with variance components (the defaults)."""
-    return AdjustmentSettings(rpc_correction=args.correction, rpc_sigma=args.rpc_sigma)
+    selection with variance components (the defaults), the DEM height reference with --tie-height-sigma."""
+    return AdjustmentSettings(rpc_correction=args.correction, rpc_sigma=args.rpc_sigma,
+                              **height_reference(args, region_folder(args, args.child)))
 
 
 def height_reference(args, folder: Path) -> dict:
-    """The fields of AdjustRequest that constrain tie points' heights to the region's DEM
-    (issue 31 'A height reference': DEM + TIE_HEIGHT_SIGMA), {} without --tie-height-sigma.
-    The simulated DEM is the truth the tie points lie on; its stated sigma is --tie-height-sigma."""
+    """The fields of AdjustmentSettings that hold tie points' heights to the region's DEM (issue 31
+    'A height reference': DEM + TIE_HEIGHT_SIGMA, core.adjust.tieheights), {} without
+    --tie-height-sigma. The simulated DEM (EGM96 heights) is the truth the tie points lie on; its
+    stated sigma is --tie-height-sigma."""
     if args.tie_height_sigma is None:
         return {}
-    names = {f.name for f in dataclasses.fields(AdjustRequest)}
-    if "dem" not in names:
-        raise SystemExit("--tie-height-sigma: this bundleadjust has no DEM height constraint yet (AdjustRequest has "
-                         "no field 'dem'); run without it")
-    # heightref: adjust here to the names its AdjustRequest / settings give the DEM and the sigma
-    return {"dem": str(folder / "dem.tif"), "tie_height_sigma": args.tie_height_sigma}
+    return {"dem": str(folder / "dem.tif"), "dem_datum": "geoid", "tie_height_sigma": args.tie_height_sigma}
 
 
 def check_errors(scenes: dict, truth: dict, g: dict) -> tuple[float, float, int, int]:
@@ -133,7 +130,7 @@ def run_child(args, n: int) -> None:
     products = {p["name"]: str(folder / p["rpc"]) for p in manifest["products"]}
     out = folder / f"adjusted_{args.correction}"
     request = AdjustRequest(scenes=products, ties=LayerFile(str(folder / "tie_points.csv")),
-                            settings=settings_of(args), folder=str(out), **height_reference(args, folder))
+                            settings=settings_of(args), folder=str(out))
     reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     result = bundleadjust.run(request)
