@@ -31,21 +31,25 @@ def rpc_terms(x, y, z) -> np.ndarray:
                      x * z * z, x * x * y, y ** 3, y * z * z, x * x * z, y * y * z, z ** 3], axis=-1)
 
 
-def rpc_term_derivatives(x, y, z) -> np.ndarray:
-    """The 20 RPC00B monomials and their derivatives by x, y, z (4, n, 20): [terms, d/dx, d/dy,
-    d/dz] of normalised (x = lon, y = lat, z = height), broadcast; the order of :func:`rpc_terms`."""
-    x, y, z = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (x, y, z)))
-    one, zero = np.ones_like(x), np.zeros_like(x)
-    xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
-    return np.stack([
-        np.stack([one, x, y, z, xy, xz, yz, xx, yy, zz, xy * z, xx * x, x * yy, x * zz, xx * y, yy * y, y * zz,
-                  xx * z, yy * z, zz * z], axis=-1),
-        np.stack([zero, one, zero, zero, y, z, zero, 2 * x, zero, zero, yz, 3 * xx, yy, zz, 2 * xy, zero, zero,
-                  2 * xz, zero, zero], axis=-1),
-        np.stack([zero, zero, one, zero, x, zero, z, zero, 2 * y, zero, xz, zero, 2 * xy, zero, xx, 3 * yy, zz,
-                  zero, 2 * yz, zero], axis=-1),
-        np.stack([zero, zero, zero, one, zero, x, y, zero, zero, 2 * z, xy, zero, zero, 2 * xz, zero, zero, 2 * yz,
-                  xx, yy, 3 * zz], axis=-1)])
+# The exponents of (x, y, z) in each of the 20 monomials of rpc_terms.
+EXPONENTS = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (0, 1, 1), (2, 0, 0), (0, 2, 0),
+                      (0, 0, 2), (1, 1, 1), (3, 0, 0), (1, 2, 0), (1, 0, 2), (2, 1, 0), (0, 3, 0), (0, 1, 2), (2, 0, 1),
+                      (0, 2, 1), (0, 0, 3)])
+
+
+def derivative_operators() -> np.ndarray:
+    """(3, 20, 20): D[a] maps the 20 coefficients of a cubic of rpc_terms onto those of its
+    derivative by x, y or z (a = 0, 1, 2), again over rpc_terms (the derivative of a monomial is
+    its exponent times the monomial with that exponent lowered by one: a term of lower degree)."""
+    index = {tuple(e): m for m, e in enumerate(EXPONENTS)}
+    d = np.zeros((3, 20, 20))
+    for k, e in enumerate(EXPONENTS):
+        for a in np.nonzero(e)[0]:
+            d[a, index[tuple(e - np.eye(3, dtype=int)[a])], k] = e[a]
+    return d
+
+
+DERIVATIVE = derivative_operators()
 
 
 @dataclass
@@ -88,14 +92,16 @@ class RpcModel:
         (n,), and their analytic derivatives (n, 2, 3): rows col, row; columns px per degree of
         lon and lat, px per m of h. The quotient rule (P'Q - PQ') / Q^2 on the cubics, through the
         offsets and scales; one pass for the value and the derivatives."""
-        x = (np.atleast_1d(np.asarray(lon, dtype=float)) - self.lon_off) / self.lon_scale
-        t = rpc_term_derivatives(x, (np.asarray(lat, dtype=float) - self.lat_off) / self.lat_scale,
-                                 (np.asarray(h, dtype=float) - self.height_off) / self.height_scale)
-        v = t @ np.stack([self.samp_num, self.samp_den, self.line_num, self.line_den], axis=1)  # (4, n, 4)
+        t = rpc_terms((np.atleast_1d(np.asarray(lon, dtype=float)) - self.lon_off) / self.lon_scale,
+                      (np.asarray(lat, dtype=float) - self.lat_off) / self.lat_scale,
+                      (np.asarray(h, dtype=float) - self.height_off) / self.height_scale)
+        coefficients = np.stack([self.samp_num, self.samp_den, self.line_num, self.line_den], axis=1)  # (20, 4)
+        v = t @ np.concatenate([coefficients[None], DERIVATIVE @ coefficients]).transpose(1, 0, 2).reshape(20, 16)
+        v = v.reshape(-1, 4, 4)                        # (n, value and d/dx, d/dy, d/dz, the four cubics)
+        p, q = v[:, 0, 0::2], v[:, 0, 1::2]          # (n, 2): samp, line
+        dp, dq = v[:, 1:, 0::2].transpose(0, 2, 1), v[:, 1:, 1::2].transpose(0, 2, 1)  # (n, 2, 3)
         ground = np.array([self.lon_scale, self.lat_scale, self.height_scale])
         image = np.array([self.samp_scale, self.line_scale])
-        p, q = v[0, :, 0::2], v[0, :, 1::2]                                   # (n, 2): samp, line
-        dp, dq = v[1:, :, 0::2].transpose(1, 2, 0), v[1:, :, 1::2].transpose(1, 2, 0)  # (n, 2, 3)
         jac = (dp * q[..., None] - p[..., None] * dq) / (q * q)[..., None] * (image[:, None] / ground)
         own = p / q * image + np.array([self.samp_off, self.line_off]) - self.origin + 0.5
         return own[:, 0], own[:, 1], jac

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
-from pushbroom_adjust.core.model.rpc import RpcModel
+from pushbroom_adjust.core.model.rpc import EXPONENTS, RpcModel, rpc_terms
 from pushbroom_adjust.core.model.rpcscene import RpcCamera, RpcScene
 from tests.support.rpcdata import pleiades_rpc, worldview2_rpc
 
@@ -80,3 +80,8 @@ def test_the_derivative_is_nan_where_the_scene_images_no_point(rpc):
     assert np.isfinite(col[0]) and np.all(np.isfinite(jac[0]))
     assert np.isnan(col[1]) and np.isnan(row[1]) and np.all(np.isnan(jac[1]))
     assert ecef_to_geodetic(xyz)[0].shape == (2,)
+
+
+def test_the_exponent_table_is_that_of_the_monomials():
+    x, y, z = 2.0, 3.0, 5.0
+    np.testing.assert_array_equal(rpc_terms(x, y, z), np.prod(np.array([x, y, z]) ** EXPONENTS, axis=1))
