@@ -84,6 +84,19 @@ def enu_rotations(lon_deg, lat_deg) -> np.ndarray:
                      np.stack([ca * co, ca * so, sa], -1)], axis=-2)
 
 
+def geodetic_by_ecef(lon_deg, lat_deg, h) -> np.ndarray:
+    """Derivatives (n, 3, 3) of (lon deg, lat deg, h m) by ECEF (x, y, z) m at geodetic points
+    (n,): the east, north and up rows of :func:`enu_rotations` over the radii of the parallel
+    ((N + h) cos lat) and of the meridian (M + h), in degrees per metre, and up (m per m)."""
+    lat = np.radians(np.asarray(lat_deg, dtype=float))
+    w2 = 1.0 - E2 * np.sin(lat) ** 2
+    n = A / np.sqrt(w2)
+    m = n * (1.0 - E2) / w2
+    scale = np.stack(np.broadcast_arrays(np.degrees(1.0) / ((n + h) * np.cos(lat)), np.degrees(1.0) / (m + h),
+                                         np.ones_like(lat)), axis=-1)
+    return enu_rotations(lon_deg, lat_deg) * scale[..., None]
+
+
 def ecef_to_enu(xyz, lon0_deg: float, lat0_deg: float, h0: float = 0.0) -> np.ndarray:
     """ECEF (..., 3) -> local east-north-up (..., 3) metres about (lon0, lat0, h0)."""
     origin = geodetic_to_ecef(lon0_deg, lat0_deg, h0)

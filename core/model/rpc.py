@@ -31,6 +31,27 @@ def rpc_terms(x, y, z) -> np.ndarray:
                      x * z * z, x * x * y, y ** 3, y * z * z, x * x * z, y * y * z, z ** 3], axis=-1)
 
 
+# The exponents of (x, y, z) in each of the 20 monomials of rpc_terms.
+EXPONENTS = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (0, 1, 1), (2, 0, 0), (0, 2, 0),
+                      (0, 0, 2), (1, 1, 1), (3, 0, 0), (1, 2, 0), (1, 0, 2), (2, 1, 0), (0, 3, 0), (0, 1, 2), (2, 0, 1),
+                      (0, 2, 1), (0, 0, 3)])
+
+
+def derivative_operators() -> np.ndarray:
+    """(3, 20, 20): D[a] maps the 20 coefficients of a cubic of rpc_terms onto those of its
+    derivative by x, y or z (a = 0, 1, 2), again over rpc_terms (the derivative of a monomial is
+    its exponent times the monomial with that exponent lowered by one: a term of lower degree)."""
+    index = {tuple(e): m for m, e in enumerate(EXPONENTS)}
+    d = np.zeros((3, 20, 20))
+    for k, e in enumerate(EXPONENTS):
+        for a in np.nonzero(e)[0]:
+            d[a, index[tuple(e - np.eye(3, dtype=int)[a])], k] = e[a]
+    return d
+
+
+DERIVATIVE = derivative_operators()
+
+
 @dataclass
 class RpcModel:
     """Direct RPC00B model ground -> image.
@@ -65,6 +86,25 @@ class RpcModel:
         line = (t @ self.line_num) / (t @ self.line_den) * self.line_scale + self.line_off
         samp = (t @ self.samp_num) / (t @ self.samp_den) * self.samp_scale + self.samp_off
         return samp - self.origin + 0.5, line - self.origin + 0.5
+
+    def ground_to_image_jacobian(self, lon, lat, h) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """GDAL (col (n,), row (n,)) of ground points (lon, lat deg, h m), each a single value or
+        (n,), and their analytic derivatives (n, 2, 3): rows col, row; columns px per degree of
+        lon and lat, px per m of h. The quotient rule (P'Q - PQ') / Q^2 on the cubics, through the
+        offsets and scales; one pass for the value and the derivatives."""
+        t = rpc_terms((np.atleast_1d(np.asarray(lon, dtype=float)) - self.lon_off) / self.lon_scale,
+                      (np.asarray(lat, dtype=float) - self.lat_off) / self.lat_scale,
+                      (np.asarray(h, dtype=float) - self.height_off) / self.height_scale)
+        coefficients = np.stack([self.samp_num, self.samp_den, self.line_num, self.line_den], axis=1)  # (20, 4)
+        v = t @ np.concatenate([coefficients[None], DERIVATIVE @ coefficients]).transpose(1, 0, 2).reshape(20, 16)
+        v = v.reshape(-1, 4, 4)                        # (n, value and d/dx, d/dy, d/dz, the four cubics)
+        p, q = v[:, 0, 0::2], v[:, 0, 1::2]          # (n, 2): samp, line
+        dp, dq = v[:, 1:, 0::2].transpose(0, 2, 1), v[:, 1:, 1::2].transpose(0, 2, 1)  # (n, 2, 3)
+        ground = np.array([self.lon_scale, self.lat_scale, self.height_scale])
+        image = np.array([self.samp_scale, self.line_scale])
+        jac = (dp * q[..., None] - p[..., None] * dq) / (q * q)[..., None] * (image[:, None] / ground)
+        own = p / q * image + np.array([self.samp_off, self.line_off]) - self.origin + 0.5
+        return own[:, 0], own[:, 1], jac
 
     def image_to_ground(self, col, row, h, tol: float = 1e-10, max_iter: int = 30, converged_only: bool = False):
         """(lon, lat) degrees of GDAL image points at ellipsoidal heights h, by Newton on

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError, MetadataError
-from ..geodesy import ecef_to_geodetic, geodetic_to_ecef
+from ..geodesy import ecef_to_geodetic, geodetic_by_ecef, geodetic_to_ecef
 from ..validation import ground_points, per_point
 from .camera import inside_image
 from .rpc import RpcModel
@@ -149,15 +149,40 @@ class RpcScene:
         (core.validation.per_point)."""
         lon, lat, h = (np.asarray(a, dtype=float) for a in per_point(lon=lon, lat=lat, h=h))
         self.warn_heights(h)
-        r = self.rpc
-        lon = r.lon_off + (lon - r.lon_off + 180.0) % 360.0 - 180.0
+        lon = self.wrapped(lon)
         with np.errstate(divide="ignore", invalid="ignore"):
-            col, row = r.ground_to_image(lon, lat, h)
-        far = (np.abs((lon - r.lon_off) / r.lon_scale) > MAX_NORMALISED) | \
-              (np.abs((lat - r.lat_off) / r.lat_scale) > MAX_NORMALISED)
+            col, row = self.rpc.ground_to_image(lon, lat, h)
         col, row = self.correct(col, row)
-        bad = far | ~np.isfinite(col) | ~np.isfinite(row)
+        bad = self.far(lon, lat) | ~np.isfinite(col) | ~np.isfinite(row)
         return np.where(bad, np.nan, col), np.where(bad, np.nan, row)
+
+    def ground_to_image_jacobian(self, xyz) -> tuple[np.ndarray, ...]:
+        """(col, row, the RPC's own col, row (n,) px, derivatives (n, 2, 3) of (col, row) by the
+        ECEF coordinates, px/m) of ECEF points (n, 3): :meth:`ground_to_image` with the analytic
+        derivatives of the RPC (:meth:`core.model.rpc.RpcModel.ground_to_image_jacobian`) through
+        geodetic coordinates and the correction. NaN where ground_to_image has none."""
+        self.camera_index(0)
+        lon, lat, h = ecef_to_geodetic(ground_points(xyz))
+        self.warn_heights(h)
+        lon = self.wrapped(lon)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            own_col, own_row, jac = self.rpc.ground_to_image_jacobian(lon, lat, h)
+        col, row = self.correct(own_col, own_row)
+        (_, a1, a2), (_, b1, b2) = self.correction
+        jac = np.array([[1.0 + a1, a2], [b1, 1.0 + b2]]) @ jac @ geodetic_by_ecef(lon, lat, h)
+        bad = self.far(lon, lat) | ~np.isfinite(col) | ~np.isfinite(row) | ~np.all(np.isfinite(jac), axis=(1, 2))
+        jac[bad] = np.nan
+        return tuple(np.where(bad, np.nan, v) for v in (col, row, own_col, own_row)) + (jac,)
+
+    def wrapped(self, lon) -> np.ndarray:
+        """Longitudes (deg) within 180 degrees of the RPC's longitude offset."""
+        return self.rpc.lon_off + (lon - self.rpc.lon_off + 180.0) % 360.0 - 180.0
+
+    def far(self, lon, lat) -> np.ndarray:
+        """Mask of ground points (deg) beyond MAX_NORMALISED of the RPC's ground domain."""
+        r = self.rpc
+        return (np.abs((lon - r.lon_off) / r.lon_scale) > MAX_NORMALISED) | \
+            (np.abs((lat - r.lat_off) / r.lat_scale) > MAX_NORMALISED)
 
     def image_to_ground(self, col, row, height, camera: int = 0) -> np.ndarray:
         """ECEF points (n, 3) seen at image points on the surface of ellipsoidal height
