@@ -96,7 +96,9 @@ def enum_value(alg, parameters: dict, name: str, context) -> str | None:
 
 
 def dem_datum() -> QgsProcessingParameterEnum:
-    return enum_parameter(DEM_DATUM, tr("DEM height datum"), DATUMS, "geoid")
+    """DEM_DATUM, optional with its default: graphical models and scripts written before an algorithm
+    took a DEM (bundleadjust's reference DEM) stay valid."""
+    return enum_parameter(DEM_DATUM, tr("DEM height datum"), DATUMS, "geoid", optional=True)
 
 
 def z_datum() -> QgsProcessingParameterEnum:

@@ -265,12 +265,13 @@ def test_the_readme_demo_and_models_use_value_names():
 def test_the_toolbox_lists_and_returns_the_value_names(provider):
     """QGIS 3.22's drop-down of a static-string enumeration shows the value names themselves (it
     has no separate labels: the help says what each means) and gives back the name chosen; an
-    optional one without default starts at '[Not selected]'."""
+    optional one starts at its default ('[Not selected]' without one; DEM_DATUM is optional so that models
+    written before an algorithm took a DEM stay valid, and an unset one is its default, geoid)."""
     from qgis.gui import QgsGui, QgsProcessingGui
     from qgis.PyQt.QtWidgets import QComboBox
     context = QgsProcessingContext()
     alg = provider.algorithm("groundtoimage")
-    for name, shown, first in (("DEM_DATUM", ["geoid", "ellipsoid"], "geoid"),
+    for name, shown, first in (("DEM_DATUM", ["[Not selected]", "geoid", "ellipsoid"], "geoid"),
                                ("Z_DATUM", ["[Not selected]", "geoid", "ellipsoid"], None)):
         wrapper = QgsGui.processingGuiRegistry().createParameterWidgetWrapper(alg.parameterDefinition(name),
                                                                              QgsProcessingGui.Standard)
