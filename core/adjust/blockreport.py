@@ -14,6 +14,7 @@ from ..model.mixedblock import MixedBlock
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
 from ..observations.tiepoints import TieTable
+from .report_accuracy import absolute_accuracy
 from .report_types import BlockReport
 from .results import AdjustmentResult
 from .scenesigmas import stated_sigmas
@@ -138,10 +139,11 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
     check points (the adjusted scene's ground -> image of their stated ground), the move from the
     onboard geolocation (:func:`onboard_move`) and the sigmas the scene was adjusted with, with
     control lines their lines and points used and across-line RMS (m, :func:`_line_entry`; per
-    line in the engine's report["lines"]); sigma0; the scenes held by no control point that moved
-    beyond their stated accuracy (:func:`beyond_stated`); and the engine's whole report
-    (``adjustment``), whence the datum sentence, ``datum_directions``, the engine's warnings and
-    the written-vs-fitted figures (:class:`core.adjust.report_types.BlockReport`)."""
+    line in the engine's report["lines"]); sigma0; without control points the absolute accuracy the
+    statistics predict (``accuracy``, :func:`core.adjust.report_accuracy.absolute_accuracy`); the
+    scenes held by no control point that moved beyond their stated accuracy (:func:`beyond_stated`);
+    and the engine's whole report (``adjustment``), whence the datum sentence, ``datum_directions``,
+    the engine's warnings and the written-vs-fitted figures (:class:`core.adjust.report_types.BlockReport`)."""
     rep, pts = out.report, out.points
     control, check = pts["role"] == "control", pts["role"] == "check"
     tie_res = (out.tie_points["res_col"], out.tie_points["res_row"]) if ties is not None and len(ties) else None
@@ -170,7 +172,9 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
              "tie_rmse_px": None if tie_res is None else _rms_px(*tie_res),
              "tie_rmse_before_px": None if before is None else _rms_px(before[:, 0], before[:, 1]),
              "lines": _line_entry(line_points, np.ones(line_points["scene"].size, bool)) if line_points else None}
-    report = BlockReport(block, per_scene, beyond_stated(per_scene, bool((gcps.role == "control").any())), rep)
+    controlled = bool((gcps.role == "control").any())
+    block["accuracy"] = absolute_accuracy(per_scene, rep, controlled)
+    report = BlockReport(block, per_scene, beyond_stated(per_scene, controlled), rep)
     for warning in report.scene_warnings:  # the adjustment's own: logged by the engine
         log.warning("%s", warning)
     log.info("%s", report.summary_sentence())

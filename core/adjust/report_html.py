@@ -79,6 +79,7 @@ def block_section(block_report: BlockReport) -> str:
     warnings = "".join(f"<p class='bad'>{html.escape(w)}</p>" for w in block_report.own_warnings())
     return (f"<h2>Block of {block['scenes']} scenes</h2><p class='big'>{html.escape(rep['datum'])}; sigma0 "
             f"{_fmt(block['sigma0'])}.</p>" + warnings + _table(header, rows, left=2) + _block_lines(rep)
+            + "".join(f"<p>{html.escape(text)}.</p>" for text in (block.get("accuracy") or {}).get("sentences", []))
             + "<p>Each scene's move is the largest distance between the ground its onboard (or vendor RPC) and its "
               "adjusted model see over its images; the onboard sigma is what POSITION_SIGMA and ATTITUDE_SIGMA "
               "allow, an RPC product's the vendor's stated accuracy (RPC_SIGMA) on the ground; the stated "

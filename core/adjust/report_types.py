@@ -151,7 +151,8 @@ def metres_text(value: float | None) -> str:
 @dataclass(frozen=True, eq=False)
 class BlockReport(_JsonView):
     """A block adjustment's own figures (:func:`core.adjust.blockreport.block_report`) around its
-    adjustment's report: block (the block's control, check and tie RMS, px; sigma0; lines), scenes
+    adjustment's report: block (the block's control, check and tie RMS, px; sigma0; lines; accuracy,
+    :func:`core.adjust.report_accuracy.absolute_accuracy`), scenes
     (per scene: cameras, control, check and tie figures, the move from its input geolocation, the
     sigmas it was adjusted with, its lines), scene_warnings (scenes held by no control point that
     moved beyond their stated accuracy), adjustment (the composite's :class:`AdjustmentReport`).
@@ -200,9 +201,11 @@ class BlockReport(_JsonView):
     def log_lines(self) -> list[LogLine]:
         """What the log says of the block after its adjustment's sentences: per scene its control,
         check, tie and line figures and its move against its stated accuracy, the block's summary,
-        and the block's own warnings."""
+        without control its predicted absolute accuracy, and the block's own warnings."""
+        accuracy = self.block.get("accuracy") or {}
         return [*(LogLine(scene_sentence(name, s)) for name, s in self.scenes.items()),
-                LogLine(self.summary_sentence()), *(LogLine(w, True) for w in self.own_warnings())]
+                LogLine(self.summary_sentence()), *(LogLine(text) for text in accuracy.get("sentences", [])),
+                *(LogLine(w, True) for w in self.own_warnings())]
 
 
 def scene_sentence(name: str, s: dict) -> str:

@@ -83,10 +83,10 @@ def statistics(problem: Problem, lin: Linearization, system: System) -> Statisti
     ground_pvv, r_g = np.zeros((0, 3)), np.zeros((0, 3))
     if problem.weighted and problem.n_control:
         # the weighted control points are the first ground unknowns
-        qgg = qgg[:problem.n_control]
+        q_control = qgg[:problem.n_control]  # qgg stays whole: the tie heights below index it by tie point
         e = np.einsum("mij,mj->mi", problem.enu, (problem.ground - problem.ground0)[:problem.n_control])
         w_enu = np.einsum("mii->mi", np.einsum("mij,mjk,mlk->mil", problem.enu, problem.ground_weight, problem.enu))
-        r_g = np.clip(1.0 - np.einsum("mij,mjk,mik->mi", problem.enu, qgg, problem.enu) * w_enu, 0.0, 1.0)
+        r_g = np.clip(1.0 - np.einsum("mij,mjk,mik->mi", problem.enu, q_control, problem.enu) * w_enu, 0.0, 1.0)
         ground_pvv = w_enu * e * e
     pseudo: dict[str, tuple[float, float, int]] = {}
     values = problem.params.values()

@@ -11,8 +11,22 @@ counts); accuracy against the truth at the check points: the misregistration of 
 products (the same check point through two adjusted products: the difference of their image
 errors, px RMS over every pair of products seeing a point) and the absolute error (m RMS: each
 product's true image position of a check point through its adjusted model to the point's true
-height, against the true ground), both also for the vendor RPCs; then the growth exponents of time
-and memory between sizes (log ratio over log ratio of the products).
+height, against the true ground), both also for the vendor RPCs, and the absolute check RMSE in px
+(the true ground through the adjusted model against through the true one); then the growth exponents
+of time and memory between sizes (log ratio over log ratio of the products).
+
+Absolute accuracy against the statistics (issue 31 'Done when' 2): every product's true horizontal
+RMS error at its check points against its prior (within: <= sqrt(2) x RPC_SIGMA x its GSD, the
+prior's radial sigma; the count and the worst), against what the report predicts
+(core.adjust.report_accuracy: the products whose posterior sigma is within their prior); the block's
+mean error (the vector mean over products of each product's mean east/north error, m) against the
+report's predicted sigma of the block's common shift and prior x sqrt(2 / n); with
+--tie-height-sigma the adjusted tie points' heights (adjusted_tie_points.gpkg) against the truth and
+against the DEM, and 1.5 x the sigma; and the block mean error's fall between sizes.
+
+--corner-gcps (issue 31 'Done when' 3): the region simulated with RegionSettings(corner_gcps=True)
+(the 4 ground points nearest the region's corners control, the others check; its own folder
+region_..._corners), the points given to the adjustment as a GeoPackage (gcps.gpkg beside them).
 
 Tie points seen only by consecutive products of one strip (the forward overlaps) are left out
 unless --forward-ties: those products see them along the same rays (one pass, one detector line),
@@ -27,7 +41,7 @@ exponent) fits in the memory available now; otherwise the estimate is printed an
 
 Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_region.py
       [--sizes 100,300,1000] [--ties 2000] [--correction shift] [--rpc-sigma 10] [--out out/bench_region]
-      [--drift-m 2] [--forward-ties] [--force]
+      [--drift-m 2] [--forward-ties] [--force] [--corner-gcps]
       [--tie-height-sigma M (the tie heights held to the region's DEM at M metres)]
 The simulated regions are kept in --out and reused.
 """
@@ -44,6 +58,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from osgeo import ogr
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
@@ -53,8 +68,10 @@ from tests.bench.peak import peak_mb, reset_peak  # noqa: E402
 from pushbroom_adjust.core.adjust import AdjustmentSettings  # noqa: E402
 from pushbroom_adjust.core.formats import load_scene  # noqa: E402
 from pushbroom_adjust.core.formats.rpcfiles import read_rpc_text  # noqa: E402
-from pushbroom_adjust.core.geodesy import geodetic_to_ecef  # noqa: E402
+from pushbroom_adjust.core.geodesy import enu_rotations, geodetic_to_ecef  # noqa: E402
+from pushbroom_adjust.core.observations import gcps as G  # noqa: E402
 from pushbroom_adjust.core.runs import bundleadjust  # noqa: E402
+from pushbroom_adjust.core.dem import Dem  # noqa: E402
 from pushbroom_adjust.core.runs.adjustinputs import AdjustRequest, LayerFile  # noqa: E402
 from pushbroom_adjust.simulation.memory import available_bytes  # noqa: E402
 from pushbroom_adjust.simulation.region import RegionLayout  # noqa: E402
@@ -90,36 +107,94 @@ def height_reference(args, folder: Path) -> dict:
     return {"dem": str(folder / "dem.tif"), "dem_datum": "geoid", "tie_height_sigma": args.tie_height_sigma}
 
 
-def check_errors(scenes: dict, truth: dict, g: dict) -> tuple[float, float, int, int]:
-    """(misregistration px RMS over pairs of products seeing a check point, absolute ground error m
-    RMS over check observations, pairs, observations) of ``scenes`` {name: model} against ``truth``."""
+def check_errors(scenes: dict, truth: dict, g: dict) -> dict:
+    """Errors of ``scenes`` {name: model} against ``truth`` at the check points of ``g`` (gcps.csv's
+    columns; control points left out): ``image`` (n, 2) px (the true ground through the model minus
+    through the truth), ``enu`` (n, 3) m (the true image position through the model to the point's
+    true height minus the true ground, east/north/up at the point), ``scene`` (n,) and ``id`` (n,)."""
     check = g["role"] == "check"
-    ids = g["id"][check]
+    ids, names = g["id"][check], g["scene"][check]
     lon, lat, h = (g[k][check].astype(float) for k in ("lon_true", "lat_true", "h_true"))
     col_t, row_t = (g[k][check].astype(float) for k in ("col_true", "row_true"))
-    err = np.full((ids.size, 2), np.nan)
-    ground = np.full(ids.size, np.nan)
+    image, enu = np.full((ids.size, 2), np.nan), np.full((ids.size, 3), np.nan)
+    rot = enu_rotations(lon, lat)
     for name, scene in scenes.items():
-        m = g["scene"][check] == name
+        m = names == name
         if not m.any():
             continue
         c, r = scene.ground_to_image_geodetic(lon[m], lat[m], h[m])
         tc, tr = truth[name].ground_to_image_geodetic(lon[m], lat[m], h[m])
-        err[m] = np.stack([c - tc, r - tr], axis=1)
-        got = scene.image_to_ground(col_t[m], row_t[m], h[m])
-        ground[m] = np.linalg.norm(got - geodetic_to_ecef(lon[m], lat[m], h[m]), axis=1)
-    order = np.argsort(ids, kind="stable")
-    ids, err = ids[order], err[order]
-    first = np.r_[True, ids[1:] != ids[:-1]]
-    start = np.nonzero(first)[0]
+        image[m] = np.stack([c - tc, r - tr], axis=1)
+        d = scene.image_to_ground(col_t[m], row_t[m], h[m]) - geodetic_to_ecef(lon[m], lat[m], h[m])
+        enu[m] = np.einsum("nij,nj->ni", rot[m], d)
+    return {"image": image, "enu": enu, "scene": names, "id": ids}
+
+
+def misregistration(err: dict) -> tuple[float, int]:
+    """(px RMS, pairs) of the difference of two products' image errors at one check point, over
+    every pair of products seeing a point."""
+    order = np.argsort(err["id"], kind="stable")
+    ids, image = err["id"][order], err["image"][order]
+    start = np.nonzero(np.r_[True, ids[1:] != ids[:-1]])[0]
     diffs = []
     for a, b in zip(start, np.r_[start[1:], ids.size]):  # a few observations per point: pairs within each
-        e = err[a:b]
         i, j = np.triu_indices(b - a, 1)
-        diffs.append(e[i] - e[j])
+        diffs.append(image[a:b][i] - image[a:b][j])
     d = np.concatenate(diffs) if diffs else np.zeros((0, 2))
-    return (float(np.sqrt(np.mean(np.sum(d ** 2, axis=1)))), float(np.sqrt(np.mean(ground ** 2))), len(d),
-            int(ground.size))
+    return float(np.sqrt(np.mean(np.sum(d ** 2, axis=1)))), len(d)
+
+
+def product_truth(err: dict, priors: dict) -> dict:
+    """Per product its true absolute error at its check points, against its prior: ``priors``
+    {name: vendor sigma m per axis} (the report's vendor_sigma_m); a product is within when its
+    horizontal RMS error is within sqrt(2) x prior (the prior's radial sigma). Returns the count
+    within, the worst ratio and product, and the block's mean error (the vector mean over products
+    of each product's mean east/north error, m)."""
+    means, ratios = [], {}
+    for name, prior in priors.items():
+        m = err["scene"] == name
+        if not m.any():
+            continue
+        e = err["enu"][m, :2]
+        means.append(e.mean(axis=0))
+        ratios[name] = float(np.sqrt(np.mean(np.sum(e ** 2, axis=1)))) / (math.sqrt(2) * prior)
+    worst = max(ratios, key=ratios.get)
+    return {"products": len(ratios), "within": sum(r <= 1 for r in ratios.values()), "worst": worst,
+            "worst_ratio": ratios[worst], "block_mean_m": float(np.linalg.norm(np.mean(means, axis=0)))}
+
+
+def tie_heights(out: Path, folder: Path) -> dict:
+    """The adjusted tie points' heights (out/adjusted_tie_points.gpkg) against the truth (the
+    simulated points' true heights, on the region's DEM) and against the DEM at their adjusted
+    position: RMS m over the points adjusted, and the points left out."""
+    layer = ogr.Open(str(out / "adjusted_tie_points.gpkg"))
+    got = {}
+    for f in layer.GetLayer():
+        geom = f.GetGeometryRef()
+        if geom is not None and not geom.IsEmpty():
+            got[f.GetField("id")] = (geom.GetX(), geom.GetY(), geom.GetZ())
+    t = read_columns(folder / "tie_points.csv")
+    ids, first = np.unique(t["id"], return_index=True)
+    h_true = dict(zip(ids, t["h_true"][first].astype(float)))
+    adjusted = np.array(list(got.values()))
+    dem = Dem(folder / "dem.tif", datum="geoid").height(adjusted[:, 0], adjusted[:, 1])
+    truth = np.array([h_true[i] for i in got])
+    rms = lambda a: float(np.sqrt(np.nanmean(a ** 2)))  # noqa: E731
+    return {"points": len(got), "left_out": int(ids.size - len(got)), "truth_rms_m": rms(adjusted[:, 2] - truth),
+            "dem_rms_m": rms(adjusted[:, 2] - dem), "off_dem": int(np.isnan(dem).sum())}
+
+
+def gcp_layer(folder: Path) -> LayerFile:
+    """The region's ground points (gcps.csv: the corner control points and the check points) as the
+    GeoPackage bundleadjust reads (folder/gcps.gpkg, written once), each row's camera and scene the
+    product's name."""
+    path = folder / "gcps.gpkg"
+    if not path.exists():
+        g = read_columns(folder / "gcps.csv")
+        f = {k: g[k].astype(float) for k in ("col", "row", "lon", "lat", "h", "sigma_px", "sigma_xy", "sigma_z")}
+        G.write_gpkg(G.GcpTable(g["id"], g["role"], g["camera"], f["col"], f["row"], f["lon"], f["lat"], f["h"],
+                                f["sigma_px"], f["sigma_xy"], f["sigma_z"], scene=g["scene"]), path)
+    return LayerFile(str(path))
 
 
 def run_child(args, n: int) -> None:
@@ -130,28 +205,44 @@ def run_child(args, n: int) -> None:
     products = {p["name"]: str(folder / p["rpc"]) for p in manifest["products"]}
     out = folder / f"adjusted_{args.correction}"
     request = AdjustRequest(scenes=products, ties=LayerFile(str(folder / "tie_points.csv")),
+                            gcps=gcp_layer(folder) if args.corner_gcps else None,
                             settings=settings_of(args), folder=str(out))
     reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     result = bundleadjust.run(request)
     wall, cpu, peak = time.perf_counter() - t0, time.process_time() - c0, peak_mb()
-    block = result.figures["report"]["block"]
+    report = result.figures["report"]
+    block = report["block"]
     truth = {name: load_scene(folder / p["true_scene"]) for name, p in zip(products, manifest["products"])}
     adjusted = {name: load_scene(out / f"{name}_adjusted.json") for name in products}
     vendor = {name: read_rpc_text(Path(path)) for name, path in products.items()}
     g = read_columns(folder / "gcps.csv")
-    mis, absolute, pairs, obs = check_errors(adjusted, truth, g)
-    mis0, absolute0, _, _ = check_errors(vendor, truth, g)
-    print(json.dumps({"n": n, "wall_s": wall, "cpu_s": cpu, "peak_mb": peak, "sigma0": block["sigma0"],
-                      "tie_rmse_before_px": block["tie_rmse_before_px"], "tie_rmse_px": block["tie_rmse_px"],
-                      "misregistration_px": mis, "misregistration_vendor_px": mis0, "absolute_m": absolute,
-                      "absolute_vendor_m": absolute0, "check_pairs": pairs, "check_observations": obs,
-                      "tie_observations": manifest["points"]["tie_observations"]}))
+    err, err0 = check_errors(adjusted, truth, g), check_errors(vendor, truth, g)
+    (mis, pairs), (mis0, _) = misregistration(err), misregistration(err0)
+    rms = lambda a: float(np.sqrt(np.nanmean(np.sum(a ** 2, axis=1))))  # noqa: E731
+    priors = {name: s["vendor_sigma_m"] for name, s in report["scenes"].items()}
+    accuracy = block.get("accuracy") or {}
+    shift = accuracy.get("common_shift") or {}
+    row = {"n": n, "wall_s": wall, "cpu_s": cpu, "peak_mb": peak, "sigma0": block["sigma0"],
+           "tie_rmse_before_px": block["tie_rmse_before_px"], "tie_rmse_px": block["tie_rmse_px"],
+           "misregistration_px": mis, "misregistration_vendor_px": mis0, "absolute_m": rms(err["enu"]),
+           "absolute_vendor_m": rms(err0["enu"]), "absolute_px": rms(err["image"]),
+           "absolute_vendor_px": rms(err0["image"]), "check_pairs": pairs, "check_observations": len(err["id"]),
+           "control_points": manifest["points"]["control_points"],
+           "tie_observations": manifest["points"]["tie_observations"],
+           "truth": product_truth(err, priors), "vendor_truth": product_truth(err0, priors),
+           "predicted": {"within": (accuracy.get("products") or {}).get("within"),
+                         "block_mean_m": shift.get("horizontal_m"), "virtual_control_m": shift.get("virtual_control_m"),
+                         "sentences": accuracy.get("sentences", [])}}
+    if args.tie_height_sigma is not None:
+        row["heights"] = {**tie_heights(out, folder), "limit_m": 1.5 * args.tie_height_sigma}
+    print(json.dumps(row))
 
 
 def region_folder(args, n: int) -> Path:
     drift = "" if args.drift_m == DRIFT_M else f"_drift{args.drift_m:g}"
-    return Path(args.out) / f"region_{n}_{args.ties}{'_forward' if args.forward_ties else ''}{drift}"
+    corners = "_corners" if args.corner_gcps else ""
+    return Path(args.out) / f"region_{n}_{args.ties}{'_forward' if args.forward_ties else ''}{drift}{corners}"
 
 
 def simulate(args, n: int) -> Path:
@@ -161,10 +252,32 @@ def simulate(args, n: int) -> Path:
         t0 = time.perf_counter()
         simulate_region(layout_of(n), folder, seed=31,
                         settings=RegionSettings(ties_per_product=args.ties, forward_ties=args.forward_ties,
-                                                drift_m=args.drift_m))
+                                                drift_m=args.drift_m, corner_gcps=args.corner_gcps))
         print(f"{n} products: simulated in {time.perf_counter() - t0:.1f} s, peak {peak_mb():.0f} MB "
               f"({layout_of(n).strips} strips x {layout_of(n).products_per_strip}; not timed below)", flush=True)
     return folder
+
+
+def print_accuracy(row: dict) -> None:
+    """The absolute accuracy figures of one size against the truth and against the report's."""
+    t, v, p = row["truth"], row["vendor_truth"], row["predicted"]
+    print(f"  absolute check RMSE {row['absolute_px']:.3f} px, {row['absolute_m']:.2f} m (vendor "
+          f"{row['absolute_vendor_px']:.2f} px; {row['control_points']} control points)")
+    print(f"  products within their prior (true horizontal RMS <= sqrt(2) x RPC_SIGMA): {t['within']} of "
+          f"{t['products']}, worst {t['worst']} at {t['worst_ratio']:.2f} x (vendor: {v['within']}, worst "
+          f"{v['worst_ratio']:.2f} x); the report predicts {p['within']} within")
+    vc = "-" if p["virtual_control_m"] is None else f"{p['virtual_control_m']:.2f}"
+    bm = "-" if p["block_mean_m"] is None else f"{p['block_mean_m']:.2f}"
+    print(f"  block mean error (vector mean of the products' mean errors): {t['block_mean_m']:.2f} m (vendor "
+          f"{v['block_mean_m']:.2f} m); the report predicts {bm} m (1 sigma, radial; priors alone over "
+          f"{t['products']} products {vc} m)")
+    h = row.get("heights")
+    if h:
+        print(f"  tie heights: {h['truth_rms_m']:.2f} m RMS against the truth, {h['dem_rms_m']:.2f} m against the DEM "
+              f"(limit 1.5 x sigma = {h['limit_m']:.2f} m) over {h['points']} points ({h['left_out']} left out, "
+              f"{h['off_dem']} off the DEM)")
+    for sentence in p["sentences"]:
+        print(f"  report: {sentence}")
 
 
 def exponent(a: dict, b: dict, key: str) -> float:
@@ -182,6 +295,8 @@ def main() -> None:
                     help="also tie points seen only by consecutive products of one strip (parallel rays: their "
                          "heights need --tie-height-sigma)")
     ap.add_argument("--drift-m", type=float, default=DRIFT_M, help="the simulated vendor drift (m at the last row)")
+    ap.add_argument("--corner-gcps", action="store_true",
+                    help="the 4 ground points nearest the region's corners control, the rest check (own folder)")
     ap.add_argument("--out", default="out/bench_region")
     ap.add_argument("--force", action="store_true", help="run a size even when its memory estimate does not fit")
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
@@ -204,6 +319,7 @@ def main() -> None:
         child = [sys.executable, __file__, "--child", str(n), "--ties", str(args.ties), "--out", args.out,
                  "--correction", args.correction, "--rpc-sigma", str(args.rpc_sigma)]
         child += (["--forward-ties"] if args.forward_ties else []) + ["--drift-m", str(args.drift_m)]
+        child += ["--corner-gcps"] if args.corner_gcps else []
         if args.tie_height_sigma is not None:
             child += ["--tie-height-sigma", str(args.tie_height_sigma)]
         done = subprocess.run(child, capture_output=True, text=True)
@@ -218,7 +334,10 @@ def main() -> None:
               f"{row['misregistration_px']:.3f} px RMS (vendor {row['misregistration_vendor_px']:.2f}; "
               f"{row['check_pairs']} pairs), absolute {row['absolute_m']:.2f} m RMS (vendor "
               f"{row['absolute_vendor_m']:.2f}; {row['check_observations']} check observations)", flush=True)
+        print_accuracy(row)
     for a, b in zip(rows, rows[1:]):
+        print(f"block mean error {a['n']} -> {b['n']} products: {a['truth']['block_mean_m']:.2f} -> "
+              f"{b['truth']['block_mean_m']:.2f} m (sqrt(n) law: {a['truth']['block_mean_m'] * math.sqrt(a['n'] / b['n']):.2f} m)")
         print(f"growth {a['n']} -> {b['n']} products: time n^{exponent(a, b, 'wall_s'):.2f} wall, "
               f"n^{exponent(a, b, 'cpu_s'):.2f} CPU, memory n^{exponent(a, b, 'peak_mb'):.2f}")
     load = os.getloadavg()
