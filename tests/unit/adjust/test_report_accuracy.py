@@ -30,17 +30,28 @@ from pushbroom_adjust.simulation.rpcregion import RegionSettings, simulate_regio
 RPC_SIGMA, SIGMA = 10.0, 3.0   # px: the vendor prior; m: the DEM's stated accuracy
 
 
+def simulated_and_adjusted(folder, gcps: bool, **settings) -> tuple[list, dict, object]:
+    """(the products of region.json, the adjusted block, gcps.csv's columns) of a 2 x 3 region simulated
+    into ``folder`` (``settings``: RegionSettings' fields) and adjusted (drift, RPC_SIGMA, the DEM at
+    SIGMA; with ``gcps`` its control and check points)."""
+    simulate_region(RegionLayout(2, 3, dates=2), folder, seed=31,
+                    settings=RegionSettings(ties_per_product=400, forward_ties=True, **settings))
+    products = json.loads((folder / "region.json").read_text())["products"]
+    ties = tiepoints.read_csv(folder / "tie_points.csv")
+    g = np.genfromtxt(folder / "gcps.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    table = G.GcpTable(g["id"], g["role"], g["scene"], g["col"], g["row"], g["lon"], g["lat"], g["h"], g["sigma_px"],
+                       g["sigma_xy"], g["sigma_z"], scene=g["scene"]) if gcps else None
+    adjust = AdjustmentSettings(rpc_correction="drift", rpc_sigma=RPC_SIGMA, dem=str(folder / "dem.tif"),
+                                dem_datum="geoid", tie_height_sigma=SIGMA)
+    out = adjust_block({p["name"]: load_scene(folder / p["rpc"]) for p in products}, table,
+                       replace(ties, camera=np.full(len(ties), "")), adjust)
+    return products, out, g
+
+
 @pytest.fixture(scope="module")
 def region(tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("accuracy_region")
-    simulate_region(RegionLayout(2, 3, dates=2), folder, seed=31,
-                    settings=RegionSettings(ties_per_product=400, forward_ties=True))
-    products = json.loads((folder / "region.json").read_text())["products"]
-    scenes = {p["name"]: load_scene(folder / p["rpc"]) for p in products}
-    ties = tiepoints.read_csv(folder / "tie_points.csv")
-    settings = AdjustmentSettings(rpc_correction="drift", rpc_sigma=RPC_SIGMA, dem=str(folder / "dem.tif"),
-                                  dem_datum="geoid", tie_height_sigma=SIGMA)
-    out = adjust_block(scenes, None, replace(ties, camera=np.full(len(ties), "")), settings)
+    products, out, _ = simulated_and_adjusted(folder, False)
     true = {p["name"]: np.array([p["true_correction"]["col"][0], p["true_correction"]["row"][0]]) for p in products}
     rows = np.genfromtxt(folder / "tie_points.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
     ids, first = np.unique(rows["id"], return_index=True)
@@ -129,19 +140,10 @@ def test_four_corner_gcps_with_the_dem_hold_the_region_to_a_fraction_of_a_pixel(
     """Issue 31 'Done when' 3 on a small region: the 4 ground points nearest the region's corners
     control (simulation.rpcregion corner_gcps), the others check; with the DEM holding the tie heights
     (its statistics once failed with an IndexError when control points and tie heights met)."""
-    simulate_region(RegionLayout(2, 3, dates=2), tmp_path, seed=31,
-                    settings=RegionSettings(ties_per_product=400, forward_ties=True, n_gcps=40, corner_gcps=True))
-    products = json.loads((tmp_path / "region.json").read_text())["products"]
+    products, out, g = simulated_and_adjusted(tmp_path, True, n_gcps=40, corner_gcps=True)
     scenes = {p["name"]: load_scene(tmp_path / p["rpc"]) for p in products}
     truth = {p["name"]: load_scene(tmp_path / p["true_scene"]) for p in products}
-    ties = tiepoints.read_csv(tmp_path / "tie_points.csv")
-    g = np.genfromtxt(tmp_path / "gcps.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
-    table = G.GcpTable(g["id"], g["role"], g["scene"], g["col"], g["row"], g["lon"], g["lat"], g["h"], g["sigma_px"],
-                       g["sigma_xy"], g["sigma_z"], scene=g["scene"])
     assert np.unique(g["id"][g["role"] == "control"]).size == 4
-    settings = AdjustmentSettings(rpc_correction="drift", rpc_sigma=RPC_SIGMA, dem=str(tmp_path / "dem.tif"),
-                                  dem_datum="geoid", tie_height_sigma=SIGMA)
-    out = adjust_block(scenes, table, replace(ties, camera=np.full(len(ties), "")), settings)
     assert out.report.block["accuracy"] is None             # its check points say its accuracy
     check = g["role"] == "check"
     errors = []
@@ -153,5 +155,5 @@ def test_four_corner_gcps_with_the_dem_hold_the_region_to_a_fraction_of_a_pixel(
         vendor = np.stack(scenes[name].ground_to_image_geodetic(*args), 1) - np.stack(true, 1)
         assert np.sqrt(np.mean(np.sum(vendor ** 2, 1))) > 2.0   # the vendor RPCs miss by 5-20 m
     rmse = float(np.sqrt(np.mean(np.sum(np.concatenate(errors) ** 2, 1))))
-    assert rmse <= 1.0
+    assert rmse <= 1.0                                      # measured 0.362 px (vendor RPCs: above 2 px)
     assert out.report.adjustment["variance_components"][TIE_HEIGHT_GROUP]["redundancy"] > 0
