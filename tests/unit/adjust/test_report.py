@@ -3,7 +3,6 @@ page with the headline figures, the decisions and three inline PNG plots, writte
 import base64
 import json
 import re
-import time
 
 import matplotlib
 import numpy as np
@@ -129,14 +128,13 @@ def test_many_trajectory_coefficients_are_summarised_per_axis(simulated, tmp_pat
     assert len(IMAGES.findall(text)) == 3
 
 
-def test_half_a_million_points_are_subsampled_quickly(result, tmp_path):
+def test_half_a_million_points_are_subsampled(result, tmp_path):
+    # What is drawn, not how long it takes (timings belong to tests/bench).
     n = 500_000
     take = np.resize(np.arange(len(result.points["col"])), n)
     points = {k: np.asarray(v)[take] for k, v in result.points.items()}
     usable = int((np.isfinite(points["res_col"]) & np.isfinite(points["res_row"])).sum())
-    start = time.perf_counter()
     write_report_html(result.report, points, tmp_path / "big.html")
-    assert time.perf_counter() - start < 5.0
     text = (tmp_path / "big.html").read_text(encoding="utf-8")
     assert f"{MAX_ARROWS} of the {usable} points are drawn" in text
 
