@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from distributed import LocalCluster
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
@@ -115,7 +116,6 @@ def main() -> None:
     threads = match(folder, out / "ties.gpkg", args.spacing)
     print_pairs(threads.figures)
     if args.dask_workers:
-        from distributed import LocalCluster
         with LocalCluster(n_workers=args.dask_workers, processes=True, threads_per_worker=1, host="127.0.0.1",
                           dashboard_address=None) as cluster:
             match(folder, out / "ties_dask.gpkg", args.spacing, cluster.scheduler_address)
