@@ -60,8 +60,12 @@ def test_a_corner_and_a_forward_overlap_are_matched_on_the_true_ground(region, f
     15). Through the true models the corner's ties miss by 0.03 px; the forward overlap's by 0.16
     px in the row of grid points 31 px from s2p2's first row, 0.07 px at 46 px and 0.02 px at 61 px
     (and alike matched the other way, near s2p1's last row): matched positions in the other image
-    within about 45 px of its edge are biased by up to 0.2 px, a defect of the matcher not yet
-    found (the rendered images and the vendor RPCs, fitted to 1e-7 px, are exact there)."""
+    within about 45 px of its edge are biased by up to 0.2 px (through the true models as views:
+    0.01 px). The reference position of a match is the window's centre minus the window's local map
+    times the offset found (5-10 px here); that map holds the pyramid's offset field's gradient,
+    which is right in principle (it follows relief parallax) but extrapolated, and wrong by about
+    0.016, near the edge of the overlap. Taken without it, these ties met the truth to 0.01-0.05 px,
+    but a pyramid face's parallax (20 px) would then be biased by pixels: not done."""
     views = {v.scene_name: v for v in region["views"]}
     ties, report = match_pair(views[first], views[second], region["dem"], SETTINGS)
     assert not report.failure and report.matched >= least, report
