@@ -12,7 +12,10 @@ it), found over an image pyramid before the fine pass (:mod:`core.measure.matchi
    whatever lies beyond the reference's or the other image's edge masked (masked normalised
    cross-correlation, Padfield 2012). Its peak is the models' common offset. A weak peak, or one
    on the border of the search, stops the run: the error exceeds the search range, or the images
-   do not show the same ground. The cost grows with the image, not with the search range.
+   do not show the same ground. The cost grows with the image, not with the search range. Two
+   images that share a small part (a region's forward overlap or the corner of four products) are
+   correlated at a finer level, so that their common part holds enough level pixels
+   (:func:`global_factor`).
 3. **Local levels** f, f/4, ..., 2 (:func:`local_factors`). Chips of LEVEL_WINDOW level pixels on a
    grid over the image (at most MAX_LEVEL_CHIPS, no denser than the grid matched) are correlated
    within LEVEL_RADIUS level pixels of the offset predicted for them, each rectified at the offsets
@@ -57,6 +60,12 @@ LEVEL_MIN_PEAK = 0.5      # a local chip's, at least
 MIN_OVERLAP = 0.1         # share of the smaller image's pixels a global placement must overlap, at least ...
 MIN_OVERLAP_PX = 1024     # ... and this many level pixels (a small overlap correlates by chance)
 MIN_TEXTURE = 1.0         # DN: a chip flatter than this (standard deviation) says nothing
+# The global level is made finer (down to the raw pixels, its larger side at most MAX_GLOBAL_SIZE
+# px) until the overlap the models predict holds OVERLAP_MARGIN x MIN_OVERLAP_PX level pixels: the
+# corner two products of neighbouring strips share (a 20 % side-lap by a 15 % forward overlap:
+# 3 % of an image, 165 level pixels at 1:8 of 600 px) could not reach MIN_OVERLAP_PX at the top size.
+OVERLAP_MARGIN = 2
+MAX_GLOBAL_SIZE = 1024
 
 
 @dataclass
@@ -155,8 +164,9 @@ def coarse_offsets(scene: SceneModel, camera: int, surface, ref, levels: BlockMe
         log.info("search range %g m clipped to %.0f m: %.0f px, the image's larger side (%d x %d px); a larger "
                  "offset would leave the image nothing in common with its prediction", search_m, search_used,
                  radius, cam.cols, cam.rows)
-    factor = 2 ** max(0, math.ceil(math.log2(max(cam.cols, cam.rows) / TOP_SIZE)))
+    top = 2 ** max(0, math.ceil(math.log2(max(cam.cols, cam.rows) / TOP_SIZE)))
     scale = reference_scale(scene, camera, surface, ref)
+    factor = global_factor(scene, camera, surface, ref, levels, top, scale)
     out = global_offset(scene, camera, surface, ref, levels, factor, scale, radius, search_used, clipped,
                         max_peak_ratio)
     for f in local_factors(factor):
@@ -169,6 +179,22 @@ def coarse_offsets(scene: SceneModel, camera: int, surface, ref, levels: BlockMe
              "%s", factor, *out.offset, out.peak,
              ", ".join(f"{k} of {c} at 1:{f}" for f, c, k in out.levels) or "none (the image is small)")
     return out
+
+
+def global_factor(scene: SceneModel, camera: int, surface, ref, levels: BlockMeans, top: int, scale: float) -> int:
+    """The global level's factor: ``top`` (the image's larger side at most TOP_SIZE level px),
+    halved while the pixels the image and the reference share at the models' offset (counted at
+    ``top``, scaled to the finer level) fall short of OVERLAP_MARGIN x MIN_OVERLAP_PX and the level's
+    larger side stays within MAX_GLOBAL_SIZE."""
+    raw = levels.level(top)
+    x, y = lattice_positions(scene, camera, surface, ref, 0.5 * top, 0.5 * top, float(top), raw.shape)
+    common = np.count_nonzero(np.isfinite(raw) & np.isfinite(sampled(ref, scale, top, x, y)))
+    cam = scene.cameras[camera]
+    f = top
+    while (f > 1 and common * (top / f) ** 2 < OVERLAP_MARGIN * MIN_OVERLAP_PX
+           and max(cam.cols, cam.rows) / (f // 2) <= MAX_GLOBAL_SIZE):
+        f //= 2
+    return f
 
 
 def local_factors(top: int) -> list[int]:

@@ -169,7 +169,7 @@ class ImageReference(Reference):
     def straddles_seam(self, x: np.ndarray) -> np.ndarray:
         """(n,) whether the windows at array columns x (n, ...) of this camera's image, with the
         taps of the cubic convolution (2 px either side), reach across one of its CCD seams."""
-        flat = x.reshape(x.shape[0], -1)
+        flat = x.reshape(x.shape[0], int(np.prod(x.shape[1:])))   # -1 cannot reshape no window
         cam = self.scene.cameras[self.camera]
         first, last = flat.min(axis=1) + 0.5 - CUBIC_TAPS, flat.max(axis=1) + 0.5 + CUBIC_TAPS
         return cam.chip_index(first) != cam.chip_index(last)

@@ -7,7 +7,8 @@ import scipy.fft
 from osgeo import gdal, osr
 
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.measure.mosaiccheck import Raster, check_mosaic, check_pair, misregistered, overlap_window
+from pushbroom_adjust.core.measure.mosaiccheck import (Raster, check_mosaic, check_pair, meeting_boxes, misregistered,
+                                                       overlap_window)
 
 SIZE = 5.0
 
@@ -52,7 +53,22 @@ def test_a_known_shift_is_read_on_the_overlap_alone(tmp_path):
     assert pair.mean_px == pytest.approx((0.3, -0.2), abs=0.01)
     assert pair.rms_px == pytest.approx(np.hypot(0.3, 0.2), abs=0.01)
     assert misregistered([pair]) == [] and misregistered([pair], 0.2) == [pair]
-    assert pair.sentence.startswith("a - b: 0.3") and pair.sentence.endswith("on 11 of 12 windows; left out: 1 nodata")
+    assert pair.sentence.startswith("a - b: 0.3") and pair.sentence.endswith("on 11 of 12 windows of 64 px; left out: 1 nodata")
+
+
+
+def test_a_narrow_overlap_is_measured_on_smaller_windows(tmp_path):
+    """An overlap of 70 x 400 px holds 6 windows of 64 px: measured again on 32 px windows every
+    16 px (3 x 24), the known shift read to 0.02 px; a wide one keeps its 64 px windows."""
+    first, moved = ground(), ground(shift=(0.3, -0.2))
+    a = write(tmp_path / "a.tif", first[:, :270], 0, 0)
+    b = write(tmp_path / "b.tif", moved[:, 200:], 200, 0)
+    (pair,) = check_mosaic({"a": a, "b": b})
+    assert pair.window_px == 32 and pair.windows == 72 and pair.used >= 60
+    assert pair.mean_px == pytest.approx((0.3, -0.2), abs=0.02)
+    assert "windows of 32 px" in pair.sentence
+    wide = write(tmp_path / "wide.tif", moved[:, 100:], 100, 0)
+    assert check_mosaic({"a": a, "wide": wide})[0].window_px == 64
 
 
 def test_grids_off_the_lattice_are_refused_and_apart_are_no_pair(tmp_path):
@@ -65,3 +81,27 @@ def test_grids_off_the_lattice_are_refused_and_apart_are_no_pair(tmp_path):
     assert overlap_window(a, far) is None and check_pair(a, far) is None
     empty = Raster.open("empty", write(tmp_path / "empty.tif", np.zeros((100, 100)), 50, 50))
     assert overlap_window(a, empty) == (50, 50, 0, 0, 50, 50) and check_pair(a, empty) is None
+
+
+def brute_force(boxes: np.ndarray) -> list[tuple[int, int]]:
+    return [(i, j) for i in range(len(boxes)) for j in range(i + 1, len(boxes))
+            if boxes[i, 0] < boxes[j, 2] and boxes[j, 0] < boxes[i, 2] and boxes[i, 1] < boxes[j, 3]
+            and boxes[j, 1] < boxes[i, 3]]
+
+
+def test_the_sweep_finds_exactly_the_boxes_that_meet():
+    """A region's grid of 3 strips x 4 products (20 % side-lap, 15 % forward: each meets its 8
+    neighbours, 29 pairs), boxes that only touch (no pair), equal left edges, and 300 random boxes:
+    the sweep gives the all-pairs test's pairs, in its order."""
+    w, h = 100.0, 100.0
+    region = np.array([(s * 0.8 * w, p * 0.85 * h, s * 0.8 * w + w, p * 0.85 * h + h)
+                       for s in range(3) for p in range(4)])
+    pairs = meeting_boxes(region)
+    assert len(pairs) == 29 and [tuple(p) for p in pairs] == brute_force(region)
+    touching = np.array([(0, 0, 10, 10), (10, 0, 20, 10), (0, 10, 10, 20), (0, 5, 10, 15), (0, 0, 10, 10)], float)
+    assert [tuple(p) for p in meeting_boxes(touching)] == [(0, 3), (0, 4), (2, 3), (3, 4)] == brute_force(touching)
+    rng = np.random.default_rng(3)
+    corner = rng.uniform(0, 1000, (300, 2))
+    boxes = np.hstack([corner, corner + rng.uniform(1, 80, (300, 2))])
+    assert [tuple(p) for p in meeting_boxes(boxes)] == brute_force(boxes)
+    assert meeting_boxes(np.zeros((0, 4))).shape == (0, 2) and meeting_boxes(boxes[:1]).shape == (0, 2)
