@@ -310,8 +310,6 @@ class ParameterSet:
                              parameter="scene")
         self._select(parse_interior(interior))
         self.index = {p.name: i for i, p in enumerate(self.params)}
-        self._blocks = {b: np.flatnonzero(np.array([p.block for p in self.params]) == b).reshape(-1, 3)
-                        for b in ("position", "attitude")}  # made once: a block's composite has thousands
 
     def _select(self, selections) -> None:
         selectable = [p for p in self.params if p.block not in ("position", "attitude")]
@@ -359,11 +357,11 @@ class ParameterSet:
 
     def block_values(self, block: str) -> np.ndarray:
         """(m, 3) coefficients of the position or attitude block."""
-        return self.values()[self.block_indices(block)]
+        return np.array([p.value for p in self.params if p.block == block]).reshape(-1, 3)
 
     def block_indices(self, block: str) -> np.ndarray:
-        """(m, 3) parameter indices of the position or attitude block (int64)."""
-        return self._blocks[block].copy()
+        """(m, 3) parameter indices of the position or attitude block."""
+        return np.array([i for i, p in enumerate(self.params) if p.block == block], dtype=np.int64).reshape(-1, 3)
 
     def owner_name(self, owner: int) -> str:
         """The name of trajectory correction ``owner``: its camera's (one per camera), else its
@@ -406,10 +404,10 @@ class ParameterSet:
         first = int(self.offsets[block][owner])
         return slice(first, first + self.bases[block][owner].size)
 
-    def trajectory_correction(self, camera: int = 0, values: np.ndarray | None = None) -> TrajectoryCorrection:
-        """The trajectory correction camera ``camera`` sees, of ``values`` (None: the current ones)."""
-        o, values = int(self.owner_of[camera]), self.values() if values is None else values
-        pos, att = (values[self._blocks[b][self.owner_rows(b, o)]] for b in ("position", "attitude"))
+    def trajectory_correction(self, camera: int = 0, blocks: tuple | None = None) -> TrajectoryCorrection:
+        """The correction camera ``camera`` sees, of ``blocks`` (position, attitude :meth:`block_values`; None: now)."""
+        o, blocks = int(self.owner_of[camera]), blocks or (self.block_values("position"), self.block_values("attitude"))
+        pos, att = (v[self.owner_rows(b, o)] for b, v in zip(("position", "attitude"), blocks))
         return TrajectoryCorrection(self.bases["position"][o], pos, self.bases["attitude"][o], att)
 
     def imaged_by(self, camera: int) -> np.ndarray:
@@ -437,17 +435,17 @@ class ParameterSet:
         correction on the platform (or one per camera among its camera corrections; in a block's
         composite, each scene's on its own platform), chip/camera terms and installation in the
         cameras."""
-        s, values = self.scene, self.values()
+        s, blocks = self.scene, (self.block_values("position"), self.block_values("attitude"))
         platforms = []
         for cams in trajectory_groups(s):
             measured = s.platform.trajectory_of(s.cameras[cams[0]].name)
             owners = np.unique(self.owner_of[cams])
             if owners.size == 1:
                 platform = Platform(measured.ephemeris, measured.attitude,
-                                    self.trajectory_correction(cams[0], values), s.platform.cache_step)
+                                    self.trajectory_correction(cams[0], blocks), s.platform.cache_step)
             else:
                 platform = Platform(measured.ephemeris, measured.attitude, None, s.platform.cache_step,
-                                    {s.cameras[c].name: self.trajectory_correction(c, values) for c in cams})
+                                    {s.cameras[c].name: self.trajectory_correction(c, blocks) for c in cams})
             platforms += [(c, platform) for c in cams]
         platform = platforms[0][1]
         if len({id(p) for _, p in platforms}) > 1:
@@ -486,8 +484,10 @@ def _shift_look_angles(chip, cv: dict):
         d = np.arange(chip.ux_table.size, dtype=float)
         return replace(chip, ux_table=chip.ux_table + cv["ux0"] + cv["ux1"] * d / n,
                        uy_table=chip.uy_table + cv["uy0"] + cv["uy1"] * d / n)
-    ux, uy = np.zeros(max(chip.ux_poly.size, 2)), np.zeros(max(chip.uy_poly.size, 2))
-    ux[:chip.ux_poly.size], uy[:chip.uy_poly.size] = chip.ux_poly, chip.uy_poly
+    ux = np.zeros(max(chip.ux_poly.size, 2))
+    uy = np.zeros(max(chip.uy_poly.size, 2))
+    ux[:chip.ux_poly.size] = chip.ux_poly
+    uy[:chip.uy_poly.size] = chip.uy_poly
     ux[:2] += (cv["ux0"], cv["ux1"] / n)
     uy[:2] += (cv["uy0"], cv["uy1"] / n)
     return replace(chip, ux_poly=ux, uy_poly=uy)
