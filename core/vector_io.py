@@ -125,14 +125,15 @@ def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geomet
             lyr.SetMetadataItem(key, value)
         defn = lyr.GetLayerDefn()
         # Python lists: OGR takes one value at a time, and numpy scalars cost more to convert.
-        values = {name: v.tolist() for name, v in arrays.items()}
+        # Fields by index: by name, OGR's Python layer looks each name up among all the fields, per value.
+        values = [(defn.GetFieldIndex(name), v.tolist()) for name, v in arrays.items()]
         lyr.StartTransaction()
         for i, geom in enumerate(geometries):  # OGR writes feature by feature
             feat = ogr.Feature(defn)
-            for name, column in values.items():
+            for index, column in values:
                 v = column[i]
                 if isinstance(v, str) or (v == v):  # NaN -> NULL
-                    feat.SetField(name, int(v) if isinstance(v, bool) else v)
+                    feat.SetField(index, int(v) if isinstance(v, bool) else v)
             feat.SetGeometry(ogr.CreateGeometryFromWkt(geom) if isinstance(geom, str) else geom)
             lyr.CreateFeature(feat)
             written += 1

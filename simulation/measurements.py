@@ -17,6 +17,9 @@ from ..core.geodesy import A, ecef_to_geodetic
 from ..core.model.sensor import SceneModel
 
 
+NEAR_MARGIN_DEG = 0.02  # about 2 km: far beyond how a camera's border curves between its 65 samples per edge
+
+
 @dataclass
 class GcpSettings:
     """How points are measured. n_gcps: ground points placed uniformly over the reference
@@ -59,14 +62,40 @@ def place_ground_points(scene: SceneModel, dem: Dem, n: int, rng: np.random.Gene
 
 def observe(scene: SceneModel, ground: np.ndarray) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
     """Noise-free image positions of ECEF points in every camera: a list of (camera index,
-    point indices, col, row) for the points that fall inside each camera's image."""
+    point indices, col, row) for the points that fall inside each camera's image. Only the points
+    near a camera's image (:func:`near_image`) are projected: in a region most points are far
+    from any one scene, and projecting them costs the most (their line times lie beyond the
+    scene's trajectory tables)."""
     out = []
+    lon, lat, h = ecef_to_geodetic(ground)
     for k, cam in enumerate(scene.cameras):
-        col, row = scene.ground_to_image(ground, k)
+        near = near_image(scene, k, lon, lat, h)
+        col, row = scene.ground_to_image(ground[near], k)
         inside = cam.in_image(col, row)
-        idx = np.nonzero(inside)[0]
-        out.append((k, idx, col[idx], row[idx]))
+        out.append((k, near[inside], col[inside], row[inside]))
     return out
+
+
+def near_image(scene: SceneModel, camera: int, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Indices of the points (lon, lat degrees, h ellipsoidal m; (n,) each) within the box of
+    camera ``camera``'s image border seen at the lowest and highest of their heights and of the
+    scene's height range, widened by NEAR_MARGIN_DEG: only these can lie in its image. All the
+    points when the border does not meet the Earth or the box spans more than half the globe."""
+    everything = np.arange(lon.size)
+    if lon.size == 0:
+        return everything
+    cam = scene.cameras[camera]
+    s = np.linspace(0.0, 1.0, 65)
+    col = np.concatenate([s * cam.cols, np.full_like(s, cam.cols), s * cam.cols, np.zeros_like(s)])
+    row = np.concatenate([np.zeros_like(s), s * cam.rows, np.full_like(s, cam.rows), s * cam.rows])
+    low, high = min(float(h.min()), scene.height_range[0]), max(float(h.max()), scene.height_range[1])
+    border = [ecef_to_geodetic(scene.image_to_ground(col, row, height, camera))[:2] for height in (low, high)]
+    blon, blat = (np.concatenate(v) for v in zip(*border))
+    if not (np.all(np.isfinite(blon)) and np.all(np.isfinite(blat))) or np.ptp(blon) > 180.0:
+        return everything
+    m = NEAR_MARGIN_DEG
+    return np.nonzero((lon >= blon.min() - m) & (lon <= blon.max() + m) & (lat >= blat.min() - m) &
+                      (lat <= blat.max() + m))[0]
 
 
 def _gross_offsets(n: int, settings: GcpSettings, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

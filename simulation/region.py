@@ -91,13 +91,15 @@ def footprint_km(spec: Preset) -> tuple[float, float]:
     return cam.cols * gsd_km, spec.scene_rows * gsd_km
 
 
-def region_members(layout: RegionLayout, spec: Preset, rpc: bool = True) -> list[BlockMember]:
+def region_members(layout: RegionLayout, spec: Preset, rpc: bool = True,
+                   all_cameras: bool = False) -> list[BlockMember]:
     """The products of ``layout`` as block members of the first camera of ``spec`` (a preset, e.g.
     a :func:`simulation.presets.cut_preset`), each at nadir with its strip's date; ``rpc``: delivered
     as RPC products, of the calibrated camera (the preset's INTERIOR_ERRORS zero: see the module
-    docstring). InputError naming the layout field at fault."""
+    docstring); ``all_cameras``: every camera of ``spec`` (three-line scenes; the layout is still laid
+    out by the first camera's footprint). InputError naming the layout field at fault."""
     layout.validate()
-    spec = one_camera(spec)
+    spec = spec if all_cameras else one_camera(spec)
     if rpc:
         spec = replace(spec, errors=replace(spec.errors, **{name: 0.0 for name in INTERIOR_ERRORS}))
     width, length = footprint_km(spec)

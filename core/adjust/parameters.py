@@ -404,10 +404,10 @@ class ParameterSet:
         first = int(self.offsets[block][owner])
         return slice(first, first + self.bases[block][owner].size)
 
-    def trajectory_correction(self, camera: int = 0) -> TrajectoryCorrection:
-        """The current trajectory correction camera ``camera`` sees."""
-        o = int(self.owner_of[camera])
-        pos, att = (self.block_values(b)[self.owner_rows(b, o)] for b in ("position", "attitude"))
+    def trajectory_correction(self, camera: int = 0, blocks: tuple | None = None) -> TrajectoryCorrection:
+        """The correction camera ``camera`` sees, of ``blocks`` (position, attitude :meth:`block_values`; None: now)."""
+        o, blocks = int(self.owner_of[camera]), blocks or (self.block_values("position"), self.block_values("attitude"))
+        pos, att = (v[self.owner_rows(b, o)] for b, v in zip(("position", "attitude"), blocks))
         return TrajectoryCorrection(self.bases["position"][o], pos, self.bases["attitude"][o], att)
 
     def imaged_by(self, camera: int) -> np.ndarray:
@@ -435,17 +435,17 @@ class ParameterSet:
         correction on the platform (or one per camera among its camera corrections; in a block's
         composite, each scene's on its own platform), chip/camera terms and installation in the
         cameras."""
-        s = self.scene
+        s, blocks = self.scene, (self.block_values("position"), self.block_values("attitude"))
         platforms = []
         for cams in trajectory_groups(s):
             measured = s.platform.trajectory_of(s.cameras[cams[0]].name)
             owners = np.unique(self.owner_of[cams])
             if owners.size == 1:
-                platform = Platform(measured.ephemeris, measured.attitude, self.trajectory_correction(cams[0]),
-                                    s.platform.cache_step)
+                platform = Platform(measured.ephemeris, measured.attitude,
+                                    self.trajectory_correction(cams[0], blocks), s.platform.cache_step)
             else:
                 platform = Platform(measured.ephemeris, measured.attitude, None, s.platform.cache_step,
-                                    {s.cameras[c].name: self.trajectory_correction(c) for c in cams})
+                                    {s.cameras[c].name: self.trajectory_correction(c, blocks) for c in cams})
             platforms += [(c, platform) for c in cams]
         platform = platforms[0][1]
         if len({id(p) for _, p in platforms}) > 1:

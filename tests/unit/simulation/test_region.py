@@ -14,10 +14,12 @@ from pushbroom_adjust.core.dem import Dem
 from pushbroom_adjust.core.errors import InputError
 from pushbroom_adjust.core.formats import load_scene
 from pushbroom_adjust.core.formats.rpcfiles import read_rpc_text
-from pushbroom_adjust.core.geodesy import ecef_to_geodetic
+from pushbroom_adjust.core.geodesy import ecef_to_geodetic, geodetic_to_ecef
 from pushbroom_adjust.simulation.block import simulate_block
+from pushbroom_adjust.simulation.geometry import build_scenes
+from pushbroom_adjust.simulation.measurements import near_image, observe
 from pushbroom_adjust.simulation.memory import GB, refuse_beyond_memory
-from pushbroom_adjust.simulation.presets import PRESETS, cut_preset
+from pushbroom_adjust.simulation.presets import PRESETS, cut_preset, resolve_errors
 from pushbroom_adjust.simulation.region import RegionLayout, region_members
 from pushbroom_adjust.simulation.rpcregion import RegionSettings, simulate_region
 from pushbroom_adjust.simulation.texture import texture_plane
@@ -210,3 +212,29 @@ def test_a_rendered_region_of_12_products_in_3_strips_images_one_ground(tmp_path
         error = np.column_stack([vc - col, vr - row])
         left = error - drift @ np.linalg.lstsq(drift, error, rcond=None)[0]
         assert np.abs(left).max() < 0.05 and np.abs(error).max() > 1.0, (name, np.abs(left).max())
+
+
+def test_three_line_members_keep_every_camera_and_only_near_points_are_projected():
+    """region_members(all_cameras=True): the preset's three cameras, laid out as the one-camera
+    members are; observe() projects into a camera only the points in its image's box, and finds the
+    same points at the same positions as projecting every point does (most of the candidates lie
+    far from the scene: the ground of a 3 x 3 region of it)."""
+    one = region_members(RegionLayout(2, 2), TH1, rpc=False)
+    three = region_members(RegionLayout(2, 2), TH1, rpc=False, all_cameras=True)
+    assert [len(m.preset.cameras) for m in one] == [1] * 4 and [len(m.preset.cameras) for m in three] == [3] * 4
+    assert [(m.orbit_offset_km, m.along_track_km) for m in three] == [(m.orbit_offset_km, m.along_track_km)
+                                                                       for m in one]
+    scene = build_scenes(TH1, 1, resolve_errors(TH1, None), np.random.default_rng(4)).true
+    rng = np.random.default_rng(5)
+    centres = [ecef_to_geodetic(scene.image_to_ground([250.0], [250.0], 600.0, k)) for k in range(3)]
+    # 1,500 points within 0.1 deg (11 km) of each camera's image centre: its image is 2.5 km wide
+    lon, lat = (np.concatenate([c[i] + rng.uniform(-0.1, 0.1, 1500) for c in centres]) for i in (0, 1))
+    ground = geodetic_to_ecef(lon, lat, rng.uniform(0.0, 1200.0, lon.size))
+    near = [near_image(scene, k, lon, lat, ecef_to_geodetic(ground)[2]) for k in range(3)]
+    assert all(0 < n.size < 1000 for n in near)  # a small share of the 4,500 points is projected
+    for k, idx, col, row in observe(scene, ground):
+        c, r = scene.ground_to_image(ground, k)
+        every = np.nonzero(scene.cameras[k].in_image(c, r))[0]
+        assert every.size > 10 and np.array_equal(idx, every)
+        np.testing.assert_allclose(col, c[every], atol=1e-6)
+        np.testing.assert_allclose(row, r[every], atol=1e-6)
