@@ -24,6 +24,22 @@ def _field_type(values: np.ndarray) -> int:
     return ogr.OFTString if kind in "UOS" else ogr.OFTInteger if kind in "biu" else ogr.OFTReal
 
 
+def _setter(index: int, values: np.ndarray):
+    """(put(feature, value), the column as a Python list) for field ``index`` of ``values``' type: the
+    field set by index with OGR's typed setter (by name, OGR searches the fields for every value),
+    NaN left NULL. Python lists: numpy scalars cost more to convert."""
+    kind = values.dtype.kind
+    if kind in "US":
+        return (lambda feat, v: feat.SetFieldString(index, v)), values.astype(str).tolist()
+    if kind in "biu":
+        return (lambda feat, v: feat.SetFieldInteger64(index, v)), values.astype(np.int64).tolist()
+
+    def put(feat, v):
+        if isinstance(v, str) or v == v:  # NaN -> NULL
+            feat.SetField(index, int(v) if isinstance(v, bool) else v)
+    return put, values.tolist()
+
+
 def open_layer(path, layer: str | None = None):
     """(data source, layer) of a vector file's named (or first) layer; InputError naming the
     file when it cannot be read. Keep the data source: the layer lives only as long as it."""
@@ -124,15 +140,12 @@ def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geomet
         for key, value in (metadata or {}).items():
             lyr.SetMetadataItem(key, value)
         defn = lyr.GetLayerDefn()
-        # Python lists: OGR takes one value at a time, and numpy scalars cost more to convert.
-        values = {name: v.tolist() for name, v in arrays.items()}
+        setters = [_setter(defn.GetFieldIndex(name), values) for name, values in arrays.items()]
         lyr.StartTransaction()
-        for i, geom in enumerate(geometries):  # OGR writes feature by feature
+        for geom, *row in zip(geometries, *(column for _, column in setters)):  # OGR writes feature by feature
             feat = ogr.Feature(defn)
-            for name, column in values.items():
-                v = column[i]
-                if isinstance(v, str) or (v == v):  # NaN -> NULL
-                    feat.SetField(name, int(v) if isinstance(v, bool) else v)
+            for (put, _), v in zip(setters, row):
+                put(feat, v)
             feat.SetGeometry(ogr.CreateGeometryFromWkt(geom) if isinstance(geom, str) else geom)
             lyr.CreateFeature(feat)
             written += 1
