@@ -109,27 +109,30 @@ class RpcModel:
     def image_to_ground(self, col, row, h, tol: float = 1e-10, max_iter: int = 30, converged_only: bool = False):
         """(lon, lat) degrees of GDAL image points at ellipsoidal heights h, by Newton on the direct
         model with its analytic derivatives (:meth:`ground_to_image_jacobian`: one evaluation per
-        step). Without convergence: ConvergenceError, or with ``converged_only`` NaN for the points
-        that did not converge."""
+        step), each point until its step is below ``tol`` of the scales (a point whose step is NaN
+        stops: NaN). Without convergence: ConvergenceError, or with ``converged_only`` NaN for the
+        points that did not converge."""
         col, row, h = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (col, row, h)))
         shape = col.shape
         col, row, h = col.ravel(), row.ravel(), h.ravel()
         lon = np.full(col.shape, self.lon_off)
         lat = np.full(col.shape, self.lat_off)
+        active = np.arange(col.size)
         for _ in range(max_iter):
-            c0, r0, jac = self.ground_to_image_jacobian(lon, lat, h)
+            c0, r0, jac = self.ground_to_image_jacobian(lon[active], lat[active], h[active])
             (a, b), (c, d) = jac[:, 0, :2].T, jac[:, 1, :2].T
             det = a * d - b * c
-            dc, dr = col - c0, row - r0
+            dc, dr = col[active] - c0, row[active] - r0
             dlon = (d * dc - b * dr) / det
             dlat = (a * dr - c * dc) / det
-            lon, lat = lon + dlon, lat + dlat
-            if np.nanmax(np.abs(dlon) / self.lon_scale) < tol and \
-                    np.nanmax(np.abs(dlat) / self.lat_scale) < tol:
+            lon[active] += dlon
+            lat[active] += dlat
+            active = active[(np.abs(dlon) / self.lon_scale >= tol) | (np.abs(dlat) / self.lat_scale >= tol)]
+            if active.size == 0:
                 return lon.reshape(shape), lat.reshape(shape)
         if converged_only:
-            late = ~((np.abs(dlon) / self.lon_scale < tol) & (np.abs(dlat) / self.lat_scale < tol))
-            return np.where(late, np.nan, lon).reshape(shape), np.where(late, np.nan, lat).reshape(shape)
+            lon[active] = lat[active] = np.nan
+            return lon.reshape(shape), lat.reshape(shape)
         raise ConvergenceError("RPC inversion did not converge in %d iterations" % max_iter)
 
 
