@@ -102,6 +102,18 @@ def run_qgis(args, folder: Path, env: dict, out: Path) -> dict:
             "tie_observations": manifest["points"]["tie_observations"], "load": os.getloadavg()}
 
 
+def describe(row: dict) -> str:
+    """One size's figures, as a line."""
+    parts = [f"{row['n']} products, {row['tie_observations']} tie observations, qgis_process {ALGORITHM}",
+             f"{row['wall_s']:.1f} s wall ({row['cpu_s']:.1f} s CPU), peak {row['peak_mb']:.0f} MB",
+             f"sigma0 {row['sigma0']:.3f}, tie RMS {row['tie_rmse_before_px']:.2f} -> {row['tie_rmse_px']:.3f} px",
+             f"neighbours' misregistration {row['misregistration_px']:.3f} px RMS (vendor "
+             f"{row['misregistration_vendor_px']:.2f}; {row['check_pairs']} pairs), absolute {row['absolute_m']:.2f} m "
+             f"RMS (vendor {row['absolute_vendor_m']:.2f}; {row['check_observations']} check observations)",
+             "load average " + " ".join(f"{v:.2f}" for v in row["load"])]
+    return "; ".join(parts)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="100,1000")
@@ -126,16 +138,10 @@ def main() -> None:
             folder = simulate(args, n)
             row = run_qgis(args, folder, env, folder / f"qgis_{args.correction}")
             rows.append(row)
-            print(f"{n} products, {row['tie_observations']} tie observations, qgis_process {ALGORITHM}: "
-                  f"{row['wall_s']:.1f} s wall ({row['cpu_s']:.1f} s CPU), peak {row['peak_mb']:.0f} MB; sigma0 "
-                  f"{row['sigma0']:.3f}, tie RMS {row['tie_rmse_before_px']:.2f} -> {row['tie_rmse_px']:.3f} px; "
-                  f"neighbours' misregistration {row['misregistration_px']:.3f} px RMS (vendor "
-                  f"{row['misregistration_vendor_px']:.2f}; {row['check_pairs']} pairs), absolute "
-                  f"{row['absolute_m']:.2f} m RMS (vendor {row['absolute_vendor_m']:.2f}; {row['check_observations']} "
-                  f"check observations); load average {' '.join(f'{v:.2f}' for v in row['load'])}", flush=True)
-    for a, b in zip(rows, rows[1:]):
-        print(f"growth {a['n']} -> {b['n']} products: time n^{exponent(a, b, 'wall_s'):.2f} wall, "
-              f"n^{exponent(a, b, 'cpu_s'):.2f} CPU, memory n^{exponent(a, b, 'peak_mb'):.2f}")
+            print(describe(row), flush=True)
+    growth = [f"{a['n']} -> {b['n']}: time n^{exponent(a, b, 'wall_s'):.2f} wall and n^{exponent(a, b, 'cpu_s'):.2f} "
+              f"CPU, memory n^{exponent(a, b, 'peak_mb'):.2f}" for a, b in zip(rows, rows[1:])]
+    print("\n".join(f"growth {line}" for line in growth))
     print(f"on {os.cpu_count()} cores")
 
 
