@@ -7,21 +7,45 @@ Real (NaN written as NULL). The file is written completely or not at all
 """
 from __future__ import annotations
 
+import itertools
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from osgeo import ogr, osr
+from osgeo import gdal, ogr, osr
 
 from .errors import InputError
 from .files import OutputError, OutputSet, atomic_output, closing_errors, write_failure
 
 ogr.UseExceptions()
 
+# Layers of WKT geometries and plain columns are appended through an in-memory CSV, this many rows at a time
+# (gdal.VectorTranslate: the rows never pass through Python one field at a time; 100,000 rows are ~25 MB of text).
+CSV_ROWS = 100_000
+CSV_GEOMETRY = "pushbroom_wkt_geometry"
+CSV_TYPES = {"U": "String", "S": "String", "b": "Integer64", "i": "Integer64", "u": "Integer64", "f": "Real"}
+
 
 def _field_type(values: np.ndarray) -> int:
     kind = np.asarray(values).dtype.kind
     return ogr.OFTString if kind in "UOS" else ogr.OFTInteger if kind in "biu" else ogr.OFTReal
+
+
+def _setter(index: int, values: np.ndarray):
+    """(put(feature, value), the column as a Python list) for field ``index`` of ``values``' type: the
+    field set by index with OGR's typed setter (by name, OGR searches the fields for every value),
+    NaN left NULL. Python lists: numpy scalars cost more to convert."""
+    kind = values.dtype.kind
+    if kind in "US":
+        return (lambda feat, v: feat.SetFieldString(index, v)), values.astype(str).tolist()
+    if kind in "biu":
+        return (lambda feat, v: feat.SetFieldInteger64(index, v)), values.astype(np.int64).tolist()
+
+    def put(feat, v):
+        if isinstance(v, str) or v == v:  # NaN -> NULL
+            feat.SetField(index, int(v) if isinstance(v, bool) else v)
+    return put, values.tolist()
 
 
 def open_layer(path, layer: str | None = None):
@@ -112,28 +136,30 @@ def write_layers(path, layers: list[LayerData], files: OutputSet | None = None) 
 
 def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geometries, metadata) -> str:
     """Write a layer into a GeoPackage (created when absent; see :func:`write_layer`) and close
-    it; '' or OGR's error (returned, not raised: the error's traceback would hold the file open)."""
+    it; '' or OGR's error (returned, not raised: the error's traceback would hold the file open).
+    Geometries as WKT with string, integer and float columns are appended by :func:`_append_csv`;
+    others feature by feature."""
     failed, written = "", 0
+    arrays = {name: np.asarray(v) for name, v in columns.items()}
+    geometries = iter(geometries)
+    first = next(geometries, None)
+    geometries = itertools.chain([] if first is None else [first], geometries)
+    bulk = isinstance(first, str) and all(v.dtype.kind in CSV_TYPES for v in arrays.values())
     try:
         exists = Path(path).exists()
         ds = ogr.Open(str(path), update=1) if exists else ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
         lyr = ds.CreateLayer(layer, srs, geometry_type, options=["FID=fid"])
-        arrays = {name: np.asarray(v) for name, v in columns.items()}
         for name, values in arrays.items():
             lyr.CreateField(ogr.FieldDefn(name, _field_type(values)))
         for key, value in (metadata or {}).items():
             lyr.SetMetadataItem(key, value)
         defn = lyr.GetLayerDefn()
-        # Python lists: OGR takes one value at a time, and numpy scalars cost more to convert.
-        # Fields by index: by name, OGR's Python layer looks each name up among all the fields, per value.
-        values = [(defn.GetFieldIndex(name), v.tolist()) for name, v in arrays.items()]
+        setters = [] if bulk else [_setter(defn.GetFieldIndex(name), values) for name, values in arrays.items()]
         lyr.StartTransaction()
-        for i, geom in enumerate(geometries):  # OGR writes feature by feature
-            feat = ogr.Feature(defn)
-            for index, column in values:
-                v = column[i]
-                if isinstance(v, str) or (v == v):  # NaN -> NULL
-                    feat.SetField(index, int(v) if isinstance(v, bool) else v)
+        for geom, *row in zip(geometries if setters or not arrays else (), *(column for _, column in setters)):
+            feat = ogr.Feature(defn)  # OGR writes feature by feature
+            for (put, _), v in zip(setters, row):
+                put(feat, v)
             feat.SetGeometry(ogr.CreateGeometryFromWkt(geom) if isinstance(geom, str) else geom)
             lyr.CreateFeature(feat)
             written += 1
@@ -144,11 +170,71 @@ def _write_gpkg(path, layer: str, srs, geometry_type: int, columns: dict, geomet
         with closing_errors() as closing:
             feat = lyr = ds = None  # closes the file, flushing what is left
         failed = failed or closing.message
+    if bulk and arrays and not failed:
+        failed, written = _append_csv(path, layer, arrays, geometries)
     count = None if failed else _layer_count(path, layer)
     if not failed and count is None:
         failed = f"the layer {layer} cannot be read back after writing"
     elif not failed and count != written:
         failed = f"the layer {layer} holds {count} of {written} features"
+    return failed
+
+
+def _csv_text(values: np.ndarray) -> list[str]:
+    """A column as CSV fields: strings quoted (RFC 4180), integers and booleans as integers, floats by
+    repr (they read back to the bit), NaN empty (NULL)."""
+    kind = values.dtype.kind
+    if kind in "US":
+        return ['"' + v.replace('"', '""') + '"' for v in values.astype(str).tolist()]
+    if kind in "biu":
+        return [str(v) for v in values.astype(np.int64).tolist()]
+    return [repr(v) if v == v else "" for v in values.astype(float).tolist()]
+
+
+def _append_csv(path, layer: str, arrays: dict, geometries) -> tuple[str, int]:
+    """Append rows of ``arrays`` {field: (n,) string, integer or float array} with WKT ``geometries`` to
+    the existing ``layer`` of the GeoPackage ``path``, CSV_ROWS at a time through an in-memory CSV and
+    gdal.VectorTranslate; ('' or GDAL's error, rows appended)."""
+    names = list(arrays)
+    stem = f"/vsimem/pushbroom_{uuid.uuid4().hex}"
+    header = ",".join(['"' + n.replace('"', '""') + '"' for n in [*names, CSV_GEOMETRY]]) + "\n"
+    gdal.FileFromMemBuffer(stem + ".csvt", ",".join([CSV_TYPES[arrays[n].dtype.kind] for n in names] + ["WKT"]))
+    failed, written, n = "", 0, min(len(v) for v in arrays.values())
+    gdal.PushErrorHandler("CPLQuietErrorHandler")  # the errors are returned, not printed
+    try:
+        for start in range(0, n, CSV_ROWS):
+            wkt = ['"' + g + '"' for g in itertools.islice(geometries, min(CSV_ROWS, n - start))]
+            fields = [_csv_text(arrays[k][start:start + len(wkt)]) for k in names] + [wkt]
+            gdal.FileFromMemBuffer(stem + ".csv", (header + "\n".join(map(",".join, zip(*fields))) + "\n").encode())
+            failed = _translate(stem + ".csv", path, layer)
+            if failed or not wkt:
+                break
+            written += len(wkt)
+    finally:
+        gdal.PopErrorHandler()
+        for suffix in (".csv", ".csvt"):
+            gdal.Unlink(stem + suffix)
+    return failed, written
+
+
+def _translate(source: str, path, layer: str) -> str:
+    """Append the CSV ``source`` (geometry in column CSV_GEOMETRY, types in its .csvt) to ``layer`` of
+    ``path``; '' or GDAL's error."""
+    src = out = None
+    failed = ""
+    try:
+        src = gdal.OpenEx(source, gdal.OF_VECTOR,
+                          open_options=[f"GEOM_POSSIBLE_NAMES={CSV_GEOMETRY}", "KEEP_GEOM_COLUMNS=NO"])
+        out = None if src is None else gdal.VectorTranslate(str(path), src, accessMode="append", layerName=layer,
+                                                             options=["-gt", "unlimited"])
+        if out is None:
+            failed = gdal.GetLastErrorMsg() or f"{source} could not be appended to the layer {layer}"
+    except RuntimeError as exc:
+        failed = str(exc)
+    finally:
+        with closing_errors() as closing:
+            out = src = None  # closes the file, flushing what is left
+        failed = failed or closing.message
     return failed
 
 

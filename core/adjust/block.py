@@ -253,7 +253,10 @@ def adjust_checked_block(scenes: dict[str, SceneModel | RpcScene], inputs: Block
     adjusted = split_scenes(out.scene)
     for name, scene in adjusted.items():
         if "adjustment" in scene.info:
-            scene.info["adjustment"] = {**scene.info["adjustment"], "block": {"scene": name, "scenes": list(scenes)}}
+            record = scene.info["adjustment"]
+            scene.info["adjustment"] = {**record, "parameters": own_parameters(record.get("parameters", []), name,
+                                                                                 scenes),
+                                        "block": {"scene": name, "scenes": list(scenes)}}
     line_points = scene_line_points(out.lines)
     report = block_report(scenes, composite, out, gcps, ties, settings, line_points)
     tie_points = tie_point_ground(out, ties)
@@ -269,6 +272,24 @@ def scene_line_points(points: dict) -> dict:
         return {}
     scene, _, camera = (np.char.partition(np.asarray(points["camera"], dtype=str), SEPARATOR)[:, k] for k in range(3))
     return {**points, "camera": camera, "scene": scene}
+
+
+def own_parameters(parameters: list[dict], name: str, scenes) -> list[dict]:
+    """The parameters an adjusted scene of a block carries: its own and those of no scene (shared by the
+    block), not every other scene's (a region's thousand scenes would each carry the whole block's: files,
+    and the time to write them, growing with the square of the scenes). A parameter is a scene's when its
+    name begins with the scene's name and SEPARATOR (an RPC image's correction, a camera's interior) or a
+    dot (a rigorous scene's platform)."""
+    return [p for p in parameters if owner(p["name"], scenes) in (name, None)]
+
+
+def owner(parameter: str, scenes) -> str | None:
+    """The scene of ``scenes`` a composite's parameter belongs to (:func:`own_parameters`); None: the block's."""
+    for mark in (SEPARATOR, "."):
+        head, found, _ = parameter.partition(mark)
+        if found and head in scenes:
+            return head
+    return None
 
 
 def ray_convergence(scene: SceneModel, ties: TieTable) -> tuple[np.ndarray, np.ndarray]:

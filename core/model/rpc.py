@@ -107,29 +107,32 @@ class RpcModel:
         return own[:, 0], own[:, 1], jac
 
     def image_to_ground(self, col, row, h, tol: float = 1e-10, max_iter: int = 30, converged_only: bool = False):
-        """(lon, lat) degrees of GDAL image points at ellipsoidal heights h, by Newton on
-        the direct model (Jacobian by finite differences). Without convergence: ConvergenceError,
-        or with ``converged_only`` NaN for the points that did not converge."""
+        """(lon, lat) degrees of GDAL image points at ellipsoidal heights h, by Newton on the direct
+        model with its analytic derivatives (:meth:`ground_to_image_jacobian`: one evaluation per
+        step), each point until its step is below ``tol`` of the scales (a point whose step is NaN
+        stops: NaN). Without convergence: ConvergenceError, or with ``converged_only`` NaN for the
+        points that did not converge."""
         col, row, h = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (col, row, h)))
+        shape = col.shape
+        col, row, h = col.ravel(), row.ravel(), h.ravel()
         lon = np.full(col.shape, self.lon_off)
         lat = np.full(col.shape, self.lat_off)
-        e_lon, e_lat = 1e-6 * self.lon_scale, 1e-6 * self.lat_scale
+        active = np.arange(col.size)
         for _ in range(max_iter):
-            c0, r0 = self.ground_to_image(lon, lat, h)
-            c1, r1 = self.ground_to_image(lon + e_lon, lat, h)
-            c2, r2 = self.ground_to_image(lon, lat + e_lat, h)
-            a, b = (c1 - c0) / e_lon, (c2 - c0) / e_lat
-            c, d = (r1 - r0) / e_lon, (r2 - r0) / e_lat
+            c0, r0, jac = self.ground_to_image_jacobian(lon[active], lat[active], h[active])
+            (a, b), (c, d) = jac[:, 0, :2].T, jac[:, 1, :2].T
             det = a * d - b * c
-            dc, dr = col - c0, row - r0
+            dc, dr = col[active] - c0, row[active] - r0
             dlon = (d * dc - b * dr) / det
             dlat = (a * dr - c * dc) / det
-            lon, lat = lon + dlon, lat + dlat
-            if np.nanmax(np.abs(dlon) / self.lon_scale) < tol and np.nanmax(np.abs(dlat) / self.lat_scale) < tol:
-                return lon, lat
+            lon[active] += dlon
+            lat[active] += dlat
+            active = active[(np.abs(dlon) / self.lon_scale >= tol) | (np.abs(dlat) / self.lat_scale >= tol)]
+            if active.size == 0:
+                return lon.reshape(shape), lat.reshape(shape)
         if converged_only:
-            late = ~((np.abs(dlon) / self.lon_scale < tol) & (np.abs(dlat) / self.lat_scale < tol))
-            return np.where(late, np.nan, lon), np.where(late, np.nan, lat)
+            lon[active] = lat[active] = np.nan
+            return lon.reshape(shape), lat.reshape(shape)
         raise ConvergenceError("RPC inversion did not converge in %d iterations" % max_iter)
 
 

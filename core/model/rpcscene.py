@@ -252,10 +252,11 @@ class RpcScene:
     def uncorrect(self, col, row) -> tuple[np.ndarray, np.ndarray]:
         """The RPC's own (col, row) of corrected image positions (the correction inverted)."""
         (a0, a1, a2), (b0, b1, b2) = self.correction
-        m = np.array([[1.0 + a1, a2], [b1, 1.0 + b2]])
-        inv = np.linalg.inv(m)
+        det = (1.0 + a1) * (1.0 + b2) - a2 * b1  # the 2 x 2 inverse in closed form (LAPACK's costs more per call)
+        if det == 0.0:
+            raise np.linalg.LinAlgError("Singular matrix")
         dc, dr = col - a0, row - b0
-        return inv[0, 0] * dc + inv[0, 1] * dr, inv[1, 0] * dc + inv[1, 1] * dr
+        return ((1.0 + b2) * dc - a2 * dr) / det, ((1.0 + a1) * dr - b1 * dc) / det
 
     def _lonlat(self, col, row, h) -> tuple[np.ndarray, np.ndarray]:
         c, r = self.uncorrect(col, row)

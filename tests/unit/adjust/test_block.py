@@ -80,6 +80,14 @@ def test_ties_only_block(block, ties_only):
         assert scene.epoch == block.onboard[name].epoch
         assert [c.name for c in scene.cameras] == ["NAD", "FWD", "BWD"]
         assert scene.info["adjustment"]["block"] == {"scene": name, "scenes": ["S1", "S2", "S3"]}
+    # each carries its own parameters and the block's shared ones, none of another scene's
+    carried = {name: [p["name"] for p in scene.info["adjustment"]["parameters"]]
+               for name, scene in ties_only.scenes.items()}
+    everything = [p["name"] for p in ties_only.adjustment.report["parameters"]
+                  if p["mode"] != "fixed" or p["value"] != 0.0]
+    for name, names in carried.items():
+        assert names == [n for n in everything if n.partition(".")[0] not in {"S1", "S2", "S3"} - {name}]
+        assert names and all(n.startswith(f"{name}.") for n in names)  # the platform's position of each scene
 
 
 def test_gcps_block_against_each_scene_alone(block):

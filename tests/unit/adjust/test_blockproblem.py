@@ -123,6 +123,8 @@ def test_adjusted_rpc_scene_is_written_as_a_single_rpc_adjustment(mixed, tmp_pat
     scene = out.scenes["R"]
     assert isinstance(scene, RpcScene) and scene.camera.name == "PAN"
     assert scene.info["adjustment"]["block"] == {"scene": "R", "scenes": ["S1", "S2", "R"]}
+    carried = [p["name"] for p in scene.info["adjustment"]["parameters"]]
+    assert carried and all(n.startswith("R/") for n in carried)  # its own correction, not S1's or S2's
     save_scene(scene, tmp_path / "R.json")
     back = load_scene(tmp_path / "R.json")
     assert np.array_equal(back.correction, scene.correction)
