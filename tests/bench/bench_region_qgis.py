@@ -126,6 +126,7 @@ def main() -> None:
     ap.add_argument("--drift-m", type=float, default=DRIFT_M, help="the simulated vendor drift (m at the last row)")
     ap.add_argument("--out", default="out/bench_region")
     args = ap.parse_args()
+    args.corner_gcps = False  # bench_region's regions without control (its --corner-gcps)
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_region_qgis_") as tmp:
