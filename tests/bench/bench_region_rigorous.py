@@ -64,6 +64,7 @@ from pushbroom_adjust.simulation.measurements import GcpSettings  # noqa: E402
 from pushbroom_adjust.simulation.presets import PRESETS  # noqa: E402
 from pushbroom_adjust.simulation.region import RegionLayout, region_members  # noqa: E402
 from tests.bench.bench_block import read_columns  # noqa: E402
+from tests.bench.bench_region import misregistration  # noqa: E402
 
 NOISE = 0.3  # px
 SIDE_LAP, FORWARD, DATES = 0.2, 0.15, 3
@@ -119,17 +120,8 @@ def check_errors(scenes: dict, truth: dict, g: dict) -> tuple[float, float, int,
                 tc, tr = truth[name].ground_to_image_geodetic(lon[m], lat[m], h[m], c)
                 err[m] = np.stack([col - tc, row - tr], axis=1)
     nadir = np.isfinite(err[:, 0])
-    ids, e = g["id"][nadir], err[nadir]
-    order = np.argsort(ids, kind="stable")
-    ids, e = ids[order], e[order]
-    start = np.nonzero(np.r_[True, ids[1:] != ids[:-1]])[0]
-    diffs = []
-    for a, b in zip(start, np.r_[start[1:], ids.size]):  # a few scenes per point: pairs within each
-        i, j = np.triu_indices(b - a, 1)
-        diffs.append(e[a:b][i] - e[a:b][j])
-    d = np.concatenate(diffs) if diffs else np.zeros((0, 2))
-    return (float(np.sqrt(np.mean(np.sum(d ** 2, axis=1)))), float(np.sqrt(np.nanmean(ground ** 2))), len(d),
-            int(np.isfinite(ground).sum()))
+    mis, pairs = misregistration({"id": g["id"][nadir], "image": err[nadir]})
+    return mis, float(np.sqrt(np.nanmean(ground ** 2))), pairs, int(np.isfinite(ground).sum())
 
 
 def run_child(args) -> None:
