@@ -83,12 +83,12 @@ class SceneModel(RigorousKind):
         the scene's, a camera's own correction, a block scene's), over the lines of all the cameras
         that see it. One camera's alone: a block's composite has a platform per scene, and work on
         one camera need not tabulate the others'."""
-        if camera is not None and self.platform_of(camera)._cache is not None:
+        if camera is not None and self.platform_of(camera).tabulated:
             return  # already tabulated: every projection asks, and a block's composite has hundreds of cameras
         platforms = [self.platform_of(c) for c in range(len(self.cameras))]
         wanted = platforms if camera is None else [platforms[camera]]
         for platform in {id(p): p for p in wanted}.values():
-            if platform._cache is None:
+            if not platform.tabulated:
                 platform.prepare(self.time_spans([c for c, p in enumerate(platforms) if p is platform]))
 
     def platform_of(self, camera: int) -> Platform:

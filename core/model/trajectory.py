@@ -315,6 +315,11 @@ class Platform:
         this one, or in a block's composite its own scene's."""
         return self.camera_platforms.get(name, self)
 
+    @property
+    def tabulated(self) -> bool:
+        """Whether :meth:`prepare` has tabulated this platform's trajectory."""
+        return self._cache is not None
+
     def prepare(self, spans) -> None:
         """Tabulate the trajectory over the time spans ``spans`` [(t_min, t_max)] s (each with a
         small margin; overlapping ones merged): the measured trajectory's table
