@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import InputError
+from ..products.overlaps import meeting_boxes
 from ..rasters import open_input_raster
 from .coregistration import CoregSettings, coregister
 
@@ -146,24 +147,6 @@ def grid_box(raster: Raster) -> tuple[float, float, float, float]:
     x0, dx, _, y0, _, dy = raster.geotransform
     xs, ys = (x0, x0 + dx * raster.cols), (y0, y0 + dy * raster.rows)
     return min(xs), min(ys), max(xs), max(ys)
-
-
-def meeting_boxes(boxes: np.ndarray) -> np.ndarray:
-    """(p, 2) int: the pairs (i, j), i < j, of ``boxes`` (n, 4: xmin, ymin, xmax, ymax) whose
-    interiors intersect, sorted. Sort and sweep along x: each box is tested only against the
-    boxes that start within its x extent (in a region of strips, its own strip's and its
-    neighbours'), so the work grows with the pairs found, not with n²."""
-    n = len(boxes)
-    order = np.argsort(boxes[:, 0], kind="stable")
-    starts = boxes[order, 0]
-    ends = np.searchsorted(starts, boxes[order, 2], side="left")    # boxes starting before each one's end
-    found = []
-    for k in range(n):
-        i, others = order[k], order[k + 1:ends[k]]
-        meet = others[(boxes[others, 1] < boxes[i, 3]) & (boxes[i, 1] < boxes[others, 3])]
-        found.append(np.column_stack([np.minimum(i, meet), np.maximum(i, meet)]))
-    pairs = np.concatenate(found).astype(int) if found else np.zeros((0, 2), int)
-    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
 
 
 def misregistered(pairs: list[PairCoregistration], limit: float = MISREGISTERED_PX) -> list[PairCoregistration]:

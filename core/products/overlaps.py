@@ -81,8 +81,8 @@ def product_outline(name: str, lon_rings: list[np.ndarray], lat_rings: list[np.n
 
 def overlap_graph(outlines: list[Outline], min_area_km2: float = 0.0) -> OverlapGraph:
     """The overlap graph of ``outlines`` (names unique): every pair whose intersection exceeds
-    ``min_area_km2`` (km²). Candidate pairs are those whose bounding boxes meet (one vectorised
-    test over all pairs), then intersected exactly. Longitudes are taken continuous around the
+    ``min_area_km2`` (km²). Candidate pairs are those whose bounding boxes meet (a
+    sweep, :func:`meeting_boxes`), then intersected exactly. Longitudes are taken continuous around the
     first outline's, so a block crossing ±180° stays whole."""
     names = [o.name for o in outlines]
     twice = sorted({n for n in names if names.count(n) > 1})
@@ -93,14 +93,30 @@ def overlap_graph(outlines: list[Outline], min_area_km2: float = 0.0) -> Overlap
     ref = float(outlines[0].lon[0])
     lons = [ref + (o.lon - ref + 180.0) % 360.0 - 180.0 for o in outlines]
     boxes = np.array([(lo.min(), o.lat.min(), lo.max(), o.lat.max()) for lo, o in zip(lons, outlines)])
-    meet = ((boxes[:, None, 0] <= boxes[None, :, 2]) & (boxes[None, :, 0] <= boxes[:, None, 2])
-            & (boxes[:, None, 1] <= boxes[None, :, 3]) & (boxes[None, :, 1] <= boxes[:, None, 3]))
-    first, second = np.nonzero(np.triu(meet, k=1))
+    first, second = meeting_boxes(boxes).T   # boxes that only touch share no area: never a pair
     polygons = [_polygon(lo, o.lat) for lo, o in zip(lons, outlines)]
     area = np.array([intersection_area_km2(polygons[a], polygons[b]) for a, b in zip(first, second)], float)
     keep = area > min_area_km2
     pairs = np.column_stack([first[keep], second[keep]]).astype(int).reshape(-1, 2)
     return OverlapGraph(tuple(names), pairs, area[keep], _components(len(names), pairs))
+
+
+def meeting_boxes(boxes: np.ndarray) -> np.ndarray:
+    """(p, 2) int: the pairs (i, j), i < j, of ``boxes`` (n, 4: xmin, ymin, xmax, ymax) whose
+    interiors intersect, sorted. Sort and sweep along x: each box is tested only against the
+    boxes that start within its x extent (in a region of strips, its own strip's and its
+    neighbours'), so the work grows with the pairs found, not with n²."""
+    n = len(boxes)
+    order = np.argsort(boxes[:, 0], kind="stable")
+    starts = boxes[order, 0]
+    ends = np.searchsorted(starts, boxes[order, 2], side="left")    # boxes starting before each one's end
+    found = []
+    for k in range(n):
+        i, others = order[k], order[k + 1:ends[k]]
+        meet = others[(boxes[others, 1] < boxes[i, 3]) & (boxes[i, 1] < boxes[others, 3])]
+        found.append(np.column_stack([np.minimum(i, meet), np.maximum(i, meet)]))
+    pairs = np.concatenate(found).astype(int) if found else np.zeros((0, 2), int)
+    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
 
 
 def intersection_area_km2(a: ogr.Geometry, b: ogr.Geometry) -> float:

@@ -7,7 +7,7 @@ import scipy.fft
 from osgeo import gdal, osr
 
 from pushbroom_adjust.core.errors import InputError
-from pushbroom_adjust.core.measure.mosaiccheck import (Raster, check_mosaic, check_pair, meeting_boxes, misregistered,
+from pushbroom_adjust.core.measure.mosaiccheck import (Raster, check_mosaic, check_pair, misregistered,
                                                        overlap_window)
 
 SIZE = 5.0
@@ -81,27 +81,3 @@ def test_grids_off_the_lattice_are_refused_and_apart_are_no_pair(tmp_path):
     assert overlap_window(a, far) is None and check_pair(a, far) is None
     empty = Raster.open("empty", write(tmp_path / "empty.tif", np.zeros((100, 100)), 50, 50))
     assert overlap_window(a, empty) == (50, 50, 0, 0, 50, 50) and check_pair(a, empty) is None
-
-
-def brute_force(boxes: np.ndarray) -> list[tuple[int, int]]:
-    return [(i, j) for i in range(len(boxes)) for j in range(i + 1, len(boxes))
-            if boxes[i, 0] < boxes[j, 2] and boxes[j, 0] < boxes[i, 2] and boxes[i, 1] < boxes[j, 3]
-            and boxes[j, 1] < boxes[i, 3]]
-
-
-def test_the_sweep_finds_exactly_the_boxes_that_meet():
-    """A region's grid of 3 strips x 4 products (20 % side-lap, 15 % forward: each meets its 8
-    neighbours, 29 pairs), boxes that only touch (no pair), equal left edges, and 300 random boxes:
-    the sweep gives the all-pairs test's pairs, in its order."""
-    w, h = 100.0, 100.0
-    region = np.array([(s * 0.8 * w, p * 0.85 * h, s * 0.8 * w + w, p * 0.85 * h + h)
-                       for s in range(3) for p in range(4)])
-    pairs = meeting_boxes(region)
-    assert len(pairs) == 29 and [tuple(p) for p in pairs] == brute_force(region)
-    touching = np.array([(0, 0, 10, 10), (10, 0, 20, 10), (0, 10, 10, 20), (0, 5, 10, 15), (0, 0, 10, 10)], float)
-    assert [tuple(p) for p in meeting_boxes(touching)] == [(0, 3), (0, 4), (2, 3), (3, 4)] == brute_force(touching)
-    rng = np.random.default_rng(3)
-    corner = rng.uniform(0, 1000, (300, 2))
-    boxes = np.hstack([corner, corner + rng.uniform(1, 80, (300, 2))])
-    assert [tuple(p) for p in meeting_boxes(boxes)] == brute_force(boxes)
-    assert meeting_boxes(np.zeros((0, 4))).shape == (0, 2) and meeting_boxes(boxes[:1]).shape == (0, 2)
