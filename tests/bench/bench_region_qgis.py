@@ -127,7 +127,6 @@ def main() -> None:
     ap.add_argument("--out", default="out/bench_region")
     ap.set_defaults(corner_gcps=False)  # bench_region.region_folder's field: the regions without corner GCPs
     args = ap.parse_args()
-    args.corner_gcps = False  # bench_region's regions without control (its --corner-gcps)
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_region_qgis_") as tmp:
