@@ -28,10 +28,12 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 from tests.bench.bench_block import read_columns  # noqa: E402
-from tests.bench.bench_region import DRIFT_M, check_errors, exponent, simulate  # noqa: E402
+from tests.bench.bench_region import DRIFT_M, check_errors, exponent, misregistration, simulate  # noqa: E402
 from tests.support.paths import PLUGIN, QGIS_PROCESS  # noqa: E402
 
 from pushbroom_adjust.core.formats import load_scene  # noqa: E402
@@ -91,8 +93,10 @@ def run_qgis(args, folder: Path, env: dict, out: Path) -> dict:
     adjusted = {name: load_scene(out / f"{name}_adjusted.json") for name in names}
     vendor = {p["name"]: read_rpc_text(folder / p["rpc"]) for p in manifest["products"]}
     g = read_columns(folder / "gcps.csv")
-    mis, absolute, pairs, obs = check_errors(adjusted, truth, g)
-    mis0, absolute0, _, _ = check_errors(vendor, truth, g)
+    err, err0 = check_errors(adjusted, truth, g), check_errors(vendor, truth, g)
+    (mis, pairs), (mis0, _) = misregistration(err), misregistration(err0)
+    rms = lambda a: float(np.sqrt(np.nanmean(np.sum(a ** 2, axis=1))))  # noqa: E731
+    absolute, absolute0, obs = rms(err["enu"]), rms(err0["enu"]), len(err["id"])
     return {"n": len(names), "wall_s": seconds(figures["wall"]),
             "cpu_s": float(figures["user_s"]) + float(figures["system_s"]),
             "peak_mb": int(figures["max_rss_kb"]) / 1024.0, "sigma0": report["block"]["sigma0"],
