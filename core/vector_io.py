@@ -25,6 +25,10 @@ ogr.UseExceptions()
 CSV_ROWS = 100_000
 CSV_GEOMETRY = "pushbroom_wkt_geometry"
 CSV_TYPES = {"U": "String", "S": "String", "b": "Integer64", "i": "Integer64", "u": "Integer64", "f": "Real"}
+# SQLite's page cache (MB) while rows are appended: the layer's R-tree takes each point in turn, and with SQLite's
+# default 2 MB most insertions read its pages back from the file (300,000 points written: 15.5 -> 13.7 s CPU).
+# The cache grows only as pages are read, up to the file's size.
+SQLITE_CACHE_MB = 512
 
 
 def _field_type(values: np.ndarray) -> int:
@@ -222,6 +226,8 @@ def _translate(source: str, path, layer: str) -> str:
     ``path``; '' or GDAL's error."""
     src = out = None
     failed = ""
+    cache = gdal.GetThreadLocalConfigOption("OGR_SQLITE_CACHE", None)
+    gdal.SetThreadLocalConfigOption("OGR_SQLITE_CACHE", str(SQLITE_CACHE_MB))
     try:
         src = gdal.OpenEx(source, gdal.OF_VECTOR,
                           open_options=[f"GEOM_POSSIBLE_NAMES={CSV_GEOMETRY}", "KEEP_GEOM_COLUMNS=NO"])
@@ -234,6 +240,7 @@ def _translate(source: str, path, layer: str) -> str:
     finally:
         with closing_errors() as closing:
             out = src = None  # closes the file, flushing what is left
+        gdal.SetThreadLocalConfigOption("OGR_SQLITE_CACHE", cache)
         failed = failed or closing.message
     return failed
 

@@ -62,7 +62,7 @@ from ..model.mixedblock import MixedBlock, compose_mixed, split_scenes
 from ..model.rpcscene import RpcScene
 from ..model.sensor import SceneModel, rows_by
 from ..observations.gcps import GcpTable
-from ..observations.tables import listed, resolve_cameras
+from ..observations.tables import listed, resolve_cameras, rows_of_scenes
 from ..observations.tiepoints import TieTable
 from .engine import adjust
 from .linepoints import ControlLines
@@ -123,9 +123,10 @@ def _block_cameras(table, scene_of: np.ndarray, scenes: dict):
     """``table`` (GCP or tie) with each row's camera resolved in its own scene and renamed to the
     composite's ``<scene>/<camera>``."""
     cameras = np.array(table.camera, dtype=object)
+    rows = rows_of_scenes(scene_of, scenes)
     for name, scene in scenes.items():
-        m = scene_of == name
-        if m.any():
+        m = rows[name]
+        if m.size:
             resolved = resolve_cameras(table.select(m), scene).camera
             cameras[m] = [block_camera(name, c) for c in resolved]
     return replace(table, camera=cameras.astype(str))

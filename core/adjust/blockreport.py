@@ -13,6 +13,7 @@ from ..model.block import scene_cameras
 from ..model.mixedblock import MixedBlock
 from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
+from ..observations.tables import rows_of_scenes
 from ..observations.tiepoints import TieTable
 from .report_accuracy import absolute_accuracy
 from .report_types import BlockReport
@@ -151,8 +152,9 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
     if tie_res is not None:  # the engine's start: the onboard intersection
         before = np.stack([out.tie_points["res_col_before"], out.tie_points["res_row_before"]], axis=1)
     per_scene = {}
+    tie_rows = rows_of_scenes(ties.scene, scenes) if tie_res is not None else {}
     for name in scenes:
-        g, t = gcps.scene == name, (ties.scene == name) if tie_res is not None else None
+        g, t = gcps.scene == name, tie_rows.get(name)
         entry = {"cameras": [c.name for c in scenes[name].cameras],
                  "control": {"observations": int((g & control).sum()),
                              "rmse_px": _rms_px(pts["res_col"][g & control], pts["res_row"][g & control])},
@@ -160,7 +162,7 @@ def block_report(scenes: dict, composite: SceneModel | MixedBlock, out: Adjustme
                                   "rmse_px": _rms_px(pts["res_col"][g & check], pts["res_row"][g & check])},
                  **_move(composite, out, name, scenes[name], settings)}
         if tie_res is not None:
-            entry["ties"] = {"observations": int(t.sum()), "rmse_px": _rms_px(tie_res[0][t], tie_res[1][t]),
+            entry["ties"] = {"observations": int(t.size), "rmse_px": _rms_px(tie_res[0][t], tie_res[1][t]),
                              "rmse_before_px": _rms_px(before[t, 0], before[t, 1])}
         if line_points:
             entry["lines"] = _line_entry(line_points, line_points["scene"] == name)

@@ -21,7 +21,7 @@ from ..formats.scene_json import rpc_scene_from_dict, rpc_scene_to_dict, scene_f
 from ..model.block import compose_block, is_block, split_block
 from ..model.mixedblock import MixedBlock
 from ..model.rpcscene import RpcScene
-from ..model.sensor import SceneModel
+from ..model.sensor import SceneModel, rows_by
 from .problem import Problem
 
 FITTED_TOLERANCE = 0.01  # px: the written scene against the fitted image positions
@@ -64,9 +64,8 @@ def check_written_scene(problem: Problem, scene: SceneModel | RpcScene) -> dict:
     x = problem.ground[obs.point]
     back = written(scene)
     imaged = np.full_like(fitted, np.nan)
-    for c in range(len(scene.cameras)):
-        m = obs.camera == c
-        if not m.any():
+    for c, m in enumerate(rows_by(obs.camera, len(scene.cameras))):
+        if not m.size:
             continue
         imaged[m, 0], imaged[m, 1] = back.ground_to_image_on_chip(x[m], c, obs.chip[m], fitted[m, 0], fitted[m, 1])
     miss = np.hypot(*(imaged - fitted).T)

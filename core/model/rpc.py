@@ -77,6 +77,11 @@ class RpcModel:
 
     def __post_init__(self):
         _check_coefficients(self, ("line_num", "line_den", "samp_num", "samp_den"), "RPC coefficient list")
+        coefficients = np.stack([self.samp_num, self.samp_den, self.line_num, self.line_den], axis=1)  # (20, 4)
+        # (20, 16): over rpc_terms, the four cubics (columns by four) and their derivatives by x, y, z (rows of
+        # four): computed once, as the inversion evaluates the derivatives thousands of times on few points
+        self._cubics_and_derivatives = np.concatenate([coefficients[None], DERIVATIVE @ coefficients]) \
+            .transpose(1, 0, 2).reshape(20, 16)
 
     def ground_to_image(self, lon, lat, h) -> tuple[np.ndarray, np.ndarray]:
         """GDAL (col, row) of ground points (lon, lat deg, h m)."""
@@ -95,9 +100,7 @@ class RpcModel:
         t = rpc_terms((np.atleast_1d(np.asarray(lon, dtype=float)) - self.lon_off) / self.lon_scale,
                       (np.asarray(lat, dtype=float) - self.lat_off) / self.lat_scale,
                       (np.asarray(h, dtype=float) - self.height_off) / self.height_scale)
-        coefficients = np.stack([self.samp_num, self.samp_den, self.line_num, self.line_den], axis=1)  # (20, 4)
-        v = t @ np.concatenate([coefficients[None], DERIVATIVE @ coefficients]).transpose(1, 0, 2).reshape(20, 16)
-        v = v.reshape(-1, 4, 4)                        # (n, value and d/dx, d/dy, d/dz, the four cubics)
+        v = (t @ self._cubics_and_derivatives).reshape(-1, 4, 4)  # (n, value and d/dx, d/dy, d/dz, the four cubics)
         p, q = v[:, 0, 0::2], v[:, 0, 1::2]          # (n, 2): samp, line
         dp, dq = v[:, 1:, 0::2].transpose(0, 2, 1), v[:, 1:, 1::2].transpose(0, 2, 1)  # (n, 2, 3)
         ground = np.array([self.lon_scale, self.lat_scale, self.height_scale])

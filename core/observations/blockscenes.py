@@ -17,7 +17,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import InputError
 from ..model.sensor import SceneModel
 from .gcps import GcpTable, Residuals, apriori_residuals, assign_check_points
-from .tables import resolve_cameras, scene_of_rows
+from .tables import resolve_cameras, rows_of_scenes, scene_of_rows
 
 log = logging.getLogger(__name__)
 
@@ -30,9 +30,10 @@ def rpc_product_cameras(table, scene_of, scenes: dict):
     sensor's camera (NAD). Also the names of the scenes whose rows were renamed."""
     cameras = table.camera.astype(object)
     renamed = []
+    rows_of = rows_of_scenes(scene_of, scenes)
     for name, scene in scenes.items():
         if scene.rpc_images() and len(scene.cameras) == 1:
-            rows = np.asarray(scene_of) == name
+            rows = rows_of[name]
             if (cameras[rows] != scene.cameras[0].name).any():
                 renamed.append(name)
             cameras[rows] = scene.cameras[0].name

@@ -20,6 +20,7 @@ from pyproj.exceptions import CRSError
 
 from ..dem import Dem, no_height_words, surface_name, to_ellipsoidal
 from ..errors import InputError
+from ..model.sensor import rows_by
 from ..validation import PLAUSIBLE_HEIGHTS, implausible_heights
 
 log = logging.getLogger(__name__)
@@ -82,6 +83,21 @@ def scene_of_rows(names, ids, scenes, source: str = "", parameter: str | None = 
                          f"{listed(np.unique(ids[unknown]))} are not scenes of the block ({', '.join(scenes)})",
                          parameter=parameter)
     return names
+
+
+def rows_of_scenes(scene_of, scenes) -> dict[str, np.ndarray]:
+    """{name: the rows (ascending indices) of ``scene_of`` (n,) str naming it} for each of the block's
+    scene names ``scenes`` (a sequence; rows naming none of them in none): one sort, as
+    :func:`core.model.sensor.rows_by`, rather than a comparison of every row per scene (a region has
+    a thousand)."""
+    scenes = list(scenes)
+    if not scenes:
+        return {}
+    names, scene_of = np.asarray(scenes, dtype=str), np.asarray(scene_of, dtype=str)
+    order = np.argsort(names)
+    key = order[np.searchsorted(names, scene_of, sorter=order).clip(max=len(scenes) - 1)]
+    key = np.where(names[key] == scene_of, key, len(scenes))
+    return dict(zip(scenes, rows_by(key, len(scenes) + 1)))
 
 
 # --- ground coordinates and heights ---------------------------------------------------------
@@ -206,11 +222,15 @@ def read_delimited(path: Path) -> tuple[list[str], np.ndarray]:
     if len(lines) < 2:
         raise InputError(f"{path}: needs a header line and at least one point")
     delimiter = max(",;\t|", key=lines[0].count)
-    table = list(csv.reader(lines, delimiter=delimiter))
-    header = [h.strip() for h in table[0]]
+    header = [h.strip() for h in next(csv.reader(lines[:1], delimiter=delimiter))]
     width = len(header)
-    body = [r + [""] * (width - len(r)) if len(r) < width else r[:width] for r in table[1:]]
-    values = np.array(body, dtype=str)
+    if not any('"' in ln for ln in lines) and all(ln.count(delimiter) == width - 1 for ln in lines[1:]):
+        # no quoting and every row full: the cells are the lines split, in one string (a list per row costs more)
+        values = np.array(delimiter.join(lines[1:]).split(delimiter)).reshape(len(lines) - 1, width)
+    else:
+        body = [r + [""] * (width - len(r)) if len(r) < width else r[:width]
+                for r in csv.reader(lines[1:], delimiter=delimiter)]
+        values = np.array(body, dtype=str)
     if delimiter != ",":
         values = np.char.replace(values, ",", ".")
     return header, values

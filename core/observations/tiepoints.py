@@ -19,6 +19,7 @@ whose geometry is its point's onboard intersection (empty where it has one ray o
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -308,7 +309,8 @@ def write_gpkg(table: TieTable, path, layer: str = GPKG_LAYER, files: OutputSet 
 
 def point_wkt(lon, lat, h):
     """WKT Point Z per (n,) lon, lat (deg), h (m); POINT Z EMPTY where h is NaN (no ground position)."""
-    return (f"POINT Z ({lo!r} {la!r} {z!r})" if np.isfinite(z) else "POINT Z EMPTY"
+    # math.isfinite: numpy's costs a microsecond per Python float (600,000 points 2.5 -> 1.5 s)
+    return (f"POINT Z ({lo!r} {la!r} {z!r})" if math.isfinite(z) else "POINT Z EMPTY"
             for lo, la, z in zip(*(np.asarray(v, float).tolist() for v in (lon, lat, h))))
 
 

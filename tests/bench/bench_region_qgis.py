@@ -129,8 +129,8 @@ def main() -> None:
                     help="leave out tie points seen only by consecutive products of one strip")
     ap.add_argument("--drift-m", type=float, default=DRIFT_M, help="the simulated vendor drift (m at the last row)")
     ap.add_argument("--out", default="out/bench_region")
+    ap.set_defaults(corner_gcps=False)  # bench_region.region_folder's field: the regions without corner GCPs
     args = ap.parse_args()
-    args.corner_gcps = False  # bench_region's regions without control (its --corner-gcps)
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_region_qgis_") as tmp:
