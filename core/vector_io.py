@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import uuid
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -198,27 +199,52 @@ def _csv_text(values: np.ndarray) -> list[str]:
 def _append_csv(path, layer: str, arrays: dict, geometries) -> tuple[str, int]:
     """Append rows of ``arrays`` {field: (n,) string, integer or float array} with WKT ``geometries`` to
     the existing ``layer`` of the GeoPackage ``path``, CSV_ROWS at a time through an in-memory CSV and
-    gdal.VectorTranslate; ('' or GDAL's error, rows appended)."""
+    gdal.VectorTranslate; ('' or GDAL's error, rows appended). One thread appends a chunk while this one
+    writes the next one's text: GDAL releases the GIL, so the two overlap on two cores (2,000,000 rows:
+    the text about 35 s, the append about 58 s)."""
     names = list(arrays)
     stem = f"/vsimem/pushbroom_{uuid.uuid4().hex}"
     header = ",".join(['"' + n.replace('"', '""') + '"' for n in [*names, CSV_GEOMETRY]]) + "\n"
-    gdal.FileFromMemBuffer(stem + ".csvt", ",".join([CSV_TYPES[arrays[n].dtype.kind] for n in names] + ["WKT"]))
+    types = ",".join([CSV_TYPES[arrays[n].dtype.kind] for n in names] + ["WKT"])
     failed, written, n = "", 0, min(len(v) for v in arrays.values())
-    gdal.PushErrorHandler("CPLQuietErrorHandler")  # the errors are returned, not printed
-    try:
-        for start in range(0, n, CSV_ROWS):
+    pending = None  # (the future of the chunk being appended, its rows)
+    with ThreadPoolExecutor(max_workers=1) as appender:
+        for k, start in enumerate(range(0, n, CSV_ROWS)):
             wkt = ['"' + g + '"' for g in itertools.islice(geometries, min(CSV_ROWS, n - start))]
-            fields = [_csv_text(arrays[k][start:start + len(wkt)]) for k in names] + [wkt]
-            gdal.FileFromMemBuffer(stem + ".csv", (header + "\n".join(map(",".join, zip(*fields))) + "\n").encode())
-            failed = _translate(stem + ".csv", path, layer)
-            if failed or not wkt:
+            if not wkt:
                 break
-            written += len(wkt)
+            fields = [_csv_text(arrays[key][start:start + len(wkt)]) for key in names] + [wkt]
+            text = (header + "\n".join(map(",".join, zip(*fields))) + "\n").encode()
+            failed, written = _appended(pending, written)
+            pending = None if failed else (appender.submit(_append_chunk, f"{stem}_{k}", text, types, path, layer),
+                                           len(wkt))
+            if failed:
+                break
+        if pending is not None:
+            failed, written = _appended(pending, written)
+    return failed, written
+
+
+def _appended(pending, written: int) -> tuple[str, int]:
+    """('' or GDAL's error, rows appended) once the chunk ``pending`` (future, rows; None: none) is."""
+    if pending is None:
+        return "", written
+    failed = pending[0].result()
+    return failed, written + (0 if failed else pending[1])
+
+
+def _append_chunk(stem: str, text: bytes, types: str, path, layer: str) -> str:
+    """Append the CSV ``text`` (column types ``types``) to ``layer`` of ``path`` through the in-memory files
+    ``stem``.csv and .csvt, removed afterwards; '' or GDAL's error (quiet: returned, not printed)."""
+    gdal.PushErrorHandler("CPLQuietErrorHandler")  # GDAL's error handlers are per thread
+    try:
+        gdal.FileFromMemBuffer(stem + ".csvt", types)
+        gdal.FileFromMemBuffer(stem + ".csv", text)
+        return _translate(stem + ".csv", path, layer)
     finally:
         gdal.PopErrorHandler()
         for suffix in (".csv", ".csvt"):
             gdal.Unlink(stem + suffix)
-    return failed, written
 
 
 def _translate(source: str, path, layer: str) -> str:
