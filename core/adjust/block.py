@@ -57,12 +57,12 @@ import numpy as np
 
 from ..errors import InputError
 from ..model.block import SEPARATOR, block_camera
-from ..model.intersection import MIN_CONVERGENCE
+from ..model.intersection import MIN_CONVERGENCE, onboard_rays
 from ..model.mixedblock import MixedBlock, compose_mixed, split_scenes
 from ..model.rpcscene import RpcScene
-from ..model.sensor import SceneModel, rows_by
+from ..model.sensor import SceneModel
 from ..observations.gcps import GcpTable
-from ..observations.tables import listed, resolve_cameras, rows_of_scenes
+from ..observations.tables import listed, resolve_cameras, rows_of_scenes, stripped
 from ..observations.tiepoints import TieTable
 from .engine import adjust
 from .linepoints import ControlLines
@@ -103,7 +103,7 @@ class BlockResult:
 def _scene_column(names: np.ndarray, ids: np.ndarray, scenes: dict, what: str, kind: str = "point") -> np.ndarray:
     """The scene name of every row (n,) str: '' allowed for a block of one scene; InputError
     naming the unknown scenes (and their ``kind``: points or lines) or the rows without one."""
-    names = np.char.strip(np.asarray(names, dtype=str))
+    names = stripped(names)
     if len(scenes) == 1:
         names = np.where(names == "", next(iter(scenes)), names)
     missing = names == ""
@@ -127,16 +127,15 @@ def _block_cameras(table, scene_of: np.ndarray, scenes: dict):
     for name, scene in scenes.items():
         m = rows[name]
         if m.size:
-            resolved = resolve_cameras(table.select(m), scene).camera
-            cameras[m] = [block_camera(name, c) for c in resolved]
+            own, index = np.unique(resolve_cameras(table.select(m), scene).camera, return_inverse=True)
+            cameras[m] = np.array([block_camera(name, c) for c in own.tolist()], dtype=object)[index]
     return replace(table, camera=cameras.astype(str))
 
 
 def _check_ties_span_scenes(ties: TieTable, scene_of: np.ndarray) -> None:
     """Every tie point must be seen in two scenes or more (it ties scenes together)."""
     ids, point = np.unique(ties.id, return_inverse=True)
-    pairs = np.unique(np.stack([point, np.unique(scene_of, return_inverse=True)[1]], axis=1), axis=0)
-    n_scenes = np.bincount(pairs[:, 0], minlength=ids.size)
+    n_scenes = seen_in(point, scene_of, ids.size)
     lonely = ids[n_scenes < 2]
     if lonely.size:
         where = {i: s for i, s in zip(ties.id, scene_of)}
@@ -242,21 +241,25 @@ def adjust_checked_block(scenes: dict[str, SceneModel | RpcScene], inputs: Block
     composite, gcps, ties, lines = inputs
     log.info("adjusting a block of %d scenes (%s): %d GCP, %d tie observations and %d image lines", len(scenes),
              ", ".join(scenes), len(gcps), 0 if ties is None else len(ties), 0 if lines is None else len(lines.image))
-    convergence = None
-    if ties is not None and len(ties):
-        convergence = ray_convergence(composite, ties)
+    convergence = rays = None
+    if ties is not None and len(ties):  # the onboard rays, made once for the convergence and the intersection
+        rays = onboard_rays(composite, camera_indices(composite, ties.camera), ties.col, ties.row)
+        convergence = ray_convergence(composite, ties, rays[1])
         weak = convergence[1] < MIN_CONVERGENCE_DEG
         if weak.any():
             log.warning("%d tie point(s) are seen from one direction only (their rays less than %g degree apart): "
                         "their heights are weakly determined: %s", int(weak.sum()), MIN_CONVERGENCE_DEG,
                         listed(convergence[0][weak]))
-    out = adjust(composite, gcps, settings, progress, is_cancelled, ties=ties, lines=lines)
+    out = adjust(composite, gcps, settings, progress, is_cancelled, ties=ties, lines=lines, tie_rays=rays)
     adjusted = split_scenes(out.scene)
+    owned, parameters = {}, None  # the scenes share one record: its parameters are parted once
     for name, scene in adjusted.items():
         if "adjustment" in scene.info:
             record = scene.info["adjustment"]
-            scene.info["adjustment"] = {**record, "parameters": own_parameters(record.get("parameters", []), name,
-                                                                                 scenes),
+            if record.get("parameters", []) is not parameters:
+                parameters = record.get("parameters", [])
+                owned = own_parameters(parameters, scenes)
+            scene.info["adjustment"] = {**record, "parameters": owned[name],
                                         "block": {"scene": name, "scenes": list(scenes)}}
     line_points = scene_line_points(out.lines)
     report = block_report(scenes, composite, out, gcps, ties, settings, line_points)
@@ -275,13 +278,18 @@ def scene_line_points(points: dict) -> dict:
     return {**points, "camera": camera, "scene": scene}
 
 
-def own_parameters(parameters: list[dict], name: str, scenes) -> list[dict]:
-    """The parameters an adjusted scene of a block carries: its own and those of no scene (shared by the
-    block), not every other scene's (a region's thousand scenes would each carry the whole block's: files,
-    and the time to write them, growing with the square of the scenes). A parameter is a scene's when its
-    name begins with the scene's name and SEPARATOR (an RPC image's correction, a camera's interior) or a
-    dot (a rigorous scene's platform)."""
-    return [p for p in parameters if owner(p["name"], scenes) in (name, None)]
+def own_parameters(parameters: list[dict], scenes) -> dict[str, list[dict]]:
+    """{scene: the parameters its adjusted scene carries}: its own and those of no scene (shared by the
+    block), in their order, not every other scene's (a region's thousand scenes would each carry the whole
+    block's: files, and the time to write them, growing with the square of the scenes). A parameter is a
+    scene's when its name begins with the scene's name and SEPARATOR (an RPC image's correction, a camera's
+    interior) or a dot (a rigorous scene's platform)."""
+    rows: dict = {name: [] for name in scenes}
+    shared = []
+    for k, p in enumerate(parameters):
+        whose = owner(p["name"], scenes)
+        (shared if whose is None else rows[whose]).append(k)
+    return {name: [parameters[k] for k in sorted(rows[name] + shared)] for name in scenes}
 
 
 def owner(parameter: str, scenes) -> str | None:
@@ -293,16 +301,15 @@ def owner(parameter: str, scenes) -> str | None:
     return None
 
 
-def ray_convergence(scene: SceneModel, ties: TieTable) -> tuple[np.ndarray, np.ndarray]:
+def ray_convergence(scene: SceneModel, ties: TieTable, directions: np.ndarray | None = None) \
+        -> tuple[np.ndarray, np.ndarray]:
     """(ids (m,), angle (m,) deg): per tie point the largest angle between one of its onboard lines
     of sight in ``scene`` (camera names of the scene) and its first one; near 0 when all rays are
-    parallel and the point's height is undetermined."""
-    camera = camera_indices(scene, ties.camera)
+    parallel and the point's height is undetermined. ``directions``: the observations' (n, 3) unit ECEF
+    directions of sight when the caller has them (:func:`core.model.intersection.onboard_rays`)."""
     ids, point = np.unique(ties.id, return_inverse=True)
-    u = np.empty((len(ties), 3))
-    for c, m in enumerate(rows_by(camera, len(scene.cameras))):
-        if m.size:
-            u[m] = scene.line_of_sight(ties.col[m], ties.row[m], c)[3]
+    u = directions if directions is not None else \
+        onboard_rays(scene, camera_indices(scene, ties.camera), ties.col, ties.row)[1]
     first = np.unique(point, return_index=True)[1]
     angle = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", u, u[first][point]), -1.0, 1.0)))
     out = np.zeros(ids.size)
@@ -317,8 +324,14 @@ def tie_point_ground(out: AdjustmentResult, ties: TieTable | None) -> dict:
     ids, point = np.unique(ties.id, return_inverse=True)
     first = np.unique(point, return_index=True)[1]
     used = np.isfinite(out.tie_points["res_col"])
-    scene_index = np.unique(ties.scene, return_inverse=True)[1]
-    seen = np.unique(np.stack([point, scene_index], axis=1), axis=0)
     return {"id": ids, **{k: out.tie_points[k][first] for k in ("lon", "lat", "h")},
             "rays": np.bincount(point[used], minlength=ids.size),
-            "scenes": np.bincount(seen[:, 0], minlength=ids.size)}
+            "scenes": seen_in(point, ties.scene, ids.size)}
+
+
+def seen_in(point: np.ndarray, scene: np.ndarray, n_points: int) -> np.ndarray:
+    """(n_points,) how many different scenes see each point, of observations of points ``point`` (n,)
+    index in scenes ``scene`` (n,) str."""
+    names, index = np.unique(scene, return_inverse=True)
+    pairs = np.unique(point.astype(np.int64) * max(names.size, 1) + index)  # (point, scene) as one integer
+    return np.bincount(pairs // max(names.size, 1), minlength=n_points)

@@ -35,6 +35,7 @@ import numpy as np
 from scipy import stats
 
 from ..model.block import chip_label
+from ..model.sensor import rows_by
 from .problem import Problem
 from .robust import MIN_REDUNDANCY
 from .statistics import Statistics
@@ -61,12 +62,13 @@ def breakdown(problem: Problem, st: Statistics, flagged: np.ndarray, inlier: np.
     alpha = problem.settings.alpha
     found = []
     obs = problem.obs
-    for c, cam in enumerate(problem.scene.cameras):
-        chips = [(k, (obs.camera == c) & (obs.chip == k)) for k in range(len(cam.chips))]
-        chips = [(k, m) for k, m in chips if m.sum() >= MIN_GROUP]
+    cameras = problem.scene.cameras
+    for cam, rows in zip(cameras, rows_by(obs.camera, len(cameras))):  # rows, not masks: a region's 1,000 cameras
+        chips = [(k, rows[obs.chip[rows] == k]) for k in range(len(cam.chips))]
+        chips = [(k, m) for k, m in chips if m.size >= MIN_GROUP]
         for k, m in chips:
             name = chip_label(cam, k)
-            n = int(m.sum())
+            n = int(m.size)
             share = float(flagged[m].mean())
             if share > BREAKDOWN_SHARE:
                 found.append({"group": name, "kind": "too_many_flagged", "share": share, "reliable": False,
@@ -74,12 +76,9 @@ def breakdown(problem: Problem, st: Statistics, flagged: np.ndarray, inlier: np.
                                          f"gross errors (more than {100 * BREAKDOWN_SHARE:.0f} %): beyond that share a "
                                          "robust estimation can keep the wrong observations and still show small "
                                          "residuals; check the chip's points"})
-            found += _systematic(name, st.v[m & flagged], n, alpha)
-            others = np.zeros_like(m)
-            for j, o in chips:
-                if j != k:
-                    others |= o
-            found += _inflated(name, st, m & inlier, others & inlier, alpha)
+            found += _systematic(name, st.v[m[flagged[m]]], n, alpha)
+            others = np.sort(np.concatenate([o for j, o in chips if j != k] + [np.zeros(0, np.int64)]))
+            found += _inflated(name, st, m[inlier[m]], others[inlier[others]], alpha)
     return found
 
 
@@ -103,7 +102,8 @@ def _systematic(name: str, v: np.ndarray, n: int, alpha: float) -> list[dict]:
 
 
 def _inflated(name: str, st: Statistics, mine: np.ndarray, others: np.ndarray, alpha: float) -> list[dict]:
-    """A chip whose inlier residuals are larger than those of its camera's other chips."""
+    """A chip whose inlier residuals are larger than those of its camera's other chips (``mine``,
+    ``others``: their observations' indices)."""
     r_mine, r_other = float(st.redundancy[mine].sum()), float(st.redundancy[others].sum())
     if r_mine < MIN_REDUNDANCY or r_other < MIN_REDUNDANCY:
         return []

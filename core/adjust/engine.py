@@ -18,6 +18,8 @@ import logging
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
+
 from ..errors import InputError, NoDescentError
 from ..model.mixedblock import MixedBlock
 from ..model.rpcscene import RpcScene
@@ -72,21 +74,24 @@ class _ProblemOf:
 def adjust(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings | None = None,
            progress: Callable[[float, str | None], None] | None = None,
            is_cancelled: Callable[[], bool] | None = None, ties: TieTable | None = None,
-           lines: ControlLines | None = None) -> AdjustmentResult:
+           lines: ControlLines | None = None,
+           tie_rays: tuple[np.ndarray, np.ndarray] | None = None) -> AdjustmentResult:
     """Adjust ``scene`` to the control points of ``table``, the tie points ``ties`` and the
     control lines ``lines`` (both optional); evaluate its check points. With tie points the
     control may be sparse or absent when the onboard pseudo-observations hold the datum
     (report["datum"] says how it is held); with lines too (report["lines"]["directions"] says
-    whether they determine both horizontal directions)."""
+    whether they determine both horizontal directions). ``tie_rays``: the tie observations' onboard
+    rays (:func:`core.model.intersection.onboard_rays`) when the caller has them."""
     settings = settings or AdjustmentSettings()
     return adjust_checked(scene, check_inputs(scene, table, settings, ties, lines), settings, progress, is_cancelled,
-                          ties, lines)
+                          ties, lines, tie_rays)
 
 
 def adjust_checked(scene: SceneModel, table: GcpTable, settings: AdjustmentSettings,
                    progress: Callable[[float, str | None], None] | None = None,
                    is_cancelled: Callable[[], bool] | None = None, ties: TieTable | None = None,
-                   lines: ControlLines | None = None) -> AdjustmentResult:
+                   lines: ControlLines | None = None,
+                   tie_rays: tuple[np.ndarray, np.ndarray] | None = None) -> AdjustmentResult:
     """:func:`adjust` of inputs :func:`core.adjust.checks.check_inputs` has checked (``table``: the
     table it returned), for a caller that checks them before its own work (outputs planned, files
     read), so that nothing is checked twice."""
@@ -97,15 +102,18 @@ def adjust_checked(scene: SceneModel, table: GcpTable, settings: AdjustmentSetti
     if settings.tie_height_sigma is not None and (ties is None or not len(ties)):
         raise InputError("TIE_HEIGHT_SIGMA holds the tie points' heights to the reference DEM: give TIE_POINTS",
                          parameter="settings.tie_height_sigma")
-    tie_set = set_up_ties(scene, ties, reference_of(settings.dem, settings.dem_datum, settings.tie_height_sigma)) \
-        if ties is not None and len(ties) else TieSetUp.empty()
+    tie_set = set_up_ties(scene, ties, reference_of(settings.dem, settings.dem_datum, settings.tie_height_sigma),
+                          tie_rays) if ties is not None and len(ties) else TieSetUp.empty()
     problem = scene.answer(_ProblemOf(table, settings, tie_set, set_up_lines(scene, lines)))
     if problem.rpc_choice is not None:
         log.info("%s", problem.rpc_choice["sentence"])
     check_redundancy(problem)
-    _, system = problem.system()
+    lin, system = problem.system()
     determinability = check_determinability(problem, system)
     trajectory_prior = hold_weak_trajectory(problem, problem.system()[1] if determinability else system)
+    # the first solution starts from these normal equations when neither check changed the problem (at a
+    # thousand RPC products one assembly costs 12 s)
+    start = (lin, system) if not determinability and trajectory_prior is None else None
     selection = None
     selecting = settings.interior_selection == "significant" and interior_free(problem).size > 0
     if selecting and system.is_sparse:
@@ -114,7 +122,7 @@ def adjust_checked(scene: SceneModel, table: GcpTable, settings: AdjustmentSetti
                     system.N.shape[0], system.N.shape[0])
         selecting = False
     try:
-        est = estimate(problem, progress, is_cancelled)
+        est = estimate(problem, progress, is_cancelled, start)
     except NoDescentError as err:
         if not selecting:
             raise

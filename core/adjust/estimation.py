@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .normal import Linearization, System
 from .problem import Problem
 from .robust import (COMPONENT_TOLERANCE, REFLAGGED, components, critical, flag_lines, inliers, joint_groups,
                      rescale, robust_scale, robust_weights, truncation)
@@ -34,9 +35,12 @@ class Estimate:
     held: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
 
-def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
+def estimate(problem: Problem, progress, is_cancelled,
+             start: tuple[Linearization, System] | None = None) -> Estimate:
     """Solve, estimate the variance components and down-weight gross errors, alternately,
-    until neither the flags nor the component factors change (see :mod:`core.adjust.robust`)."""
+    until neither the flags nor the component factors change (see :mod:`core.adjust.robust`).
+    ``start``: the problem's linearisation and normal equations at its current state, where the first
+    solution starts (None: made there)."""
     s = problem.settings
     crit = critical(s.alpha)
     robust = s.robust != "none"
@@ -48,7 +52,7 @@ def estimate(problem: Problem, progress, is_cancelled) -> Estimate:
     held = np.zeros(len(problem.obs), bool)
     for k in range(s.max_robust_iterations if iterate else 1):
         label = f"robust pass {k + 1}: " if robust else f"variance component pass {k + 1}: " if iterate else ""
-        result = solve(problem, progress, is_cancelled, label)
+        result = solve(problem, progress, is_cancelled, label, start if k == 0 else None)
         st = statistics(problem, result["linearization"], result["system"])
         # Before any component is estimated the scale is robust: sigma0 of a first pass is
         # inflated by the gross errors themselves and would hide most of them.

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..geodesy import ecef_to_geodetic, geodetic_to_ecef
 from ..model.block import chip_label
-from ..model.sensor import SceneModel
+from ..model.sensor import SceneModel, rows_by
 from ..observations.gcps import GcpTable
 from ..observations.tables import listed
 from .datumdirections import with_directions
@@ -139,10 +139,7 @@ def result_of(problem: Problem, table: GcpTable, adjusted: SceneModel, est: Esti
         "high_correlations": pairs,
         "control_residuals": _residual_summary(st.v[good & gcp]),
         "control_ground": _ground_taken(problem, good & gcp, st.v, stated[problem.rows[good & gcp]]),
-        "control_residuals_per_chip": {
-            chip_label(c, k): _residual_summary(st.v[good & gcp & (problem.obs.camera == ci)
-                                                                    & (problem.obs.chip == k)])
-            for ci, c in enumerate(problem.scene.cameras) for k in range(len(c.chips))},
+        "control_residuals_per_chip": _per_chip(problem, st.v, np.nonzero(good & gcp)[0]),
         "check_points": check_point_report(after),
         "check_points_before": check_point_report(before),
         "trajectory": _trajectory_curves(problem.params.trajectories) if problem.params.position_basis is not None
@@ -185,8 +182,7 @@ def _tie_points(problem: Problem, st: Statistics, flagged: np.ndarray, good: np.
               "flagged": int(flagged[tie].sum()),
               "span": problem.ties.span(problem.scene),
               "residuals": _residual_summary(st.v[tie & good]),
-              "residuals_per_camera": {c.name: _residual_summary(st.v[tie & good & (problem.obs.camera == ci)])
-                                       for ci, c in enumerate(cams)},
+              "residuals_per_camera": _per_camera(cams, problem.obs.camera, st.v, np.nonzero(tie & good)[0]),
               "relative_accuracy": "image residuals of the tie observations (px, flagged ones left out) measure the "
                                    "block's relative accuracy; the tie points' adjusted ground positions carry the "
                                    "datum's error as well and are no absolute accuracy figure"}
@@ -276,6 +272,21 @@ def _ground_taken(problem: Problem, mask: np.ndarray, v: np.ndarray, stated: np.
             "shift_rmse_vertical_m": rms(shift[:, 2]),
             "at_stated_ground": _residual_summary(stated[np.isfinite(stated).all(axis=1)]),
             "ground_share": 1.0 - float(np.sum(v[mask] ** 2)) / total if total > 0 else None}
+
+
+def _per_camera(cameras: list, camera: np.ndarray, v: np.ndarray, rows: np.ndarray) -> dict:
+    """{camera name: :func:`_residual_summary`} of the residuals ``v`` (n, 2) px at the observations
+    ``rows`` (k,) index of each of ``cameras`` (``camera`` (n,): the observations' camera indices)."""
+    return {c.name: _residual_summary(v[rows[r]]) for c, r in zip(cameras, rows_by(camera[rows], len(cameras)))}
+
+
+def _per_chip(problem, v: np.ndarray, rows: np.ndarray) -> dict:
+    """{chip label: :func:`_residual_summary`} of the residuals ``v`` (n, 2) px at the observations
+    ``rows`` (k,) index, per chip of every camera of the problem's scene (the rows taken once, not a
+    mask of every observation per chip: a region's thousand cameras)."""
+    camera, chip = problem.obs.camera[rows], problem.obs.chip[rows]
+    return {chip_label(c, k): _residual_summary(v[rows[(camera == ci) & (chip == k)]])
+            for ci, c in enumerate(problem.scene.cameras) for k in range(len(c.chips))}
 
 
 def _residual_summary(v: np.ndarray) -> dict:

@@ -59,13 +59,15 @@ LAMBDA_MIN = 1e-9         # below this the damping is dropped (Gauss-Newton)
 LAMBDA_MAX = 1e10         # beyond this no step lowers the residuals: the solution is stuck
 
 
-def solve(problem: Problem, progress, is_cancelled, label: str = "") -> dict:
+def solve(problem: Problem, progress, is_cancelled, label: str = "",
+          start: tuple[Linearization, System] | None = None) -> dict:
     """Gauss-Newton iterations to convergence, damped (Levenberg-Marquardt, the damping set by the
-    gain ratio) only after a step that fails. Returns the iteration log, the last normal equations
-    and linearisation."""
+    gain ratio) only after a step that fails, from the linearisation and normal equations ``start`` of
+    the problem's current state (None: made here). Returns the iteration log, the last normal
+    equations and linearisation."""
     lam, nu = 0.0, 2.0
     history = []
-    lin, system = problem.system()
+    lin, system = start or problem.system()
     cost = best = system.cost
     idle = 0
     for it in range(problem.settings.max_iterations):

@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import InputError
 from ..geodesy import ecef_to_geodetic, enu_rotation
 from ..model.intersection import MIN_CONVERGENCE, intersect
-from ..model.sensor import SceneModel
+from ..model.sensor import SceneModel, rows_by
 from ..observations.tiepoints import TieTable
 from ..observations.tables import listed
 from ..rotations import ARCSEC
@@ -127,9 +127,10 @@ def check_ties(scene: SceneModel, ties: TieTable, gcp_ids: np.ndarray) -> None:
         raise InputError(f"tie points: {int(outside.sum())} observation(s) of point(s) "
                          f"{listed(np.unique(ties.id[outside]))} lie outside their camera's image (by more than "
                          f"{EDGE:g} px)", parameter="ties")
-    pairs, counts = np.unique(np.stack([ties.id, ties.camera], axis=1), axis=0, return_counts=True)
+    ids, point = np.unique(ties.id, return_inverse=True)
+    pairs, counts = np.unique(point * len(names) + cam, return_counts=True)  # (point, camera) as one integer
     if (counts > 1).any():
-        twice = np.unique(pairs[counts > 1, 0])
+        twice = ids[np.unique(pairs[counts > 1] // len(names))]
         raise InputError(f"tie points: point(s) {listed(twice)} are observed more than once in the same camera "
                          "(duplicate observations); keep one observation per point and camera", parameter="ties")
     shared = np.intersect1d(ties.id, gcp_ids)
@@ -138,15 +139,17 @@ def check_ties(scene: SceneModel, ties: TieTable, gcp_ids: np.ndarray) -> None:
                          "ground position: give it another id, or measure it as a GCP", parameter="ties")
 
 
-def set_up_ties(scene: SceneModel, ties: TieTable | None, heights: TieHeights | None = None) -> TieSetUp:
+def set_up_ties(scene: SceneModel, ties: TieTable | None, heights: TieHeights | None = None,
+                rays: tuple[np.ndarray, np.ndarray] | None = None) -> TieSetUp:
     """The tie observations used and their points' start values (see the module docstring), their
     heights held to the reference DEM ``heights`` (None: not); warns naming the points left out and
-    why."""
+    why. ``rays``: the observations' onboard rays (:func:`core.model.intersection.onboard_rays`)
+    when the caller has them."""
     if ties is None or len(ties) == 0:
         return TieSetUp.empty()
     ids, point = ties.points()
     camera = camera_indices(scene, ties.camera)
-    start = intersect(scene, camera, ties.col, ties.row, point, ids.size)
+    start = intersect(scene, camera, ties.col, ties.row, point, ids.size, rays)
     single = start.rays < 2
     source = ""
     if start.weak.any():
@@ -211,9 +214,9 @@ def on_rays(scene: SceneModel, camera: np.ndarray, col: np.ndarray, row: np.ndar
     """ECEF points (k,3) m on the rays of image points (col, row (k,) px in cameras ``camera`` (k,)) at
     ellipsoidal heights ``height`` (k,) m."""
     ground = np.full((col.size, 3), np.nan)
-    for c in np.unique(camera):
-        m = camera == c
-        ground[m] = scene.image_to_ground(col[m], row[m], height[m], int(c))
+    for c, m in enumerate(rows_by(camera, len(scene.cameras))):
+        if m.size:
+            ground[m] = scene.image_to_ground(col[m], row[m], height[m], c)
     return ground
 
 

@@ -69,8 +69,9 @@ def _sum_by_point(point: np.ndarray, values: np.ndarray, m: int) -> np.ndarray:
     return out.reshape((m,) + values.shape[1:])
 
 
-def _rays(scene: SceneModel, camera, col, row) -> tuple[np.ndarray, np.ndarray]:
-    """Origins (n,3) and unit directions (n,3) ECEF of the observations' lines of sight."""
+def onboard_rays(scene: SceneModel, camera, col, row) -> tuple[np.ndarray, np.ndarray]:
+    """Origins (n,3) and unit directions (n,3) ECEF of the observations' lines of sight (camera (n,)
+    index, col, row (n,) px)."""
     origin = np.empty((col.size, 3))
     direction = np.empty((col.size, 3))
     for c, m in enumerate(rows_by(camera, len(scene.cameras))):
@@ -103,9 +104,10 @@ def convergence_angle(A: np.ndarray, rays: np.ndarray) -> np.ndarray:
     return out
 
 
-def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None = None) -> Intersection:
+def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None = None,
+              sight: tuple[np.ndarray, np.ndarray] | None = None) -> Intersection:
     """Intersect the observations (camera (n,) index, col, row (n,) px) of points ``point``
-    (n,) index in 0..n_points-1."""
+    (n,) index in 0..n_points-1; ``sight``: their :func:`onboard_rays` when the caller has them."""
     camera = np.asarray(camera, dtype=np.int64)
     point = np.asarray(point, dtype=np.int64)
     col, row = np.asarray(col, dtype=float), np.asarray(row, dtype=float)
@@ -113,7 +115,7 @@ def intersect(scene: SceneModel, camera, col, row, point, n_points: int | None =
     if col.size and (point.min() < 0 or point.max() >= m):
         raise InputError("point indices of the observations are out of range")
     rays = np.bincount(point, minlength=m)
-    origin, u = _rays(scene, camera, col, row)
+    origin, u = sight if sight is not None else onboard_rays(scene, camera, col, row)
     projector = np.eye(3)[None] - u[:, :, None] * u[:, None, :]          # (n,3,3)
     A = _sum_by_point(point, projector, m)
     b = _sum_by_point(point, np.einsum("nij,nj->ni", projector, origin), m)

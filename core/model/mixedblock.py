@@ -33,6 +33,9 @@ class MixedBlock:
     images: dict[str, RpcScene]
     order: list[str]
     info: dict = field(default_factory=dict)
+    # the scenes' height ranges do not change: the block's is computed once (a report asks it per image: a
+    # thousand images each a thousand times)
+    _height_range: tuple[float, float] | None = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def cameras(self) -> list:
@@ -64,9 +67,12 @@ class MixedBlock:
 
     @property
     def height_range(self) -> tuple[float, float]:
-        ranges = [s.height_range for s in ([self.rigorous] if self.rigorous is not None else [])
-                  + list(self.images.values())]
-        return min(r[0] for r in ranges), max(r[1] for r in ranges)
+        """(lowest, highest) ellipsoidal height (m) of the scenes' height ranges."""
+        if self._height_range is None:
+            ranges = [s.height_range for s in ([self.rigorous] if self.rigorous is not None else [])
+                      + list(self.images.values())]
+            self._height_range = (min(r[0] for r in ranges), max(r[1] for r in ranges))
+        return self._height_range
 
     def platform_of(self, camera: int):
         """The trajectory a rigorous camera sees; None for an RPC image (no platform)."""

@@ -33,7 +33,7 @@ from ..model.intersection import MIN_CONVERGENCE, intersect
 from ..validation import MAX_IMAGE_COORDINATE, implausible_image_coordinates, per_point, spread_problem
 from ..vector_io import layer_to_wgs84_3d, open_layer, wgs84_3d, write_layer
 from .tables import (SCENE_METADATA_KEY, csv_column, listed, nullable_floats, parse_numbers, per_point_sigmas, present,
-                     read_delimited, require_finite, require_unique, resolve_cameras)
+                     read_delimited, require_finite, require_unique, resolve_cameras, stripped)
 
 log = logging.getLogger(__name__)
 
@@ -131,7 +131,7 @@ def build_table(ids, camera, col, row, *, scene=None, sigma_px=DEFAULT_SIGMA_PX,
     optional = {k: v for k, v in dict(camera=camera, scene=scene).items() if v is not None}
     ids, col, row, sigma_px, *given = per_point(ids=ids, col=col, row=row, sigma_px=sigma_px, **optional)
     camera, scene = (dict(zip(optional, given)).get(k) for k in ("camera", "scene"))
-    ids = np.char.strip(np.asarray(ids, dtype=str))
+    ids = stripped(ids)
     if ids.size == 0:
         raise InputError(f"{source}: no tie points")
     if (ids == "").any():
@@ -145,7 +145,7 @@ def build_table(ids, camera, col, row, *, scene=None, sigma_px=DEFAULT_SIGMA_PX,
                          f"(|value| > {MAX_IMAGE_COORDINATE:g} px)")
 
     def texts(values):
-        return np.full(ids.size, "") if values is None else np.char.strip(np.asarray(values, dtype=str))
+        return np.full(ids.size, "") if values is None else stripped(values)
 
     return TieTable(ids, texts(camera), col, row, sigma_px, texts(scene))
 
