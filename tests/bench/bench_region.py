@@ -41,7 +41,7 @@ exponent) fits in the memory available now; otherwise the estimate is printed an
 
 Run:  PYTHONPATH=. PROJ_DATA=/usr/share/proj /usr/bin/python3 tests/bench/bench_region.py
       [--sizes 100,300,1000] [--ties 2000] [--correction shift] [--rpc-sigma 10] [--out out/bench_region]
-      [--drift-m 2] [--forward-ties] [--force] [--corner-gcps]
+      [--drift-m 2] [--forward-ties] [--force] [--corner-gcps] [--seeds N (regions per size)] [--seed S (the first)]
       [--tie-height-sigma M (the tie heights held to the region's DEM at M metres)]
 The simulated regions are kept in --out and reused.
 """
@@ -81,6 +81,7 @@ from tests.bench.bench_block import read_columns  # noqa: E402
 # strips x products per strip of each size (wider than long: strips of 51 km, products 44 km apart)
 LAYOUTS = {100: (10, 10), 300: (15, 20), 1000: (25, 40), 3000: (50, 60)}
 SIDE_LAP, FORWARD = 0.2, 0.15
+SEED = 31  # the first region's seed (the regions cached in --out so far are seed 31's)
 DRIFT_M = RegionSettings().drift_m   # m: the vendor drift's largest displacement of the last row, per axis
 log = logging.getLogger("bench_region")
 
@@ -242,7 +243,8 @@ def run_child(args, n: int) -> None:
 def region_folder(args, n: int) -> Path:
     drift = "" if args.drift_m == DRIFT_M else f"_drift{args.drift_m:g}"
     corners = "_corners" if args.corner_gcps else ""
-    return Path(args.out) / f"region_{n}_{args.ties}{'_forward' if args.forward_ties else ''}{drift}{corners}"
+    seed = "" if args.seed == SEED else f"_seed{args.seed}"
+    return Path(args.out) / f"region_{n}_{args.ties}{'_forward' if args.forward_ties else ''}{drift}{corners}{seed}"
 
 
 def simulate(args, n: int) -> Path:
@@ -250,7 +252,7 @@ def simulate(args, n: int) -> Path:
     if not (folder / "region.json").exists():
         reset_peak()
         t0 = time.perf_counter()
-        simulate_region(layout_of(n), folder, seed=31,
+        simulate_region(layout_of(n), folder, seed=args.seed,
                         settings=RegionSettings(ties_per_product=args.ties, forward_ties=args.forward_ties,
                                                 drift_m=args.drift_m, corner_gcps=args.corner_gcps))
         print(f"{n} products: simulated in {time.perf_counter() - t0:.1f} s, peak {peak_mb():.0f} MB "
@@ -280,6 +282,52 @@ def print_accuracy(row: dict) -> None:
         print(f"  report: {sentence}")
 
 
+def run_size(args, n: int) -> dict | None:
+    """Simulate (or reuse) the region of ``n`` products of seed args.seed, adjust it in a child process
+    and print its figures; the child's row, None when it failed (said)."""
+    simulate(args, n)
+    child = [sys.executable, __file__, "--child", str(n), "--ties", str(args.ties), "--out", args.out,
+             "--correction", args.correction, "--rpc-sigma", str(args.rpc_sigma), "--seed", str(args.seed)]
+    child += (["--forward-ties"] if args.forward_ties else []) + ["--drift-m", str(args.drift_m)]
+    child += ["--corner-gcps"] if args.corner_gcps else []
+    if args.tie_height_sigma is not None:
+        child += ["--tie-height-sigma", str(args.tie_height_sigma)]
+    done = subprocess.run(child, capture_output=True, text=True)
+    if done.returncode:
+        print(f"{n} products: the adjustment failed (exit {done.returncode}):\n{done.stderr[-2000:]}", flush=True)
+        return None
+    row = json.loads(done.stdout.strip().splitlines()[-1])
+    seed = "" if args.seeds == 1 else f" (seed {args.seed})"
+    print(f"{n} products{seed}, {row['tie_observations']} tie observations: adjusted in {row['wall_s']:.1f} s wall "
+          f"({row['cpu_s']:.1f} s CPU), peak {row['peak_mb']:.0f} MB; sigma0 {row['sigma0']:.3f}, tie RMS "
+          f"{row['tie_rmse_before_px']:.2f} -> {row['tie_rmse_px']:.3f} px; neighbours' misregistration "
+          f"{row['misregistration_px']:.3f} px RMS (vendor {row['misregistration_vendor_px']:.2f}; "
+          f"{row['check_pairs']} pairs), absolute {row['absolute_m']:.2f} m RMS (vendor "
+          f"{row['absolute_vendor_m']:.2f}; {row['check_observations']} check observations)", flush=True)
+    print_accuracy(row)
+    return row
+
+
+def print_mean_error_spread(by_size: dict) -> None:
+    """With several seeds per size: the RMS over the seeds of the block's mean error (the adjusted products'
+    and the vendors'), against the report's predicted sigma of the block's common shift (mean over the
+    seeds; 1 sigma radial, whose expected RMS it is), and its fall between sizes against the sqrt(n) law."""
+    rms = {}
+    for n, rows in by_size.items():
+        adjusted = [r["truth"]["block_mean_m"] for r in rows]
+        vendor = [r["vendor_truth"]["block_mean_m"] for r in rows]
+        predicted = [r["predicted"]["block_mean_m"] for r in rows if r["predicted"]["block_mean_m"] is not None]
+        rms[n] = float(np.sqrt(np.mean(np.square(adjusted))))
+        said = f"{np.mean(predicted):.2f} m" if predicted else "-"
+        print(f"block mean error over {len(rows)} regions of {n} products: RMS {rms[n]:.2f} m (vendors' "
+              f"{float(np.sqrt(np.mean(np.square(vendor)))):.2f} m; each {', '.join(f'{a:.2f}' for a in adjusted)}); "
+              f"the report predicts {said} (1 sigma radial)")
+    sizes = sorted(rms)
+    for a, b in zip(sizes, sizes[1:]):
+        print(f"block mean error RMS {a} -> {b} products: {rms[a]:.2f} -> {rms[b]:.2f} m (sqrt(n) law: "
+              f"{rms[a] * math.sqrt(a / b):.2f} m)")
+
+
 def exponent(a: dict, b: dict, key: str) -> float:
     return math.log(b[key] / a[key]) / math.log(b["n"] / a["n"])
 
@@ -299,13 +347,17 @@ def main() -> None:
                     help="the 4 ground points nearest the region's corners control, the rest check (own folder)")
     ap.add_argument("--out", default="out/bench_region")
     ap.add_argument("--force", action="store_true", help="run a size even when its memory estimate does not fit")
+    ap.add_argument("--seeds", type=int, default=1,
+                    help="regions per size (seeds --seed, --seed + 1, ...): the block mean error's RMS over them against the "
+                         "report's predicted sigma")
+    ap.add_argument("--seed", type=int, default=SEED, help="the first region's seed (the child's: its region's)")
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     if args.child:
         run_child(args, args.child)
         return
-    rows = []
+    rows, by_size, first = [], {}, args.seed
     for n in (int(s) for s in args.sizes.split(",")):
         if len(rows) >= 2 and not args.force:
             k = exponent(rows[-2], rows[-1], "peak_mb")
@@ -315,26 +367,17 @@ def main() -> None:
                 print(f"{n} products: not run; the adjustment's peak extrapolated at n^{k:.2f} is about "
                       f"{estimate / 1024:.1f} GB, more than 80 % of the {have / 1024:.1f} GB available", flush=True)
                 continue
-        simulate(args, n)
-        child = [sys.executable, __file__, "--child", str(n), "--ties", str(args.ties), "--out", args.out,
-                 "--correction", args.correction, "--rpc-sigma", str(args.rpc_sigma)]
-        child += (["--forward-ties"] if args.forward_ties else []) + ["--drift-m", str(args.drift_m)]
-        child += ["--corner-gcps"] if args.corner_gcps else []
-        if args.tie_height_sigma is not None:
-            child += ["--tie-height-sigma", str(args.tie_height_sigma)]
-        done = subprocess.run(child, capture_output=True, text=True)
-        if done.returncode:
-            print(f"{n} products: the adjustment failed (exit {done.returncode}):\n{done.stderr[-2000:]}", flush=True)
+        for seed in range(first, first + args.seeds):
+            args.seed = seed
+            row = run_size(args, n)
+            if row is None:
+                break
+            by_size.setdefault(n, []).append(row)
+        if n not in by_size:
             break
-        row = json.loads(done.stdout.strip().splitlines()[-1])
-        rows.append(row)
-        print(f"{n} products, {row['tie_observations']} tie observations: adjusted in {row['wall_s']:.1f} s wall "
-              f"({row['cpu_s']:.1f} s CPU), peak {row['peak_mb']:.0f} MB; sigma0 {row['sigma0']:.3f}, tie RMS "
-              f"{row['tie_rmse_before_px']:.2f} -> {row['tie_rmse_px']:.3f} px; neighbours' misregistration "
-              f"{row['misregistration_px']:.3f} px RMS (vendor {row['misregistration_vendor_px']:.2f}; "
-              f"{row['check_pairs']} pairs), absolute {row['absolute_m']:.2f} m RMS (vendor "
-              f"{row['absolute_vendor_m']:.2f}; {row['check_observations']} check observations)", flush=True)
-        print_accuracy(row)
+        rows.append(by_size[n][0])
+    if args.seeds > 1:
+        print_mean_error_spread(by_size)
     for a, b in zip(rows, rows[1:]):
         print(f"block mean error {a['n']} -> {b['n']} products: {a['truth']['block_mean_m']:.2f} -> "
               f"{b['truth']['block_mean_m']:.2f} m (sqrt(n) law: {a['truth']['block_mean_m'] * math.sqrt(a['n'] / b['n']):.2f} m)")

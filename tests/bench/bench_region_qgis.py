@@ -33,7 +33,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 from tests.bench.bench_block import read_columns  # noqa: E402
-from tests.bench.bench_region import DRIFT_M, check_errors, exponent, misregistration, simulate  # noqa: E402
+from tests.bench.bench_region import DRIFT_M, SEED, check_errors, exponent, misregistration, simulate  # noqa: E402
 from tests.support.paths import PLUGIN, QGIS_PROCESS  # noqa: E402
 
 from pushbroom_adjust.core.formats import load_scene  # noqa: E402
@@ -129,7 +129,8 @@ def main() -> None:
                     help="leave out tie points seen only by consecutive products of one strip")
     ap.add_argument("--drift-m", type=float, default=DRIFT_M, help="the simulated vendor drift (m at the last row)")
     ap.add_argument("--out", default="out/bench_region")
-    ap.set_defaults(corner_gcps=False)  # bench_region.region_folder's field: the regions without corner GCPs
+    # bench_region.region_folder's fields: the regions of the first seed, without corner GCPs
+    ap.set_defaults(corner_gcps=False, seed=SEED)
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     rows = []
